@@ -1,0 +1,3 @@
+//! axcomp-core: see docs/design.md.
+#![no_std]
+#![forbid(unsafe_code)]

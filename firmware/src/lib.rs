@@ -1,0 +1,2 @@
+//! axcomp-firmware: see docs/design.md.
+#![no_std]

@@ -1,0 +1,1 @@
+//! axcomp-data (see docs/design.md).

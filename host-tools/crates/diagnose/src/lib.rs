@@ -1,0 +1,1 @@
+//! axcomp-diagnose (see docs/design.md).

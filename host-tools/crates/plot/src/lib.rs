@@ -1,0 +1,1 @@
+//! axcomp-plot (see docs/design.md).

@@ -1,0 +1,1 @@
+//! axcomp-positioning (see docs/design.md).

@@ -1,0 +1,1 @@
+//! axcomp-thermal (see docs/design.md).

@@ -1,0 +1,1 @@
+//! axcomp-twin (see docs/design.md).

@@ -1,0 +1,71 @@
+//! Command-line surface of `axcomp` (the contract is `../shared/spec/interfaces.md`).
+
+use clap::{Parser, Subcommand};
+
+use crate::commands;
+
+#[derive(Debug, Parser)]
+#[command(name = "axcomp", version, about = "Error compensation for precision linear axes: fit, build, simulate, diagnose", long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate an axis, measure it (ISO 230-2), fit a table, build the firmware image, replay it and print before/after figures.
+    Demo(commands::demo::Args),
+    /// Fit a compensation model from measurements.
+    #[command(subcommand)]
+    Fit(FitCommand),
+    /// Build or inspect the firmware's binary table image.
+    #[command(subcommand)]
+    Image(ImageCommand),
+    /// Run the firmware's compensation logic (under std) over a trace and write the corrected commands.
+    Replay(commands::replay::Args),
+    /// Write a binary trace (scale, command, temperatures, forces over time) for replay on the host or in QEMU.
+    Trace(commands::trace::Args),
+    /// Export a fitted positioning table to formats other tools read (LinuxCNC comp file, CSV).
+    Export(commands::export::Args),
+    /// Simulate an axis (the digital twin) and write measurement CSV.
+    Sim(commands::sim::Args),
+    /// Diagnose the gap between a model and measurements: where it lies, which unmodelled effect explains it.
+    Diagnose(commands::diagnose::Args),
+    /// Check the diagnosis on many twin campaigns with one effect withheld (detection, attribution, false alarms).
+    ValidateDiagnosis(commands::validate_diagnosis::Args),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum FitCommand {
+    /// Fit a positioning-error table (linear, piecewise linear, cubic spline) from ISO 230-2 runs.
+    Positioning(commands::fit_positioning::Args),
+    /// Fit a thermal (thermo-force) error model from temperature/force/error time series.
+    Thermal(commands::fit_thermal::Args),
+    /// Fit cutting-force laws F = K·ap^x·fz^y·n^z and milling force coefficients.
+    Force(commands::fit_force::Args),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum ImageCommand {
+    /// Build a table image from fitted models.
+    Build(commands::image::BuildArgs),
+    /// Validate an image and print its contents.
+    Inspect(commands::image::InspectArgs),
+}
+
+/// Options shared by every command that reads a measurement CSV (see the contract's "Common options").
+#[derive(Debug, Clone, clap::Args)]
+pub struct DataArgs {
+    /// The measurement CSV.
+    #[arg(long, value_name = "FILE")]
+    pub data: std::path::PathBuf,
+    /// Keep only rows where COL equals VALUE (repeatable).
+    #[arg(long = "where", value_name = "COL=VALUE")]
+    pub where_: Vec<String>,
+    /// Rename a column before anything else (repeatable).
+    #[arg(long, value_name = "OLD=NEW")]
+    pub rename: Vec<String>,
+    /// Multiply a column after renaming (repeatable).
+    #[arg(long, value_name = "COL=FACTOR")]
+    pub scale: Vec<String>,
+}

@@ -1,0 +1,8 @@
+//! `axcomp demo` (not yet built).
+
+#[derive(Debug, clap::Args)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`demo` is not implemented yet")
+}

@@ -1,0 +1,32 @@
+//! One module per subcommand. Each turns its raw `Args` into a validated configuration, then runs.
+
+pub mod demo;
+pub mod diagnose;
+pub mod export;
+pub mod fit_force;
+pub mod fit_positioning;
+pub mod fit_thermal;
+pub mod image;
+pub mod replay;
+pub mod sim;
+pub mod trace;
+pub mod validate_diagnosis;
+
+use crate::cli::{Cli, Command, FitCommand, ImageCommand};
+
+pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Demo(a) => demo::run(a),
+        Command::Fit(FitCommand::Positioning(a)) => fit_positioning::run(a),
+        Command::Fit(FitCommand::Thermal(a)) => fit_thermal::run(a),
+        Command::Fit(FitCommand::Force(a)) => fit_force::run(a),
+        Command::Image(ImageCommand::Build(a)) => image::build(a),
+        Command::Image(ImageCommand::Inspect(a)) => image::inspect(a),
+        Command::Replay(a) => replay::run(a),
+        Command::Trace(a) => trace::run(a),
+        Command::Export(a) => export::run(a),
+        Command::Sim(a) => sim::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
+        Command::ValidateDiagnosis(a) => validate_diagnosis::run(a),
+    }
+}

@@ -1,0 +1,8 @@
+//! `axcomp replay` (not yet built).
+
+#[derive(Debug, clap::Args)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`replay` is not implemented yet")
+}

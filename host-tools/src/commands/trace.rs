@@ -1,0 +1,8 @@
+//! `axcomp trace` (not yet built).
+
+#[derive(Debug, clap::Args)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`trace` is not implemented yet")
+}
