@@ -1,2 +1,29 @@
-//! axcomp-firmware: see docs/design.md.
-#![no_std]
+//! axcomp-firmware: the compensation firmware's portable application code.
+//!
+//! Glossary:
+//! - **Cycle**: one pass of the fixed-rate control loop: read the scale and the command, run the core's
+//!   correction pipeline, write the corrected command.
+//! - **Scale**: the linear encoder; read as a raw, wrapping hardware counter (`u32`), extended by the core.
+//! - **Command**: the position setpoint from the motion controller, in scale counts.
+//! - **Board**: one concrete chip and its wiring (QEMU netduinoplus2, STM32G474RE). Only `board::*` names a
+//!   chip; the loop and the drivers are generic over the traits in [`control`] and embedded-hal 1.0.
+//! - **Trace**: a binary recording of inputs (cycles, temperatures, process parameters, table images) that the
+//!   QEMU firmware and the host replay through the same `axcomp_core::Engine`.
+//! - **Overrun**: a cycle whose compute time exceeded the cycle period.
+//!
+//! Host builds (`cargo test`) compile the portable modules only; the board modules need `target_os = "none"`.
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
+
+#[macro_use]
+mod fmt;
+
+pub mod control;
+pub mod max31865;
+pub mod replay;
+pub mod setpoint;
+
+#[cfg(target_os = "none")]
+pub mod board;
+
+#[cfg(feature = "std")]
+pub mod scenario;

@@ -1,1 +1,148 @@
 //! Workspace-level system tests live in `tests/tests/`; helpers shared by them live here.
+//!
+//! Glossary:
+//! - **Workspace root**: the directory of the root `Cargo.toml` (parent of this package).
+//! - **Shared data**: `../shared` next to the workspace root (override: env `AXCOMP_SHARED`).
+//! - **CI mode**: env `CI` set; a missing prerequisite (shared data, QEMU) is then a failure, not a skip.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus};
+use std::time::{Duration, Instant};
+
+/// The workspace root.
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("tests/ has a parent")
+        .to_path_buf()
+}
+
+/// True when running in CI (env `CI` set).
+pub fn in_ci() -> bool {
+    std::env::var_os("CI").is_some()
+}
+
+/// The shared directory (`AXCOMP_SHARED` or `../shared` from the workspace root), `None` when absent
+/// outside CI (after printing `skipped: ../shared not found`); panics when absent in CI.
+pub fn shared_dir() -> Option<PathBuf> {
+    let dir = match std::env::var_os("AXCOMP_SHARED") {
+        Some(p) => PathBuf::from(p),
+        None => workspace_root().join("../shared"),
+    };
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    if in_ci() {
+        panic!(
+            "{} not found (CI is set, so this is a failure)",
+            dir.display()
+        );
+    }
+    println!("skipped: ../shared not found");
+    None
+}
+
+/// True when `program --version` runs; otherwise prints `skipped: {program} not found` and returns false,
+/// or panics in CI.
+pub fn require_tool(program: &str) -> bool {
+    let ok = Command::new(program)
+        .arg("--version")
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !ok {
+        if in_ci() {
+            panic!("{program} not found (CI is set, so this is a failure)");
+        }
+        println!("skipped: {program} not found");
+    }
+    ok
+}
+
+/// Waits for `child` at most `timeout`; kills it and returns `None` on timeout.
+pub fn wait_timeout(child: &mut Child, timeout: Duration) -> std::io::Result<Option<ExitStatus>> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(st) = child.try_wait()? {
+            return Ok(Some(st));
+        }
+        if Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Ok(None);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// A fresh scratch directory under the system temp dir, unique to this process and `tag`.
+pub fn scratch_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("axcomp-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("creating a scratch dir");
+    d
+}
+
+/// Builds a firmware bin for QEMU (release, thumbv7em-none-eabihf, feature `qemu`) in its own target dir so
+/// the nested cargo does not wait on the outer one's lock; returns the ELF path.
+pub fn build_qemu_firmware(bin: &str) -> PathBuf {
+    let root = workspace_root();
+    let target_dir = match std::env::var_os("AXCOMP_QEMU_TARGET_DIR") {
+        Some(d) => PathBuf::from(d),
+        None => root.join("target/qemu-equivalence"),
+    };
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = Command::new(cargo)
+        .current_dir(&root)
+        .env("CARGO_TARGET_DIR", &target_dir)
+        .env_remove("RUSTFLAGS")
+        .args([
+            "build",
+            "--release",
+            "--target",
+            "thumbv7em-none-eabihf",
+            "-p",
+            "axcomp-firmware",
+            "--features",
+            "qemu",
+            "--bin",
+            bin,
+        ])
+        .output()
+        .expect("running cargo to build the QEMU firmware");
+    assert!(
+        out.status.success(),
+        "building {bin} for QEMU failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    target_dir.join("thumbv7em-none-eabihf/release").join(bin)
+}
+
+/// QEMU's command line for an ELF on netduinoplus2 with semihosting and deterministic instruction counting;
+/// `args` become the semihosting command line after the program name.
+pub fn qemu_command(elf: &Path, args: &[&str]) -> Command {
+    let mut sh = String::from("enable=on,target=native,arg=firmware");
+    for a in args {
+        assert!(
+            !a.contains(',') && !a.contains(' '),
+            "semihosting argument {a:?} must not contain , or space"
+        );
+        sh.push_str(",arg=");
+        sh.push_str(a);
+    }
+    let mut c = Command::new("qemu-system-arm");
+    c.args([
+        "-machine",
+        "netduinoplus2",
+        "-nographic",
+        "-monitor",
+        "none",
+        "-serial",
+        "none",
+    ])
+    .args(["-semihosting-config", &sh])
+    .args(["-icount", "shift=0"])
+    .arg("-kernel")
+    .arg(elf);
+    c
+}

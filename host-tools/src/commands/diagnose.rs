@@ -1,8 +1,75 @@
-//! `axcomp diagnose` (not yet built).
+//! `axcomp diagnose`: fits a model holding only the named effects on the training rows, measures the gap
+//! on the held-out rows, finds where it lies and which unmodelled effect explains it (see
+//! `axcomp_diagnose`). Contract: `../shared/spec/interfaces.md`.
+//!
+//! Terms: *model* = the `--model` effect kinds; *gap* = what the model misses on held-out rows; *verdict*
+//! = the effect judged responsible, or `none`.
+
+use std::path::PathBuf;
+
+use axcomp_diagnose::{DiagnoseOptions, EffectKind, dataset, report};
+
+use crate::cli::DataArgs;
+use crate::commands::common;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// Effects the model holds, comma separated (contract names, e.g. `pitch_error,reversal`); may be empty.
+    #[arg(long, value_name = "K1,K2,..")]
+    pub model: String,
+    /// Rows held out from fitting and used only to judge: `COL=V1,V2`, `COL>=X`, `COL<X`.
+    #[arg(long, value_name = "SPEC")]
+    pub holdout: String,
+    /// The error column to model.
+    #[arg(long, value_name = "COL", default_value = "deviation_um")]
+    pub target: String,
+    /// Write the machine-readable result here.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Write a Markdown report with SVG figures into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`diagnose` is not implemented yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let model = EffectKind::parse_list(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
+    let opts = DiagnoseOptions::default().build().map_err(anyhow::Error::msg)?;
+    let ds = common::load_dataset(&args.data)?;
+    let obs = dataset::observations(&ds, &args.target, &args.holdout)?;
+    let d = axcomp_diagnose::diagnose(&obs, &model, &opts)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.data.data.display()))?;
+    println!(
+        "gap of `{}` (model: {}): train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out rows)",
+        d.target,
+        if args.model.trim().is_empty() { "intercept only" } else { args.model.trim() },
+        d.gap.train_rms_um,
+        d.gap.holdout_rms_um,
+        d.gap.holdout_max_um,
+        d.n_train,
+        d.n_holdout
+    );
+    for r in d.where_.iter().take(4) {
+        println!("  where: {} {:.4} … {:.4} holds {:.1} % of the held-out gap", r.variable, r.from, r.to, 100.0 * r.share);
+    }
+    for c in d.effects.iter().take(5) {
+        println!(
+            "  candidate {:<20} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",
+            c.kind,
+            c.score,
+            c.holdout_rms_after_um,
+            c.shrink_pct,
+            if c.explains { "" } else { "  (not beyond noise)" }
+        );
+    }
+    println!("verdict: {} — {}", d.verdict, d.note);
+    if let Some(dir) = &args.report {
+        let files = report::write_report(dir, &obs, &d)?;
+        println!("report: {} files in {}", files.len(), dir.display());
+    }
+    if let Some(path) = &args.json {
+        common::write_json(path, &d)?;
+    }
+    Ok(())
 }

@@ -1,8 +1,633 @@
-//! `axcomp fit_positioning` (not yet built).
+//! `axcomp fit positioning`: fit a positioning-error table from ISO 230-2 style runs.
+//!
+//! Glossary:
+//! - *raw*: the measured deviations, i.e. the axis without compensation.
+//! - *judged rows*: the rows the figures are computed on: every row with cross-validation (each predicted by
+//!   a model that did not see its run), only the held-out rows with `--holdout`.
+//! - *guard*: the do-no-harm rule (see `axcomp_positioning::guard`); when it refuses, no table is written
+//!   (unless `--force`), the JSON says `"table_written": false` and the exit code is 3.
+//!
+//! Outputs: `--out` the table (`axcomp-positioning-table/1` JSON), `--json` the figures, `--report DIR` a
+//! Markdown report and SVG plots. Every file is written through a temporary file and a rename.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use axcomp_data::{Dataset, LoadOptions, Split};
+use axcomp_positioning::fit::{FitOptions, FitResult, Observation};
+use axcomp_positioning::guard::{self, GuardVerdict};
+use axcomp_positioning::iso230::{self, Iso230Result};
+use axcomp_positioning::table_file::write_atomic;
+use serde_json::{Value, json};
+
+use crate::cli::DataArgs;
+
+/// Exit code when the do-no-harm guard refuses to write a table.
+pub const EXIT_GUARD_REFUSED: i32 = 3;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// Rows held out from fitting and used only to judge: `COL=V1,V2,..`, `COL>=X`, `COL<X`.
+    #[arg(long, value_name = "SPEC", conflicts_with = "cv")]
+    pub holdout: Option<String>,
+    /// Leave-one-group-out cross-validation over the values of COL (default: `run`/`cycle` when present).
+    #[arg(long, value_name = "COL")]
+    pub cv: Option<String>,
+    /// The error column to model.
+    #[arg(long, value_name = "COL", default_value = "deviation_um")]
+    pub target: String,
+    /// Write the table here (`axcomp-positioning-table/1` JSON).
+    #[arg(long, value_name = "TABLE.json")]
+    pub out: Option<PathBuf>,
+    /// Write the figures as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Write a Markdown report and SVG plots into DIR.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+    /// Number of uniform table segments (1..=1024).
+    #[arg(long, value_name = "N", conflicts_with = "segment_mm")]
+    pub segments: Option<usize>,
+    /// Table segment length in mm.
+    #[arg(long, value_name = "S")]
+    pub segment_mm: Option<f64>,
+    /// Axis name written into the table (default: the `axis` column when it holds one value, else X).
+    #[arg(long)]
+    pub axis: Option<String>,
+    /// Write the table even when the do-no-harm guard refuses.
+    #[arg(long)]
+    pub force: bool,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`fit_positioning` is not implemented yet")
+/// Everything the command computed, before anything is written.
+struct Outcome {
+    json: Value,
+    report: String,
+    fit: FitResult,
+    judged: Judged,
+    refused: bool,
+}
+
+/// The rows the figures are computed on, with their predictions.
+struct Judged {
+    x: Vec<f64>,
+    direction: Vec<i8>,
+    run: Vec<i64>,
+    deviation: Vec<f64>,
+    predicted: Vec<f64>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let outcome = compute(&args)?;
+    // Outputs: the table only when the guard passed (or --force); JSON and report always.
+    let mut written = Vec::new();
+    if let Some(out) = &args.out {
+        if !outcome.refused {
+            outcome
+                .fit
+                .table
+                .save(out)
+                .with_context(|| format!("writing the table {}", out.display()))?;
+            written.push(out.display().to_string());
+        }
+    }
+    if let Some(dir) = &args.report {
+        write_report(dir, &outcome)?;
+        written.push(dir.join("report.md").display().to_string());
+    }
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&outcome.json)?;
+        write_atomic(path, text.as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
+        written.push(path.display().to_string());
+    }
+    let j = &outcome.json;
+    let judged_key = if args.holdout.is_some() {
+        "holdout_rms_um"
+    } else {
+        "cv_rms_um"
+    };
+    println!(
+        "model {}: raw RMS {:.3} µm, {} {:.3} µm ({})",
+        outcome.fit.chosen,
+        j["raw_rms_um"].as_f64().unwrap_or(f64::NAN),
+        judged_key,
+        j[judged_key].as_f64().unwrap_or(f64::NAN),
+        j["cv"]["method"].as_str().unwrap_or("")
+    );
+    if !written.is_empty() {
+        println!("wrote {}", written.join(", "));
+    }
+    if outcome.refused {
+        eprintln!(
+            "axcomp: do-no-harm guard refused to write a table: {}{}",
+            j["guard"]["reasons"]
+                .as_array()
+                .map(|r| r
+                    .iter()
+                    .filter_map(|v| v.as_str())
+                    .collect::<Vec<_>>()
+                    .join("; "))
+                .unwrap_or_default(),
+            if args.out.is_some() {
+                " (use --force to write it anyway)"
+            } else {
+                ""
+            }
+        );
+        use std::io::Write as _;
+        let _ = std::io::stdout().flush();
+        std::process::exit(EXIT_GUARD_REFUSED);
+    }
+    Ok(())
+}
+
+fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (mut s, mut n) = (0.0, 0usize);
+    for x in v {
+        s += x * x;
+        n += 1;
+    }
+    if n == 0 {
+        f64::NAN
+    } else {
+        (s / n as f64).sqrt()
+    }
+}
+
+fn iso(x: &[f64], d: &[i8], run: &[i64], dev: &[f64]) -> Result<Iso230Result, String> {
+    let pts: Vec<iso230::Point> = (0..x.len())
+        .map(|i| iso230::Point {
+            target_mm: x[i],
+            run: run[i].clamp(0, u32::MAX as i64) as u32,
+            direction: if d[i] < 0 { -1 } else { 1 },
+            deviation_um: dev[i],
+        })
+        .collect();
+    iso230::evaluate(&pts).map_err(|e| e.to_string())
+}
+
+fn iso_json(r: &Result<Iso230Result, String>) -> Value {
+    match r {
+        Ok(v) => {
+            let mut j = serde_json::to_value(v).unwrap_or(Value::Null);
+            if let Some(o) = j.as_object_mut() {
+                o.remove("targets");
+            }
+            j
+        }
+        Err(e) => json!({ "error": e }),
+    }
+}
+
+fn compute(args: &Args) -> anyhow::Result<Outcome> {
+    let load = LoadOptions::from_args(&args.data.where_, &args.data.rename, &args.data.scale)?;
+    let ds = Dataset::load(&args.data.data, &load)?;
+    if ds.n_rows() == 0 {
+        bail!("{}: no rows left after --where", args.data.data.display());
+    }
+    let split = Split::from_args(args.holdout.as_deref(), args.cv.as_deref())?;
+    let x = ds.numeric("target_mm")?.to_vec();
+    let dev = ds.numeric(&args.target)?.to_vec();
+    let dir = ds.direction()?.unwrap_or_else(|| vec![0; ds.n_rows()]);
+    let cv_col: Option<String> = match &split {
+        Some(Split::Cv(c)) => Some(c.clone()),
+        _ if ds.has("run") => Some("run".to_string()),
+        _ => None,
+    };
+    let (run, run_labels): (Vec<i64>, Vec<String>) = match &cv_col {
+        Some(c) => {
+            let (ids, labels) = axcomp_data::groups(&ds, c)?;
+            (ids.into_iter().map(|g| g as i64 + 1).collect(), labels)
+        }
+        None => (vec![1; ds.n_rows()], vec!["all".to_string()]),
+    };
+    for (i, (&xi, &di)) in x.iter().zip(&dev).enumerate() {
+        if !xi.is_finite() {
+            bail!("{}: target_mm is not finite", ds.locate("target_mm", i));
+        }
+        if !di.is_finite() {
+            bail!(
+                "{}: {} is not finite",
+                ds.locate(&args.target, i),
+                args.target
+            );
+        }
+    }
+    let axis = match &args.axis {
+        Some(a) => a.clone(),
+        None => match ds.text("axis") {
+            Ok(t) if !t.is_empty() && t.iter().all(|v| *v == t[0]) => t[0].to_string(),
+            _ => "X".to_string(),
+        },
+    };
+    let opts = FitOptions {
+        axis,
+        segments: args.segments,
+        segment_mm: args.segment_mm,
+        ..FitOptions::default()
+    };
+    let obs: Vec<Observation> = (0..ds.n_rows())
+        .map(|i| Observation {
+            target_mm: x[i],
+            direction: dir[i],
+            run: run[i],
+            deviation_um: dev[i],
+        })
+        .collect();
+
+    let holdout_mask = match &split {
+        Some(Split::Holdout(h)) => Some(h.mask(&ds)?),
+        _ => None,
+    };
+    let (fit, judged, verdict, judged_rms, method) = match &holdout_mask {
+        None => {
+            let fit = axcomp_positioning::fit(&obs, &opts)?;
+            let judged = Judged {
+                x: x.clone(),
+                direction: dir.clone(),
+                run: run.clone(),
+                deviation: dev.clone(),
+                predicted: fit.cv_predictions.clone(),
+            };
+            let verdict = fit.guard.clone();
+            let cv = fit.cv_rms_um;
+            let method = fit.split.method.clone();
+            (fit, judged, verdict, cv, method)
+        }
+        Some(mask) => {
+            let train: Vec<Observation> = obs
+                .iter()
+                .zip(mask)
+                .filter(|(_, h)| !**h)
+                .map(|(o, _)| *o)
+                .collect();
+            let mut fit = axcomp_positioning::fit(&train, &opts)
+                .context("fitting on the rows not held out")?;
+            let idx: Vec<usize> = (0..obs.len()).filter(|&i| mask[i]).collect();
+            let judged = Judged {
+                x: idx.iter().map(|&i| x[i]).collect(),
+                direction: idx.iter().map(|&i| dir[i]).collect(),
+                run: idx.iter().map(|&i| run[i]).collect(),
+                deviation: idx.iter().map(|&i| dev[i]).collect(),
+                // The held-out rows are judged with the table the firmware would apply.
+                predicted: idx
+                    .iter()
+                    .map(|&i| fit.table.deviation_um(x[i], dir[i]))
+                    .collect(),
+            };
+            let mut runs: Vec<i64> = judged.run.clone();
+            runs.sort_unstable();
+            runs.dedup();
+            let fold: Vec<usize> = judged
+                .run
+                .iter()
+                .map(|r| runs.binary_search(r).unwrap())
+                .collect();
+            let verdict = guard::judge(
+                &judged.deviation,
+                &judged.predicted,
+                &fold,
+                opts.improvement_ratio,
+                opts.runs_improved_fraction,
+                "holdout",
+            );
+            let hr = rms(judged
+                .deviation
+                .iter()
+                .zip(&judged.predicted)
+                .map(|(d, p)| d - p));
+            fit.table.cv_rms_um = hr;
+            fit.table.raw_rms_um = rms(judged.deviation.iter().copied());
+            fit.table.cv_method = "holdout".into();
+            (fit, judged, verdict, hr, "holdout".to_string())
+        }
+    };
+    let raw_rms = rms(judged.deviation.iter().copied());
+    let residual: Vec<f64> = judged
+        .deviation
+        .iter()
+        .zip(&judged.predicted)
+        .map(|(d, p)| d - p)
+        .collect();
+    let before = iso(&judged.x, &judged.direction, &judged.run, &judged.deviation);
+    let after = iso(&judged.x, &judged.direction, &judged.run, &residual);
+    let refused = !verdict.passed && !args.force;
+    // Per run: raw and judged RMS and the mean residual (a drifting mean shows drift between runs).
+    let per_run: Vec<Value> = run_labels
+        .iter()
+        .enumerate()
+        .filter_map(|(g, label)| {
+            let rows: Vec<usize> = (0..judged.x.len())
+                .filter(|&i| judged.run[i] == g as i64 + 1)
+                .collect();
+            if rows.is_empty() {
+                return None;
+            }
+            let r: Vec<f64> = rows.iter().map(|&i| residual[i]).collect();
+            Some(json!({
+                "run": label,
+                "rows": rows.len(),
+                "raw_rms_um": rms(rows.iter().map(|&i| judged.deviation[i])),
+                "rms_um": rms(r.iter().copied()),
+                "mean_residual_um": r.iter().sum::<f64>() / r.len() as f64,
+            }))
+        })
+        .collect();
+    let table_written = args.out.is_some() && !refused;
+
+    let candidates: Vec<Value> = fit
+        .candidates
+        .iter()
+        .map(|c| {
+            json!({
+                "name": c.name, "kind": c.kind.name(), "structure": c.structure.name(),
+                "cv_rms_um": c.cv_rms_um, "rho": c.rho, "intervals": c.intervals,
+            })
+        })
+        .collect();
+    let mut j = json!({
+        "command": "fit positioning",
+        "data": args.data.data.display().to_string(),
+        "target": args.target,
+        "rows": ds.n_rows(),
+        "rows_judged": judged.x.len(),
+        "raw_rms_um": raw_rms,
+        "iso230_2_before": iso_json(&before),
+        "iso230_2_after": iso_json(&after),
+        "model": {
+            "chosen": fit.chosen,
+            "reason": fit.reason,
+            "selection": format!("lowest {} RMS on the fitting rows; near-ties (≤1 %) go to the simpler model", fit.split.method),
+            "cv_method": fit.split.method,
+            "cv_folds": fit.split.folds,
+            "cv_rms_um_on_fitting_rows": fit.cv_rms_um,
+            "candidates": candidates,
+        },
+        "cv": { "method": method, "column": cv_col, "folds": fit.split.folds, "per_run": per_run },
+        "guard": guard_json(&verdict, refused, args.force),
+        "table_written": table_written,
+        "table": {
+            "path": args.out.as_ref().map(|p| p.display().to_string()),
+            "axis": fit.table.axis,
+            "start_mm": fit.table.start_mm,
+            "segment_mm": fit.table.segment_mm,
+            "segments": fit.table.forward.len(),
+            "bidirectional": !fit.table.backward.is_empty(),
+            "resampling_max_um": fit.resampling_max_um,
+        },
+    });
+    if holdout_mask.is_some() {
+        j["holdout_rms_um"] = json!(judged_rms);
+        j["holdout"] = json!(args.holdout);
+    } else {
+        j["cv_rms_um"] = json!(judged_rms);
+    }
+    let report = report_markdown(args, &j, &fit, &verdict);
+    Ok(Outcome {
+        json: j,
+        report,
+        fit,
+        judged,
+        refused,
+    })
+}
+
+fn guard_json(v: &GuardVerdict, refused: bool, forced: bool) -> Value {
+    let mut g = serde_json::to_value(v).unwrap_or(Value::Null);
+    g["refused"] = json!(refused);
+    g["forced"] = json!(forced && !v.passed);
+    g
+}
+
+fn f3(v: &Value) -> String {
+    v.as_f64().map_or("–".into(), |x| format!("{x:.3}"))
+}
+
+fn report_markdown(args: &Args, j: &Value, fit: &FitResult, verdict: &GuardVerdict) -> String {
+    let mut s = String::new();
+    let judged = if args.holdout.is_some() {
+        "holdout_rms_um"
+    } else {
+        "cv_rms_um"
+    };
+    s.push_str("# Positioning table fit\n\n");
+    s.push_str(&format!(
+        "Data: `{}` ({} rows",
+        args.data.data.display(),
+        j["rows"]
+    ));
+    if !args.data.where_.is_empty() {
+        s.push_str(&format!(", where {}", args.data.where_.join(", ")));
+    }
+    s.push_str(&format!("), error column `{}`.\n\n", args.target));
+    s.push_str(&format!(
+        "Judged by **{}** ({} folds). Raw RMS **{} µm**, after compensation **{} µm** ({}).\n\n",
+        j["cv"]["method"].as_str().unwrap_or(""),
+        fit.split.folds,
+        f3(&j["raw_rms_um"]),
+        f3(&j[judged]),
+        judged
+    ));
+    s.push_str(&format!(
+        "Chosen model: **{}**: {}.\n\n",
+        fit.chosen, fit.reason
+    ));
+    s.push_str("## Candidates (cross-validated on the fitting rows)\n\n");
+    let rows: Vec<Vec<String>> = fit
+        .candidates
+        .iter()
+        .map(|c| {
+            vec![
+                c.name.clone(),
+                format!("{:.3}", c.cv_rms_um),
+                if c.rho.is_empty() {
+                    "–".into()
+                } else {
+                    c.rho
+                        .iter()
+                        .map(|r| format!("{r:.1e}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                },
+                c.intervals.to_string(),
+                if c.name == fit.chosen {
+                    "chosen".into()
+                } else {
+                    String::new()
+                },
+            ]
+        })
+        .collect();
+    s.push_str(&axcomp_plot::markdown_table(
+        &[
+            "model",
+            "CV RMS / µm",
+            "ρ (CV-chosen)",
+            "knot intervals",
+            "",
+        ],
+        &rows,
+    ));
+    s.push_str("\n## ISO 230-2 (bidirectional), judged rows\n\n");
+    let keys = ["A_um", "E_um", "M_um", "R_um", "B_um"];
+    let iso_rows: Vec<Vec<String>> = keys
+        .iter()
+        .map(|k| {
+            vec![
+                k.to_string(),
+                f3(&j["iso230_2_before"][k]),
+                f3(&j["iso230_2_after"][k]),
+            ]
+        })
+        .collect();
+    s.push_str(&axcomp_plot::markdown_table(
+        &["figure", "before / µm", "after / µm"],
+        &iso_rows,
+    ));
+    if let Some(e) = j["iso230_2_before"]["error"].as_str() {
+        s.push_str(&format!("\nISO 230-2 not evaluable on these rows: {e}\n"));
+    }
+    s.push_str(
+        "\n“After” is ISO 230-2 evaluated on deviation − prediction, each prediction from a model that never saw \
+         the judged row (cross-validated or held out). For models through per-target means, leave-one-run-out \
+         residuals average to zero at each target (E, M, B after ≈ 0 by construction) and their scatter is \
+         n/(n−1) times the scatter about the mean, so R and A after read higher than the axis's repeatability \
+         before: that is the honest price of judging on unseen runs.\n",
+    );
+    s.push_str("\n## Do-no-harm guard\n\n");
+    s.push_str(&format!("Rule: {}.\n\n", verdict.rule));
+    s.push_str(&format!(
+        "Ratio {:.3}; runs improved {} of {}. ",
+        verdict.ratio, verdict.runs_improved, verdict.runs
+    ));
+    if verdict.passed {
+        s.push_str("**Passed.**\n");
+    } else {
+        s.push_str(&format!(
+            "**Refused**{}:\n\n",
+            if args.force {
+                " (overridden by --force)"
+            } else {
+                ""
+            }
+        ));
+        for r in &verdict.reasons {
+            s.push_str(&format!("- {r}\n"));
+        }
+    }
+    s.push_str(&format!(
+        "\n## Table\n\n{} uniform segments of {:.4} mm from {:.4} mm ({}), resampling error ≤ {:.2e} µm. Written: {}.\n",
+        fit.table.forward.len(),
+        fit.table.segment_mm,
+        fit.table.start_mm,
+        if fit.table.backward.is_empty() { "one table" } else { "forward and backward" },
+        fit.resampling_max_um,
+        j["table_written"]
+    ));
+    s.push_str("\nPlots: `positioning.svg` (measured deviation and the fitted table per direction), `residual.svg` (residual after compensation per row and its range per target).\n");
+    s
+}
+
+fn write_report(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let j = &o.judged;
+    let table = &o.fit.table;
+    let lo =
+        j.x.iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+            .min(table.start_mm);
+    let hi =
+        j.x.iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max)
+            .max(table.end_mm());
+    let xs: Vec<f64> = (0..=400)
+        .map(|k| lo + (hi - lo) * k as f64 / 400.0)
+        .collect();
+    let mut fig = axcomp_plot::Figure::new(
+        "Measured deviation and fitted table",
+        "target position / mm",
+        "deviation / µm",
+    );
+    let mut res = axcomp_plot::Figure::new(
+        "Residual after compensation (each row predicted by a model that did not see it)",
+        "target position / mm",
+        "residual / µm",
+    );
+    let bidir = !table.backward.is_empty();
+    let dirs: &[(i8, &str)] = if bidir {
+        &[(1, "forward"), (-1, "backward")]
+    } else {
+        &[(1, "all")]
+    };
+    for &(d, name) in dirs {
+        let sel: Vec<usize> = (0..j.x.len())
+            .filter(|&i| !bidir || (j.direction[i] < 0) == (d < 0))
+            .collect();
+        let px: Vec<f64> = sel.iter().map(|&i| j.x[i]).collect();
+        let py: Vec<f64> = sel.iter().map(|&i| j.deviation[i]).collect();
+        let ry: Vec<f64> = sel
+            .iter()
+            .map(|&i| j.deviation[i] - j.predicted[i])
+            .collect();
+        let ty: Vec<f64> = xs.iter().map(|&x| table.deviation_um(x, d)).collect();
+        fig.line(&format!("table {name}"), &xs, &ty);
+        fig.points(&format!("measured {name}"), &px, &py);
+        // Residual range per target (or per bin for scattered positions).
+        let (bx, blo, bhi) = residual_band(&px, &ry, lo, hi);
+        if !bx.is_empty() {
+            res.band(&format!("range {name}"), &bx, &blo, &bhi);
+        }
+        res.points(&format!("residual {name}"), &px, &ry);
+    }
+    fig.hline(0.0, "");
+    res.hline(0.0, "");
+    for (f, name) in [(&fig, "positioning.svg"), (&res, "residual.svg")] {
+        f.save_svg(dir.join(name))
+            .with_context(|| format!("writing {}", dir.join(name).display()))?;
+    }
+    let md = dir.join("report.md");
+    write_atomic(&md, o.report.as_bytes()).with_context(|| format!("writing {}", md.display()))?;
+    Ok(())
+}
+
+/// Min/max of the residuals per distinct position (≤ 64 positions) or per bin of 40 equal bins.
+fn residual_band(x: &[f64], r: &[f64], lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let mut uniq: Vec<f64> = x.to_vec();
+    uniq.sort_by(f64::total_cmp);
+    uniq.dedup();
+    let (centers, key): (Vec<f64>, Box<dyn Fn(f64) -> usize>) = if uniq.len() <= 64 {
+        let u = uniq.clone();
+        (
+            uniq,
+            Box::new(move |v| u.partition_point(|&k| k < v).min(u.len() - 1)),
+        )
+    } else {
+        let bins = 40;
+        let w = (hi - lo) / bins as f64;
+        (
+            (0..bins).map(|b| lo + w * (b as f64 + 0.5)).collect(),
+            Box::new(move |v| (((v - lo) / w) as usize).min(bins - 1)),
+        )
+    };
+    if centers.is_empty() {
+        return (vec![], vec![], vec![]);
+    }
+    let mut blo = vec![f64::INFINITY; centers.len()];
+    let mut bhi = vec![f64::NEG_INFINITY; centers.len()];
+    for (&xi, &ri) in x.iter().zip(r) {
+        let k = key(xi);
+        blo[k] = blo[k].min(ri);
+        bhi[k] = bhi[k].max(ri);
+    }
+    let keep: Vec<usize> = (0..centers.len()).filter(|&k| blo[k].is_finite()).collect();
+    (
+        keep.iter().map(|&k| centers[k]).collect(),
+        keep.iter().map(|&k| blo[k]).collect(),
+        keep.iter().map(|&k| bhi[k]).collect(),
+    )
 }

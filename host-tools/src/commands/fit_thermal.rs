@@ -1,8 +1,230 @@
-//! `axcomp fit_thermal` (not yet built).
+//! `axcomp fit thermal`: thermo-force error model from temperature / force / error time series.
+//!
+//! Glossary:
+//! - **target**: the `*_um` error channel modelled (`--target`); **sensors**: every `*_degC` column (or the
+//!   `--sensors` subset); **forces**: every `*_N` column (unless `--no-forces`), fitted jointly as χ·F terms.
+//! - **held-out rows** (`--holdout`): never used for fitting or selection; `raw_rms_um` / `holdout_rms_um`
+//!   are the target's RMS on them before / after the model.
+//! - **guard**: the model is written (`--out`) only if it is not worse than raw on the held-out rows (or, with
+//!   no holdout, in cross-validation); `--force` writes it anyway.
 
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use axcomp_data::{Dataset, HoldoutSpec, LoadOptions, groups};
+use axcomp_thermal::model_file::ThermalModelFile;
+use axcomp_thermal::report::write_thermal_report;
+use axcomp_thermal::{Ridge, Selection, Series, ThermalInput, ThermalOptions, fit_thermal};
+
+use crate::cli::DataArgs;
+
+/// Fit a thermal (thermo-force) error model.
+///
+/// Sensors are `*_degC` columns, forces `*_N` columns, the target a `*_um` column. Selection: fuzzy c-means +
+/// grey relational analysis (reference) and forward selection scored by leave-one-group-out CV on the training
+/// rows; the one with the lower nested CV error is used (`--select` to force one). Coefficients by QR least
+/// squares (optional ridge); with `--lags` each sensor gets a first-order lag whose time constant is fitted on
+/// the training rows (y += α(u − y), α = 1 − exp(−Δt/τ), as the firmware runs it).
+///
+/// Example (Voron frame data; 2.5 µm per microstep):
+///   axcomp fit thermal --data frame.csv --rename mcu_pos_z=z_um --scale z_um=2.5 --rename frame_t=frame_degC
+///   --rename chamber_t=chamber_degC --rename bed_t=bed_degC --rename he_t=he_degC --target z_um
+///   --zero-at-start 3 --holdout bed_target=0 --lags --json out.json
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// The error column to model (µm).
+    #[arg(long, default_value = "deviation_um", value_name = "COL")]
+    pub target: String,
+    /// Rows held out from fitting and used only to judge: COL=V1,V2 | COL>=X | COL<X.
+    #[arg(long, value_name = "SPEC")]
+    pub holdout: Option<String>,
+    /// Leave-one-group-out over the values of COL (operating conditions): inner CV groups and `cv_rms_um`.
+    #[arg(long, value_name = "COL")]
+    pub cv: Option<String>,
+    /// Machine-readable result.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Write report.md and SVG plots into DIR.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+    /// Write the model file (input of `axcomp image build --thermal`).
+    #[arg(long, value_name = "MODEL.json")]
+    pub out: Option<PathBuf>,
+    /// Fit a first-order lag (time constant) per selected sensor.
+    #[arg(long)]
+    pub lags: bool,
+    /// Ridge penalty on the standardized coefficients: a number λ ≥ 0, or `auto` (chosen by inner CV).
+    #[arg(long, value_name = "λ|auto")]
+    pub ridge: Option<String>,
+    /// Sensor selection: auto (lower nested CV error), fcm-gra, forward, all (no selection).
+    #[arg(long = "select", default_value = "auto", value_name = "METHOD")]
+    pub select: String,
+    /// Most sensors in the model (1..=16).
+    #[arg(long, default_value_t = 6, value_name = "N")]
+    pub max_sensors: usize,
+    /// Only these sensors are candidates (names without `_degC`, comma separated).
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub sensors: Vec<String>,
+    /// Do not use `*_N` force columns as terms.
+    #[arg(long)]
+    pub no_forces: bool,
+    /// Subtract the mean of the target's first N rows (file order, after --where) so the target is the change
+    /// since the start (e.g. a homing position instead of a deviation).
+    #[arg(long, value_name = "N")]
+    pub zero_at_start: Option<usize>,
+    /// Sensor read period of the firmware (ms), written into the model file.
+    #[arg(long, default_value_t = 1000, value_name = "MS")]
+    pub sensor_period_ms: u32,
+    /// Write the model even if the do-no-harm guard fails.
+    #[arg(long)]
+    pub force: bool,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`fit_thermal` is not implemented yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    // ---- validate options before reading anything ----
+    let ridge = match args.ridge.as_deref() {
+        None => Ridge::Off,
+        Some("auto") => Ridge::Auto,
+        Some(s) => match s.parse::<f64>() {
+            Ok(l) if l >= 0.0 && l.is_finite() => Ridge::Fixed(l),
+            _ => bail!("--ridge `{s}`: expected a number >= 0 or `auto`"),
+        },
+    };
+    let selection = match args.select.as_str() {
+        "auto" => Selection::Auto,
+        "fcm-gra" | "fcm_gra" => Selection::FcmGra,
+        "forward" => Selection::Forward,
+        "all" => Selection::All,
+        s => bail!("--select `{s}`: expected auto, fcm-gra, forward or all"),
+    };
+    if args.sensor_period_ms == 0 {
+        bail!("--sensor-period-ms must be > 0");
+    }
+    let opts = ThermalOptions {
+        lags: args.lags,
+        ridge,
+        max_sensors: args.max_sensors,
+        selection,
+        ..ThermalOptions::default()
+    }
+    .build()?;
+    let load = LoadOptions::from_args(&args.data.where_, &args.data.rename, &args.data.scale)?;
+    let holdout = args.holdout.as_deref().map(HoldoutSpec::parse).transpose()?;
+
+    // ---- read ----
+    let ds = Dataset::load(&args.data.data, &load)?;
+    let n = ds.n_rows();
+    if n == 0 {
+        bail!("{}: no rows (after --where)", args.data.data.display());
+    }
+    let mut target = ds.numeric(&args.target)?.to_vec();
+    let mut target_offset = 0.0;
+    if let Some(k) = args.zero_at_start {
+        if k == 0 || k > n {
+            bail!("--zero-at-start {k}: must be 1..={n}");
+        }
+        target_offset = target[..k].iter().sum::<f64>() / k as f64;
+        target.iter_mut().for_each(|v| *v -= target_offset);
+    }
+    let time_s: Vec<f64> = match ds.time_s() {
+        Some(t) => t.to_vec(),
+        None if args.lags => {
+            if ds.has("time_s") {
+                ds.numeric("time_s")?;
+            }
+            bail!("--lags needs a `time_s` (or `time`) column in {}", args.data.data.display());
+        }
+        None => (0..n).map(|i| i as f64).collect(),
+    };
+    let mut names = ds.sensors();
+    if !args.sensors.is_empty() {
+        for s in &args.sensors {
+            if !names.contains(s) {
+                bail!("--sensors: `{s}` is not a sensor of {} (have: {})", args.data.data.display(), names.join(", "));
+            }
+        }
+        names.retain(|s| args.sensors.contains(s));
+    }
+    if names.is_empty() {
+        bail!("{}: no `*_degC` sensor columns", args.data.data.display());
+    }
+    let sensors = names
+        .iter()
+        .map(|s| {
+            Ok(Series {
+                name: s.clone(),
+                values: ds.numeric(&format!("{s}_degC"))?.to_vec(),
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let forces: Vec<Series> = if args.no_forces {
+        vec![]
+    } else {
+        ds.column_names()
+            .into_iter()
+            .filter(|c| c.len() > 2 && c.ends_with("_N"))
+            .map(|c| Ok(Series { name: c.to_string(), values: ds.numeric(c)?.to_vec() }))
+            .collect::<anyhow::Result<Vec<_>>>()?
+    };
+    if forces.len() > 3 {
+        bail!("{} force columns (`*_N`); the firmware takes at most 3 (use --no-forces or --rename)", forces.len());
+    }
+    let conditions = match &args.cv {
+        Some(col) => {
+            let (ids, labels) = groups(&ds, col)?;
+            Some(ids.into_iter().map(|i| labels[i].clone()).collect::<Vec<_>>())
+        }
+        None => None,
+    };
+    let held = holdout.as_ref().map(|h| h.mask(&ds)).transpose()?;
+    let input = ThermalInput { time_s, sensors, forces, target, conditions, holdout: held };
+
+    // ---- fit ----
+    let fit = fit_thermal(&input, &opts).with_context(|| format!("fitting {}", args.data.data.display()))?;
+    let write_model = args.out.is_some() && (fit.guard.passed || args.force);
+
+    // ---- outputs ----
+    println!("target {}: {}", args.target, fit.formula);
+    println!("sensors: {} (method {}: {})", fit.sensors.join(", "), fit.chosen_method, fit.why);
+    match fit.holdout_rms_um {
+        Some(h) => println!("held-out RMS: raw {:.3} µm → {:.3} µm ({} rows)", fit.raw_rms_um, h, fit.holdout_rows),
+        None => println!("RMS: raw {:.3} µm, training residual {:.3} µm", fit.raw_rms_um, fit.train_rms_um),
+    }
+    if let Some(cv) = fit.cv_rms_um {
+        println!("leave-one-condition-out CV RMS: {cv:.3} µm");
+    }
+    println!("condition number {:.1}; guard: {}", fit.condition_number, fit.guard.reason);
+    if let Some(path) = &args.json {
+        let mut v = serde_json::to_value(&fit)?;
+        let o = v.as_object_mut().expect("fit serializes to an object");
+        o.insert("data".into(), args.data.data.display().to_string().into());
+        o.insert("target".into(), args.target.clone().into());
+        o.insert("target_offset_um".into(), target_offset.into());
+        o.insert("model_written".into(), write_model.into());
+        let text = serde_json::to_string_pretty(&v)?;
+        axcomp_plot::write_atomic(path, text.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(dir) = &args.report {
+        write_thermal_report(dir, &fit, &input, &args.target)
+            .with_context(|| format!("writing the report into {}", dir.display()))?;
+    }
+    if let Some(out) = &args.out {
+        if !write_model {
+            bail!(
+                "do-no-harm guard: {}; the model was not written to {} (use --force to write it anyway)",
+                fit.guard.reason,
+                out.display()
+            );
+        }
+        let file = ThermalModelFile::from_fit(&fit, &input, &args.target, args.sensor_period_ms);
+        file.validate().map_err(|e| anyhow::anyhow!("model not written: {e}"))?;
+        file.save(out)?;
+        println!("model written to {}", out.display());
+    } else if !fit.guard.passed {
+        eprintln!("warning: do-no-harm guard failed: {}", fit.guard.reason);
+    }
+    Ok(())
 }

@@ -1,5 +1,6 @@
 //! One module per subcommand. Each turns its raw `Args` into a validated configuration, then runs.
 
+pub mod common;
 pub mod demo;
 pub mod diagnose;
 pub mod export;

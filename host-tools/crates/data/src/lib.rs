@@ -1,1 +1,793 @@
-//! axcomp-data (see docs/design.md).
+//! Measurement CSV reader for axcomp (contract: `../shared/spec/interfaces.md`, "Measurement CSV").
+//!
+//! Terms:
+//! - *dataset*: the rows of one measurement CSV after `--rename`, `--scale` and `--where`, with every cell
+//!   kept as text and, for columns whose cells all read as numbers, as `f64`.
+//! - *source*: the name used in messages (the path as the user gave it).
+//! - *line*: the physical line (1-based) of the file on which a row starts; *column*: 1-based field index.
+//! - *alias*: a second accepted name of a contract column: `cycle` for `run`, `approach_direction` for
+//!   `direction`. Lookups by the contract name find the alias when the file has no column of that name.
+//! - *sensor*: a `*_degC` column; its name is the part before the suffix.
+//! - *error channel*: a `*_um` column (`deviation_um`, `ch3_um`, ...).
+//! - *holdout*: rows held out from fitting (`--holdout`), *group*: rows sharing a value of a column (`--cv`).
+//!
+//! Rules:
+//! - `#` comment lines may precede the header; blank lines are skipped; fields follow RFC 4180 quoting.
+//! - A duplicate header, a ragged row or an unterminated quote is an error at load, naming file, line and
+//!   column.
+//! - Numbers: a cell is numeric if Rust's `f64` parser accepts it after trimming (`1`, `-2.5e-3`, `NaN`,
+//!   `inf`). An explicit `NaN` is a deliberate "no value" and is kept; an **empty cell is not a number**:
+//!   [`Dataset::numeric`] on a column with an empty or non-numeric cell fails naming the first such cell.
+//!   [`Dataset::numeric_or_nan`] reads such a column leniently (empty/text → NaN) for optional channels.
+//! - Order of the options: `--rename` first, then the `time` → `time_s` conversion, then `--scale`, then
+//!   `--where`. `time_s` is relative to the first row of the file (before `--where`).
+
+mod cells;
+mod csv;
+mod split;
+mod timestamp;
+
+pub use split::{HoldoutSpec, Split, groups};
+
+use std::path::Path;
+
+use cells::Cells;
+
+/// Everything that can be wrong with a measurement file or with the options that select from it.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    #[error("{file}: cannot read: {source}")]
+    Io {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{file}: no header row (the file is empty or holds only `#` comments)")]
+    NoHeader { file: String },
+    #[error("{file}:{line}:{column}: quoted field is never closed")]
+    UnterminatedQuote {
+        file: String,
+        line: usize,
+        column: usize,
+    },
+    #[error("{file}:{line}:{column}: text after a closing quote")]
+    TextAfterQuote {
+        file: String,
+        line: usize,
+        column: usize,
+    },
+    #[error("{file}:{line}:{column}: duplicate column `{name}` (first at column {first})")]
+    DuplicateColumn {
+        file: String,
+        line: usize,
+        column: usize,
+        name: String,
+        first: usize,
+    },
+    #[error("{file}:{line}:{column}: empty column name in the header")]
+    EmptyColumnName {
+        file: String,
+        line: usize,
+        column: usize,
+    },
+    #[error("{file}:{line}:{column}: row has {found} fields but the header has {expected}")]
+    RaggedRow {
+        file: String,
+        line: usize,
+        column: usize,
+        found: usize,
+        expected: usize,
+    },
+    #[error("{file}:{line}:{column} (column `{name}`): `{text}` is not a number")]
+    NotANumber {
+        file: String,
+        line: usize,
+        column: usize,
+        name: String,
+        text: String,
+    },
+    #[error("{file}:{line}:{column} (column `{name}`): empty cell where a number is required")]
+    EmptyCell {
+        file: String,
+        line: usize,
+        column: usize,
+        name: String,
+    },
+    #[error(
+        "{file}:{line}:{column} (column `{name}`): `{text}` is not a timestamp (expected e.g. `2021-06-13 05:42:16`)"
+    )]
+    BadTimestamp {
+        file: String,
+        line: usize,
+        column: usize,
+        name: String,
+        text: String,
+    },
+    #[error(
+        "{file}:{line}:{column} (column `{name}`): `{text}` is not a direction (expected +, -, 1, -1, positive or negative)"
+    )]
+    BadDirection {
+        file: String,
+        line: usize,
+        column: usize,
+        name: String,
+        text: String,
+    },
+    #[error("{file}: missing column `{name}`{purpose} (columns: {available})")]
+    MissingColumn {
+        file: String,
+        name: String,
+        purpose: String,
+        available: String,
+    },
+    #[error("{file}: no data rows {why}")]
+    NoRows { file: String, why: String },
+    #[error("{option} `{text}`: {reason}")]
+    BadOption {
+        option: &'static str,
+        text: String,
+        reason: String,
+    },
+    #[error("{file}: column `{name}` has {found} values but the dataset has {expected} rows")]
+    LengthMismatch {
+        file: String,
+        name: String,
+        found: usize,
+        expected: usize,
+    },
+}
+
+/// `--where`, `--rename` and `--scale`, parsed.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LoadOptions {
+    /// `COL=VALUE`: keep rows whose cell equals VALUE (as text, or as numbers when both read as numbers).
+    pub filters: Vec<(String, String)>,
+    /// `OLD=NEW`: rename a column before anything else.
+    pub renames: Vec<(String, String)>,
+    /// `COL=FACTOR`: multiply a numeric column (after renaming).
+    pub scales: Vec<(String, f64)>,
+}
+
+impl LoadOptions {
+    /// Parses the raw option values (`COL=VALUE`, `OLD=NEW`, `COL=FACTOR`).
+    pub fn from_args(
+        where_: &[String],
+        rename: &[String],
+        scale: &[String],
+    ) -> Result<Self, DataError> {
+        let pair = |option: &'static str, s: &str| -> Result<(String, String), DataError> {
+            let bad = |reason: &str| DataError::BadOption {
+                option,
+                text: s.to_string(),
+                reason: reason.to_string(),
+            };
+            let (k, v) = s
+                .split_once('=')
+                .ok_or_else(|| bad("expected NAME=VALUE"))?;
+            let k = k.trim();
+            if k.is_empty() {
+                return Err(bad("the column name is empty"));
+            }
+            Ok((k.to_string(), v.trim().to_string()))
+        };
+        let filters = where_
+            .iter()
+            .map(|s| pair("--where", s))
+            .collect::<Result<Vec<_>, _>>()?;
+        let renames = rename
+            .iter()
+            .map(|s| {
+                let (k, v) = pair("--rename", s)?;
+                if v.is_empty() {
+                    return Err(DataError::BadOption {
+                        option: "--rename",
+                        text: s.clone(),
+                        reason: "the new name is empty".into(),
+                    });
+                }
+                Ok((k, v))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let scales = scale
+            .iter()
+            .map(|s| {
+                let (k, v) = pair("--scale", s)?;
+                match v.parse::<f64>() {
+                    Ok(f) if f.is_finite() => Ok((k, f)),
+                    _ => Err(DataError::BadOption {
+                        option: "--scale",
+                        text: s.clone(),
+                        reason: format!("`{v}` is not a finite number"),
+                    }),
+                }
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            filters,
+            renames,
+            scales,
+        })
+    }
+}
+
+/// Where the first cell that is not a number sits (row index into the dataset).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct BadCell {
+    row: usize,
+}
+
+#[derive(Debug, Clone)]
+struct Column {
+    name: String,
+    /// 1-based field index in the file; `None` for derived columns (`time_s` from `time`), which are
+    /// reported by their index in the dataset.
+    file_column: Option<usize>,
+    text: Cells,
+    values: Result<Vec<f64>, BadCell>,
+}
+
+impl Column {
+    fn new(name: String, file_column: Option<usize>, text: Cells) -> Self {
+        let values = parse_numbers(&text);
+        Self {
+            name,
+            file_column,
+            text,
+            values,
+        }
+    }
+
+    fn from_values(name: String, values: Vec<f64>) -> Self {
+        Self {
+            name,
+            file_column: None,
+            text: values.iter().map(|v| format_number(*v)).collect(),
+            values: Ok(values),
+        }
+    }
+}
+
+fn parse_numbers(text: &Cells) -> Result<Vec<f64>, BadCell> {
+    text.iter()
+        .enumerate()
+        .map(|(row, t)| parse_number(t).ok_or(BadCell { row }))
+        .collect()
+}
+
+fn parse_number(t: &str) -> Option<f64> {
+    let t = t.trim();
+    if t.is_empty() { None } else { t.parse().ok() }
+}
+
+/// Shortest text that reads back as the same `f64`.
+fn format_number(v: f64) -> String {
+    format!("{v}")
+}
+
+/// The rows of one measurement CSV (see the module docs for the rules).
+#[derive(Debug, Clone)]
+pub struct Dataset {
+    source: String,
+    /// Physical line on which each row starts (0 for rows not from a file).
+    lines: Vec<usize>,
+    columns: Vec<Column>,
+}
+
+/// Contract names and their aliases.
+const ALIASES: &[(&str, &str)] = &[("run", "cycle"), ("direction", "approach_direction")];
+
+impl Dataset {
+    /// Reads and parses `path` (see [`Dataset::from_csv_str`]); messages name the path as given.
+    pub fn load(path: &Path, opts: &LoadOptions) -> Result<Dataset, DataError> {
+        let file = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|source| DataError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        let text = String::from_utf8_lossy(&bytes);
+        Self::from_csv_str(&file, &text, opts)
+    }
+
+    /// Parses CSV `text`; `source` is the name used in messages.
+    pub fn from_csv_str(
+        source: &str,
+        text: &str,
+        opts: &LoadOptions,
+    ) -> Result<Dataset, DataError> {
+        let file = source.to_string();
+        let records = csv::parse(text).map_err(|f| match f {
+            csv::CsvFault::UnterminatedQuote { line, column } => DataError::UnterminatedQuote {
+                file: file.clone(),
+                line,
+                column,
+            },
+            csv::CsvFault::TextAfterQuote { line, column } => DataError::TextAfterQuote {
+                file: file.clone(),
+                line,
+                column,
+            },
+        })?;
+        let mut records = records.into_iter();
+        let header = records
+            .next()
+            .ok_or_else(|| DataError::NoHeader { file: file.clone() })?;
+        let mut names: Vec<String> = header.fields.into_iter().map(String::from).collect();
+        // `--rename` before anything else (so a rename can also fix a duplicate).
+        for (old, new) in &opts.renames {
+            let Some(i) = names.iter().position(|n| n == old) else {
+                return Err(DataError::MissingColumn {
+                    file,
+                    name: old.clone(),
+                    purpose: " (named by --rename)".into(),
+                    available: names.join(", "),
+                });
+            };
+            names[i] = new.clone();
+        }
+        for (i, name) in names.iter().enumerate() {
+            if name.is_empty() {
+                return Err(DataError::EmptyColumnName {
+                    file,
+                    line: header.line,
+                    column: i + 1,
+                });
+            }
+            if let Some(first) = names[..i].iter().position(|n| n == name) {
+                return Err(DataError::DuplicateColumn {
+                    file,
+                    line: header.line,
+                    column: i + 1,
+                    name: name.clone(),
+                    first: first + 1,
+                });
+            }
+        }
+        let width = names.len();
+        let mut lines = Vec::new();
+        let approx_rows = records.len();
+        let mut cells: Vec<Cells> = (0..width)
+            .map(|_| Cells::with_capacity(approx_rows, 8 * approx_rows))
+            .collect();
+        for rec in records {
+            if rec.fields.len() != width {
+                return Err(DataError::RaggedRow {
+                    file,
+                    line: rec.line,
+                    column: rec.fields.len().min(width) + 1,
+                    found: rec.fields.len(),
+                    expected: width,
+                });
+            }
+            lines.push(rec.line);
+            for (c, f) in rec.fields.iter().enumerate() {
+                cells[c].push(f);
+            }
+        }
+        if lines.is_empty() {
+            return Err(DataError::NoRows {
+                file,
+                why: "after the header".into(),
+            });
+        }
+        let columns = names
+            .into_iter()
+            .zip(cells)
+            .enumerate()
+            .map(|(i, (name, text))| Column::new(name, Some(i + 1), text))
+            .collect();
+        let mut ds = Dataset {
+            source: file,
+            lines,
+            columns,
+        };
+        ds.derive_time_s()?;
+        for (col, factor) in &opts.scales {
+            ds.scale_column(col, *factor)?;
+        }
+        if !opts.filters.is_empty() {
+            let mut keep = vec![true; ds.n_rows()];
+            for (col, value) in &opts.filters {
+                let c = ds.column(col, " (named by --where)")?;
+                let want_num = parse_number(value);
+                for (k, t) in keep.iter_mut().zip(c.text.iter()) {
+                    let hit = match (want_num, parse_number(t)) {
+                        (Some(a), Some(b)) => a == b,
+                        _ => t.trim() == value,
+                    };
+                    *k &= hit;
+                }
+            }
+            ds = ds.select_rows(&keep);
+            if ds.n_rows() == 0 {
+                let what: Vec<String> = opts
+                    .filters
+                    .iter()
+                    .map(|(c, v)| format!("{c}={v}"))
+                    .collect();
+                return Err(DataError::NoRows {
+                    file: ds.source,
+                    why: format!("match --where {}", what.join(" --where ")),
+                });
+            }
+        }
+        Ok(ds)
+    }
+
+    /// A dataset of numeric columns built in memory (e.g. by the twin); `source` names it in messages.
+    pub fn from_numeric_columns(
+        source: &str,
+        columns: Vec<(String, Vec<f64>)>,
+    ) -> Result<Dataset, DataError> {
+        let n = columns.first().map_or(0, |c| c.1.len());
+        let mut ds = Dataset {
+            source: source.to_string(),
+            lines: vec![0; n],
+            columns: Vec::new(),
+        };
+        for (name, values) in columns {
+            ds.add_numeric_column(&name, values)?;
+        }
+        Ok(ds)
+    }
+
+    /// Appends (or replaces) a numeric column.
+    pub fn add_numeric_column(&mut self, name: &str, values: Vec<f64>) -> Result<(), DataError> {
+        if values.len() != self.n_rows() {
+            return Err(DataError::LengthMismatch {
+                file: self.source.clone(),
+                name: name.to_string(),
+                found: values.len(),
+                expected: self.n_rows(),
+            });
+        }
+        let col = Column::from_values(name.to_string(), values);
+        match self.columns.iter().position(|c| c.name == name) {
+            Some(i) => self.columns[i] = col,
+            None => self.columns.push(col),
+        }
+        Ok(())
+    }
+
+    /// Appends (or replaces) a text column.
+    pub fn add_text_column(&mut self, name: &str, text: Vec<String>) -> Result<(), DataError> {
+        if text.len() != self.n_rows() {
+            return Err(DataError::LengthMismatch {
+                file: self.source.clone(),
+                name: name.to_string(),
+                found: text.len(),
+                expected: self.n_rows(),
+            });
+        }
+        let col = Column::new(name.to_string(), None, text.iter().collect());
+        match self.columns.iter().position(|c| c.name == name) {
+            Some(i) => self.columns[i] = col,
+            None => self.columns.push(col),
+        }
+        Ok(())
+    }
+
+    fn derive_time_s(&mut self) -> Result<(), DataError> {
+        if self.columns.iter().any(|c| c.name == "time_s") {
+            return Ok(());
+        }
+        let Some(ci) = self.columns.iter().position(|c| c.name == "time") else {
+            return Ok(());
+        };
+        let col = &self.columns[ci];
+        // A numeric `time` column is not a timestamp column: leave it alone.
+        if col.values.is_ok()
+            || col
+                .text
+                .iter()
+                .next()
+                .and_then(timestamp::parse_timestamp)
+                .is_none()
+        {
+            return Ok(());
+        }
+        let mut secs = Vec::with_capacity(col.text.len());
+        for (row, t) in col.text.iter().enumerate() {
+            match timestamp::parse_timestamp(t) {
+                Some(s) => secs.push(s),
+                None => {
+                    return Err(DataError::BadTimestamp {
+                        file: self.source.clone(),
+                        line: self.lines[row],
+                        column: col.file_column.unwrap_or(ci + 1),
+                        name: col.name.clone(),
+                        text: t.to_string(),
+                    });
+                }
+            }
+        }
+        let t0 = secs[0];
+        let rel = secs.into_iter().map(|s| s - t0).collect();
+        self.columns.push(Column::from_values("time_s".into(), rel));
+        Ok(())
+    }
+
+    fn scale_column(&mut self, col: &str, factor: f64) -> Result<(), DataError> {
+        let i = self
+            .index_of(col)
+            .ok_or_else(|| self.missing(col, " (named by --scale)"))?;
+        let values: Vec<f64> = self.numeric_at(i)?.iter().map(|v| v * factor).collect();
+        let c = &mut self.columns[i];
+        c.text = values.iter().map(|v| format_number(*v)).collect();
+        c.values = Ok(values);
+        Ok(())
+    }
+
+    fn index_of(&self, name: &str) -> Option<usize> {
+        if let Some(i) = self.columns.iter().position(|c| c.name == name) {
+            return Some(i);
+        }
+        ALIASES
+            .iter()
+            .filter(|(canon, _)| *canon == name)
+            .find_map(|(_, alias)| self.columns.iter().position(|c| c.name == *alias))
+    }
+
+    fn missing(&self, name: &str, purpose: &str) -> DataError {
+        DataError::MissingColumn {
+            file: self.source.clone(),
+            name: name.to_string(),
+            purpose: purpose.to_string(),
+            available: self.column_names().join(", "),
+        }
+    }
+
+    fn column(&self, name: &str, purpose: &str) -> Result<&Column, DataError> {
+        self.index_of(name)
+            .map(|i| &self.columns[i])
+            .ok_or_else(|| self.missing(name, purpose))
+    }
+
+    fn numeric_at(&self, i: usize) -> Result<&[f64], DataError> {
+        let c = &self.columns[i];
+        match &c.values {
+            Ok(v) => Ok(v),
+            Err(BadCell { row }) => {
+                let text = c.text.get(*row);
+                let (file, line, column, name) = (
+                    self.source.clone(),
+                    self.lines[*row],
+                    c.file_column.unwrap_or(i + 1),
+                    c.name.clone(),
+                );
+                Err(if text.trim().is_empty() {
+                    DataError::EmptyCell {
+                        file,
+                        line,
+                        column,
+                        name,
+                    }
+                } else {
+                    DataError::NotANumber {
+                        file,
+                        line,
+                        column,
+                        name,
+                        text: text.to_string(),
+                    }
+                })
+            }
+        }
+    }
+
+    /// The name used in messages (the path as given).
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    pub fn n_rows(&self) -> usize {
+        self.lines.len()
+    }
+
+    /// Column names in file order (derived `time_s` last).
+    pub fn column_names(&self) -> Vec<&str> {
+        self.columns.iter().map(|c| c.name.as_str()).collect()
+    }
+
+    /// Whether the column (or its alias) exists.
+    pub fn has(&self, col: &str) -> bool {
+        self.index_of(col).is_some()
+    }
+
+    /// The physical line of the file on which row `row` starts (0 for rows built in memory).
+    pub fn line_of_row(&self, row: usize) -> usize {
+        self.lines[row]
+    }
+
+    /// Where a cell sits, as `file:line:column (column `name`)`, for messages of other crates.
+    pub fn locate(&self, col: &str, row: usize) -> String {
+        match self.index_of(col) {
+            Some(i) => {
+                let c = &self.columns[i];
+                format!(
+                    "{}:{}:{} (column `{}`)",
+                    self.source,
+                    self.lines[row],
+                    c.file_column.unwrap_or(i + 1),
+                    c.name
+                )
+            }
+            None => format!("{}:{}", self.source, self.lines[row]),
+        }
+    }
+
+    /// The column as numbers; fails naming file, line and column of the first empty or non-numeric cell,
+    /// or naming the missing column.
+    pub fn numeric(&self, col: &str) -> Result<&[f64], DataError> {
+        let i = self.index_of(col).ok_or_else(|| self.missing(col, ""))?;
+        self.numeric_at(i)
+    }
+
+    /// The column as numbers with empty or non-numeric cells read as NaN (for optional channels);
+    /// fails only when the column is missing.
+    pub fn numeric_or_nan(&self, col: &str) -> Result<Vec<f64>, DataError> {
+        let c = self.column(col, "")?;
+        Ok(match &c.values {
+            Ok(v) => v.clone(),
+            Err(_) => c
+                .text
+                .iter()
+                .map(|t| parse_number(t).unwrap_or(f64::NAN))
+                .collect(),
+        })
+    }
+
+    /// Any column as text (numbers as written in the file, or as rescaled).
+    pub fn text(&self, col: &str) -> Result<Vec<&str>, DataError> {
+        let c = self.column(col, "")?;
+        Ok(c.text.iter().collect())
+    }
+
+    /// Names (without the `_degC` suffix) of the temperature sensor columns, in file order.
+    pub fn sensors(&self) -> Vec<String> {
+        self.columns
+            .iter()
+            .filter_map(|c| c.name.strip_suffix("_degC"))
+            .filter(|s| !s.is_empty())
+            .map(str::to_string)
+            .collect()
+    }
+
+    /// Full names of the `*_um` error-channel columns, in file order (e.g. `deviation_um`, `ch3_um`).
+    pub fn error_channels(&self) -> Vec<String> {
+        self.columns
+            .iter()
+            .filter(|c| c.name.len() > 3 && c.name.ends_with("_um"))
+            .map(|c| c.name.clone())
+            .collect()
+    }
+
+    /// Approach direction per row as ±1 (`+`/`-`, `1`/`-1`, `positive`/`negative`, also `pos`/`neg`,
+    /// `forward`/`backward`, case-insensitive); `None` without a `direction`/`approach_direction` column.
+    pub fn direction(&self) -> Result<Option<Vec<i8>>, DataError> {
+        let Some(i) = self.index_of("direction") else {
+            return Ok(None);
+        };
+        let c = &self.columns[i];
+        let mut out = Vec::with_capacity(c.text.len());
+        for (row, t) in c.text.iter().enumerate() {
+            let d = parse_direction(t).ok_or_else(|| DataError::BadDirection {
+                file: self.source.clone(),
+                line: self.lines[row],
+                column: c.file_column.unwrap_or(i + 1),
+                name: c.name.clone(),
+                text: t.to_string(),
+            })?;
+            out.push(d);
+        }
+        Ok(Some(out))
+    }
+
+    /// Run / cycle labels per row (`run`, alias `cycle`), or `None` without such a column.
+    pub fn run(&self) -> Option<Vec<String>> {
+        self.index_of("run").map(|i| {
+            self.columns[i]
+                .text
+                .iter()
+                .map(|t| t.trim().to_string())
+                .collect()
+        })
+    }
+
+    /// Seconds since the start: the `time_s` column, or derived from a `time` timestamp column.
+    /// `None` when there is neither, or `time_s` is not numeric (use [`Dataset::numeric`] for the reason).
+    pub fn time_s(&self) -> Option<&[f64]> {
+        self.numeric("time_s").ok()
+    }
+
+    /// The rows where `mask` is true (mask length must equal [`Dataset::n_rows`]).
+    pub fn select_rows(&self, mask: &[bool]) -> Dataset {
+        assert_eq!(
+            mask.len(),
+            self.n_rows(),
+            "select_rows: mask length differs from the row count"
+        );
+        let pick = |v: &Cells| -> Cells {
+            v.iter()
+                .zip(mask)
+                .filter(|(_, m)| **m)
+                .map(|(t, _)| t)
+                .collect()
+        };
+        Dataset {
+            source: self.source.clone(),
+            lines: self
+                .lines
+                .iter()
+                .zip(mask)
+                .filter(|(_, m)| **m)
+                .map(|(l, _)| *l)
+                .collect(),
+            columns: self
+                .columns
+                .iter()
+                .map(|c| {
+                    let text = pick(&c.text);
+                    let values = match &c.values {
+                        Ok(v) => Ok(v
+                            .iter()
+                            .zip(mask)
+                            .filter(|(_, m)| **m)
+                            .map(|(x, _)| *x)
+                            .collect()),
+                        Err(_) => parse_numbers(&text),
+                    };
+                    Column {
+                        name: c.name.clone(),
+                        file_column: c.file_column,
+                        text,
+                        values,
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    /// The dataset as CSV (header and rows, RFC 4180 quoting); reading it back gives the same cells.
+    pub fn to_csv_string(&self) -> String {
+        let mut out = String::new();
+        for (i, c) in self.columns.iter().enumerate() {
+            if i > 0 {
+                out.push(',');
+            }
+            csv::write_field(&mut out, &c.name);
+        }
+        out.push('\n');
+        for r in 0..self.n_rows() {
+            for (i, c) in self.columns.iter().enumerate() {
+                if i > 0 {
+                    out.push(',');
+                }
+                csv::write_field(&mut out, &c.text[r]);
+            }
+            out.push('\n');
+        }
+        out
+    }
+}
+
+fn parse_direction(t: &str) -> Option<i8> {
+    let t = t.trim().to_ascii_lowercase();
+    match t.as_str() {
+        "+" | "1" | "+1" | "1.0" | "+1.0" | "positive" | "pos" | "forward" | "fwd" => Some(1),
+        "-" | "-1" | "-1.0" | "negative" | "neg" | "backward" | "bwd" | "reverse" => Some(-1),
+        _ => None,
+    }
+}
+
+/// The shared data directory: `$AXCOMP_SHARED`, else `../shared` next to the workspace root.
+/// `workspace_root` is the directory holding the workspace `Cargo.toml`. Returns `None` when it is absent.
+pub fn shared_dir(workspace_root: &Path) -> Option<std::path::PathBuf> {
+    let dir = match std::env::var_os("AXCOMP_SHARED") {
+        Some(d) => std::path::PathBuf::from(d),
+        None => workspace_root.join("../shared"),
+    };
+    dir.is_dir().then_some(dir)
+}
+
+#[cfg(test)]
+mod tests;

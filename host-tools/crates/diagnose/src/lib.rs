@@ -1,1 +1,37 @@
-//! axcomp-diagnose (see docs/design.md).
+//! Sim-to-real gap diagnosis: which unmodelled effect explains what a model misses, and where.
+//!
+//! Glossary:
+//! - **observations**: one campaign as plain columns (target error, position, direction, time, sensors, ...)
+//!   plus the held-out mask ([`Observations`]).
+//! - **effect kind**: a named error source of the contract vocabulary ([`EffectKind`]); each kind is a
+//!   *family* of regressors (basis functions) built from the columns, some with a searched nonlinear
+//!   parameter (a period, a time constant, a decay length) — see [`basis`].
+//! - **model**: the effects the user says are modelled; fitted by least squares on the training rows.
+//! - **gap**: the residual of that model; on the held-out rows it is what the model fails to predict.
+//! - **candidate**: an effect kind not in the model; it is judged by refitting the *whole* model with the
+//!   candidate's family added on the training rows and predicting the held-out rows.
+//! - **shrink**: `100·(1 − rms_after/rms_before)` of the held-out gap.
+//! - **verdict**: the candidate judged responsible, or `none` when no candidate explains the gap beyond
+//!   noise (training F-test with Bonferroni over all searched variants, and a paired test of the held-out
+//!   squared errors).
+//! - **where**: contiguous regions of a variable (`target_mm`, `time_s`, `velocity_mm_s`, `direction`)
+//!   holding most of the held-out gap.
+//!
+//! The withheld-effect validation harness lives in [`validate`]; a small self-contained campaign
+//! generator for tests and calibration in [`synth`].
+
+pub mod basis;
+pub mod dataset;
+pub mod engine;
+pub mod kind;
+pub mod locate;
+pub mod lsq;
+pub mod obs;
+pub mod report;
+pub mod stats;
+pub mod validate;
+
+pub use engine::{diagnose, Candidate, Diagnosis, DiagnoseOptions, Gap};
+pub use kind::EffectKind;
+pub use locate::Region;
+pub use obs::Observations;

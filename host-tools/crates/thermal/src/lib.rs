@@ -1,1 +1,31 @@
-//! axcomp-thermal (see docs/design.md).
+//! axcomp-thermal: thermo-force error models for precision axes.
+//!
+//! Glossary:
+//! - **sensor**: a temperature channel (`NAME_degC`), **rise** ΔT: its change against a reference reading.
+//! - **lag**: first-order delay of a temperature with time constant τ, as the structure follows it
+//!   ([`lag`]).
+//! - **selection**: choosing a few sensors out of many collinear ones: the reference method fuzzy c-means +
+//!   grey relational analysis ([`fcm`], [`gra`]) and forward selection scored by cross-validation
+//!   ([`select`]).
+//! - **thermal model**: `e = b0 + Σ b ΔT + Σ χ F`, fitted by QR least squares ([`linalg`], [`thermal`]).
+//! - **force law**: `F = K·ap^x·fz^y·n^z` ([`force`]); **cutting coefficients** Ktc, Krc, Kac (cutting) and
+//!   Kte, Kre, Kae (edge) of a milling cutter from mean forces ([`milling`]).
+//! - **twin data**: synthetic temperatures, forces and errors with known truth ([`synth`]).
+
+pub mod fcm;
+pub mod force;
+pub mod gra;
+pub mod lag;
+pub mod linalg;
+pub mod milling;
+pub mod model_file;
+pub mod report;
+pub mod select;
+pub mod stats;
+pub mod synth;
+pub mod thermal;
+
+pub use thermal::{
+    ForceTerm, Ridge, Selection, SensorTerm, Series, ThermalError, ThermalFit, ThermalInput, ThermalModel, ThermalOptions,
+    fit_thermal,
+};

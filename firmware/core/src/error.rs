@@ -1,0 +1,171 @@
+//! Typed errors of the table image (parse and write).
+
+use core::fmt;
+
+/// The image field an [`ImageError::NonFinite`] or [`ImageError::OutOfRange`] refers to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Field {
+    /// Header: scale resolution.
+    UmPerCount,
+    /// Header: counter width.
+    CounterBits,
+    /// Header: reserved bytes/flags that must be zero.
+    Reserved,
+    /// Table: start position.
+    StartCounts,
+    /// Table: knot spacing.
+    SegmentCounts,
+    /// Table: outside-stroke kind or taper length.
+    Outside,
+    /// Table: a forward coefficient (index = segment).
+    ForwardCoefficient,
+    /// Table: a backward coefficient (index = segment).
+    BackwardCoefficient,
+    /// Thermo: sensor period.
+    SensorPeriod,
+    /// Thermo: sensor reference temperature (index = sensor).
+    ReferenceDegc,
+    /// Thermo: sensor plausible range (index = sensor).
+    SensorRange,
+    /// Thermo: sensor max rate (index = sensor).
+    MaxRate,
+    /// Thermo: lag time constant (index = sensor).
+    LagTau,
+    /// Thermo: stale timeout (index = sensor).
+    StaleTimeout,
+    /// Thermo: constant term b0.
+    B0,
+    /// Thermo: b_i (index = sensor).
+    BUmPerK,
+    /// Thermo: expansion sensor index.
+    ExpansionSensor,
+    /// Thermo: expansion coefficient c or x_ref.
+    Expansion,
+    /// Thermo: compliance χ (index = force).
+    Chi,
+    /// Thermo: force law coefficient or exponent (index = force).
+    ForceLaw,
+    /// Limits: max correction.
+    MaxCorrection,
+    /// Limits: max slew.
+    MaxSlew,
+    /// Limits: direction hysteresis.
+    Hysteresis,
+}
+
+impl Field {
+    /// Name of the field as used in the image spec.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Field::UmPerCount => "um_per_count",
+            Field::CounterBits => "counter_bits",
+            Field::Reserved => "reserved",
+            Field::StartCounts => "table.start_counts",
+            Field::SegmentCounts => "table.segment_counts",
+            Field::Outside => "table.outside",
+            Field::ForwardCoefficient => "table.forward",
+            Field::BackwardCoefficient => "table.backward",
+            Field::SensorPeriod => "thermo.sensor_period_ms",
+            Field::ReferenceDegc => "thermo.sensors.reference_degc",
+            Field::SensorRange => "thermo.sensors.min_degc/max_degc",
+            Field::MaxRate => "thermo.sensors.max_rate_degc_per_s",
+            Field::LagTau => "thermo.sensors.lag_tau_s",
+            Field::StaleTimeout => "thermo.sensors.stale_timeout_ms",
+            Field::B0 => "thermo.b0_um",
+            Field::BUmPerK => "thermo.b_um_per_k",
+            Field::ExpansionSensor => "thermo.expansion.sensor",
+            Field::Expansion => "thermo.expansion",
+            Field::Chi => "thermo.forces.chi_um_per_n",
+            Field::ForceLaw => "thermo.forces.law",
+            Field::MaxCorrection => "limits.max_correction_um",
+            Field::MaxSlew => "limits.max_slew_um_per_cycle",
+            Field::Hysteresis => "limits.direction_hysteresis_counts",
+        }
+    }
+}
+
+/// Why an image was rejected (parse) or could not be written (spec validation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+// Discriminants start at 1 so that `Option<ImageError>::None` is a zero byte (the `Engine` const
+// stays all zeros and lands in `.bss`).
+#[repr(u8)]
+pub enum ImageError {
+    /// Fewer bytes than the header or the declared total length.
+    TooShort = 1,
+    /// Output buffer smaller than [`crate::image_len`].
+    BufferTooSmall {
+        /// Bytes needed.
+        needed: u32,
+    } = 2,
+    /// Magic is not `AXCI`.
+    BadMagic = 3,
+    /// Schema version not supported by this build.
+    UnsupportedVersion {
+        /// Version found in the image.
+        found: u16,
+    } = 4,
+    /// Header length, total length or a section offset/length is inconsistent.
+    BadLength = 5,
+    /// CRC-32 over the image does not match the stored value.
+    BadCrc = 6,
+    /// More than [`crate::MAX_SEGMENTS`] segments per direction, or none.
+    TooManySegments = 7,
+    /// Backward table is neither empty nor as long as the forward one.
+    DirectionLengthMismatch = 8,
+    /// More than [`crate::MAX_SENSORS`] sensors.
+    TooManySensors = 9,
+    /// More than [`crate::MAX_FORCES`] force terms.
+    TooManyForces = 10,
+    /// `b_um_per_k` does not have one entry per sensor.
+    SensorCountMismatch = 11,
+    /// A value is NaN or infinite.
+    NonFinite {
+        /// Which field.
+        field: Field,
+        /// Element index (segment, sensor or force; 0 for scalars).
+        index: u16,
+    } = 12,
+    /// A value is outside its allowed range.
+    OutOfRange {
+        /// Which field.
+        field: Field,
+        /// Element index (segment, sensor or force; 0 for scalars).
+        index: u16,
+    } = 13,
+}
+
+impl fmt::Display for ImageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            ImageError::TooShort => f.write_str("image too short"),
+            ImageError::BufferTooSmall { needed } => {
+                write!(f, "output buffer too small: {needed} bytes needed")
+            }
+            ImageError::BadMagic => f.write_str("bad magic (not an axcomp table image)"),
+            ImageError::UnsupportedVersion { found } => {
+                write!(f, "unsupported image schema version {found}")
+            }
+            ImageError::BadLength => f.write_str("inconsistent header/section lengths"),
+            ImageError::BadCrc => f.write_str("CRC-32 mismatch"),
+            ImageError::TooManySegments => {
+                f.write_str("table must have 1..=1024 segments per direction")
+            }
+            ImageError::DirectionLengthMismatch => {
+                f.write_str("backward table must be empty or as long as the forward table")
+            }
+            ImageError::TooManySensors => f.write_str("more than 16 sensors"),
+            ImageError::TooManyForces => f.write_str("more than 3 force terms"),
+            ImageError::SensorCountMismatch => {
+                f.write_str("thermo.b_um_per_k must have one entry per sensor")
+            }
+            ImageError::NonFinite { field, index } => {
+                write!(f, "{}[{index}] is not finite", field.name())
+            }
+            ImageError::OutOfRange { field, index } => {
+                write!(f, "{}[{index}] is out of range", field.name())
+            }
+        }
+    }
+}
+
+impl core::error::Error for ImageError {}

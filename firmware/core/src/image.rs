@@ -1,0 +1,815 @@
+//! The table image: versioned binary format, little endian, CRC-32 protected.
+//!
+//! # Layout (schema version 1)
+//! All integers and `f32` little endian; offsets are from the start of the image.
+//!
+//! Header (48 bytes):
+//! | off | type | field |
+//! |---|---|---|
+//! | 0 | `[u8; 4]` | magic `AXCI` |
+//! | 4 | u16 | schema version (1) |
+//! | 6 | u16 | header length (≥ 48, multiple of 4; extra bytes are ignored but CRC-covered) |
+//! | 8 | u32 | total length, CRC included |
+//! | 12 | u16 | axis id |
+//! | 14 | u8 | counter bits (16..=32) |
+//! | 15 | u8 | reserved, 0 |
+//! | 16 | f32 | µm per count |
+//! | 20, 24 | u32, u32 | table section offset, length (0, 0 = no table) |
+//! | 28, 32 | u32, u32 | thermo section offset, length (0, 0 = no thermo-force term) |
+//! | 36, 40 | u32, u32 | limits section offset, length (required) |
+//! | 44 | u32 | reserved, 0 |
+//!
+//! Sections follow the header in the order table, thermo, limits, without overlap; the CRC-32
+//! (IEEE 802.3, reflected, init and xor-out `0xFFFF_FFFF`) over all bytes before it is the last
+//! 4 bytes of the image.
+//!
+//! Table section (24 + 16·n·(1 + bidirectional) bytes): `start_counts` i64, `segment_counts` u32,
+//! `n_segments` u16, `bidirectional` u8 (0/1), `outside` u8 (0 hold, 1 taper), `taper_length_counts`
+//! u32 (0 for hold), reserved u32 = 0, then n forward `[c0, c1, c2, c3]` f32, then (bidirectional)
+//! n backward ones.
+//!
+//! Thermo section (32 + 28·n_sensors + 24·n_forces bytes): `sensor_period_ms` u32, `n_sensors` u8,
+//! `n_forces` u8, `has_expansion` u8 (0/1), `expansion_sensor` u8, `b0_um` f32, `c_um_per_mm_k` f32,
+//! `x_ref_counts` i64, reserved 2×u32 = 0; per sensor `reference_degc`, `min_degc`, `max_degc`,
+//! `max_rate_degc_per_s`, `lag_tau_s` (f32), `stale_timeout_ms` u32, `b_um_per_k` f32; per force
+//! `chi_um_per_n` f32, `has_law` u32 (0/1), `k`, `x_ap`, `y_fz`, `z_n` f32.
+//!
+//! Limits section (16 bytes): `max_correction_um` f32, `max_slew_um_per_cycle` f32,
+//! `direction_hysteresis_counts` u32, reserved u32 = 0.
+//!
+//! # Validation ranges
+//! Every `f32` must be finite. µm per count in [1e-6, 1e4]; |start_counts| ≤ 2^62; the stroke
+//! (n·segment_counts) ≤ u32::MAX counts; per segment Σ|c_k| ≤ 10 000 µm (so |value| ≤ 10 mm);
+//! temperatures in [−273.15, 2000] °C with min < max; max rate in (0, 1e6] K/s; τ in [0, 1e7] s;
+//! stale timeout ≥ 1 ms; sensor period ≥ 1 ms; |b_i| ≤ 1e4 µm/K; |b0| ≤ 1e5 µm; |c| ≤ 1e3 µm/(mm·K);
+//! |x_ref| ≤ 2^62; |χ| ≤ 1e3 µm/N; |k| ≤ 1e9, |exponents| ≤ 10; max correction and max slew in
+//! (0, 1e5] µm; direction hysteresis ≤ 2^31 − 1 counts.
+
+use crate::compensator::{Compensator, SensorRt};
+use crate::error::{Field, ImageError};
+use crate::spec::{ForceLaw, ImageSpec, OutsideStroke};
+use crate::{MAX_FORCES, MAX_IMAGE_LEN, MAX_SEGMENTS, MAX_SENSORS};
+
+/// Image magic.
+pub const MAGIC: [u8; 4] = *b"AXCI";
+/// Schema version written and accepted by this build.
+pub const SCHEMA_VERSION: u16 = 1;
+/// Header length written by this build.
+pub const HEADER_LEN: usize = 48;
+/// Table section length without coefficients.
+pub const TABLE_HEADER_LEN: usize = 24;
+/// Thermo section length without sensors and forces.
+pub const THERMO_HEADER_LEN: usize = 32;
+/// Bytes per sensor in the thermo section.
+pub const SENSOR_LEN: usize = 28;
+/// Bytes per force term in the thermo section.
+pub const FORCE_LEN: usize = 24;
+/// Limits section length.
+pub const LIMITS_LEN: usize = 16;
+/// CRC length.
+pub const CRC_LEN: usize = 4;
+
+/// Largest |table value| a segment may reach, µm.
+pub const MAX_TABLE_UM: f32 = 10_000.0;
+const MAX_ABS_POSITION: i64 = 1 << 62;
+const MIN_DEGC: f32 = -273.15;
+const MAX_DEGC: f32 = 2000.0;
+
+// ---- CRC-32 (IEEE), nibble table: 64 bytes of table, two steps per byte ----
+
+const fn crc_nibble_table() -> [u32; 16] {
+    let mut t = [0u32; 16];
+    let mut i = 0;
+    while i < 16 {
+        let mut c = i as u32;
+        let mut k = 0;
+        while k < 4 {
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0xEDB8_8320
+            } else {
+                c >> 1
+            };
+            k += 1;
+        }
+        t[i] = c;
+        i += 1;
+    }
+    t
+}
+const CRC_TABLE: [u32; 16] = crc_nibble_table();
+
+/// CRC-32 (IEEE 802.3, as zlib/PNG): `crc32(b"123456789") == 0xCBF4_3926`.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= b as u32;
+        c = (c >> 4) ^ CRC_TABLE[(c & 15) as usize];
+        c = (c >> 4) ^ CRC_TABLE[(c & 15) as usize];
+    }
+    !c
+}
+
+// ---- little-endian readers that never panic (0 when out of bounds) ----
+
+fn rd<const N: usize>(b: &[u8], off: usize) -> [u8; N] {
+    match b.get(off..off.wrapping_add(N)) {
+        Some(s) => <[u8; N]>::try_from(s).unwrap_or([0; N]),
+        None => [0; N],
+    }
+}
+fn u8_at(b: &[u8], off: usize) -> u8 {
+    b.get(off).copied().unwrap_or(0)
+}
+fn u16_at(b: &[u8], off: usize) -> u16 {
+    u16::from_le_bytes(rd(b, off))
+}
+fn u32_at(b: &[u8], off: usize) -> u32 {
+    u32::from_le_bytes(rd(b, off))
+}
+fn i64_at(b: &[u8], off: usize) -> i64 {
+    i64::from_le_bytes(rd(b, off))
+}
+fn f32_at(b: &[u8], off: usize) -> f32 {
+    f32::from_le_bytes(rd(b, off))
+}
+
+/// Section offsets and counts of a validated image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Layout {
+    len: usize,
+    table: Option<usize>,
+    n_segments: usize,
+    bidirectional: bool,
+    thermo: Option<usize>,
+    n_sensors: usize,
+    n_forces: usize,
+    limits: usize,
+}
+
+/// Summary of a valid image (see [`inspect_image`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageInfo {
+    /// Total length in bytes (CRC included).
+    pub len: usize,
+    /// Schema version.
+    pub version: u16,
+    /// Axis id.
+    pub axis_id: u16,
+    /// Counter width.
+    pub counter_bits: u8,
+    /// Segments per direction (0 without a table).
+    pub n_segments: usize,
+    /// True if the table has a backward direction.
+    pub bidirectional: bool,
+    /// True if the image has a thermo-force term.
+    pub has_thermo: bool,
+    /// Number of sensors.
+    pub n_sensors: usize,
+    /// Number of force terms.
+    pub n_forces: usize,
+    /// The stored CRC-32.
+    pub crc: u32,
+}
+
+/// Validate `image` fully (structure, CRC, every value) and summarise it.
+pub fn inspect_image(image: &[u8]) -> Result<ImageInfo, ImageError> {
+    let l = validate(image)?;
+    Ok(ImageInfo {
+        len: l.len,
+        version: u16_at(image, 4),
+        axis_id: u16_at(image, 12),
+        counter_bits: u8_at(image, 14),
+        n_segments: l.n_segments,
+        bidirectional: l.bidirectional,
+        has_thermo: l.thermo.is_some(),
+        n_sensors: l.n_sensors,
+        n_forces: l.n_forces,
+        crc: u32_at(image, l.len - CRC_LEN),
+    })
+}
+
+fn finite(v: f32, field: Field, index: usize) -> Result<f32, ImageError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(ImageError::NonFinite {
+            field,
+            index: index as u16,
+        })
+    }
+}
+
+/// Finite and in `[lo, hi]`.
+fn ranged(v: f32, lo: f32, hi: f32, field: Field, index: usize) -> Result<f32, ImageError> {
+    finite(v, field, index)?;
+    if v >= lo && v <= hi {
+        Ok(v)
+    } else {
+        Err(ImageError::OutOfRange {
+            field,
+            index: index as u16,
+        })
+    }
+}
+
+/// Finite and in `(0, hi]`.
+fn positive(v: f32, hi: f32, field: Field, index: usize) -> Result<f32, ImageError> {
+    finite(v, field, index)?;
+    if v > 0.0 && v <= hi {
+        Ok(v)
+    } else {
+        Err(ImageError::OutOfRange {
+            field,
+            index: index as u16,
+        })
+    }
+}
+
+fn check(ok: bool, field: Field, index: usize) -> Result<(), ImageError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(ImageError::OutOfRange {
+            field,
+            index: index as u16,
+        })
+    }
+}
+
+/// Section `(offset, len)` from the header; `(0, 0)` = absent.
+fn section(b: &[u8], at: usize) -> (usize, usize) {
+    (u32_at(b, at) as usize, u32_at(b, at + 4) as usize)
+}
+
+/// Validate everything; nothing is copied.
+pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
+    // ---- structure ----
+    if b.len() < HEADER_LEN {
+        return Err(ImageError::TooShort);
+    }
+    if rd::<4>(b, 0) != MAGIC {
+        return Err(ImageError::BadMagic);
+    }
+    let version = u16_at(b, 4);
+    if version != SCHEMA_VERSION {
+        return Err(ImageError::UnsupportedVersion { found: version });
+    }
+    let header_len = u16_at(b, 6) as usize;
+    let total = u32_at(b, 8) as usize;
+    if header_len < HEADER_LEN || header_len % 4 != 0 || total > MAX_IMAGE_LEN {
+        return Err(ImageError::BadLength);
+    }
+    if total < header_len + LIMITS_LEN + CRC_LEN {
+        return Err(ImageError::BadLength);
+    }
+    if b.len() < total {
+        return Err(ImageError::TooShort);
+    }
+    let body_end = total - CRC_LEN;
+    if crc32(&b[..body_end]) != u32_at(b, body_end) {
+        return Err(ImageError::BadCrc);
+    }
+
+    // ---- sections: in order, in bounds, lengths consistent with their counts ----
+    let mut cursor = header_len;
+    let (t_off, t_len) = section(b, 20);
+    let (h_off, h_len) = section(b, 28);
+    let (l_off, l_len) = section(b, 36);
+    let mut layout = Layout {
+        len: total,
+        table: None,
+        n_segments: 0,
+        bidirectional: false,
+        thermo: None,
+        n_sensors: 0,
+        n_forces: 0,
+        limits: 0,
+    };
+    if (t_off, t_len) != (0, 0) {
+        if t_off < cursor || t_len < TABLE_HEADER_LEN || t_off + t_len > body_end {
+            return Err(ImageError::BadLength);
+        }
+        let n = u16_at(b, t_off + 12) as usize;
+        let bidir = u8_at(b, t_off + 14);
+        if n == 0 || n > MAX_SEGMENTS {
+            return Err(ImageError::TooManySegments);
+        }
+        check(bidir <= 1, Field::Reserved, 0)?;
+        let dirs = 1 + bidir as usize;
+        if t_len != TABLE_HEADER_LEN + 16 * n * dirs {
+            return Err(ImageError::BadLength);
+        }
+        layout.table = Some(t_off);
+        layout.n_segments = n;
+        layout.bidirectional = bidir == 1;
+        cursor = t_off + t_len;
+    }
+    if (h_off, h_len) != (0, 0) {
+        if h_off < cursor || h_len < THERMO_HEADER_LEN || h_off + h_len > body_end {
+            return Err(ImageError::BadLength);
+        }
+        let ns = u8_at(b, h_off + 4) as usize;
+        let nf = u8_at(b, h_off + 5) as usize;
+        if ns > MAX_SENSORS {
+            return Err(ImageError::TooManySensors);
+        }
+        if nf > MAX_FORCES {
+            return Err(ImageError::TooManyForces);
+        }
+        if h_len != THERMO_HEADER_LEN + SENSOR_LEN * ns + FORCE_LEN * nf {
+            return Err(ImageError::BadLength);
+        }
+        layout.thermo = Some(h_off);
+        layout.n_sensors = ns;
+        layout.n_forces = nf;
+        cursor = h_off + h_len;
+    }
+    if l_off < cursor || l_len != LIMITS_LEN || l_off + l_len > body_end {
+        return Err(ImageError::BadLength);
+    }
+    layout.limits = l_off;
+
+    // ---- header values ----
+    check(u8_at(b, 15) == 0 && u32_at(b, 44) == 0, Field::Reserved, 0)?;
+    let bits = u8_at(b, 14);
+    check((16..=32).contains(&bits), Field::CounterBits, 0)?;
+    let upc = ranged(f32_at(b, 16), 1.0e-6, 1.0e4, Field::UmPerCount, 0)?;
+    let _ = upc;
+
+    // ---- table ----
+    if let Some(o) = layout.table {
+        let start = i64_at(b, o);
+        check(
+            (-MAX_ABS_POSITION..=MAX_ABS_POSITION).contains(&start),
+            Field::StartCounts,
+            0,
+        )?;
+        let seg = u32_at(b, o + 8) as u64;
+        check(
+            seg >= 1 && seg * layout.n_segments as u64 <= u32::MAX as u64,
+            Field::SegmentCounts,
+            0,
+        )?;
+        let outside = u8_at(b, o + 15);
+        let taper = u32_at(b, o + 16);
+        check(
+            (outside == 0 && taper == 0) || (outside == 1 && taper >= 1),
+            Field::Outside,
+            0,
+        )?;
+        check(u32_at(b, o + 20) == 0, Field::Reserved, 0)?;
+        let dirs = 1 + layout.bidirectional as usize;
+        for d in 0..dirs {
+            let field = if d == 0 {
+                Field::ForwardCoefficient
+            } else {
+                Field::BackwardCoefficient
+            };
+            for s in 0..layout.n_segments {
+                let at = o + TABLE_HEADER_LEN + 16 * (d * layout.n_segments + s);
+                let mut sum = 0.0f32;
+                for k in 0..4 {
+                    sum += libm::fabsf(finite(f32_at(b, at + 4 * k), field, s)?);
+                }
+                check(sum <= MAX_TABLE_UM, field, s)?;
+            }
+        }
+    }
+
+    // ---- thermo-force ----
+    if let Some(o) = layout.thermo {
+        let period = u32_at(b, o);
+        check(period >= 1, Field::SensorPeriod, 0)?;
+        let has_exp = u8_at(b, o + 6);
+        let exp_sensor = u8_at(b, o + 7) as usize;
+        ranged(f32_at(b, o + 8), -1.0e5, 1.0e5, Field::B0, 0)?;
+        let c = ranged(f32_at(b, o + 12), -1.0e3, 1.0e3, Field::Expansion, 0)?;
+        let x_ref = i64_at(b, o + 16);
+        check(
+            u32_at(b, o + 24) == 0 && u32_at(b, o + 28) == 0,
+            Field::Reserved,
+            0,
+        )?;
+        match has_exp {
+            0 => check(
+                exp_sensor == 0 && c == 0.0 && x_ref == 0,
+                Field::Expansion,
+                0,
+            )?,
+            1 => {
+                check(exp_sensor < layout.n_sensors, Field::ExpansionSensor, 0)?;
+                check(
+                    (-MAX_ABS_POSITION..=MAX_ABS_POSITION).contains(&x_ref),
+                    Field::Expansion,
+                    0,
+                )?;
+            }
+            _ => {
+                return Err(ImageError::OutOfRange {
+                    field: Field::Expansion,
+                    index: 0,
+                });
+            }
+        }
+        for i in 0..layout.n_sensors {
+            let at = o + THERMO_HEADER_LEN + SENSOR_LEN * i;
+            ranged(f32_at(b, at), MIN_DEGC, MAX_DEGC, Field::ReferenceDegc, i)?;
+            let lo = ranged(f32_at(b, at + 4), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
+            let hi = ranged(f32_at(b, at + 8), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
+            check(lo < hi, Field::SensorRange, i)?;
+            positive(f32_at(b, at + 12), 1.0e6, Field::MaxRate, i)?;
+            ranged(f32_at(b, at + 16), 0.0, 1.0e7, Field::LagTau, i)?;
+            check(u32_at(b, at + 20) >= 1, Field::StaleTimeout, i)?;
+            ranged(f32_at(b, at + 24), -1.0e4, 1.0e4, Field::BUmPerK, i)?;
+        }
+        for j in 0..layout.n_forces {
+            let at = o + THERMO_HEADER_LEN + SENSOR_LEN * layout.n_sensors + FORCE_LEN * j;
+            ranged(f32_at(b, at), -1.0e3, 1.0e3, Field::Chi, j)?;
+            let has_law = u32_at(b, at + 4);
+            check(has_law <= 1, Field::ForceLaw, j)?;
+            let k = ranged(f32_at(b, at + 8), -1.0e9, 1.0e9, Field::ForceLaw, j)?;
+            let mut e = [0.0f32; 3];
+            for (m, v) in e.iter_mut().enumerate() {
+                *v = ranged(f32_at(b, at + 12 + 4 * m), -10.0, 10.0, Field::ForceLaw, j)?;
+            }
+            if has_law == 0 {
+                check(k == 0.0 && e == [0.0; 3], Field::ForceLaw, j)?;
+            }
+        }
+    }
+
+    // ---- limits ----
+    let o = layout.limits;
+    positive(f32_at(b, o), 1.0e5, Field::MaxCorrection, 0)?;
+    positive(f32_at(b, o + 4), 1.0e5, Field::MaxSlew, 0)?;
+    check(u32_at(b, o + 8) <= i32::MAX as u32, Field::Hysteresis, 0)?;
+    check(u32_at(b, o + 12) == 0, Field::Reserved, 0)?;
+    Ok(layout)
+}
+
+/// Copy a validated image into `c` (cannot fail).
+pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
+    let bits = u8_at(b, 14);
+    let upc = f32_at(b, 16);
+    c.axis_id = u16_at(b, 12);
+    c.counter_bits = bits;
+    c.sext_shift = 32u32.saturating_sub(bits as u32);
+    c.um_per_count = upc;
+
+    c.has_table = l.table.is_some();
+    c.bidirectional = false;
+    c.taper = false;
+    c.n_segments = 0;
+    c.start_counts = 0;
+    c.segment_counts = 0;
+    c.span_counts = 0;
+    c.inv_segment = 0.0;
+    c.taper_counts = 0;
+    c.inv_taper = 0.0;
+    c.edge = [[0.0; 2]; 2];
+    if let Some(o) = l.table {
+        let n = l.n_segments;
+        let seg = u32_at(b, o + 8);
+        c.bidirectional = l.bidirectional;
+        c.n_segments = n as u32;
+        c.start_counts = i64_at(b, o);
+        c.segment_counts = seg;
+        c.span_counts = seg as i64 * n as i64;
+        c.inv_segment = 1.0 / seg as f32;
+        c.taper = u8_at(b, o + 15) == 1;
+        c.taper_counts = u32_at(b, o + 16);
+        c.inv_taper = if c.taper {
+            1.0 / c.taper_counts as f32
+        } else {
+            0.0
+        };
+        let dirs = 1 + l.bidirectional as usize;
+        for d in 0..dirs {
+            for s in 0..n {
+                let at = o + TABLE_HEADER_LEN + 16 * (d * n + s);
+                if let Some(dst) = c.coeffs.get_mut(d * MAX_SEGMENTS + s) {
+                    for (k, v) in dst.iter_mut().enumerate() {
+                        *v = f32_at(b, at + 4 * k);
+                    }
+                }
+            }
+        }
+        for d in 0..2 {
+            let base = if d == 1 && l.bidirectional {
+                MAX_SEGMENTS
+            } else {
+                0
+            };
+            let first = c.coeffs[base];
+            let last = c.coeffs[(base + n - 1) & (2 * MAX_SEGMENTS - 1)];
+            c.edge[d] = [first[0], last[0] + last[1] + last[2] + last[3]];
+        }
+    }
+
+    c.has_thermo = l.thermo.is_some();
+    c.sensor_period_ms = 0;
+    c.n_sensors = 0;
+    c.b0_um = 0.0;
+    c.has_expansion = false;
+    c.expansion_sensor = 0;
+    c.x_ref_counts = 0;
+    c.c_um_per_mm_k = 0.0;
+    c.expansion_um_per_count_k = 0.0;
+    c.n_forces = 0;
+    c.chi_um_per_n = [0.0; MAX_FORCES];
+    c.force_predicted = [false; MAX_FORCES];
+    c.measured_mask = 0;
+    c.chi_measured = [0.0; MAX_FORCES];
+    c.thermo_flags_xor = 0;
+    c.laws = [ForceLaw {
+        k: 0.0,
+        x_ap: 0.0,
+        y_fz: 0.0,
+        z_n: 0.0,
+    }; MAX_FORCES];
+    for s in c.sensors.iter_mut() {
+        *s = SensorRt {
+            reference_degc: 0.0,
+            min_degc: 0.0,
+            max_degc: 0.0,
+            max_rate_degc_per_s: 0.0,
+            lag_tau_s: 0.0,
+            stale_timeout_ms: 0,
+            b_um_per_k: 0.0,
+            alpha: 0.0,
+        };
+    }
+    if let Some(o) = l.thermo {
+        let period = u32_at(b, o);
+        let period_s = period as f32 * 0.001;
+        c.sensor_period_ms = period;
+        c.n_sensors = l.n_sensors as u8;
+        c.b0_um = f32_at(b, o + 8);
+        c.has_expansion = u8_at(b, o + 6) == 1;
+        c.expansion_sensor = u8_at(b, o + 7);
+        c.c_um_per_mm_k = f32_at(b, o + 12);
+        c.x_ref_counts = i64_at(b, o + 16);
+        c.expansion_um_per_count_k = c.c_um_per_mm_k * upc * 0.001;
+        for (i, s) in c.sensors.iter_mut().enumerate().take(l.n_sensors) {
+            let at = o + THERMO_HEADER_LEN + SENSOR_LEN * i;
+            let tau = f32_at(b, at + 16);
+            *s = SensorRt {
+                reference_degc: f32_at(b, at),
+                min_degc: f32_at(b, at + 4),
+                max_degc: f32_at(b, at + 8),
+                max_rate_degc_per_s: f32_at(b, at + 12),
+                lag_tau_s: tau,
+                stale_timeout_ms: u32_at(b, at + 20),
+                b_um_per_k: f32_at(b, at + 24),
+                alpha: lag_alpha(period_s, tau),
+            };
+        }
+        c.n_forces = l.n_forces as u8;
+        if l.n_sensors > 0 {
+            c.thermo_flags_xor = crate::Flags::THERMAL_FROZEN.0;
+        }
+        for j in 0..l.n_forces.min(MAX_FORCES) {
+            let at = o + THERMO_HEADER_LEN + SENSOR_LEN * l.n_sensors + FORCE_LEN * j;
+            c.chi_um_per_n[j] = f32_at(b, at);
+            c.force_predicted[j] = u32_at(b, at + 4) == 1;
+            if !c.force_predicted[j] {
+                c.measured_mask |= 1 << j;
+                c.chi_measured[j] = c.chi_um_per_n[j];
+            }
+            c.laws[j] = ForceLaw {
+                k: f32_at(b, at + 8),
+                x_ap: f32_at(b, at + 12),
+                y_fz: f32_at(b, at + 16),
+                z_n: f32_at(b, at + 20),
+            };
+        }
+    }
+
+    let o = l.limits;
+    c.max_correction_um = f32_at(b, o);
+    c.max_slew_um_per_cycle = f32_at(b, o + 4);
+    c.hysteresis_counts = u32_at(b, o + 8);
+    c.loaded = true;
+}
+
+/// α = 1 − exp(−period/τ) (via `expm1f` for accuracy at small period/τ); 1 for τ = 0.
+pub fn lag_alpha(period_s: f32, tau_s: f32) -> f32 {
+    if tau_s > 0.0 {
+        let a = -libm::expm1f(-(period_s / tau_s));
+        if a.is_finite() {
+            a.clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    } else {
+        1.0
+    }
+}
+
+/// Length in bytes of the image [`write_image`] writes for `spec`.
+pub fn image_len(spec: &ImageSpec) -> usize {
+    let mut n = HEADER_LEN + LIMITS_LEN + CRC_LEN;
+    if let Some(t) = &spec.table {
+        let dirs = if t.backward.is_empty() { 1 } else { 2 };
+        n = n.saturating_add(TABLE_HEADER_LEN + 16usize.saturating_mul(t.forward.len()) * dirs);
+    }
+    if let Some(h) = &spec.thermo {
+        n = n.saturating_add(
+            THERMO_HEADER_LEN
+                + SENSOR_LEN.saturating_mul(h.sensors.len())
+                + FORCE_LEN.saturating_mul(h.forces.len()),
+        );
+    }
+    n
+}
+
+/// Little-endian writer over a buffer that is known to be large enough.
+struct Put<'a> {
+    buf: &'a mut [u8],
+    pos: usize,
+}
+
+impl Put<'_> {
+    fn bytes(&mut self, v: &[u8]) {
+        if let Some(dst) = self.buf.get_mut(self.pos..self.pos + v.len()) {
+            dst.copy_from_slice(v);
+        }
+        self.pos += v.len();
+    }
+    fn u8(&mut self, v: u8) {
+        self.bytes(&[v]);
+    }
+    fn u16(&mut self, v: u16) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn u32(&mut self, v: u32) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn i64(&mut self, v: i64) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn f32(&mut self, v: f32) {
+        self.bytes(&v.to_le_bytes());
+    }
+}
+
+/// Validate `spec` and write its image into `out`; returns the length.
+///
+/// On `Err` nothing usable is left in `out` (the written bytes are zeroed).
+pub fn write_image(spec: &ImageSpec, out: &mut [u8]) -> Result<usize, ImageError> {
+    // Counts the format cannot represent.
+    if let Some(t) = &spec.table {
+        if t.forward.is_empty() || t.forward.len() > MAX_SEGMENTS {
+            return Err(ImageError::TooManySegments);
+        }
+        if !t.backward.is_empty() && t.backward.len() != t.forward.len() {
+            return Err(ImageError::DirectionLengthMismatch);
+        }
+    }
+    if let Some(h) = &spec.thermo {
+        if h.sensors.len() > MAX_SENSORS {
+            return Err(ImageError::TooManySensors);
+        }
+        if h.forces.len() > MAX_FORCES {
+            return Err(ImageError::TooManyForces);
+        }
+        if h.b_um_per_k.len() != h.sensors.len() {
+            return Err(ImageError::SensorCountMismatch);
+        }
+        if let Some(e) = &h.expansion {
+            if e.sensor as usize >= h.sensors.len() {
+                return Err(ImageError::OutOfRange {
+                    field: Field::ExpansionSensor,
+                    index: 0,
+                });
+            }
+        }
+    }
+    let len = image_len(spec);
+    if len > MAX_IMAGE_LEN {
+        return Err(ImageError::BadLength);
+    }
+    if out.len() < len {
+        return Err(ImageError::BufferTooSmall { needed: len as u32 });
+    }
+    let out = &mut out[..len];
+
+    let table_len = spec.table.as_ref().map_or(0, |t| {
+        TABLE_HEADER_LEN + 16 * t.forward.len() * if t.backward.is_empty() { 1 } else { 2 }
+    });
+    let thermo_len = spec.thermo.as_ref().map_or(0, |h| {
+        THERMO_HEADER_LEN + SENSOR_LEN * h.sensors.len() + FORCE_LEN * h.forces.len()
+    });
+    let table_off = if table_len > 0 { HEADER_LEN } else { 0 };
+    let thermo_off = if thermo_len > 0 {
+        HEADER_LEN + table_len
+    } else {
+        0
+    };
+    let limits_off = HEADER_LEN + table_len + thermo_len;
+
+    let mut w = Put { buf: out, pos: 0 };
+    w.bytes(&MAGIC);
+    w.u16(SCHEMA_VERSION);
+    w.u16(HEADER_LEN as u16);
+    w.u32(len as u32);
+    w.u16(spec.axis_id);
+    w.u8(spec.counter_bits);
+    w.u8(0);
+    w.f32(spec.um_per_count);
+    for v in [
+        table_off, table_len, thermo_off, thermo_len, limits_off, LIMITS_LEN,
+    ] {
+        w.u32(v as u32);
+    }
+    w.u32(0);
+
+    if let Some(t) = &spec.table {
+        w.i64(t.start_counts);
+        w.u32(t.segment_counts);
+        w.u16(t.forward.len() as u16);
+        w.u8(!t.backward.is_empty() as u8);
+        match t.outside {
+            OutsideStroke::Hold => {
+                w.u8(0);
+                w.u32(0);
+            }
+            OutsideStroke::Taper { length_counts } => {
+                w.u8(1);
+                w.u32(length_counts);
+            }
+        }
+        w.u32(0);
+        for c in t.forward.iter().chain(t.backward.iter()) {
+            for &v in c {
+                w.f32(v);
+            }
+        }
+    }
+    if let Some(h) = &spec.thermo {
+        w.u32(h.sensor_period_ms);
+        w.u8(h.sensors.len() as u8);
+        w.u8(h.forces.len() as u8);
+        match &h.expansion {
+            Some(e) => {
+                w.u8(1);
+                w.u8(e.sensor);
+                w.f32(h.b0_um);
+                w.f32(e.c_um_per_mm_k);
+                w.i64(e.x_ref_counts);
+            }
+            None => {
+                w.u8(0);
+                w.u8(0);
+                w.f32(h.b0_um);
+                w.f32(0.0);
+                w.i64(0);
+            }
+        }
+        w.u32(0);
+        w.u32(0);
+        for (s, &b) in h.sensors.iter().zip(h.b_um_per_k.iter()) {
+            w.f32(s.reference_degc);
+            w.f32(s.min_degc);
+            w.f32(s.max_degc);
+            w.f32(s.max_rate_degc_per_s);
+            w.f32(s.lag_tau_s);
+            w.u32(s.stale_timeout_ms);
+            w.f32(b);
+        }
+        for f in h.forces {
+            w.f32(f.chi_um_per_n);
+            match &f.law {
+                Some(l) => {
+                    w.u32(1);
+                    w.f32(l.k);
+                    w.f32(l.x_ap);
+                    w.f32(l.y_fz);
+                    w.f32(l.z_n);
+                }
+                None => {
+                    w.u32(0);
+                    for _ in 0..4 {
+                        w.f32(0.0);
+                    }
+                }
+            }
+        }
+    }
+    w.f32(spec.limits.max_correction_um);
+    w.f32(spec.limits.max_slew_um_per_cycle);
+    w.u32(spec.limits.direction_hysteresis_counts);
+    w.u32(0);
+    let body = w.pos;
+    let crc = crc32(&w.buf[..body]);
+    w.u32(crc);
+
+    // The written image must pass exactly the checks the firmware applies.
+    match validate(out) {
+        Ok(_) => Ok(len),
+        Err(e) => {
+            out.fill(0);
+            Err(e)
+        }
+    }
+}

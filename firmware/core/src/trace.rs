@@ -1,0 +1,541 @@
+//! Binary traces (inputs) and output records for replay on the host and on the target.
+//!
+//! # Trace layout (version 1, little endian)
+//! A trace is an 8-byte header — magic `AXTR`, version u16 (1), reserved u16 (0) — followed by
+//! records. Every record is `tag: u8`, `len: u32` (payload bytes), then the payload, so a reader
+//! can skip or validate any record:
+//!
+//! | tag | record | payload |
+//! |---|---|---|
+//! | 1 | `Cycle` | `scale_raw` u32, `command_counts` i64, `forces_n` 3×f32 (24 bytes) |
+//! | 2 | `Temperatures` | `now_ms` u32, `n` u8 (≤ 16), 3 reserved bytes (0), n×f32 (8 + 4n bytes) |
+//! | 3 | `Process` | `ap_mm`, `fz_mm`, `n_rpm` f32 (12 bytes) |
+//! | 4 | `Image` | a table image (≤ 64 KiB), loaded into the spare slot |
+//! | 5 | `Reset` | `scale_raw` u32 (4 bytes): [`crate::State::reset`] |
+//! | 255 | `End` | empty; the reader stops after it |
+//!
+//! # Output record (32 bytes, little endian)
+//! | off | type | field |
+//! |---|---|---|
+//! | 0 | u32 | cycle index (0-based, counts Cycle records) |
+//! | 4 | i64 | extended position, counts |
+//! | 12 | i64 | corrected command, counts |
+//! | 20 | i32 | correction, counts |
+//! | 24 | u32 | correction, µm, as `f32::to_bits` |
+//! | 28 | u16 | [`crate::Flags`] bits |
+//! | 30 | u8 | active slot (0 = A, 1 = B) |
+//! | 31 | u8 | status bits: [`STATUS_IMAGE_ACCEPTED`], [`STATUS_IMAGE_REJECTED`], [`STATUS_NO_IMAGE`] |
+
+use core::fmt;
+
+use crate::{CycleInput, MAX_FORCES, MAX_IMAGE_LEN, MAX_SENSORS, ProcessParams};
+
+/// Trace magic.
+pub const TRACE_MAGIC: [u8; 4] = *b"AXTR";
+/// Trace version written and read by this build.
+pub const TRACE_VERSION: u16 = 1;
+/// Length of the trace header.
+pub const TRACE_HEADER_LEN: usize = 8;
+/// Length of a record header (tag + length).
+pub const RECORD_HEADER_LEN: usize = 5;
+/// Tag of [`Record::Cycle`].
+pub const TAG_CYCLE: u8 = 1;
+/// Tag of [`Record::Temperatures`].
+pub const TAG_TEMPERATURES: u8 = 2;
+/// Tag of [`Record::Process`].
+pub const TAG_PROCESS: u8 = 3;
+/// Tag of [`Record::Image`].
+pub const TAG_IMAGE: u8 = 4;
+/// Tag of [`Record::Reset`].
+pub const TAG_RESET: u8 = 5;
+/// Tag of [`Record::End`].
+pub const TAG_END: u8 = 255;
+/// Length of an encoded [`OutputRecord`].
+pub const OUTPUT_RECORD_LEN: usize = 32;
+/// Status bit: an image was accepted since the previous output record.
+pub const STATUS_IMAGE_ACCEPTED: u8 = 1;
+/// Status bit: an image was rejected since the previous output record.
+pub const STATUS_IMAGE_REJECTED: u8 = 2;
+/// Status bit: no image loaded, the identity is running.
+pub const STATUS_NO_IMAGE: u8 = 4;
+
+const CYCLE_LEN: usize = 24;
+const PROCESS_LEN: usize = 12;
+const RESET_LEN: usize = 4;
+
+/// Trace framing or decoding error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TraceError {
+    /// Shorter than the trace header.
+    TooShort,
+    /// Magic is not `AXTR`.
+    BadMagic,
+    /// Trace version not supported.
+    UnsupportedVersion {
+        /// Version found.
+        found: u16,
+    },
+    /// A record header or payload runs past the end of the trace.
+    Truncated {
+        /// Byte offset of the record.
+        offset: u32,
+    },
+    /// Unknown record tag (the record is skipped).
+    UnknownTag {
+        /// The tag.
+        tag: u8,
+        /// Byte offset of the record.
+        offset: u32,
+    },
+    /// A known record with a payload length or content that does not fit its tag (skipped).
+    BadRecord {
+        /// The tag.
+        tag: u8,
+        /// Byte offset of the record.
+        offset: u32,
+    },
+    /// The output buffer is too small.
+    BufferFull,
+}
+
+impl fmt::Display for TraceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            TraceError::TooShort => f.write_str("trace shorter than its header"),
+            TraceError::BadMagic => f.write_str("bad trace magic (not an axcomp trace)"),
+            TraceError::UnsupportedVersion { found } => {
+                write!(f, "unsupported trace version {found}")
+            }
+            TraceError::Truncated { offset } => {
+                write!(f, "record at byte {offset} runs past the end of the trace")
+            }
+            TraceError::UnknownTag { tag, offset } => {
+                write!(f, "unknown record tag {tag} at byte {offset}")
+            }
+            TraceError::BadRecord { tag, offset } => {
+                write!(f, "malformed record (tag {tag}) at byte {offset}")
+            }
+            TraceError::BufferFull => f.write_str("output buffer full"),
+        }
+    }
+}
+
+impl core::error::Error for TraceError {}
+
+/// A set of temperature readings (°C, NaN = no reading) at `now_ms`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Temperatures {
+    /// Time of the readings, ms (wraps).
+    pub now_ms: u32,
+    /// Number of valid entries in `values`.
+    pub n: u8,
+    /// Readings; entries at `n..` are unused.
+    pub values: [f32; MAX_SENSORS],
+}
+
+impl Temperatures {
+    /// From a slice (at most [`MAX_SENSORS`] entries are kept).
+    pub fn new(now_ms: u32, readings: &[f32]) -> Temperatures {
+        let mut values = [f32::NAN; MAX_SENSORS];
+        let n = readings.len().min(MAX_SENSORS);
+        values[..n].copy_from_slice(&readings[..n]);
+        Temperatures {
+            now_ms,
+            n: n as u8,
+            values,
+        }
+    }
+    /// The valid readings.
+    pub fn readings(&self) -> &[f32] {
+        &self.values[..(self.n as usize).min(MAX_SENSORS)]
+    }
+}
+
+/// One trace record.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Record<'a> {
+    /// A control cycle.
+    Cycle(CycleInput),
+    /// A sensor-rate temperature update.
+    Temperatures(Temperatures),
+    /// New process parameters (predicted forces).
+    Process(ProcessParams),
+    /// A new table image for the spare slot.
+    Image(&'a [u8]),
+    /// Reset the axis state with the counter value at reset.
+    Reset {
+        /// Counter value at reset.
+        scale_raw: u32,
+    },
+    /// End of the trace.
+    End,
+}
+
+impl Record<'_> {
+    /// The record's tag.
+    pub fn tag(&self) -> u8 {
+        match self {
+            Record::Cycle(_) => TAG_CYCLE,
+            Record::Temperatures(_) => TAG_TEMPERATURES,
+            Record::Process(_) => TAG_PROCESS,
+            Record::Image(_) => TAG_IMAGE,
+            Record::Reset { .. } => TAG_RESET,
+            Record::End => TAG_END,
+        }
+    }
+    /// Payload length in bytes.
+    pub fn payload_len(&self) -> usize {
+        match self {
+            Record::Cycle(_) => CYCLE_LEN,
+            Record::Temperatures(t) => 8 + 4 * t.readings().len(),
+            Record::Process(_) => PROCESS_LEN,
+            Record::Image(b) => b.len(),
+            Record::Reset { .. } => RESET_LEN,
+            Record::End => 0,
+        }
+    }
+    /// Encoded length (header + payload).
+    pub fn encoded_len(&self) -> usize {
+        RECORD_HEADER_LEN + self.payload_len()
+    }
+}
+
+fn rd<const N: usize>(b: &[u8], off: usize) -> [u8; N] {
+    match b.get(off..off.wrapping_add(N)) {
+        Some(s) => <[u8; N]>::try_from(s).unwrap_or([0; N]),
+        None => [0; N],
+    }
+}
+fn f32_at(b: &[u8], off: usize) -> f32 {
+    f32::from_le_bytes(rd(b, off))
+}
+fn u32_at(b: &[u8], off: usize) -> u32 {
+    u32::from_le_bytes(rd(b, off))
+}
+
+/// Write the trace header into `out`; returns its length.
+pub fn write_header(out: &mut [u8]) -> Result<usize, TraceError> {
+    let dst = out
+        .get_mut(..TRACE_HEADER_LEN)
+        .ok_or(TraceError::BufferFull)?;
+    dst[..4].copy_from_slice(&TRACE_MAGIC);
+    dst[4..6].copy_from_slice(&TRACE_VERSION.to_le_bytes());
+    dst[6..8].copy_from_slice(&0u16.to_le_bytes());
+    Ok(TRACE_HEADER_LEN)
+}
+
+/// Check the trace header; returns the offset of the first record.
+pub fn check_header(bytes: &[u8]) -> Result<usize, TraceError> {
+    if bytes.len() < TRACE_HEADER_LEN {
+        return Err(TraceError::TooShort);
+    }
+    if rd::<4>(bytes, 0) != TRACE_MAGIC {
+        return Err(TraceError::BadMagic);
+    }
+    let v = u16::from_le_bytes(rd(bytes, 4));
+    if v != TRACE_VERSION {
+        return Err(TraceError::UnsupportedVersion { found: v });
+    }
+    Ok(TRACE_HEADER_LEN)
+}
+
+/// Encode one record (header + payload) into `out`; returns the bytes written.
+pub fn encode_record(rec: &Record, out: &mut [u8]) -> Result<usize, TraceError> {
+    let len = rec.encoded_len();
+    if rec.payload_len() > u32::MAX as usize {
+        return Err(TraceError::BufferFull);
+    }
+    let dst = out.get_mut(..len).ok_or(TraceError::BufferFull)?;
+    dst[0] = rec.tag();
+    dst[1..5].copy_from_slice(&(rec.payload_len() as u32).to_le_bytes());
+    let p = &mut dst[RECORD_HEADER_LEN..];
+    match rec {
+        Record::Cycle(c) => {
+            p[0..4].copy_from_slice(&c.scale_raw.to_le_bytes());
+            p[4..12].copy_from_slice(&c.command_counts.to_le_bytes());
+            for (k, f) in c.forces_n.iter().enumerate() {
+                p[12 + 4 * k..16 + 4 * k].copy_from_slice(&f.to_le_bytes());
+            }
+        }
+        Record::Temperatures(t) => {
+            let r = t.readings();
+            p[0..4].copy_from_slice(&t.now_ms.to_le_bytes());
+            p[4] = r.len() as u8;
+            p[5..8].copy_from_slice(&[0; 3]);
+            for (k, v) in r.iter().enumerate() {
+                p[8 + 4 * k..12 + 4 * k].copy_from_slice(&v.to_le_bytes());
+            }
+        }
+        Record::Process(q) => {
+            p[0..4].copy_from_slice(&q.ap_mm.to_le_bytes());
+            p[4..8].copy_from_slice(&q.fz_mm.to_le_bytes());
+            p[8..12].copy_from_slice(&q.n_rpm.to_le_bytes());
+        }
+        Record::Image(b) => p.copy_from_slice(b),
+        Record::Reset { scale_raw } => p.copy_from_slice(&scale_raw.to_le_bytes()),
+        Record::End => {}
+    }
+    Ok(len)
+}
+
+/// Decode the record at the start of `bytes`; returns it and its encoded length.
+///
+/// `offset` is only used in error values. On `UnknownTag` and `BadRecord` the record's framing is
+/// intact, and [`record_extent`] tells how far to skip.
+pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize), TraceError> {
+    let off32 = offset.min(u32::MAX as usize) as u32;
+    let total = record_extent(bytes).ok_or(TraceError::Truncated { offset: off32 })?;
+    let tag = bytes[0];
+    let p = &bytes[RECORD_HEADER_LEN..total];
+    let bad = TraceError::BadRecord { tag, offset: off32 };
+    let rec = match tag {
+        TAG_CYCLE => {
+            if p.len() != CYCLE_LEN {
+                return Err(bad);
+            }
+            let mut forces_n = [0.0f32; MAX_FORCES];
+            for (k, f) in forces_n.iter_mut().enumerate() {
+                *f = f32_at(p, 12 + 4 * k);
+            }
+            Record::Cycle(CycleInput {
+                scale_raw: u32_at(p, 0),
+                command_counts: i64::from_le_bytes(rd(p, 4)),
+                forces_n,
+            })
+        }
+        TAG_TEMPERATURES => {
+            let n = p.get(4).copied().unwrap_or(0) as usize;
+            if p.len() < 8 || n > MAX_SENSORS || p.len() != 8 + 4 * n || p[5..8] != [0; 3] {
+                return Err(bad);
+            }
+            let mut values = [f32::NAN; MAX_SENSORS];
+            for (k, v) in values.iter_mut().enumerate().take(n) {
+                *v = f32_at(p, 8 + 4 * k);
+            }
+            Record::Temperatures(Temperatures {
+                now_ms: u32_at(p, 0),
+                n: n as u8,
+                values,
+            })
+        }
+        TAG_PROCESS => {
+            if p.len() != PROCESS_LEN {
+                return Err(bad);
+            }
+            Record::Process(ProcessParams {
+                ap_mm: f32_at(p, 0),
+                fz_mm: f32_at(p, 4),
+                n_rpm: f32_at(p, 8),
+            })
+        }
+        TAG_IMAGE => {
+            if p.len() > MAX_IMAGE_LEN {
+                return Err(bad);
+            }
+            Record::Image(p)
+        }
+        TAG_RESET => {
+            if p.len() != RESET_LEN {
+                return Err(bad);
+            }
+            Record::Reset {
+                scale_raw: u32_at(p, 0),
+            }
+        }
+        TAG_END => {
+            if !p.is_empty() {
+                return Err(bad);
+            }
+            Record::End
+        }
+        _ => {
+            return Err(TraceError::UnknownTag { tag, offset: off32 });
+        }
+    };
+    Ok((rec, total))
+}
+
+/// Encoded length of the record at the start of `bytes`, if its header and payload are complete.
+pub fn record_extent(bytes: &[u8]) -> Option<usize> {
+    if bytes.len() < RECORD_HEADER_LEN {
+        return None;
+    }
+    let len = u32_at(bytes, 1) as usize;
+    let total = RECORD_HEADER_LEN.checked_add(len)?;
+    (total <= bytes.len()).then_some(total)
+}
+
+/// Reader over a whole trace in memory; yields records and errors, never panics.
+///
+/// Malformed records with intact framing (unknown tag, wrong payload) are reported and skipped; a
+/// truncated record is reported and ends the iteration; so does `End`.
+#[derive(Debug, Clone)]
+pub struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+    done: bool,
+}
+
+impl<'a> Reader<'a> {
+    /// Check the header and start at the first record.
+    pub fn new(bytes: &'a [u8]) -> Result<Reader<'a>, TraceError> {
+        let pos = check_header(bytes)?;
+        Ok(Reader {
+            bytes,
+            pos,
+            done: false,
+        })
+    }
+    /// Byte offset of the next record.
+    pub fn offset(&self) -> usize {
+        self.pos
+    }
+}
+
+impl<'a> Iterator for Reader<'a> {
+    type Item = Result<Record<'a>, TraceError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done || self.pos >= self.bytes.len() {
+            return None;
+        }
+        let rest = self.bytes.get(self.pos..).unwrap_or(&[]);
+        let at = self.pos;
+        match decode_record(rest, at) {
+            Ok((rec, n)) => {
+                self.pos += n;
+                if rec == Record::End {
+                    self.done = true;
+                }
+                Some(Ok(rec))
+            }
+            Err(e) => {
+                match record_extent(rest) {
+                    Some(n) => self.pos += n,
+                    None => self.done = true,
+                }
+                Some(Err(e))
+            }
+        }
+    }
+}
+
+/// Writes a trace (header + records) into a caller buffer.
+#[derive(Debug)]
+pub struct Writer<'b> {
+    buf: &'b mut [u8],
+    len: usize,
+}
+
+impl<'b> Writer<'b> {
+    /// Start a trace: writes the header.
+    pub fn new(buf: &'b mut [u8]) -> Result<Writer<'b>, TraceError> {
+        let len = write_header(buf)?;
+        Ok(Writer { buf, len })
+    }
+    /// Append one record; on `BufferFull` nothing is appended.
+    pub fn push(&mut self, rec: &Record) -> Result<(), TraceError> {
+        let dst = self.buf.get_mut(self.len..).ok_or(TraceError::BufferFull)?;
+        self.len += encode_record(rec, dst)?;
+        Ok(())
+    }
+    /// Bytes written so far.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    /// True if only the header has been written.
+    pub fn is_empty(&self) -> bool {
+        self.len <= TRACE_HEADER_LEN
+    }
+    /// The trace written so far.
+    pub fn as_bytes(&self) -> &[u8] {
+        &self.buf[..self.len]
+    }
+    /// Finish; returns the trace length.
+    pub fn finish(self) -> usize {
+        self.len
+    }
+}
+
+/// Write the trace header to an `std::io::Write`.
+#[cfg(feature = "std")]
+pub fn write_header_io<W: std::io::Write>(w: &mut W) -> std::io::Result<()> {
+    let mut h = [0u8; TRACE_HEADER_LEN];
+    let _ = write_header(&mut h);
+    w.write_all(&h)
+}
+
+/// Write one record to an `std::io::Write`.
+#[cfg(feature = "std")]
+pub fn write_record_io<W: std::io::Write>(w: &mut W, rec: &Record) -> std::io::Result<()> {
+    if let Record::Image(b) = rec {
+        w.write_all(&[TAG_IMAGE])?;
+        w.write_all(&(b.len() as u32).to_le_bytes())?;
+        return w.write_all(b);
+    }
+    let mut buf = [0u8; RECORD_HEADER_LEN + 8 + 4 * MAX_SENSORS];
+    let n = encode_record(rec, &mut buf)
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
+    w.write_all(&buf[..n])
+}
+
+/// One output of [`crate::Engine::step`], fixed size ([`OUTPUT_RECORD_LEN`] bytes encoded).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct OutputRecord {
+    /// Cycle index (0-based).
+    pub cycle: u32,
+    /// Extended scale position, counts.
+    pub position_counts: i64,
+    /// Corrected command, counts.
+    pub corrected_command_counts: i64,
+    /// Correction, counts.
+    pub correction_counts: i32,
+    /// Correction in µm as `f32::to_bits` (bit-exact comparison).
+    pub correction_um_bits: u32,
+    /// [`crate::Flags`] bits.
+    pub flags: u16,
+    /// Active slot (0 = A, 1 = B).
+    pub slot: u8,
+    /// Status bits (`STATUS_*`).
+    pub status: u8,
+}
+
+impl OutputRecord {
+    /// Correction in µm.
+    pub fn correction_um(&self) -> f32 {
+        f32::from_bits(self.correction_um_bits)
+    }
+    /// Flags.
+    pub fn flags(&self) -> crate::Flags {
+        crate::Flags(self.flags)
+    }
+    /// Little-endian encoding.
+    pub fn encode(&self) -> [u8; OUTPUT_RECORD_LEN] {
+        let mut b = [0u8; OUTPUT_RECORD_LEN];
+        b[0..4].copy_from_slice(&self.cycle.to_le_bytes());
+        b[4..12].copy_from_slice(&self.position_counts.to_le_bytes());
+        b[12..20].copy_from_slice(&self.corrected_command_counts.to_le_bytes());
+        b[20..24].copy_from_slice(&self.correction_counts.to_le_bytes());
+        b[24..28].copy_from_slice(&self.correction_um_bits.to_le_bytes());
+        b[28..30].copy_from_slice(&self.flags.to_le_bytes());
+        b[30] = self.slot;
+        b[31] = self.status;
+        b
+    }
+    /// Decode the first [`OUTPUT_RECORD_LEN`] bytes of `bytes`.
+    pub fn decode(bytes: &[u8]) -> Result<OutputRecord, TraceError> {
+        if bytes.len() < OUTPUT_RECORD_LEN {
+            return Err(TraceError::TooShort);
+        }
+        Ok(OutputRecord {
+            cycle: u32_at(bytes, 0),
+            position_counts: i64::from_le_bytes(rd(bytes, 4)),
+            corrected_command_counts: i64::from_le_bytes(rd(bytes, 12)),
+            correction_counts: i32::from_le_bytes(rd(bytes, 20)),
+            correction_um_bits: u32_at(bytes, 24),
+            flags: u16::from_le_bytes(rd(bytes, 28)),
+            slot: bytes[30],
+            status: bytes[31],
+        })
+    }
+}

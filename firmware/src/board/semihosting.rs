@@ -1,0 +1,170 @@
+//! Host file I/O over ARM semihosting (QEMU `-semihosting-config enable=on,target=native`).
+//!
+//! Glossary:
+//! - **Semihosting**: the target executes `bkpt 0xAB` with an operation number in r0; the debugger or QEMU
+//!   performs the operation (open/read/write a host file, exit) on the host and returns the result.
+//! - **Command line**: `SYS_GET_CMDLINE` returns the arguments QEMU was given with
+//!   `-semihosting-config arg=...` (or `-append`), the first being the program name.
+
+use cortex_m_semihosting::{debug, nr, syscall};
+
+/// A semihosting operation failed; `op` names it, `errno` is the host's errno (SYS_ERRNO).
+#[derive(Clone, Copy, Debug)]
+pub struct HostError {
+    pub op: &'static str,
+    pub errno: usize,
+}
+
+fn last_error(op: &'static str) -> HostError {
+    // SAFETY: SYS_ERRNO takes no argument and only reads the host's errno.
+    let errno = unsafe { syscall!(ERRNO) };
+    HostError { op, errno }
+}
+
+/// An open host file.
+pub struct HostFile {
+    handle: usize,
+}
+
+impl HostFile {
+    /// Opens `path` (no NUL needed; at most 255 bytes) for binary reading.
+    pub fn open_read(path: &str) -> Result<HostFile, HostError> {
+        Self::open(path, nr::open::R_BINARY, "open for reading")
+    }
+
+    /// Creates or truncates `path` for binary writing.
+    pub fn create(path: &str) -> Result<HostFile, HostError> {
+        Self::open(path, nr::open::W_TRUNC_BINARY, "create")
+    }
+
+    fn open(path: &str, mode: usize, op: &'static str) -> Result<HostFile, HostError> {
+        let mut name = [0u8; 256];
+        let bytes = path.as_bytes();
+        if bytes.len() >= name.len() || bytes.contains(&0) {
+            return Err(HostError { op, errno: 0 });
+        }
+        name[..bytes.len()].copy_from_slice(bytes);
+        // SAFETY: SYS_OPEN reads `len` bytes of a NUL-terminated name from a live buffer.
+        let handle = unsafe { syscall!(OPEN, name.as_ptr(), mode, bytes.len()) } as isize;
+        if handle < 0 {
+            return Err(last_error(op));
+        }
+        Ok(HostFile {
+            handle: handle as usize,
+        })
+    }
+
+    /// Length of the file in bytes.
+    pub fn length(&self) -> Result<usize, HostError> {
+        // SAFETY: SYS_FLEN takes the handle only.
+        let n = unsafe { syscall!(FLEN, self.handle) } as isize;
+        if n < 0 {
+            return Err(last_error("file length"));
+        }
+        Ok(n as usize)
+    }
+
+    /// Reads up to `buf.len()` bytes; returns how many were read (0 at end of file).
+    pub fn read(&mut self, buf: &mut [u8]) -> Result<usize, HostError> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        // SAFETY: SYS_READ writes at most `buf.len()` bytes into `buf`; returns the count NOT read.
+        let not_read = unsafe { syscall!(READ, self.handle, buf.as_mut_ptr(), buf.len()) };
+        if not_read > buf.len() {
+            return Err(last_error("read"));
+        }
+        Ok(buf.len() - not_read)
+    }
+
+    /// Fills `buf` as far as the file allows; returns the count (< `buf.len()` only at end of file).
+    pub fn read_full(&mut self, buf: &mut [u8]) -> Result<usize, HostError> {
+        let mut done = 0;
+        while done < buf.len() {
+            let n = self.read(&mut buf[done..])?;
+            if n == 0 {
+                break;
+            }
+            done += n;
+        }
+        Ok(done)
+    }
+
+    /// Writes all of `data`.
+    pub fn write_all(&mut self, mut data: &[u8]) -> Result<(), HostError> {
+        while !data.is_empty() {
+            // SAFETY: SYS_WRITE reads `data.len()` bytes from `data`; returns the count NOT written.
+            let not_written = unsafe { syscall!(WRITE, self.handle, data.as_ptr(), data.len()) };
+            if not_written == data.len() {
+                return Err(last_error("write"));
+            }
+            if not_written > data.len() {
+                return Err(last_error("write"));
+            }
+            data = &data[data.len() - not_written..];
+        }
+        Ok(())
+    }
+
+    /// Closes the file (also done on drop, ignoring errors).
+    pub fn close(self) -> Result<(), HostError> {
+        let handle = self.handle;
+        core::mem::forget(self);
+        // SAFETY: SYS_CLOSE takes the handle only.
+        if unsafe { syscall!(CLOSE, handle) } != 0 {
+            return Err(last_error("close"));
+        }
+        Ok(())
+    }
+}
+
+impl Drop for HostFile {
+    fn drop(&mut self) {
+        // SAFETY: as in `close`.
+        unsafe { syscall!(CLOSE, self.handle) };
+    }
+}
+
+/// The semihosting command line (arguments separated by spaces) copied into `buf`, or `None` when the host
+/// gave none.
+pub fn command_line(buf: &mut [u8]) -> Option<&str> {
+    let block = [buf.as_mut_ptr() as usize, buf.len()];
+    // SAFETY: r1 points at the parameter block {buffer, length}; the host writes at most `length` bytes
+    // into `buf` and the used length back into block[1] (read volatile below).
+    let r = unsafe { cortex_m_semihosting::syscall(nr::GET_CMDLINE, &block) };
+    if r != 0 {
+        return None;
+    }
+    // SAFETY: reading our own initialised local after the host may have written it.
+    let len = unsafe { core::ptr::read_volatile(&block[1]) }.min(buf.len());
+    let s = core::str::from_utf8(&buf[..len]).ok()?;
+    let s = s.trim_end_matches('\0').trim();
+    (!s.is_empty()).then_some(s)
+}
+
+/// Exits QEMU with status 0.
+pub fn exit_success() -> ! {
+    debug::exit(debug::EXIT_SUCCESS);
+    #[allow(clippy::empty_loop)]
+    loop {}
+}
+
+/// Exits QEMU with status `code`. On 32-bit ARM, SYS_EXIT (0x18) only distinguishes success from failure;
+/// SYS_EXIT_EXTENDED (0x20) takes a {reason, subcode} block and QEMU exits with the subcode when the reason
+/// is ADP_Stopped_ApplicationExit (0x20026). Falls back to a plain failure exit if the host ignores it.
+pub fn exit_code(code: u32) -> ! {
+    if code == 0 {
+        exit_success()
+    }
+    let block = [0x20026usize, code as usize];
+    // SAFETY: r1 points at the {reason, subcode} block; the host terminates the program.
+    unsafe { cortex_m_semihosting::syscall(0x20, &block) };
+    exit_failure()
+}
+
+/// Exits QEMU with a non-zero status.
+pub fn exit_failure() -> ! {
+    debug::exit(debug::EXIT_FAILURE);
+    #[allow(clippy::empty_loop)]
+    loop {}
+}

@@ -1,0 +1,397 @@
+//! Trace replay through the control loop, streaming from a byte source into a fixed buffer.
+//!
+//! Glossary:
+//! - **Byte source** ([`ByteSource`]): where trace bytes come from (a semihosting host file under QEMU, a
+//!   slice on the host).
+//! - **Stream buffer**: the fixed RAM window the trace is read through; a record must fit in it whole (image
+//!   records are the largest). Bytes are shifted down and refilled as records are consumed.
+//! - **Output record**: `axcomp_core::trace::OutputRecord`, 32 bytes per cycle record, identical on QEMU and
+//!   on the host because both run `Engine::step` on the same records.
+//!
+//! Error semantics follow `axcomp_core::trace::Reader`: a record with intact framing but bad content is
+//! reported and skipped; a truncated record is reported and ends the stream; `End` ends it.
+
+use axcomp_core::trace::{
+    self, OutputRecord, RECORD_HEADER_LEN, Record, TRACE_HEADER_LEN, TraceError,
+};
+
+use crate::control::{AxisIo, ControlLoop, CycleClock};
+
+/// Where trace bytes come from.
+pub trait ByteSource {
+    type Error;
+    /// Reads up to `buf.len()` bytes; 0 means end of input.
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error>;
+}
+
+impl ByteSource for &[u8] {
+    type Error = core::convert::Infallible;
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        let n = buf.len().min(self.len());
+        buf[..n].copy_from_slice(&self[..n]);
+        *self = &self[n..];
+        Ok(n)
+    }
+}
+
+/// Replay stream error.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StreamError<E> {
+    /// The byte source failed.
+    Source(E),
+    /// Header or record error from the core's trace decoder (offsets are absolute in the trace).
+    Trace(TraceError),
+    /// A record larger than the stream buffer; the stream ends.
+    RecordTooLarge {
+        offset: u32,
+        len: u32,
+        capacity: u32,
+    },
+}
+
+impl<E: core::fmt::Debug> core::fmt::Display for StreamError<E> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            StreamError::Source(e) => write!(f, "reading the trace failed: {e:?}"),
+            StreamError::Trace(e) => write!(f, "{e}"),
+            StreamError::RecordTooLarge {
+                offset,
+                len,
+                capacity,
+            } => write!(
+                f,
+                "record at byte {offset} is {len} bytes, larger than the {capacity}-byte replay buffer"
+            ),
+        }
+    }
+}
+
+impl<E: core::fmt::Debug> core::error::Error for StreamError<E> {}
+
+/// Reads trace records from a [`ByteSource`] through a fixed buffer.
+pub struct TraceStream<'b, S> {
+    src: S,
+    buf: &'b mut [u8],
+    start: usize,
+    end: usize,
+    eof: bool,
+    done: bool,
+    /// Absolute trace offset of `buf[start]`.
+    offset: usize,
+}
+
+impl<'b, S: ByteSource> TraceStream<'b, S> {
+    /// Reads and checks the trace header.
+    pub fn new(src: S, buf: &'b mut [u8]) -> Result<Self, StreamError<S::Error>> {
+        let mut s = TraceStream {
+            src,
+            buf,
+            start: 0,
+            end: 0,
+            eof: false,
+            done: false,
+            offset: 0,
+        };
+        s.fill_to(TRACE_HEADER_LEN)?;
+        let first = trace::check_header(&s.buf[s.start..s.end]).map_err(StreamError::Trace)?;
+        s.start += first;
+        s.offset += first;
+        Ok(s)
+    }
+
+    /// Absolute trace offset of the next record.
+    pub fn offset(&self) -> usize {
+        self.offset
+    }
+
+    /// Makes at least `n` bytes available from `start` (fewer only at end of input).
+    fn fill_to(&mut self, n: usize) -> Result<(), StreamError<S::Error>> {
+        if self.end - self.start >= n {
+            return Ok(());
+        }
+        if self.start > 0 {
+            self.buf.copy_within(self.start..self.end, 0);
+            self.end -= self.start;
+            self.start = 0;
+        }
+        while self.end < n && !self.eof {
+            let got = self
+                .src
+                .read(&mut self.buf[self.end..])
+                .map_err(StreamError::Source)?;
+            if got == 0 {
+                self.eof = true;
+            }
+            self.end += got;
+        }
+        Ok(())
+    }
+
+    /// The next record, `None` at the end of the trace (end of input or an `End` record).
+    pub fn next_record(&mut self) -> Option<Result<Record<'_>, StreamError<S::Error>>> {
+        if self.done {
+            return None;
+        }
+        let at = self.offset;
+        let at32 = at.min(u32::MAX as usize) as u32;
+        if let Err(e) = self.fill_to(RECORD_HEADER_LEN) {
+            self.done = true;
+            return Some(Err(e));
+        }
+        let avail = self.end - self.start;
+        if avail == 0 {
+            self.done = true;
+            return None;
+        }
+        if avail < RECORD_HEADER_LEN {
+            self.done = true;
+            return Some(Err(StreamError::Trace(TraceError::Truncated {
+                offset: at32,
+            })));
+        }
+        let h = &self.buf[self.start..];
+        let payload = u32::from_le_bytes([h[1], h[2], h[3], h[4]]) as usize;
+        let total = RECORD_HEADER_LEN.saturating_add(payload);
+        if total > self.buf.len() {
+            self.done = true;
+            return Some(Err(StreamError::RecordTooLarge {
+                offset: at32,
+                len: total.min(u32::MAX as usize) as u32,
+                capacity: self.buf.len() as u32,
+            }));
+        }
+        if let Err(e) = self.fill_to(total) {
+            self.done = true;
+            return Some(Err(e));
+        }
+        if self.end - self.start < total {
+            self.done = true;
+            return Some(Err(StreamError::Trace(TraceError::Truncated {
+                offset: at32,
+            })));
+        }
+        let s = self.start;
+        self.start += total;
+        self.offset += total;
+        match trace::decode_record(&self.buf[s..s + total], at) {
+            Ok((rec, _)) => {
+                if rec == Record::End {
+                    self.done = true;
+                }
+                Some(Ok(rec))
+            }
+            Err(e) => Some(Err(StreamError::Trace(e))),
+        }
+    }
+}
+
+/// Replay totals.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReplaySummary {
+    pub records: u32,
+    pub cycles: u32,
+    pub outputs: u32,
+    /// Records reported as malformed and skipped (or the one that ended the stream).
+    pub errors: u32,
+}
+
+/// The axis as seen from a trace: each cycle record becomes the board inputs of one cycle.
+#[derive(Clone, Copy, Debug)]
+pub struct TraceAxis {
+    pub input: axcomp_core::CycleInput,
+    pub written: i64,
+}
+
+impl TraceAxis {
+    pub const fn new() -> Self {
+        TraceAxis {
+            input: axcomp_core::CycleInput {
+                scale_raw: 0,
+                command_counts: 0,
+                forces_n: [0.0; axcomp_core::MAX_FORCES],
+            },
+            written: 0,
+        }
+    }
+}
+
+impl Default for TraceAxis {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl AxisIo for TraceAxis {
+    fn read_scale(&mut self) -> u32 {
+        self.input.scale_raw
+    }
+    fn read_command(&mut self) -> i64 {
+        self.input.command_counts
+    }
+    fn read_forces(&mut self) -> [f32; axcomp_core::MAX_FORCES] {
+        self.input.forces_n
+    }
+    fn write_command(&mut self, counts: i64) {
+        self.written = counts;
+    }
+}
+
+/// Replays a trace through the control loop: cycle records run [`ControlLoop::cycle`] on a [`TraceAxis`];
+/// other records are applied between cycles. Every output record is passed to `emit`; every stream error
+/// to `on_error` (replay continues after skippable errors).
+pub fn replay<S, C>(
+    ctl: &mut ControlLoop<'_>,
+    stream: &mut TraceStream<'_, S>,
+    clock: &C,
+    mut emit: impl FnMut(&OutputRecord),
+    mut on_error: impl FnMut(&StreamError<S::Error>),
+) -> ReplaySummary
+where
+    S: ByteSource,
+    C: CycleClock,
+{
+    let mut sum = ReplaySummary::default();
+    let mut axis = TraceAxis::default();
+    while let Some(item) = stream.next_record() {
+        sum.records += 1;
+        let out = match item {
+            Ok(Record::Cycle(input)) => {
+                sum.cycles += 1;
+                axis.input = input;
+                ctl.cycle(&mut axis, clock)
+            }
+            Ok(rec) => ctl.apply(&rec),
+            Err(e) => {
+                sum.errors += 1;
+                on_error(&e);
+                None
+            }
+        };
+        if let Some(o) = out {
+            sum.outputs += 1;
+            emit(&o);
+        }
+    }
+    sum
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::control::LoopSettings;
+    use crate::control::fake::SteppingClock;
+    use axcomp_core::trace::{Temperatures, Writer};
+    use axcomp_core::{Engine, bench};
+    use std::boxed::Box;
+    use std::vec;
+    use std::vec::Vec;
+
+    fn reference_trace() -> Vec<u8> {
+        let mut image = vec![0u8; bench::reference_image_len()];
+        let n = bench::write_reference_image(&mut image).unwrap();
+        let mut buf = vec![0u8; 200_000];
+        let mut w = Writer::new(&mut buf).unwrap();
+        w.push(&Record::Image(&image[..n])).unwrap();
+        w.push(&Record::Process(bench::PROCESS)).unwrap();
+        for i in 0..2000u32 {
+            if i % 100 == 0 {
+                let t = Temperatures::new(i / 10, &bench::reference_temperatures(i / 100));
+                w.push(&Record::Temperatures(t)).unwrap();
+            }
+            w.push(&Record::Cycle(bench::reference_input(i))).unwrap();
+        }
+        // An unknown tag with intact framing: reported and skipped.
+        let len = w.finish();
+        buf.truncate(len);
+        buf.extend_from_slice(&[77, 2, 0, 0, 0, 0xAA, 0xBB]);
+        let mut tail = vec![0u8; 64];
+        let m =
+            trace::encode_record(&Record::Cycle(bench::reference_input(2000)), &mut tail).unwrap();
+        buf.extend_from_slice(&tail[..m]);
+        buf
+    }
+
+    #[test]
+    fn streamed_replay_matches_engine_over_reader() {
+        // Reference: the core's Reader + Engine over the whole trace in memory (what the host replay does).
+        // The streamed replay through a buffer just larger than the image must give the same bytes.
+        let trace_bytes = reference_trace();
+        let mut want = Vec::new();
+        let mut want_errors = 0;
+        let mut reference = Box::new(Engine::new());
+        for r in trace::Reader::new(&trace_bytes).unwrap() {
+            match r {
+                Ok(rec) => {
+                    if let Some(o) = reference.step(&rec) {
+                        want.extend_from_slice(&o.encode());
+                    }
+                }
+                Err(_) => want_errors += 1,
+            }
+        }
+        assert_eq!(want.len(), 2001 * 32);
+        assert_eq!(want_errors, 1);
+
+        let mut engine = Box::new(Engine::new());
+        let mut ctl =
+            ControlLoop::new(&mut engine, LoopSettings::new(100_000_000).build().unwrap());
+        let mut buf = vec![0u8; bench::reference_image_len() + 5];
+        let mut stream = TraceStream::new(&trace_bytes[..], &mut buf).unwrap();
+        let mut got = Vec::new();
+        let mut errors = Vec::new();
+        let clock = SteppingClock::default();
+        let sum = replay(
+            &mut ctl,
+            &mut stream,
+            &clock,
+            |o| got.extend_from_slice(&o.encode()),
+            |e| errors.push(*e),
+        );
+        assert_eq!(sum.outputs, 2001);
+        assert_eq!(sum.errors, 1);
+        assert!(matches!(
+            errors[0],
+            StreamError::Trace(TraceError::UnknownTag { tag: 77, .. })
+        ));
+        assert!(
+            got == want,
+            "streamed replay differs from Engine over Reader"
+        );
+    }
+
+    #[test]
+    fn oversized_and_truncated_records_end_the_stream() {
+        let trace_bytes = reference_trace();
+        let mut small = vec![0u8; 1024];
+        let mut s = TraceStream::new(&trace_bytes[..], &mut small).unwrap();
+        match s.next_record() {
+            Some(Err(StreamError::RecordTooLarge {
+                offset: 8,
+                capacity: 1024,
+                ..
+            })) => {}
+            other => panic!("expected RecordTooLarge at byte 8, got {other:?}"),
+        }
+        assert!(s.next_record().is_none());
+
+        // Cut in the middle of the last cycle record.
+        let cut = &trace_bytes[..trace_bytes.len() - 3];
+        let mut buf = vec![0u8; 40_000];
+        let mut s = TraceStream::new(cut, &mut buf).unwrap();
+        let mut last = None;
+        while let Some(r) = s.next_record() {
+            last = Some(r.map(|_| ()));
+        }
+        assert!(matches!(
+            last,
+            Some(Err(StreamError::Trace(TraceError::Truncated { .. })))
+        ));
+
+        let mut buf = vec![0u8; 64];
+        assert!(matches!(
+            TraceStream::new(&b"NOPE\x01\x00\x00\x00"[..], &mut buf),
+            Err(StreamError::Trace(TraceError::BadMagic))
+        ));
+    }
+}

@@ -1,0 +1,256 @@
+//! A small RFC 4180 CSV reader and writer that remembers where every record starts.
+//!
+//! Terms:
+//! - *record*: one logical row; a quoted field may span physical lines, so a record is located by the
+//!   physical line (1-based) on which it starts.
+//! - *field*: one cell. Quoted fields (`"a, b"`, `"say ""hi"""`) keep their content verbatim; unquoted
+//!   fields are trimmed of surrounding spaces and tabs (so `1, 2` reads as `1` and `2`).
+//! - *comment*: a line starting with `#` before the header (instrument metadata); skipped.
+//!
+//! Blank lines are skipped everywhere. A UTF-8 byte-order mark and `\r\n` line ends are accepted.
+
+use std::borrow::Cow;
+
+/// One parsed record: the physical line it starts on and its fields (borrowed from the input unless a
+/// quoted field held doubled quotes).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Record<'a> {
+    pub line: usize,
+    pub fields: Vec<Cow<'a, str>>,
+}
+
+/// Why the text is not CSV.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum CsvFault {
+    /// A quoted field is never closed; `line` is where the record starts.
+    UnterminatedQuote { line: usize, column: usize },
+    /// Characters follow a closing quote before the next separator (`"ab"c`).
+    TextAfterQuote { line: usize, column: usize },
+}
+
+fn is_blank(b: u8) -> bool {
+    b == b' ' || b == b'\t'
+}
+
+fn trim_blanks(s: &str) -> &str {
+    s.trim_matches(|c| c == ' ' || c == '\t')
+}
+
+/// Splits `text` into records. The first non-blank, non-comment record is the header.
+pub(crate) fn parse(text: &str) -> Result<Vec<Record<'_>>, CsvFault> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let b = text.as_bytes();
+    let n = b.len();
+    let mut records = Vec::new();
+    let mut i = 0usize;
+    let mut line = 1usize;
+    let mut seen_header = false;
+    while i < n {
+        // Blank line, or comment line before the header: skip the physical line.
+        let eol = b[i..].iter().position(|&c| c == b'\n').map_or(n, |k| i + k);
+        let physical = &text[i..eol];
+        if physical.trim().is_empty() || (!seen_header && physical.starts_with('#')) {
+            i = eol + 1;
+            line += 1;
+            continue;
+        }
+        let record_line = line;
+        let mut fields: Vec<Cow<'_, str>> = Vec::new();
+        loop {
+            let mut k = i;
+            while k < n && is_blank(b[k]) {
+                k += 1;
+            }
+            if k < n && b[k] == b'"' {
+                // Quoted field.
+                k += 1;
+                let start = k;
+                let mut seg = k;
+                let mut owned: Option<String> = None;
+                loop {
+                    if k >= n {
+                        return Err(CsvFault::UnterminatedQuote {
+                            line: record_line,
+                            column: fields.len() + 1,
+                        });
+                    }
+                    match b[k] {
+                        b'"' if k + 1 < n && b[k + 1] == b'"' => {
+                            owned
+                                .get_or_insert_with(String::new)
+                                .push_str(&text[seg..=k]);
+                            k += 2;
+                            seg = k;
+                        }
+                        b'"' => break,
+                        b'\n' => {
+                            line += 1;
+                            k += 1;
+                        }
+                        _ => k += 1,
+                    }
+                }
+                fields.push(match owned {
+                    None => Cow::Borrowed(&text[start..k]),
+                    Some(mut s) => {
+                        s.push_str(&text[seg..k]);
+                        Cow::Owned(s)
+                    }
+                });
+                k += 1; // the closing quote
+                while k < n && is_blank(b[k]) {
+                    k += 1;
+                }
+                if k < n && b[k] == b'\r' && (k + 1 == n || b[k + 1] == b'\n') {
+                    k += 1;
+                }
+                if k >= n {
+                    i = n;
+                    break;
+                }
+                match b[k] {
+                    b',' => i = k + 1,
+                    b'\n' => {
+                        i = k + 1;
+                        line += 1;
+                        break;
+                    }
+                    _ => {
+                        return Err(CsvFault::TextAfterQuote {
+                            line: record_line,
+                            column: fields.len(),
+                        });
+                    }
+                }
+            } else {
+                // Unquoted field: up to the next separator or line end.
+                let start = i;
+                let mut k = i;
+                while k < n && b[k] != b',' && b[k] != b'\n' {
+                    k += 1;
+                }
+                let mut end = k;
+                if end > start && b[end - 1] == b'\r' && (k == n || b[k] == b'\n') {
+                    end -= 1;
+                }
+                fields.push(Cow::Borrowed(trim_blanks(&text[start..end])));
+                if k >= n {
+                    i = n;
+                    break;
+                }
+                i = k + 1;
+                if b[k] == b'\n' {
+                    line += 1;
+                    break;
+                }
+            }
+        }
+        seen_header = true;
+        records.push(Record {
+            line: record_line,
+            fields,
+        });
+    }
+    Ok(records)
+}
+
+/// Writes one field, quoting it when reading it back would otherwise change it.
+pub(crate) fn write_field(out: &mut String, field: &str) {
+    let needs_quotes = field.contains([',', '"', '\n', '\r'])
+        || field.starts_with([' ', '\t', '#'])
+        || field.ends_with([' ', '\t']);
+    if needs_quotes {
+        out.push('"');
+        for c in field.chars() {
+            if c == '"' {
+                out.push('"');
+            }
+            out.push(c);
+        }
+        out.push('"');
+    } else {
+        out.push_str(field);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fields(text: &str) -> Vec<Vec<String>> {
+        parse(text)
+            .unwrap()
+            .into_iter()
+            .map(|r| r.fields.into_iter().map(String::from).collect())
+            .collect()
+    }
+
+    #[test]
+    fn quoted_fields_keep_commas_and_doubled_quotes() {
+        let r = fields("a,b,c\n1,\"x, y\",\"say \"\"hi\"\"\"\n");
+        assert_eq!(r[1], vec!["1", "x, y", "say \"hi\""]);
+    }
+
+    #[test]
+    fn comments_before_header_and_blank_lines_are_skipped_with_line_numbers_kept() {
+        let recs = parse("# meta\n## more\n\na,b\n\n1,2\r\n3,4").unwrap();
+        let lines: Vec<usize> = recs.iter().map(|r| r.line).collect();
+        assert_eq!(lines, vec![4, 6, 7]);
+        assert_eq!(recs[2].fields, vec!["3", "4"]);
+    }
+
+    #[test]
+    fn hash_after_header_is_data() {
+        let r = fields("a\n#1\n");
+        assert_eq!(r[1], vec!["#1"]);
+    }
+
+    #[test]
+    fn multiline_quoted_field_counts_lines() {
+        let recs = parse("a,b\n\"x\ny\",2\n3,4\n").unwrap();
+        assert_eq!(recs[1].fields, vec!["x\ny", "2"]);
+        assert_eq!(recs[2].line, 4);
+    }
+
+    #[test]
+    fn unterminated_quote_is_reported_where_the_record_starts() {
+        assert_eq!(
+            parse("a,b\n1,\"open\n2,3\n"),
+            Err(CsvFault::UnterminatedQuote { line: 2, column: 2 })
+        );
+    }
+
+    #[test]
+    fn text_after_closing_quote_is_an_error() {
+        assert_eq!(
+            parse("a,b\n\"x\"y,2\n"),
+            Err(CsvFault::TextAfterQuote { line: 2, column: 1 })
+        );
+    }
+
+    #[test]
+    fn unquoted_fields_are_trimmed_and_empty_fields_kept() {
+        let r = fields("Time [s], Fx [N]\n 1 ,,\n");
+        assert_eq!(r[0], vec!["Time [s]", "Fx [N]"]);
+        assert_eq!(r[1], vec!["1", "", ""]);
+    }
+
+    #[test]
+    fn bom_is_ignored() {
+        assert_eq!(fields("\u{feff}a\n1\n")[0], vec!["a"]);
+    }
+
+    #[test]
+    fn writer_round_trips_awkward_fields() {
+        let awkward = ["plain", "a,b", "q\"q", " lead", "#x", "", "multi\nline"];
+        let mut line = String::new();
+        for (i, f) in awkward.iter().enumerate() {
+            if i > 0 {
+                line.push(',');
+            }
+            write_field(&mut line, f);
+        }
+        let text = format!("h1,h2,h3,h4,h5,h6,h7\n{line}\n");
+        assert_eq!(fields(&text)[1], awkward.to_vec());
+    }
+}

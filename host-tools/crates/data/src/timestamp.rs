@@ -1,0 +1,121 @@
+//! Timestamps of a `time` column, read as seconds.
+//!
+//! Terms:
+//! - *timestamp*: a civil date and time without zone, `YYYY/MM/DD-HH:MM:SS`, `YYYY-MM-DD HH:MM:SS` or
+//!   `YYYY-MM-DDTHH:MM:SS`, optionally with a fractional second (`05:42:16.25`). A trailing `Z` is accepted.
+//! - *epoch seconds*: seconds since 1970-01-01 00:00:00 of the same (unknown, assumed constant) zone; only
+//!   differences are used, so the zone does not matter.
+
+/// Parses one timestamp into epoch seconds; `None` if `s` is not one of the accepted forms.
+pub(crate) fn parse_timestamp(s: &str) -> Option<f64> {
+    let s = s.trim();
+    let s = s.strip_suffix('Z').unwrap_or(s);
+    let b = s.as_bytes();
+    if b.len() < 19 {
+        return None;
+    }
+    let date_sep = b[4];
+    if !(date_sep == b'-' || date_sep == b'/') || b[7] != date_sep {
+        return None;
+    }
+    if !matches!(b[10], b'-' | b' ' | b'T') || b[13] != b':' || b[16] != b':' {
+        return None;
+    }
+    let num = |from: usize, to: usize| -> Option<i64> {
+        let part = &s[from..to];
+        if part.bytes().all(|c| c.is_ascii_digit()) {
+            part.parse().ok()
+        } else {
+            None
+        }
+    };
+    let (year, month, day) = (num(0, 4)?, num(5, 7)?, num(8, 10)?);
+    let (hour, minute, second) = (num(11, 13)?, num(14, 16)?, num(17, 19)?);
+    if !(1..=12).contains(&month)
+        || day < 1
+        || day > days_in_month(year, month)
+        || hour > 23
+        || minute > 59
+        || second > 60
+    {
+        return None;
+    }
+    let mut frac = 0.0;
+    if b.len() > 19 {
+        let rest = &s[19..];
+        let digits = rest.strip_prefix('.')?;
+        if digits.is_empty() || !digits.bytes().all(|c| c.is_ascii_digit()) {
+            return None;
+        }
+        frac = format!("0.{digits}").parse::<f64>().ok()?;
+    }
+    let days = days_from_civil(year, month, day);
+    Some((days * 86_400 + hour * 3600 + minute * 60 + second) as f64 + frac)
+}
+
+fn is_leap(y: i64) -> bool {
+    (y % 4 == 0 && y % 100 != 0) || y % 400 == 0
+}
+
+fn days_in_month(y: i64, m: i64) -> i64 {
+    match m {
+        1 | 3 | 5 | 7 | 8 | 10 | 12 => 31,
+        4 | 6 | 9 | 11 => 30,
+        _ if is_leap(y) => 29,
+        _ => 28,
+    }
+}
+
+/// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's `days_from_civil`).
+fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_three_contract_forms_agree() {
+        // Reference: 2021-06-13 05:42:16 UTC is Unix time 1623562936 (date -u -d '2021-06-13 05:42:16' +%s).
+        let want = 1_623_562_936.0;
+        assert_eq!(parse_timestamp("2021/06/13-05:42:16"), Some(want));
+        assert_eq!(parse_timestamp("2021-06-13 05:42:16"), Some(want));
+        assert_eq!(parse_timestamp("2021-06-13T05:42:16"), Some(want));
+        assert_eq!(parse_timestamp("2021-06-13T05:42:16Z"), Some(want));
+        assert_eq!(parse_timestamp("2021-06-13T05:42:16.25"), Some(want + 0.25));
+    }
+
+    #[test]
+    fn epoch_and_leap_day() {
+        assert_eq!(parse_timestamp("1970-01-01 00:00:00"), Some(0.0));
+        // 2000-03-01 is 11017 days after the epoch (2000 is a leap year).
+        assert_eq!(
+            parse_timestamp("2000-03-01 00:00:00"),
+            Some(11_017.0 * 86_400.0)
+        );
+        assert!(parse_timestamp("2000-02-29 00:00:00").is_some());
+        assert!(parse_timestamp("2001-02-29 00:00:00").is_none());
+    }
+
+    #[test]
+    fn rejects_non_timestamps() {
+        for s in [
+            "",
+            "12.5",
+            "2021-06-13",
+            "2021-13-01 00:00:00",
+            "2021-06-13 25:00:00",
+            "2021-06-13 05:42:16x",
+            "2021/06-13 05:42:16",
+        ] {
+            assert_eq!(parse_timestamp(s), None, "{s}");
+        }
+    }
+}

@@ -1,0 +1,406 @@
+//! Regressor families per effect kind.
+//!
+//! Glossary: **family** = the columns (basis functions) an effect kind contributes to a model;
+//! **variant** = one setting of the family's searched nonlinear parameter (a period, a time constant, a
+//! decay length, a reference position); **x̃** = position scaled to [−1, 1] over the stroke; **d** =
+//! approach direction (±1); **ΔT** = temperature rise since the first row.
+//!
+//! | kind | columns | searched |
+//! |---|---|---|
+//! | `pitch_error` | uniform cubic B-splines in `target_mm` (≤ `pitch_segments_max` segments, fewer when few distinct targets) | – |
+//! | `reversal` | d (constant) or d, d·x̃ | form |
+//! | `scale_expansion` | (x − x_ref)·ΔT_s | sensor s, x_ref (9 points over the stroke) |
+//! | `thermal_drift` | ΔT_s of one sensor, or ΔT_i of every sensor | sensor |
+//! | `thermal_lag` | first-order lag of ΔT_s of one sensor, or of every sensor (same τ) | sensor, τ (log grid, 0.05 % … 100 % of the duration) |
+//! | `force_deflection` | every force column | – |
+//! | `cogging` | sin, cos(2πx/P) | P in 5…60 mm (frequency step 1/(4·stroke)) |
+//! | `interpolation_error` | sin, cos(2πx/P) | P in the usual scale signal periods 4…200 µm, and P/2 |
+//! | `end_effect` | exp(−(x−x_min)/λ) or exp(−(x_max−x)/λ), optionally also × d; or both ends | end, λ (1 … 10 % of the stroke) |
+//! | `following_error` | velocity and/or acceleration | terms |
+//! | `abbe` | offset × Legendre P0…P_k(x̃), k ≤ 2 | degree |
+//! | `time_drift` | Legendre P1…P_k of the scaled time, k ≤ 3 | degree |
+//!
+//! Each variant counts its columns plus its searched parameters (`n_params`); variants are selected by
+//! the training BIC of the whole refit, so a simpler variant wins unless the richer one pays for itself.
+
+use serde_json::{Map, Value, json};
+
+use crate::kind::EffectKind;
+use crate::obs::{Named, Observations};
+
+/// One setting of a family.
+#[derive(Debug, Clone)]
+pub struct Variant {
+    /// Columns over all rows.
+    pub cols: Vec<Vec<f64>>,
+    /// Searched parameters (and descriptive ones) for the report.
+    pub params: Map<String, Value>,
+    /// Parameters counted for "the simpler explanation": columns + searched nonlinear parameters.
+    pub n_params: usize,
+}
+
+/// The regressors of one effect kind.
+#[derive(Debug, Clone)]
+pub struct Family {
+    pub kind: EffectKind,
+    pub variants: Vec<Variant>,
+}
+
+fn var(cols: Vec<Vec<f64>>, params: Map<String, Value>, searched: usize) -> Variant {
+    let n_params = cols.len() + searched;
+    Variant { cols, params, n_params }
+}
+
+/// Precomputed views of the observations shared by all families.
+#[derive(Debug, Clone)]
+pub struct Context {
+    pub n: usize,
+    pub train: Vec<usize>,
+    pub x: Option<Vec<f64>>,
+    pub x_min: f64,
+    pub x_max: f64,
+    /// x scaled to [−1, 1].
+    pub xs: Option<Vec<f64>>,
+    pub n_unique_x_train: usize,
+    pub d: Option<Vec<f64>>,
+    pub dt: Vec<Named>,
+    pub time_order: Vec<usize>,
+    pub t: Option<Vec<f64>>,
+    pub duration_s: f64,
+    pub pitch_segments_max: usize,
+}
+
+fn varies(v: &[f64], rows: &[usize]) -> bool {
+    if rows.is_empty() {
+        return false;
+    }
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for &i in rows {
+        lo = lo.min(v[i]);
+        hi = hi.max(v[i]);
+    }
+    hi - lo > 1e-9 * hi.abs().max(lo.abs()).max(1e-12)
+}
+
+impl Context {
+    pub fn new(obs: &Observations, pitch_segments_max: usize) -> Context {
+        let n = obs.n_rows();
+        let train = obs.train_rows();
+        let x = obs.position_mm.clone().filter(|x| varies(x, &train));
+        let (mut x_min, mut x_max) = (0.0, 1.0);
+        let mut n_unique = 0;
+        let xs = x.as_ref().map(|x| {
+            x_min = x.iter().cloned().fold(f64::INFINITY, f64::min);
+            x_max = x.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+            let mut u: Vec<f64> = train.iter().map(|&i| x[i]).collect();
+            u.sort_by(|a, b| a.total_cmp(b));
+            let tol = 1e-6 * (x_max - x_min);
+            u.dedup_by(|a, b| (*a - *b).abs() <= tol);
+            n_unique = u.len();
+            x.iter().map(|v| 2.0 * (v - x_min) / (x_max - x_min) - 1.0).collect()
+        });
+        let d = obs.direction.clone().filter(|d| varies(d, &train));
+        let dt: Vec<Named> = obs.delta_t().into_iter().filter(|t| varies(&t.values, &train)).collect();
+        let time_order = obs.time_order();
+        let t = obs.time_s.clone().filter(|t| varies(t, &train));
+        let duration_s = t.as_ref().map_or(0.0, |t| {
+            let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
+            let hi = t.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+            hi - lo
+        });
+        Context {
+            n,
+            train,
+            x,
+            x_min,
+            x_max,
+            xs,
+            n_unique_x_train: n_unique,
+            d,
+            dt,
+            time_order,
+            t,
+            duration_s,
+            pitch_segments_max,
+        }
+    }
+
+    fn stroke(&self) -> f64 {
+        self.x_max - self.x_min
+    }
+}
+
+/// Uniform cubic B-spline basis (`k` segments → `k + 3` functions) over [lo, hi].
+pub fn bspline_basis(x: &[f64], lo: f64, hi: f64, k: usize) -> Vec<Vec<f64>> {
+    let mut cols = vec![vec![0.0; x.len()]; k + 3];
+    let h = (hi - lo) / k as f64;
+    for (i, &xi) in x.iter().enumerate() {
+        let u = ((xi - lo) / h).clamp(0.0, k as f64);
+        let j = (u.floor() as usize).min(k - 1);
+        let t = u - j as f64;
+        let b = [
+            (1.0 - t).powi(3) / 6.0,
+            (3.0 * t.powi(3) - 6.0 * t * t + 4.0) / 6.0,
+            (-3.0 * t.powi(3) + 3.0 * t * t + 3.0 * t + 1.0) / 6.0,
+            t.powi(3) / 6.0,
+        ];
+        for (m, bm) in b.iter().enumerate() {
+            cols[j + m][i] = *bm;
+        }
+    }
+    cols
+}
+
+/// First-order lag of `u` with time constant `tau_s`, rows visited in `order` (time order).
+pub fn first_order_lag(u: &[f64], t: &[f64], order: &[usize], tau_s: f64) -> Vec<f64> {
+    let mut out = vec![0.0; u.len()];
+    let mut state = u[order[0]];
+    let mut t_prev = t[order[0]];
+    for &i in order {
+        let dt = (t[i] - t_prev).max(0.0);
+        let a = 1.0 - (-dt / tau_s).exp();
+        state += a * (u[i] - state);
+        out[i] = state;
+        t_prev = t[i];
+    }
+    out
+}
+
+fn one(params: Map<String, Value>, cols: Vec<Vec<f64>>) -> Vec<Variant> {
+    vec![var(cols, params, 0)]
+}
+
+fn sincos(x: &[f64], period: f64) -> Vec<Vec<f64>> {
+    let w = 2.0 * core::f64::consts::PI / period;
+    vec![x.iter().map(|v| (w * v).sin()).collect(), x.iter().map(|v| (w * v).cos()).collect()]
+}
+
+fn map(v: Value) -> Map<String, Value> {
+    match v {
+        Value::Object(m) => m,
+        _ => Map::new(),
+    }
+}
+
+/// The family of `kind` for these observations, or `None` when the columns it needs are absent or constant.
+pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Family> {
+    let n = ctx.n;
+    let fam = |variants: Vec<Variant>, _searched: usize| Some(Family { kind, variants });
+    match kind {
+        EffectKind::PitchError => {
+            let x = ctx.x.as_ref()?;
+            let u = ctx.n_unique_x_train;
+            if u < 2 {
+                return None;
+            }
+            if u < 5 {
+                // Polynomial of degree u−1 (the constant is the model's intercept).
+                let xs = ctx.xs.as_ref()?;
+                let cols = (1..u).map(|p| xs.iter().map(|v| v.powi(p as i32)).collect()).collect();
+                return fam(one(map(json!({"basis": "polynomial", "degree": u - 1})), cols), 0);
+            }
+            let k = (u - 3).clamp(1, ctx.pitch_segments_max.max(1));
+            let cols = bspline_basis(x, ctx.x_min, ctx.x_max, k);
+            fam(
+                one(map(json!({"basis": "cubic_bspline", "segments": k, "knot_spacing_mm": ctx.stroke() / k as f64})), cols),
+                0,
+            )
+        }
+        EffectKind::Reversal => {
+            let d = ctx.d.as_ref()?;
+            let mut vars = vec![var(vec![d.clone()], map(json!({"form": "constant"})), 0)];
+            if let Some(xs) = &ctx.xs {
+                let dx = d.iter().zip(xs).map(|(a, b)| a * b).collect();
+                vars.push(var(vec![d.clone(), dx], map(json!({"form": "linear_in_x"})), 0));
+            }
+            fam(vars, 0)
+        }
+        EffectKind::ScaleExpansion => {
+            let x = ctx.x.as_ref()?;
+            if ctx.dt.is_empty() {
+                return None;
+            }
+            let mut vars = Vec::new();
+            for s in &ctx.dt {
+                for k in 0..9 {
+                    let xr = ctx.x_min + ctx.stroke() * k as f64 / 8.0;
+                    let col: Vec<f64> = (0..n).map(|i| (x[i] - xr) * s.values[i]).collect();
+                    let searched = if ctx.dt.len() > 1 { 2 } else { 1 };
+                    vars.push(var(vec![col], map(json!({"sensor": s.name, "x_ref_mm": xr})), searched));
+                }
+            }
+            fam(vars, 0)
+        }
+        EffectKind::ThermalDrift => {
+            if ctx.dt.is_empty() {
+                return None;
+            }
+            let names: Vec<&str> = ctx.dt.iter().map(|s| s.name.as_str()).collect();
+            let mut vars = Vec::new();
+            if ctx.dt.len() > 1 {
+                for s in &ctx.dt {
+                    vars.push(var(vec![s.values.clone()], map(json!({"sensors": [s.name]})), 1));
+                }
+            }
+            vars.push(var(ctx.dt.iter().map(|s| s.values.clone()).collect(), map(json!({"sensors": names})), 0));
+            fam(vars, 0)
+        }
+        EffectKind::ThermalLag => {
+            let t = ctx.t.as_ref()?;
+            if ctx.dt.is_empty() || ctx.duration_s <= 0.0 {
+                return None;
+            }
+            let names: Vec<&str> = ctx.dt.iter().map(|s| s.name.as_str()).collect();
+            let mut vars = Vec::new();
+            let m = 18;
+            for k in 0..m {
+                let frac = 0.0005 * (1.0f64 / 0.0005).powf(k as f64 / (m - 1) as f64);
+                let tau = frac * ctx.duration_s;
+                let cols: Vec<Vec<f64>> =
+                    ctx.dt.iter().map(|s| first_order_lag(&s.values, t, &ctx.time_order, tau)).collect();
+                if ctx.dt.len() > 1 {
+                    for (s, c) in ctx.dt.iter().zip(&cols) {
+                        vars.push(var(vec![c.clone()], map(json!({"tau_s": tau, "sensors": [s.name]})), 2));
+                    }
+                }
+                vars.push(var(cols, map(json!({"tau_s": tau, "sensors": names})), 1));
+            }
+            fam(vars, 1)
+        }
+        EffectKind::ForceDeflection => {
+            let cols: Vec<Vec<f64>> =
+                obs.forces.iter().filter(|f| varies(&f.values, &ctx.train)).map(|f| f.values.clone()).collect();
+            if cols.is_empty() {
+                return None;
+            }
+            let names: Vec<&str> = obs.forces.iter().map(|f| f.name.as_str()).collect();
+            fam(one(map(json!({"forces": names})), cols), 0)
+        }
+        EffectKind::Cogging => {
+            let x = ctx.x.as_ref()?;
+            let l = ctx.stroke();
+            if l < 5.0 {
+                return None;
+            }
+            let (f_lo, f_hi) = (1.0 / 60.0, 1.0 / 5.0);
+            let df = 1.0 / (4.0 * l);
+            let steps = (((f_hi - f_lo) / df).ceil() as usize).clamp(60, 800);
+            let vars = (0..=steps)
+                .map(|k| {
+                    let f = f_lo + (f_hi - f_lo) * k as f64 / steps as f64;
+                    var(sincos(x, 1.0 / f), map(json!({"period_mm": 1.0 / f})), 1)
+                })
+                .collect();
+            fam(vars, 1)
+        }
+        EffectKind::InterpolationError => {
+            let x = ctx.x.as_ref()?;
+            let mut vars = Vec::new();
+            for p_um in [4.0, 8.0, 10.0, 20.0, 40.0, 100.0, 200.0] {
+                for (h, label) in [(1.0, 1), (2.0, 2)] {
+                    let period_mm = p_um / 1000.0 / h;
+                    vars.push(var(sincos(x, period_mm), map(json!({"signal_period_um": p_um, "harmonic": label})), 1));
+                }
+            }
+            fam(vars, 1)
+        }
+        EffectKind::EndEffect => {
+            let x = ctx.x.as_ref()?;
+            let l = ctx.stroke();
+            let mut vars = Vec::new();
+            for frac in [0.01, 0.015, 0.02, 0.03, 0.04, 0.055, 0.075, 0.1] {
+                let lam = frac * l;
+                let lo: Vec<f64> = x.iter().map(|v| (-(v - ctx.x_min) / lam).exp()).collect();
+                let hi: Vec<f64> = x.iter().map(|v| (-(ctx.x_max - v) / lam).exp()).collect();
+                let dir = |e: &[f64]| -> Option<Vec<f64>> {
+                    ctx.d.as_ref().map(|d| e.iter().zip(d).map(|(a, b)| a * b).collect())
+                };
+                for (end, e) in [("start", &lo), ("end", &hi)] {
+                    let p = map(json!({"decay_mm": lam, "stroke_end": end, "end_mm": if end == "start" { ctx.x_min } else { ctx.x_max }}));
+                    vars.push(var(vec![e.clone()], p.clone(), 2));
+                    if let Some(de) = dir(e) {
+                        let mut p = p;
+                        p.insert("by_direction".into(), Value::Bool(true));
+                        vars.push(var(vec![e.clone(), de], p, 2));
+                    }
+                }
+                let mut cols = vec![lo.clone(), hi.clone()];
+                if let (Some(a), Some(b)) = (dir(&lo), dir(&hi)) {
+                    cols.push(a);
+                    cols.push(b);
+                }
+                vars.push(var(cols, map(json!({"decay_mm": lam, "stroke_end": "both"})), 1));
+            }
+            fam(vars, 1)
+        }
+        EffectKind::FollowingError => {
+            let v = obs.velocity_mm_s.as_ref().filter(|v| varies(v, &ctx.train));
+            let a = obs.accel_mm_s2.as_ref().filter(|a| varies(a, &ctx.train));
+            let mut vars = Vec::new();
+            if let Some(v) = v {
+                vars.push(var(vec![v.clone()], map(json!({"terms": ["velocity"]})), 0));
+            }
+            if let Some(a) = a {
+                vars.push(var(vec![a.clone()], map(json!({"terms": ["acceleration"]})), 0));
+            }
+            if let (Some(v), Some(a)) = (v, a) {
+                vars.push(var(vec![v.clone(), a.clone()], map(json!({"terms": ["velocity", "acceleration"]})), 0));
+            }
+            if vars.is_empty() {
+                return None;
+            }
+            fam(vars, 0)
+        }
+        EffectKind::Abbe => {
+            let o = obs.offset_mm.as_ref().filter(|o| varies(o, &ctx.train))?;
+            let mut vars = vec![var(vec![o.clone()], map(json!({"degree": 0})), 0)];
+            if let Some(xs) = &ctx.xs {
+                let ox: Vec<f64> = o.iter().zip(xs).map(|(a, b)| a * b).collect();
+                let ox2: Vec<f64> = o.iter().zip(xs).map(|(a, b)| a * (1.5 * b * b - 0.5)).collect();
+                vars.push(var(vec![o.clone(), ox.clone()], map(json!({"degree": 1})), 0));
+                vars.push(var(vec![o.clone(), ox, ox2], map(json!({"degree": 2})), 0));
+            }
+            fam(vars, 0)
+        }
+        EffectKind::TimeDrift => {
+            let t = ctx.t.as_ref()?;
+            let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
+            let ts: Vec<f64> = t.iter().map(|v| 2.0 * (v - lo) / ctx.duration_s - 1.0).collect();
+            let p2: Vec<f64> = ts.iter().map(|s| 1.5 * s * s - 0.5).collect();
+            let p3: Vec<f64> = ts.iter().map(|s| 2.5 * s * s * s - 1.5 * s).collect();
+            let vars = vec![
+                var(vec![ts.clone()], map(json!({"basis": "legendre", "degree": 1})), 0),
+                var(vec![ts.clone(), p2.clone()], map(json!({"basis": "legendre", "degree": 2})), 0),
+                var(vec![ts, p2, p3], map(json!({"basis": "legendre", "degree": 3})), 0),
+            ];
+            fam(vars, 0)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bspline_partition_of_unity() {
+        // Uniform cubic B-splines sum to 1 everywhere on [lo, hi] (reference: de Boor; tol 1e-12).
+        let x: Vec<f64> = (0..=100).map(|i| i as f64 * 2.0).collect();
+        let b = bspline_basis(&x, 0.0, 200.0, 7);
+        for i in 0..x.len() {
+            let s: f64 = b.iter().map(|c| c[i]).sum();
+            assert!((s - 1.0).abs() < 1e-12, "x={} sum={s}", x[i]);
+        }
+    }
+
+    #[test]
+    fn lag_step_response() {
+        // Step input through a lag: the exact discretisation gives 1 − e^(−k·Δt/τ) after k updates (index 1
+        // is the first), so y[100] = 1 − e^(−1) (reference: analytic; tol 1e-9).
+        let t: Vec<f64> = (0..1000).map(|i| i as f64).collect();
+        let u: Vec<f64> = t.iter().map(|&s| if s >= 1.0 { 1.0 } else { 0.0 }).collect();
+        let order: Vec<usize> = (0..1000).collect();
+        let y = first_order_lag(&u, &t, &order, 100.0);
+        assert!((y[100] - (1.0 - (-1.0f64).exp())).abs() < 1e-9, "{}", y[100]);
+    }
+}

@@ -1,0 +1,1396 @@
+//! Fitting positioning-error models and choosing among them by cross-validation.
+//!
+//! Glossary:
+//! - *observation*: one measured point: target position (mm), approach direction, run, deviation (µm).
+//! - *run*: one pass over all targets (ISO 230-2 "cycle"); cross-validation leaves one run out at a time, so a
+//!   model is always judged on a run it has not seen.
+//! - *fold*: the rows left out together (one run; or, without runs, every k-th row).
+//! - *structure*: how the two approach directions are modelled: `separate` (forward and backward curves
+//!   fitted independently), `mean+const_reversal` / `mean+linear_reversal` / `mean+smooth_reversal` (one
+//!   mean curve plus a reversal curve = forward − backward), or `single` (no direction information).
+//! - *kind*: the curve family: `linear`, `piecewise_linear`, `spline_natural`, `spline_not_a_knot` (these three
+//!   interpolate per-target means), `smoothing_spline_uniform`, `smoothing_spline_feature` (penalised
+//!   least-squares B-splines, uniform knots or knots placed where the curvature is high).
+//! - *ρ (rho)*: the dimensionless smoothing parameter; `λ = ρ·tr(AᵀA)/tr(P)`. It is chosen by an inner
+//!   cross-validation inside each outer fold (nested), so the reported CV figure is not tuned on its own fold.
+//!
+//! Selection: every candidate is fitted once per fold without that fold and predicts the fold's rows; the
+//! candidate with the lowest CV RMS wins, except that a simpler one within 1 % of it is preferred (order:
+//! linear, natural spline, not-a-knot spline, piecewise linear, smoothing uniform, smoothing feature; and
+//! single, constant / linear / smooth reversal, separate). Interpolating kinds need repeated targets (a
+//! grid of ≤ 1024 positions, ≥ 2 rows per position on average); with fewer than 3 runs the folds are every
+//! k-th row. The chosen model is refitted on all rows and resampled to the uniform table (C2, exact when
+//! the model's knots lie on the table grid; `resampling_max_um` reports the difference otherwise).
+
+use std::collections::HashMap;
+
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::guard::{self, GuardVerdict};
+use crate::spline::{
+    self, BSplineBasis, Band, EndCondition, NormalStats, PiecewiseCubic, SplineError,
+};
+use crate::table_file::TableFile;
+
+/// One measured point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observation {
+    pub target_mm: f64,
+    /// +1 positive approach (forward), −1 negative approach (backward), 0 unknown.
+    pub direction: i8,
+    /// Cross-validation group (run id); any integer, rows with equal values are left out together.
+    pub run: i64,
+    pub deviation_um: f64,
+}
+
+/// Settings of [`fit`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitOptions {
+    /// Axis name written into the table.
+    pub axis: String,
+    /// Number of uniform table segments (≤ 1024); default from the model's knot spacing.
+    pub segments: Option<usize>,
+    /// Table segment length in mm (alternative to `segments`).
+    pub segment_mm: Option<f64>,
+    /// Folds used when the data has fewer than 3 runs (every k-th row).
+    pub row_folds: usize,
+    /// Do-no-harm rule: the cross-validated RMS must be at most this fraction of the raw RMS.
+    pub improvement_ratio: f64,
+    /// Fraction of runs whose own held-out RMS must improve on their raw RMS.
+    pub runs_improved_fraction: f64,
+    /// Restrict the candidates to these names (empty = all).
+    pub only: Vec<String>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            axis: "X".into(),
+            segments: None,
+            segment_mm: None,
+            row_folds: 5,
+            improvement_ratio: guard::DEFAULT_IMPROVEMENT_RATIO,
+            runs_improved_fraction: guard::DEFAULT_RUNS_IMPROVED_FRACTION,
+            only: Vec::new(),
+        }
+    }
+}
+
+/// Why a fit failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum FitError {
+    #[error("need at least {needed} points with finite target_mm and deviation, got {got}")]
+    TooFewPoints { needed: usize, got: usize },
+    #[error("row {row}: non-finite value ({what})")]
+    NonFinite { row: usize, what: &'static str },
+    #[error("all targets are at the same position ({0} mm); nothing to fit along the stroke")]
+    NoStroke(f64),
+    #[error("table options: {0}")]
+    BadTable(String),
+    #[error("no candidate model could be fitted: {0}")]
+    NoCandidate(String),
+    #[error(transparent)]
+    Spline(#[from] SplineError),
+}
+
+/// Forward and (for bidirectional data) backward deviation curves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Curves {
+    pub forward: PiecewiseCubic,
+    pub backward: Option<PiecewiseCubic>,
+}
+
+impl Curves {
+    /// Predicted deviation (µm) at `x_mm` approached in `direction` (0 = mean of both).
+    pub fn predict(&self, x_mm: f64, direction: i8) -> f64 {
+        match (&self.backward, direction) {
+            (None, _) => self.forward.eval(x_mm),
+            (Some(b), d) if d < 0 => b.eval(x_mm),
+            (Some(_), d) if d > 0 => self.forward.eval(x_mm),
+            (Some(b), _) => 0.5 * (self.forward.eval(x_mm) + b.eval(x_mm)),
+        }
+    }
+}
+
+/// Curve family.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    Linear,
+    PiecewiseLinear,
+    SplineNatural,
+    SplineNotAKnot,
+    SmoothingSplineUniform,
+    SmoothingSplineFeature,
+}
+
+impl Kind {
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Linear => "linear",
+            Kind::PiecewiseLinear => "piecewise_linear",
+            Kind::SplineNatural => "spline_natural",
+            Kind::SplineNotAKnot => "spline_not_a_knot",
+            Kind::SmoothingSplineUniform => "smoothing_spline_uniform",
+            Kind::SmoothingSplineFeature => "smoothing_spline_feature",
+        }
+    }
+    /// Order of simplicity used to break near-ties (lower = simpler).
+    fn simplicity(self) -> usize {
+        match self {
+            Kind::Linear => 0,
+            Kind::SplineNatural => 1,
+            Kind::SplineNotAKnot => 2,
+            // Not C2: the table (C2 cubic segments) cannot reproduce its kinks exactly.
+            Kind::PiecewiseLinear => 3,
+            Kind::SmoothingSplineUniform => 4,
+            Kind::SmoothingSplineFeature => 5,
+        }
+    }
+    fn is_grid(self) -> bool {
+        matches!(
+            self,
+            Kind::PiecewiseLinear | Kind::SplineNatural | Kind::SplineNotAKnot
+        )
+    }
+}
+
+/// How the two directions are modelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Structure {
+    Single,
+    Separate,
+    #[serde(rename = "mean+const_reversal")]
+    MeanConstReversal,
+    #[serde(rename = "mean+linear_reversal")]
+    MeanLinearReversal,
+    #[serde(rename = "mean+smooth_reversal")]
+    MeanSmoothReversal,
+}
+
+impl Structure {
+    pub fn name(self) -> &'static str {
+        match self {
+            Structure::Single => "single",
+            Structure::Separate => "separate",
+            Structure::MeanConstReversal => "mean+const_reversal",
+            Structure::MeanLinearReversal => "mean+linear_reversal",
+            Structure::MeanSmoothReversal => "mean+smooth_reversal",
+        }
+    }
+    fn simplicity(self) -> usize {
+        match self {
+            Structure::Single => 0,
+            Structure::MeanConstReversal => 1,
+            Structure::MeanLinearReversal => 2,
+            Structure::MeanSmoothReversal => 3,
+            Structure::Separate => 4,
+        }
+    }
+}
+
+/// One candidate model and its cross-validated figure.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Candidate {
+    /// `kind/structure`, e.g. `spline_not_a_knot/separate`.
+    pub name: String,
+    pub kind: Kind,
+    pub structure: Structure,
+    /// Cross-validated RMS (µm) over all rows (each predicted by the model fitted without its fold).
+    pub cv_rms_um: f64,
+    /// Smoothing parameters chosen by CV for the final fit (smoothing kinds only): `[ρ]` or `[ρ_mean, ρ_reversal]`
+    /// (separate: `[ρ_forward, ρ_backward]`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub rho: Vec<f64>,
+    /// Number of knot intervals of the fitted curve.
+    pub intervals: usize,
+}
+
+/// How the rows were split for cross-validation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CvSplit {
+    /// `leave-one-run-out` or `k-fold-by-row`.
+    pub method: String,
+    pub folds: usize,
+}
+
+/// Everything [`fit`] found.
+#[derive(Debug, Clone)]
+pub struct FitResult {
+    /// The chosen model resampled to the firmware's uniform table.
+    pub table: TableFile,
+    /// The chosen model's curves (before resampling).
+    pub curves: Curves,
+    /// Name of the chosen candidate.
+    pub chosen: String,
+    /// Why it was chosen.
+    pub reason: String,
+    /// Every candidate with its CV figure, best first.
+    pub candidates: Vec<Candidate>,
+    /// Per input row: the chosen model's prediction fitted without that row's fold.
+    pub cv_predictions: Vec<f64>,
+    /// Per input row: its fold index.
+    pub fold_of_row: Vec<usize>,
+    pub split: CvSplit,
+    /// RMS of the deviations (no compensation).
+    pub raw_rms_um: f64,
+    /// RMS of deviation − cv_prediction.
+    pub cv_rms_um: f64,
+    /// Largest |table − model curve| over the stroke (resampling error), µm.
+    pub resampling_max_um: f64,
+    /// Do-no-harm verdict on the cross-validated predictions.
+    pub guard: GuardVerdict,
+}
+
+// ---------------------------------------------------------------------------------------------
+
+fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (mut s, mut n) = (0.0, 0usize);
+    for x in v {
+        s += x * x;
+        n += 1;
+    }
+    if n == 0 {
+        f64::NAN
+    } else {
+        (s / n as f64).sqrt()
+    }
+}
+
+/// Key of a target position (grid detection): rounded to 1 nm.
+fn target_key(x: f64) -> i64 {
+    (x * 1e6).round() as i64
+}
+
+struct Problem<'a> {
+    obs: &'a [Observation],
+    fold: Vec<usize>,
+    folds: usize,
+    lo: f64,
+    hi: f64,
+    /// Sorted unique targets when the data lies on a grid of repeated targets.
+    grid: Option<Vec<f64>>,
+}
+
+/// Fits every candidate, chooses the best by cross-validation, resamples it to the uniform table.
+pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError> {
+    if obs.len() < 4 {
+        return Err(FitError::TooFewPoints {
+            needed: 4,
+            got: obs.len(),
+        });
+    }
+    for (i, o) in obs.iter().enumerate() {
+        if !o.target_mm.is_finite() {
+            return Err(FitError::NonFinite {
+                row: i,
+                what: "target_mm",
+            });
+        }
+        if !o.deviation_um.is_finite() {
+            return Err(FitError::NonFinite {
+                row: i,
+                what: "deviation",
+            });
+        }
+    }
+    let lo = obs
+        .iter()
+        .map(|o| o.target_mm)
+        .fold(f64::INFINITY, f64::min);
+    let hi = obs
+        .iter()
+        .map(|o| o.target_mm)
+        .fold(f64::NEG_INFINITY, f64::max);
+    if !(hi > lo) {
+        return Err(FitError::NoStroke(lo));
+    }
+    let (fold, folds, split) = make_folds(obs, opts.row_folds.max(3));
+    let has_fwd = obs.iter().any(|o| o.direction > 0);
+    let has_bwd = obs.iter().any(|o| o.direction < 0);
+    let bidirectional = has_fwd && has_bwd;
+    let grid = {
+        let mut keys: HashMap<i64, f64> = HashMap::new();
+        let mut too_many = false;
+        for o in obs {
+            keys.entry(target_key(o.target_mm)).or_insert(o.target_mm);
+            if keys.len() > 1024 {
+                too_many = true;
+                break;
+            }
+        }
+        if !too_many && keys.len() >= 2 && keys.len() * 2 <= obs.len() {
+            let mut g: Vec<f64> = keys.into_values().collect();
+            g.sort_by(f64::total_cmp);
+            Some(g)
+        } else {
+            None
+        }
+    };
+    let p = Problem {
+        obs,
+        fold,
+        folds,
+        lo,
+        hi,
+        grid,
+    };
+
+    let structures_for = |kind: Kind| -> Vec<Structure> {
+        if !bidirectional {
+            return vec![Structure::Single];
+        }
+        match kind {
+            Kind::Linear => vec![Structure::Separate, Structure::MeanConstReversal],
+            Kind::PiecewiseLinear | Kind::SplineNatural | Kind::SplineNotAKnot => vec![
+                Structure::Separate,
+                Structure::MeanConstReversal,
+                Structure::MeanLinearReversal,
+            ],
+            Kind::SmoothingSplineUniform | Kind::SmoothingSplineFeature => {
+                vec![Structure::Separate, Structure::MeanSmoothReversal]
+            }
+        }
+    };
+    let mut kinds = vec![Kind::Linear];
+    if p.grid.is_some() {
+        kinds.extend([
+            Kind::PiecewiseLinear,
+            Kind::SplineNatural,
+            Kind::SplineNotAKnot,
+        ]);
+    }
+    kinds.extend([Kind::SmoothingSplineUniform, Kind::SmoothingSplineFeature]);
+
+    struct Evaluated {
+        cand: Candidate,
+        preds: Vec<f64>,
+        final_curves: Curves,
+    }
+    let mut evaluated: Vec<Evaluated> = Vec::new();
+    let mut failures: Vec<String> = Vec::new();
+    for kind in kinds {
+        let structures: Vec<Structure> = structures_for(kind)
+            .into_iter()
+            .filter(|st| {
+                let name = format!("{}/{}", kind.name(), st.name());
+                opts.only.is_empty() || opts.only.iter().any(|o| name.starts_with(o.as_str()))
+            })
+            .collect();
+        if structures.is_empty() {
+            continue;
+        }
+        let results = evaluate(&p, kind, &structures);
+        for (structure, ev) in structures.into_iter().zip(results) {
+            let name = format!("{}/{}", kind.name(), structure.name());
+            match ev {
+                Ok((fold_curves, final_curves, rho)) => {
+                    let preds: Vec<f64> = obs
+                        .iter()
+                        .zip(&p.fold)
+                        .map(|(o, &f)| fold_curves[f].predict(o.target_mm, o.direction))
+                        .collect();
+                    let cv = rms(obs.iter().zip(&preds).map(|(o, q)| o.deviation_um - q));
+                    if cv.is_finite() {
+                        evaluated.push(Evaluated {
+                            cand: Candidate {
+                                name,
+                                kind,
+                                structure,
+                                cv_rms_um: cv,
+                                rho,
+                                intervals: final_curves.forward.coeffs.len(),
+                            },
+                            preds,
+                            final_curves,
+                        });
+                    } else {
+                        failures.push(format!("{name}: non-finite CV figure"));
+                    }
+                }
+                Err(e) => failures.push(format!("{name}: {e}")),
+            }
+        }
+    }
+    if evaluated.is_empty() {
+        return Err(FitError::NoCandidate(failures.join("; ")));
+    }
+    evaluated.sort_by(|a, b| a.cand.cv_rms_um.total_cmp(&b.cand.cv_rms_um));
+    let best_cv = evaluated[0].cand.cv_rms_um;
+    // Near-tie (within 1 % of the best CV RMS): prefer the simplest model.
+    const TIE: f64 = 1.01;
+    let chosen_idx = (0..evaluated.len())
+        .filter(|&i| evaluated[i].cand.cv_rms_um <= best_cv * TIE)
+        .min_by_key(|&i| {
+            let c = &evaluated[i].cand;
+            (c.kind.simplicity(), c.structure.simplicity())
+        })
+        .unwrap();
+    let chosen = &evaluated[chosen_idx];
+    let reason = if chosen_idx == 0 {
+        format!(
+            "lowest {} RMS ({:.3} µm) of {} candidates",
+            split.method,
+            chosen.cand.cv_rms_um,
+            evaluated.len()
+        )
+    } else {
+        format!(
+            "simplest candidate within 1 % of the lowest {} RMS ({:.3} µm vs best {:.3} µm, {})",
+            split.method, chosen.cand.cv_rms_um, best_cv, evaluated[0].cand.name
+        )
+    };
+
+    let raw_rms = rms(obs.iter().map(|o| o.deviation_um));
+    let cv_rms = chosen.cand.cv_rms_um;
+    let dev: Vec<f64> = obs.iter().map(|o| o.deviation_um).collect();
+    let verdict = guard::judge(
+        &dev,
+        &chosen.preds,
+        &p.fold,
+        opts.improvement_ratio,
+        opts.runs_improved_fraction,
+        &split.method,
+    );
+
+    // Resample to the uniform table.
+    let curves = chosen.final_curves.clone();
+    let (segments, segment_mm) = table_grid(&curves, lo, hi, opts)?;
+    let fwd = spline::resample_uniform(&curves.forward, lo, segment_mm, segments)?;
+    let bwd = match &curves.backward {
+        Some(b) => Some(spline::resample_uniform(b, lo, segment_mm, segments)?),
+        None => None,
+    };
+    let mut resampling_max = 0.0f64;
+    let probes = (segments * 16).max(400);
+    for k in 0..=probes {
+        let x = lo + (hi - lo) * k as f64 / probes as f64;
+        resampling_max = resampling_max.max((fwd.eval(x) - curves.forward.eval(x)).abs());
+        if let (Some(bt), Some(bc)) = (&bwd, &curves.backward) {
+            resampling_max = resampling_max.max((bt.eval(x) - bc.eval(x)).abs());
+        }
+    }
+    let table = TableFile {
+        format: crate::table_file::FORMAT.to_string(),
+        axis: opts.axis.clone(),
+        start_mm: lo,
+        segment_mm,
+        forward: fwd.coeffs,
+        backward: bwd.map(|b| b.coeffs).unwrap_or_default(),
+        model: chosen.cand.name.clone(),
+        cv_rms_um: cv_rms,
+        raw_rms_um: raw_rms,
+        cv_method: split.method.clone(),
+    };
+    let candidates = evaluated.iter().map(|e| e.cand.clone()).collect();
+    let chosen_name = chosen.cand.name.clone();
+    let preds = chosen.preds.clone();
+    Ok(FitResult {
+        table,
+        curves,
+        chosen: chosen_name,
+        reason,
+        candidates,
+        cv_predictions: preds,
+        fold_of_row: p.fold.clone(),
+        split,
+        raw_rms_um: raw_rms,
+        cv_rms_um: cv_rms,
+        resampling_max_um: resampling_max,
+        guard: verdict,
+    })
+}
+
+/// Fold index per row: leave-one-run-out when there are ≥ 3 runs, otherwise every k-th row.
+fn make_folds(obs: &[Observation], row_folds: usize) -> (Vec<usize>, usize, CvSplit) {
+    let mut runs: Vec<i64> = obs.iter().map(|o| o.run).collect();
+    runs.sort_unstable();
+    runs.dedup();
+    if runs.len() >= 3 {
+        let index: HashMap<i64, usize> = runs.iter().enumerate().map(|(i, &r)| (r, i)).collect();
+        let fold = obs.iter().map(|o| index[&o.run]).collect();
+        (
+            fold,
+            runs.len(),
+            CvSplit {
+                method: "leave-one-run-out".into(),
+                folds: runs.len(),
+            },
+        )
+    } else {
+        let k = row_folds.min(obs.len());
+        let fold = (0..obs.len()).map(|i| i % k).collect();
+        (
+            fold,
+            k,
+            CvSplit {
+                method: "k-fold-by-row".into(),
+                folds: k,
+            },
+        )
+    }
+}
+
+/// Number and length of the uniform table segments covering `[lo, hi]`.
+fn table_grid(
+    curves: &Curves,
+    lo: f64,
+    hi: f64,
+    opts: &FitOptions,
+) -> Result<(usize, f64), FitError> {
+    let range = hi - lo;
+    match (opts.segments, opts.segment_mm) {
+        (Some(_), Some(_)) => Err(FitError::BadTable(
+            "give either segments or segment_mm, not both".into(),
+        )),
+        (Some(n), None) => {
+            if n == 0 || n > axcomp_core_max_segments() {
+                return Err(FitError::BadTable(format!(
+                    "segments = {n} is outside 1..=1024"
+                )));
+            }
+            Ok((n, range / n as f64))
+        }
+        (None, Some(s)) => {
+            if !(s > 0.0) || !s.is_finite() {
+                return Err(FitError::BadTable(format!("segment_mm = {s} must be > 0")));
+            }
+            let n = (range / s - 1e-9).ceil().max(1.0) as usize;
+            if n > axcomp_core_max_segments() {
+                return Err(FitError::BadTable(format!(
+                    "segment_mm = {s} needs {n} segments over {range} mm (at most 1024)"
+                )));
+            }
+            Ok((n, s))
+        }
+        (None, None) => {
+            // Four table segments per shortest knot interval of the model, at most 1024.
+            let min_gap = curves
+                .forward
+                .knots
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .chain(
+                    curves
+                        .backward
+                        .iter()
+                        .flat_map(|b| b.knots.windows(2).map(|w| w[1] - w[0])),
+                )
+                .fold(f64::INFINITY, f64::min);
+            let n = if min_gap.is_finite() && min_gap > 0.0 {
+                (range / (min_gap / 4.0)).round().clamp(16.0, 1024.0) as usize
+            } else {
+                64
+            };
+            Ok((n, range / n as f64))
+        }
+    }
+}
+
+fn axcomp_core_max_segments() -> usize {
+    1024
+}
+
+// ---------------------------------------------------------------------------------------------
+// Candidate evaluation: per-fold curves (fitted without the fold) and the final curves (all rows).
+
+type Evaluation = (Vec<Curves>, Curves, Vec<f64>);
+
+fn evaluate(
+    p: &Problem,
+    kind: Kind,
+    structures: &[Structure],
+) -> Vec<Result<Evaluation, FitError>> {
+    match kind {
+        Kind::SmoothingSplineUniform | Kind::SmoothingSplineFeature => {
+            smoothing::evaluate_all(p, kind, structures)
+        }
+        Kind::Linear => structures
+            .iter()
+            .map(|&st| linear::evaluate(p, st))
+            .collect(),
+        _ => structures
+            .iter()
+            .map(|&structure| {
+                let mut per_fold = Vec::with_capacity(p.folds);
+                for f in 0..p.folds {
+                    let train: Vec<&Observation> = p
+                        .obs
+                        .iter()
+                        .zip(&p.fold)
+                        .filter(|(_, g)| **g != f)
+                        .map(|(o, _)| o)
+                        .collect();
+                    per_fold.push(fit_simple(p, kind, structure, &train)?);
+                }
+                let all: Vec<&Observation> = p.obs.iter().collect();
+                let fin = fit_simple(p, kind, structure, &all)?;
+                Ok((per_fold, fin, Vec::new()))
+            })
+            .collect(),
+    }
+}
+
+mod linear {
+    //! Straight lines by least squares from per-fold sufficient statistics (one pass over the points).
+    use super::*;
+
+    pub(super) fn evaluate(p: &Problem, structure: Structure) -> Result<Evaluation, FitError> {
+        // Columns: Single/Separate [1, x−lo] per block; MeanConstReversal [1, x−lo, d/2].
+        let (k, blocks) = match structure {
+            Structure::Single => (2, 1),
+            Structure::Separate => (2, 2),
+            Structure::MeanConstReversal => (3, 1),
+            _ => {
+                return Err(FitError::NoCandidate(format!(
+                    "linear with {}",
+                    structure.name()
+                )));
+            }
+        };
+        let mut stats = vec![vec![NormalStats::zeros(k, k - 1); blocks]; p.folds];
+        for (o, &f) in p.obs.iter().zip(&p.fold) {
+            let u = o.target_mm - p.lo;
+            match structure {
+                Structure::Single => stats[f][0].add_row(0, &[1.0, u], o.deviation_um),
+                Structure::Separate => {
+                    if o.direction != 0 {
+                        stats[f][usize::from(o.direction < 0)].add_row(
+                            0,
+                            &[1.0, u],
+                            o.deviation_um,
+                        );
+                    }
+                }
+                _ => stats[f][0].add_row(0, &[1.0, u, 0.5 * o.direction as f64], o.deviation_um),
+            }
+        }
+        let fit_without = |exclude: Option<usize>| -> Result<Curves, FitError> {
+            let mut c = Vec::new();
+            for b in 0..blocks {
+                let mut t = NormalStats::zeros(k, k - 1);
+                for (f, s) in stats.iter().enumerate() {
+                    if Some(f) != exclude {
+                        t.add(&s[b], 1.0);
+                    }
+                }
+                if t.rows < k {
+                    return Err(FitError::TooFewPoints {
+                        needed: k,
+                        got: t.rows,
+                    });
+                }
+                c.push(t.ata.solve(&t.aty)?);
+            }
+            let (lo, hi) = (p.lo, p.hi);
+            Ok(match structure {
+                Structure::Single => Curves {
+                    forward: PiecewiseCubic::line(lo, hi, c[0][0], c[0][1]),
+                    backward: None,
+                },
+                Structure::Separate => Curves {
+                    forward: PiecewiseCubic::line(lo, hi, c[0][0], c[0][1]),
+                    backward: Some(PiecewiseCubic::line(lo, hi, c[1][0], c[1][1])),
+                },
+                _ => {
+                    let c = &c[0];
+                    Curves {
+                        forward: PiecewiseCubic::line(lo, hi, c[0] + 0.5 * c[2], c[1]),
+                        backward: Some(PiecewiseCubic::line(lo, hi, c[0] - 0.5 * c[2], c[1])),
+                    }
+                }
+            })
+        };
+        let per_fold = (0..p.folds)
+            .map(|f| fit_without(Some(f)))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok((per_fold, fit_without(None)?, Vec::new()))
+    }
+}
+
+/// Least squares on a few dense columns (normal equations, Gaussian elimination with pivoting).
+fn dense_lstsq(
+    rows: impl Iterator<Item = (Vec<f64>, f64)>,
+    k: usize,
+) -> Result<Vec<f64>, FitError> {
+    let mut a = vec![vec![0.0; k + 1]; k];
+    for (x, y) in rows {
+        for i in 0..k {
+            for j in 0..k {
+                a[i][j] += x[i] * x[j];
+            }
+            a[i][k] += x[i] * y;
+        }
+    }
+    let scale = (0..k).map(|i| a[i][i].abs()).fold(0.0, f64::max);
+    for c in 0..k {
+        let piv = (c..k)
+            .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
+            .unwrap();
+        if !(a[piv][c].abs() > 1e-12 * scale) {
+            return Err(FitError::Spline(SplineError::Singular));
+        }
+        a.swap(c, piv);
+        let pivot_row = a[c].clone();
+        for (r, row) in a.iter_mut().enumerate() {
+            if r != c {
+                let f = row[c] / pivot_row[c];
+                for (x, p) in row[c..=k].iter_mut().zip(&pivot_row[c..=k]) {
+                    *x -= f * p;
+                }
+            }
+        }
+    }
+    Ok((0..k).map(|i| a[i][k] / a[i][i]).collect())
+}
+
+/// Per-target mean of the given rows, sorted by target.
+fn target_means<'a>(rows: impl Iterator<Item = &'a Observation>) -> Vec<(f64, f64)> {
+    let mut m: HashMap<i64, (f64, f64, usize)> = HashMap::new();
+    for o in rows {
+        let e = m
+            .entry(target_key(o.target_mm))
+            .or_insert((o.target_mm, 0.0, 0));
+        e.1 += o.deviation_um;
+        e.2 += 1;
+    }
+    let mut v: Vec<(f64, f64)> = m.into_values().map(|(x, s, n)| (x, s / n as f64)).collect();
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    v
+}
+
+fn interpolate_kind(
+    kind: Kind,
+    pts: &[(f64, f64)],
+    lo: f64,
+    hi: f64,
+) -> Result<PiecewiseCubic, FitError> {
+    if pts.is_empty() {
+        return Err(FitError::TooFewPoints { needed: 1, got: 0 });
+    }
+    if pts.len() == 1 {
+        return Ok(PiecewiseCubic::constant(lo, hi, pts[0].1));
+    }
+    let x: Vec<f64> = pts.iter().map(|p| p.0).collect();
+    let y: Vec<f64> = pts.iter().map(|p| p.1).collect();
+    Ok(match kind {
+        Kind::PiecewiseLinear => spline::piecewise_linear(&x, &y)?,
+        Kind::SplineNatural => spline::interpolate(&x, &y, EndCondition::Natural)?,
+        Kind::SplineNotAKnot => spline::interpolate(&x, &y, EndCondition::NotAKnot)?,
+        _ => unreachable!("not an interpolating kind"),
+    })
+}
+
+/// Linear and interpolating kinds fitted on `train`.
+fn fit_simple(
+    p: &Problem,
+    kind: Kind,
+    structure: Structure,
+    train: &[&Observation],
+) -> Result<Curves, FitError> {
+    let (lo, hi) = (p.lo, p.hi);
+    let fwd: Vec<&Observation> = train.iter().copied().filter(|o| o.direction > 0).collect();
+    let bwd: Vec<&Observation> = train.iter().copied().filter(|o| o.direction < 0).collect();
+    match (kind, structure) {
+        (k, Structure::Single) if k.is_grid() => Ok(Curves {
+            forward: interpolate_kind(k, &target_means(train.iter().copied()), lo, hi)?,
+            backward: None,
+        }),
+        (k, Structure::Separate) if k.is_grid() => Ok(Curves {
+            forward: interpolate_kind(k, &target_means(fwd.iter().copied()), lo, hi)?,
+            backward: Some(interpolate_kind(
+                k,
+                &target_means(bwd.iter().copied()),
+                lo,
+                hi,
+            )?),
+        }),
+        (k, Structure::MeanConstReversal | Structure::MeanLinearReversal) if k.is_grid() => {
+            let mf = target_means(fwd.iter().copied());
+            let mb = target_means(bwd.iter().copied());
+            let bmap: HashMap<i64, f64> = mb.iter().map(|&(x, y)| (target_key(x), y)).collect();
+            let fmap: HashMap<i64, f64> = mf.iter().map(|&(x, y)| (target_key(x), y)).collect();
+            // Reversal (forward − backward) at targets measured both ways.
+            let rev: Vec<(f64, f64)> = mf
+                .iter()
+                .filter_map(|&(x, yf)| bmap.get(&target_key(x)).map(|yb| (x, yf - yb)))
+                .collect();
+            if rev.is_empty() {
+                return Err(FitError::TooFewPoints { needed: 1, got: 0 });
+            }
+            let reversal = if structure == Structure::MeanConstReversal || rev.len() < 2 {
+                let r = rev.iter().map(|r| r.1).sum::<f64>() / rev.len() as f64;
+                PiecewiseCubic::constant(lo, hi, r)
+            } else {
+                let c = dense_lstsq(rev.iter().map(|&(x, r)| (vec![1.0, x - lo], r)), 2)?;
+                PiecewiseCubic::line(lo, hi, c[0], c[1])
+            };
+            // Mean curve through per-target means of the two directions.
+            let mut targets: Vec<f64> = mf.iter().chain(mb.iter()).map(|p| p.0).collect();
+            targets.sort_by(f64::total_cmp);
+            targets.dedup_by(|a, b| target_key(*a) == target_key(*b));
+            let mean: Vec<(f64, f64)> = targets
+                .iter()
+                .map(|&x| {
+                    let k = target_key(x);
+                    let r = reversal.eval(x);
+                    let y = match (fmap.get(&k), bmap.get(&k)) {
+                        (Some(f), Some(b)) => 0.5 * (f + b),
+                        (Some(f), None) => f - 0.5 * r,
+                        (None, Some(b)) => b + 0.5 * r,
+                        (None, None) => unreachable!(),
+                    };
+                    (x, y)
+                })
+                .collect();
+            let mean = interpolate_kind(k, &mean, lo, hi)?;
+            Ok(Curves {
+                forward: mean.combine(1.0, &reversal, 0.5),
+                backward: Some(mean.combine(1.0, &reversal, -0.5)),
+            })
+        }
+        _ => Err(FitError::NoCandidate(format!(
+            "{} with {}",
+            kind.name(),
+            structure.name()
+        ))),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+mod smoothing {
+    //! Penalised least-squares B-splines with nested cross-validation of the smoothing parameter,
+    //! using per-fold sufficient statistics (cost linear in the number of points).
+    use super::*;
+
+    /// Candidate smoothing parameters ρ (dimensionless): 10^-9 … 10^3 in half decades.
+    pub(super) fn rho_grid() -> Vec<f64> {
+        (0..=24)
+            .map(|k| 10f64.powf(-9.0 + 0.5 * k as f64))
+            .collect()
+    }
+    /// Coarser grid for the reversal curve of the joint model.
+    fn rho_rev_grid() -> Vec<f64> {
+        (0..=6).map(|k| 10f64.powf(-6.0 + 2.0 * k as f64)).collect()
+    }
+
+    /// Blocks of one structure: statistics per fold and block, penalty matrices per block.
+    struct Design {
+        basis: BSplineBasis,
+        structure: Structure,
+        /// stats[fold][block]
+        stats: Vec<Vec<NormalStats>>,
+        /// Penalties per block: list of (matrix, λ scale = tr(AᵀA)/tr(P)).
+        penalties: Vec<Vec<(Band, f64)>>,
+    }
+
+    fn blocks(structure: Structure) -> usize {
+        if structure == Structure::Separate {
+            2
+        } else {
+            1
+        }
+    }
+
+    /// Designs of several structures on one basis, accumulated in a single pass over the points.
+    fn build_many(p: &Problem, basis: &BSplineBasis, structures: &[Structure]) -> Vec<Design> {
+        let nb = basis.len();
+        let mut all: Vec<Vec<Vec<NormalStats>>> = structures
+            .iter()
+            .map(|&st| {
+                let (n, w) = if st == Structure::MeanSmoothReversal {
+                    (2 * nb, 7)
+                } else {
+                    (nb, 3)
+                };
+                vec![vec![NormalStats::zeros(n, w); blocks(st)]; p.folds]
+            })
+            .collect();
+        let mut vals = [0.0f64; 8];
+        for (o, &f) in p.obs.iter().zip(&p.fold) {
+            let (j, v) = basis.values(o.target_mm);
+            for (stats, &structure) in all.iter_mut().zip(structures) {
+                match structure {
+                    Structure::Separate => {
+                        if o.direction == 0 {
+                            continue;
+                        }
+                        let b = usize::from(o.direction < 0);
+                        stats[f][b].add_row_n(j, &v, o.deviation_um);
+                    }
+                    Structure::MeanSmoothReversal => {
+                        let h = 0.5 * o.direction as f64;
+                        // Interleaved columns 2j … 2j+7: mean coefficient, reversal coefficient, …
+                        for r in 0..4 {
+                            vals[2 * r] = v[r];
+                            vals[2 * r + 1] = h * v[r];
+                        }
+                        stats[f][0].add_row_n(2 * j, &vals, o.deviation_um);
+                    }
+                    _ => stats[f][0].add_row_n(j, &v, o.deviation_um),
+                }
+            }
+        }
+        all.into_iter()
+            .zip(structures)
+            .map(|(stats, &st)| finish(basis.clone(), st, stats))
+            .collect()
+    }
+
+    fn finish(basis: BSplineBasis, structure: Structure, stats: Vec<Vec<NormalStats>>) -> Design {
+        let nb = basis.len();
+        let joint = structure == Structure::MeanSmoothReversal;
+        let (n, w) = if joint { (2 * nb, 7) } else { (nb, 3) };
+        let nblocks = blocks(structure);
+        let rough = basis.roughness();
+        let mut penalties = Vec::new();
+        for b in 0..nblocks {
+            let mut total = NormalStats::zeros(n, w);
+            for s in &stats {
+                total.add(&s[b], 1.0);
+            }
+            if joint {
+                let mut pm = Band::zeros(n, w);
+                let mut pr = Band::zeros(n, w);
+                for i in 0..nb {
+                    for k in 0..=3 {
+                        if i + k < nb {
+                            pm.add(2 * i, 2 * (i + k), rough.get(i, i + k));
+                            pr.add(2 * i + 1, 2 * (i + k) + 1, rough.get(i, i + k));
+                        }
+                    }
+                }
+                let sm = scale(&total.ata, &pm, true);
+                let sr = scale(&total.ata, &pr, false);
+                penalties.push(vec![(pm, sm), (pr, sr)]);
+            } else {
+                let s = scale(&total.ata, &rough, true);
+                penalties.push(vec![(rough.clone(), s)]);
+            }
+        }
+        Design {
+            basis,
+            structure,
+            stats,
+            penalties,
+        }
+    }
+
+    /// λ scale: trace of the data part over trace of the penalty (restricted to even/odd indices for joint).
+    fn scale(ata: &Band, pen: &Band, even: bool) -> f64 {
+        let joint = ata.n != pen.n || ata.w == 7;
+        let mut ta = 0.0;
+        let mut tp = 0.0;
+        for i in 0..ata.n {
+            if joint && (i % 2 == 0) != even {
+                continue;
+            }
+            ta += ata.get(i, i);
+            tp += pen.get(i, i);
+        }
+        if tp > 0.0 && ta > 0.0 { ta / tp } else { 1.0 }
+    }
+
+    impl Design {
+        fn sum(&self, block: usize, exclude: &[usize]) -> NormalStats {
+            let s0 = &self.stats[0][block];
+            let mut t = NormalStats::zeros(s0.ata.n, s0.ata.w);
+            for (f, s) in self.stats.iter().enumerate() {
+                if !exclude.contains(&f) {
+                    t.add(&s[block], 1.0);
+                }
+            }
+            t
+        }
+        fn solve(
+            &self,
+            st: &NormalStats,
+            block: usize,
+            rho: &[f64],
+        ) -> Result<Vec<f64>, SplineError> {
+            let pens: Vec<(&Band, f64)> = self.penalties[block]
+                .iter()
+                .zip(rho)
+                .map(|((m, s), r)| (m, s * r))
+                .collect();
+            st.solve(&pens)
+        }
+        fn combos(&self) -> Vec<Vec<f64>> {
+            if self.structure == Structure::MeanSmoothReversal {
+                let mut v = Vec::new();
+                for &a in &rho_grid() {
+                    for &b in &rho_rev_grid() {
+                        v.push(vec![a, b]);
+                    }
+                }
+                v
+            } else {
+                rho_grid().into_iter().map(|r| vec![r]).collect()
+            }
+        }
+        /// ρ minimising the CV error over the folds in `train` (each left out in turn), for one block.
+        fn choose(&self, block: usize, train: &[usize]) -> Vec<f64> {
+            let combos = self.combos();
+            let outside: Vec<usize> = (0..self.stats.len())
+                .filter(|f| !train.contains(f))
+                .collect();
+            let total = self.sum(block, &outside);
+            let mut best = (f64::INFINITY, combos[combos.len() / 2].clone());
+            for rho in combos {
+                let mut sse = 0.0;
+                for &h in train {
+                    let held = &self.stats[h][block];
+                    if held.rows == 0 {
+                        continue;
+                    }
+                    let mut t = total.clone();
+                    t.add(held, -1.0);
+                    match self.solve(&t, block, &rho) {
+                        Ok(c) => sse += held.sse(&c),
+                        Err(_) => {
+                            sse = f64::INFINITY;
+                            break;
+                        }
+                    }
+                }
+                if sse < best.0 {
+                    best = (sse, rho);
+                }
+            }
+            best.1
+        }
+        /// Curves fitted on all folds except `exclude`, ρ chosen by CV over the remaining folds.
+        fn fit_without(&self, exclude: Option<usize>) -> Result<(Curves, Vec<f64>), FitError> {
+            let train: Vec<usize> = (0..self.stats.len())
+                .filter(|&f| Some(f) != exclude)
+                .collect();
+            let ex: Vec<usize> = exclude.into_iter().collect();
+            let nb = self.basis.len();
+            match self.structure {
+                Structure::Separate => {
+                    let mut curves = Vec::new();
+                    let mut rhos = Vec::new();
+                    for b in 0..2 {
+                        let rho = self.choose(b, &train);
+                        let c = self.solve(&self.sum(b, &ex), b, &rho)?;
+                        curves.push(self.basis.to_piecewise(&c));
+                        rhos.extend(rho);
+                    }
+                    let bwd = curves.pop();
+                    Ok((
+                        Curves {
+                            forward: curves.pop().unwrap(),
+                            backward: bwd,
+                        },
+                        rhos,
+                    ))
+                }
+                Structure::MeanSmoothReversal => {
+                    let rho = self.choose(0, &train);
+                    let c = self.solve(&self.sum(0, &ex), 0, &rho)?;
+                    let fw: Vec<f64> = (0..nb).map(|i| c[2 * i] + 0.5 * c[2 * i + 1]).collect();
+                    let bw: Vec<f64> = (0..nb).map(|i| c[2 * i] - 0.5 * c[2 * i + 1]).collect();
+                    Ok((
+                        Curves {
+                            forward: self.basis.to_piecewise(&fw),
+                            backward: Some(self.basis.to_piecewise(&bw)),
+                        },
+                        rho,
+                    ))
+                }
+                _ => {
+                    let rho = self.choose(0, &train);
+                    let c = self.solve(&self.sum(0, &ex), 0, &rho)?;
+                    Ok((
+                        Curves {
+                            forward: self.basis.to_piecewise(&c),
+                            backward: None,
+                        },
+                        rho,
+                    ))
+                }
+            }
+        }
+    }
+
+    /// Knot intervals: at the targets for a uniform grid of ≤ 64 targets, otherwise up to 128 (≤ n/8).
+    fn intervals(p: &Problem) -> usize {
+        if let Some(g) = &p.grid {
+            if g.len() <= 65 {
+                return (g.len() - 1).max(1);
+            }
+        }
+        (p.obs.len() / 8).clamp(1, 128)
+    }
+
+    /// Breakpoints with density ∝ √|f''| of the pilot curve (plus a floor of 25 % of its mean), so that
+    /// knots gather where the deviation bends sharply.
+    pub fn feature_breaks(pilot: &PiecewiseCubic, lo: f64, hi: f64, m: usize) -> Vec<f64> {
+        let samples = (m * 32).max(256);
+        let xs: Vec<f64> = (0..=samples)
+            .map(|k| lo + (hi - lo) * k as f64 / samples as f64)
+            .collect();
+        let dens: Vec<f64> = xs
+            .iter()
+            .map(|&x| pilot.curvature(x).abs().sqrt())
+            .collect();
+        let mean = dens.iter().sum::<f64>() / dens.len() as f64;
+        let floor = 0.25 * mean + 1e-12;
+        let mut cum = vec![0.0; xs.len()];
+        for k in 1..xs.len() {
+            cum[k] = cum[k - 1] + 0.5 * (dens[k] + dens[k - 1] + 2.0 * floor) * (xs[k] - xs[k - 1]);
+        }
+        let total = cum[xs.len() - 1];
+        let mut breaks = vec![lo];
+        let mut k = 1;
+        for q in 1..m {
+            let target = total * q as f64 / m as f64;
+            while k < xs.len() - 1 && cum[k] < target {
+                k += 1;
+            }
+            let (c0, c1) = (cum[k - 1], cum[k]);
+            let f = if c1 > c0 {
+                (target - c0) / (c1 - c0)
+            } else {
+                0.0
+            };
+            let x = xs[k - 1] + f * (xs[k] - xs[k - 1]);
+            let min_gap = 1e-6 * (hi - lo);
+            if x > breaks.last().unwrap() + min_gap && x < hi - min_gap {
+                breaks.push(x);
+            }
+        }
+        breaks.push(hi);
+        breaks
+    }
+
+    /// Evaluates `kind` with each of `structures`. Feature knots are placed per outer fold from a pilot fitted
+    /// on that fold's training rows only; all structures share one pass over the points per basis.
+    pub(super) fn evaluate_all(
+        p: &Problem,
+        kind: Kind,
+        structures: &[Structure],
+    ) -> Vec<Result<Evaluation, FitError>> {
+        match evaluate_inner(p, kind, structures) {
+            Ok(v) => v,
+            Err(e) => structures.iter().map(|_| Err(e.clone())).collect(),
+        }
+    }
+
+    fn evaluate_inner(
+        p: &Problem,
+        kind: Kind,
+        structures: &[Structure],
+    ) -> Result<Vec<Result<Evaluation, FitError>>, FitError> {
+        let m = intervals(p);
+        let uniform = BSplineBasis::uniform(p.lo, p.hi, m)?;
+        if kind == Kind::SmoothingSplineUniform {
+            let designs = build_many(p, &uniform, structures);
+            return Ok(designs
+                .iter()
+                .map(|d| {
+                    let mut per_fold = Vec::with_capacity(p.folds);
+                    for f in 0..p.folds {
+                        per_fold.push(d.fit_without(Some(f))?.0);
+                    }
+                    let (fin, rho) = d.fit_without(None)?;
+                    Ok((per_fold, fin, rho))
+                })
+                .collect());
+        }
+        // Feature knots: pilot = uniform single-curve smoothing spline on the training folds only.
+        let pilot = build_many(p, &uniform, &[Structure::Single]).pop().unwrap();
+        let mut per_fold: Vec<Vec<Result<Curves, FitError>>> = vec![Vec::new(); structures.len()];
+        let mut finals = Vec::new();
+        for exclude in (0..p.folds).map(Some).chain([None]) {
+            let (pc, _) = pilot.fit_without(exclude)?;
+            let breaks = feature_breaks(&pc.forward, p.lo, p.hi, m);
+            let designs = build_many(p, &BSplineBasis::new(breaks)?, structures);
+            for (k, d) in designs.iter().enumerate() {
+                match exclude {
+                    Some(_) => per_fold[k].push(d.fit_without(exclude).map(|r| r.0)),
+                    None => finals.push(d.fit_without(None)),
+                }
+            }
+        }
+        Ok(per_fold
+            .into_iter()
+            .zip(finals)
+            .map(|(folds, fin)| {
+                let folds = folds.into_iter().collect::<Result<Vec<_>, _>>()?;
+                let (fin, rho) = fin?;
+                Ok((folds, fin, rho))
+            })
+            .collect())
+    }
+}
+
+pub use smoothing::feature_breaks;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic normal noise (Box–Muller over a 64-bit LCG) for tests without extra dependencies.
+    pub(crate) struct Noise(u64);
+    impl Noise {
+        fn uniform(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        }
+        pub(crate) fn normal(&mut self) -> f64 {
+            let (u, v) = (self.uniform(), self.uniform());
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        }
+    }
+
+    #[test]
+    fn folds_never_see_their_own_run() {
+        // Each fold's curves must not change when the fold's own deviations are altered: the fit for fold f
+        // uses only the other runs. Reference: identical predictions (bitwise) before and after.
+        let mut obs = Vec::new();
+        let mut noise = Noise(7);
+        for run in 1..=4 {
+            for t in 0..7 {
+                for d in [1i8, -1] {
+                    let x = -15.0 + 5.0 * t as f64;
+                    obs.push(Observation {
+                        target_mm: x,
+                        direction: d,
+                        run,
+                        deviation_um: (x / 7.0).sin() * 10.0 + d as f64 * 3.0 + noise.normal(),
+                    });
+                }
+            }
+        }
+        let opts = FitOptions::default();
+        let a = fit(&obs, &opts).unwrap();
+        for cand in &a.candidates {
+            let only = FitOptions {
+                only: vec![cand.name.clone()],
+                ..FitOptions::default()
+            };
+            let base = fit(&obs, &only).unwrap();
+            for run in 1..=4 {
+                let mut changed = obs.clone();
+                for o in changed.iter_mut().filter(|o| o.run == run) {
+                    o.deviation_um += 1000.0;
+                }
+                let other = fit(&changed, &only).unwrap();
+                for (i, o) in obs.iter().enumerate() {
+                    if o.run == run {
+                        assert_eq!(
+                            base.cv_predictions[i], other.cv_predictions[i],
+                            "{}: run {run} row {i} saw its own data",
+                            cand.name
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn table_reproduces_the_chosen_interpolating_spline() {
+        // Targets on a 5 mm grid and the default table grid (1.25 mm) contain all knots: table = curve
+        // (reference: the curve; tolerance 1e-6 µm).
+        let mut obs = Vec::new();
+        for run in 1..=3 {
+            for t in 0..9 {
+                let x = -20.0 + 5.0 * t as f64;
+                for d in [1i8, -1] {
+                    obs.push(Observation {
+                        target_mm: x,
+                        direction: d,
+                        run,
+                        deviation_um: 30.0 * (x / 9.0).sin() + 8.0 * d as f64 + 0.1 * run as f64,
+                    });
+                }
+            }
+        }
+        let only = FitOptions {
+            only: vec!["spline_natural/separate".into()],
+            ..FitOptions::default()
+        };
+        let r = fit(&obs, &only).unwrap();
+        assert_eq!(r.chosen, "spline_natural/separate");
+        assert_eq!(r.table.forward.len(), 32);
+        assert!(r.resampling_max_um < 1e-6, "{}", r.resampling_max_um);
+        for k in 0..=400 {
+            let x = -20.0 + 0.1 * k as f64;
+            for d in [1i8, -1] {
+                assert!((r.table.deviation_um(x, d) - r.curves.predict(x, d)).abs() < 1e-6);
+            }
+        }
+    }
+
+    #[test]
+    fn recovers_a_smooth_error_with_noise_on_continuous_positions() {
+        // Continuous random positions (no target grid): only linear and smoothing splines apply. Truth: a
+        // smooth pitch error plus a reversal of 6 µm, σ = 1 µm noise. Reference: the truth curve; the fitted
+        // table must be within 0.5 µm RMS of it (≈ several σ/√(points per knot) of estimation error).
+        let mut noise = Noise(11);
+        let truth =
+            |x: f64, d: i8| 20.0 * (x / 30.0).sin() + 5.0 * (x / 7.0).cos() + 3.0 * d as f64;
+        let mut obs = Vec::new();
+        for run in 0..5 {
+            for _ in 0..400 {
+                let x = -50.0 + 100.0 * noise.uniform();
+                let d = if noise.uniform() < 0.5 { 1 } else { -1 };
+                obs.push(Observation {
+                    target_mm: x,
+                    direction: d,
+                    run,
+                    deviation_um: truth(x, d) + noise.normal(),
+                });
+            }
+        }
+        let r = fit(&obs, &FitOptions::default()).unwrap();
+        assert!(r.chosen.starts_with("smoothing_spline"), "{}", r.chosen);
+        let err = rms((0..=1000).flat_map(|k| {
+            let x = -49.0 + 98.0 * k as f64 / 1000.0;
+            [1i8, -1].map(|d| r.table.deviation_um(x, d) - truth(x, d))
+        }));
+        assert!(err < 0.5, "table vs truth RMS {err}");
+        // CV RMS near the noise σ = 1 (reference: σ; tolerance 10 %).
+        assert!(r.cv_rms_um < 1.1, "cv {}", r.cv_rms_um);
+        assert!(r.guard.passed);
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let o = |x: f64, y: f64| Observation {
+            target_mm: x,
+            direction: 1,
+            run: 0,
+            deviation_um: y,
+        };
+        assert!(matches!(
+            fit(&[o(0.0, 1.0)], &FitOptions::default()),
+            Err(FitError::TooFewPoints { .. })
+        ));
+        let same = vec![o(1.0, 1.0); 10];
+        assert!(matches!(
+            fit(&same, &FitOptions::default()),
+            Err(FitError::NoStroke(_))
+        ));
+        let mut nan = vec![o(0.0, 1.0), o(1.0, 2.0), o(2.0, 1.0), o(3.0, 0.0)];
+        nan[2].deviation_um = f64::NAN;
+        assert!(matches!(
+            fit(&nan, &FitOptions::default()),
+            Err(FitError::NonFinite { row: 2, .. })
+        ));
+        let pts: Vec<_> = (0..20).map(|i| o(i as f64, (i as f64).sin())).collect();
+        let bad = FitOptions {
+            segments: Some(2000),
+            ..FitOptions::default()
+        };
+        assert!(matches!(fit(&pts, &bad), Err(FitError::BadTable(_))));
+    }
+}

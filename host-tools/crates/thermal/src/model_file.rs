@@ -1,0 +1,250 @@
+//! The thermal model file (`axcomp fit thermal --out MODEL.json`) and its conversion to the core's
+//! [`axcomp_core::ThermoForceSpec`] (used by `axcomp image build --thermal`).
+//!
+//! Glossary:
+//! - **sensor order**: the order of `sensors` in the file is the firmware's reading order: reading `i` passed
+//!   to `Compensator::update_temperatures` must be sensor `i` here (by its `column`).
+//! - **plausibility**: `min_degc`/`max_degc`/`max_rate_degc_per_s`/`stale_timeout_ms` per sensor, derived from
+//!   the training data with margins (range −20 K … +30 K, 5× the largest observed rate, at least 1 K/s;
+//!   10 sensor periods, at least 10 s).
+//! - **force terms**: `law: None` → the firmware uses the measured force at the same index; `Some` → the force
+//!   predicted from the process parameters.
+
+use serde::{Deserialize, Serialize};
+
+use crate::thermal::{ThermalFit, ThermalInput};
+
+/// Format tag written into every model file.
+pub const FORMAT: &str = "axcomp-thermal-model/1";
+
+/// One sensor of a model file.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct ModelSensor {
+    /// Sensor name (column without `_degC`).
+    pub name: String,
+    pub reference_degc: f64,
+    pub tau_s: f64,
+    pub coef_um_per_k: f64,
+    pub min_degc: f64,
+    pub max_degc: f64,
+    pub max_rate_degc_per_s: f64,
+    pub stale_timeout_ms: u32,
+}
+
+/// A force law `F = k·ap^x·fz^y·n^z`.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+pub struct ModelForceLaw {
+    pub k: f64,
+    pub x_ap: f64,
+    pub y_fz: f64,
+    pub z_n: f64,
+}
+
+/// One force term of a model file.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct ModelForce {
+    pub column: String,
+    pub chi_um_per_n: f64,
+    pub law: Option<ModelForceLaw>,
+}
+
+/// The model file.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct ThermalModelFile {
+    pub format: String,
+    /// Error channel the model predicts.
+    pub target: String,
+    /// Rate at which the firmware reads the sensors (sets the lag coefficients).
+    pub sensor_period_ms: u32,
+    pub b0_um: f64,
+    pub sensors: Vec<ModelSensor>,
+    pub forces: Vec<ModelForce>,
+    /// Held-out figures at fit time (for the record).
+    pub raw_rms_um: f64,
+    pub holdout_rms_um: Option<f64>,
+}
+
+/// Owned storage for a [`axcomp_core::ThermoForceSpec`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct OwnedThermoForceSpec {
+    pub sensor_period_ms: u32,
+    pub sensors: Vec<axcomp_core::SensorSpec>,
+    pub b0_um: f32,
+    pub b_um_per_k: Vec<f32>,
+    pub expansion: Option<axcomp_core::ExpansionSpec>,
+    pub forces: Vec<axcomp_core::ForceSpec>,
+}
+
+impl OwnedThermoForceSpec {
+    /// The borrowed spec the core's `write_image` takes.
+    pub fn spec(&self) -> axcomp_core::ThermoForceSpec<'_> {
+        axcomp_core::ThermoForceSpec {
+            sensor_period_ms: self.sensor_period_ms,
+            sensors: &self.sensors,
+            b0_um: self.b0_um,
+            b_um_per_k: &self.b_um_per_k,
+            expansion: self.expansion,
+            forces: &self.forces,
+        }
+    }
+}
+
+/// Why a model file is not usable.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelFileError {
+    #[error("{path}: {source}")]
+    Io { path: String, source: std::io::Error },
+    #[error("{path}: not a thermal model file: {source}")]
+    Json { path: String, source: serde_json::Error },
+    #[error("{path}: {what}")]
+    Invalid { path: String, what: String },
+}
+
+impl ThermalModelFile {
+    /// Builds the file from a fit and the data it was fitted on (plausibility limits from the data).
+    pub fn from_fit(fit: &ThermalFit, input: &ThermalInput, target: &str, sensor_period_ms: u32) -> Self {
+        let period_s = f64::from(sensor_period_ms) / 1000.0;
+        let sensors = fit
+            .model
+            .terms
+            .iter()
+            .map(|t| {
+                let s = input.sensors.iter().find(|s| s.name == t.sensor).expect("fitted sensor is in the input");
+                let min = s.values.iter().cloned().fold(f64::INFINITY, f64::min);
+                let max = s.values.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+                let mut rate: f64 = 0.0;
+                for k in 1..s.values.len() {
+                    let dt = input.time_s[k] - input.time_s[k - 1];
+                    if dt > 0.0 {
+                        rate = rate.max((s.values[k] - s.values[k - 1]).abs() / dt);
+                    }
+                }
+                ModelSensor {
+                    name: t.sensor.clone(),
+                    reference_degc: t.reference_degc,
+                    tau_s: t.tau_s,
+                    coef_um_per_k: t.coef_um_per_k,
+                    min_degc: min - 20.0,
+                    max_degc: max + 30.0,
+                    max_rate_degc_per_s: (5.0 * rate).max(1.0),
+                    stale_timeout_ms: ((10.0 * period_s).max(10.0) * 1000.0) as u32,
+                }
+            })
+            .collect();
+        ThermalModelFile {
+            format: FORMAT.into(),
+            target: target.into(),
+            sensor_period_ms,
+            b0_um: fit.model.b0_um,
+            sensors,
+            forces: fit
+                .model
+                .forces
+                .iter()
+                .map(|f| ModelForce {
+                    column: f.column.clone(),
+                    chi_um_per_n: f.chi_um_per_n,
+                    law: None,
+                })
+                .collect(),
+            raw_rms_um: fit.raw_rms_um,
+            holdout_rms_um: fit.holdout_rms_um,
+        }
+    }
+
+    /// Checks limits the core enforces too (counts, finiteness, ranges), naming what is wrong.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.format != FORMAT {
+            return Err(format!("format is `{}`, expected `{FORMAT}`", self.format));
+        }
+        if self.sensor_period_ms == 0 {
+            return Err("sensor_period_ms must be > 0".into());
+        }
+        if self.sensors.len() > axcomp_core::MAX_SENSORS {
+            return Err(format!("{} sensors, at most {}", self.sensors.len(), axcomp_core::MAX_SENSORS));
+        }
+        if self.forces.len() > axcomp_core::MAX_FORCES {
+            return Err(format!("{} forces, at most {}", self.forces.len(), axcomp_core::MAX_FORCES));
+        }
+        if !self.b0_um.is_finite() {
+            return Err("b0_um is not finite".into());
+        }
+        for (i, s) in self.sensors.iter().enumerate() {
+            let ok = [s.reference_degc, s.tau_s, s.coef_um_per_k, s.min_degc, s.max_degc, s.max_rate_degc_per_s]
+                .iter()
+                .all(|v| v.is_finite());
+            if !ok {
+                return Err(format!("sensors[{i}] (`{}`): non-finite value", s.name));
+            }
+            if s.tau_s < 0.0 || s.min_degc >= s.max_degc || s.max_rate_degc_per_s <= 0.0 || s.stale_timeout_ms == 0 {
+                return Err(format!(
+                    "sensors[{i}] (`{}`): need tau_s >= 0, min_degc < max_degc, max_rate_degc_per_s > 0, \
+                     stale_timeout_ms > 0",
+                    s.name
+                ));
+            }
+        }
+        for (i, f) in self.forces.iter().enumerate() {
+            if !f.chi_um_per_n.is_finite() {
+                return Err(format!("forces[{i}] (`{}`): chi_um_per_n is not finite", f.column));
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads and validates a model file.
+    pub fn load(path: &std::path::Path) -> Result<Self, ModelFileError> {
+        let p = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Io { path: p.clone(), source })?;
+        let m: ThermalModelFile =
+            serde_json::from_str(&text).map_err(|source| ModelFileError::Json { path: p.clone(), source })?;
+        m.validate().map_err(|what| ModelFileError::Invalid { path: p, what })?;
+        Ok(m)
+    }
+
+    /// Writes the file atomically (temporary file, then rename).
+    pub fn save(&self, path: &std::path::Path) -> Result<(), ModelFileError> {
+        let p = path.display().to_string();
+        let text = serde_json::to_string_pretty(self).expect("model file serializes");
+        let tmp = path.with_extension("json.tmp");
+        std::fs::write(&tmp, text)
+            .and_then(|_| std::fs::rename(&tmp, path))
+            .map_err(|source| ModelFileError::Io { path: p, source })
+    }
+
+    /// Converts to the core's owned spec (f32, sensor order kept). Call [`ThermalModelFile::validate`] first
+    /// (`load` does).
+    pub fn to_core(&self) -> OwnedThermoForceSpec {
+        OwnedThermoForceSpec {
+            sensor_period_ms: self.sensor_period_ms,
+            sensors: self
+                .sensors
+                .iter()
+                .map(|s| axcomp_core::SensorSpec {
+                    reference_degc: s.reference_degc as f32,
+                    min_degc: s.min_degc as f32,
+                    max_degc: s.max_degc as f32,
+                    max_rate_degc_per_s: s.max_rate_degc_per_s as f32,
+                    lag_tau_s: s.tau_s as f32,
+                    stale_timeout_ms: s.stale_timeout_ms,
+                })
+                .collect(),
+            b0_um: self.b0_um as f32,
+            b_um_per_k: self.sensors.iter().map(|s| s.coef_um_per_k as f32).collect(),
+            expansion: None,
+            forces: self
+                .forces
+                .iter()
+                .map(|f| axcomp_core::ForceSpec {
+                    chi_um_per_n: f.chi_um_per_n as f32,
+                    law: f.law.map(|l| axcomp_core::ForceLaw {
+                        k: l.k as f32,
+                        x_ap: l.x_ap as f32,
+                        y_fz: l.y_fz as f32,
+                        z_n: l.z_n as f32,
+                    }),
+                })
+                .collect(),
+        }
+    }
+}

@@ -1,0 +1,90 @@
+//! Helpers shared by the commands: loading a measurement CSV with the common options, and writing output
+//! files so that nothing is half-written.
+//!
+//! Terms:
+//! - *common options*: `--data`, `--where`, `--rename`, `--scale` ([`crate::cli::DataArgs`]).
+//! - *atomic write*: the bytes go to a temporary file next to the target, which is then renamed over it;
+//!   a failure leaves no partial file behind.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use axcomp_data::{Dataset, LoadOptions, Split};
+
+use crate::cli::DataArgs;
+
+/// Parses `--where/--rename/--scale`.
+pub fn load_options(args: &DataArgs) -> anyhow::Result<LoadOptions> {
+    Ok(LoadOptions::from_args(
+        &args.where_,
+        &args.rename,
+        &args.scale,
+    )?)
+}
+
+/// Loads `--data` with the common options applied (rename, scale, where). Errors name file, line, column.
+pub fn load_dataset(args: &DataArgs) -> anyhow::Result<Dataset> {
+    let opts = load_options(args)?;
+    Ok(Dataset::load(&args.data, &opts)?)
+}
+
+/// `--holdout` / `--cv` into a [`Split`] (`None` when neither is given; both is an error).
+pub fn split_from(holdout: Option<&str>, cv: Option<&str>) -> anyhow::Result<Option<Split>> {
+    Ok(Split::from_args(holdout, cv)?)
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .with_context(|| format!("{}: not a file name", path.display()))?;
+    let mut tmp_name = std::ffi::OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(".tmp{}", std::process::id()));
+    let tmp = dir.join(tmp_name);
+    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        anyhow::anyhow!("cannot write {}: {e}", path.display())
+    })
+}
+
+/// Serialises `value` as pretty JSON and writes it atomically.
+pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> anyhow::Result<()> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
+    write_atomic(path, text.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn atomic_write_replaces_and_leaves_no_temp_file() {
+        let dir = std::env::temp_dir().join(format!("axcomp-common-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("out.txt");
+        write_atomic(&f, b"one").unwrap();
+        write_atomic(&f, b"two").unwrap();
+        assert_eq!(std::fs::read(&f).unwrap(), b"two");
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 1, "{names:?}");
+        // A missing directory is an error naming the path, and nothing is created.
+        let bad = dir.join("no/such/dir/out.txt");
+        assert!(
+            write_atomic(&bad, b"x")
+                .unwrap_err()
+                .to_string()
+                .contains("no/such/dir")
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

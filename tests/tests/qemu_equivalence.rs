@@ -1,0 +1,144 @@
+//! The firmware in QEMU and the host replay give byte-identical output records for the same trace.
+//!
+//! Reference: `axcomp_core::trace::Reader` + `axcomp_core::Engine` on the host. Tolerance: none — every
+//! 32-byte output record must match bit for bit (a one-ULP difference in `correction_um` or a dropped cycle
+//! fails), and the record count must equal the number of cycle records.
+
+use std::path::Path;
+use std::process::{ExitStatus, Stdio};
+use std::time::Duration;
+
+use axcomp_core::Engine;
+use axcomp_core::trace::{self, OUTPUT_RECORD_LEN, OutputRecord, Record};
+use axcomp_firmware::scenario;
+use axcomp_system_tests::{
+    build_qemu_firmware, qemu_command, require_tool, scratch_dir, wait_timeout,
+};
+
+const CYCLES: u32 = 30_000;
+const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
+
+/// Host replay: output records, cycle records seen, malformed records reported.
+fn host_replay(trace_bytes: &[u8]) -> (Vec<u8>, u32, u32) {
+    let mut engine = Box::new(Engine::new());
+    let mut out = Vec::new();
+    let (mut cycles, mut errors) = (0, 0);
+    for r in trace::Reader::new(trace_bytes).expect("trace header") {
+        match r {
+            Ok(rec) => {
+                if matches!(rec, Record::Cycle(_)) {
+                    cycles += 1;
+                }
+                if let Some(o) = engine.step(&rec) {
+                    out.extend_from_slice(&o.encode());
+                }
+            }
+            Err(_) => errors += 1,
+        }
+    }
+    (out, cycles, errors)
+}
+
+/// Runs `elf` in QEMU on `trace_bytes`; returns its exit status, stdout and output file.
+fn qemu_replay(elf: &Path, tag: &str, trace_bytes: &[u8]) -> (ExitStatus, String, Vec<u8>) {
+    let dir = scratch_dir(tag);
+    std::fs::write(dir.join("trace.bin"), trace_bytes).unwrap();
+    let mut child = qemu_command(elf, &["trace.bin", "out.bin"])
+        .current_dir(&dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("starting qemu-system-arm");
+    let status = wait_timeout(&mut child, QEMU_TIMEOUT).expect("waiting for QEMU");
+    let out = child.wait_with_output().expect("QEMU output");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let status = status.unwrap_or_else(|| {
+        panic!("QEMU timed out after {QEMU_TIMEOUT:?}\nstdout:\n{stdout}\nstderr:\n{stderr}")
+    });
+    println!("{stdout}");
+    let got = std::fs::read(dir.join("out.bin")).unwrap_or_default();
+    let _ = std::fs::remove_dir_all(&dir);
+    (status, stdout, got)
+}
+
+/// Panics with the first differing record, then compares the counts.
+fn assert_same_records(got: &[u8], want: &[u8]) {
+    assert_eq!(
+        got.len() % OUTPUT_RECORD_LEN,
+        0,
+        "QEMU output is whole records"
+    );
+    let first_diff = got
+        .chunks(OUTPUT_RECORD_LEN)
+        .zip(want.chunks(OUTPUT_RECORD_LEN))
+        .position(|(a, b)| a != b);
+    if let Some(k) = first_diff {
+        let a = OutputRecord::decode(&got[k * OUTPUT_RECORD_LEN..]).unwrap();
+        let b = OutputRecord::decode(&want[k * OUTPUT_RECORD_LEN..]).unwrap();
+        panic!("first differing output record #{k}:\n  qemu: {a:?}\n  host: {b:?}");
+    }
+    assert_eq!(
+        got.len() / OUTPUT_RECORD_LEN,
+        want.len() / OUTPUT_RECORD_LEN,
+        "record count (QEMU vs host)"
+    );
+}
+
+#[test]
+fn qemu_firmware_matches_host_replay_bit_for_bit() {
+    if !require_tool("qemu-system-arm") {
+        return;
+    }
+    let elf = build_qemu_firmware("axcomp-qemu");
+    let trace_bytes = scenario::equivalence(CYCLES, None).expect("scenario");
+    let (want, cycles, errors) = host_replay(&trace_bytes);
+    assert_eq!((cycles, errors), (CYCLES, 0));
+
+    let (status, stdout, got) = qemu_replay(&elf, "qemu-equivalence", &trace_bytes);
+    assert!(
+        status.success(),
+        "QEMU firmware failed ({status})\n{stdout}"
+    );
+    assert_same_records(&got, &want);
+    assert_eq!(got.len() / OUTPUT_RECORD_LEN, CYCLES as usize);
+    assert!(
+        stdout.contains(&format!(
+            "cycles={CYCLES} outputs={CYCLES} errors=0 images_accepted=2 images_rejected=1"
+        )),
+        "summary line: {stdout}"
+    );
+}
+
+#[test]
+fn qemu_firmware_reports_malformed_trace_and_still_matches() {
+    if !require_tool("qemu-system-arm") {
+        return;
+    }
+    let elf = build_qemu_firmware("axcomp-qemu");
+    let good = scenario::equivalence(12_000, None).expect("scenario");
+    // Splice an unknown-tag record (intact framing: skipped) after the 1000th record, and cut the trace in
+    // the middle of its last record (truncated: ends the replay).
+    let mut reader = trace::Reader::new(&good).unwrap();
+    for _ in 0..1000 {
+        reader.next().unwrap().unwrap();
+    }
+    let at = reader.offset();
+    let mut bad = good[..at].to_vec();
+    bad.extend_from_slice(&[200, 3, 0, 0, 0, 1, 2, 3]);
+    bad.extend_from_slice(&good[at..good.len() - 3]);
+    let (want, _, errors) = host_replay(&bad);
+    assert_eq!(
+        errors, 2,
+        "host reader sees the unknown tag and the truncation"
+    );
+
+    let (status, stdout, got) = qemu_replay(&elf, "qemu-malformed", &bad);
+    assert_eq!(
+        status.code(),
+        Some(3),
+        "exit status 3 for malformed records\n{stdout}"
+    );
+    assert!(stdout.contains("unknown record tag 200"), "{stdout}");
+    assert_same_records(&got, &want);
+}
