@@ -237,6 +237,7 @@ impl<'e> ControlLoop<'e> {
             timer.next_cycle().await;
             between(&mut Inbox {
                 engine: self.engine,
+                stats: &self.stats,
             });
             self.cycle(io, clock);
         }
@@ -246,6 +247,7 @@ impl<'e> ControlLoop<'e> {
 /// Applies records between two cycles (see [`ControlLoop::run`]).
 pub struct Inbox<'a> {
     engine: &'a mut Engine,
+    stats: &'a CycleStats,
 }
 
 impl Inbox<'_> {
@@ -255,6 +257,11 @@ impl Inbox<'_> {
 
     pub fn engine(&self) -> &Engine {
         self.engine
+    }
+
+    /// The loop's statistics up to the previous cycle (e.g. for periodic logging).
+    pub fn stats(&self) -> &CycleStats {
+        self.stats
     }
 }
 
@@ -443,9 +450,11 @@ mod tests {
         let clock = SteppingClock::default();
         let mut timer = CountdownTimer { remaining: 5 };
         let mut inbox_calls = 0u32;
+        let mut cycles_seen = vec![];
         {
             let fut = ctl.run(&mut io, &clock, &mut timer, |inbox| {
                 inbox_calls += 1;
+                cycles_seen.push(inbox.stats().cycles);
                 if inbox_calls == 3 {
                     // A new image arrives before the third cycle.
                     inbox.apply(&Record::Image(&image[..n]));
@@ -457,6 +466,11 @@ mod tests {
             assert!(matches!(fut.as_mut().poll(&mut cx), Poll::Pending));
         }
         assert_eq!(inbox_calls, 5);
+        assert_eq!(
+            cycles_seen,
+            [0, 1, 2, 3, 4],
+            "the inbox runs before each cycle"
+        );
         assert_eq!(ctl.stats().cycles, 5);
         assert_eq!(ctl.engine().stats().cycles, 5);
         assert_eq!(ctl.engine().stats().images_accepted, 1);

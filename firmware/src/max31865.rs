@@ -36,6 +36,10 @@ pub mod config {
     pub const AUTO_CONVERSION: u8 = 0x40;
     pub const ONE_SHOT: u8 = 0x20;
     pub const THREE_WIRE: u8 = 0x10;
+    /// D3:D2 = 01: start the automatic fault-detection cycle (reads back 00 when finished).
+    pub const FAULT_DETECT_AUTO: u8 = 0x04;
+    /// D3:D2 mask of the fault-detection cycle control.
+    pub const FAULT_DETECT_MASK: u8 = 0x0C;
     pub const FAULT_CLEAR: u8 = 0x02;
     pub const FILTER_50HZ: u8 = 0x01;
 }
@@ -192,6 +196,8 @@ pub enum Error<E> {
     Spi(E),
     /// The converter reported a fault; the status was read and the latch cleared.
     Fault(FaultStatus),
+    /// The automatic fault-detection cycle did not finish within its time limit.
+    FaultDetectionTimeout,
 }
 
 impl<E: core::fmt::Debug> core::fmt::Display for Error<E> {
@@ -199,6 +205,9 @@ impl<E: core::fmt::Debug> core::fmt::Display for Error<E> {
         match self {
             Error::Spi(e) => write!(f, "MAX31865 SPI error: {e:?}"),
             Error::Fault(s) => write!(f, "MAX31865 fault, status 0x{:02x}", s.0),
+            Error::FaultDetectionTimeout => {
+                f.write_str("MAX31865 fault-detection cycle did not finish within 1 ms")
+            }
         }
     }
 }
@@ -277,6 +286,31 @@ impl<SPI: SpiDevice> Max31865<SPI> {
     pub fn read_temperature_degc(&mut self) -> Result<f32, Error<SPI::Error>> {
         let r = self.read_resistance_ohm()?;
         Ok(self.settings.temperature_degc(r))
+    }
+
+    /// Runs the chip's automatic fault-detection cycle (datasheet "Fault Detection": conversion off, bias on,
+    /// D3:D2 = 01; the chip clears D3:D2 when done, within about 600 µs), returns the fault status it latched
+    /// and restores automatic conversion with the latch cleared. Polls every 100 µs for at most 1 ms.
+    pub fn run_fault_detection<D: embedded_hal::delay::DelayNs>(
+        &mut self,
+        delay: &mut D,
+    ) -> Result<FaultStatus, Error<SPI::Error>> {
+        let base = self.settings.config_byte & !config::AUTO_CONVERSION;
+        self.write_config(base | config::FAULT_DETECT_AUTO)?;
+        let mut done = false;
+        for _ in 0..10 {
+            delay.delay_us(100);
+            if self.read_config()? & config::FAULT_DETECT_MASK == 0 {
+                done = true;
+                break;
+            }
+        }
+        let status = self.read_fault_status()?;
+        self.write_config(self.settings.config_byte | config::FAULT_CLEAR)?;
+        if !done {
+            return Err(Error::FaultDetectionTimeout);
+        }
+        Ok(status)
     }
 
     fn write_config(&mut self, value: u8) -> Result<(), Error<SPI::Error>> {
@@ -497,8 +531,70 @@ mod tests {
                 assert!(s.has(FaultStatus::RTD_HIGH));
                 assert!(!s.has(FaultStatus::OVER_UNDER_VOLTAGE));
             }
-            Error::Spi(_) => unreachable!(),
+            _ => unreachable!(),
         }
+        spi.done();
+    }
+
+    #[test]
+    fn fault_detection_cycle_polls_until_done_and_restores_conversion() {
+        use embedded_hal_mock::eh1::delay::NoopDelay;
+        // PT100 defaults: normal config 0xC1. Detection: 0x81 & !0x40 | 0x04 = 0x85; busy reads 0x85,
+        // done reads 0x81; status 0x04 (over/under-voltage); restore 0xC1 | clear 0x02 = 0xC3.
+        let read_config = |v: u8| {
+            [
+                T::transaction_start(),
+                T::write(0x00),
+                T::read_vec(vec![v]),
+                T::transaction_end(),
+            ]
+        };
+        let mut expectations = vec![
+            T::transaction_start(),
+            T::write_vec(vec![0x80, 0x85]),
+            T::transaction_end(),
+        ];
+        expectations.extend(read_config(0x85));
+        expectations.extend(read_config(0x81));
+        expectations.extend([
+            T::transaction_start(),
+            T::write(0x07),
+            T::read_vec(vec![0x04]),
+            T::transaction_end(),
+            T::transaction_start(),
+            T::write_vec(vec![0x80, 0xC3]),
+            T::transaction_end(),
+        ]);
+        let mut spi = Mock::new(&expectations);
+        let mut dev = Max31865::new(spi.clone(), SettingsBuilder::PT100.build().unwrap());
+        let st = dev.run_fault_detection(&mut NoopDelay).unwrap();
+        assert!(st.has(FaultStatus::OVER_UNDER_VOLTAGE));
+        spi.done();
+
+        // Never finishing: ten polls, then the status is still read, conversion restored, and a timeout.
+        let mut expectations = vec![
+            T::transaction_start(),
+            T::write_vec(vec![0x80, 0x85]),
+            T::transaction_end(),
+        ];
+        for _ in 0..10 {
+            expectations.extend(read_config(0x85));
+        }
+        expectations.extend([
+            T::transaction_start(),
+            T::write(0x07),
+            T::read_vec(vec![0x00]),
+            T::transaction_end(),
+            T::transaction_start(),
+            T::write_vec(vec![0x80, 0xC3]),
+            T::transaction_end(),
+        ]);
+        let mut spi = Mock::new(&expectations);
+        let mut dev = Max31865::new(spi.clone(), SettingsBuilder::PT100.build().unwrap());
+        assert_eq!(
+            dev.run_fault_detection(&mut NoopDelay),
+            Err(Error::FaultDetectionTimeout)
+        );
         spi.done();
     }
 }

@@ -6,9 +6,9 @@
 //!   a bidirectional table with direction reversals and hysteresis, a 16-bit scale counter that wraps, motion
 //!   beyond both table ends (taper), temperature ramps through first-order lags, scale expansion, an
 //!   implausible temperature jump, a sensor that goes stale long enough to freeze the thermal term and then
-//!   recovers, measured force steps and a predicted force from process parameters, the correction clamp and
-//!   slew limit, a corrupt table image (rejected, the running one kept) and later a valid replacement
-//!   (A/B swap), and a state reset.
+//!   recovers, measured force steps (with NaN and implausible samples) and a predicted force from process
+//!   parameters, the correction clamp and slew limit, a corrupt table image (rejected, the running one
+//!   kept) and later a valid replacement (A/B swap), and a state reset.
 //! - **`reference`**: the core's benchmark workload (`axcomp_core::bench`): full 1024-segment bidirectional
 //!   table, 8 lagged sensors, 3 force terms.
 //!
@@ -275,7 +275,16 @@ pub fn equivalence(cycles: u32, first_image: Option<&[u8]>) -> Result<Vec<u8>, S
         let input = axcomp_core::CycleInput {
             scale_raw: x as u32, // the hardware counter: low bits of the position
             command_counts: x + following,
-            forces_n: [force_step + (i % 7) as f32 * 0.5, 0.0, 0.0],
+            forces_n: [
+                match i % 4999 {
+                    // A dropped force sample (NaN) and an implausible one: ignored and flagged.
+                    1234 => f32::NAN,
+                    2345 => 3.0e7,
+                    _ => force_step + (i % 7) as f32 * 0.5,
+                },
+                0.0,
+                0.0,
+            ],
         };
         t.push(&Record::Cycle(input));
     };
@@ -411,6 +420,7 @@ mod tests {
             (Flags::THERMAL_FROZEN, "THERMAL_FROZEN"),
             (Flags::BACKWARD, "BACKWARD"),
             (Flags::IDENTITY, "IDENTITY"),
+            (Flags::FORCE_INVALID, "FORCE_INVALID"),
         ] {
             assert!(
                 seen & flag.bits() != 0,

@@ -6,6 +6,32 @@ pub mod commands;
 
 use clap::Parser;
 
+/// Exit code when a do-no-harm guard refuses to write a model (its JSON and report are still written).
+pub const EXIT_GUARD_REFUSED: u8 = 3;
+
+/// A command finished its analysis but refuses to write its result (e.g. the do-no-harm guard found the
+/// model not clearly better than raw). Carries the process exit code; `main` maps it.
+#[derive(Debug)]
+pub struct Refused {
+    /// Process exit code.
+    pub code: u8,
+    /// Why, for the user.
+    pub reason: String,
+}
+
+impl std::fmt::Display for Refused {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.reason)
+    }
+}
+
+impl std::error::Error for Refused {}
+
+/// The process exit code for an error returned by [`run`]: a [`Refused`] carries its own, anything else is 2.
+pub fn exit_code(err: &anyhow::Error) -> u8 {
+    err.downcast_ref::<Refused>().map_or(2, |r| r.code)
+}
+
 /// Parses `args` and runs the chosen command.
 pub fn run<I, T>(args: I) -> anyhow::Result<()>
 where
@@ -14,7 +40,12 @@ where
 {
     let cli = match cli::Cli::try_parse_from(args) {
         Ok(cli) => cli,
-        Err(e) if e.use_stderr() => return Err(anyhow::anyhow!("{e}")),
+        Err(e) if e.use_stderr() => {
+            // clap renders "error: ..." itself; main adds the "axcomp: error:" prefix.
+            let text = e.render().to_string();
+            let text = text.trim_start_matches("error: ").trim_end().to_owned();
+            return Err(anyhow::anyhow!(text));
+        }
         Err(e) => {
             // --help / --version: print and succeed.
             e.print()?;

@@ -4,8 +4,13 @@ fn main() -> std::process::ExitCode {
     match axcomp::run(std::env::args_os()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("axcomp: error: {err:#}");
-            std::process::ExitCode::from(2)
+            let code = axcomp::exit_code(&err);
+            if code == axcomp::EXIT_GUARD_REFUSED {
+                eprintln!("axcomp: refused: {err:#}");
+            } else {
+                eprintln!("axcomp: error: {err:#}");
+            }
+            std::process::ExitCode::from(code)
         }
     }
 }

@@ -24,8 +24,15 @@ fn tmp(name: &str) -> PathBuf {
 }
 
 fn axcomp(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_axcomp")).args(args).output().expect("run axcomp");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+    let out = Command::new(env!("CARGO_BIN_EXE_axcomp"))
+        .args(args)
+        .output()
+        .expect("run axcomp");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
 }
 
 fn read_json(p: &Path) -> serde_json::Value {
@@ -74,7 +81,13 @@ fn ess_b02_x_pitch_only_model_misses_the_reversal() {
     let before = d["gap"]["holdout_rms_um"].as_f64().unwrap();
     let after = top["holdout_rms_after_um"].as_f64().unwrap();
     assert!((shrink - 100.0 * (1.0 - after / before)).abs() < 1e-9);
-    for k in ["kind", "score", "params", "holdout_rms_after_um", "shrink_pct"] {
+    for k in [
+        "kind",
+        "score",
+        "params",
+        "holdout_rms_after_um",
+        "shrink_pct",
+    ] {
         assert!(!top[k].is_null(), "effects[0].{k}");
     }
     assert!(report.join("diagnosis.md").is_file());
@@ -87,7 +100,8 @@ fn ess_b02_x_pitch_only_model_misses_the_reversal() {
 #[test]
 fn voron_frame_growth_is_attributed_to_a_thermal_lag() {
     let Some(sh) = shared() else { return };
-    let data = sh.join("data/real/thermal-voron-frame-z/frame_exp_quant_v3_2021-06-13_05-41-53.csv");
+    let data =
+        sh.join("data/real/thermal-voron-frame-z/frame_exp_quant_v3_2021-06-13_05-41-53.csv");
     let dir = tmp("voron");
     let json = dir.join("d.json");
     // Z trigger position in microsteps × 2.5 µm (step_dist 0.0025 mm in the file header); frame and
@@ -117,7 +131,12 @@ fn voron_frame_growth_is_attributed_to_a_thermal_lag() {
     println!("{stdout}");
     let d = read_json(&json);
     // Time-series only: no positional candidates apply.
-    let na: Vec<&str> = d["not_applicable"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    let na: Vec<&str> = d["not_applicable"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
     for k in ["cogging", "reversal", "pitch_error", "end_effect"] {
         assert!(na.contains(&k), "{k} should not apply: {na:?}");
     }
@@ -137,15 +156,61 @@ fn bad_input_is_named() {
     let data = sh.join("data/real/ess-linear-axes-iso230/tidy/iso230_2_runs_long.csv");
     let d = data.to_str().unwrap();
     let w = "test_id=ESS_TDU_B02_X_2022-04-06";
-    let (ok, _, err) = axcomp(&["diagnose", "--data", d, "--where", w, "--model", "pitch,reversal", "--holdout", "cycle=5"]);
+    let (ok, _, err) = axcomp(&[
+        "diagnose",
+        "--data",
+        d,
+        "--where",
+        w,
+        "--model",
+        "pitch,reversal",
+        "--holdout",
+        "cycle=5",
+    ]);
     assert!(!ok && err.contains("unknown effect kind `pitch`"), "{err}");
-    let (ok, _, err) =
-        axcomp(&["diagnose", "--data", d, "--where", w, "--model", "thermal_drift", "--holdout", "cycle=5"]);
-    assert!(!ok && err.contains("thermal_drift") && err.contains("_degC"), "{err}");
-    let (ok, _, err) = axcomp(&["diagnose", "--data", d, "--where", w, "--model", "pitch_error", "--holdout", "cycle=9"]);
-    assert!(!ok && err.contains("selects no rows"), "{err}");
-    let (ok, _, err) =
-        axcomp(&["diagnose", "--data", d, "--where", w, "--model", "pitch_error", "--holdout", "cycle=5", "--target", "nope_um"]);
+    let (ok, _, err) = axcomp(&[
+        "diagnose",
+        "--data",
+        d,
+        "--where",
+        w,
+        "--model",
+        "thermal_drift",
+        "--holdout",
+        "cycle=5",
+    ]);
+    assert!(
+        !ok && err.contains("thermal_drift") && err.contains("_degC"),
+        "{err}"
+    );
+    let (ok, _, err) = axcomp(&[
+        "diagnose",
+        "--data",
+        d,
+        "--where",
+        w,
+        "--model",
+        "pitch_error",
+        "--holdout",
+        "cycle=9",
+    ]);
+    assert!(
+        !ok && err.contains("cycle=9") && err.contains("no row"),
+        "{err}"
+    );
+    let (ok, _, err) = axcomp(&[
+        "diagnose",
+        "--data",
+        d,
+        "--where",
+        w,
+        "--model",
+        "pitch_error",
+        "--holdout",
+        "cycle=5",
+        "--target",
+        "nope_um",
+    ]);
     assert!(!ok && err.contains("nope_um"), "{err}");
 }
 

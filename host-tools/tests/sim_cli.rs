@@ -77,7 +77,7 @@ fn writes_csv_and_truth_that_read_back() {
     assert_eq!(json["seed"], 3);
     assert_eq!(json["axis"]["noise"]["deviation_um"], 0.2);
 
-    // Same seed → same file; the truth's axis replays to the same file through --axis.
+    // Same seed → same file; the truth's axis (with its noise σ) replays to the same file through --axis.
     let again = dir.join("again.csv");
     let o = axcomp(&[
         "sim",
@@ -87,8 +87,6 @@ fn writes_csv_and_truth_that_read_back() {
         truth.to_str().unwrap(),
         "--seed",
         "3",
-        "--noise-um",
-        "0.2",
         "--rows",
         "300",
     ]);
@@ -218,5 +216,48 @@ fn image_runs_the_campaign_through_the_compensator() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("truth.json"));
     assert!(!dir.join("x.csv").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn spindle_plan_writes_process_columns_and_the_generators_truth() {
+    let dir = scratch("spindle");
+    let out = dir.join("spindle.csv");
+    let truth = dir.join("truth.json");
+    let o = axcomp(&[
+        "sim",
+        "--out",
+        out.to_str().unwrap(),
+        "--plan",
+        "spindle",
+        "--rows",
+        "1000",
+        "--truth",
+        truth.to_str().unwrap(),
+    ]);
+    assert!(
+        o.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    let ds = axcomp_data::Dataset::from_csv_str(
+        "spindle.csv",
+        &text,
+        &axcomp_data::LoadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(ds.n_rows(), 1000);
+    assert_eq!(ds.sensors().len(), 16);
+    for col in ["spindle_rpm", "ap_mm", "fz_mm", "force_N", "deviation_um"] {
+        assert!(ds.numeric(col).is_ok(), "{col}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
+    assert!(
+        json["synth_truth"]["terms"]
+            .as_array()
+            .is_some_and(|t| !t.is_empty())
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

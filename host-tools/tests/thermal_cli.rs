@@ -46,13 +46,34 @@ fn shared() -> Option<PathBuf> {
 #[test]
 fn twin_unseen_condition_within_1p2_of_oracle_and_model_file_builds_an_image() {
     let dir = tmp_dir("twin");
-    let d = generate(&SynthConfig { seed: 5, ..SynthConfig::default() });
+    let d = generate(&SynthConfig {
+        seed: 5,
+        ..SynthConfig::default()
+    });
     let csv = dir.join("twin.csv");
     d.write_csv(&csv).unwrap();
-    let (j, m, r) = (dir.join("fit.json"), dir.join("model.json"), dir.join("report"));
+    let (j, m, r) = (
+        dir.join("fit.json"),
+        dir.join("model.json"),
+        dir.join("report"),
+    );
     let (ok, out, err) = run(&[
-        "fit", "thermal", "--data", csv.to_str().unwrap(), "--target", "error_um", "--holdout", "condition=2",
-        "--cv", "condition", "--lags", "--json", j.to_str().unwrap(), "--out", m.to_str().unwrap(), "--report",
+        "fit",
+        "thermal",
+        "--data",
+        csv.to_str().unwrap(),
+        "--target",
+        "error_um",
+        "--holdout",
+        "condition=2",
+        "--cv",
+        "condition",
+        "--lags",
+        "--json",
+        j.to_str().unwrap(),
+        "--out",
+        m.to_str().unwrap(),
+        "--report",
         r.to_str().unwrap(),
     ]);
     assert!(ok, "{out}\n{err}");
@@ -64,11 +85,21 @@ fn twin_unseen_condition_within_1p2_of_oracle_and_model_file_builds_an_image() {
     let oracle_rms = axcomp_thermal::stats::rms_masked(&res, &mask);
     let got = v["holdout_rms_um"].as_f64().unwrap();
     let raw = v["raw_rms_um"].as_f64().unwrap();
-    println!("twin: raw {raw:.3} µm, fitted {got:.3} µm, oracle {oracle_rms:.3} µm, sensors {}", v["sensors"]);
-    assert!(got <= 1.2 * oracle_rms, "held-out {got} µm > 1.2 × oracle {oracle_rms} µm");
+    println!(
+        "twin: raw {raw:.3} µm, fitted {got:.3} µm, oracle {oracle_rms:.3} µm, sensors {}",
+        v["sensors"]
+    );
+    assert!(
+        got <= 1.2 * oracle_rms,
+        "held-out {got} µm > 1.2 × oracle {oracle_rms} µm"
+    );
     // Contract fields.
     assert!(v["sensors"].as_array().is_some_and(|s| !s.is_empty()));
-    assert!(v["model"]["terms"].as_array().is_some_and(|t| !t.is_empty()));
+    assert!(
+        v["model"]["terms"]
+            .as_array()
+            .is_some_and(|t| !t.is_empty())
+    );
     assert!(v["cv_rms_um"].as_f64().is_some());
     assert_eq!(v["fcm_gra"]["method"], "fcm_gra");
     assert_eq!(v["forward"]["method"], "forward_cv");
@@ -76,7 +107,12 @@ fn twin_unseen_condition_within_1p2_of_oracle_and_model_file_builds_an_image() {
     // The force column was fitted jointly: χ within 20 % of the truth 0.01 µm/N.
     let chi = v["model"]["forces"][0]["chi_um_per_n"].as_f64().unwrap();
     assert!((chi - 0.01).abs() < 0.002, "χ = {chi}");
-    for f in ["report.md", "prediction.svg", "residual_per_condition.svg", "sensors.svg"] {
+    for f in [
+        "report.md",
+        "prediction.svg",
+        "residual_per_condition.svg",
+        "sensors.svg",
+    ] {
         assert!(r.join(f).is_file(), "{f} missing");
     }
     // The model file converts to the core spec and builds a valid image.
@@ -107,13 +143,30 @@ fn bad_csv_cell_is_named_and_nothing_is_written() {
     std::fs::write(&csv, "time_s,a_degC,error_um\n0,20,1\n1,20.5,x\n2,21,3\n").unwrap();
     let (j, m) = (dir.join("fit.json"), dir.join("model.json"));
     let (ok, _, err) = run(&[
-        "fit", "thermal", "--data", csv.to_str().unwrap(), "--target", "error_um", "--json", j.to_str().unwrap(),
-        "--out", m.to_str().unwrap(),
+        "fit",
+        "thermal",
+        "--data",
+        csv.to_str().unwrap(),
+        "--target",
+        "error_um",
+        "--json",
+        j.to_str().unwrap(),
+        "--out",
+        m.to_str().unwrap(),
     ]);
     assert!(!ok);
-    assert!(err.contains("bad.csv:3:3"), "error does not name file:line:column: {err}");
+    assert!(
+        err.contains("bad.csv:3:3"),
+        "error does not name file:line:column: {err}"
+    );
     assert!(!j.exists() && !m.exists());
-    let (ok, _, err) = run(&["fit", "thermal", "--data", csv.to_str().unwrap(), "--ridge=-1"]);
+    let (ok, _, err) = run(&[
+        "fit",
+        "thermal",
+        "--data",
+        csv.to_str().unwrap(),
+        "--ridge=-1",
+    ]);
     assert!(!ok && err.contains("--ridge"), "{err}");
 }
 
@@ -126,17 +179,34 @@ fn guard_refuses_a_model_worse_than_raw() {
     let mut text = String::from("time_s,part,a_degC,error_um\n");
     for k in 0..60 {
         let t = 20.0 + 0.1 * k as f64 + if k % 2 == 0 { 0.01 } else { -0.01 };
-        let (part, e) = if k < 40 { ("train", t - 20.0) } else { ("late", 0.0) };
+        let (part, e) = if k < 40 {
+            ("train", t - 20.0)
+        } else {
+            ("late", 0.0)
+        };
         text += &format!("{k},{part},{t},{e}\n");
     }
     std::fs::write(&csv, text).unwrap();
     let (j, m) = (dir.join("g.json"), dir.join("g-model.json"));
     let args = [
-        "fit", "thermal", "--data", csv.to_str().unwrap(), "--target", "error_um", "--holdout", "part=late",
-        "--json", j.to_str().unwrap(), "--out", m.to_str().unwrap(),
+        "fit",
+        "thermal",
+        "--data",
+        csv.to_str().unwrap(),
+        "--target",
+        "error_um",
+        "--holdout",
+        "part=late",
+        "--json",
+        j.to_str().unwrap(),
+        "--out",
+        m.to_str().unwrap(),
     ];
     let (ok, _, err) = run(&args);
-    assert!(!ok && err.contains("do-no-harm guard") && err.contains("--force"), "{err}");
+    assert!(
+        !ok && err.contains("do-no-harm guard") && err.contains("--force"),
+        "{err}"
+    );
     assert!(!m.exists(), "model written despite the guard");
     let v = json(&j);
     assert_eq!(v["guard"]["passed"], false);
@@ -151,17 +221,35 @@ fn guard_refuses_a_model_worse_than_raw() {
 const VORON: &str = "data/real/thermal-voron-frame-z";
 
 fn voron_args(file: &Path, um_per_step: Option<&str>) -> Vec<String> {
-    let mut a: Vec<String> = ["fit", "thermal", "--data"].iter().map(|s| s.to_string()).collect();
+    let mut a: Vec<String> = ["fit", "thermal", "--data"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
     a.push(file.display().to_string());
-    for r in ["frame_t=frame_degC", "chamber_t=chamber_degC", "bed_t=bed_degC", "he_t=he_degC"] {
+    for r in [
+        "frame_t=frame_degC",
+        "chamber_t=chamber_degC",
+        "bed_t=bed_degC",
+        "he_t=he_degC",
+    ] {
         a.extend(["--rename".to_string(), r.to_string()]);
     }
     match um_per_step {
         Some(f) => a.extend(
-            ["--rename", "mcu_pos_z=z_um", "--scale", &format!("z_um={f}"), "--target", "z_um"].map(String::from),
+            [
+                "--rename",
+                "mcu_pos_z=z_um",
+                "--scale",
+                &format!("z_um={f}"),
+                "--target",
+                "z_um",
+            ]
+            .map(String::from),
         ),
         // step_dist not stated in the file: fit in microsteps, no unit guessed.
-        None => a.extend(["--rename", "mcu_pos_z=z_steps", "--target", "z_steps"].map(String::from)),
+        None => {
+            a.extend(["--rename", "mcu_pos_z=z_steps", "--target", "z_steps"].map(String::from))
+        }
     }
     a.extend(["--zero-at-start", "1"].map(String::from));
     a
@@ -171,7 +259,9 @@ fn voron_args(file: &Path, um_per_step: Option<&str>) -> Vec<String> {
 fn voron_frame_growth_beats_plain_least_squares_on_the_cooling_phase() {
     let Some(shared) = shared() else { return };
     let dir = tmp_dir("voron");
-    let file = shared.join(VORON).join("frame_exp_quant_v3_2021-06-13_05-41-53.csv");
+    let file = shared
+        .join(VORON)
+        .join("frame_exp_quant_v3_2021-06-13_05-41-53.csv");
     // step_dist = 0.0025 mm (header) → 2.5 µm per microstep; hold out the cooling phase.
     let base = voron_args(&file, Some("2.5"));
     let fit = |extra: &[&str], name: &str| {
@@ -180,7 +270,11 @@ fn voron_frame_growth_beats_plain_least_squares_on_the_cooling_phase() {
         a.extend(["--holdout", "bed_target=0", "--json", j.to_str().unwrap()].map(String::from));
         a.extend(extra.iter().map(|s| s.to_string()));
         let out = bin().args(&a).output().unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         json(&j)
     };
     // Reference: plain least squares on all four sensors without lags (measured here, not hard-coded).
@@ -205,31 +299,68 @@ fn voron_other_files_never_worse_than_raw() {
     let dir = tmp_dir("voron-guard");
     // (file, µm per microstep or None when step_dist is not stated, holdout)
     let runs: [(&str, Option<&str>, &str); 4] = [
-        ("frame_exp_quant_v3_2021-06-13_05-41-53.csv", Some("2.5"), "bed_target=0"),
+        (
+            "frame_exp_quant_v3_2021-06-13_05-41-53.csv",
+            Some("2.5"),
+            "bed_target=0",
+        ),
         // Header says step_dist=0.0125 mm → 12.5 µm per microstep, taken as written.
-        ("expansion_quant_whoppingpochard_2514_2021-06-13_20-04-43.csv", Some("12.5"), "bed_target=0"),
-        ("frame_exp_quant_v3_2021-06-12_12-54-36-mvieleers_V2.1253.csv", None, "bed_target=0"),
+        (
+            "expansion_quant_whoppingpochard_2514_2021-06-13_20-04-43.csv",
+            Some("12.5"),
+            "bed_target=0",
+        ),
+        (
+            "frame_exp_quant_v3_2021-06-12_12-54-36-mvieleers_V2.1253.csv",
+            None,
+            "bed_target=0",
+        ),
         // Heating only: hold out the last part in time.
-        ("frame_temp_v_pos_2021-06-05_13-24-32.csv", None, "time_s>=8000"),
+        (
+            "frame_temp_v_pos_2021-06-05_13-24-32.csv",
+            None,
+            "time_s>=8000",
+        ),
     ];
     for (i, (f, scale, holdout)) in runs.iter().enumerate() {
         for lags in [false, true] {
-            let (j, m) = (dir.join(format!("{i}-{lags}.json")), dir.join(format!("{i}-{lags}-model.json")));
+            let (j, m) = (
+                dir.join(format!("{i}-{lags}.json")),
+                dir.join(format!("{i}-{lags}-model.json")),
+            );
             let mut a = voron_args(&shared.join(VORON).join(f), *scale);
             a.extend(
-                ["--holdout", holdout, "--json", j.to_str().unwrap(), "--out", m.to_str().unwrap()].map(String::from),
+                [
+                    "--holdout",
+                    holdout,
+                    "--json",
+                    j.to_str().unwrap(),
+                    "--out",
+                    m.to_str().unwrap(),
+                ]
+                .map(String::from),
             );
             if lags {
                 a.push("--lags".into());
             }
             let out = bin().args(&a).output().unwrap();
             let v = json(&j);
-            let (raw, h) = (v["raw_rms_um"].as_f64().unwrap(), v["holdout_rms_um"].as_f64().unwrap());
-            println!("{f} lags={lags}: raw {raw:.2}, model {h:.2}, written {}", m.exists());
+            let (raw, h) = (
+                v["raw_rms_um"].as_f64().unwrap(),
+                v["holdout_rms_um"].as_f64().unwrap(),
+            );
+            println!(
+                "{f} lags={lags}: raw {raw:.2}, model {h:.2}, written {}",
+                m.exists()
+            );
             // The guard: a model is written only if it is not worse than raw on the held-out rows; otherwise
             // the command fails saying why and writes no model.
             if h <= raw {
-                assert!(out.status.success() && m.exists(), "{}", String::from_utf8_lossy(&out.stderr));
+                assert!(
+                    out.status.success() && m.exists(),
+                    "{}",
+                    String::from_utf8_lossy(&out.stderr)
+                );
             } else {
                 assert!(!out.status.success() && !m.exists());
                 assert!(String::from_utf8_lossy(&out.stderr).contains("do-no-harm guard"));

@@ -1,5 +1,5 @@
-//! A reference workload for benchmarks: the host example `bench_host`, the bare-metal instruction
-//! count `firmware/core/bench-m4` and the firmware's QEMU measurement use the same image and inputs.
+//! A reference workload for benchmarks: the host example `bench_host` and the firmware's QEMU
+//! instruction count (`axcomp-qemu-bench`, run by `.ci/bench`) use the same image and inputs.
 //!
 //! The image: a bidirectional 1024-segment table (a smooth cubic along the stroke, 1.5 µm
 //! reversal), 8 lagged sensors with Σ b_i·ΔT_i and a scale-expansion term, 3 force terms (two

@@ -109,29 +109,7 @@ pub fn crc32(bytes: &[u8]) -> u32 {
     !c
 }
 
-// ---- little-endian readers that never panic (0 when out of bounds) ----
-
-fn rd<const N: usize>(b: &[u8], off: usize) -> [u8; N] {
-    match b.get(off..off.wrapping_add(N)) {
-        Some(s) => <[u8; N]>::try_from(s).unwrap_or([0; N]),
-        None => [0; N],
-    }
-}
-fn u8_at(b: &[u8], off: usize) -> u8 {
-    b.get(off).copied().unwrap_or(0)
-}
-fn u16_at(b: &[u8], off: usize) -> u16 {
-    u16::from_le_bytes(rd(b, off))
-}
-fn u32_at(b: &[u8], off: usize) -> u32 {
-    u32::from_le_bytes(rd(b, off))
-}
-fn i64_at(b: &[u8], off: usize) -> i64 {
-    i64::from_le_bytes(rd(b, off))
-}
-fn f32_at(b: &[u8], off: usize) -> f32 {
-    f32::from_le_bytes(rd(b, off))
-}
+use crate::le::{Put, f32_at, i64_at, rd, u8_at, u16_at, u32_at};
 
 /// Section offsets and counts of a validated image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -266,7 +244,7 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
         return Err(ImageError::TooShort);
     }
     let body_end = total - CRC_LEN;
-    if crc32(&b[..body_end]) != u32_at(b, body_end) {
+    if crc32(b.get(..body_end).unwrap_or(&[])) != u32_at(b, body_end) {
         return Err(ImageError::BadCrc);
     }
 
@@ -623,36 +601,6 @@ pub fn image_len(spec: &ImageSpec) -> usize {
     n
 }
 
-/// Little-endian writer over a buffer that is known to be large enough.
-struct Put<'a> {
-    buf: &'a mut [u8],
-    pos: usize,
-}
-
-impl Put<'_> {
-    fn bytes(&mut self, v: &[u8]) {
-        if let Some(dst) = self.buf.get_mut(self.pos..self.pos + v.len()) {
-            dst.copy_from_slice(v);
-        }
-        self.pos += v.len();
-    }
-    fn u8(&mut self, v: u8) {
-        self.bytes(&[v]);
-    }
-    fn u16(&mut self, v: u16) {
-        self.bytes(&v.to_le_bytes());
-    }
-    fn u32(&mut self, v: u32) {
-        self.bytes(&v.to_le_bytes());
-    }
-    fn i64(&mut self, v: i64) {
-        self.bytes(&v.to_le_bytes());
-    }
-    fn f32(&mut self, v: f32) {
-        self.bytes(&v.to_le_bytes());
-    }
-}
-
 /// Validate `spec` and write its image into `out`; returns the length.
 ///
 /// On `Err` nothing usable is left in `out` (the written bytes are zeroed).
@@ -692,7 +640,9 @@ pub fn write_image(spec: &ImageSpec, out: &mut [u8]) -> Result<usize, ImageError
     if out.len() < len {
         return Err(ImageError::BufferTooSmall { needed: len as u32 });
     }
-    let out = &mut out[..len];
+    let Some(out) = out.get_mut(..len) else {
+        return Err(ImageError::BufferTooSmall { needed: len as u32 });
+    };
 
     let table_len = spec.table.as_ref().map_or(0, |t| {
         TABLE_HEADER_LEN + 16 * t.forward.len() * if t.backward.is_empty() { 1 } else { 2 }
@@ -708,7 +658,7 @@ pub fn write_image(spec: &ImageSpec, out: &mut [u8]) -> Result<usize, ImageError
     };
     let limits_off = HEADER_LEN + table_len + thermo_len;
 
-    let mut w = Put { buf: out, pos: 0 };
+    let mut w = Put::new(out);
     w.bytes(&MAGIC);
     w.u16(SCHEMA_VERSION);
     w.u16(HEADER_LEN as u16);
@@ -801,7 +751,7 @@ pub fn write_image(spec: &ImageSpec, out: &mut [u8]) -> Result<usize, ImageError
     w.u32(spec.limits.direction_hysteresis_counts);
     w.u32(0);
     let body = w.pos;
-    let crc = crc32(&w.buf[..body]);
+    let crc = crc32(w.buf.get(..body).unwrap_or(&[]));
     w.u32(crc);
 
     // The written image must pass exactly the checks the firmware applies.

@@ -66,6 +66,7 @@ mod compensator;
 mod engine;
 mod error;
 pub mod image;
+mod le;
 mod spec;
 pub mod trace;
 

@@ -28,6 +28,7 @@
 
 use core::fmt;
 
+use crate::le::{Put, f32_at, i32_at, i64_at, rd, u16_at, u32_at};
 use crate::{CycleInput, MAX_FORCES, MAX_IMAGE_LEN, MAX_SENSORS, ProcessParams};
 
 /// Trace magic.
@@ -200,27 +201,15 @@ impl Record<'_> {
     }
 }
 
-fn rd<const N: usize>(b: &[u8], off: usize) -> [u8; N] {
-    match b.get(off..off.wrapping_add(N)) {
-        Some(s) => <[u8; N]>::try_from(s).unwrap_or([0; N]),
-        None => [0; N],
-    }
-}
-fn f32_at(b: &[u8], off: usize) -> f32 {
-    f32::from_le_bytes(rd(b, off))
-}
-fn u32_at(b: &[u8], off: usize) -> u32 {
-    u32::from_le_bytes(rd(b, off))
-}
-
 /// Write the trace header into `out`; returns its length.
 pub fn write_header(out: &mut [u8]) -> Result<usize, TraceError> {
     let dst = out
         .get_mut(..TRACE_HEADER_LEN)
         .ok_or(TraceError::BufferFull)?;
-    dst[..4].copy_from_slice(&TRACE_MAGIC);
-    dst[4..6].copy_from_slice(&TRACE_VERSION.to_le_bytes());
-    dst[6..8].copy_from_slice(&0u16.to_le_bytes());
+    let mut w = Put::new(dst);
+    w.bytes(&TRACE_MAGIC);
+    w.u16(TRACE_VERSION);
+    w.u16(0);
     Ok(TRACE_HEADER_LEN)
 }
 
@@ -232,7 +221,7 @@ pub fn check_header(bytes: &[u8]) -> Result<usize, TraceError> {
     if rd::<4>(bytes, 0) != TRACE_MAGIC {
         return Err(TraceError::BadMagic);
     }
-    let v = u16::from_le_bytes(rd(bytes, 4));
+    let v = u16_at(bytes, 4);
     if v != TRACE_VERSION {
         return Err(TraceError::UnsupportedVersion { found: v });
     }
@@ -246,33 +235,33 @@ pub fn encode_record(rec: &Record, out: &mut [u8]) -> Result<usize, TraceError> 
         return Err(TraceError::BufferFull);
     }
     let dst = out.get_mut(..len).ok_or(TraceError::BufferFull)?;
-    dst[0] = rec.tag();
-    dst[1..5].copy_from_slice(&(rec.payload_len() as u32).to_le_bytes());
-    let p = &mut dst[RECORD_HEADER_LEN..];
+    let mut w = Put::new(dst);
+    w.u8(rec.tag());
+    w.u32(rec.payload_len() as u32);
     match rec {
         Record::Cycle(c) => {
-            p[0..4].copy_from_slice(&c.scale_raw.to_le_bytes());
-            p[4..12].copy_from_slice(&c.command_counts.to_le_bytes());
-            for (k, f) in c.forces_n.iter().enumerate() {
-                p[12 + 4 * k..16 + 4 * k].copy_from_slice(&f.to_le_bytes());
+            w.u32(c.scale_raw);
+            w.i64(c.command_counts);
+            for &f in &c.forces_n {
+                w.f32(f);
             }
         }
         Record::Temperatures(t) => {
             let r = t.readings();
-            p[0..4].copy_from_slice(&t.now_ms.to_le_bytes());
-            p[4] = r.len() as u8;
-            p[5..8].copy_from_slice(&[0; 3]);
-            for (k, v) in r.iter().enumerate() {
-                p[8 + 4 * k..12 + 4 * k].copy_from_slice(&v.to_le_bytes());
+            w.u32(t.now_ms);
+            w.u8(r.len() as u8);
+            w.bytes(&[0; 3]);
+            for &v in r {
+                w.f32(v);
             }
         }
         Record::Process(q) => {
-            p[0..4].copy_from_slice(&q.ap_mm.to_le_bytes());
-            p[4..8].copy_from_slice(&q.fz_mm.to_le_bytes());
-            p[8..12].copy_from_slice(&q.n_rpm.to_le_bytes());
+            w.f32(q.ap_mm);
+            w.f32(q.fz_mm);
+            w.f32(q.n_rpm);
         }
-        Record::Image(b) => p.copy_from_slice(b),
-        Record::Reset { scale_raw } => p.copy_from_slice(&scale_raw.to_le_bytes()),
+        Record::Image(b) => w.bytes(b),
+        Record::Reset { scale_raw } => w.u32(*scale_raw),
         Record::End => {}
     }
     Ok(len)
@@ -285,8 +274,8 @@ pub fn encode_record(rec: &Record, out: &mut [u8]) -> Result<usize, TraceError> 
 pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize), TraceError> {
     let off32 = offset.min(u32::MAX as usize) as u32;
     let total = record_extent(bytes).ok_or(TraceError::Truncated { offset: off32 })?;
-    let tag = bytes[0];
-    let p = &bytes[RECORD_HEADER_LEN..total];
+    let tag = crate::le::u8_at(bytes, 0);
+    let p = bytes.get(RECORD_HEADER_LEN..total).unwrap_or(&[]);
     let bad = TraceError::BadRecord { tag, offset: off32 };
     let rec = match tag {
         TAG_CYCLE => {
@@ -299,13 +288,13 @@ pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize),
             }
             Record::Cycle(CycleInput {
                 scale_raw: u32_at(p, 0),
-                command_counts: i64::from_le_bytes(rd(p, 4)),
+                command_counts: i64_at(p, 4),
                 forces_n,
             })
         }
         TAG_TEMPERATURES => {
             let n = p.get(4).copied().unwrap_or(0) as usize;
-            if p.len() < 8 || n > MAX_SENSORS || p.len() != 8 + 4 * n || p[5..8] != [0; 3] {
+            if n > MAX_SENSORS || p.len() != 8 + 4 * n || rd::<3>(p, 5) != [0; 3] {
                 return Err(bad);
             }
             let mut values = [f32::NAN; MAX_SENSORS];
@@ -449,7 +438,7 @@ impl<'b> Writer<'b> {
     }
     /// The trace written so far.
     pub fn as_bytes(&self) -> &[u8] {
-        &self.buf[..self.len]
+        self.buf.get(..self.len).unwrap_or(&[])
     }
     /// Finish; returns the trace length.
     pub fn finish(self) -> usize {
@@ -512,14 +501,15 @@ impl OutputRecord {
     /// Little-endian encoding.
     pub fn encode(&self) -> [u8; OUTPUT_RECORD_LEN] {
         let mut b = [0u8; OUTPUT_RECORD_LEN];
-        b[0..4].copy_from_slice(&self.cycle.to_le_bytes());
-        b[4..12].copy_from_slice(&self.position_counts.to_le_bytes());
-        b[12..20].copy_from_slice(&self.corrected_command_counts.to_le_bytes());
-        b[20..24].copy_from_slice(&self.correction_counts.to_le_bytes());
-        b[24..28].copy_from_slice(&self.correction_um_bits.to_le_bytes());
-        b[28..30].copy_from_slice(&self.flags.to_le_bytes());
-        b[30] = self.slot;
-        b[31] = self.status;
+        let mut w = Put::new(&mut b);
+        w.u32(self.cycle);
+        w.i64(self.position_counts);
+        w.i64(self.corrected_command_counts);
+        w.i32(self.correction_counts);
+        w.u32(self.correction_um_bits);
+        w.u16(self.flags);
+        w.u8(self.slot);
+        w.u8(self.status);
         b
     }
     /// Decode the first [`OUTPUT_RECORD_LEN`] bytes of `bytes`.
@@ -529,13 +519,13 @@ impl OutputRecord {
         }
         Ok(OutputRecord {
             cycle: u32_at(bytes, 0),
-            position_counts: i64::from_le_bytes(rd(bytes, 4)),
-            corrected_command_counts: i64::from_le_bytes(rd(bytes, 12)),
-            correction_counts: i32::from_le_bytes(rd(bytes, 20)),
+            position_counts: i64_at(bytes, 4),
+            corrected_command_counts: i64_at(bytes, 12),
+            correction_counts: i32_at(bytes, 20),
             correction_um_bits: u32_at(bytes, 24),
-            flags: u16::from_le_bytes(rd(bytes, 28)),
-            slot: bytes[30],
-            status: bytes[31],
+            flags: u16_at(bytes, 28),
+            slot: crate::le::u8_at(bytes, 30),
+            status: crate::le::u8_at(bytes, 31),
         })
     }
 }

@@ -253,6 +253,15 @@ fn spec_errors_name_the_field() {
             index: 0,
         },
     );
+    let mut s = base;
+    s.limits.direction_hysteresis_counts = u32::MAX;
+    check(
+        &s,
+        ImageError::OutOfRange {
+            field: Field::Hysteresis,
+            index: 0,
+        },
+    );
     // Thermo: counts and sensor values.
     let sensors = [sensor(20.0, 0.0), sensor(20.0, 0.0)];
     let thermo = ThermoForceSpec {

@@ -20,7 +20,11 @@ fn check(data: &[u8]) {
                 let raw = k.wrapping_mul(0x9E37_79B9);
                 let out = comp.cycle(
                     &mut st,
-                    &CycleInput { scale_raw: raw, command_counts: raw as i64, forces_n: [1.0; 3] },
+                    &CycleInput {
+                        scale_raw: raw,
+                        command_counts: raw as i64,
+                        forces_n: [1.0; 3],
+                    },
                 );
                 assert!(out.correction_um.is_finite());
                 assert!(out.correction_um.abs() <= limits.max_correction_um);

@@ -7,220 +7,236 @@
 //! the same batch loop calling an empty function of the same signature is subtracted, so loop, call/return
 //! and measurement overhead cancel: the figure is the work inside `Compensator::cycle` (prologue included). Prints
 //! `bench NAME VALUE UNIT` lines (mean instructions per call) and exits.
-#![no_std]
-#![no_main]
+#![cfg_attr(target_os = "none", no_std, no_main)]
 
-use core::hint::black_box;
+#[cfg(target_os = "none")]
+mod firmware {
+    use core::hint::black_box;
 
-use axcomp_core::trace::{OutputRecord, Record};
-use axcomp_core::{Compensator, CycleInput, CycleOutput, Engine, Flags, ImageSpec, State, bench};
-use axcomp_firmware::board::semihosting;
-use axcomp_firmware::control::{ControlLoop, CycleClock, LoopSettings, fake::SteppingClock};
-use axcomp_firmware::replay::TraceAxis;
-use cortex_m::peripheral::{SYST, syst::SystClkSource};
-use cortex_m_rt::entry;
-use cortex_m_semihosting::hprintln;
-use static_cell::ConstStaticCell;
+    use axcomp_core::trace::{OutputRecord, Record};
+    use axcomp_core::{
+        Compensator, CycleInput, CycleOutput, Engine, Flags, ImageSpec, State, bench,
+    };
+    use axcomp_firmware::board::semihosting;
+    use axcomp_firmware::control::{ControlLoop, LoopSettings, fake::SteppingClock};
+    use axcomp_firmware::replay::TraceAxis;
+    use cortex_m::peripheral::{SYST, syst::SystClkSource};
+    use cortex_m_rt::entry;
+    use cortex_m_semihosting::hprintln;
+    use static_cell::ConstStaticCell;
 
-const BATCH: usize = 100;
-const BATCHES: u32 = 100;
-const IMAGE_BUF_LEN: usize = 36 * 1024;
+    const BATCH: usize = 100;
+    const BATCHES: u32 = 100;
+    const IMAGE_BUF_LEN: usize = 36 * 1024;
 
-static ENGINE: ConstStaticCell<Engine> = ConstStaticCell::new(Engine::new());
-static IMAGE: ConstStaticCell<[u8; IMAGE_BUF_LEN]> = ConstStaticCell::new([0; IMAGE_BUF_LEN]);
+    static ENGINE: ConstStaticCell<Engine> = ConstStaticCell::new(Engine::new());
+    static IMAGE: ConstStaticCell<[u8; IMAGE_BUF_LEN]> = ConstStaticCell::new([0; IMAGE_BUF_LEN]);
 
-fn now() -> u32 {
-    SYST::get_current()
-}
-
-fn ticks_since(t0: u32) -> u32 {
-    t0.wrapping_sub(now()) & 0x00FF_FFFF
-}
-
-/// SysTick ticks for 1 002 001 instructions.
-fn calibrate() -> u32 {
-    let t0 = now();
-    // SAFETY: pure register arithmetic on a scratch register.
-    unsafe {
-        core::arch::asm!(
-            "mov {n}, #1000",
-            "2:",
-            ".rept 1000",
-            "nop",
-            ".endr",
-            "subs {n}, {n}, #1",
-            "bne 2b",
-            n = out(reg) _,
-            options(nomem, nostack),
-        );
+    fn now() -> u32 {
+        SYST::get_current()
     }
-    ticks_since(t0)
-}
-const CALIBRATION_INSTRUCTIONS: f32 = 1_002_001.0;
 
-/// The measured call's stand-in for the overhead calibration: same signature, same call and return of a
-/// `CycleOutput`, no work.
-#[inline(never)]
-fn empty_cycle(_comp: &Compensator, _st: &mut State, input: &CycleInput) -> CycleOutput {
-    CycleOutput {
-        position_counts: 0,
-        corrected_command_counts: input.command_counts,
-        correction_counts: 0,
-        correction_um: 0.0,
-        flags: Flags::NONE,
+    fn ticks_since(t0: u32) -> u32 {
+        t0.wrapping_sub(now()) & 0x00FF_FFFF
     }
-}
 
-type LoopCall = fn(&mut ControlLoop<'_>, &mut TraceAxis, &SteppingClock) -> Option<OutputRecord>;
-
-/// One full control-loop cycle.
-#[inline(never)]
-fn loop_cycle(
-    ctl: &mut ControlLoop<'_>,
-    axis: &mut TraceAxis,
-    clock: &SteppingClock,
-) -> Option<OutputRecord> {
-    ctl.cycle(axis, clock)
-}
-
-/// Its stand-in for the overhead calibration.
-#[inline(never)]
-fn empty_loop_cycle(
-    _ctl: &mut ControlLoop<'_>,
-    _axis: &mut TraceAxis,
-    _clock: &SteppingClock,
-) -> Option<OutputRecord> {
-    None
-}
-
-/// Ticks for one batch of `call` over `inputs`.
-#[inline(always)]
-fn batch(
-    comp: &Compensator,
-    st: &mut State,
-    inputs: &[CycleInput; BATCH],
-    call: fn(&Compensator, &mut State, &CycleInput) -> CycleOutput,
-) -> u32 {
-    let call = black_box(call);
-    let t0 = now();
-    for input in inputs {
-        black_box(call(black_box(comp), black_box(&mut *st), black_box(input)));
-    }
-    ticks_since(t0)
-}
-
-/// Mean SysTick ticks per call of `Compensator::cycle` minus the empty call, over BATCHES × BATCH calls;
-/// temperatures are updated between batches (untimed), as the sensor task would.
-fn measure(comp: &Compensator, st: &mut State) -> f32 {
-    let mut inputs = [bench::reference_input(0); BATCH];
-    let mut full: u64 = 0;
-    let mut empty: u64 = 0;
-    for b in 0..BATCHES {
-        for (k, x) in inputs.iter_mut().enumerate() {
-            *x = bench::reference_input(b * BATCH as u32 + k as u32);
+    /// SysTick ticks for 1 002 001 instructions.
+    fn calibrate() -> u32 {
+        let t0 = now();
+        // SAFETY: pure register arithmetic on a scratch register.
+        unsafe {
+            core::arch::asm!(
+                "mov {n}, #1000",
+                "2:",
+                ".rept 1000",
+                "nop",
+                ".endr",
+                "subs {n}, {n}, #1",
+                "bne 2b",
+                n = out(reg) _,
+                options(nomem, nostack),
+            );
         }
-        comp.update_temperatures(st, b * 100, &bench::reference_temperatures(b));
-        full += u64::from(batch(comp, st, &inputs, Compensator::cycle));
-        empty += u64::from(batch(comp, st, &inputs, empty_cycle));
+        ticks_since(t0)
     }
-    (full.saturating_sub(empty)) as f32 / (BATCHES as f32 * BATCH as f32)
-}
+    const CALIBRATION_INSTRUCTIONS: f32 = 1_002_001.0;
 
-/// Loads `spec` into the engine's spare slot (it becomes the active one).
-fn load(engine: &mut Engine, image: &mut [u8], spec: &ImageSpec) {
-    let n = match axcomp_core::write_image(spec, image) {
-        Ok(n) => n,
-        Err(e) => panic!("writing the bench image: {}", e),
-    };
-    if let Err(e) = engine.load_image(&image[..n]) {
-        panic!("loading the bench image: {}", e);
+    /// The measured call's stand-in for the overhead calibration: same signature, same call and return of a
+    /// `CycleOutput`, no work.
+    #[inline(never)]
+    fn empty_cycle(_comp: &Compensator, _st: &mut State, input: &CycleInput) -> CycleOutput {
+        CycleOutput {
+            position_counts: 0,
+            corrected_command_counts: input.command_counts,
+            correction_counts: 0,
+            correction_um: 0.0,
+            flags: Flags::NONE,
+        }
     }
-}
 
-#[entry]
-fn main() -> ! {
-    let mut core = cortex_m::Peripherals::take().expect("core peripherals taken once");
-    core.SYST.set_clock_source(SystClkSource::Core);
-    core.SYST.set_reload(0x00FF_FFFF);
-    core.SYST.clear_current();
-    core.SYST.enable_counter();
+    type LoopCall =
+        fn(&mut ControlLoop<'_>, &mut TraceAxis, &SteppingClock) -> Option<OutputRecord>;
 
-    let cal = calibrate();
-    let instr_per_tick = CALIBRATION_INSTRUCTIONS / cal as f32;
-    hprintln!(
-        "calibration: {} SysTick ticks for {} instructions",
-        cal,
-        CALIBRATION_INSTRUCTIONS as u32
-    );
+    /// One full control-loop cycle.
+    #[inline(never)]
+    fn loop_cycle(
+        ctl: &mut ControlLoop<'_>,
+        axis: &mut TraceAxis,
+        clock: &SteppingClock,
+    ) -> Option<OutputRecord> {
+        ctl.cycle(axis, clock)
+    }
 
-    // The engine's slots hold the images; the measured calls use their own State.
-    let engine = ENGINE.take();
-    let image = IMAGE.take();
-    let mut st = State::new();
+    /// Its stand-in for the overhead calibration.
+    #[inline(never)]
+    fn empty_loop_cycle(
+        _ctl: &mut ControlLoop<'_>,
+        _axis: &mut TraceAxis,
+        _clock: &SteppingClock,
+    ) -> Option<OutputRecord> {
+        None
+    }
 
-    // (a) table only (the reference 1024-segment bidirectional table, limits on, no thermo-force term).
-    let spec_a = ImageSpec {
-        thermo: None,
-        ..bench::reference_spec()
-    };
-    load(engine, image, &spec_a);
-    st.reset(bench::reference_input(0).scale_raw);
-    let a = measure(engine.active(), &mut st) * instr_per_tick;
+    /// Ticks for one batch of `call` over `inputs`.
+    #[inline(always)]
+    fn batch(
+        comp: &Compensator,
+        st: &mut State,
+        inputs: &[CycleInput; BATCH],
+        call: fn(&Compensator, &mut State, &CycleInput) -> CycleOutput,
+    ) -> u32 {
+        let call = black_box(call);
+        let t0 = now();
+        for input in inputs {
+            black_box(call(black_box(comp), black_box(&mut *st), black_box(input)));
+        }
+        ticks_since(t0)
+    }
 
-    // (b) table + 8 lagged sensors + scale expansion + 3 force terms (one predicted) + clamp and slew.
-    load(engine, image, &bench::reference_spec());
-    st.reset(bench::reference_input(0).scale_raw);
-    engine.active().set_process(&mut st, &bench::PROCESS);
-    let b = measure(engine.active(), &mut st) * instr_per_tick;
-
-    // (c) the whole control-loop cycle (trace axis I/O, Engine::step, output record, statistics), with the
-    // reference image (already active in the engine).
-    let mut ctl = ControlLoop::new(
-        engine,
-        match LoopSettings::new(168_000_000).build() {
-            Ok(c) => c,
-            Err(e) => panic!("{}", e),
-        },
-    );
-    ctl.apply(&Record::Process(bench::PROCESS));
-    let clock = SteppingClock::default();
-    let mut axis = TraceAxis::new();
-    let mut full: u64 = 0;
-    let mut empty: u64 = 0;
-    let run: LoopCall = black_box(loop_cycle);
-    let skip: LoopCall = black_box(empty_loop_cycle);
-    for b in 0..BATCHES {
-        let t = axcomp_core::trace::Temperatures::new(b * 100, &bench::reference_temperatures(b));
-        ctl.apply(&Record::Temperatures(t));
-        for (call, acc) in [(run, &mut full), (skip, &mut empty)] {
-            let t0 = now();
-            for k in 0..BATCH as u32 {
-                axis.input = bench::reference_input(b * BATCH as u32 + k);
-                black_box(call(black_box(&mut ctl), black_box(&mut axis), &clock));
+    /// Mean SysTick ticks per call of `Compensator::cycle` minus the empty call, over BATCHES × BATCH calls;
+    /// temperatures are updated between batches (untimed), as the sensor task would.
+    fn measure(comp: &Compensator, st: &mut State) -> f32 {
+        let mut inputs = [bench::reference_input(0); BATCH];
+        let mut full: u64 = 0;
+        let mut empty: u64 = 0;
+        for b in 0..BATCHES {
+            for (k, x) in inputs.iter_mut().enumerate() {
+                *x = bench::reference_input(b * BATCH as u32 + k as u32);
             }
-            *acc += u64::from(ticks_since(t0));
+            comp.update_temperatures(st, b * 100, &bench::reference_temperatures(b));
+            full += u64::from(batch(comp, st, &inputs, Compensator::cycle));
+            empty += u64::from(batch(comp, st, &inputs, empty_cycle));
+        }
+        (full.saturating_sub(empty)) as f32 / (BATCHES as f32 * BATCH as f32)
+    }
+
+    /// Loads `spec` into the engine's spare slot (it becomes the active one).
+    fn load(engine: &mut Engine, image: &mut [u8], spec: &ImageSpec) {
+        let n = match axcomp_core::write_image(spec, image) {
+            Ok(n) => n,
+            Err(e) => panic!("writing the bench image: {}", e),
+        };
+        if let Err(e) = engine.load_image(&image[..n]) {
+            panic!("loading the bench image: {}", e);
         }
     }
-    let c = full.saturating_sub(empty) as f32 / (BATCHES as f32 * BATCH as f32) * instr_per_tick;
 
-    hprintln!("calls per workload: {}", BATCHES * BATCH as u32);
-    hprintln!(
-        "bench qemu_instructions_per_call_table {:.1} instructions",
-        a
-    );
-    hprintln!(
-        "bench qemu_instructions_per_call_table_thermo_force {:.1} instructions",
-        b
-    );
-    hprintln!(
-        "bench qemu_instructions_per_loop_cycle {:.1} instructions",
-        c
-    );
-    semihosting::exit_success()
+    #[entry]
+    fn main() -> ! {
+        let mut core = cortex_m::Peripherals::take().expect("core peripherals taken once");
+        core.SYST.set_clock_source(SystClkSource::Core);
+        core.SYST.set_reload(0x00FF_FFFF);
+        core.SYST.clear_current();
+        core.SYST.enable_counter();
+
+        let cal = calibrate();
+        let instr_per_tick = CALIBRATION_INSTRUCTIONS / cal as f32;
+        hprintln!(
+            "calibration: {} SysTick ticks for {} instructions",
+            cal,
+            CALIBRATION_INSTRUCTIONS as u32
+        );
+
+        // The engine's slots hold the images; the measured calls use their own State.
+        let engine = ENGINE.take();
+        let image = IMAGE.take();
+        let mut st = State::new();
+
+        // (a) table only (the reference 1024-segment bidirectional table, limits on, no thermo-force term).
+        let spec_a = ImageSpec {
+            thermo: None,
+            ..bench::reference_spec()
+        };
+        load(engine, image, &spec_a);
+        st.reset(bench::reference_input(0).scale_raw);
+        let a = measure(engine.active(), &mut st) * instr_per_tick;
+
+        // (b) table + 8 lagged sensors + scale expansion + 3 force terms (one predicted) + clamp and slew.
+        load(engine, image, &bench::reference_spec());
+        st.reset(bench::reference_input(0).scale_raw);
+        engine.active().set_process(&mut st, &bench::PROCESS);
+        let b = measure(engine.active(), &mut st) * instr_per_tick;
+
+        // (c) the whole control-loop cycle (trace axis I/O, Engine::step, output record, statistics), with the
+        // reference image (already active in the engine).
+        let mut ctl = ControlLoop::new(
+            engine,
+            match LoopSettings::new(168_000_000).build() {
+                Ok(c) => c,
+                Err(e) => panic!("{}", e),
+            },
+        );
+        ctl.apply(&Record::Process(bench::PROCESS));
+        let clock = SteppingClock::default();
+        let mut axis = TraceAxis::new();
+        let mut full: u64 = 0;
+        let mut empty: u64 = 0;
+        let run: LoopCall = black_box(loop_cycle);
+        let skip: LoopCall = black_box(empty_loop_cycle);
+        for b in 0..BATCHES {
+            let t =
+                axcomp_core::trace::Temperatures::new(b * 100, &bench::reference_temperatures(b));
+            ctl.apply(&Record::Temperatures(t));
+            for (call, acc) in [(run, &mut full), (skip, &mut empty)] {
+                let t0 = now();
+                for k in 0..BATCH as u32 {
+                    axis.input = bench::reference_input(b * BATCH as u32 + k);
+                    black_box(call(black_box(&mut ctl), black_box(&mut axis), &clock));
+                }
+                *acc += u64::from(ticks_since(t0));
+            }
+        }
+        let c =
+            full.saturating_sub(empty) as f32 / (BATCHES as f32 * BATCH as f32) * instr_per_tick;
+
+        hprintln!("calls per workload: {}", BATCHES * BATCH as u32);
+        hprintln!(
+            "bench qemu_instructions_per_call_table {:.1} instructions",
+            a
+        );
+        hprintln!(
+            "bench qemu_instructions_per_call_table_thermo_force {:.1} instructions",
+            b
+        );
+        hprintln!(
+            "bench qemu_instructions_per_loop_cycle {:.1} instructions",
+            c
+        );
+        semihosting::exit_success()
+    }
+
+    #[panic_handler]
+    fn panic(info: &core::panic::PanicInfo) -> ! {
+        hprintln!("axcomp-qemu-bench: panic: {}", info);
+        semihosting::exit_failure()
+    }
 }
 
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    hprintln!("axcomp-qemu-bench: panic: {}", info);
-    semihosting::exit_failure()
+/// Host builds (e.g. `cargo build --all-features`) get a stub: this program only runs on the target.
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!(
+        "axcomp-qemu-bench is firmware: build it with `cargo qemu-build` (thumbv7em-none-eabihf)"
+    );
+    std::process::exit(2);
 }

@@ -30,7 +30,7 @@ use axcomp_positioning::iso230::{self, Iso230Result};
 use axcomp_twin::{Axis, Campaign, IdealTable, Iso230Plan, Plan, simulate};
 use serde_json::json;
 
-use super::common::{write_atomic, write_json};
+use super::common::write_atomic;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -91,9 +91,20 @@ fn image_bytes(spec: &ImageSpec) -> anyhow::Result<Vec<u8>> {
     Ok(buf)
 }
 
-fn save_svg(fig: &Figure, path: &Path) -> anyhow::Result<()> {
-    fig.save_svg(path)
-        .with_context(|| format!("writing {}", path.display()))
+/// Output files, written only once everything has been computed (each through a temporary file).
+#[derive(Default)]
+struct Outputs(Vec<(&'static str, Vec<u8>)>);
+
+impl Outputs {
+    fn add(&mut self, name: &'static str, bytes: impl Into<Vec<u8>>) {
+        self.0.push((name, bytes.into()));
+    }
+    fn write_all(&self, dir: &Path) -> anyhow::Result<()> {
+        for (name, bytes) in &self.0 {
+            write_atomic(&dir.join(name), bytes)?;
+        }
+        Ok(())
+    }
 }
 
 /// Per direction: (targets, means, −2s, +2s) of an ISO evaluation.
@@ -226,16 +237,13 @@ fn closed_loop_trace(
 pub fn run(args: Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let out = &args.out;
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut files = Outputs::default();
 
     // 1. The twin and its ISO 230-2 campaign.
     let axis = Axis::linear_motor_demo();
     let plan = Plan::from(Iso230Plan::standard(axis.start_mm, axis.end_mm));
     let measured = simulate(&axis, &plan, None, args.seed).context("simulating the campaign")?;
-    write_atomic(
-        &out.join("measurement.csv"),
-        measured.to_csv_string().as_bytes(),
-    )?;
+    files.add("measurement.csv", measured.to_csv_string());
     let before = evaluate("measurement.csv", measured)?;
     let t_sim = t0.elapsed();
 
@@ -248,10 +256,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             fitted.guard.reasons.join("; ")
         );
     }
-    fitted.table.save(&out.join("table.json"))?;
+    fitted.table.validate()?;
+    files.add(
+        "table.json",
+        serde_json::to_string_pretty(&fitted.table)? + "\n",
+    );
     let t_fit = t0.elapsed();
 
-    // 3. Firmware image (the same builder as `axcomp image build`), loaded as the firmware would.
+    // 3. Firmware image (the core's `write_image`, as `axcomp image build`), loaded as the firmware would.
     let table_core = fitted.table.try_to_core(axis.scale_um_per_count)?;
     let limits = axcomp_twin::ideal::default_limits(&axis);
     let spec = ImageSpec {
@@ -265,16 +277,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let image = image_bytes(&spec)?;
     let mut comp = Compensator::IDENTITY;
     comp.load(&image).context("loading the built image")?;
-    write_atomic(&out.join("image.bin"), &image)?;
+    files.add("image.bin", image.clone());
     let image_text = super::image::describe(&image)?;
 
     // 4. Compensated campaign (new noise), and the ideal floor.
     let compensated =
         simulate(&axis, &plan, Some(&comp), args.seed + 1).context("compensated campaign")?;
-    write_atomic(
-        &out.join("measurement_compensated.csv"),
-        compensated.to_csv_string().as_bytes(),
-    )?;
+    files.add("measurement_compensated.csv", compensated.to_csv_string());
     let after = evaluate("measurement_compensated.csv", compensated)?;
     let ideal_table = IdealTable::new(&axis, fitted.table.segment_mm);
     let ideal_image = ideal_table.image(&axis)?;
@@ -289,11 +298,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // 5. The same moves as a recorded firmware trace, replayed through the core's engine from the file
     //    bytes (what `axcomp replay` and the QEMU firmware do).
     let (trace, live, read_at) = closed_loop_trace(&axis, &image, &after.campaign, 2.0)?;
-    write_atomic(&out.join("trace.bin"), &trace)?;
+    files.add("trace.bin", trace.clone());
     let replayed = super::replay::replay(None, &trace)?;
     let bit_for_bit = replayed.outputs == live && replayed.trace_errors.is_empty();
     let replay_bytes: Vec<u8> = replayed.outputs.iter().flat_map(|o| o.encode()).collect();
-    write_atomic(&out.join("replay.bin"), &replay_bytes)?;
+    files.add("replay.bin", replay_bytes);
     // At each measured row: the replayed correction vs the one the twin applied (same table, same
     // settled position up to count rounding).
     let agree_um = read_at
@@ -338,7 +347,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &xs,
             &curve(&|x| axis.true_deviation_um(x, -1, &cond)),
         );
-    save_svg(&fig, &out.join("deviation_before.svg"))?;
+    files.add("deviation_before.svg", fig.to_svg());
 
     let [(xf2, df2), (xb2, db2)] = split_by_direction(&after.data)?;
     let mut fig = Figure::new(
@@ -349,7 +358,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     fig.points("positive approach", &xf2, &df2)
         .points("negative approach", &xb2, &db2)
         .hline(0.0, "0");
-    save_svg(&fig, &out.join("deviation_after.svg"))?;
+    files.add("deviation_after.svg", fig.to_svg());
 
     let mut fig = Figure::new(
         "ISO 230-2: mean deviation ± 2s per target, before and after",
@@ -363,7 +372,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .line(&format!("{label} {dname} mean"), &t, &m);
         }
     }
-    save_svg(&fig, &out.join("iso230_before_after.svg"))?;
+    files.add("iso230_before_after.svg", fig.to_svg());
     let t_plot = t0.elapsed();
 
     // 7. Figures: console, JSON, report.
@@ -452,7 +461,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "wrote {}/{{report.md, demo.json, *.svg, *.csv, table.json, image.bin, trace.bin, replay.bin}}",
         out.display()
     );
-    print!("{console}");
 
     let summary = json!({
         "axis": axis.name,
@@ -472,7 +480,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     "max_abs_correction_um": replayed.outputs.iter().map(|o| o.correction_um().abs() as f64).fold(0.0, f64::max),
                     "max_diff_to_twin_um": agree_um, "trace_bytes": trace.len() },
     });
-    write_json(&out.join("demo.json"), &summary)?;
+    files.add("demo.json", serde_json::to_string_pretty(&summary)? + "\n");
 
     let mut md = String::new();
     let _ = writeln!(md, "# axcomp demo\n");
@@ -539,6 +547,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
          (`axcomp export --table table.json --format linuxcnc1 --step 5 --out x.comp`), `image.bin` \
          (`axcomp image inspect image.bin`), `demo.json` (figures).\n"
     );
-    write_atomic(&out.join("report.md"), md.as_bytes())?;
+    files.add("report.md", md);
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    files.write_all(out)?;
+    print!("{console}");
     Ok(())
 }

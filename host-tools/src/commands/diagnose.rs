@@ -35,7 +35,9 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let model = EffectKind::parse_list(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
-    let opts = DiagnoseOptions::default().build().map_err(anyhow::Error::msg)?;
+    let opts = DiagnoseOptions::default()
+        .build()
+        .map_err(anyhow::Error::msg)?;
     let ds = common::load_dataset(&args.data)?;
     let obs = dataset::observations(&ds, &args.target, &args.holdout)?;
     let d = axcomp_diagnose::diagnose(&obs, &model, &opts)
@@ -43,7 +45,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!(
         "gap of `{}` (model: {}): train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out rows)",
         d.target,
-        if args.model.trim().is_empty() { "intercept only" } else { args.model.trim() },
+        if args.model.trim().is_empty() {
+            "intercept only"
+        } else {
+            args.model.trim()
+        },
         d.gap.train_rms_um,
         d.gap.holdout_rms_um,
         d.gap.holdout_max_um,
@@ -51,7 +57,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         d.n_holdout
     );
     for r in d.where_.iter().take(4) {
-        println!("  where: {} {:.4} … {:.4} holds {:.1} % of the held-out gap", r.variable, r.from, r.to, 100.0 * r.share);
+        println!(
+            "  where: {} {:.4} … {:.4} holds {:.1} % of the held-out gap",
+            r.variable,
+            r.from,
+            r.to,
+            100.0 * r.share
+        );
     }
     for c in d.effects.iter().take(5) {
         println!(
@@ -60,7 +72,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c.score,
             c.holdout_rms_after_um,
             c.shrink_pct,
-            if c.explains { "" } else { "  (not beyond noise)" }
+            if c.explains {
+                ""
+            } else {
+                "  (not beyond noise)"
+            }
         );
     }
     println!("verdict: {} — {}", d.verdict, d.note);

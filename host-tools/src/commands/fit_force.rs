@@ -14,30 +14,25 @@ use anyhow::{Context, bail};
 use axcomp_data::{Dataset, LoadOptions};
 use axcomp_plot::{Figure, markdown_table, write_atomic};
 use axcomp_thermal::force::{FixedExponents, PowerLawData, PowerLawFit, fit_power_law};
-use axcomp_thermal::milling::{AxisMap, DynoWare, MillingCoefficients, fz_from_file_name, mean_forces, slotting_coefficients};
+use axcomp_thermal::milling::{
+    AxisMap, DynoWare, MillingCoefficients, fz_from_file_name, mean_forces, slotting_coefficients,
+};
 use serde_json::json;
 
-/// Fit cutting-force laws F = K·ap^x·fz^y·n^z (--kind power) or milling force coefficients (--kind milling).
-///
-/// --kind power reads a measurement CSV (--data, with --where/--rename/--scale): columns ap_mm, fz_mm, a *_rpm
-/// column and a force column (--force-col, default the only *_N column). A parameter column the file lacks
-/// can be given a constant with --set COL=VALUE; the exponent of a parameter that does not vary must be fixed
-/// (--fix x_ap=1: Kienzle's force ∝ chip width; --fix z_n=0). A missing *_rpm column means z_n = 0.
-/// --validate FILE applies the fitted law to a second file (same options plus --validate-rename; --set only
-/// fills columns that file lacks) and reports its residuals.
-///
-/// --kind milling reads Kistler DynoWare CSV exports given with --dynoware (header block, `Time,Fx,Fy,Fz`, a
-/// units row, data; sampling rate from the header), one file per feed, slotting with --flutes teeth at
-/// --n-rpm and axial depth --ap-mm. Feed per tooth from --fz (one per file, same order) or from the file name
-/// (`...f300...` = 300 mm/min feed speed → fz = 300/(n·flutes)). --axes maps dynamometer channels to the
-/// reference axes x = feed, y = normal, z = tool axis (default x=Fy,y=Fx,z=Fz as in the data's MATLAB code).
-///
-/// Examples:
-///   axcomp fit force --kind milling --dynoware 6-n6000f*.csv --n-rpm 6000 --flutes 2 --ap-mm 3 --json m.json
-///   axcomp fit force --data Ks_feed_sweep.csv --rename f_cal=fz_mm --rename Fz=Fz_N --set ap_mm=1 \
-///     --fix x_ap=1 --fix z_n=0 --validate fixed_feed_depth_sweep.csv --validate-rename ap=ap_mm --json t.json
+const LONG_HELP: &str = "\
+--kind power reads a measurement CSV (--data with --where/--rename/--scale): columns ap_mm, fz_mm, a `*_rpm` column and a force column (--force-col, default the only `*_N` column). A parameter column the file lacks can be given a constant with --set COL=VALUE; the exponent of a parameter that does not vary must be fixed (--fix x_ap=1: Kienzle's force ∝ chip width; --fix z_n=0). Without a `*_rpm` column z_n = 0. Fit: log-linear least squares as start, Levenberg–Marquardt on the force residuals; 95 % intervals θ ± t(0.975, n−p)·sqrt(diag(s²(JᵀJ)⁻¹)). With x_ap fixed at 1 the Kienzle parameters kc1.1 = K and mc = 1 − y are reported. --validate FILE applies the law to a second file (same options plus --validate-rename; --set only fills columns that file lacks) and reports its residuals.
+
+--kind milling reads Kistler DynoWare CSV exports (--dynoware, one file per feed; header block, `Time,Fx,Fy,Fz`, a units row, data; sampling rate from the header) of slotting tests with --flutes teeth at --n-rpm and axial depth --ap-mm. Feed per tooth from --fz (one per file, same order) or from the file name (`...f300...` = 300 mm/min feed speed, fz = 300/(n·flutes)). Mean forces over whole spindle revolutions, then Altintas' average-force method: a least-squares line per direction over the feeds gives Ktc, Krc, Kac (N/mm²) and Kte, Kre, Kae (N/mm) with 95 % intervals. --axes maps dynamometer channels to the reference axes x = feed, y = normal, z = tool axis (default x=Fy,y=Fx,z=Fz, as the data's author's MATLAB code reads the columns).
+
+Examples:
+  axcomp fit force --kind milling --dynoware 6-n6000f*.csv
+    --n-rpm 6000 --flutes 2 --ap-mm 3 --json milling.json
+  axcomp fit force --data Ks_feed_sweep_Datos_v5.csv
+    --rename f_cal=fz_mm --rename Fz=Fz_N --set ap_mm=1 --fix x_ap=1 --fix z_n=0
+    --validate fixed_feed_depth_sweep_Datos_v5.csv --validate-rename ap=ap_mm";
+
 #[derive(Debug, clap::Args)]
-#[command(verbatim_doc_comment)]
+#[command(after_long_help = LONG_HELP)]
 pub struct Args {
     /// power (contract CSV) or milling (DynoWare exports).
     #[arg(long, default_value = "power", value_name = "KIND")]
@@ -94,6 +89,9 @@ pub struct Args {
     /// Write report.md and SVG plots into DIR.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// Write the fitted law (--kind power) as a force-law file for `axcomp fit thermal --force-law`.
+    #[arg(long, value_name = "LAW.json")]
+    pub out: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -107,7 +105,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn parse_pairs(opt: &str, v: &[String]) -> anyhow::Result<Vec<(String, f64)>> {
     v.iter()
         .map(|s| {
-            let (k, val) = s.split_once('=').with_context(|| format!("{opt} `{s}`: expected NAME=VALUE"))?;
+            let (k, val) = s
+                .split_once('=')
+                .with_context(|| format!("{opt} `{s}`: expected NAME=VALUE"))?;
             let x: f64 = val
                 .trim()
                 .parse()
@@ -141,17 +141,31 @@ fn power_columns(
     let force_col = match force_col {
         Some(c) => c.to_string(),
         None => {
-            let f: Vec<&str> = ds.column_names().into_iter().filter(|c| c.len() > 2 && c.ends_with("_N")).collect();
+            let f: Vec<&str> = ds
+                .column_names()
+                .into_iter()
+                .filter(|c| c.len() > 2 && c.ends_with("_N"))
+                .collect();
             match f.as_slice() {
                 [one] => one.to_string(),
-                [] => bail!("{}: no `*_N` force column (use --rename or --force-col)", path.display()),
-                many => bail!("{}: several force columns ({}); choose one with --force-col", path.display(), many.join(", ")),
+                [] => bail!(
+                    "{}: no `*_N` force column (use --rename or --force-col)",
+                    path.display()
+                ),
+                many => bail!(
+                    "{}: several force columns ({}); choose one with --force-col",
+                    path.display(),
+                    many.join(", ")
+                ),
             }
         }
     };
     let mut param = |col: &str, rpm: bool| -> anyhow::Result<Vec<f64>> {
         let name = if rpm {
-            ds.column_names().into_iter().find(|c| c.ends_with("_rpm")).map(str::to_string)
+            ds.column_names()
+                .into_iter()
+                .find(|c| c.ends_with("_rpm"))
+                .map(str::to_string)
         } else {
             ds.has(col).then(|| col.to_string())
         };
@@ -169,17 +183,32 @@ fn power_columns(
             notes.push("no *_rpm column: z_n fixed at 0".into());
             return Ok(vec![1.0; n]);
         }
-        bail!("{}: no `{col}` column (use --rename, or --set {col}=VALUE for a constant)", path.display())
+        bail!(
+            "{}: no `{col}` column (use --rename, or --set {col}=VALUE for a constant)",
+            path.display()
+        )
     };
     let ap_mm = param("ap_mm", false)?;
     let fz_mm = param("fz_mm", false)?;
     let n_rpm = param("n_rpm", true)?;
     let force_n = ds.numeric(&force_col)?.to_vec();
-    Ok(PowerColumns { data: PowerLawData { ap_mm, fz_mm, n_rpm, force_n }, notes, force_col })
+    Ok(PowerColumns {
+        data: PowerLawData {
+            ap_mm,
+            fz_mm,
+            n_rpm,
+            force_n,
+        },
+        notes,
+        force_col,
+    })
 }
 
 fn run_power(args: &Args) -> anyhow::Result<()> {
-    let data = args.data.as_ref().context("--kind power needs --data FILE")?;
+    let data = args
+        .data
+        .as_ref()
+        .context("--kind power needs --data FILE")?;
     let load = LoadOptions::from_args(&args.where_, &args.rename, &args.scale)?;
     let set = parse_pairs("--set", &args.set)?;
     for (k, _) in &set {
@@ -200,7 +229,8 @@ fn run_power(args: &Args) -> anyhow::Result<()> {
     if cols.notes.iter().any(|n| n.starts_with("no *_rpm")) && fixed.z_n.is_none() {
         fixed.z_n = Some(0.0);
     }
-    let fit = fit_power_law(&cols.data, fixed).with_context(|| format!("fitting {}", data.display()))?;
+    let fit =
+        fit_power_law(&cols.data, fixed).with_context(|| format!("fitting {}", data.display()))?;
     let d = &cols.data;
     let rows: Vec<serde_json::Value> = (0..d.force_n.len())
         .map(|i| {
@@ -218,16 +248,29 @@ fn run_power(args: &Args) -> anyhow::Result<()> {
         fit.dof,
         fit.rms_n
     );
-    for (name, e) in [("K", fit.k), ("x_ap", fit.x_ap), ("y_fz", fit.y_fz), ("z_n", fit.z_n)] {
+    for (name, e) in [
+        ("K", fit.k),
+        ("x_ap", fit.x_ap),
+        ("y_fz", fit.y_fz),
+        ("z_n", fit.z_n),
+    ] {
         match (e.fixed, e.ci95) {
             (true, _) => println!("  {name} = {} (fixed)", e.value),
-            (false, Some([lo, hi])) => println!("  {name} = {:.4}, 95 % CI [{lo:.4}, {hi:.4}]", e.value),
-            (false, None) => println!("  {name} = {:.4} (no interval: no residual degrees of freedom)", e.value),
+            (false, Some([lo, hi])) => {
+                println!("  {name} = {:.4}, 95 % CI [{lo:.4}, {hi:.4}]", e.value)
+            }
+            (false, None) => println!(
+                "  {name} = {:.4} (no interval: no residual degrees of freedom)",
+                e.value
+            ),
         }
     }
     let kienzle = (fit.x_ap.fixed && fit.x_ap.value == 1.0).then(|| {
         let mc = 1.0 - fit.y_fz.value;
-        println!("  Kienzle: kc1.1 = {:.1} N/mm², mc = 1 − y = {mc:.4}", fit.k.value);
+        println!(
+            "  Kienzle: kc1.1 = {:.1} N/mm², mc = 1 − y = {mc:.4}",
+            fit.k.value
+        );
         json!({"kc11_n_mm2": fit.k.value, "mc": mc,
                "mc_ci95": fit.y_fz.ci95.map(|[lo, hi]| [1.0 - hi, 1.0 - lo]),
                "kc11_ci95": fit.k.ci95})
@@ -239,14 +282,26 @@ fn run_power(args: &Args) -> anyhow::Result<()> {
             let vload = LoadOptions::from_args(&args.where_, &rename, &args.scale)?;
             let v = power_columns(vf, &vload, args.force_col.as_deref(), &set, false)?;
             let vd = &v.data;
-            let pred: Vec<f64> = (0..vd.force_n.len()).map(|i| fit.predict(vd.ap_mm[i], vd.fz_mm[i], vd.n_rpm[i])).collect();
+            let pred: Vec<f64> = (0..vd.force_n.len())
+                .map(|i| fit.predict(vd.ap_mm[i], vd.fz_mm[i], vd.n_rpm[i]))
+                .collect();
             let res: Vec<f64> = vd.force_n.iter().zip(&pred).map(|(a, b)| a - b).collect();
             let rms = axcomp_thermal::stats::rms(&res);
-            let max_rel = res.iter().zip(&vd.force_n).map(|(r, f)| (r / f).abs()).fold(0.0, f64::max);
-            println!("validation on {}: residual RMS {rms:.3} N, largest relative error {:.1} %", vf.display(), 100.0 * max_rel);
-            Some(json!({"data": vf.display().to_string(), "rms_n": rms, "max_rel_error": max_rel, "notes": v.notes,
+            let max_rel = res
+                .iter()
+                .zip(&vd.force_n)
+                .map(|(r, f)| (r / f).abs())
+                .fold(0.0, f64::max);
+            println!(
+                "validation on {}: residual RMS {rms:.3} N, largest relative error {:.1} %",
+                vf.display(),
+                100.0 * max_rel
+            );
+            Some(
+                json!({"data": vf.display().to_string(), "rms_n": rms, "max_rel_error": max_rel, "notes": v.notes,
                 "rows": (0..vd.force_n.len()).map(|i| json!({"ap_mm": vd.ap_mm[i], "fz_mm": vd.fz_mm[i], "n_rpm": vd.n_rpm[i],
-                    "force_n": vd.force_n[i], "predicted_n": pred[i], "residual_n": res[i]})).collect::<Vec<_>>()}))
+                    "force_n": vd.force_n[i], "predicted_n": pred[i], "residual_n": res[i]})).collect::<Vec<_>>()}),
+            )
         }
         None => None,
     };
@@ -254,26 +309,58 @@ fn run_power(args: &Args) -> anyhow::Result<()> {
         "kind": "power", "data": data.display().to_string(), "force_column": cols.force_col, "notes": cols.notes,
         "law": fit, "kienzle": kienzle, "rows": rows, "validation": validation,
     });
+    if let Some(p) = &args.out {
+        let law = axcomp_thermal::model_file::ModelForceLaw {
+            k: fit.k.value,
+            x_ap: fit.x_ap.value,
+            y_fz: fit.y_fz.value,
+            z_n: fit.z_n.value,
+        };
+        write_atomic(p, serde_json::to_string_pretty(&law)?.as_bytes())
+            .with_context(|| format!("writing {}", p.display()))?;
+        println!("force law written to {}", p.display());
+    }
     if let Some(j) = &args.json {
-        write_atomic(j, serde_json::to_string_pretty(&out)?.as_bytes()).with_context(|| format!("writing {}", j.display()))?;
+        write_atomic(j, serde_json::to_string_pretty(&out)?.as_bytes())
+            .with_context(|| format!("writing {}", j.display()))?;
     }
     if let Some(dir) = &args.report {
-        power_report(dir, &fit, &cols.data, &out).with_context(|| format!("writing the report into {}", dir.display()))?;
+        power_report(dir, &fit, &cols.data, &out)
+            .with_context(|| format!("writing the report into {}", dir.display()))?;
     }
     Ok(())
 }
 
-fn power_report(dir: &std::path::Path, fit: &PowerLawFit, d: &PowerLawData, out: &serde_json::Value) -> std::io::Result<()> {
+fn power_report(
+    dir: &std::path::Path,
+    fit: &PowerLawFit,
+    d: &PowerLawData,
+    out: &serde_json::Value,
+) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let pred: Vec<f64> = (0..d.force_n.len()).map(|i| fit.predict(d.ap_mm[i], d.fz_mm[i], d.n_rpm[i])).collect();
-    let mut f = Figure::new("Force law: measured vs predicted", "measured / N", "predicted / N");
+    let pred: Vec<f64> = (0..d.force_n.len())
+        .map(|i| fit.predict(d.ap_mm[i], d.fz_mm[i], d.n_rpm[i]))
+        .collect();
+    let mut f = Figure::new(
+        "Force law: measured vs predicted",
+        "measured / N",
+        "predicted / N",
+    );
     f.points("fit rows", &d.force_n, &pred);
     if let Some(rows) = out["validation"]["rows"].as_array() {
         let m: Vec<f64> = rows.iter().filter_map(|r| r["force_n"].as_f64()).collect();
-        let p: Vec<f64> = rows.iter().filter_map(|r| r["predicted_n"].as_f64()).collect();
+        let p: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| r["predicted_n"].as_f64())
+            .collect();
         f.points("validation rows", &m, &p);
     }
-    let lo = d.force_n.iter().cloned().fold(f64::INFINITY, f64::min).min(0.0);
+    let lo = d
+        .force_n
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min)
+        .min(0.0);
     let hi = d.force_n.iter().cloned().fold(0.0, f64::max) * 1.1;
     f.dashed("ideal", &[lo, hi], &[lo, hi]);
     f.save_svg(dir.join("force_fit.svg"))?;
@@ -281,48 +368,86 @@ fn power_report(dir: &std::path::Path, fit: &PowerLawFit, d: &PowerLawData, out:
         "# Force law\n\nF = {:.4}·ap^{:.4}·fz^{:.4}·n^{:.4}, residual RMS {:.3} N ({}).\n\n",
         fit.k.value, fit.x_ap.value, fit.y_fz.value, fit.z_n.value, fit.rms_n, fit.method
     );
-    let rows: Vec<Vec<String>> = [("K", fit.k), ("x_ap", fit.x_ap), ("y_fz", fit.y_fz), ("z_n", fit.z_n)]
-        .iter()
-        .map(|(n, e)| {
-            vec![
-                n.to_string(),
-                format!("{:.5}", e.value),
-                if e.fixed { "fixed".into() } else { e.ci95.map_or("–".into(), |[a, b]| format!("[{a:.5}, {b:.5}]")) },
-            ]
-        })
-        .collect();
+    let rows: Vec<Vec<String>> = [
+        ("K", fit.k),
+        ("x_ap", fit.x_ap),
+        ("y_fz", fit.y_fz),
+        ("z_n", fit.z_n),
+    ]
+    .iter()
+    .map(|(n, e)| {
+        vec![
+            n.to_string(),
+            format!("{:.5}", e.value),
+            if e.fixed {
+                "fixed".into()
+            } else {
+                e.ci95
+                    .map_or("–".into(), |[a, b]| format!("[{a:.5}, {b:.5}]"))
+            },
+        ]
+    })
+    .collect();
     md += &markdown_table(&["parameter", "value", "95 % CI"], &rows);
     md += "\n![fit](force_fit.svg)\n";
     write_atomic(&dir.join("report.md"), md.as_bytes())
 }
 
 fn run_milling(args: &Args) -> anyhow::Result<()> {
+    if args.out.is_some() {
+        bail!("--out writes a power law; it applies to --kind power only");
+    }
     if args.dynoware.is_empty() {
         bail!("--kind milling needs --dynoware FILES (one DynoWare export per feed)");
     }
-    let n_rpm = args.n_rpm.filter(|v| *v > 0.0 && v.is_finite()).context("--kind milling needs --n-rpm > 0")?;
-    let flutes = f64::from(args.flutes.filter(|v| *v > 0).context("--kind milling needs --flutes > 0")?);
-    let ap = args.ap_mm.filter(|v| *v > 0.0 && v.is_finite()).context("--kind milling needs --ap-mm > 0")?;
+    let n_rpm = args
+        .n_rpm
+        .filter(|v| *v > 0.0 && v.is_finite())
+        .context("--kind milling needs --n-rpm > 0")?;
+    let flutes = f64::from(
+        args.flutes
+            .filter(|v| *v > 0)
+            .context("--kind milling needs --flutes > 0")?,
+    );
+    let ap = args
+        .ap_mm
+        .filter(|v| *v > 0.0 && v.is_finite())
+        .context("--kind milling needs --ap-mm > 0")?;
     let axes = AxisMap::parse(&args.axes).map_err(|e| anyhow::anyhow!("--axes {e}"))?;
     if !args.fz.is_empty() && args.fz.len() != args.dynoware.len() {
-        bail!("--fz has {} values for {} --dynoware files", args.fz.len(), args.dynoware.len());
+        bail!(
+            "--fz has {} values for {} --dynoware files",
+            args.fz.len(),
+            args.dynoware.len()
+        );
     }
     if args.dynoware.len() < 3 {
-        bail!("--kind milling needs at least 3 feeds (files) for lines with intervals; got {}", args.dynoware.len());
+        bail!(
+            "--kind milling needs at least 3 feeds (files) for lines with intervals; got {}",
+            args.dynoware.len()
+        );
     }
     let mut tests = vec![];
     for (i, p) in args.dynoware.iter().enumerate() {
         let fz = match args.fz.get(i) {
             Some(v) => *v,
-            None => fz_from_file_name(&p.display().to_string(), n_rpm, flutes).with_context(|| {
-                format!("{}: no feed `f<mm/min>` in the file name; give --fz", p.display())
-            })?,
+            None => {
+                fz_from_file_name(&p.display().to_string(), n_rpm, flutes).with_context(|| {
+                    format!(
+                        "{}: no feed `f<mm/min>` in the file name; give --fz",
+                        p.display()
+                    )
+                })?
+            }
         };
         let d = DynoWare::load(p)?;
         tests.push(mean_forces(&d, fz, n_rpm, axes));
     }
     let k: MillingCoefficients = slotting_coefficients(&tests, flutes, ap);
-    println!("mean forces over whole revolutions (reference axes {}):", args.axes);
+    println!(
+        "mean forces over whole revolutions (reference axes {}):",
+        args.axes
+    );
     for t in &tests {
         println!(
             "  fz {:.4} mm: Fx {:8.2} N, Fy {:8.2} N, Fz {:8.2} N ({} revolutions)",
@@ -330,7 +455,11 @@ fn run_milling(args: &Args) -> anyhow::Result<()> {
         );
     }
     let show = |n: &str, c: axcomp_thermal::milling::Coef, u: &str| {
-        println!("  {n} = {:10.2} ± {} {u}", c.value, c.ci95_half.map_or("–".into(), |h| format!("{h:.2}")));
+        println!(
+            "  {n} = {:10.2} ± {} {u}",
+            c.value,
+            c.ci95_half.map_or("–".into(), |h| format!("{h:.2}"))
+        );
     };
     show("Ktc", k.ktc_n_mm2, "N/mm²");
     show("Krc", k.krc_n_mm2, "N/mm²");
@@ -339,33 +468,67 @@ fn run_milling(args: &Args) -> anyhow::Result<()> {
     show("Kre", k.kre_n_mm, "N/mm");
     show("Kae", k.kae_n_mm, "N/mm");
     if k.ktc_n_mm2.value <= 0.0 {
-        eprintln!("warning: Ktc <= 0: the axis mapping (--axes) or the spindle direction is probably the other way round");
+        eprintln!(
+            "warning: Ktc <= 0: the axis mapping (--axes) or the spindle direction is probably the other way round"
+        );
     }
     let out = json!({"kind": "milling", "n_rpm": n_rpm, "flutes": flutes, "ap_mm": ap, "axes": args.axes,
                      "tests": tests, "coefficients": k});
     if let Some(j) = &args.json {
-        write_atomic(j, serde_json::to_string_pretty(&out)?.as_bytes()).with_context(|| format!("writing {}", j.display()))?;
+        write_atomic(j, serde_json::to_string_pretty(&out)?.as_bytes())
+            .with_context(|| format!("writing {}", j.display()))?;
     }
     if let Some(dir) = &args.report {
         std::fs::create_dir_all(dir)?;
         let c: Vec<f64> = tests.iter().map(|t| t.fz_mm).collect();
-        let mut f = Figure::new("Mean forces vs feed per tooth (slotting)", "fz / mm", "mean force / N");
+        let mut f = Figure::new(
+            "Mean forces vs feed per tooth (slotting)",
+            "fz / mm",
+            "mean force / N",
+        );
         let lines = &k.lines;
-        for (i, (name, v)) in [("Fx", tests.iter().map(|t| t.fx_n).collect::<Vec<_>>()),
-                               ("Fy", tests.iter().map(|t| t.fy_n).collect()),
-                               ("Fz", tests.iter().map(|t| t.fz_n).collect())].iter().enumerate() {
+        for (i, (name, v)) in [
+            ("Fx", tests.iter().map(|t| t.fx_n).collect::<Vec<_>>()),
+            ("Fy", tests.iter().map(|t| t.fy_n).collect()),
+            ("Fz", tests.iter().map(|t| t.fz_n).collect()),
+        ]
+        .iter()
+        .enumerate()
+        {
             f.points(name, &c, v);
-            let fit: Vec<f64> = c.iter().map(|x| lines[i].slope * x + lines[i].intercept).collect();
+            let fit: Vec<f64> = c
+                .iter()
+                .map(|x| lines[i].slope * x + lines[i].intercept)
+                .collect();
             f.line(&format!("{name} line"), &c, &fit);
         }
         f.save_svg(dir.join("mean_forces.svg"))?;
-        let mut md = String::from("# Milling force coefficients (slotting, Altintas average-force method)\n\n");
-        let _ = writeln!(md, "n = {n_rpm} rpm, {flutes} flutes, ap = {ap} mm, axes {}.\n", args.axes);
-        let rows: Vec<Vec<String>> = [("Ktc", k.ktc_n_mm2, "N/mm²"), ("Krc", k.krc_n_mm2, "N/mm²"), ("Kac", k.kac_n_mm2, "N/mm²"),
-                                      ("Kte", k.kte_n_mm, "N/mm"), ("Kre", k.kre_n_mm, "N/mm"), ("Kae", k.kae_n_mm, "N/mm")]
-            .iter()
-            .map(|(n, c, u)| vec![n.to_string(), format!("{:.2}", c.value), c.ci95_half.map_or("–".into(), |h| format!("{h:.2}")), u.to_string()])
-            .collect();
+        let mut md = String::from(
+            "# Milling force coefficients (slotting, Altintas average-force method)\n\n",
+        );
+        let _ = writeln!(
+            md,
+            "n = {n_rpm} rpm, {flutes} flutes, ap = {ap} mm, axes {}.\n",
+            args.axes
+        );
+        let rows: Vec<Vec<String>> = [
+            ("Ktc", k.ktc_n_mm2, "N/mm²"),
+            ("Krc", k.krc_n_mm2, "N/mm²"),
+            ("Kac", k.kac_n_mm2, "N/mm²"),
+            ("Kte", k.kte_n_mm, "N/mm"),
+            ("Kre", k.kre_n_mm, "N/mm"),
+            ("Kae", k.kae_n_mm, "N/mm"),
+        ]
+        .iter()
+        .map(|(n, c, u)| {
+            vec![
+                n.to_string(),
+                format!("{:.2}", c.value),
+                c.ci95_half.map_or("–".into(), |h| format!("{h:.2}")),
+                u.to_string(),
+            ]
+        })
+        .collect();
         md += &markdown_table(&["coefficient", "value", "± 95 %", "unit"], &rows);
         md += "\n![mean forces](mean_forces.svg)\n";
         write_atomic(&dir.join("report.md"), md.as_bytes())?;

@@ -23,7 +23,7 @@ use serde_json::{Value, json};
 use crate::cli::DataArgs;
 
 /// Exit code when the do-no-harm guard refuses to write a table.
-pub const EXIT_GUARD_REFUSED: i32 = 3;
+pub use crate::EXIT_GUARD_REFUSED;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -121,25 +121,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("wrote {}", written.join(", "));
     }
     if outcome.refused {
-        eprintln!(
-            "axcomp: do-no-harm guard refused to write a table: {}{}",
-            j["guard"]["reasons"]
-                .as_array()
-                .map(|r| r
-                    .iter()
+        let reasons = j["guard"]["reasons"]
+            .as_array()
+            .map(|r| {
+                r.iter()
                     .filter_map(|v| v.as_str())
                     .collect::<Vec<_>>()
-                    .join("; "))
-                .unwrap_or_default(),
-            if args.out.is_some() {
-                " (use --force to write it anyway)"
-            } else {
-                ""
-            }
-        );
-        use std::io::Write as _;
-        let _ = std::io::stdout().flush();
-        std::process::exit(EXIT_GUARD_REFUSED);
+                    .join("; ")
+            })
+            .unwrap_or_default();
+        let hint = if args.out.is_some() {
+            " (use --force to write it anyway)"
+        } else {
+            ""
+        };
+        return Err(crate::Refused {
+            code: crate::EXIT_GUARD_REFUSED,
+            reason: format!("do-no-harm guard refused to write a table: {reasons}{hint}"),
+        }
+        .into());
     }
     Ok(())
 }
@@ -305,6 +305,12 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
             (fit, judged, verdict, hr, "holdout".to_string())
         }
     };
+    if let (Some(Split::Cv(c)), false) = (&split, fit.split.method == "leave-one-run-out") {
+        eprintln!(
+            "axcomp: note: --cv {c} has fewer than 3 distinct values; cross-validated by {} folds of every k-th row instead",
+            fit.split.folds
+        );
+    }
     let raw_rms = rms(judged.deviation.iter().copied());
     let residual: Vec<f64> = judged
         .deviation

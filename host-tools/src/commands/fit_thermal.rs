@@ -12,26 +12,28 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use axcomp_data::{Dataset, HoldoutSpec, LoadOptions, groups};
-use axcomp_thermal::model_file::ThermalModelFile;
+use axcomp_thermal::model_file::{ModelForceLaw, ThermalModelFile};
 use axcomp_thermal::report::write_thermal_report;
 use axcomp_thermal::{Ridge, Selection, Series, ThermalInput, ThermalOptions, fit_thermal};
 
 use crate::cli::DataArgs;
 
-/// Fit a thermal (thermo-force) error model.
-///
-/// Sensors are `*_degC` columns, forces `*_N` columns, the target a `*_um` column. Selection: fuzzy c-means +
-/// grey relational analysis (reference) and forward selection scored by leave-one-group-out CV on the training
-/// rows; the one with the lower nested CV error is used (`--select` to force one). Coefficients by QR least
-/// squares (optional ridge); with `--lags` each sensor gets a first-order lag whose time constant is fitted on
-/// the training rows (y += α(u − y), α = 1 − exp(−Δt/τ), as the firmware runs it).
-///
-/// Example (Voron frame data; 2.5 µm per microstep):
-///   axcomp fit thermal --data frame.csv --rename mcu_pos_z=z_um --scale z_um=2.5 --rename frame_t=frame_degC
-///   --rename chamber_t=chamber_degC --rename bed_t=bed_degC --rename he_t=he_degC --target z_um
-///   --zero-at-start 3 --holdout bed_target=0 --lags --json out.json
+const LONG_HELP: &str = "\
+How it works: sensors are the `*_degC` columns (or the --sensors subset), forces the `*_N` columns (fitted jointly as χ·F terms unless --no-forces), the target a `*_um` column. Three structures are compared by nested leave-one-group-out cross-validation on the training rows only (groups: the --cv conditions, or 5 contiguous time blocks): the reference selection fuzzy c-means (m = 2, Xie–Beni cluster count) + grey relational analysis (ρ = 0.5, best sensor per cluster), forward selection scored by inner CV, and no selection (every sensor, when at most 16). The best one is used unless --select names one; all are reported in the JSON. Coefficients by QR least squares (optional ridge); condition number and VIF are reported.
+
+With --lags every sensor term gets a first-order lag y += α(u − y), α = 1 − exp(−Δt/τ) from the actual sample interval, exactly as the firmware runs it; τ is chosen on a grid by inner CV and refined by golden-section search.
+
+Do-no-harm guard: the model is written (--out) only if it is not worse than the raw error on the held-out rows (without --holdout: in cross-validation); otherwise the command fails saying why, unless --force.
+
+Example (Voron frame data, header step_dist = 0.0025 mm, so 2.5 µm per microstep; cooling phase held out):
+  axcomp fit thermal --data frame.csv --target z_um
+    --rename mcu_pos_z=z_um --scale z_um=2.5 --zero-at-start 1
+    --rename frame_t=frame_degC --rename chamber_t=chamber_degC
+    --rename bed_t=bed_degC --rename he_t=he_degC
+    --holdout bed_target=0 --lags --json fit.json --out model.json";
+
 #[derive(Debug, clap::Args)]
-#[command(verbatim_doc_comment)]
+#[command(after_long_help = LONG_HELP)]
 pub struct Args {
     #[command(flatten)]
     pub data: DataArgs,
@@ -50,6 +52,10 @@ pub struct Args {
     /// Write report.md and SVG plots into DIR.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// Attach a force law (from `axcomp fit force --out LAW.json`) to the force term of column COL in the model
+    /// file, so the firmware predicts that force from ap, fz and n instead of measuring it (repeatable).
+    #[arg(long, value_name = "COL=LAW.json")]
+    pub force_law: Vec<String>,
     /// Write the model file (input of `axcomp image build --thermal`).
     #[arg(long, value_name = "MODEL.json")]
     pub out: Option<PathBuf>,
@@ -112,7 +118,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     .build()?;
     let load = LoadOptions::from_args(&args.data.where_, &args.data.rename, &args.data.scale)?;
-    let holdout = args.holdout.as_deref().map(HoldoutSpec::parse).transpose()?;
+    let holdout = args
+        .holdout
+        .as_deref()
+        .map(HoldoutSpec::parse)
+        .transpose()?;
+    let laws = args
+        .force_law
+        .iter()
+        .map(|s| {
+            let (col, path) = s
+                .split_once('=')
+                .with_context(|| format!("--force-law `{s}`: expected COL=LAW.json"))?;
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("--force-law: reading {path}"))?;
+            let law: ModelForceLaw = serde_json::from_str(&text).with_context(|| {
+                format!("--force-law: {path} is not a force-law file (k, x_ap, y_fz, z_n)")
+            })?;
+            if ![law.k, law.x_ap, law.y_fz, law.z_n]
+                .iter()
+                .all(|v| v.is_finite())
+                || law.k <= 0.0
+            {
+                bail!("--force-law: {path}: k must be > 0 and all values finite");
+            }
+            Ok((col.trim().to_string(), law))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
 
     // ---- read ----
     let ds = Dataset::load(&args.data.data, &load)?;
@@ -135,7 +167,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if ds.has("time_s") {
                 ds.numeric("time_s")?;
             }
-            bail!("--lags needs a `time_s` (or `time`) column in {}", args.data.data.display());
+            bail!(
+                "--lags needs a `time_s` (or `time`) column in {}",
+                args.data.data.display()
+            );
         }
         None => (0..n).map(|i| i as f64).collect(),
     };
@@ -143,7 +178,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !args.sensors.is_empty() {
         for s in &args.sensors {
             if !names.contains(s) {
-                bail!("--sensors: `{s}` is not a sensor of {} (have: {})", args.data.data.display(), names.join(", "));
+                bail!(
+                    "--sensors: `{s}` is not a sensor of {} (have: {})",
+                    args.data.data.display(),
+                    names.join(", ")
+                );
             }
         }
         names.retain(|s| args.sensors.contains(s));
@@ -166,37 +205,83 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ds.column_names()
             .into_iter()
             .filter(|c| c.len() > 2 && c.ends_with("_N"))
-            .map(|c| Ok(Series { name: c.to_string(), values: ds.numeric(c)?.to_vec() }))
+            .map(|c| {
+                Ok(Series {
+                    name: c.to_string(),
+                    values: ds.numeric(c)?.to_vec(),
+                })
+            })
             .collect::<anyhow::Result<Vec<_>>>()?
     };
     if forces.len() > 3 {
-        bail!("{} force columns (`*_N`); the firmware takes at most 3 (use --no-forces or --rename)", forces.len());
+        bail!(
+            "{} force columns (`*_N`); the firmware takes at most 3 (use --no-forces or --rename)",
+            forces.len()
+        );
     }
     let conditions = match &args.cv {
         Some(col) => {
             let (ids, labels) = groups(&ds, col)?;
-            Some(ids.into_iter().map(|i| labels[i].clone()).collect::<Vec<_>>())
+            Some(
+                ids.into_iter()
+                    .map(|i| labels[i].clone())
+                    .collect::<Vec<_>>(),
+            )
         }
         None => None,
     };
+    for (col, _) in &laws {
+        if !forces.iter().any(|f| &f.name == col) {
+            bail!(
+                "--force-law {col}: not a force column of the model (have: {})",
+                forces
+                    .iter()
+                    .map(|f| f.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
     let held = holdout.as_ref().map(|h| h.mask(&ds)).transpose()?;
-    let input = ThermalInput { time_s, sensors, forces, target, conditions, holdout: held };
+    let input = ThermalInput {
+        time_s,
+        sensors,
+        forces,
+        target,
+        conditions,
+        holdout: held,
+    };
 
     // ---- fit ----
-    let fit = fit_thermal(&input, &opts).with_context(|| format!("fitting {}", args.data.data.display()))?;
+    let fit = fit_thermal(&input, &opts)
+        .with_context(|| format!("fitting {}", args.data.data.display()))?;
     let write_model = args.out.is_some() && (fit.guard.passed || args.force);
 
     // ---- outputs ----
     println!("target {}: {}", args.target, fit.formula);
-    println!("sensors: {} (method {}: {})", fit.sensors.join(", "), fit.chosen_method, fit.why);
+    println!(
+        "sensors: {} (method {}: {})",
+        fit.sensors.join(", "),
+        fit.chosen_method,
+        fit.why
+    );
     match fit.holdout_rms_um {
-        Some(h) => println!("held-out RMS: raw {:.3} µm → {:.3} µm ({} rows)", fit.raw_rms_um, h, fit.holdout_rows),
-        None => println!("RMS: raw {:.3} µm, training residual {:.3} µm", fit.raw_rms_um, fit.train_rms_um),
+        Some(h) => println!(
+            "held-out RMS: raw {:.3} µm → {:.3} µm ({} rows)",
+            fit.raw_rms_um, h, fit.holdout_rows
+        ),
+        None => println!(
+            "RMS: raw {:.3} µm, training residual {:.3} µm",
+            fit.raw_rms_um, fit.train_rms_um
+        ),
     }
     if let Some(cv) = fit.cv_rms_um {
         println!("leave-one-condition-out CV RMS: {cv:.3} µm");
     }
-    println!("condition number {:.1}; guard: {}", fit.condition_number, fit.guard.reason);
+    println!(
+        "condition number {:.1}; guard: {}",
+        fit.condition_number, fit.guard.reason
+    );
     if let Some(path) = &args.json {
         let mut v = serde_json::to_value(&fit)?;
         let o = v.as_object_mut().expect("fit serializes to an object");
@@ -205,7 +290,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         o.insert("target_offset_um".into(), target_offset.into());
         o.insert("model_written".into(), write_model.into());
         let text = serde_json::to_string_pretty(&v)?;
-        axcomp_plot::write_atomic(path, text.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
+        axcomp_plot::write_atomic(path, text.as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
     }
     if let Some(dir) = &args.report {
         write_thermal_report(dir, &fit, &input, &args.target)
@@ -219,8 +305,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 out.display()
             );
         }
-        let file = ThermalModelFile::from_fit(&fit, &input, &args.target, args.sensor_period_ms);
-        file.validate().map_err(|e| anyhow::anyhow!("model not written: {e}"))?;
+        let mut file =
+            ThermalModelFile::from_fit(&fit, &input, &args.target, args.sensor_period_ms);
+        for (col, law) in &laws {
+            let f = file
+                .forces
+                .iter_mut()
+                .find(|f| &f.column == col)
+                .expect("checked before fitting");
+            f.law = Some(*law);
+        }
+        file.validate()
+            .map_err(|e| anyhow::anyhow!("model not written: {e}"))?;
         file.save(out)?;
         println!("model written to {}", out.display());
     } else if !fit.guard.passed {

@@ -23,20 +23,16 @@ pub struct Args {
     /// axis (pitch_error, reversal, cogging, interpolation_error, scale_expansion).
     #[arg(long, value_name = "K1,K2,..", conflicts_with = "axis")]
     pub effects: Option<String>,
-    /// Measurement plan: iso230, scan, thermal, load or abbe.
+    /// Measurement plan: iso230, scan, thermal, load, abbe, or spindle (thermo-force campaign under
+    /// cutting load from axcomp-thermal's generator: 16 collinear sensors, spindle_rpm/ap_mm/fz_mm).
     #[arg(long, value_name = "PLAN", default_value = "iso230")]
     pub plan: String,
     /// Seed of the measurement noise (and of the parameters with --random-params).
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub seed: u64,
-    /// Measurement noise σ on the deviation, µm.
-    #[arg(
-        long = "noise-um",
-        value_name = "SIGMA",
-        default_value_t = 0.5,
-        allow_negative_numbers = true
-    )]
-    pub noise_um: f64,
+    /// Measurement noise σ on the deviation, µm [default: 0.5, or the --axis file's].
+    #[arg(long = "noise-um", value_name = "SIGMA", allow_negative_numbers = true)]
+    pub noise_um: Option<f64>,
     /// Resize the plan to about N rows.
     #[arg(long, value_name = "N")]
     pub rows: Option<usize>,
@@ -71,10 +67,16 @@ pub struct Args {
     pub end_mm: f64,
 }
 
+/// A standard twin plan, or a spindle campaign from the thermal generator (held at mid-stroke).
+enum PlanChoice {
+    Standard(Plan),
+    Spindle(axcomp_thermal::synth::SynthConfig),
+}
+
 /// The validated configuration.
 struct Config {
     axis: Axis,
-    plan: Plan,
+    plan: PlanChoice,
     seed: u64,
     out: PathBuf,
     truth: Option<PathBuf>,
@@ -145,15 +147,31 @@ impl Config {
                 Axis::typical("typical", a.start_mm, a.end_mm, &kinds)
             }
         };
-        if !(a.noise_um.is_finite() && a.noise_um >= 0.0) {
-            bail!("--noise-um {}: must be a finite σ ≥ 0 µm", a.noise_um);
+        if let Some(sigma) = a.noise_um {
+            if !(sigma.is_finite() && sigma >= 0.0) {
+                bail!("--noise-um {sigma}: must be a finite σ ≥ 0 µm");
+            }
+            axis.noise.deviation_um = sigma;
         }
-        axis.noise.deviation_um = a.noise_um;
         axis.validate().context("the simulated axis")?;
         if a.rows == Some(0) {
             bail!("--rows 0: ask for at least one row");
         }
-        let plan = Plan::by_name(&a.plan, axis.start_mm, axis.end_mm, a.rows).context("--plan")?;
+        let plan = if a.plan == "spindle" {
+            if a.image.is_some() {
+                bail!("--image: compensated runs are not available with --plan spindle");
+            }
+            PlanChoice::Spindle(axcomp_twin::spindle_config(&axis, a.seed, a.rows))
+        } else {
+            match Plan::by_name(&a.plan, axis.start_mm, axis.end_mm, a.rows) {
+                Ok(plan) => PlanChoice::Standard(plan),
+                Err(_) => bail!(
+                    "--plan {}: unknown plan (expected one of: {}, spindle)",
+                    a.plan,
+                    Plan::NAMES.join(", ")
+                ),
+            }
+        };
         let compensator = match &a.image {
             Some(path) => {
                 let bytes = std::fs::read(path)
@@ -183,16 +201,36 @@ impl Config {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let cfg = Config::from_args(args)?;
-    let campaign = simulate(&cfg.axis, &cfg.plan, cfg.compensator.as_deref(), cfg.seed)
-        .context("simulating")?;
+    let (campaign, truth_json) = match &cfg.plan {
+        PlanChoice::Standard(plan) => {
+            let campaign = simulate(&cfg.axis, plan, cfg.compensator.as_deref(), cfg.seed)
+                .context("simulating")?;
+            let json = TruthReport::new(&cfg.axis, plan, &campaign).to_json();
+            (campaign, json)
+        }
+        PlanChoice::Spindle(synth) => {
+            let target_mm = 0.5 * (cfg.axis.start_mm + cfg.axis.end_mm);
+            let sc = axcomp_twin::simulate_spindle(&cfg.axis, target_mm, synth)
+                .context("simulating the spindle campaign")?;
+            let json = serde_json::to_string_pretty(&serde_json::json!({
+                "axis": &cfg.axis,
+                "plan": { "plan": "spindle", "target_mm": target_mm, "dt_s": synth.dt_s },
+                "seed": cfg.seed,
+                "rows": sc.campaign.rows.len(),
+                "compensated": false,
+                "effects": ["thermal_drift", "thermal_lag", "force_deflection"],
+                "positional_effects_at_target": cfg.axis.kinds().iter().map(|k| k.name()).collect::<Vec<_>>(),
+                "synth_truth": &sc.truth_model,
+                "synth_formula": sc.truth_model.formula(),
+            }))?;
+            (sc.campaign, json)
+        }
+    };
     let csv = campaign.to_csv_string();
-    let truth_json = cfg
-        .truth
-        .as_ref()
-        .map(|_| TruthReport::new(&cfg.axis, &cfg.plan, &campaign).to_json());
     write_atomically(&cfg.out, csv.as_bytes())
         .with_context(|| format!("writing {}", cfg.out.display()))?;
-    if let (Some(path), Some(json)) = (&cfg.truth, truth_json) {
+    if let Some(path) = &cfg.truth {
+        let json = truth_json;
         write_atomically(path, json.as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
     }
@@ -201,7 +239,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "wrote {}: {} rows, plan {}, effects {}, seed {}, noise σ {} µm, {}; deviation RMS {:.3} µm (noise-free {:.3} µm)",
         cfg.out.display(),
         campaign.rows.len(),
-        cfg.plan.name(),
+        campaign.plan,
         kinds.join(","),
         cfg.seed,
         cfg.axis.noise.deviation_um,

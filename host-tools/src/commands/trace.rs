@@ -15,12 +15,8 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use axcomp_core::trace::{self, Record};
 
-// The scenario generator lives with the firmware (`axcomp_firmware::scenario`, feature `std`), where the QEMU
-// equivalence test uses it. It only needs `axcomp-core` and std, so the CLI compiles the same source file
-// rather than a copy of it.
-#[path = "../../../firmware/src/scenario.rs"]
-#[allow(dead_code)]
-mod scenario;
+// The scenario generator lives with the firmware (feature `std`), where the QEMU equivalence test uses it too.
+use axcomp_firmware::scenario;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {

@@ -59,7 +59,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c.verdict,
             if c.correct { "right" } else { "wrong" },
             c.shrink_pct,
-            c.oracle_shrink_pct.map_or("–".to_string(), |o| format!("{o:.1} %")),
+            c.oracle_shrink_pct
+                .map_or("–".to_string(), |o| format!("{o:.1} %")),
             c.seconds
         );
     })

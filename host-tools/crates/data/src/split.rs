@@ -164,17 +164,17 @@ impl HoldoutSpec {
             return Err(DataError::BadOption {
                 option: "--holdout",
                 text: self.text.clone(),
-                reason: format!("holds out no row of {}", ds.source()),
+                reason: format!(
+                    "selects no rows of {} (nothing held out to judge on)",
+                    ds.source()
+                ),
             });
         }
         if held == mask.len() {
             return Err(DataError::BadOption {
                 option: "--holdout",
                 text: self.text.clone(),
-                reason: format!(
-                    "holds out every row of {} (nothing left to fit)",
-                    ds.source()
-                ),
+                reason: format!("selects every row of {} (nothing left to fit)", ds.source()),
             });
         }
         Ok(mask)

@@ -281,9 +281,19 @@ fn holdout_specs() {
         .unwrap();
     assert_eq!(m, vec![true, true, false, false]);
     let m = HoldoutSpec::parse("target_mm<=10").unwrap();
-    assert!(m.mask(&ds).unwrap_err().to_string().contains("every row"));
+    assert!(
+        m.mask(&ds)
+            .unwrap_err()
+            .to_string()
+            .contains("selects every row")
+    );
     let m = HoldoutSpec::parse("target_mm>10").unwrap();
-    assert!(m.mask(&ds).unwrap_err().to_string().contains("no row"));
+    assert!(
+        m.mask(&ds)
+            .unwrap_err()
+            .to_string()
+            .contains("selects no rows")
+    );
     let m = HoldoutSpec::parse("note=x,y").unwrap().mask(&ds).unwrap();
     assert_eq!(m, vec![false, true, false, true]);
     let e = HoldoutSpec::parse("deviation_um>0")

@@ -8,7 +8,14 @@ fn main() {
     let cases = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(48);
     let seed = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1);
     let rows = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(5000);
-    let opts = ValidateOptions { cases, seed, rows, ..ValidateOptions::default() }.build().unwrap();
+    let opts = ValidateOptions {
+        cases,
+        seed,
+        rows,
+        ..ValidateOptions::default()
+    }
+    .build()
+    .unwrap();
     let summary = validate::validate(&opts, |c| {
         eprintln!(
             "case {:3} {:8} withheld {:20} snr {:?} verdict {:20} {} shrink {:6.1} oracle {:?} ties {:?} model {:?} {:.2}s",

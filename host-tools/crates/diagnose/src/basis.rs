@@ -9,7 +9,7 @@
 //! |---|---|---|
 //! | `pitch_error` | uniform cubic B-splines in `target_mm` (≤ `pitch_segments_max` segments, fewer when few distinct targets) | – |
 //! | `reversal` | d (constant) or d, d·x̃ | form |
-//! | `scale_expansion` | (x − x_ref)·ΔT_s | sensor s, x_ref (9 points over the stroke) |
+//! | `scale_expansion` | (x − x_ref)·ΔT_s | sensor s, x_ref (17 points from ½ range below to ½ range above the measured positions) |
 //! | `thermal_drift` | ΔT_s of one sensor, or ΔT_i of every sensor | sensor |
 //! | `thermal_lag` | first-order lag of ΔT_s of one sensor, or of every sensor (same τ) | sensor, τ (log grid, 0.05 % … 100 % of the duration) |
 //! | `force_deflection` | every force column | – |
@@ -48,7 +48,11 @@ pub struct Family {
 
 fn var(cols: Vec<Vec<f64>>, params: Map<String, Value>, searched: usize) -> Variant {
     let n_params = cols.len() + searched;
-    Variant { cols, params, n_params }
+    Variant {
+        cols,
+        params,
+        n_params,
+    }
 }
 
 /// Precomputed views of the observations shared by all families.
@@ -97,10 +101,16 @@ impl Context {
             let tol = 1e-6 * (x_max - x_min);
             u.dedup_by(|a, b| (*a - *b).abs() <= tol);
             n_unique = u.len();
-            x.iter().map(|v| 2.0 * (v - x_min) / (x_max - x_min) - 1.0).collect()
+            x.iter()
+                .map(|v| 2.0 * (v - x_min) / (x_max - x_min) - 1.0)
+                .collect()
         });
         let d = obs.direction.clone().filter(|d| varies(d, &train));
-        let dt: Vec<Named> = obs.delta_t().into_iter().filter(|t| varies(&t.values, &train)).collect();
+        let dt: Vec<Named> = obs
+            .delta_t()
+            .into_iter()
+            .filter(|t| varies(&t.values, &train))
+            .collect();
         let time_order = obs.time_order();
         let t = obs.time_s.clone().filter(|t| varies(t, &train));
         let duration_s = t.as_ref().map_or(0.0, |t| {
@@ -172,7 +182,10 @@ fn one(params: Map<String, Value>, cols: Vec<Vec<f64>>) -> Vec<Variant> {
 
 fn sincos(x: &[f64], period: f64) -> Vec<Vec<f64>> {
     let w = 2.0 * core::f64::consts::PI / period;
-    vec![x.iter().map(|v| (w * v).sin()).collect(), x.iter().map(|v| (w * v).cos()).collect()]
+    vec![
+        x.iter().map(|v| (w * v).sin()).collect(),
+        x.iter().map(|v| (w * v).cos()).collect(),
+    ]
 }
 
 fn map(v: Value) -> Map<String, Value> {
@@ -196,13 +209,23 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             if u < 5 {
                 // Polynomial of degree u−1 (the constant is the model's intercept).
                 let xs = ctx.xs.as_ref()?;
-                let cols = (1..u).map(|p| xs.iter().map(|v| v.powi(p as i32)).collect()).collect();
-                return fam(one(map(json!({"basis": "polynomial", "degree": u - 1})), cols), 0);
+                let cols = (1..u)
+                    .map(|p| xs.iter().map(|v| v.powi(p as i32)).collect())
+                    .collect();
+                return fam(
+                    one(map(json!({"basis": "polynomial", "degree": u - 1})), cols),
+                    0,
+                );
             }
             let k = (u - 3).clamp(1, ctx.pitch_segments_max.max(1));
             let cols = bspline_basis(x, ctx.x_min, ctx.x_max, k);
             fam(
-                one(map(json!({"basis": "cubic_bspline", "segments": k, "knot_spacing_mm": ctx.stroke() / k as f64})), cols),
+                one(
+                    map(
+                        json!({"basis": "cubic_bspline", "segments": k, "knot_spacing_mm": ctx.stroke() / k as f64}),
+                    ),
+                    cols,
+                ),
                 0,
             )
         }
@@ -211,21 +234,28 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             let mut vars = vec![var(vec![d.clone()], map(json!({"form": "constant"})), 0)];
             if let Some(xs) = &ctx.xs {
                 let dx = d.iter().zip(xs).map(|(a, b)| a * b).collect();
-                vars.push(var(vec![d.clone(), dx], map(json!({"form": "linear_in_x"})), 0));
+                vars.push(var(
+                    vec![d.clone(), dx],
+                    map(json!({"form": "linear_in_x"})),
+                    0,
+                ));
             }
             fam(vars, 0)
         }
         EffectKind::ScaleExpansion => {
+            // c·(x − x_ref)·ΔT_s with x_ref on a grid reaching half a measured range beyond each end (the
+            // reference may lie outside the measured positions); one column, so it never absorbs a
+            // position-independent drift.
             let x = ctx.x.as_ref()?;
             if ctx.dt.is_empty() {
                 return None;
             }
+            let searched = 1 + usize::from(ctx.dt.len() > 1);
             let mut vars = Vec::new();
             for s in &ctx.dt {
-                for k in 0..9 {
-                    let xr = ctx.x_min + ctx.stroke() * k as f64 / 8.0;
+                for k in 0..=16 {
+                    let xr = ctx.x_min + ctx.stroke() * (k as f64 / 8.0 - 0.5);
                     let col: Vec<f64> = (0..n).map(|i| (x[i] - xr) * s.values[i]).collect();
-                    let searched = if ctx.dt.len() > 1 { 2 } else { 1 };
                     vars.push(var(vec![col], map(json!({"sensor": s.name, "x_ref_mm": xr})), searched));
                 }
             }
@@ -239,10 +269,18 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             let mut vars = Vec::new();
             if ctx.dt.len() > 1 {
                 for s in &ctx.dt {
-                    vars.push(var(vec![s.values.clone()], map(json!({"sensors": [s.name]})), 1));
+                    vars.push(var(
+                        vec![s.values.clone()],
+                        map(json!({"sensors": [s.name]})),
+                        1,
+                    ));
                 }
             }
-            vars.push(var(ctx.dt.iter().map(|s| s.values.clone()).collect(), map(json!({"sensors": names})), 0));
+            vars.push(var(
+                ctx.dt.iter().map(|s| s.values.clone()).collect(),
+                map(json!({"sensors": names})),
+                0,
+            ));
             fam(vars, 0)
         }
         EffectKind::ThermalLag => {
@@ -256,11 +294,18 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             for k in 0..m {
                 let frac = 0.0005 * (1.0f64 / 0.0005).powf(k as f64 / (m - 1) as f64);
                 let tau = frac * ctx.duration_s;
-                let cols: Vec<Vec<f64>> =
-                    ctx.dt.iter().map(|s| first_order_lag(&s.values, t, &ctx.time_order, tau)).collect();
+                let cols: Vec<Vec<f64>> = ctx
+                    .dt
+                    .iter()
+                    .map(|s| first_order_lag(&s.values, t, &ctx.time_order, tau))
+                    .collect();
                 if ctx.dt.len() > 1 {
                     for (s, c) in ctx.dt.iter().zip(&cols) {
-                        vars.push(var(vec![c.clone()], map(json!({"tau_s": tau, "sensors": [s.name]})), 2));
+                        vars.push(var(
+                            vec![c.clone()],
+                            map(json!({"tau_s": tau, "sensors": [s.name]})),
+                            2,
+                        ));
                     }
                 }
                 vars.push(var(cols, map(json!({"tau_s": tau, "sensors": names})), 1));
@@ -268,8 +313,12 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             fam(vars, 1)
         }
         EffectKind::ForceDeflection => {
-            let cols: Vec<Vec<f64>> =
-                obs.forces.iter().filter(|f| varies(&f.values, &ctx.train)).map(|f| f.values.clone()).collect();
+            let cols: Vec<Vec<f64>> = obs
+                .forces
+                .iter()
+                .filter(|f| varies(&f.values, &ctx.train))
+                .map(|f| f.values.clone())
+                .collect();
             if cols.is_empty() {
                 return None;
             }
@@ -299,7 +348,11 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             for p_um in [4.0, 8.0, 10.0, 20.0, 40.0, 100.0, 200.0] {
                 for (h, label) in [(1.0, 1), (2.0, 2)] {
                     let period_mm = p_um / 1000.0 / h;
-                    vars.push(var(sincos(x, period_mm), map(json!({"signal_period_um": p_um, "harmonic": label})), 1));
+                    vars.push(var(
+                        sincos(x, period_mm),
+                        map(json!({"signal_period_um": p_um, "harmonic": label})),
+                        1,
+                    ));
                 }
             }
             fam(vars, 1)
@@ -313,10 +366,14 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
                 let lo: Vec<f64> = x.iter().map(|v| (-(v - ctx.x_min) / lam).exp()).collect();
                 let hi: Vec<f64> = x.iter().map(|v| (-(ctx.x_max - v) / lam).exp()).collect();
                 let dir = |e: &[f64]| -> Option<Vec<f64>> {
-                    ctx.d.as_ref().map(|d| e.iter().zip(d).map(|(a, b)| a * b).collect())
+                    ctx.d
+                        .as_ref()
+                        .map(|d| e.iter().zip(d).map(|(a, b)| a * b).collect())
                 };
                 for (end, e) in [("start", &lo), ("end", &hi)] {
-                    let p = map(json!({"decay_mm": lam, "stroke_end": end, "end_mm": if end == "start" { ctx.x_min } else { ctx.x_max }}));
+                    let p = map(
+                        json!({"decay_mm": lam, "stroke_end": end, "end_mm": if end == "start" { ctx.x_min } else { ctx.x_max }}),
+                    );
                     vars.push(var(vec![e.clone()], p.clone(), 2));
                     if let Some(de) = dir(e) {
                         let mut p = p;
@@ -329,7 +386,11 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
                     cols.push(a);
                     cols.push(b);
                 }
-                vars.push(var(cols, map(json!({"decay_mm": lam, "stroke_end": "both"})), 1));
+                vars.push(var(
+                    cols,
+                    map(json!({"decay_mm": lam, "stroke_end": "both"})),
+                    1,
+                ));
             }
             fam(vars, 1)
         }
@@ -341,10 +402,18 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
                 vars.push(var(vec![v.clone()], map(json!({"terms": ["velocity"]})), 0));
             }
             if let Some(a) = a {
-                vars.push(var(vec![a.clone()], map(json!({"terms": ["acceleration"]})), 0));
+                vars.push(var(
+                    vec![a.clone()],
+                    map(json!({"terms": ["acceleration"]})),
+                    0,
+                ));
             }
             if let (Some(v), Some(a)) = (v, a) {
-                vars.push(var(vec![v.clone(), a.clone()], map(json!({"terms": ["velocity", "acceleration"]})), 0));
+                vars.push(var(
+                    vec![v.clone(), a.clone()],
+                    map(json!({"terms": ["velocity", "acceleration"]})),
+                    0,
+                ));
             }
             if vars.is_empty() {
                 return None;
@@ -356,8 +425,16 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             let mut vars = vec![var(vec![o.clone()], map(json!({"degree": 0})), 0)];
             if let Some(xs) = &ctx.xs {
                 let ox: Vec<f64> = o.iter().zip(xs).map(|(a, b)| a * b).collect();
-                let ox2: Vec<f64> = o.iter().zip(xs).map(|(a, b)| a * (1.5 * b * b - 0.5)).collect();
-                vars.push(var(vec![o.clone(), ox.clone()], map(json!({"degree": 1})), 0));
+                let ox2: Vec<f64> = o
+                    .iter()
+                    .zip(xs)
+                    .map(|(a, b)| a * (1.5 * b * b - 0.5))
+                    .collect();
+                vars.push(var(
+                    vec![o.clone(), ox.clone()],
+                    map(json!({"degree": 1})),
+                    0,
+                ));
                 vars.push(var(vec![o.clone(), ox, ox2], map(json!({"degree": 2})), 0));
             }
             fam(vars, 0)
@@ -365,13 +442,28 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
         EffectKind::TimeDrift => {
             let t = ctx.t.as_ref()?;
             let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
-            let ts: Vec<f64> = t.iter().map(|v| 2.0 * (v - lo) / ctx.duration_s - 1.0).collect();
+            let ts: Vec<f64> = t
+                .iter()
+                .map(|v| 2.0 * (v - lo) / ctx.duration_s - 1.0)
+                .collect();
             let p2: Vec<f64> = ts.iter().map(|s| 1.5 * s * s - 0.5).collect();
             let p3: Vec<f64> = ts.iter().map(|s| 2.5 * s * s * s - 1.5 * s).collect();
             let vars = vec![
-                var(vec![ts.clone()], map(json!({"basis": "legendre", "degree": 1})), 0),
-                var(vec![ts.clone(), p2.clone()], map(json!({"basis": "legendre", "degree": 2})), 0),
-                var(vec![ts, p2, p3], map(json!({"basis": "legendre", "degree": 3})), 0),
+                var(
+                    vec![ts.clone()],
+                    map(json!({"basis": "legendre", "degree": 1})),
+                    0,
+                ),
+                var(
+                    vec![ts.clone(), p2.clone()],
+                    map(json!({"basis": "legendre", "degree": 2})),
+                    0,
+                ),
+                var(
+                    vec![ts, p2, p3],
+                    map(json!({"basis": "legendre", "degree": 3})),
+                    0,
+                ),
             ];
             fam(vars, 0)
         }
@@ -398,9 +490,16 @@ mod tests {
         // Step input through a lag: the exact discretisation gives 1 − e^(−k·Δt/τ) after k updates (index 1
         // is the first), so y[100] = 1 − e^(−1) (reference: analytic; tol 1e-9).
         let t: Vec<f64> = (0..1000).map(|i| i as f64).collect();
-        let u: Vec<f64> = t.iter().map(|&s| if s >= 1.0 { 1.0 } else { 0.0 }).collect();
+        let u: Vec<f64> = t
+            .iter()
+            .map(|&s| if s >= 1.0 { 1.0 } else { 0.0 })
+            .collect();
         let order: Vec<usize> = (0..1000).collect();
         let y = first_order_lag(&u, &t, &order, 100.0);
-        assert!((y[100] - (1.0 - (-1.0f64).exp())).abs() < 1e-9, "{}", y[100]);
+        assert!(
+            (y[100] - (1.0 - (-1.0f64).exp())).abs() < 1e-9,
+            "{}",
+            y[100]
+        );
     }
 }

@@ -9,7 +9,11 @@ use axcomp_data::{Dataset, HoldoutSpec};
 use crate::obs::{Named, Observations};
 
 fn optional(ds: &Dataset, col: &str) -> anyhow::Result<Option<Vec<f64>>> {
-    if ds.has(col) { Ok(Some(ds.numeric(col)?.to_vec())) } else { Ok(None) }
+    if ds.has(col) {
+        Ok(Some(ds.numeric(col)?.to_vec()))
+    } else {
+        Ok(None)
+    }
 }
 
 /// Builds the observations: `target` column, held-out rows from `holdout` (`COL=V1,V2`, `COL>=X`, ...).
@@ -18,7 +22,9 @@ pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> anyhow::Result
     let spec = HoldoutSpec::parse(holdout)?;
     let held_out = spec.mask(ds)?;
     let y = ds.numeric(target)?.to_vec();
-    let direction = ds.direction()?.map(|d| d.into_iter().map(f64::from).collect());
+    let direction = ds
+        .direction()?
+        .map(|d| d.into_iter().map(f64::from).collect());
     let run = ds.run().map(|labels| {
         let mut uniq: Vec<String> = Vec::new();
         labels
@@ -32,16 +38,26 @@ pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> anyhow::Result
             })
             .collect()
     });
-    let time_s = if ds.has("time_s") { Some(ds.numeric("time_s")?.to_vec()) } else { ds.time_s().map(<[f64]>::to_vec) };
+    let time_s = if ds.has("time_s") {
+        Some(ds.numeric("time_s")?.to_vec())
+    } else {
+        ds.time_s().map(<[f64]>::to_vec)
+    };
     let mut temperatures = Vec::new();
     for s in ds.sensors() {
         let col = format!("{s}_degC");
-        temperatures.push(Named { name: s, values: ds.numeric(&col)?.to_vec() });
+        temperatures.push(Named {
+            name: s,
+            values: ds.numeric(&col)?.to_vec(),
+        });
     }
     let mut forces = Vec::new();
     for name in ds.column_names() {
         if name.len() > 2 && name.ends_with("_N") {
-            forces.push(Named { name: name.trim_end_matches("_N").to_string(), values: ds.numeric(name)?.to_vec() });
+            forces.push(Named {
+                name: name.trim_end_matches("_N").to_string(),
+                values: ds.numeric(name)?.to_vec(),
+            });
         }
     }
     let obs = Observations {
@@ -58,6 +74,7 @@ pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> anyhow::Result
         accel_mm_s2: optional(ds, "accel_mm_s2")?,
         offset_mm: optional(ds, "offset_mm")?,
     };
-    obs.validate().map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
+    obs.validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
     Ok(obs)
 }

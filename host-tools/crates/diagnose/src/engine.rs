@@ -7,7 +7,13 @@
 //! variant of every candidate; **held-out test** = one-sided paired t-test that the squared held-out
 //! residuals shrink; **score** = held-out ΔBIC, `n_ho·ln(RSS_before/RSS_after) − k·ln(n_ho)` with
 //! `k` = added columns + searched parameters; **tie** = two explaining candidates whose held-out squared
-//! residuals do not differ significantly (|t| < 2): the one with fewer parameters is preferred.
+//! residuals do not differ significantly (|t| < 2), or are practically equal (the second removes ≥ 90 % of
+//! what the first removes from the held-out RSS and leaves ≤ 5 % more): the one with fewer parameters is
+//! preferred.
+//!
+//! Further evidence per candidate (reported, not used for the verdict): residual cross-correlation with
+//! the candidate's columns, blocked cross-validation by run (or time block) on the training rows, and a
+//! block-bootstrap inclusion probability (stability selection over the candidate library).
 
 use serde::Serialize;
 use serde_json::{Map, Value};
@@ -18,6 +24,10 @@ use crate::locate::{self, Region};
 use crate::lsq::{self, Projector};
 use crate::obs::Observations;
 use crate::stats;
+
+/// A candidate explaining at least this fraction of the best candidate's held-out RSS reduction (and
+/// leaving at most 5 % more RSS) is tied with it; the one with fewer parameters is preferred.
+pub const TIE_FRACTION: f64 = 0.9;
 
 /// Settings of the diagnosis (validated by [`DiagnoseOptions::build`]).
 #[derive(Debug, Clone)]
@@ -32,7 +42,11 @@ pub struct DiagnoseOptions {
 
 impl Default for DiagnoseOptions {
     fn default() -> Self {
-        DiagnoseOptions { alpha: 0.01, pitch_segments_max: 8, candidates: None }
+        DiagnoseOptions {
+            alpha: 0.01,
+            pitch_segments_max: 8,
+            candidates: None,
+        }
     }
 }
 
@@ -83,8 +97,22 @@ pub struct Candidate {
     pub holdout_p_value: f64,
     /// Both tests pass at `alpha` and the held-out RMS shrinks.
     pub explains: bool,
+    /// Largest |correlation| between the base model's training residual and one of the candidate's
+    /// columns (residual cross-correlation with the candidate inputs).
+    pub residual_correlation: f64,
+    /// Blocked cross-validation on the training rows (blocks = runs, or time blocks without runs): RMS of
+    /// the base model and of the refit (None when there are fewer than 3 blocks or the candidate fails
+    /// the training test).
+    pub cv_rms_before_um: Option<f64>,
+    pub cv_rms_after_um: Option<f64>,
+    /// Stability selection: share of 20 block-bootstrap resamples of the training rows in which this
+    /// candidate has the best training ΔBIC (positive) of the candidates passing the training test.
+    pub inclusion_probability: f64,
     #[serde(skip)]
     pub kind_enum: Option<EffectKind>,
+    /// The candidate's columns over all rows.
+    #[serde(skip)]
+    pub columns: Vec<Vec<f64>>,
     /// The candidate's own fitted contribution over all rows (µm).
     #[serde(skip)]
     pub contribution_um: Vec<f64>,
@@ -141,7 +169,6 @@ impl Diagnosis {
     }
 }
 
-
 struct Fitted {
     fit: lsq::LsFit,
     resid: Vec<f64>,
@@ -153,8 +180,67 @@ fn fit_all(cols: &[Vec<f64>], y: &[f64], train: &[usize]) -> Fitted {
     Fitted { fit, resid }
 }
 
+/// Residual over all rows of a fit on `rows`.
+fn fit_all_rows(cols: &[Vec<f64>], y: &[f64], rows: &[usize]) -> Vec<f64> {
+    fit_all(cols, y, rows).resid
+}
+
+/// Training blocks for blocked CV and the block bootstrap: runs (grouped into at most 10 contiguous
+/// blocks in run order), or 5 contiguous time blocks when there is no run column.
+fn training_blocks(obs: &Observations, train: &[usize]) -> Vec<Vec<usize>> {
+    match &obs.run {
+        Some(run) => {
+            let mut ids: Vec<usize> = train.iter().map(|&i| run[i]).collect();
+            ids.sort_unstable();
+            ids.dedup();
+            let nb = ids.len().min(10);
+            if nb < 2 {
+                return vec![train.to_vec()];
+            }
+            let mut blocks = vec![Vec::new(); nb];
+            for &i in train {
+                let k = ids.binary_search(&run[i]).unwrap_or(0);
+                blocks[k * nb / ids.len()].push(i);
+            }
+            blocks
+        }
+        None => {
+            let order: Vec<usize> = obs.time_order().into_iter().filter(|&i| !obs.held_out[i]).collect();
+            let nb = 5.min(order.len());
+            (0..nb).map(|k| order[k * order.len() / nb..(k + 1) * order.len() / nb].to_vec()).collect()
+        }
+    }
+}
+
+/// Sum of squared prediction errors of leave-one-block-out fits.
+fn blocked_cv_rss(cols: &[Vec<f64>], y: &[f64], blocks: &[Vec<usize>]) -> f64 {
+    let mut total = 0.0;
+    for (k, b) in blocks.iter().enumerate() {
+        let rows: Vec<usize> = blocks.iter().enumerate().filter(|(j, _)| *j != k).flat_map(|(_, r)| r.iter().cloned()).collect();
+        let fit = lsq::fit(cols, y, &rows);
+        total += b.iter().map(|&i| (y[i] - fit.predict(cols, i)).powi(2)).sum::<f64>();
+    }
+    total
+}
+
+fn max_corr(r: &[f64], cols: &[Vec<f64>]) -> f64 {
+    let n = r.len() as f64;
+    let mr = r.iter().sum::<f64>() / n;
+    let sr = r.iter().map(|v| (v - mr).powi(2)).sum::<f64>().sqrt();
+    cols.iter()
+        .map(|c| {
+            let mc = c.iter().sum::<f64>() / n;
+            let sc = c.iter().map(|v| (v - mc).powi(2)).sum::<f64>().sqrt();
+            let cov: f64 = r.iter().zip(c).map(|(a, b)| (a - mr) * (b - mc)).sum();
+            if sr > 0.0 && sc > 0.0 { (cov / (sr * sc)).abs() } else { 0.0 }
+        })
+        .fold(0.0, f64::max)
+}
+
 fn restrict(cols: &[Vec<f64>], rows: &[usize]) -> Vec<Vec<f64>> {
-    cols.iter().map(|c| rows.iter().map(|&i| c[i]).collect()).collect()
+    cols.iter()
+        .map(|c| rows.iter().map(|&i| c[i]).collect())
+        .collect()
 }
 
 fn ss(v: &[f64], rows: &[usize]) -> f64 {
@@ -167,7 +253,10 @@ fn lag1(v: &[f64], order: &[usize]) -> f64 {
     }
     let m = order.iter().map(|&i| v[i]).sum::<f64>() / order.len() as f64;
     let den: f64 = order.iter().map(|&i| (v[i] - m).powi(2)).sum();
-    let num: f64 = order.windows(2).map(|w| (v[w[0]] - m) * (v[w[1]] - m)).sum();
+    let num: f64 = order
+        .windows(2)
+        .map(|w| (v[w[0]] - m) * (v[w[1]] - m))
+        .sum();
     if den > 0.0 { num / den } else { 0.0 }
 }
 
@@ -197,7 +286,11 @@ fn best_variant(fam: &Family, others: &[Vec<f64>], y: &[f64], train: &[usize]) -
 }
 
 /// Runs the diagnosis.
-pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions) -> Result<Diagnosis, String> {
+pub fn diagnose(
+    obs: &Observations,
+    model: &[EffectKind],
+    opts: &DiagnoseOptions,
+) -> Result<Diagnosis, String> {
     obs.validate()?;
     let ctx = Context::new(obs, opts.pitch_segments_max);
     let y = &obs.target;
@@ -248,7 +341,10 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
     let gap = Gap {
         train_rms_um: (rss0 / n_tr as f64).sqrt(),
         holdout_rms_um: (rss_ho0 / n_ho as f64).sqrt(),
-        holdout_max_um: hold.iter().map(|&i| base.resid[i].abs()).fold(0.0, f64::max),
+        holdout_max_um: hold
+            .iter()
+            .map(|&i| base.resid[i].abs())
+            .fold(0.0, f64::max),
     };
     let mut model_terms = Vec::new();
     {
@@ -261,7 +357,11 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
                 params.insert("coefficients".into(), Value::from(coefs));
             }
             c += v.cols.len();
-            model_terms.push(ModelTerm { kind: f.kind.name().into(), params, columns: v.cols.len() });
+            model_terms.push(ModelTerm {
+                kind: f.kind.name().into(),
+                params,
+                columns: v.cols.len(),
+            });
         }
     }
 
@@ -284,7 +384,11 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
             None => not_applicable.push(k.name().to_string()),
         }
     }
-    let total_variants: usize = cand_fams.iter().map(|f| f.variants.len()).sum::<usize>().max(1);
+    let total_variants: usize = cand_fams
+        .iter()
+        .map(|f| f.variants.len())
+        .sum::<usize>()
+        .max(1);
     let proj = Projector::new(&base_cols, &train);
     let r_tr: Vec<f64> = train.iter().map(|&i| base.resid[i]).collect();
     let mut effects = Vec::new();
@@ -305,10 +409,17 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
             let fstat = ((rss0 - rss1) / q as f64) / (rss1 / dof1);
             (stats::f_sf(fstat, q as f64, dof1) * total_variants as f64).min(1.0)
         };
-        let d: Vec<f64> = hold.iter().map(|&i| base.resid[i].powi(2) - refit.resid[i].powi(2)).collect();
+        let d: Vec<f64> = hold
+            .iter()
+            .map(|&i| base.resid[i].powi(2) - refit.resid[i].powi(2))
+            .collect();
         let (_, p_ho) = stats::paired_t(&d);
         let rms_after = (rss_ho1 / n_ho as f64).sqrt();
-        let shrink = if gap.holdout_rms_um > 0.0 { 100.0 * (1.0 - rms_after / gap.holdout_rms_um) } else { 0.0 };
+        let shrink = if gap.holdout_rms_um > 0.0 {
+            100.0 * (1.0 - rms_after / gap.holdout_rms_um)
+        } else {
+            0.0
+        };
         let score = if rss_ho1 > 0.0 && rss_ho0 > 0.0 {
             n_ho as f64 * (rss_ho0 / rss_ho1).ln() - k_pen * (n_ho as f64).ln()
         } else {
@@ -321,8 +432,9 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
         };
         let mut params = v.params.clone();
         let coefs: Vec<f64> = refit.fit.coef[base_cols.len()..].to_vec();
-        let contribution: Vec<f64> =
-            (0..ctx.n).map(|i| v.cols.iter().zip(&coefs).map(|(c, b)| c[i] * b).sum()).collect();
+        let contribution: Vec<f64> = (0..ctx.n)
+            .map(|i| v.cols.iter().zip(&coefs).map(|(c, b)| c[i] * b).sum())
+            .collect();
         decorate(f.kind, &mut params, &coefs, &contribution, &hold);
         effects.push(Candidate {
             kind: f.kind.name().into(),
@@ -336,12 +448,67 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
             train_p_value: p_train,
             holdout_p_value: p_ho,
             explains: p_train < opts.alpha && p_ho < opts.alpha && shrink > 0.0,
+            residual_correlation: max_corr(&r_tr, &restrict(&v.cols, &train)),
+            cv_rms_before_um: None,
+            cv_rms_after_um: None,
+            inclusion_probability: 0.0,
             kind_enum: Some(f.kind),
+            columns: v.cols.clone(),
             contribution_um: contribution,
             residual_after: refit.resid,
         });
     }
-    effects.sort_by(|a, b| b.explains.cmp(&a.explains).then(b.score.total_cmp(&a.score)));
+    // ---- evidence: blocked CV and block-bootstrap stability selection ----
+    let blocks = training_blocks(obs, &train);
+    if blocks.len() >= 3 {
+        let cv0 = blocked_cv_rss(&base_cols, y, &blocks);
+        for c in effects.iter_mut().filter(|c| c.train_p_value < opts.alpha) {
+            let mut cols = base_cols.clone();
+            cols.extend(c.columns.iter().cloned());
+            c.cv_rms_before_um = Some((cv0 / n_tr as f64).sqrt());
+            c.cv_rms_after_um = Some((blocked_cv_rss(&cols, y, &blocks) / n_tr as f64).sqrt());
+        }
+    }
+    if blocks.len() >= 2 && effects.iter().any(|c| c.train_p_value < opts.alpha) {
+        let b_count = 20;
+        let mut wins = vec![0usize; effects.len()];
+        let mut rng = 0x2545_f491_4f6c_dd1du64 ^ (n_tr as u64);
+        for _ in 0..b_count {
+            let mut rows = Vec::with_capacity(n_tr);
+            for _ in 0..blocks.len() {
+                rng ^= rng << 13;
+                rng ^= rng >> 7;
+                rng ^= rng << 17;
+                rows.extend_from_slice(&blocks[(rng % blocks.len() as u64) as usize]);
+            }
+            let nb = rows.len() as f64;
+            let r0 = ss(&fit_all_rows(&base_cols, y, &rows), &rows);
+            let mut best = (usize::MAX, 0.0f64);
+            for (k, c) in effects.iter().enumerate().filter(|(_, c)| c.train_p_value < opts.alpha) {
+                let mut cols = base_cols.clone();
+                cols.extend(c.columns.iter().cloned());
+                let r1 = ss(&fit_all_rows(&cols, y, &rows), &rows);
+                if r0 > 0.0 && r1 > 0.0 {
+                    let dbic = nb * (r0 / r1).ln() - c.n_params as f64 * nb.ln();
+                    if dbic > best.1 {
+                        best = (k, dbic);
+                    }
+                }
+            }
+            if best.0 != usize::MAX {
+                wins[best.0] += 1;
+            }
+        }
+        for (c, w) in effects.iter_mut().zip(wins) {
+            c.inclusion_probability = w as f64 / b_count as f64;
+        }
+    }
+
+    effects.sort_by(|a, b| {
+        b.explains
+            .cmp(&a.explains)
+            .then(b.score.total_cmp(&a.score))
+    });
 
     // ---- verdict, ties ----
     let mut verdict = "none".to_string();
@@ -356,23 +523,47 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
             }
             let d: Vec<f64> = hold
                 .iter()
-                .map(|&i| effects[w].residual_after[i].powi(2) - effects[j].residual_after[i].powi(2))
+                .map(|&i| {
+                    effects[w].residual_after[i].powi(2) - effects[j].residual_after[i].powi(2)
+                })
                 .collect();
             let (t, _) = stats::paired_t(&d);
-            if t.abs() < 2.0 {
+            // Tie: not significantly different, or practically equal (removing ≥ 90 % of what the best
+            // removes from the held-out RSS while leaving at most 5 % more of it).
+            let (rss_w, rss_j) = (
+                ss(&effects[w].residual_after, &hold),
+                ss(&effects[j].residual_after, &hold),
+            );
+            let practically_equal =
+                rss_ho0 - rss_j >= TIE_FRACTION * (rss_ho0 - rss_w) && rss_j <= 1.05 * rss_w;
+            if t.abs() < 2.0 || practically_equal {
                 group.push(j);
             }
         }
         let pick = *group
             .iter()
-            .min_by(|&&a, &&b| effects[a].n_params.cmp(&effects[b].n_params).then(b.cmp(&a).reverse()))
+            .min_by(|&&a, &&b| {
+                effects[a]
+                    .n_params
+                    .cmp(&effects[b].n_params)
+                    .then(b.cmp(&a).reverse())
+            })
             .unwrap();
         if group.len() > 1 {
-            ties = group.iter().filter(|&&j| j != pick).map(|&j| effects[j].kind.clone()).collect();
+            ties = group
+                .iter()
+                .filter(|&&j| j != pick)
+                .map(|&j| effects[j].kind.clone())
+                .collect();
             let others: Vec<String> = group
                 .iter()
                 .filter(|&&j| j != pick)
-                .map(|&j| format!("{} ({} parameters, held-out RMS {:.3} µm)", effects[j].kind, effects[j].n_params, effects[j].holdout_rms_after_um))
+                .map(|&j| {
+                    format!(
+                        "{} ({} parameters, held-out RMS {:.3} µm)",
+                        effects[j].kind, effects[j].n_params, effects[j].holdout_rms_after_um
+                    )
+                })
                 .collect();
             note = format!(
                 "{} ({} parameters, held-out RMS {:.3} µm) explains the gap as well as {}; the simpler is preferred",
@@ -384,7 +575,10 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
         } else {
             note = format!(
                 "{} explains the held-out gap beyond noise (train p = {:.2e} after Bonferroni over {} variants, held-out p = {:.2e})",
-                effects[pick].kind, effects[pick].train_p_value, total_variants, effects[pick].holdout_p_value
+                effects[pick].kind,
+                effects[pick].train_p_value,
+                total_variants,
+                effects[pick].holdout_p_value
             );
         }
         if pick != 0 {
@@ -402,7 +596,12 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
         o.sort_by(|&a, &b| x[a].total_cmp(&x[b]));
         o
     });
-    let time_order: Vec<usize> = ctx.time_order.iter().cloned().filter(|&i| !obs.held_out[i]).collect();
+    let time_order: Vec<usize> = ctx
+        .time_order
+        .iter()
+        .cloned()
+        .filter(|&i| !obs.held_out[i])
+        .collect();
     let l1p = pos_order.as_ref().map(|o| lag1(&base.resid, o));
     let l1t = lag1(&base.resid, &time_order);
     let sq = (n_tr as f64).sqrt();
@@ -433,15 +632,24 @@ pub fn diagnose(obs: &Observations, model: &[EffectKind], opts: &DiagnoseOptions
 }
 
 /// Adds physically meaningful parameters derived from the fitted coefficients.
-fn decorate(kind: EffectKind, params: &mut Map<String, Value>, coefs: &[f64], contribution: &[f64], hold: &[usize]) {
-    let peak = hold.iter().map(|&i| contribution[i].abs()).fold(0.0, f64::max);
+fn decorate(
+    kind: EffectKind,
+    params: &mut Map<String, Value>,
+    coefs: &[f64],
+    contribution: &[f64],
+    hold: &[usize],
+) {
+    let peak = hold
+        .iter()
+        .map(|&i| contribution[i].abs())
+        .fold(0.0, f64::max);
     params.insert("peak_holdout_um".into(), Value::from(peak));
     match kind {
         EffectKind::Cogging | EffectKind::InterpolationError if coefs.len() == 2 => {
             params.insert("amplitude_um".into(), Value::from(coefs[0].hypot(coefs[1])));
         }
         EffectKind::ScaleExpansion if coefs.len() == 1 => {
-            params.insert("c_um_per_mm_k".into(), Value::from(coefs[0]));
+            params.insert("c_um_per_m_k".into(), Value::from(1000.0 * coefs[0]));
         }
         EffectKind::Reversal if !coefs.is_empty() => {
             // d·b0 → the reversal value (difference between directions) is 2·b0 at mid-stroke.
@@ -480,7 +688,10 @@ mod tests {
     struct Noise(u64);
     impl Noise {
         fn uniform(&mut self) -> f64 {
-            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
         }
         fn normal(&mut self) -> f64 {
@@ -494,7 +705,10 @@ mod tests {
     fn positioning(rev: f64, seed: u64) -> Observations {
         let mut rng = Noise(seed);
         let n = 2000;
-        let mut o = Observations { target_name: "deviation_um".into(), ..Default::default() };
+        let mut o = Observations {
+            target_name: "deviation_um".into(),
+            ..Default::default()
+        };
         let (mut x, mut d, mut run, mut y) = (vec![], vec![], vec![], vec![]);
         for i in 0..n {
             let xi = 200.0 * rng.uniform();
@@ -521,13 +735,21 @@ mod tests {
         let d = diagnose(&obs, &[EffectKind::PitchError], &DiagnoseOptions::default()).unwrap();
         assert_eq!(d.verdict, "reversal", "{}", d.note);
         let c = d.verdict_candidate().unwrap();
-        assert!((c.holdout_rms_after_um - 0.5).abs() < 0.075, "{}", c.holdout_rms_after_um);
+        assert!(
+            (c.holdout_rms_after_um - 0.5).abs() < 0.075,
+            "{}",
+            c.holdout_rms_after_um
+        );
         assert!(d.where_.iter().any(|r| r.variable == "target_mm"));
         // The complete model: nothing beyond noise, on several noise draws.
         for seed in 1..=5 {
             let obs = positioning(1.0, seed);
-            let d = diagnose(&obs, &[EffectKind::PitchError, EffectKind::Reversal], &DiagnoseOptions::default())
-                .unwrap();
+            let d = diagnose(
+                &obs,
+                &[EffectKind::PitchError, EffectKind::Reversal],
+                &DiagnoseOptions::default(),
+            )
+            .unwrap();
             assert_eq!(d.verdict, "none", "seed {seed}: {}", d.note);
         }
     }
@@ -540,20 +762,33 @@ mod tests {
         let mut rng = Noise(5);
         let n = 1500;
         let t: Vec<f64> = (0..n).map(|i| i as f64 * 10.0).collect();
-        let temp: Vec<f64> =
-            t.iter().map(|s| 20.0 + 3.0 * (1.0 - (-s / 4000.0).exp()) + 0.5 * (s / 1500.0).sin()).collect();
-        let y: Vec<f64> = temp.iter().map(|v| 2.0 * (v - 20.0) + 0.3 * rng.normal()).collect();
+        let temp: Vec<f64> = t
+            .iter()
+            .map(|s| 20.0 + 3.0 * (1.0 - (-s / 4000.0).exp()) + 0.5 * (s / 1500.0).sin())
+            .collect();
+        let y: Vec<f64> = temp
+            .iter()
+            .map(|v| 2.0 * (v - 20.0) + 0.3 * rng.normal())
+            .collect();
         let obs = Observations {
             target_name: "drift_um".into(),
             target: y,
             held_out: (0..n).map(|i| (i / 100) % 3 == 2).collect(),
             time_s: Some(t),
-            temperatures: vec![Named { name: "spindle".into(), values: temp }],
+            temperatures: vec![Named {
+                name: "spindle".into(),
+                values: temp,
+            }],
             ..Default::default()
         };
         let d = diagnose(&obs, &[], &DiagnoseOptions::default()).unwrap();
         assert_eq!(d.verdict, "thermal_drift", "{}", d.note);
-        assert!(d.ties.iter().any(|k| k == "thermal_lag"), "ties {:?}, note {}", d.ties, d.note);
+        assert!(
+            d.ties.iter().any(|k| k == "thermal_lag"),
+            "ties {:?}, note {}",
+            d.ties,
+            d.note
+        );
         assert!(d.note.contains("simpler"), "{}", d.note);
         assert!(d.not_applicable.contains(&"cogging".to_string()));
     }
@@ -561,7 +796,15 @@ mod tests {
     #[test]
     fn rejects_a_model_effect_without_its_columns() {
         let obs = positioning(0.0, 3);
-        let err = diagnose(&obs, &[EffectKind::ThermalDrift], &DiagnoseOptions::default()).unwrap_err();
-        assert!(err.contains("thermal_drift") && err.contains("_degC"), "{err}");
+        let err = diagnose(
+            &obs,
+            &[EffectKind::ThermalDrift],
+            &DiagnoseOptions::default(),
+        )
+        .unwrap_err();
+        assert!(
+            err.contains("thermal_drift") && err.contains("_degC"),
+            "{err}"
+        );
     }
 }

@@ -31,7 +31,7 @@ pub mod report;
 pub mod stats;
 pub mod validate;
 
-pub use engine::{diagnose, Candidate, Diagnosis, DiagnoseOptions, Gap};
+pub use engine::{Candidate, DiagnoseOptions, Diagnosis, Gap, diagnose};
 pub use kind::EffectKind;
 pub use locate::Region;
 pub use obs::Observations;

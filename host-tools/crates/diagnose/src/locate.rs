@@ -66,12 +66,16 @@ fn regions_of(name: &str, v: &[f64], g: &[f64], noise2: f64, out: &mut Vec<Regio
         uniq.iter().map(|&u| (u, u)).collect()
     } else {
         let w = (hi - lo) / nb_target as f64;
-        (0..nb_target).map(|k| (lo + w * k as f64, lo + w * (k + 1) as f64)).collect()
+        (0..nb_target)
+            .map(|k| (lo + w * k as f64, lo + w * (k + 1) as f64))
+            .collect()
     };
     let nb = edges.len();
     let bin_of = |x: f64| -> usize {
         if uniq.len() <= nb_target {
-            uniq.iter().position(|&u| (u - x).abs() <= 1e-9 * (hi - lo)).unwrap_or(0)
+            uniq.iter()
+                .position(|&u| (u - x).abs() <= 1e-9 * (hi - lo))
+                .unwrap_or(0)
         } else {
             (((x - lo) / (hi - lo) * nb as f64).floor() as usize).min(nb - 1)
         }
@@ -83,10 +87,14 @@ fn regions_of(name: &str, v: &[f64], g: &[f64], noise2: f64, out: &mut Vec<Regio
         energy[b] += g[i];
         count[b] += 1;
     }
-    let excess: Vec<f64> = (0..nb).map(|b| energy[b] - noise2 * count[b] as f64).collect();
+    let excess: Vec<f64> = (0..nb)
+        .map(|b| energy[b] - noise2 * count[b] as f64)
+        .collect();
     let mut allowed = vec![true; nb];
     for k in 0..2 {
-        let Some((s, e, _)) = kadane(&excess, &allowed) else { break };
+        let Some((s, e, _)) = kadane(&excess, &allowed) else {
+            break;
+        };
         let share = energy[s..=e].iter().sum::<f64>() / total;
         let rows = count[s..=e].iter().sum::<usize>() as f64 / n as f64;
         if k == 1 && share < 0.1 {
@@ -101,7 +109,11 @@ fn regions_of(name: &str, v: &[f64], g: &[f64], noise2: f64, out: &mut Vec<Regio
             lift: if rows > 0.0 { share / rows } else { 0.0 },
         });
         // Exclude the region and its neighbours so a second region is disjoint.
-        for a in allowed.iter_mut().take((e + 2).min(nb)).skip(s.saturating_sub(1)) {
+        for a in allowed
+            .iter_mut()
+            .take((e + 2).min(nb))
+            .skip(s.saturating_sub(1))
+        {
             *a = false;
         }
     }
@@ -137,12 +149,20 @@ mod tests {
         // Gap energy 25 only for x in [80, 100], noise 1 elsewhere: the region must be [80, 100] and hold
         // 25·21/(25·21 + 80) ≈ 0.868 of the gap (reference: direct count; tol 1e-9).
         let v: Vec<f64> = (0..=100).map(|i| i as f64).collect();
-        let g: Vec<f64> = v.iter().map(|&x| if x >= 80.0 { 25.0 } else { 1.0 }).collect();
+        let g: Vec<f64> = v
+            .iter()
+            .map(|&x| if x >= 80.0 { 25.0 } else { 1.0 })
+            .collect();
         let mut out = Vec::new();
         regions_of("target_mm", &v, &g, 1.0, &mut out);
         let r = &out[0];
         assert!(r.from >= 75.0 && r.from <= 80.0 && r.to == 100.0, "{r:?}");
-        let inside: f64 = v.iter().zip(&g).filter(|(x, _)| **x >= r.from).map(|(_, g)| g).sum();
+        let inside: f64 = v
+            .iter()
+            .zip(&g)
+            .filter(|(x, _)| **x >= r.from)
+            .map(|(_, g)| g)
+            .sum();
         assert!((r.share - inside / g.iter().sum::<f64>()).abs() < 1e-9);
     }
 }

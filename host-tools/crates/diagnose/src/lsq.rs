@@ -33,7 +33,11 @@ fn scales(cols: &[Vec<f64>], rows: &[usize]) -> Vec<f64> {
         .map(|c| {
             let ss: f64 = rows.iter().map(|&i| c[i] * c[i]).sum();
             let rms = (ss / rows.len().max(1) as f64).sqrt();
-            if rms.is_finite() && rms > 1e-300 { rms } else { 0.0 }
+            if rms.is_finite() && rms > 1e-300 {
+                rms
+            } else {
+                0.0
+            }
         })
         .collect()
 }
@@ -62,7 +66,10 @@ fn gram(cols: &[Vec<f64>], s: &[f64], rows: &[usize]) -> DMatrix<f64> {
 pub fn fit(cols: &[Vec<f64>], y: &[f64], rows: &[usize]) -> LsFit {
     let p = cols.len();
     if p == 0 {
-        return LsFit { coef: vec![], rank: 0 };
+        return LsFit {
+            coef: vec![],
+            rank: 0,
+        };
     }
     let s = scales(cols, rows);
     let g = gram(cols, &s, rows);
@@ -85,7 +92,9 @@ pub fn fit(cols: &[Vec<f64>], y: &[f64], rows: &[usize]) -> LsFit {
             beta += v * w;
         }
     }
-    let coef = (0..p).map(|a| if s[a] != 0.0 { beta[a] / s[a] } else { 0.0 }).collect();
+    let coef = (0..p)
+        .map(|a| if s[a] != 0.0 { beta[a] / s[a] } else { 0.0 })
+        .collect();
     LsFit { coef, rank }
 }
 
@@ -226,6 +235,11 @@ mod tests {
         let rss1: f64 = (0..n).map(|i| (y[i] - f1.predict(&full, i)).powi(2)).sum();
         let p = Projector::new(&base, &rows);
         let d = p.rss_drop(&r, &[z]);
-        assert!(((rss0 - rss1) - d).abs() < 1e-8 * rss0, "{} vs {}", rss0 - rss1, d);
+        assert!(
+            ((rss0 - rss1) - d).abs() < 1e-8 * rss0,
+            "{} vs {}",
+            rss0 - rss1,
+            d
+        );
     }
 }

@@ -57,10 +57,16 @@ impl Observations {
         }
         let check = |name: &str, v: &[f64]| -> Result<(), String> {
             if v.len() != n {
-                return Err(format!("column `{name}` has {} values, expected {n}", v.len()));
+                return Err(format!(
+                    "column `{name}` has {} values, expected {n}",
+                    v.len()
+                ));
             }
             if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(format!("column `{name}`: value in data row {} is not finite", i + 1));
+                return Err(format!(
+                    "column `{name}`: value in data row {} is not finite",
+                    i + 1
+                ));
             }
             Ok(())
         };
@@ -109,7 +115,10 @@ impl Observations {
             .iter()
             .map(|t| {
                 let t0 = t.values[order[0]];
-                Named { name: t.name.clone(), values: t.values.iter().map(|v| v - t0).collect() }
+                Named {
+                    name: t.name.clone(),
+                    values: t.values.iter().map(|v| v - t0).collect(),
+                }
             })
             .collect()
     }

@@ -23,8 +23,13 @@ fn fmt_params(p: &serde_json::Map<String, serde_json::Value>) -> String {
 }
 
 /// Writes `diagnosis.md` and the figures into `dir` (created if needed). Returns the files written.
-pub fn write_report(dir: &Path, obs: &Observations, d: &Diagnosis) -> anyhow::Result<Vec<std::path::PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+pub fn write_report(
+    dir: &Path,
+    obs: &Observations,
+    d: &Diagnosis,
+) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     let hold = obs.holdout_rows();
     let after = d.verdict_candidate().map(|c| &c.residual_after);
     let mut written = Vec::new();
@@ -55,7 +60,8 @@ pub fn write_report(dir: &Path, obs: &Observations, d: &Diagnosis) -> anyhow::Re
         }
         let name = format!("gap_{var}.svg");
         let path = dir.join(&name);
-        f.save_svg(&path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+        f.save_svg(&path)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
         figs.push(name);
         written.push(path);
     }
@@ -65,7 +71,11 @@ pub fn write_report(dir: &Path, obs: &Observations, d: &Diagnosis) -> anyhow::Re
     let model: Vec<&str> = d.model.iter().map(|m| m.kind.as_str()).collect();
     md.push_str(&format!(
         "Model: {} (+ intercept), fitted on {} training rows; judged on {} held-out rows.\n\n",
-        if model.is_empty() { "nothing".to_string() } else { model.join(", ") },
+        if model.is_empty() {
+            "nothing".to_string()
+        } else {
+            model.join(", ")
+        },
         d.n_train,
         d.n_holdout
     ));
@@ -74,7 +84,11 @@ pub fn write_report(dir: &Path, obs: &Observations, d: &Diagnosis) -> anyhow::Re
     md.push_str(&markdown_table(
         &["", "RMS (µm)", "max (µm)"],
         &[
-            vec!["training rows".to_string(), format!("{:.3}", d.gap.train_rms_um), "–".to_string()],
+            vec![
+                "training rows".to_string(),
+                format!("{:.3}", d.gap.train_rms_um),
+                "–".to_string(),
+            ],
             vec![
                 "held-out rows, model as given".to_string(),
                 format!("{:.3}", d.gap.holdout_rms_um),
@@ -83,13 +97,22 @@ pub fn write_report(dir: &Path, obs: &Observations, d: &Diagnosis) -> anyhow::Re
             match d.verdict_candidate() {
                 Some(c) => vec![
                     format!("held-out rows, refitted with `{}`", c.kind),
-                    format!("{:.3} ({:+.1} % shrink)", c.holdout_rms_after_um, -c.shrink_pct),
+                    format!(
+                        "{:.3} ({:+.1} % shrink)",
+                        c.holdout_rms_after_um, -c.shrink_pct
+                    ),
                     format!(
                         "{:.3}",
-                        hold.iter().map(|&i| c.residual_after[i].abs()).fold(0.0, f64::max)
+                        hold.iter()
+                            .map(|&i| c.residual_after[i].abs())
+                            .fold(0.0, f64::max)
                     ),
                 ],
-                None => vec!["held-out rows, refitted".to_string(), "no verdict".to_string(), "–".to_string()],
+                None => vec![
+                    "held-out rows, refitted".to_string(),
+                    "no verdict".to_string(),
+                    "–".to_string(),
+                ],
             },
         ],
     ));
@@ -110,7 +133,16 @@ pub fn write_report(dir: &Path, obs: &Observations, d: &Diagnosis) -> anyhow::Re
                 ]
             })
             .collect();
-        md.push_str(&markdown_table(&["variable", "region", "share of gap", "share of rows", "lift"], &rows));
+        md.push_str(&markdown_table(
+            &[
+                "variable",
+                "region",
+                "share of gap",
+                "share of rows",
+                "lift",
+            ],
+            &rows,
+        ));
     }
     for f in &figs {
         md.push_str(&format!("\n![{f}]({f})\n"));
@@ -121,7 +153,15 @@ pub fn write_report(dir: &Path, obs: &Observations, d: &Diagnosis) -> anyhow::Re
         .iter()
         .map(|c| {
             vec![
-                format!("`{}`{}", c.kind, if c.explains { "" } else { " (not beyond noise)" }),
+                format!(
+                    "`{}`{}",
+                    c.kind,
+                    if c.explains {
+                        ""
+                    } else {
+                        " (not beyond noise)"
+                    }
+                ),
                 format!("{:.1}", c.score),
                 format!("{:.3}", c.holdout_rms_after_um),
                 format!("{:.1}", c.shrink_pct),
@@ -148,15 +188,21 @@ pub fn write_report(dir: &Path, obs: &Observations, d: &Diagnosis) -> anyhow::Re
         &rows,
     ));
     if !d.not_applicable.is_empty() {
-        md.push_str(&format!("\nNot applicable to these columns: {}.\n", d.not_applicable.join(", ")));
+        md.push_str(&format!(
+            "\nNot applicable to these columns: {}.\n",
+            d.not_applicable.join(", ")
+        ));
     }
     md.push_str(&format!(
         "\nResidual whiteness (training rows, lag-1 autocorrelation): time order {:.3}{}.\n",
         d.residual_checks.lag1_autocorr_time,
-        d.residual_checks.lag1_autocorr_position.map_or(String::new(), |r| format!(", position order {r:.3}"))
+        d.residual_checks
+            .lag1_autocorr_position
+            .map_or(String::new(), |r| format!(", position order {r:.3}"))
     ));
     let path = dir.join("diagnosis.md");
-    axcomp_plot::write_atomic(&path, md.as_bytes()).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+    axcomp_plot::write_atomic(&path, md.as_bytes())
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
     written.push(path);
     Ok(written)
 }

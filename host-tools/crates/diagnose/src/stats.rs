@@ -123,7 +123,11 @@ pub fn median(v: &mut [f64]) -> f64 {
     }
     v.sort_by(|a, b| a.total_cmp(b));
     let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
 }
 
 /// One-sided paired test that `mean(d) > 0`: returns (t statistic, p-value).
@@ -135,7 +139,11 @@ pub fn paired_t(d: &[f64]) -> (f64, f64) {
     let m = d.iter().sum::<f64>() / n as f64;
     let var = d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64;
     if var <= 0.0 {
-        return if m > 0.0 { (f64::INFINITY, 0.0) } else { (0.0, 1.0) };
+        return if m > 0.0 {
+            (f64::INFINITY, 0.0)
+        } else {
+            (0.0, 1.0)
+        };
     }
     let t = m / (var / n as f64).sqrt();
     (t, t_sf(t, (n - 1) as f64))
@@ -150,8 +158,16 @@ mod tests {
         // References: F(2, d2) has the closed form sf = (1 + 2f/d2)^(−d2/2) → 1.12^−25; Student t table
         // pt(2.0, 10, lower=FALSE) = 0.036694; lgamma(10) = ln(362880). Tolerance 1e-5 absolute.
         let f_ref = 1.12f64.powf(-25.0);
-        assert!((f_sf(3.0, 2.0, 50.0) - f_ref).abs() < 1e-9, "{} vs {f_ref}", f_sf(3.0, 2.0, 50.0));
-        assert!((t_sf(2.0, 10.0) - 0.036694).abs() < 1e-5, "{}", t_sf(2.0, 10.0));
+        assert!(
+            (f_sf(3.0, 2.0, 50.0) - f_ref).abs() < 1e-9,
+            "{} vs {f_ref}",
+            f_sf(3.0, 2.0, 50.0)
+        );
+        assert!(
+            (t_sf(2.0, 10.0) - 0.036694).abs() < 1e-5,
+            "{}",
+            t_sf(2.0, 10.0)
+        );
         assert!((ln_gamma(10.0) - 362880f64.ln()).abs() < 1e-9);
         assert!((t_sf(-2.0, 10.0) - (1.0 - 0.036694)).abs() < 1e-5);
     }

@@ -43,7 +43,14 @@ pub struct ValidateOptions {
 
 impl Default for ValidateOptions {
     fn default() -> Self {
-        ValidateOptions { cases: 100, seed: 1, snrs: vec![3.0, 4.0, 6.0, 8.0], rows: 5000, noise_um: 0.5, null_every: 4 }
+        ValidateOptions {
+            cases: 100,
+            seed: 1,
+            snrs: vec![3.0, 4.0, 6.0, 8.0],
+            rows: 5000,
+            noise_um: 0.5,
+            null_every: 4,
+        }
     }
 }
 
@@ -53,7 +60,10 @@ impl ValidateOptions {
             return Err("--cases must be ≥ 1".into());
         }
         if self.snrs.is_empty() || self.snrs.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(format!("--snr needs positive finite values, got {:?}", self.snrs));
+            return Err(format!(
+                "--snr needs positive finite values, got {:?}",
+                self.snrs
+            ));
         }
         if self.rows < 100 {
             return Err(format!("--rows must be ≥ 100, got {}", self.rows));
@@ -121,8 +131,17 @@ fn plan_for(withheld: Option<EffectKind>, index: usize) -> &'static str {
         Some(EffectKind::ForceDeflection) => "load",
         Some(EffectKind::FollowingError) => "scan",
         Some(EffectKind::Abbe) => "abbe",
-        Some(EffectKind::ThermalDrift | EffectKind::ThermalLag | EffectKind::TimeDrift | EffectKind::ScaleExpansion) => {
-            if (index / 7) % 2 == 0 { "thermal" } else { "iso230" }
+        Some(
+            EffectKind::ThermalDrift
+            | EffectKind::ThermalLag
+            | EffectKind::TimeDrift
+            | EffectKind::ScaleExpansion,
+        ) => {
+            if (index / 7) % 2 == 0 {
+                "thermal"
+            } else {
+                "iso230"
+            }
         }
         Some(_) => "iso230",
     }
@@ -132,9 +151,15 @@ fn plan_for(withheld: Option<EffectKind>, index: usize) -> &'static str {
 fn background(plan: &str, withheld: Option<EffectKind>, rng: &mut StdRng) -> Vec<EffectKind> {
     use EffectKind::*;
     let (base, extra): (Vec<EffectKind>, Vec<EffectKind>) = match plan {
-        "iso230" | "abbe" => (vec![PitchError, Reversal], vec![Cogging, ScaleExpansion, ThermalDrift, TimeDrift, EndEffect]),
+        "iso230" | "abbe" => (
+            vec![PitchError, Reversal],
+            vec![Cogging, ScaleExpansion, ThermalDrift, TimeDrift, EndEffect],
+        ),
         "scan" => (vec![PitchError, Reversal], vec![Cogging, EndEffect]),
-        "thermal" => (vec![PitchError], vec![ThermalDrift, ScaleExpansion, ThermalLag]),
+        "thermal" => (
+            vec![PitchError],
+            vec![ThermalDrift, ScaleExpansion, ThermalLag],
+        ),
         "load" => (vec![PitchError, Reversal], vec![Cogging]),
         _ => (vec![PitchError], vec![]),
     };
@@ -164,19 +189,31 @@ pub fn observations_from_campaign(c: &twin::Campaign, deviation: &[f64]) -> Obse
             .sensor_names
             .iter()
             .enumerate()
-            .map(|(s, name)| Named { name: name.clone(), values: col(&|r| r.temps_degc[s]) })
+            .map(|(s, name)| Named {
+                name: name.clone(),
+                values: col(&|r| r.temps_degc[s]),
+            })
             .collect(),
-        forces: vec![Named { name: "force".into(), values: col(&|r| r.force_n) }],
+        forces: vec![Named {
+            name: "force".into(),
+            values: col(&|r| r.force_n),
+        }],
         velocity_mm_s: Some(col(&|r| r.velocity_mm_s)),
         accel_mm_s2: Some(col(&|r| r.accel_mm_s2)),
         offset_mm: Some(col(&|r| r.offset_mm)),
     }
 }
 
-fn searched_param(kind: EffectKind, axis: &twin::Axis, params: &serde_json::Map<String, serde_json::Value>) -> Option<f64> {
+fn searched_param(
+    kind: EffectKind,
+    axis: &twin::Axis,
+    params: &serde_json::Map<String, serde_json::Value>,
+) -> Option<f64> {
     let get = |k: &str| params.get(k).and_then(|v| v.as_f64());
     match (kind, axis.effect(twin_kind(kind))?) {
-        (EffectKind::Cogging, twin::Effect::Cogging(e)) => Some((get("period_mm")? - e.period_mm).abs() / e.period_mm),
+        (EffectKind::Cogging, twin::Effect::Cogging(e)) => {
+            Some((get("period_mm")? - e.period_mm).abs() / e.period_mm)
+        }
         (EffectKind::InterpolationError, twin::Effect::InterpolationError(e)) => {
             let p = get("signal_period_um")? / get("harmonic")?;
             Some((p - e.signal_period_um).abs() / e.signal_period_um)
@@ -185,7 +222,9 @@ fn searched_param(kind: EffectKind, axis: &twin::Axis, params: &serde_json::Map<
             let t = e.terms.first()?.tau_s;
             Some((get("tau_s")? - t).abs() / t)
         }
-        (EffectKind::EndEffect, twin::Effect::EndEffect(e)) => Some((get("decay_mm")? - e.decay_mm).abs() / e.decay_mm),
+        (EffectKind::EndEffect, twin::Effect::EndEffect(e)) => {
+            Some((get("decay_mm")? - e.decay_mm).abs() / e.decay_mm)
+        }
         _ => None,
     }
 }
@@ -199,7 +238,11 @@ fn corr2(a: &[f64], b: &[f64]) -> f64 {
         saa += (x - ma).powi(2);
         sbb += (y - mb).powi(2);
     }
-    if saa > 0.0 && sbb > 0.0 { sab * sab / (saa * sbb) } else { 0.0 }
+    if saa > 0.0 && sbb > 0.0 {
+        sab * sab / (saa * sbb)
+    } else {
+        0.0
+    }
 }
 
 /// One simulated case, ready to diagnose.
@@ -223,7 +266,11 @@ pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, Strin
     let mut rng = StdRng::seed_from_u64(seed);
     let null = index % opts.null_every == opts.null_every - 1;
     let j = index - index / opts.null_every; // index among the non-null cases
-    let withheld = if null { None } else { Some(WITHHELD[j % WITHHELD.len()]) };
+    let withheld = if null {
+        None
+    } else {
+        Some(WITHHELD[j % WITHHELD.len()])
+    };
     let snr = withheld.map(|_| opts.snrs[(j / WITHHELD.len()) % opts.snrs.len()]);
     let plan_name = plan_for(withheld, index);
     let model = background(plan_name, withheld, &mut rng);
@@ -232,7 +279,8 @@ pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, Strin
         kinds.push(twin_kind(w));
     }
     let axis = twin::Axis::random(&kinds, &mut rng).with_noise_um(opts.noise_um);
-    let plan = twin::Plan::by_name(plan_name, axis.start_mm, axis.end_mm, Some(opts.rows)).map_err(|e| e.to_string())?;
+    let plan = twin::Plan::by_name(plan_name, axis.start_mm, axis.end_mm, Some(opts.rows))
+        .map_err(|e| e.to_string())?;
     let campaign = twin::simulate(&axis, &plan, None, seed).map_err(|e| e.to_string())?;
     let mut y = campaign.deviations_um();
     let probe = observations_from_campaign(&campaign, &y);
@@ -243,7 +291,9 @@ pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, Strin
         let tk = twin_kind(w);
         let peak = campaign.peak_contribution_um(tk, hold.iter().cloned());
         if !(peak > 0.0) {
-            return Err(format!("case {index}: withheld {w} has no contribution on the held-out rows"));
+            return Err(format!(
+                "case {index}: withheld {w} has no contribution on the held-out rows"
+            ));
         }
         let f = snr * opts.noise_um / peak;
         for i in 0..y.len() {
@@ -253,13 +303,32 @@ pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, Strin
         }
     }
     let obs = Observations { target: y, ..probe };
-    Ok(CaseData { index, seed, plan: plan_name, withheld, snr, model, axis, obs, truth_um: truth_c })
+    Ok(CaseData {
+        index,
+        seed,
+        plan: plan_name,
+        withheld,
+        snr,
+        model,
+        axis,
+        obs,
+        truth_um: truth_c,
+    })
 }
 
 /// Simulates and diagnoses case `index`.
 pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, String> {
-    let CaseData { index, seed, plan: plan_name, withheld, snr, model, axis, obs, truth_um: truth_c } =
-        make_case(opts, index)?;
+    let CaseData {
+        index,
+        seed,
+        plan: plan_name,
+        withheld,
+        snr,
+        model,
+        axis,
+        obs,
+        truth_um: truth_c,
+    } = make_case(opts, index)?;
     let y = obs.target.clone();
     let hold = obs.holdout_rows();
     let train = obs.train_rows();
@@ -284,11 +353,19 @@ pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, Stri
         if w == EffectKind::EndEffect {
             let energy: f64 = hold.iter().map(|&i| truth_c[i].powi(2)).sum();
             let x = obs.position_mm.as_ref().expect("positions");
-            localised = Some(d.where_.iter().find(|r| r.variable == "target_mm").is_some_and(|r| {
-                let inside: f64 =
-                    hold.iter().filter(|&&i| x[i] >= r.from && x[i] <= r.to).map(|&i| truth_c[i].powi(2)).sum();
-                inside >= 0.5 * energy && r.lift >= 1.2
-            }));
+            localised = Some(
+                d.where_
+                    .iter()
+                    .find(|r| r.variable == "target_mm")
+                    .is_some_and(|r| {
+                        let inside: f64 = hold
+                            .iter()
+                            .filter(|&&i| x[i] >= r.from && x[i] <= r.to)
+                            .map(|&i| truth_c[i].powi(2))
+                            .sum();
+                        inside >= 0.5 * energy && r.lift >= 1.2
+                    }),
+            );
         }
         if correct {
             let c = d.verdict_candidate().expect("verdict candidate");
@@ -327,6 +404,10 @@ pub struct SnrRow {
     pub detection_rate: f64,
     pub top1_attribution: f64,
     pub median_shrink_ratio_to_oracle: f64,
+    /// Cases whose oracle shrinks the held-out RMS by ≥ 1 % (the withheld effect is visible at all
+    /// next to the model's own terms), and the top-1 attribution on them.
+    pub identifiable_cases: usize,
+    pub identifiable_top1_attribution: f64,
 }
 
 /// The validation summary (`--json` writes this with the cases).
@@ -355,9 +436,21 @@ pub struct Summary {
     pub case_results: Vec<CaseResult>,
 }
 
+/// Minimum oracle held-out shrink (%) for a case to count as identifiable.
+pub const IDENTIFIABLE_ORACLE_SHRINK_PCT: f64 = 1.0;
+
+fn identifiable(c: &CaseResult) -> bool {
+    c.oracle_shrink_pct
+        .is_some_and(|o| o >= IDENTIFIABLE_ORACLE_SHRINK_PCT)
+}
+
 fn ratio(c: &CaseResult) -> Option<f64> {
     let o = c.oracle_shrink_pct?;
-    if o > 0.0 { Some(c.shrink_pct.max(0.0) / o) } else { None }
+    if o > 0.0 {
+        Some(c.shrink_pct.max(0.0) / o)
+    } else {
+        None
+    }
 }
 
 fn frac(v: impl Iterator<Item = bool>) -> f64 {
@@ -366,7 +459,11 @@ fn frac(v: impl Iterator<Item = bool>) -> f64 {
         n += 1;
         k += b as usize;
     }
-    if n == 0 { f64::NAN } else { k as f64 / n as f64 }
+    if n == 0 {
+        f64::NAN
+    } else {
+        k as f64 / n as f64
+    }
 }
 
 /// Summarises case results.
@@ -387,6 +484,10 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
                 detection_rate: frac(cs.iter().map(|c| c.verdict != "none")),
                 top1_attribution: frac(cs.iter().map(|c| c.correct)),
                 median_shrink_ratio_to_oracle: stats::median(&mut r),
+                identifiable_cases: cs.iter().filter(|c| identifiable(c)).count(),
+                identifiable_top1_attribution: frac(
+                    cs.iter().filter(|c| identifiable(c)).map(|c| c.correct),
+                ),
             }
         })
         .collect();
@@ -395,7 +496,10 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
     let mut confusion = vec![vec![0usize; labels.len() + 1]; labels.len()];
     for c in &results {
         let t = labels.iter().position(|l| *l == c.withheld).unwrap_or(0);
-        let v = labels.iter().position(|l| *l == c.verdict).unwrap_or(labels.len());
+        let v = labels
+            .iter()
+            .position(|l| *l == c.verdict)
+            .unwrap_or(labels.len());
         confusion[t][v] += 1;
     }
     let loc: Vec<bool> = results.iter().filter_map(|c| c.localised).collect();
@@ -414,10 +518,22 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
         false_alarm_rate: frac(nulls.iter().map(|c| c.verdict != "none")),
         detection_rate: frac(non_null.iter().map(|c| c.verdict != "none")),
         top1_attribution: frac(non_null.iter().map(|c| c.correct)),
-        localisation_accuracy: if loc.is_empty() { None } else { Some(frac(loc.iter().cloned())) },
+        localisation_accuracy: if loc.is_empty() {
+            None
+        } else {
+            Some(frac(loc.iter().cloned()))
+        },
         localisation_cases: loc.len(),
-        median_param_rel_error: if pe.is_empty() { None } else { Some(stats::median(&mut pe)) },
-        median_contribution_r2: if r2.is_empty() { None } else { Some(stats::median(&mut r2)) },
+        median_param_rel_error: if pe.is_empty() {
+            None
+        } else {
+            Some(stats::median(&mut pe))
+        },
+        median_contribution_r2: if r2.is_empty() {
+            None
+        } else {
+            Some(stats::median(&mut r2))
+        },
         median_shrink_ratio_to_oracle: stats::median(&mut ratios),
         median_seconds: stats::median(&mut secs),
         max_seconds,
@@ -428,7 +544,10 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
 }
 
 /// Runs every case, calling `progress` after each.
-pub fn validate(opts: &ValidateOptions, mut progress: impl FnMut(&CaseResult)) -> Result<Summary, String> {
+pub fn validate(
+    opts: &ValidateOptions,
+    mut progress: impl FnMut(&CaseResult),
+) -> Result<Summary, String> {
     let mut results = Vec::with_capacity(opts.cases);
     for i in 0..opts.cases {
         let r = run_case(opts, i)?;
@@ -446,15 +565,17 @@ impl Summary {
             "Withheld-effect validation: {} cases ({} null), {} rows each, noise σ {} µm, seed {}.\n\n",
             self.cases, self.null_cases, self.rows_per_case, self.noise_um, self.seed
         ));
-        s.push_str("| SNR | cases | detection | top-1 attribution | median shrink / oracle |\n|---|---|---|---|---|\n");
+        s.push_str("| SNR | cases | detection | top-1 attribution | median shrink / oracle | identifiable cases (oracle shrink ≥ 1 %) | top-1 on those |\n|---|---|---|---|---|---|---|\n");
         for r in &self.per_snr {
             s.push_str(&format!(
-                "| {} | {} | {:.1} % | {:.1} % | {:.2} |\n",
+                "| {} | {} | {:.1} % | {:.1} % | {:.2} | {} | {:.1} % |\n",
                 r.snr,
                 r.cases,
                 100.0 * r.detection_rate,
                 100.0 * r.top1_attribution,
-                r.median_shrink_ratio_to_oracle
+                r.median_shrink_ratio_to_oracle,
+                r.identifiable_cases,
+                100.0 * r.identifiable_top1_attribution
             ));
         }
         let opt = |v: Option<f64>, pct: bool| match v {
@@ -477,10 +598,17 @@ impl Summary {
             self.max_seconds
         ));
         s.push_str("\nConfusion matrix (rows: withheld, columns: verdict; only non-empty rows/columns):\n\n");
-        let mut cols: Vec<usize> =
-            (0..=self.labels.len()).filter(|&j| self.confusion.iter().any(|r| r[j] > 0)).collect();
+        let mut cols: Vec<usize> = (0..=self.labels.len())
+            .filter(|&j| self.confusion.iter().any(|r| r[j] > 0))
+            .collect();
         cols.sort();
-        let name = |j: usize| if j < self.labels.len() { self.labels[j].clone() } else { "other".into() };
+        let name = |j: usize| {
+            if j < self.labels.len() {
+                self.labels[j].clone()
+            } else {
+                "other".into()
+            }
+        };
         s.push_str("| withheld \\ verdict |");
         for &j in &cols {
             s.push_str(&format!(" {} |", name(j)));

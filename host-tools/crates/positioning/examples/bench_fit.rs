@@ -65,12 +65,13 @@ fn main() {
     println!("bench fit_positioning_1m_points {best:.3} s");
     // On a shared machine the wall time includes waiting for a core; the thread's CPU time does not.
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    println!(
-        "bench fit_positioning_1m_points_cpu {best_cpu:.3} s (single thread; load average {})",
+    println!("bench fit_positioning_1m_points_cpu {best_cpu:.3} s");
+    eprintln!(
+        "(cpu: single thread; load average {} while measuring)",
         load.split_whitespace().next().unwrap_or("?")
     );
     let r = last.unwrap();
-    println!(
+    eprintln!(
         "chosen {} ({} candidates), raw RMS {:.3} µm, CV RMS {:.4} µm (noise σ = 1), {} segments",
         r.chosen,
         r.candidates.len(),

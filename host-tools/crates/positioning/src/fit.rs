@@ -1364,6 +1364,70 @@ mod tests {
     }
 
     #[test]
+    fn feature_knots_gather_where_the_curve_bends() {
+        // Pilot: flat on [0, 80], a sharp bend (end effect) on [80, 100]. Reference: with density ∝ √|f''|
+        // plus a 25 % floor, most of the 16 intervals must fall into the bending fifth of the stroke.
+        let x: Vec<f64> = (0..=100).map(|i| i as f64).collect();
+        let y: Vec<f64> = x
+            .iter()
+            .map(|&v| {
+                if v < 80.0 {
+                    0.0
+                } else {
+                    0.05 * (v - 80.0).powi(3)
+                }
+            })
+            .collect();
+        let pilot = spline::interpolate(&x, &y, EndCondition::Natural).unwrap();
+        let b = feature_breaks(&pilot, 0.0, 100.0, 16);
+        assert_eq!((b[0], *b.last().unwrap()), (0.0, 100.0));
+        assert!(b.windows(2).all(|w| w[1] > w[0]));
+        let in_bend = b.windows(2).filter(|w| w[0] >= 78.0).count();
+        assert!(in_bend >= 8, "{in_bend} of 16 intervals in the bend: {b:?}");
+    }
+
+    #[test]
+    fn smoothing_parameter_follows_the_data() {
+        // Reference: the CV-chosen ρ is large on a straight line plus noise and small on a wiggly curve
+        // with little noise. Unidirectional data, 5 runs.
+        let mut noise = Noise(5);
+        let mut make = |f: &dyn Fn(f64) -> f64, sigma: f64| -> Vec<Observation> {
+            (0..500)
+                .map(|i| {
+                    let x = 100.0 * noise.uniform();
+                    Observation {
+                        target_mm: x,
+                        direction: 0,
+                        run: i % 5,
+                        deviation_um: f(x) + sigma * noise.normal(),
+                    }
+                })
+                .collect()
+        };
+        let only = FitOptions {
+            only: vec!["smoothing_spline_uniform".into()],
+            ..FitOptions::default()
+        };
+        let straight = fit(&make(&|x| 0.1 * x, 2.0), &only).unwrap();
+        let wiggly = fit(&make(&|x| 10.0 * (x / 4.0).sin(), 0.1), &only).unwrap();
+        let rho = |r: &FitResult| r.candidates[0].rho[0];
+        // Straight line + σ 2: the roughest allowed penalty wins (ρ = 10³, top of the grid: nearly a line).
+        assert!(rho(&straight) >= 1e2, "straight: ρ = {}", rho(&straight));
+        // Wiggly curve + σ 0.1: three or more decades less smoothing, CV RMS within 20 % of σ.
+        assert!(
+            rho(&wiggly) <= 1e-3 * rho(&straight),
+            "wiggly: ρ = {}",
+            rho(&wiggly)
+        );
+        assert!(wiggly.cv_rms_um < 0.12, "wiggly CV {}", wiggly.cv_rms_um);
+        assert!(
+            straight.cv_rms_um < 2.0 * 1.05,
+            "straight CV {}",
+            straight.cv_rms_um
+        );
+    }
+
+    #[test]
     fn bad_input_is_an_error() {
         let o = |x: f64, y: f64| Observation {
             target_mm: x,

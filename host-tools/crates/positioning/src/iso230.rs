@@ -462,4 +462,70 @@ mod tests {
         }
         close(r.r_um, 0.05516, "R = max R_i");
     }
+
+    /// Every test of the tidy ESS file against its own report (the 8 MUTS week-42 runs; B02 X is checked
+    /// in detail above). The report figures are parsed at run time from `source_files/<report>.md` (`NAME =
+    /// value [mm]` lines, 5 decimals). Direction labels swapped as for B02 X (PROVENANCE.md caveat 2:
+    /// assumed for these runs), so report fwd ↔ our ↓. Tolerance 0.02 µm (report rounding).
+    #[test]
+    fn ess_muts_reports() {
+        let Some(sh) = shared() else { return };
+        let dir = sh.join("data/real/ess-linear-axes-iso230");
+        let path = dir.join("tidy/iso230_2_runs_long.csv");
+        let all = Dataset::load(&path, &axcomp_data::LoadOptions::default()).unwrap();
+        let ids = all.text("test_id").unwrap();
+        let sources = all.text("source_file").unwrap();
+        let mut tests: Vec<(String, String)> = Vec::new();
+        for (id, src) in ids.iter().zip(&sources) {
+            if !tests.iter().any(|(t, _)| t == id) {
+                tests.push((id.to_string(), src.to_string()));
+            }
+        }
+        let mut checked = 0;
+        for (id, src) in &tests {
+            let Some(report) = src.strip_suffix("_ISO230.dat") else {
+                continue;
+            };
+            let report_path = dir.join("source_files").join(report);
+            if id.contains("B02") || !report_path.is_file() {
+                continue;
+            }
+            let text = std::fs::read_to_string(&report_path).unwrap();
+            let value = |name: &str| -> f64 {
+                let prefix = format!("{name} = ");
+                text.lines()
+                    .map(|l| l.trim().trim_matches('*'))
+                    .find_map(|l| {
+                        let v = l.strip_prefix(&prefix)?.split_whitespace().next()?;
+                        v.parse::<f64>().ok()
+                    })
+                    .unwrap_or_else(|| panic!("{report}: no `{name} = <number>` line"))
+                    * 1000.0
+            };
+            let opts =
+                axcomp_data::LoadOptions::from_args(&[format!("test_id={id}")], &[], &[]).unwrap();
+            let ds = Dataset::load(&path, &opts).unwrap();
+            let r = evaluate(&points_from_dataset(&ds, "deviation_um").unwrap()).unwrap();
+            let tol = 0.02;
+            for (what, ours, theirs) in [
+                ("B", r.b_um, value("B")),
+                ("B_avg (sign: fwd − bwd)", -r.b_mean_um, value("B_avg")),
+                ("M", r.m_um, value("M")),
+                ("A", r.a_um, value("A")),
+                ("A_fwd = our A↓", r.a_down_um, value("A_fwd")),
+                ("A_bwd = our A↑", r.a_up_um, value("A_bwd")),
+                ("E_fwd = our E↓", r.e_down_um, value("E_fwd")),
+                ("E_bwd = our E↑", r.e_up_um, value("E_bwd")),
+                ("R_fwd = our R↓", r.r_down_um, value("R_fwd")),
+                ("R_bwd = our R↑", r.r_up_um, value("R_bwd")),
+            ] {
+                assert!(
+                    (ours - theirs).abs() <= tol,
+                    "{id} {what}: ours {ours:.3} µm, report {theirs:.3} µm"
+                );
+            }
+            checked += 1;
+        }
+        assert_eq!(checked, 8, "MUTS reports checked");
+    }
 }

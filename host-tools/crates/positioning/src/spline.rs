@@ -330,6 +330,9 @@ pub struct BSplineBasis {
     /// For non-uniform breakpoints: interval index at the left edge of each of `8·m` equal cells, so that
     /// finding a position's interval is a table lookup and a short scan instead of a binary search.
     cells: Vec<u32>,
+    /// Per interval, the reciprocals of the six knot differences of the Cox–de Boor recursion, so that
+    /// evaluating the basis needs no division.
+    inv: Vec<[f64; 6]>,
 }
 
 impl BSplineBasis {
@@ -361,11 +364,19 @@ impl BSplineBasis {
                 })
                 .collect()
         };
+        let inv = (0..m)
+            .map(|j| {
+                let i = j + 3;
+                let d = |a: usize, b: usize| 1.0 / (knots[i + a] - knots[i + 1 - b]);
+                [d(1, 1), d(1, 2), d(2, 1), d(1, 3), d(2, 2), d(3, 1)]
+            })
+            .collect();
         Ok(BSplineBasis {
             breaks,
             knots,
             uniform,
             cells,
+            inv,
         })
     }
 
@@ -438,16 +449,20 @@ impl BSplineBasis {
         let j = self.interval(x);
         let i = j + 3; // span in the clamped knot vector
         let u = &self.knots;
+        let inv = &self.inv[j];
         let mut n = [0.0; 4];
         let mut left = [0.0; 4];
         let mut right = [0.0; 4];
         n[0] = 1.0;
+        let mut k = 0;
         for d in 1..=3 {
             left[d] = x - u[i + 1 - d];
             right[d] = u[i + d] - x;
             let mut saved = 0.0;
             for r in 0..d {
-                let temp = n[r] / (right[r + 1] + left[d - r]);
+                // 1 / (right[r+1] + left[d-r]) = 1 / (u[i+r+1] − u[i+1−d+r]), precomputed.
+                let temp = n[r] * inv[k];
+                k += 1;
                 n[r] = saved + right[r + 1] * temp;
                 saved = left[d - r] * temp;
             }
@@ -983,6 +998,27 @@ mod tests {
             );
         }
         assert!(st.sse(&c) < 1e-12);
+    }
+
+    #[test]
+    fn basis_values_match_the_division_form_and_sum_to_one() {
+        // Reference: the textbook Cox–de Boor recursion with divisions (values_in); partition of unity.
+        for basis in [
+            BSplineBasis::new(vec![-20.0, -11.0, -4.0, 3.0, 3.5, 20.0]).unwrap(),
+            BSplineBasis::uniform(0.0, 7.0, 7).unwrap(),
+        ] {
+            for k in 0..=500 {
+                let a = basis.breaks()[0];
+                let b = *basis.breaks().last().unwrap();
+                let x = a + (b - a) * k as f64 / 500.0;
+                let (j, v) = basis.values(x);
+                let w = basis.values_in(j, x);
+                for r in 0..4 {
+                    assert!((v[r] - w[r]).abs() < 1e-14, "x={x} r={r}");
+                }
+                assert!((v.iter().sum::<f64>() - 1.0).abs() < 1e-14);
+            }
+        }
     }
 
     #[test]

@@ -47,23 +47,48 @@ fn main() {
         holdout: Some(d.condition[..n].iter().map(|&c| c == 2).collect()),
     };
     for (name, opts) in [
-        ("full fit, selection (FCM+GRA, forward, nested CV), no lags", ThermalOptions::default()),
-        ("full fit, selection + lags (9-point grid, golden section)", ThermalOptions { lags: true, ..ThermalOptions::default() }),
+        (
+            "full fit, selection (FCM+GRA, forward, nested CV), no lags",
+            ThermalOptions::default(),
+        ),
+        (
+            "full fit, selection + lags (9-point grid, golden section)",
+            ThermalOptions {
+                lags: true,
+                ..ThermalOptions::default()
+            },
+        ),
         (
             "fixed selection (all 16 sensors), no lags",
-            ThermalOptions { selection: Selection::All, max_sensors: 16, ..ThermalOptions::default() },
+            ThermalOptions {
+                selection: Selection::All,
+                max_sensors: 16,
+                ..ThermalOptions::default()
+            },
         ),
     ] {
         let t = median_time(7, || {
             std::hint::black_box(fit_thermal(&input, &opts).unwrap());
         });
-        println!("thermal fit, {n} rows × 16 sensors, {name}: {:.1} ms (median of 7)", t.as_secs_f64() * 1e3);
+        println!(
+            "thermal fit, {n} rows × 16 sensors, {name}: {:.1} ms (median of 7)",
+            t.as_secs_f64() * 1e3
+        );
     }
     // The bare regression the diagnosis may call in loops: QR least squares, 5000 × (1 + 4).
-    let x = DMatrix::from_fn(n, 5, |r, c| if c == 0 { 1.0 } else { d.sensors_degc[c * 3][r] });
+    let x = DMatrix::from_fn(n, 5, |r, c| {
+        if c == 0 {
+            1.0
+        } else {
+            d.sensors_degc[c * 3][r]
+        }
+    });
     let y = &d.error_um[..n];
     let t = median_time(51, || {
         std::hint::black_box(lstsq(&x, y, 0.0, Some(0)).unwrap());
     });
-    println!("QR least squares, {n} rows × 5 columns: {:.3} ms (median of 51)", t.as_secs_f64() * 1e3);
+    println!(
+        "QR least squares, {n} rows × 5 columns: {:.3} ms (median of 51)",
+        t.as_secs_f64() * 1e3
+    );
 }

@@ -42,7 +42,10 @@ impl FcmResult {
             .map(|u| {
                 u.iter()
                     .enumerate()
-                    .fold((0, f64::NEG_INFINITY), |b, (k, &v)| if v > b.1 { (k, v) } else { b })
+                    .fold(
+                        (0, f64::NEG_INFINITY),
+                        |b, (k, &v)| if v > b.1 { (k, v) } else { b },
+                    )
                     .0
             })
             .collect()
@@ -162,8 +165,8 @@ fn update_memberships(points: &[Vec<f64>], centres: &[Vec<f64>], m: f64, u: &mut
         let d: Vec<f64> = centres.iter().map(|v| dist2(p, v)).collect();
         if let Some(k0) = d.iter().position(|&x| x <= 1e-300) {
             // The point sits on a centre: crisp membership.
-            for k in 0..c {
-                u[i][k] = if k == k0 { 1.0 } else { 0.0 };
+            for (k, uk) in u[i].iter_mut().enumerate() {
+                *uk = if k == k0 { 1.0 } else { 0.0 };
             }
             continue;
         }
@@ -229,24 +232,42 @@ mod tests {
     #[test]
     fn memberships_sum_to_one_and_converge_on_two_groups() {
         // Two obvious groups of 1-D points: {0, 0.1, 0.2} and {5, 5.1, 5.2}.
-        let pts: Vec<Vec<f64>> = [0.0, 0.1, 0.2, 5.0, 5.1, 5.2].iter().map(|&x| vec![x]).collect();
+        let pts: Vec<Vec<f64>> = [0.0, 0.1, 0.2, 5.0, 5.1, 5.2]
+            .iter()
+            .map(|&x| vec![x])
+            .collect();
         let r = fcm(&pts, 2, 2.0);
-        assert!(r.converged, "did not converge in {} iterations", r.iterations);
+        assert!(
+            r.converged,
+            "did not converge in {} iterations",
+            r.iterations
+        );
         for u in &r.memberships {
             // Memberships sum to 1 (tolerance 1e-12).
             assert!((u.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{u:?}");
         }
         let a = r.assignment();
-        assert!(a[0] == a[1] && a[1] == a[2] && a[3] == a[4] && a[4] == a[5] && a[0] != a[3], "{a:?}");
+        assert!(
+            a[0] == a[1] && a[1] == a[2] && a[3] == a[4] && a[4] == a[5] && a[0] != a[3],
+            "{a:?}"
+        );
         // FCM objective is non-increasing (alternating optimisation); tolerance 1e-12 relative.
         for w in r.objective.windows(2) {
-            assert!(w[1] <= w[0] * (1.0 + 1e-12), "objective rose: {:?}", r.objective);
+            assert!(
+                w[1] <= w[0] * (1.0 + 1e-12),
+                "objective rose: {:?}",
+                r.objective
+            );
         }
         // Hand check of one membership: with converged centres v1≈0.1, v2≈5.1 (symmetry), the point 0.0 has
         // d1² = 0.01, d2² = 26.01 → u = 1/(1 + 0.01/26.01) ≈ 0.999616 (tolerance 1e-4, the centres are only
         // approximately 0.1/5.1 because the far group pulls them slightly).
         let k0 = a[0];
-        assert!((r.memberships[0][k0] - 1.0 / (1.0 + 0.01 / 26.01)).abs() < 1e-4, "{:?}", r.memberships[0]);
+        assert!(
+            (r.memberships[0][k0] - 1.0 / (1.0 + 0.01 / 26.01)).abs() < 1e-4,
+            "{:?}",
+            r.memberships[0]
+        );
     }
 
     #[test]
@@ -256,6 +277,11 @@ mod tests {
             .map(|&x| vec![x, 0.5 * x])
             .collect();
         let (runs, best) = choose_clusters(&pts, 5, 2.0);
-        assert_eq!(runs[best].clusters, 3, "XB: {:?}", runs.iter().map(|r| r.xie_beni).collect::<Vec<_>>());
+        assert_eq!(
+            runs[best].clusters,
+            3,
+            "XB: {:?}",
+            runs.iter().map(|r| r.xie_beni).collect::<Vec<_>>()
+        );
     }
 }

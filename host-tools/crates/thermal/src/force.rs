@@ -65,7 +65,12 @@ pub struct PowerLawFit {
 impl PowerLawFit {
     /// `[K, x, y, z]`.
     pub fn params(&self) -> [f64; 4] {
-        [self.k.value, self.x_ap.value, self.y_fz.value, self.z_n.value]
+        [
+            self.k.value,
+            self.x_ap.value,
+            self.y_fz.value,
+            self.z_n.value,
+        ]
     }
 
     /// Predicted force for one set of process parameters.
@@ -79,13 +84,25 @@ impl PowerLawFit {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ForceError {
     #[error("{what}: {got} values, expected {want}")]
-    Length { what: &'static str, got: usize, want: usize },
+    Length {
+        what: &'static str,
+        got: usize,
+        want: usize,
+    },
     #[error("{what}, row {row}: {value} is not a positive finite number (a power law needs > 0)")]
-    NotPositive { what: &'static str, row: usize, value: f64 },
+    NotPositive {
+        what: &'static str,
+        row: usize,
+        value: f64,
+    },
     #[error(
         "{what} does not vary in the data ({value}); its exponent cannot be identified: fix it (e.g. --fix {name}=1)"
     )]
-    Constant { what: &'static str, name: &'static str, value: f64 },
+    Constant {
+        what: &'static str,
+        name: &'static str,
+        value: f64,
+    },
     #[error("too few measurements ({n}) for {p} free parameters")]
     TooFew { n: usize, p: usize },
     #[error("the fit did not converge: {0}")]
@@ -100,12 +117,23 @@ pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLaw
         ("fz_mm", "y_fz", &d.fz_mm, fixed.y_fz),
         ("n_rpm", "z_n", &d.n_rpm, fixed.z_n),
     ];
-    for (what, _, v, _) in cols.iter().chain([("force_N", "", &d.force_n[..], None)].iter()) {
+    for (what, _, v, _) in cols
+        .iter()
+        .chain([("force_N", "", &d.force_n[..], None)].iter())
+    {
         if v.len() != n {
-            return Err(ForceError::Length { what, got: v.len(), want: n });
+            return Err(ForceError::Length {
+                what,
+                got: v.len(),
+                want: n,
+            });
         }
         if let Some(row) = v.iter().position(|x| !(x.is_finite() && *x > 0.0)) {
-            return Err(ForceError::NotPositive { what, row: row + 1, value: v[row] });
+            return Err(ForceError::NotPositive {
+                what,
+                row: row + 1,
+                value: v[row],
+            });
         }
     }
     // Free exponents.
@@ -115,7 +143,11 @@ pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLaw
             let lo = v.iter().cloned().fold(f64::INFINITY, f64::min);
             let hi = v.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
             if hi <= lo * (1.0 + 1e-9) {
-                return Err(ForceError::Constant { what, name, value: lo });
+                return Err(ForceError::Constant {
+                    what,
+                    name,
+                    value: lo,
+                });
             }
             free.push(j);
         }
@@ -126,13 +158,19 @@ pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLaw
     }
     let fixed_val = |j: usize| cols[j].3.unwrap_or(0.0);
     // Log-linear start.
-    let x = DMatrix::from_fn(n, p, |i, c| if c == 0 { 1.0 } else { cols[free[c - 1]].2[i].ln() });
+    let x = DMatrix::from_fn(n, p, |i, c| {
+        if c == 0 {
+            1.0
+        } else {
+            cols[free[c - 1]].2[i].ln()
+        }
+    });
     let ly: Vec<f64> = (0..n)
         .map(|i| {
             let mut v = d.force_n[i].ln();
-            for j in 0..3 {
-                if cols[j].3.is_some() {
-                    v -= fixed_val(j) * cols[j].2[i].ln();
+            for (j, col) in cols.iter().enumerate() {
+                if col.3.is_some() {
+                    v -= fixed_val(j) * col.2[i].ln();
                 }
             }
             v
@@ -140,7 +178,9 @@ pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLaw
         .collect();
     let ll = lstsq(&x, &ly, 0.0, Some(0)).map_err(|e| ForceError::NoConvergence(e.to_string()))?;
     // θ = [K, free exponents].
-    let mut theta: Vec<f64> = std::iter::once(ll.coef[0].exp()).chain(ll.coef[1..].iter().cloned()).collect();
+    let mut theta: Vec<f64> = std::iter::once(ll.coef[0].exp())
+        .chain(ll.coef[1..].iter().cloned())
+        .collect();
     let exps = |th: &[f64]| -> [f64; 3] {
         let mut e = [fixed_val(0), fixed_val(1), fixed_val(2)];
         for (c, &j) in free.iter().enumerate() {
@@ -156,11 +196,19 @@ pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLaw
         let e = exps(th);
         th[0] * (0..3).map(|j| cols[j].2[i].powf(e[j])).product::<f64>()
     };
-    let sse_of = |th: &[f64]| (0..n).map(|i| (d.force_n[i] - model(th, i)).powi(2)).sum::<f64>();
+    let sse_of = |th: &[f64]| {
+        (0..n)
+            .map(|i| (d.force_n[i] - model(th, i)).powi(2))
+            .sum::<f64>()
+    };
     let jac = |th: &[f64]| {
         DMatrix::from_fn(n, p, |i, c| {
             let f = model(th, i);
-            if c == 0 { f / th[0] } else { f * cols[free[c - 1]].2[i].ln() }
+            if c == 0 {
+                f / th[0]
+            } else {
+                f * cols[free[c - 1]].2[i].ln()
+            }
         })
     };
     // Levenberg–Marquardt (Marquardt's diagonal scaling).
@@ -206,19 +254,38 @@ pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLaw
     let dof = n - p;
     let j = jac(&theta);
     let cov = (j.transpose() * &j).try_inverse();
-    let tq = if dof > 0 { Some(student_t_quantile(0.975, dof as f64)) } else { None };
+    let tq = if dof > 0 {
+        Some(student_t_quantile(0.975, dof as f64))
+    } else {
+        None
+    };
     let s2 = if dof > 0 { sse / dof as f64 } else { f64::NAN };
     let est = |c: usize| -> Estimate {
         let value = theta[c];
         match (&cov, tq) {
             (Some(cv), Some(t)) => {
                 let se = (s2 * cv[(c, c)]).sqrt();
-                Estimate { value, fixed: false, std_error: Some(se), ci95: Some([value - t * se, value + t * se]) }
+                Estimate {
+                    value,
+                    fixed: false,
+                    std_error: Some(se),
+                    ci95: Some([value - t * se, value + t * se]),
+                }
             }
-            _ => Estimate { value, fixed: false, std_error: None, ci95: None },
+            _ => Estimate {
+                value,
+                fixed: false,
+                std_error: None,
+                ci95: None,
+            },
         }
     };
-    let mut e3 = [Estimate { value: 0.0, fixed: true, std_error: None, ci95: None }; 3];
+    let mut e3 = [Estimate {
+        value: 0.0,
+        fixed: true,
+        std_error: None,
+        ci95: None,
+    }; 3];
     for (jx, e) in e3.iter_mut().enumerate() {
         if let Some(v) = cols[jx].3 {
             e.value = v;
@@ -261,7 +328,9 @@ mod tests {
                     d.ap_mm.push(ap);
                     d.fz_mm.push(fz);
                     d.n_rpm.push(n);
-                    d.force_n.push(1500.0 * f64::powf(ap, 0.9) * f64::powf(fz, 0.75) * f64::powf(n, -0.1));
+                    d.force_n.push(
+                        1500.0 * f64::powf(ap, 0.9) * f64::powf(fz, 0.75) * f64::powf(n, -0.1),
+                    );
                 }
             }
         }
@@ -271,14 +340,20 @@ mod tests {
             assert!((g - w).abs() <= 1e-8 * w.abs(), "{:?}", f.params());
         }
         // With additive noise the LM optimum has SSE no larger than the log-linear start (it minimises SSE).
-        let noise = [3.0, -2.0, 1.5, -4.0, 2.5, 0.5, -1.0, 3.5, -2.5, 1.0, -0.5, 2.0, -3.0, 0.0, 1.0, -1.5, 2.0, -2.0];
+        let noise = [
+            3.0, -2.0, 1.5, -4.0, 2.5, 0.5, -1.0, 3.5, -2.5, 1.0, -0.5, 2.0, -3.0, 0.0, 1.0, -1.5,
+            2.0, -2.0,
+        ];
         for (f, e) in d.force_n.iter_mut().zip(noise) {
             *f += e;
         }
         let f = fit_power_law(&d, FixedExponents::default()).unwrap();
         let [k, x, y, z] = f.loglinear;
         let sse_ll: f64 = (0..d.force_n.len())
-            .map(|i| (d.force_n[i] - k * d.ap_mm[i].powf(x) * d.fz_mm[i].powf(y) * d.n_rpm[i].powf(z)).powi(2))
+            .map(|i| {
+                (d.force_n[i] - k * d.ap_mm[i].powf(x) * d.fz_mm[i].powf(y) * d.n_rpm[i].powf(z))
+                    .powi(2)
+            })
             .sum();
         let sse_lm: f64 = f.residuals_n.iter().map(|r| r * r).sum();
         assert!(sse_lm <= sse_ll, "LM {sse_lm} > log-linear {sse_ll}");
@@ -296,8 +371,19 @@ mod tests {
             force_n: vec![200.0, 350.0, 500.0, 640.0],
         };
         let e = fit_power_law(&d, FixedExponents::default()).unwrap_err();
-        assert!(matches!(e, ForceError::Constant { name: "x_ap", .. }), "{e}");
-        let f = fit_power_law(&d, FixedExponents { x_ap: Some(1.0), y_fz: None, z_n: Some(0.0) }).unwrap();
+        assert!(
+            matches!(e, ForceError::Constant { name: "x_ap", .. }),
+            "{e}"
+        );
+        let f = fit_power_law(
+            &d,
+            FixedExponents {
+                x_ap: Some(1.0),
+                y_fz: None,
+                z_n: Some(0.0),
+            },
+        )
+        .unwrap();
         assert!(f.x_ap.fixed && f.y_fz.ci95.is_some() && f.dof == 2);
     }
 }

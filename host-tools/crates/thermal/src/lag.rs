@@ -26,12 +26,18 @@ pub fn lag_into(time_s: &[f64], u: &[f64], tau_s: f64, out: &mut Vec<f64>) {
     }
     let mut y = u[0];
     out.push(y);
+    // α is recomputed only when the sample interval changes (regular sampling: once).
+    let (mut last_dt, mut a) = (f64::NAN, 1.0);
     for k in 1..u.len() {
         let dt = time_s[k] - time_s[k - 1];
-        if !(dt > 0.0) || tau_s <= 0.0 {
+        if dt.is_nan() || dt <= 0.0 || tau_s <= 0.0 {
             y = u[k];
         } else {
-            y += alpha(dt, tau_s) * (u[k] - y);
+            if dt != last_dt {
+                last_dt = dt;
+                a = alpha(dt, tau_s);
+            }
+            y += a * (u[k] - y);
         }
         out.push(y);
     }

@@ -26,6 +26,6 @@ pub mod synth;
 pub mod thermal;
 
 pub use thermal::{
-    ForceTerm, Ridge, Selection, SensorTerm, Series, ThermalError, ThermalFit, ThermalInput, ThermalModel, ThermalOptions,
-    fit_thermal,
+    ForceTerm, Ridge, Selection, SensorTerm, Series, ThermalError, ThermalFit, ThermalInput,
+    ThermalModel, ThermalOptions, fit_thermal,
 };

@@ -64,7 +64,11 @@ pub fn lstsq(
         mean[j] = m;
         scale[j] = if s > 0.0 { s } else { 1.0 };
     }
-    let extra = if ridge > 0.0 { p - usize::from(has_icpt) } else { 0 };
+    let extra = if ridge > 0.0 {
+        p - usize::from(has_icpt)
+    } else {
+        0
+    };
     let mut a = DMatrix::<f64>::zeros(n + extra, p);
     for j in 0..p {
         for i in 0..n {
@@ -149,7 +153,9 @@ pub fn vif(cols: &[Vec<f64>]) -> Vec<f64> {
         .map(|c| {
             let m = c.iter().sum::<f64>() / n as f64;
             let s = (c.iter().map(|v| (v - m) * (v - m)).sum::<f64>()).sqrt();
-            c.iter().map(|v| if s > 0.0 { (v - m) / s } else { 0.0 }).collect()
+            c.iter()
+                .map(|v| if s > 0.0 { (v - m) / s } else { 0.0 })
+                .collect()
         })
         .collect();
     let corr = DMatrix::from_fn(p, p, |i, j| {
@@ -172,7 +178,11 @@ mod tests {
         let x = DMatrix::from_fn(20, 2, |i, j| if j == 0 { 1.0 } else { xs[i] });
         let y: Vec<f64> = xs.iter().map(|v| 2.0 + 3.0 * v).collect();
         let fit = lstsq(&x, &y, 0.0, Some(0)).unwrap();
-        assert!((fit.coef[0] - 2.0).abs() < 1e-12 && (fit.coef[1] - 3.0).abs() < 1e-12, "{:?}", fit.coef);
+        assert!(
+            (fit.coef[0] - 2.0).abs() < 1e-12 && (fit.coef[1] - 3.0).abs() < 1e-12,
+            "{:?}",
+            fit.coef
+        );
         assert!(fit.sse < 1e-20);
     }
 
@@ -185,17 +195,29 @@ mod tests {
         let f1 = lstsq(&x, &y, 1.0, Some(0)).unwrap();
         // With λ = 1 on a standardized column the slope shrinks by exactly 1/(1+λ) = 0.5 (closed form for one
         // centered regressor); tolerance 1e-9.
-        assert!((f1.coef[1] - 0.5 * f0.coef[1]).abs() < 1e-9, "{:?} vs {:?}", f1.coef, f0.coef);
+        assert!(
+            (f1.coef[1] - 0.5 * f0.coef[1]).abs() < 1e-9,
+            "{:?} vs {:?}",
+            f1.coef,
+            f0.coef
+        );
     }
 
     #[test]
     fn vif_of_independent_and_collinear_columns() {
         // Orthogonal columns (sin/cos over whole periods) have VIF 1 (tolerance 1e-9).
         let n = 64;
-        let a: Vec<f64> = (0..n).map(|i| (i as f64 * std::f64::consts::TAU / n as f64).sin()).collect();
-        let b: Vec<f64> = (0..n).map(|i| (i as f64 * std::f64::consts::TAU / n as f64).cos()).collect();
+        let a: Vec<f64> = (0..n)
+            .map(|i| (i as f64 * std::f64::consts::TAU / n as f64).sin())
+            .collect();
+        let b: Vec<f64> = (0..n)
+            .map(|i| (i as f64 * std::f64::consts::TAU / n as f64).cos())
+            .collect();
         let v = vif(&[a.clone(), b.clone()]);
-        assert!((v[0] - 1.0).abs() < 1e-9 && (v[1] - 1.0).abs() < 1e-9, "{v:?}");
+        assert!(
+            (v[0] - 1.0).abs() < 1e-9 && (v[1] - 1.0).abs() < 1e-9,
+            "{v:?}"
+        );
         // c = a + 0.1 b: R² of c on a = 1/(1+0.01) → VIF = 1/(1-R²) = 101 (tolerance 1e-6).
         let c: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + 0.1 * y).collect();
         let v = vif(&[a, c]);

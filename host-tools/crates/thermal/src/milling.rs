@@ -35,15 +35,27 @@ pub struct DynoWare {
 #[derive(Debug, thiserror::Error)]
 pub enum DynoWareError {
     #[error("{path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
     #[error("{path}: no `Sampling rate [Hz]:` line in the header")]
     NoRate { path: String },
     #[error("{path}: no `Time,Fx,Fy,Fz` header line")]
     NoHeader { path: String },
     #[error("{path}:{line}:{column}: `{text}` is not a number")]
-    NotNumber { path: String, line: usize, column: usize, text: String },
+    NotNumber {
+        path: String,
+        line: usize,
+        column: usize,
+        text: String,
+    },
     #[error("{path}:{line}: expected 4 fields (Time,Fx,Fy,Fz), found {found}")]
-    Fields { path: String, line: usize, found: usize },
+    Fields {
+        path: String,
+        line: usize,
+        found: usize,
+    },
     #[error("{path}: no data rows")]
     Empty { path: String },
 }
@@ -52,7 +64,10 @@ impl DynoWare {
     /// Reads a DynoWare 2.x CSV export (header block, `Time,Fx,Fy,Fz`, a units row, then data).
     pub fn load(path: &std::path::Path) -> Result<DynoWare, DynoWareError> {
         let p = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| DynoWareError::Io { path: p.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| DynoWareError::Io {
+            path: p.clone(),
+            source,
+        })?;
         Self::parse(&p, &text)
     }
 
@@ -88,13 +103,24 @@ impl DynoWare {
                 continue;
             }
             if f.len() != 4 {
-                return Err(DynoWareError::Fields { path: path.into(), line: i + 1, found: f.len() });
+                return Err(DynoWareError::Fields {
+                    path: path.into(),
+                    line: i + 1,
+                    found: f.len(),
+                });
             }
             let mut v = [0.0; 4];
             for (c, s) in f.iter().enumerate() {
-                v[c] = s.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| {
-                    DynoWareError::NotNumber { path: path.into(), line: i + 1, column: c + 1, text: s.to_string() }
-                })?;
+                v[c] = s
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| DynoWareError::NotNumber {
+                        path: path.into(),
+                        line: i + 1,
+                        column: c + 1,
+                        text: s.to_string(),
+                    })?;
             }
             fx.push(v[1]);
             fy.push(v[2]);
@@ -103,7 +129,13 @@ impl DynoWare {
         if fx.is_empty() {
             return Err(DynoWareError::Empty { path: path.into() });
         }
-        Ok(DynoWare { path: path.into(), sampling_hz, fx, fy, fz })
+        Ok(DynoWare {
+            path: path.into(),
+            sampling_hz,
+            fx,
+            fy,
+            fz,
+        })
     }
 
     /// Number of samples covering whole spindle revolutions at `n_rpm` (at least one revolution).
@@ -125,13 +157,17 @@ pub struct AxisMap {
 impl AxisMap {
     /// The mapping of the data's author's MATLAB code: reference x (feed) = dynamometer Fy,
     /// y = dynamometer Fx, z = dynamometer Fz.
-    pub const SWAP_XY: AxisMap = AxisMap { map: [(1, 1.0), (0, 1.0), (2, 1.0)] };
+    pub const SWAP_XY: AxisMap = AxisMap {
+        map: [(1, 1.0), (0, 1.0), (2, 1.0)],
+    };
 
     /// Parses `x=Fy,y=Fx,z=Fz` (any order; a leading `-` negates: `x=-Fy`).
     pub fn parse(s: &str) -> Result<AxisMap, String> {
         let mut map = [None; 3];
         for part in s.split(',') {
-            let (k, v) = part.split_once('=').ok_or_else(|| format!("`{part}`: expected AXIS=CHANNEL"))?;
+            let (k, v) = part
+                .split_once('=')
+                .ok_or_else(|| format!("`{part}`: expected AXIS=CHANNEL"))?;
             let axis = match k.trim().to_ascii_lowercase().as_str() {
                 "x" => 0,
                 "y" => 1,
@@ -210,13 +246,20 @@ pub fn line_fit(x: &[f64], y: &[f64]) -> Line {
     let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
     let slope = sxy / sxx;
     let intercept = my - slope * mx;
-    let res: Vec<f64> = x.iter().zip(y).map(|(a, b)| b - (slope * a + intercept)).collect();
+    let res: Vec<f64> = x
+        .iter()
+        .zip(y)
+        .map(|(a, b)| b - (slope * a + intercept))
+        .collect();
     let sse: f64 = res.iter().map(|r| r * r).sum();
     let syy: f64 = y.iter().map(|v| (v - my).powi(2)).sum();
     let (sh, ih) = if x.len() > 2 {
         let s2 = sse / (n - 2.0);
         let t = student_t_quantile(0.975, n - 2.0);
-        (Some(t * (s2 / sxx).sqrt()), Some(t * (s2 * (1.0 / n + mx * mx / sxx)).sqrt()))
+        (
+            Some(t * (s2 / sxx).sqrt()),
+            Some(t * (s2 * (1.0 / n + mx * mx / sxx)).sqrt()),
+        )
     } else {
         (None, None)
     };
@@ -260,7 +303,10 @@ pub fn slotting_coefficients(tests: &[MeanForces], flutes: f64, ap_mm: f64) -> M
     let lz = line_fit(&c, &tests.iter().map(|t| t.fz_n).collect::<Vec<_>>());
     let na = flutes * ap_mm;
     let pi = std::f64::consts::PI;
-    let coef = |v: f64, h: Option<f64>, k: f64| Coef { value: k * v, ci95_half: h.map(|h| (k * h).abs()) };
+    let coef = |v: f64, h: Option<f64>, k: f64| Coef {
+        value: k * v,
+        ci95_half: h.map(|h| (k * h).abs()),
+    };
     let residuals_n = tests
         .iter()
         .map(|t| {
@@ -290,7 +336,10 @@ pub fn slotting_coefficients(tests: &[MeanForces], flutes: f64, ap_mm: f64) -> M
 pub fn fz_from_file_name(name: &str, n_rpm: f64, flutes: f64) -> Option<f64> {
     let stem = name.rsplit(['/', '\\']).next()?;
     let i = stem.find("f")?;
-    let digits: String = stem[i + 1..].chars().take_while(|c| c.is_ascii_digit() || *c == '.').collect();
+    let digits: String = stem[i + 1..]
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.')
+        .collect();
     let vf: f64 = digits.parse().ok()?;
     Some(vf / (n_rpm * flutes))
 }
@@ -344,7 +393,11 @@ mod tests {
         for k in 0..steps {
             let phi = (k as f64 + 0.5) * pi / steps as f64;
             let h = c * phi.sin();
-            let (ft, fr, fa) = (a * (ktc * h + kte), a * (krc * h + kre), a * (kac * h + kae));
+            let (ft, fr, fa) = (
+                a * (ktc * h + kte),
+                a * (krc * h + kre),
+                a * (kac * h + kae),
+            );
             s[0] += -ft * phi.cos() - fr * phi.sin();
             s[1] += ft * phi.sin() - fr * phi.cos();
             s[2] += fa;
@@ -364,11 +417,21 @@ mod tests {
     #[test]
     fn file_names_and_axis_maps() {
         // 300 mm/min at 6000 rpm, 2 flutes → 0.025 mm/tooth (PROVENANCE.md).
-        assert!((fz_from_file_name("x/6-n6000f300ap3ae25.csv", 6000.0, 2.0).unwrap() - 0.025).abs() < 1e-15);
+        assert!(
+            (fz_from_file_name("x/6-n6000f300ap3ae25.csv", 6000.0, 2.0).unwrap() - 0.025).abs()
+                < 1e-15
+        );
         assert_eq!(AxisMap::parse("x=Fy,y=Fx,z=Fz").unwrap(), AxisMap::SWAP_XY);
-        assert_eq!(AxisMap::parse("x=-Fy,y=-Fx,z=-Fz").unwrap().map[0], (1, -1.0));
+        assert_eq!(
+            AxisMap::parse("x=-Fy,y=-Fx,z=-Fz").unwrap().map[0],
+            (1, -1.0)
+        );
         assert!(AxisMap::parse("x=Fq,y=Fx,z=Fz").is_err());
-        let e = DynoWare::parse("t.csv", "Sampling rate [Hz]:,10\nTime,Fx,Fy,Fz\ns,N,N,N\n0,1,2,x\n").unwrap_err();
+        let e = DynoWare::parse(
+            "t.csv",
+            "Sampling rate [Hz]:,10\nTime,Fx,Fy,Fz\ns,N,N,N\n0,1,2,x\n",
+        )
+        .unwrap_err();
         assert_eq!(e.to_string(), "t.csv:4:4: `x` is not a number");
     }
 }

@@ -93,23 +93,38 @@ impl OwnedThermoForceSpec {
 #[derive(Debug, thiserror::Error)]
 pub enum ModelFileError {
     #[error("{path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
     #[error("{path}: not a thermal model file: {source}")]
-    Json { path: String, source: serde_json::Error },
+    Json {
+        path: String,
+        source: serde_json::Error,
+    },
     #[error("{path}: {what}")]
     Invalid { path: String, what: String },
 }
 
 impl ThermalModelFile {
     /// Builds the file from a fit and the data it was fitted on (plausibility limits from the data).
-    pub fn from_fit(fit: &ThermalFit, input: &ThermalInput, target: &str, sensor_period_ms: u32) -> Self {
+    pub fn from_fit(
+        fit: &ThermalFit,
+        input: &ThermalInput,
+        target: &str,
+        sensor_period_ms: u32,
+    ) -> Self {
         let period_s = f64::from(sensor_period_ms) / 1000.0;
         let sensors = fit
             .model
             .terms
             .iter()
             .map(|t| {
-                let s = input.sensors.iter().find(|s| s.name == t.sensor).expect("fitted sensor is in the input");
+                let s = input
+                    .sensors
+                    .iter()
+                    .find(|s| s.name == t.sensor)
+                    .expect("fitted sensor is in the input");
                 let min = s.values.iter().cloned().fold(f64::INFINITY, f64::min);
                 let max = s.values.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
                 let mut rate: f64 = 0.0;
@@ -161,22 +176,41 @@ impl ThermalModelFile {
             return Err("sensor_period_ms must be > 0".into());
         }
         if self.sensors.len() > axcomp_core::MAX_SENSORS {
-            return Err(format!("{} sensors, at most {}", self.sensors.len(), axcomp_core::MAX_SENSORS));
+            return Err(format!(
+                "{} sensors, at most {}",
+                self.sensors.len(),
+                axcomp_core::MAX_SENSORS
+            ));
         }
         if self.forces.len() > axcomp_core::MAX_FORCES {
-            return Err(format!("{} forces, at most {}", self.forces.len(), axcomp_core::MAX_FORCES));
+            return Err(format!(
+                "{} forces, at most {}",
+                self.forces.len(),
+                axcomp_core::MAX_FORCES
+            ));
         }
         if !self.b0_um.is_finite() {
             return Err("b0_um is not finite".into());
         }
         for (i, s) in self.sensors.iter().enumerate() {
-            let ok = [s.reference_degc, s.tau_s, s.coef_um_per_k, s.min_degc, s.max_degc, s.max_rate_degc_per_s]
-                .iter()
-                .all(|v| v.is_finite());
+            let ok = [
+                s.reference_degc,
+                s.tau_s,
+                s.coef_um_per_k,
+                s.min_degc,
+                s.max_degc,
+                s.max_rate_degc_per_s,
+            ]
+            .iter()
+            .all(|v| v.is_finite());
             if !ok {
                 return Err(format!("sensors[{i}] (`{}`): non-finite value", s.name));
             }
-            if s.tau_s < 0.0 || s.min_degc >= s.max_degc || s.max_rate_degc_per_s <= 0.0 || s.stale_timeout_ms == 0 {
+            if s.tau_s < 0.0
+                || s.min_degc >= s.max_degc
+                || s.max_rate_degc_per_s <= 0.0
+                || s.stale_timeout_ms == 0
+            {
                 return Err(format!(
                     "sensors[{i}] (`{}`): need tau_s >= 0, min_degc < max_degc, max_rate_degc_per_s > 0, \
                      stale_timeout_ms > 0",
@@ -186,7 +220,10 @@ impl ThermalModelFile {
         }
         for (i, f) in self.forces.iter().enumerate() {
             if !f.chi_um_per_n.is_finite() {
-                return Err(format!("forces[{i}] (`{}`): chi_um_per_n is not finite", f.column));
+                return Err(format!(
+                    "forces[{i}] (`{}`): chi_um_per_n is not finite",
+                    f.column
+                ));
             }
         }
         Ok(())
@@ -195,10 +232,17 @@ impl ThermalModelFile {
     /// Reads and validates a model file.
     pub fn load(path: &std::path::Path) -> Result<Self, ModelFileError> {
         let p = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Io { path: p.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Io {
+            path: p.clone(),
+            source,
+        })?;
         let m: ThermalModelFile =
-            serde_json::from_str(&text).map_err(|source| ModelFileError::Json { path: p.clone(), source })?;
-        m.validate().map_err(|what| ModelFileError::Invalid { path: p, what })?;
+            serde_json::from_str(&text).map_err(|source| ModelFileError::Json {
+                path: p.clone(),
+                source,
+            })?;
+        m.validate()
+            .map_err(|what| ModelFileError::Invalid { path: p, what })?;
         Ok(m)
     }
 
@@ -230,7 +274,11 @@ impl ThermalModelFile {
                 })
                 .collect(),
             b0_um: self.b0_um as f32,
-            b_um_per_k: self.sensors.iter().map(|s| s.coef_um_per_k as f32).collect(),
+            b_um_per_k: self
+                .sensors
+                .iter()
+                .map(|s| s.coef_um_per_k as f32)
+                .collect(),
             expansion: None,
             forces: self
                 .forces

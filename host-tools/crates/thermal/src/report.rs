@@ -15,27 +15,59 @@ use crate::thermal::{ThermalFit, ThermalInput};
 
 /// Writes `report.md`, `prediction.svg`, `residual_per_condition.svg` and `sensors.svg` into `dir`
 /// (created if needed). Files are written atomically.
-pub fn write_thermal_report(dir: &Path, fit: &ThermalFit, input: &ThermalInput, target: &str) -> std::io::Result<()> {
+pub fn write_thermal_report(
+    dir: &Path,
+    fit: &ThermalFit,
+    input: &ThermalInput,
+    target: &str,
+) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let n = input.time_s.len();
     let hours: Vec<f64> = input.time_s.iter().map(|t| t / 3600.0).collect();
     let held = input.holdout.clone().unwrap_or_else(|| vec![false; n]);
     let spans = spans(&hours, &held);
 
-    let mut f = Figure::new(&format!("{target}: measured vs predicted"), "time / h", "error / µm");
+    let mut f = Figure::new(
+        &format!("{target}: measured vs predicted"),
+        "time / h",
+        "error / µm",
+    );
     f.line("measured", &hours, &input.target);
     f.line("predicted", &hours, &fit.prediction);
-    let resid: Vec<f64> = input.target.iter().zip(&fit.prediction).map(|(a, b)| a - b).collect();
+    let resid: Vec<f64> = input
+        .target
+        .iter()
+        .zip(&fit.prediction)
+        .map(|(a, b)| a - b)
+        .collect();
     f.dashed("residual", &hours, &resid);
     for (a, b) in &spans {
         f.vspan(*a, *b, "held out");
     }
     f.save_svg(dir.join("prediction.svg"))?;
 
-    let mut f = Figure::new("RMS per condition", "condition (index, see report.md)", "RMS / µm");
+    let mut f = Figure::new(
+        "RMS per condition",
+        "condition (index, see report.md)",
+        "RMS / µm",
+    );
     let xs: Vec<f64> = (0..fit.per_condition.len()).map(|i| i as f64).collect();
-    f.points("raw", &xs, &fit.per_condition.iter().map(|c| c.raw_rms_um).collect::<Vec<_>>());
-    f.points("after model", &xs, &fit.per_condition.iter().map(|c| c.rms_um).collect::<Vec<_>>());
+    f.points(
+        "raw",
+        &xs,
+        &fit.per_condition
+            .iter()
+            .map(|c| c.raw_rms_um)
+            .collect::<Vec<_>>(),
+    );
+    f.points(
+        "after model",
+        &xs,
+        &fit.per_condition
+            .iter()
+            .map(|c| c.rms_um)
+            .collect::<Vec<_>>(),
+    );
     f.save_svg(dir.join("residual_per_condition.svg"))?;
 
     let mut f = Figure::new("Selected sensors", "time / h", "temperature / °C");
@@ -56,34 +88,70 @@ pub fn write_thermal_report(dir: &Path, fit: &ThermalFit, input: &ThermalInput, 
         md,
         "Raw RMS {:.3} µm, after the model {} (held-out rows: {}, training rows: {}). Guard: {} — {}.\n",
         fit.raw_rms_um,
-        fit.holdout_rms_um.map_or("n/a (no holdout)".into(), |h| format!("{h:.3} µm")),
+        fit.holdout_rms_um
+            .map_or("n/a (no holdout)".into(), |h| format!("{h:.3} µm")),
         fit.holdout_rows,
         fit.training_rows,
         if fit.guard.passed { "passed" } else { "FAILED" },
         fit.guard.reason
     );
-    let _ = writeln!(md, "## Sensor selection\n\nChosen: **{}** ({}).\n", fit.chosen_method, fit.why);
-    let rows: Vec<Vec<String>> = [&fit.fcm_gra, &fit.forward]
-        .iter()
-        .map(|m| {
-            vec![
-                m.method.clone(),
-                m.sensors.join(", "),
-                m.tau_s.iter().map(|t| format!("{t:.0}")).collect::<Vec<_>>().join(", "),
-                format!("{:.4}", m.inner_cv_rms_um),
-                format!("{:.4}", m.nested_cv_rms_um),
-            ]
-        })
-        .collect();
-    md += &markdown_table(&["method", "sensors", "τ / s", "inner CV RMS / µm", "nested CV RMS / µm"], &rows);
+    let _ = writeln!(
+        md,
+        "## Sensor selection\n\nChosen: **{}** ({}).\n",
+        fit.chosen_method, fit.why
+    );
+    let rows: Vec<Vec<String>> = [
+        Some(&fit.fcm_gra),
+        Some(&fit.forward),
+        fit.all_sensors.as_ref(),
+    ]
+    .iter()
+    .flatten()
+    .map(|m| {
+        vec![
+            m.method.clone(),
+            m.sensors.join(", "),
+            m.tau_s
+                .iter()
+                .map(|t| format!("{t:.0}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            format!("{:.4}", m.inner_cv_rms_um),
+            format!("{:.4}", m.nested_cv_rms_um),
+        ]
+    })
+    .collect();
+    md += &markdown_table(
+        &[
+            "method",
+            "sensors",
+            "τ / s",
+            "inner CV RMS / µm",
+            "nested CV RMS / µm",
+        ],
+        &rows,
+    );
     let _ = writeln!(
         md,
         "\nFCM: {} clusters (Xie–Beni {:?}); grey relational grades: {}.\n",
         fit.fcm_gra_detail.clusters,
-        fit.fcm_gra_detail.xie_beni.iter().map(|(c, x)| format!("c={c}: {x:.4}")).collect::<Vec<_>>(),
-        fit.fcm_gra_detail.grades.iter().map(|g| format!("{g:.3}")).collect::<Vec<_>>().join(", ")
+        fit.fcm_gra_detail
+            .xie_beni
+            .iter()
+            .map(|(c, x)| format!("c={c}: {x:.4}"))
+            .collect::<Vec<_>>(),
+        fit.fcm_gra_detail
+            .grades
+            .iter()
+            .map(|g| format!("{g:.3}"))
+            .collect::<Vec<_>>()
+            .join(", ")
     );
-    let _ = writeln!(md, "## Terms\n\nCondition number {:.1}, ridge λ = {}.\n", fit.condition_number, fit.ridge_lambda);
+    let _ = writeln!(
+        md,
+        "## Terms\n\nCondition number {:.1}, ridge λ = {}.\n",
+        fit.condition_number, fit.ridge_lambda
+    );
     let rows: Vec<Vec<String>> = fit
         .model
         .terms
@@ -126,7 +194,17 @@ pub fn write_thermal_report(dir: &Path, fit: &ThermalFit, input: &ThermalInput, 
             ]
         })
         .collect();
-    md += &markdown_table(&["index", "condition", "rows", "held out", "raw RMS / µm", "RMS after / µm"], &rows);
+    md += &markdown_table(
+        &[
+            "index",
+            "condition",
+            "rows",
+            "held out",
+            "raw RMS / µm",
+            "RMS after / µm",
+        ],
+        &rows,
+    );
     md += "\n![prediction](prediction.svg)\n\n![residual per condition](residual_per_condition.svg)\n\n![sensors](sensors.svg)\n";
     write_atomic(&dir.join("report.md"), md.as_bytes())
 }

@@ -33,10 +33,17 @@ pub struct GramSet {
 impl GramSet {
     /// `cols`: candidate columns (full length), `y`: target, `group_of_row[i]`: the row's group or `None`
     /// (row not used, e.g. held out).
-    pub fn new(cols: &[&[f64]], y: &[f64], group_of_row: &[Option<usize>], n_groups: usize) -> GramSet {
+    pub fn new(
+        cols: &[&[f64]],
+        y: &[f64],
+        group_of_row: &[Option<usize>],
+        n_groups: usize,
+    ) -> GramSet {
         let k = cols.len();
         let d = k + 2;
-        let used: Vec<usize> = (0..y.len()).filter(|&i| group_of_row[i].is_some()).collect();
+        let used: Vec<usize> = (0..y.len())
+            .filter(|&i| group_of_row[i].is_some())
+            .collect();
         let nu = used.len().max(1) as f64;
         let stats = |c: &[f64]| {
             let m = used.iter().map(|&i| c[i]).sum::<f64>() / nu;
@@ -67,7 +74,13 @@ impl GramSet {
         }
         let grams = grams
             .into_iter()
-            .map(|g| DMatrix::from_fn(d, d, |a, b| if a <= b { g[a * d + b] } else { g[b * d + a] }))
+            .map(|g| {
+                DMatrix::from_fn(
+                    d,
+                    d,
+                    |a, b| if a <= b { g[a * d + b] } else { g[b * d + a] },
+                )
+            })
             .collect();
         GramSet { k, grams, rows }
     }
@@ -78,7 +91,9 @@ impl GramSet {
     }
 
     fn idx(terms: &[usize]) -> Vec<usize> {
-        std::iter::once(0).chain(terms.iter().map(|t| t + 1)).collect()
+        std::iter::once(0)
+            .chain(terms.iter().map(|t| t + 1))
+            .collect()
     }
 
     /// Coefficients (intercept first, standardized units) of a fit of `terms` on `groups`, ridge `lambda`
@@ -190,7 +205,9 @@ pub fn forward(
     while used_sensors.len() < max_sensors {
         let mut best: Option<(usize, f64)> = None;
         for (ci, c) in cands.iter().enumerate() {
-            let Candidate::Sensor { sensor, .. } = *c else { continue };
+            let Candidate::Sensor { sensor, .. } = *c else {
+                continue;
+            };
             if used_sensors.contains(&sensor) {
                 continue;
             }
@@ -202,14 +219,17 @@ pub fn forward(
             }
         }
         let Some((ci, r)) = best else { break };
-        if !(r < cur * (1.0 - min_gain)) {
+        if r.is_nan() || r >= cur * (1.0 - min_gain) {
             break;
         }
         terms.push(ci);
         if let Candidate::Sensor { sensor, .. } = cands[ci] {
             used_sensors.push(sensor);
         }
-        steps.push(ForwardStep { candidate: ci, cv_rms: r });
+        steps.push(ForwardStep {
+            candidate: ci,
+            cv_rms: r,
+        });
         cur = r;
         // Revisit the lags of the sensors already in (a new term can change which lag fits best).
         cur = improve_lags(gs, cands, &mut terms, groups, cur);
@@ -234,9 +254,13 @@ pub fn improve_lags(
     for _sweep in 0..2 {
         let mut changed = false;
         for pos in 0..terms.len() {
-            let Candidate::Sensor { sensor, .. } = cands[terms[pos]] else { continue };
+            let Candidate::Sensor { sensor, .. } = cands[terms[pos]] else {
+                continue;
+            };
             for (ci, c) in cands.iter().enumerate() {
-                let Candidate::Sensor { sensor: s2, .. } = *c else { continue };
+                let Candidate::Sensor { sensor: s2, .. } = *c else {
+                    continue;
+                };
                 if s2 != sensor || ci == terms[pos] {
                     continue;
                 }

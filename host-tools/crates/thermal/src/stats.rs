@@ -136,7 +136,10 @@ pub fn student_t_cdf(t: f64, dof: f64) -> f64 {
 
 /// Student-t quantile `t_{q, dof}` (bisection on the CDF to 1e-12), `q` in (0, 1).
 pub fn student_t_quantile(q: f64, dof: f64) -> f64 {
-    assert!(q > 0.0 && q < 1.0 && dof > 0.0, "student_t_quantile: q in (0,1), dof > 0");
+    assert!(
+        q > 0.0 && q < 1.0 && dof > 0.0,
+        "student_t_quantile: q in (0,1), dof > 0"
+    );
     let (mut lo, mut hi) = (-1e4, 1e4);
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
@@ -160,9 +163,19 @@ mod tests {
     fn t_quantiles_match_tables() {
         // Reference: standard Student-t tables (e.g. NIST/SEMATECH e-Handbook 1.3.6.7.2), 3 decimals given,
         // tolerance 1e-3.
-        for (dof, want) in [(1.0, 12.706), (2.0, 4.303), (3.0, 3.182), (5.0, 2.571), (10.0, 2.228), (30.0, 2.042)] {
+        for (dof, want) in [
+            (1.0, 12.706),
+            (2.0, 4.303),
+            (3.0, 3.182),
+            (5.0, 2.571),
+            (10.0, 2.228),
+            (30.0, 2.042),
+        ] {
             let got = student_t_quantile(0.975, dof);
-            assert!((got - want).abs() < 1e-3, "t(0.975,{dof}) = {got}, table {want}");
+            assert!(
+                (got - want).abs() < 1e-3,
+                "t(0.975,{dof}) = {got}, table {want}"
+            );
         }
     }
 

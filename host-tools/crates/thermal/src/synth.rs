@@ -105,13 +105,31 @@ pub fn generate(cfg: &SynthConfig) -> SynthData {
         .collect();
     let running: Vec<bool> = time_s.iter().map(|t| t % per < cfg.heat_s).collect();
     let spindle_rpm: Vec<f64> = (0..n)
-        .map(|k| if running[k] { cfg.speeds_rpm[condition[k]] } else { 0.0 })
+        .map(|k| {
+            if running[k] {
+                cfg.speeds_rpm[condition[k]]
+            } else {
+                0.0
+            }
+        })
         .collect();
     let ap_mm: Vec<f64> = (0..n)
-        .map(|k| if running[k] { cfg.ap_mm[condition[k]] } else { 0.0 })
+        .map(|k| {
+            if running[k] {
+                cfg.ap_mm[condition[k]]
+            } else {
+                0.0
+            }
+        })
         .collect();
     let fz_mm: Vec<f64> = (0..n)
-        .map(|k| if running[k] { cfg.fz_mm[condition[k]] } else { 0.0 })
+        .map(|k| {
+            if running[k] {
+                cfg.fz_mm[condition[k]]
+            } else {
+                0.0
+            }
+        })
         .collect();
     let [k_law, x, y, z] = cfg.law;
     let force_true: Vec<f64> = (0..n)
@@ -124,7 +142,10 @@ pub fn generate(cfg: &SynthConfig) -> SynthData {
         })
         .collect();
     // Latent heat sources (K above ambient).
-    let heat1: Vec<f64> = spindle_rpm.iter().map(|s| 8.0 * (s / 12000.0).powf(1.5)).collect();
+    let heat1: Vec<f64> = spindle_rpm
+        .iter()
+        .map(|s| 8.0 * (s / 12000.0).powf(1.5))
+        .collect();
     let heat2: Vec<f64> = spindle_rpm.iter().map(|s| 5.0 * s / 12000.0).collect();
     let s1 = lag(&time_s, &prepend_zero(&heat1), 900.0);
     let s2 = lag(&time_s, &prepend_zero(&heat2), 2400.0);
@@ -145,7 +166,11 @@ pub fn generate(cfg: &SynthConfig) -> SynthData {
         let main = i % 3;
         let mut t = vec![20.0; n];
         for (j, s) in sources.iter().enumerate() {
-            let w = if j == main { 0.6 + uw.sample(&mut rng) } else { uw.sample(&mut rng) };
+            let w = if j == main {
+                0.6 + uw.sample(&mut rng)
+            } else {
+                uw.sample(&mut rng)
+            };
             let l = lag(&time_s, s, ut.sample(&mut rng));
             for (tv, lv) in t.iter_mut().zip(l) {
                 *tv += w * lv;
@@ -308,7 +333,12 @@ mod tests {
         assert_eq!(d.time_s.len(), 5 * 1080);
         // The noise-free error is exactly the truth on the noise-free columns; the measured one differs by the
         // error noise only: its RMS difference is the configured 0.3 µm within 5 % (5400 samples).
-        let diff: Vec<f64> = d.error_um.iter().zip(&d.error_true_um).map(|(a, b)| a - b).collect();
+        let diff: Vec<f64> = d
+            .error_um
+            .iter()
+            .zip(&d.error_true_um)
+            .map(|(a, b)| a - b)
+            .collect();
         let r = crate::stats::rms(&diff);
         assert!((r - 0.3).abs() < 0.015, "noise rms {r}");
         // Sensors are collinear: the first two sensors sharing a main source correlate > 0.9.
@@ -318,6 +348,10 @@ mod tests {
         let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
         let va: f64 = a.iter().map(|x| (x - ma).powi(2)).sum();
         let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();
-        assert!(cov / (va * vb).sqrt() > 0.9, "corr {}", cov / (va * vb).sqrt());
+        assert!(
+            cov / (va * vb).sqrt() > 0.9,
+            "corr {}",
+            cov / (va * vb).sqrt()
+        );
     }
 }

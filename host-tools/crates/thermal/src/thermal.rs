@@ -118,7 +118,11 @@ pub enum ThermalError {
     #[error("invalid option: {0}")]
     Option(&'static str),
     #[error("column `{column}` has {got} rows, expected {want}")]
-    Length { column: String, got: usize, want: usize },
+    Length {
+        column: String,
+        got: usize,
+        want: usize,
+    },
     #[error("column `{column}`, data row {row}: value is not finite")]
     NonFinite { column: String, row: usize },
     #[error("no usable temperature sensor (`*_degC` column that varies on the training rows)")]
@@ -190,7 +194,10 @@ impl ThermalModel {
     pub fn formula(&self) -> String {
         let mut s = format!("e = {:.4}", self.b0_um);
         for t in &self.terms {
-            s += &format!(" {:+.4}·ΔT({}, τ={:.0} s)", t.coef_um_per_k, t.sensor, t.tau_s);
+            s += &format!(
+                " {:+.4}·ΔT({}, τ={:.0} s)",
+                t.coef_um_per_k, t.sensor, t.tau_s
+            );
         }
         for f in &self.forces {
             s += &format!(" {:+.6}·{}", f.chi_um_per_n, f.column);
@@ -231,6 +238,8 @@ pub struct ThermalFit {
     pub why: String,
     pub fcm_gra: MethodReport,
     pub forward: MethodReport,
+    /// No selection (every usable sensor); `None` with more than 16 usable sensors.
+    pub all_sensors: Option<MethodReport>,
     pub fcm_gra_detail: select::FcmGra,
     /// Forward selection path: (term added, inner CV RMS after it).
     pub forward_path: Vec<(String, f64)>,
@@ -318,7 +327,10 @@ fn check(input: &ThermalInput) -> Result<(), ThermalError> {
 }
 
 /// Fits a thermo-force model (see the module docs for the procedure).
-pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<ThermalFit, ThermalError> {
+pub fn fit_thermal(
+    input: &ThermalInput,
+    opts: &ThermalOptions,
+) -> Result<ThermalFit, ThermalError> {
     let opts = opts.build()?;
     check(input)?;
     let n = input.time_s.len();
@@ -417,7 +429,10 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
         for &tau in &grid {
             let l = lag(&input.time_s, &input.sensors[si].values, tau);
             cols.push(l.iter().map(|v| v - reference[k]).collect());
-            cands.push(Candidate::Sensor { sensor: k, tau_s: tau });
+            cands.push(Candidate::Sensor {
+                sensor: k,
+                tau_s: tau,
+            });
         }
     }
     let forced: Vec<usize> = (0..input.forces.len())
@@ -460,10 +475,11 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
         };
         (fg, terms, cur)
     };
-    let method_b = |groups: &[usize]| select::forward(&gs, &cands, &forced, groups, max_sensors, 0.01);
-    // Method C (no selection): every usable sensor, lags chosen on the grid; a candidate only when there are
-    // no more usable sensors than `max_sensors`.
-    let all_allowed = sens.len() <= max_sensors;
+    let method_b =
+        |groups: &[usize]| select::forward(&gs, &cands, &forced, groups, max_sensors, 0.01);
+    // Method C (no selection): every usable sensor, lags chosen on the grid; a candidate when the firmware
+    // can take every usable sensor (at most `axcomp_core::MAX_SENSORS`).
+    let all_allowed = sens.len() <= axcomp_core::MAX_SENSORS;
     let method_c = |groups: &[usize]| -> (Vec<usize>, f64) {
         let mut t = forced.clone();
         t.extend((0..sens.len()).map(|s| cand_of(s, 0.0)));
@@ -498,7 +514,11 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
     }
     let nested_a = (sse_a / nn as f64).sqrt();
     let nested_b = (sse_b / nn as f64).sqrt();
-    let nested_c = if all_allowed { (sse_c / nn as f64).sqrt() } else { f64::INFINITY };
+    let nested_c = if all_allowed {
+        (sse_c / nn as f64).sqrt()
+    } else {
+        f64::INFINITY
+    };
 
     // ---- final selection on all training rows ----
     let (fg, terms_a, cv_a) = method_a(&all_groups);
@@ -528,9 +548,24 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
         inner_cv_rms_um: fb.cv_rms,
         nested_cv_rms_um: nested_b,
     };
+    let (terms_c, cv_c) = method_c(&all_groups);
+    let rep_c = all_allowed.then(|| {
+        let (sc, tc) = describe(&terms_c);
+        MethodReport {
+            method: "all".into(),
+            sensors: sc,
+            tau_s: tc,
+            inner_cv_rms_um: cv_c,
+            nested_cv_rms_um: nested_c,
+        }
+    });
     let cmp = format!(
         "nested {inner_groups}: forward selection {nested_b:.4} µm, FCM+GRA {nested_a:.4} µm{}",
-        if all_allowed { format!(", all {} sensors {nested_c:.4} µm", sens.len()) } else { String::new() }
+        if all_allowed {
+            format!(", all {} sensors {nested_c:.4} µm", sens.len())
+        } else {
+            String::new()
+        }
     );
     let best_auto = if nested_c < nested_a.min(nested_b) {
         Selection::All
@@ -541,17 +576,25 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
     };
     let requested = opts.selection != Selection::Auto;
     let pick = if requested { opts.selection } else { best_auto };
-    let tag = |name: &str| if requested { format!("requested {name}; {cmp}") } else { format!("{cmp} → {name}") };
+    let tag = |name: &str| {
+        if requested {
+            format!("requested {name}; {cmp}")
+        } else {
+            format!("{cmp} → {name}")
+        }
+    };
     let (chosen_method, terms, why) = match pick {
         Selection::Forward => ("forward_cv", fb.terms.clone(), tag("forward_cv")),
-        Selection::All => ("all", method_c(&all_groups).0, tag("all")),
+        Selection::All => ("all", terms_c.clone(), tag("all")),
         _ => ("fcm_gra", terms_a.clone(), tag("fcm_gra")),
     };
     let forward_path = fb
         .steps
         .iter()
         .map(|s| match cands[s.candidate] {
-            Candidate::Sensor { sensor, tau_s } => (format!("{} (τ={:.0} s)", sname(sensor), tau_s), s.cv_rms),
+            Candidate::Sensor { sensor, tau_s } => {
+                (format!("{} (τ={:.0} s)", sname(sensor), tau_s), s.cv_rms)
+            }
             Candidate::Force { force } => (input.forces[force].name.clone(), s.cv_rms),
         })
         .collect();
@@ -582,7 +625,7 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
     };
     if opts.lags {
         // Golden-section search on log τ between the grid neighbours of each selected τ (> 0), objective the
-        // inner CV RMS; two coordinate sweeps.
+        // inner CV RMS; two coordinate sweeps (one sweep of 12 steps with more than 6 terms).
         let brackets: Vec<Option<(f64, f64)>> = sel
             .iter()
             .map(|&(_, tau)| {
@@ -591,20 +634,28 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
                     return None;
                 }
                 let lo = if pos >= 2 { grid[pos - 1] } else { tau / 2.0 };
-                let hi = if pos + 1 < grid.len() { grid[pos + 1] } else { tau * 2.0 };
+                let hi = if pos + 1 < grid.len() {
+                    grid[pos + 1]
+                } else {
+                    tau * 2.0
+                };
                 Some((lo, hi))
             })
             .collect();
-        for _ in 0..2 {
+        // Many terms: one sweep with fewer steps keeps the fit fast.
+        let (sweeps, steps) = if sel.len() > 6 { (1, 12) } else { (2, 20) };
+        for _ in 0..sweeps {
             for j in 0..sel.len() {
-                let Some((lo, hi)) = brackets[j] else { continue };
+                let Some((lo, hi)) = brackets[j] else {
+                    continue;
+                };
                 let tau = sel[j].1;
                 let mut f = |lt: f64| {
                     let mut s2 = sel.clone();
                     s2[j].1 = lt.exp();
                     small_cv(&s2, 0.0)
                 };
-                let best = golden_min(&mut f, lo.ln(), hi.ln(), 20);
+                let best = golden_min(&mut f, lo.ln(), hi.ln(), steps);
                 if f(best) < f(tau.ln()) {
                     sel[j].1 = best.exp();
                 }
@@ -637,13 +688,22 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
         .collect();
     let p = full_cols.len() + 1;
     let x = DMatrix::from_fn(train_idx.len(), p, |r, c| {
-        if c == 0 { 1.0 } else { full_cols[c - 1][train_idx[r]] }
+        if c == 0 {
+            1.0
+        } else {
+            full_cols[c - 1][train_idx[r]]
+        }
     });
     let y_train: Vec<f64> = train_idx.iter().map(|&i| input.target[i]).collect();
     let ls = lstsq(&x, &y_train, lambda, Some(0))?;
     let cond = condition_number(&x);
     let vifs = vif(&(0..sel.len())
-        .map(|j| train_idx.iter().map(|&i| full_cols[j][i]).collect::<Vec<f64>>())
+        .map(|j| {
+            train_idx
+                .iter()
+                .map(|&i| full_cols[j][i])
+                .collect::<Vec<f64>>()
+        })
         .collect::<Vec<_>>());
     let model = ThermalModel {
         b0_um: ls.coef[0],
@@ -677,12 +737,18 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
         .map(|(y, p)| y - p)
         .collect();
     let pick = |v: &[f64], want_held: bool| -> Vec<f64> {
-        (0..n).filter(|&i| held[i] == want_held).map(|i| v[i]).collect()
+        (0..n)
+            .filter(|&i| held[i] == want_held)
+            .map(|i| v[i])
+            .collect()
     };
     let train_raw = rms(&pick(&input.target, false));
     let train_rms = rms(&pick(&resid, false));
     let (raw_rms, holdout_rms) = if input.holdout.is_some() {
-        (rms(&pick(&input.target, true)), Some(rms(&pick(&resid, true))))
+        (
+            rms(&pick(&input.target, true)),
+            Some(rms(&pick(&resid, true))),
+        )
     } else {
         (rms(&input.target), None)
     };
@@ -738,7 +804,9 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
             reason: if h <= raw_rms {
                 format!("held-out RMS {h:.3} µm <= raw {raw_rms:.3} µm")
             } else {
-                format!("held-out RMS {h:.3} µm is worse than raw {raw_rms:.3} µm (no compensation)")
+                format!(
+                    "held-out RMS {h:.3} µm is worse than raw {raw_rms:.3} µm (no compensation)"
+                )
             },
         },
         (None, cv) => {
@@ -774,6 +842,7 @@ pub fn fit_thermal(input: &ThermalInput, opts: &ThermalOptions) -> Result<Therma
         why,
         fcm_gra: rep_a,
         forward: rep_b,
+        all_sensors: rep_c,
         fcm_gra_detail: select::FcmGra {
             selected: fg.selected.clone(),
             ..fg

@@ -7,8 +7,12 @@ use axcomp_thermal::synth::{SynthConfig, generate};
 use axcomp_thermal::{ThermalInput, ThermalOptions, fit_thermal};
 
 #[test]
+#[allow(clippy::needless_range_loop)] // rows index several parallel columns
 fn firmware_replays_the_host_prediction() {
-    let d = generate(&SynthConfig { seed: 9, ..SynthConfig::default() });
+    let d = generate(&SynthConfig {
+        seed: 9,
+        ..SynthConfig::default()
+    });
     let input = ThermalInput {
         time_s: d.time_s.clone(),
         sensors: d.sensor_series(),
@@ -17,8 +21,18 @@ fn firmware_replays_the_host_prediction() {
         conditions: Some(d.condition.iter().map(|c| c.to_string()).collect()),
         holdout: None,
     };
-    let fit = fit_thermal(&input, &ThermalOptions { lags: true, ..ThermalOptions::default() }).unwrap();
-    assert!(fit.model.terms.iter().any(|t| t.tau_s > 0.0), "want at least one lagged term to compare lags");
+    let fit = fit_thermal(
+        &input,
+        &ThermalOptions {
+            lags: true,
+            ..ThermalOptions::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        fit.model.terms.iter().any(|t| t.tau_s > 0.0),
+        "want at least one lagged term to compare lags"
+    );
     let period_ms = (d.time_s[1] - d.time_s[0]) as u32 * 1000;
     let file = ThermalModelFile::from_fit(&fit, &input, "error_um", period_ms);
     file.validate().unwrap();
@@ -46,17 +60,44 @@ fn firmware_replays_the_host_prediction() {
         let readings: Vec<f32> = file
             .sensors
             .iter()
-            .map(|s| input.sensors.iter().find(|x| x.name == s.name).unwrap().values[k] as f32)
+            .map(|s| {
+                input
+                    .sensors
+                    .iter()
+                    .find(|x| x.name == s.name)
+                    .unwrap()
+                    .values[k] as f32
+            })
             .collect();
         comp.update_temperatures(&mut st, (d.time_s[k] * 1000.0) as u32, &readings);
         let mut forces = [0.0f32; axcomp_core::MAX_FORCES];
         for (j, f) in file.forces.iter().enumerate() {
-            forces[j] = input.forces.iter().find(|x| x.name == f.column).unwrap().values[k] as f32;
+            forces[j] = input
+                .forces
+                .iter()
+                .find(|x| x.name == f.column)
+                .unwrap()
+                .values[k] as f32;
         }
-        let out = comp.cycle(&mut st, &axcomp_core::CycleInput { scale_raw: 0, command_counts: 0, forces_n: forces });
+        let out = comp.cycle(
+            &mut st,
+            &axcomp_core::CycleInput {
+                scale_raw: 0,
+                command_counts: 0,
+                forces_n: forces,
+            },
+        );
         let diff = (f64::from(out.correction_um) - host[k]).abs();
         worst = worst.max(diff);
-        assert!(diff <= 0.01 + 1e-5 * host[k].abs(), "row {k}: firmware {} vs host {}", out.correction_um, host[k]);
+        assert!(
+            diff <= 0.01 + 1e-5 * host[k].abs(),
+            "row {k}: firmware {} vs host {}",
+            out.correction_um,
+            host[k]
+        );
     }
-    println!("worst |firmware − host| = {worst:.5} µm over {} rows", d.time_s.len());
+    println!(
+        "worst |firmware − host| = {worst:.5} µm over {} rows",
+        d.time_s.len()
+    );
 }

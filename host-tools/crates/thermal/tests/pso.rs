@@ -26,7 +26,11 @@ fn least_squares_is_the_optimum_pso_approaches() {
     let rows: Vec<usize> = (0..d.time_s.len()).step_by(10).collect();
     let sens = [1usize, 6, 11];
     let x = DMatrix::from_fn(rows.len(), 4, |r, c| {
-        if c == 0 { 1.0 } else { d.sensors_degc[sens[c - 1]][rows[r]] - d.sensors_degc[sens[c - 1]][0] }
+        if c == 0 {
+            1.0
+        } else {
+            d.sensors_degc[sens[c - 1]][rows[r]] - d.sensors_degc[sens[c - 1]][0]
+        }
     });
     let y: Vec<f64> = rows.iter().map(|&i| d.error_um[i]).collect();
     let ls = lstsq(&x, &y, 0.0, Some(0)).unwrap();
@@ -36,7 +40,9 @@ fn least_squares_is_the_optimum_pso_approaches() {
     // search box ±50 per coefficient, fixed seed.
     let mut rng = StdRng::seed_from_u64(7);
     let (np, dim) = (40, 4);
-    let mut pos: Vec<Vec<f64>> = (0..np).map(|_| (0..dim).map(|_| rng.gen_range(-50.0..50.0)).collect()).collect();
+    let mut pos: Vec<Vec<f64>> = (0..np)
+        .map(|_| (0..dim).map(|_| rng.gen_range(-50.0..50.0)).collect())
+        .collect();
     let mut vel: Vec<Vec<f64>> = vec![vec![0.0; dim]; np];
     let mut pbest = pos.clone();
     let mut pbest_f: Vec<f64> = pos.iter().map(|p| mse(&x, &y, p)).collect();
@@ -51,7 +57,9 @@ fn least_squares_is_the_optimum_pso_approaches() {
         for i in 0..np {
             for j in 0..dim {
                 let (r1, r2): (f64, f64) = (rng.r#gen(), rng.r#gen());
-                vel[i][j] = 0.72 * vel[i][j] + 1.49 * r1 * (pbest[i][j] - pos[i][j]) + 1.49 * r2 * (gbest[j] - pos[i][j]);
+                vel[i][j] = 0.72 * vel[i][j]
+                    + 1.49 * r1 * (pbest[i][j] - pos[i][j])
+                    + 1.49 * r2 * (gbest[j] - pos[i][j]);
                 pos[i][j] += vel[i][j];
             }
             let f = mse(&x, &y, &pos[i]);
@@ -65,7 +73,16 @@ fn least_squares_is_the_optimum_pso_approaches() {
             }
         }
     }
-    println!("LS objective {ls_obj:.6} µm², PSO {gbest_f:.6} µm²; LS coef {:?}, PSO {:?}", ls.coef, gbest);
-    assert!(gbest_f >= ls_obj * (1.0 - 1e-9), "PSO {gbest_f} beat least squares {ls_obj}: LS is not the optimum");
-    assert!(gbest_f <= ls_obj * 1.05, "PSO {gbest_f} did not approach LS {ls_obj} within 5 %");
+    println!(
+        "LS objective {ls_obj:.6} µm², PSO {gbest_f:.6} µm²; LS coef {:?}, PSO {:?}",
+        ls.coef, gbest
+    );
+    assert!(
+        gbest_f >= ls_obj * (1.0 - 1e-9),
+        "PSO {gbest_f} beat least squares {ls_obj}: LS is not the optimum"
+    );
+    assert!(
+        gbest_f <= ls_obj * 1.05,
+        "PSO {gbest_f} did not approach LS {ls_obj} within 5 %"
+    );
 }

@@ -1,11 +1,11 @@
 //! How fast the twin simulates: a 5,000-row campaign of every plan, open loop and compensated through
-//! the core (ideal table). Prints figures; run with `cargo bench -p axcomp-twin --bench simulate`.
+//! the core (ideal table + thermo-force term), and the spindle campaign. Prints figures; run with `cargo bench -p axcomp-twin --bench simulate`.
 
 use std::hint::black_box;
 use std::time::Instant;
 
 use axcomp_core::Compensator;
-use axcomp_twin::{Axis, EffectKind, IdealTable, Plan, simulate};
+use axcomp_twin::{Axis, EffectKind, Plan, ideal_image, simulate};
 
 fn time_it(repeats: u32, mut f: impl FnMut()) -> f64 {
     f(); // warm-up
@@ -19,7 +19,7 @@ fn time_it(repeats: u32, mut f: impl FnMut()) -> f64 {
 fn main() {
     let axis = Axis::typical("bench", 0.0, 200.0, &EffectKind::ALL);
     let mut comp = Compensator::IDENTITY;
-    comp.load(&IdealTable::new(&axis, 2.0).image(&axis).expect("image"))
+    comp.load(&ideal_image(&axis, 2.0).expect("image"))
         .expect("load");
     println!(
         "{:<8} {:>6} {:>14} {:>14} {:>16}",
@@ -41,4 +41,21 @@ fn main() {
             closed * 1e3
         );
     }
+    // The spindle campaign (axcomp-thermal's generator, 16 sensors), open loop only.
+    let cfg = axcomp_twin::spindle_config(&axis, 1, Some(5000));
+    let rows = axcomp_twin::simulate_spindle(&axis, 100.0, &cfg)
+        .expect("spindle")
+        .campaign
+        .rows
+        .len();
+    let t = time_it(5, || {
+        black_box(axcomp_twin::simulate_spindle(&axis, 100.0, &cfg).expect("spindle"));
+    });
+    println!(
+        "{:<8} {rows:>6} {:>14.2} {:>14} {:>16.2}",
+        "spindle",
+        t * 1e3,
+        "-",
+        rows as f64 * cfg.dt_s / 3600.0
+    );
 }

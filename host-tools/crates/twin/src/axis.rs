@@ -110,9 +110,11 @@ impl Axis {
         }
     }
 
-    /// A 200 mm linear-motor axis as measured in the linear-motor article (seed 002): pitch error of
-    /// about 20 µm peak to peak, 4 µm reversal, 1.2 µm cogging at 32 mm, 0.15 µm interpolation error at
-    /// 20 µm, a little scale expansion (10 µm/(m·K)); noise σ 0.5 µm.
+    /// A 200 mm linear-motor axis modelled on the one of the linear-motor article (seed 002: 200 mm
+    /// stroke, laser-interferometer ISO runs; the parameters here are typical values, not its data):
+    /// pitch error plus cogging about 10 µm peak to peak (8 µm slope, 6 and 2 µm waves), 4 µm
+    /// reversal, 1.2 µm cogging at 32 mm, 0.15 µm interpolation error at 20 µm, a little scale
+    /// expansion (10 µm/(m·K)); noise σ 0.5 µm; 0.05 µm scale resolution.
     pub fn linear_motor_demo() -> Axis {
         Axis::typical(
             "linear_motor_demo",

@@ -58,6 +58,18 @@ pub struct Campaign {
     pub rows: Vec<Row>,
     /// One per row.
     pub truth: Vec<Truth>,
+    /// Further columns written after the contract's (e.g. `spindle_rpm`, `ap_mm`, `fz_mm`), one value
+    /// per row.
+    pub extra_columns: Vec<ExtraColumn>,
+}
+
+/// A further CSV column.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ExtraColumn {
+    pub name: String,
+    /// Decimals written.
+    pub decimals: usize,
+    pub values: Vec<f64>,
 }
 
 impl Campaign {
@@ -72,6 +84,7 @@ impl Campaign {
         ];
         cols.extend(self.sensor_names.iter().map(|n| format!("{n}_degC")));
         cols.extend(["force_N", "velocity_mm_s", "accel_mm_s2", "offset_mm"].map(String::from));
+        cols.extend(self.extra_columns.iter().map(|c| c.name.clone()));
         cols.join(",")
     }
 
@@ -103,7 +116,7 @@ impl Campaign {
         );
         out.push_str(&self.csv_header());
         out.push('\n');
-        for r in &self.rows {
+        for (i, r) in self.rows.iter().enumerate() {
             let _ = write!(
                 out,
                 "{:.4},{:.4},{},{},{:.3}",
@@ -112,11 +125,16 @@ impl Campaign {
             for t in &r.temps_degc {
                 let _ = write!(out, ",{t:.4}");
             }
-            let _ = writeln!(
+            let _ = write!(
                 out,
                 ",{:.3},{:.4},{:.3},{:.3}",
                 r.force_n, r.velocity_mm_s, r.accel_mm_s2, r.offset_mm
             );
+            for c in &self.extra_columns {
+                let v = c.values.get(i).copied().unwrap_or(f64::NAN);
+                let _ = write!(out, ",{v:.prec$}", prec = c.decimals);
+            }
+            out.push('\n');
         }
     }
 

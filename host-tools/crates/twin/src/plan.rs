@@ -17,6 +17,7 @@
 //! | `thermal` | warm-up then cool-down, 3 positions | `thermal_drift`, `thermal_lag`, `scale_expansion`, `time_drift` |
 //! | `load` | force steps at 3 positions | `force_deflection` |
 //! | `abbe` | ISO runs at several `offset_mm` | `abbe` |
+//! | `spindle` ([`crate::spindle`], not a [`Plan`]) | spindle speed, cutting force, 16 collinear sensors | `thermal_drift`, `thermal_lag`, `force_deflection` (from process parameters) |
 
 use serde::{Deserialize, Serialize};
 

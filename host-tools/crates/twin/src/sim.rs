@@ -176,5 +176,6 @@ pub(crate) fn run(
         sensor_names: axis.sensors.iter().map(|s| s.name.clone()).collect(),
         rows,
         truth,
+        extra_columns: Vec::new(),
     })
 }
