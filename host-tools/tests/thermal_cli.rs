@@ -368,3 +368,78 @@ fn voron_other_files_never_worse_than_raw() {
         }
     }
 }
+
+#[test]
+fn force_law_from_fit_force_goes_into_the_model_file() {
+    // Coupled thermo-force chain: fit the twin's cutting-force law on the cutting rows (`fit force`), attach it
+    // to the force term of the thermal model (`fit thermal --force-law`), build an image with it.
+    let dir = tmp_dir("law");
+    let d = generate(&SynthConfig {
+        seed: 4,
+        ..SynthConfig::default()
+    });
+    let twin = dir.join("twin.csv");
+    d.write_csv(&twin).unwrap();
+    let cut = dir.join("cut.csv");
+    let mut text = String::from("ap_mm,fz_mm,spindle_rpm,force_N\n");
+    for k in (0..d.time_s.len()).filter(|&k| d.force_n[k] > 0.0) {
+        text += &format!(
+            "{},{},{},{}\n",
+            d.ap_mm[k], d.fz_mm[k], d.spindle_rpm[k], d.force_n[k]
+        );
+    }
+    std::fs::write(&cut, text).unwrap();
+    let (fj, law) = (dir.join("force.json"), dir.join("law.json"));
+    let (ok, out, err) = run(&[
+        "fit",
+        "force",
+        "--data",
+        cut.to_str().unwrap(),
+        "--json",
+        fj.to_str().unwrap(),
+        "--out",
+        law.to_str().unwrap(),
+    ]);
+    assert!(ok, "{out}{err}");
+    // The twin's law is F = 1800·ap^0.9·fz^0.75·n^-0.1 with 2 % noise: exponents within 0.05 (reference: the
+    // generator's settings).
+    let v = json(&fj);
+    for (k, want) in [("x_ap", 0.9), ("y_fz", 0.75), ("z_n", -0.1)] {
+        let got = v["law"][k]["value"].as_f64().unwrap();
+        assert!((got - want).abs() < 0.05, "{k} = {got}, truth {want}");
+    }
+    let m = dir.join("model.json");
+    let (ok, out, err) = run(&[
+        "fit",
+        "thermal",
+        "--data",
+        twin.to_str().unwrap(),
+        "--target",
+        "error_um",
+        "--holdout",
+        "condition=2",
+        "--cv",
+        "condition",
+        "--force-law",
+        &format!("force_N={}", law.display()),
+        "--out",
+        m.to_str().unwrap(),
+    ]);
+    assert!(ok, "{out}{err}");
+    let mf = ThermalModelFile::load(&m).unwrap();
+    let l = mf.forces[0].law.expect("law attached");
+    assert!((l.x_ap - 0.9).abs() < 0.05);
+    let owned = mf.to_core();
+    assert!(owned.forces[0].law.is_some());
+    let (ok, _, err) = run(&[
+        "fit",
+        "thermal",
+        "--data",
+        twin.to_str().unwrap(),
+        "--target",
+        "error_um",
+        "--force-law",
+        "spindle_N=x.json",
+    ]);
+    assert!(!ok && err.contains("x.json"), "{err}");
+}

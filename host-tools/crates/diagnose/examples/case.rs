@@ -34,7 +34,19 @@ fn main() {
     cols.extend(d.model_columns.iter().cloned());
     cols.push(c.truth_um.clone());
     let fit = axcomp_diagnose::lsq::fit(&cols, &c.obs.target, &train);
-    let after = axcomp_diagnose::stats::rms(hold.iter().map(|&i| c.obs.target[i] - fit.predict(&cols, i)));
-    let peak = hold.iter().map(|&i| c.truth_um[i].abs()).fold(0.0, f64::max);
-    println!("oracle: rank {} of {}, last coef {:.4}, held-out RMS after {after:.4} (before {:.4}), truth peak on held-out {peak:.3}", fit.rank, cols.len(), fit.coef.last().unwrap(), d.gap.holdout_rms_um);
+    let after = axcomp_diagnose::stats::rms(
+        hold.iter()
+            .map(|&i| c.obs.target[i] - fit.predict(&cols, i)),
+    );
+    let peak = hold
+        .iter()
+        .map(|&i| c.truth_um[i].abs())
+        .fold(0.0, f64::max);
+    println!(
+        "oracle: rank {} of {}, last coef {:.4}, held-out RMS after {after:.4} (before {:.4}), truth peak on held-out {peak:.3}",
+        fit.rank,
+        cols.len(),
+        fit.coef.last().unwrap(),
+        d.gap.holdout_rms_um
+    );
 }

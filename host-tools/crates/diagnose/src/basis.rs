@@ -13,8 +13,8 @@
 //! | `thermal_drift` | ΔT_s of one sensor, or ΔT_i of every sensor | sensor |
 //! | `thermal_lag` | first-order lag of ΔT_s of one sensor, or of every sensor (same τ) | sensor, τ (log grid, 0.05 % … 100 % of the duration) |
 //! | `force_deflection` | every force column | – |
-//! | `cogging` | sin, cos(2πx/P) | P in 5…60 mm (frequency step 1/(4·stroke)) |
-//! | `interpolation_error` | sin, cos(2πx/P) | P in the usual scale signal periods 4…200 µm, and P/2 |
+//! | `cogging` | sin, cos(2πx/P) | P in 5…60 mm (frequency step 1/(12·stroke)) |
+//! | `interpolation_error` | sin, cos(2πx/P) | P in the usual scale signal periods 4…200 µm, and P/2 (periods that alias to > 2 mm on a regular position grid are left out) |
 //! | `end_effect` | exp(−(x−x_min)/λ) or exp(−(x_max−x)/λ), optionally also × d; or both ends | end, λ (1 … 10 % of the stroke) |
 //! | `following_error` | velocity and/or acceleration | terms |
 //! | `abbe` | offset × Legendre P0…P_k(x̃), k ≤ 2 | degree |
@@ -140,6 +140,22 @@ impl Context {
     }
 }
 
+/// The spacing of the distinct positions (of `rows`) when they form a regular grid (all gaps within 1 % of
+/// the median gap), else `None`.
+pub fn regular_spacing(x: &[f64], rows: &[usize]) -> Option<f64> {
+    let mut u: Vec<f64> = rows.iter().map(|&i| x[i]).collect();
+    u.sort_by(|a, b| a.total_cmp(b));
+    let span = u.last()? - u.first()?;
+    u.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * span.max(1.0));
+    if u.len() < 3 {
+        return None;
+    }
+    let mut gaps: Vec<f64> = u.windows(2).map(|w| w[1] - w[0]).collect();
+    gaps.sort_by(|a, b| a.total_cmp(b));
+    let med = gaps[gaps.len() / 2];
+    (gaps.iter().all(|g| (g - med).abs() <= 0.01 * med)).then_some(med)
+}
+
 /// Uniform cubic B-spline basis (`k` segments → `k + 3` functions) over [lo, hi].
 pub fn bspline_basis(x: &[f64], lo: f64, hi: f64, k: usize) -> Vec<Vec<f64>> {
     let mut cols = vec![vec![0.0; x.len()]; k + 3];
@@ -256,7 +272,11 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
                 for k in 0..=16 {
                     let xr = ctx.x_min + ctx.stroke() * (k as f64 / 8.0 - 0.5);
                     let col: Vec<f64> = (0..n).map(|i| (x[i] - xr) * s.values[i]).collect();
-                    vars.push(var(vec![col], map(json!({"sensor": s.name, "x_ref_mm": xr})), searched));
+                    vars.push(var(
+                        vec![col],
+                        map(json!({"sensor": s.name, "x_ref_mm": xr})),
+                        searched,
+                    ));
                 }
             }
             fam(vars, 0)
@@ -332,8 +352,9 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
                 return None;
             }
             let (f_lo, f_hi) = (1.0 / 60.0, 1.0 / 5.0);
-            let df = 1.0 / (4.0 * l);
-            let steps = (((f_hi - f_lo) / df).ceil() as usize).clamp(60, 800);
+            // Frequency step 1/(12·stroke): at most π/12 of phase error across the stroke.
+            let df = 1.0 / (12.0 * l);
+            let steps = (((f_hi - f_lo) / df).ceil() as usize).clamp(60, 900);
             let vars = (0..=steps)
                 .map(|k| {
                     let f = f_lo + (f_hi - f_lo) * k as f64 / steps as f64;
@@ -345,15 +366,29 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
         EffectKind::InterpolationError => {
             let x = ctx.x.as_ref()?;
             let mut vars = Vec::new();
+            let all: Vec<usize> = (0..n).collect();
+            let grid = regular_spacing(x, &all);
             for p_um in [4.0, 8.0, 10.0, 20.0, 40.0, 100.0, 200.0] {
                 for (h, label) in [(1.0, 1), (2.0, 2)] {
                     let period_mm = p_um / 1000.0 / h;
+                    if let Some(s) = grid {
+                        // On a regular grid of spacing s a short period aliases to 1/|1/P − m/s|: when
+                        // that is longer than 2 mm it mimics cogging / pitch and is not identifiable.
+                        let f = 1.0 / period_mm;
+                        let alias = (f - (f * s).round() / s).abs();
+                        if alias < 0.5 {
+                            continue;
+                        }
+                    }
                     vars.push(var(
                         sincos(x, period_mm),
                         map(json!({"signal_period_um": p_um, "harmonic": label})),
                         1,
                     ));
                 }
+            }
+            if vars.is_empty() {
+                return None;
             }
             fam(vars, 1)
         }
@@ -483,6 +518,30 @@ mod tests {
             let s: f64 = b.iter().map(|c| c[i]).sum();
             assert!((s - 1.0).abs() < 1e-12, "x={} sum={s}", x[i]);
         }
+    }
+
+    #[test]
+    fn short_periods_aliasing_on_a_regular_grid_are_left_out() {
+        // Positions every 1.25 mm: a 20 µm period is sampled at one phase only (alias frequency 0) and a
+        // 4 µm period also (1.25/0.004 = 312.5 → alias 0.4 /mm would be a 2.5 mm "period"): neither is
+        // identifiable, so the family keeps only the periods whose alias is faster than 2 mm.
+        let x: Vec<f64> = (0..400).map(|i| i as f64 * 1.25).collect();
+        assert!((regular_spacing(&x, &(0..400).collect::<Vec<_>>()).unwrap() - 1.25).abs() < 1e-12);
+        let obs = Observations {
+            target_name: "deviation_um".into(),
+            target: vec![0.0; 400],
+            held_out: (0..400).map(|i| i % 5 == 0).collect(),
+            position_mm: Some(x.clone()),
+            ..Default::default()
+        };
+        let ctx = Context::new(&obs, 8);
+        let kept: Vec<f64> = family(EffectKind::InterpolationError, &obs, &ctx)
+            .map(|f| f.variants.iter().map(|v| v.params["signal_period_um"].as_f64().unwrap()).collect())
+            .unwrap_or_default();
+        assert!(!kept.contains(&20.0) && !kept.contains(&4.0), "{kept:?}");
+        // Irregular positions keep every period.
+        let xi: Vec<f64> = (0..400).map(|i| i as f64 * 1.25 + 0.37 * ((i * 7919) % 13) as f64 / 13.0).collect();
+        assert!(regular_spacing(&xi, &(0..400).collect::<Vec<_>>()).is_none());
     }
 
     #[test]

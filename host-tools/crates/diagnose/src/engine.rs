@@ -205,9 +205,15 @@ fn training_blocks(obs: &Observations, train: &[usize]) -> Vec<Vec<usize>> {
             blocks
         }
         None => {
-            let order: Vec<usize> = obs.time_order().into_iter().filter(|&i| !obs.held_out[i]).collect();
+            let order: Vec<usize> = obs
+                .time_order()
+                .into_iter()
+                .filter(|&i| !obs.held_out[i])
+                .collect();
             let nb = 5.min(order.len());
-            (0..nb).map(|k| order[k * order.len() / nb..(k + 1) * order.len() / nb].to_vec()).collect()
+            (0..nb)
+                .map(|k| order[k * order.len() / nb..(k + 1) * order.len() / nb].to_vec())
+                .collect()
         }
     }
 }
@@ -216,9 +222,17 @@ fn training_blocks(obs: &Observations, train: &[usize]) -> Vec<Vec<usize>> {
 fn blocked_cv_rss(cols: &[Vec<f64>], y: &[f64], blocks: &[Vec<usize>]) -> f64 {
     let mut total = 0.0;
     for (k, b) in blocks.iter().enumerate() {
-        let rows: Vec<usize> = blocks.iter().enumerate().filter(|(j, _)| *j != k).flat_map(|(_, r)| r.iter().cloned()).collect();
+        let rows: Vec<usize> = blocks
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != k)
+            .flat_map(|(_, r)| r.iter().cloned())
+            .collect();
         let fit = lsq::fit(cols, y, &rows);
-        total += b.iter().map(|&i| (y[i] - fit.predict(cols, i)).powi(2)).sum::<f64>();
+        total += b
+            .iter()
+            .map(|&i| (y[i] - fit.predict(cols, i)).powi(2))
+            .sum::<f64>();
     }
     total
 }
@@ -232,7 +246,11 @@ fn max_corr(r: &[f64], cols: &[Vec<f64>]) -> f64 {
             let mc = c.iter().sum::<f64>() / n;
             let sc = c.iter().map(|v| (v - mc).powi(2)).sum::<f64>().sqrt();
             let cov: f64 = r.iter().zip(c).map(|(a, b)| (a - mr) * (b - mc)).sum();
-            if sr > 0.0 && sc > 0.0 { (cov / (sr * sc)).abs() } else { 0.0 }
+            if sr > 0.0 && sc > 0.0 {
+                (cov / (sr * sc)).abs()
+            } else {
+                0.0
+            }
         })
         .fold(0.0, f64::max)
 }
@@ -484,7 +502,11 @@ pub fn diagnose(
             let nb = rows.len() as f64;
             let r0 = ss(&fit_all_rows(&base_cols, y, &rows), &rows);
             let mut best = (usize::MAX, 0.0f64);
-            for (k, c) in effects.iter().enumerate().filter(|(_, c)| c.train_p_value < opts.alpha) {
+            for (k, c) in effects
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.train_p_value < opts.alpha)
+            {
                 let mut cols = base_cols.clone();
                 cols.extend(c.columns.iter().cloned());
                 let r1 = ss(&fit_all_rows(&cols, y, &rows), &rows);

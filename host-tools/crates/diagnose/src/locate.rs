@@ -54,7 +54,7 @@ fn regions_of(name: &str, v: &[f64], g: &[f64], noise2: f64, out: &mut Vec<Regio
     }
     let lo = v.iter().cloned().fold(f64::INFINITY, f64::min);
     let hi = v.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-    if !(hi > lo) {
+    if hi.partial_cmp(&lo) != Some(core::cmp::Ordering::Greater) {
         return;
     }
     let mut uniq: Vec<f64> = v.to_vec();

@@ -212,8 +212,8 @@ mod tests {
         let rows: Vec<usize> = (0..20).collect();
         let f = fit(&cols, &y, &rows);
         assert_eq!(f.rank, 2);
-        for i in 0..20 {
-            assert!((f.predict(&cols, i) - y[i]).abs() < 1e-9, "row {i}");
+        for (i, yi) in y.iter().enumerate() {
+            assert!((f.predict(&cols, i) - yi).abs() < 1e-9, "row {i}");
         }
     }
 

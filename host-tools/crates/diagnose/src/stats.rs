@@ -90,7 +90,7 @@ pub fn inc_beta(a: f64, b: f64, x: f64) -> f64 {
 
 /// `P(F > f)` for an F(d1, d2) variable.
 pub fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
-    if !(f > 0.0) {
+    if f.is_nan() || f <= 0.0 {
         return 1.0;
     }
     if !f.is_finite() {

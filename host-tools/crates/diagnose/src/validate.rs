@@ -68,7 +68,7 @@ impl ValidateOptions {
         if self.rows < 100 {
             return Err(format!("--rows must be ≥ 100, got {}", self.rows));
         }
-        if !(self.noise_um > 0.0) {
+        if self.noise_um.is_nan() || self.noise_um <= 0.0 {
             return Err("noise σ must be > 0".into());
         }
         if self.null_every < 2 {
@@ -290,7 +290,7 @@ pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, Strin
     if let (Some(w), Some(snr)) = (withheld, snr) {
         let tk = twin_kind(w);
         let peak = campaign.peak_contribution_um(tk, hold.iter().cloned());
-        if !(peak > 0.0) {
+        if peak.is_nan() || peak <= 0.0 {
             return Err(format!(
                 "case {index}: withheld {w} has no contribution on the held-out rows"
             ));

@@ -1,6 +1,7 @@
 //! Held-out RMS vs the oracle on the twin over many seeds (prints figures):
 //! `cargo run --release -p axcomp-thermal --example twin_seeds [N]`
-//! (`SEL=all` forces every sensor, `RIDGE=auto` a CV-chosen ridge).
+//! (`SEL=all` forces every sensor, `RIDGE=auto` a CV-chosen ridge, `NOLAGS=1` no lags, `HELD=k` holds out
+//! condition k instead of 2).
 
 use axcomp_thermal::synth::{SynthConfig, generate};
 use axcomp_thermal::{ThermalInput, ThermalOptions, fit_thermal, stats};
@@ -16,7 +17,10 @@ fn main() {
             seed,
             ..SynthConfig::default()
         });
-        let held = 2;
+        let held: usize = std::env::var("HELD")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(2);
         let input = ThermalInput {
             time_s: d.time_s.clone(),
             sensors: d.sensor_series(),

@@ -11,7 +11,8 @@
 //!   deviation, the sum of the effects' **contributions** at the scale position.
 //! - **plan** ([`Plan`]): what is measured when — ISO 230-2 runs ([`Iso230Plan`]), scans at several
 //!   speeds ([`ScanPlan`]), warm-up/cool-down ([`ThermalPlan`]), load steps ([`LoadPlan`]), Abbe offsets
-//!   (`Plan::by_name("abbe", ..)`).
+//!   (`Plan::by_name("abbe", ..)`); thermo-force campaigns under cutting load come from
+//!   `axcomp-thermal`'s generator through [`simulate_spindle`] (see [`spindle`]).
 //! - **campaign** ([`Campaign`]): the measured **rows** (CSV) plus the per-row [`Truth`].
 //! - **scale counts**: `round(x_mm·1000 / axis.scale_um_per_count)`, zero at 0 mm — the count space of
 //!   the core's tables.
