@@ -12,6 +12,7 @@ pub struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
+#[allow(clippy::large_enum_variant)] // parsed once per process; boxing would only add noise
 pub enum Command {
     /// Simulate an axis, measure it (ISO 230-2), fit a table, build the firmware image, replay it and print before/after figures.
     Demo(commands::demo::Args),

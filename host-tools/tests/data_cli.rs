@@ -2,18 +2,14 @@
 //! output file; and the happy paths of `export`, `image build/inspect` and `replay` on hand-made inputs
 //! whose expected numbers are worked out in the comments.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use axcomp_core::CycleInput;
 use axcomp_core::trace::{OUTPUT_RECORD_LEN, OutputRecord, Record, Writer};
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("axcomp-data-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::scratch;
 
 fn axcomp(args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_axcomp"))

@@ -1,15 +1,10 @@
 //! `axcomp demo` end to end: no arguments, in a temporary directory; checks every output file and that the
 //! before/after ISO 230-2 figures show a real improvement.
 
-use std::path::PathBuf;
 use std::process::Command;
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("axcomp-demo-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::scratch;
 
 #[test]
 fn demo_without_arguments_writes_report_plots_and_figures() {

@@ -2,35 +2,14 @@
 //! set): milling coefficients from the Kistler slotting files, the Kienzle law from the turning feed sweep and
 //! its prediction of the depth sweep.
 
-use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_axcomp"))
 }
 
-fn shared() -> Option<PathBuf> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    match axcomp_data::shared_dir(&root) {
-        Some(d) => Some(d),
-        None if std::env::var_os("CI").is_some() => panic!("../shared not found (CI is set)"),
-        None => {
-            println!("skipped: ../shared not found");
-            None
-        }
-    }
-}
-
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("axcomp-force-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+mod common;
+use common::{read_json as json, scratch as tmp_dir, shared};
 
 #[test]
 fn milling_slotting_coefficients_are_plausible() {

@@ -3,36 +3,16 @@
 //! per the contract, and bad input. Real data is read from `../shared` (override: `AXCOMP_SHARED`); when
 //! it is absent these tests print `skipped: ../shared not found` and return, except under `CI`.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use serde_json::Value;
 
+mod common;
+use common::{read_json, scratch, shared};
+
 const ESS_CSV: &str = "data/real/ess-linear-axes-iso230/tidy/iso230_2_runs_long.csv";
 const B02: &str = "ESS_TDU_B02_X_2022-04-06";
-
-fn shared() -> Option<PathBuf> {
-    let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
-    match axcomp_data::shared_dir(&root) {
-        Some(d) => Some(d),
-        None if std::env::var_os("CI").is_some() => panic!("../shared not found (CI is set)"),
-        None => {
-            println!("skipped: ../shared not found");
-            None
-        }
-    }
-}
-
-/// A fresh empty directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!(
-        "axcomp-positioning-cli-{}-{name}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 struct Run {
     code: i32,
@@ -50,10 +30,6 @@ fn axcomp(args: &[&str]) -> Run {
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
         stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
     }
-}
-
-fn read_json(p: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
 }
 
 fn num(j: &Value, key: &str) -> f64 {

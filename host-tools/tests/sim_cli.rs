@@ -1,15 +1,10 @@
 //! `axcomp sim` end to end: the binary writes the contract's CSV and the truth JSON, rejects bad
 //! options with a clear message, and writes nothing then.
 
-use std::path::PathBuf;
 use std::process::Command;
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("axcomp-sim-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+mod common;
+use common::scratch;
 
 fn axcomp(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_axcomp"))

@@ -1,7 +1,7 @@
 //! `axcomp fit thermal` end to end through the CLI binary: the synthetic twin (known truth) and the real
 //! Voron frame-growth data from `../shared` (skipped when absent, unless `CI` is set).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use axcomp_thermal::model_file::ThermalModelFile;
@@ -11,12 +11,8 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_axcomp"))
 }
 
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("axcomp-thermal-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{read_json as json, scratch as tmp_dir, shared};
 
 fn run(args: &[&str]) -> (bool, String, String) {
     let out = bin().args(args).output().expect("run axcomp");
@@ -25,22 +21,6 @@ fn run(args: &[&str]) -> (bool, String, String) {
         String::from_utf8_lossy(&out.stdout).into_owned(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
-fn shared() -> Option<PathBuf> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    match axcomp_data::shared_dir(&root) {
-        Some(d) => Some(d),
-        None if std::env::var_os("CI").is_some() => panic!("../shared not found (CI is set)"),
-        None => {
-            println!("skipped: ../shared not found");
-            None
-        }
-    }
 }
 
 #[test]

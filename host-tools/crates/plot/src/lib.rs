@@ -195,7 +195,12 @@ impl Figure {
     pub fn to_svg(&self) -> String {
         let (w, h) = (self.width, self.height);
         // The right margin holds the legend: wide enough for the longest series name (~7 px a character).
-        let longest = self.series.iter().map(|s| s.name.chars().count()).max().unwrap_or(0);
+        let longest = self
+            .series
+            .iter()
+            .map(|s| s.name.chars().count())
+            .max()
+            .unwrap_or(0);
         let mr = (40.0 + 7.0 * longest as f64).clamp(60.0, w * 0.45);
         let (ml, mt, mb) = (70.0, 40.0, 55.0);
         let (pw, ph) = (w - ml - mr, h - mt - mb);
