@@ -142,3 +142,25 @@ fn qemu_firmware_reports_malformed_trace_and_still_matches() {
     assert!(stdout.contains("unknown record tag 200"), "{stdout}");
     assert_same_records(&got, &want);
 }
+
+/// The comparison itself is strict: one ULP in one record's `correction_um`, or one dropped cycle, fails it.
+#[test]
+fn comparison_fails_on_one_ulp_and_on_a_dropped_cycle() {
+    let trace_bytes = scenario::equivalence(10_000, None).expect("scenario");
+    let (want, cycles, _) = host_replay(&trace_bytes);
+    assert_eq!(cycles, 10_000);
+    assert_same_records(&want, &want);
+
+    // One ULP: the f32 bits of correction_um in the middle record, plus one.
+    let k = (cycles / 2) as usize;
+    let mut rec = OutputRecord::decode(&want[k * OUTPUT_RECORD_LEN..]).unwrap();
+    rec.correction_um_bits = rec.correction_um_bits.wrapping_add(1);
+    let mut one_ulp = want.clone();
+    one_ulp[k * OUTPUT_RECORD_LEN..(k + 1) * OUTPUT_RECORD_LEN].copy_from_slice(&rec.encode());
+    assert_ne!(one_ulp, want);
+    assert!(std::panic::catch_unwind(|| assert_same_records(&one_ulp, &want)).is_err());
+
+    // A dropped cycle: the last record missing (every earlier one equal).
+    let dropped = &want[..want.len() - OUTPUT_RECORD_LEN];
+    assert!(std::panic::catch_unwind(|| assert_same_records(dropped, &want)).is_err());
+}
