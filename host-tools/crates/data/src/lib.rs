@@ -36,12 +36,9 @@ use cells::Cells;
 /// Everything that can be wrong with a measurement file or with the options that select from it.
 #[derive(Debug, thiserror::Error)]
 pub enum DataError {
-    #[error("{file}: cannot read: {source}")]
-    Io {
-        file: String,
-        #[source]
-        source: std::io::Error,
-    },
+    // The I/O error is part of the message, not a `source`, so that `{:#}` does not print it twice.
+    #[error("{file}: cannot read: {cause}")]
+    Io { file: String, cause: std::io::Error },
     #[error("{file}: no header row (the file is empty or holds only `#` comments)")]
     NoHeader { file: String },
     #[error("{file}:{line}:{column}: quoted field is never closed")]
@@ -280,9 +277,9 @@ impl Dataset {
     /// Reads and parses `path` (see [`Dataset::from_csv_str`]); messages name the path as given.
     pub fn load(path: &Path, opts: &LoadOptions) -> Result<Dataset, DataError> {
         let file = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| DataError::Io {
+        let bytes = std::fs::read(path).map_err(|cause| DataError::Io {
             file: file.clone(),
-            source,
+            cause,
         })?;
         let text = String::from_utf8_lossy(&bytes);
         Self::from_csv_str(&file, &text, opts)

@@ -34,11 +34,8 @@ pub struct DynoWare {
 /// Why a DynoWare file could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum DynoWareError {
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        source: std::io::Error,
-    },
+    #[error("{path}: {cause}")]
+    Io { path: String, cause: std::io::Error },
     #[error("{path}: no `Sampling rate [Hz]:` line in the header")]
     NoRate { path: String },
     #[error("{path}: no `Time,Fx,Fy,Fz` header line")]
@@ -64,9 +61,9 @@ impl DynoWare {
     /// Reads a DynoWare 2.x CSV export (header block, `Time,Fx,Fy,Fz`, a units row, then data).
     pub fn load(path: &std::path::Path) -> Result<DynoWare, DynoWareError> {
         let p = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| DynoWareError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| DynoWareError::Io {
             path: p.clone(),
-            source,
+            cause,
         })?;
         Self::parse(&p, &text)
     }

@@ -92,15 +92,12 @@ impl OwnedThermoForceSpec {
 /// Why a model file is not usable.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelFileError {
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        source: std::io::Error,
-    },
-    #[error("{path}: not a thermal model file: {source}")]
+    #[error("{path}: {cause}")]
+    Io { path: String, cause: std::io::Error },
+    #[error("{path}: not a thermal model file: {cause}")]
     Json {
         path: String,
-        source: serde_json::Error,
+        cause: serde_json::Error,
     },
     #[error("{path}: {what}")]
     Invalid { path: String, what: String },
@@ -232,14 +229,14 @@ impl ThermalModelFile {
     /// Reads and validates a model file.
     pub fn load(path: &std::path::Path) -> Result<Self, ModelFileError> {
         let p = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| ModelFileError::Io {
             path: p.clone(),
-            source,
+            cause,
         })?;
         let m: ThermalModelFile =
-            serde_json::from_str(&text).map_err(|source| ModelFileError::Json {
+            serde_json::from_str(&text).map_err(|cause| ModelFileError::Json {
                 path: p.clone(),
-                source,
+                cause,
             })?;
         m.validate()
             .map_err(|what| ModelFileError::Invalid { path: p, what })?;
@@ -253,7 +250,7 @@ impl ThermalModelFile {
         let tmp = path.with_extension("json.tmp");
         std::fs::write(&tmp, text)
             .and_then(|_| std::fs::rename(&tmp, path))
-            .map_err(|source| ModelFileError::Io { path: p, source })
+            .map_err(|cause| ModelFileError::Io { path: p, cause })
     }
 
     /// Converts to the core's owned spec (f32, sensor order kept). Call [`ThermalModelFile::validate`] first
