@@ -134,6 +134,36 @@ pub struct CycleOutput {
     pub flags: Flags,
 }
 
+/// Which force terms are measured (bit j of the discriminant = term j), for the cycle's dispatch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub(crate) enum MeasuredSet {
+    None = 0,
+    F0 = 0b001,
+    F1 = 0b010,
+    F01 = 0b011,
+    F2 = 0b100,
+    F02 = 0b101,
+    F12 = 0b110,
+    F012 = 0b111,
+}
+
+impl MeasuredSet {
+    /// From the bit mask (bits above 2 are ignored).
+    pub(crate) const fn from_mask(mask: u8) -> MeasuredSet {
+        match mask & 0b111 {
+            0b001 => MeasuredSet::F0,
+            0b010 => MeasuredSet::F1,
+            0b011 => MeasuredSet::F01,
+            0b100 => MeasuredSet::F2,
+            0b101 => MeasuredSet::F02,
+            0b110 => MeasuredSet::F12,
+            0b111 => MeasuredSet::F012,
+            _ => MeasuredSet::None,
+        }
+    }
+}
+
 /// Validated sensor settings with the derived lag coefficient.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct SensorRt {
@@ -212,6 +242,8 @@ pub struct Compensator {
     /// Bit j set: force j is measured (χ_j in `chi_measured[j]`).
     pub(crate) measured_mask: u8,
     pub(crate) chi_measured: [f32; MAX_FORCES],
+    /// `measured_mask` as an enum, so the cycle's dispatch needs no range check.
+    pub(crate) measured: MeasuredSet,
     /// THERMAL_FROZEN if the image has sensors: `State::thermo_bits` holds the thermo flags
     /// XOR this, so that a fresh (all-zero) State reads as frozen until its sensors report.
     pub(crate) thermo_flags_xor: u16,
@@ -220,7 +252,12 @@ pub struct Compensator {
     pub(crate) max_correction_um: f32,
     pub(crate) max_slew_um_per_cycle: f32,
     pub(crate) hysteresis_counts: u32,
-    /// Forward segments at `0..n`, backward at `MAX_SEGMENTS..MAX_SEGMENTS + n`. Last, so that
+    /// True if every applied correction, in counts, is below 2^29 in magnitude
+    /// ([`MAX_LIMIT_UM`] / `um_per_count` < 2^29), so the cycle may round with
+    /// [`round_half_away_bounded`].
+    pub(crate) counts_bounded: bool,
+    /// Forward segments at `0..n`, backward at `MAX_SEGMENTS..MAX_SEGMENTS + n` (a copy of the
+    /// forward ones for a unidirectional table). Last, so that
     /// every other field is within a load's immediate offset of `self`.
     pub(crate) coeffs: [[f32; 4]; 2 * MAX_SEGMENTS],
 }
@@ -265,11 +302,13 @@ impl Compensator {
         force_predicted: [false; MAX_FORCES],
         measured_mask: 0,
         chi_measured: [0.0; MAX_FORCES],
+        measured: MeasuredSet::None,
         thermo_flags_xor: 0,
         laws: [ZERO_LAW; MAX_FORCES],
         max_correction_um: 0.0,
         max_slew_um_per_cycle: 0.0,
         hysteresis_counts: 0,
+        counts_bounded: false,
         coeffs: [[0.0; 4]; 2 * MAX_SEGMENTS],
     };
 
@@ -294,11 +333,13 @@ impl Compensator {
         self.force_predicted = [false; MAX_FORCES];
         self.measured_mask = 0;
         self.chi_measured = [0.0; MAX_FORCES];
+        self.measured = MeasuredSet::None;
         self.thermo_flags_xor = 0;
         self.axis_id = 0;
         self.counter_bits = 0;
         self.sext_shift = 0;
         self.um_per_count = 0.0;
+        self.counts_bounded = false;
     }
 
     /// True once an image has been loaded (false for the identity).
@@ -448,7 +489,8 @@ impl Compensator {
         if !self.has_table {
             return (0.0, false);
         }
-        let dir = (direction == Direction::Backward && self.bidirectional) as usize;
+        // A unidirectional table has its forward segments in the backward half too (see `load`).
+        let dir = (direction == Direction::Backward) as usize;
         // Compare first, then subtract: exact for every i64 without a saturating subtraction.
         let (end, dist) = if position_counts < self.start_counts {
             (
@@ -485,8 +527,10 @@ impl Compensator {
     ///
     /// No library calls, no i64 multiplication/division, no i64↔f32 conversion, no panic path.
     /// Cost on a Cortex-M4F (QEMU count by `.ci/bench`, firmware bin `axcomp-qemu-bench`): about
-    /// 160 instructions for the [`crate::bench`] workload (table + 8-sensor thermo-force + 3
-    /// forces), about 113 with the table only.
+    /// 127 instructions for the [`crate::bench`] workload (table + 8-sensor thermo-force + 3
+    /// forces), about 95 with the table only. The common case is laid out as the fall-through
+    /// (the rare branches — first cycle, clamp/slew acting, command near ±2^63 — are marked
+    /// cold) and is sensitive to register pressure: measure any change with `.ci/bench`.
     ///
     /// The thermo-force term adds the contribution cached by [`Compensator::update_temperatures`]
     /// and [`Compensator::set_process`] (b0 + Σ b_i·ΔT_i + predicted forces), the expansion term
@@ -496,6 +540,7 @@ impl Compensator {
         let shift = self.sext_shift;
         let raw = input.scale_raw;
         if !st.primed {
+            cold_path();
             let base = if st.raw_pending { st.last_raw } else { raw };
             st.position = ((base.wrapping_shl(shift) as i32) >> shift) as i64;
             st.last_raw = base;
@@ -570,14 +615,20 @@ impl Compensator {
             total += st.cached_um + st.expansion_um_per_count * d32 as f32;
             // Measured forces: one multiply-add each, one plausibility check of their sum
             // (catches NaN, ±inf and absurd readings; the whole measured term is then dropped).
-            let mask = self.measured_mask;
-            if mask != 0 {
-                let mut force_um = 0.0f32;
-                for j in 0..MAX_FORCES {
-                    if mask & (1 << j) != 0 {
-                        force_um += self.chi_measured[j] * input.forces_n[j];
-                    }
-                }
+            // One straight-line sum per set of measured terms (in index order), so inputs of
+            // unmeasured terms (NaN = no reading) are never read and no per-term select is paid.
+            if self.measured != MeasuredSet::None {
+                let c = &self.chi_measured;
+                let f = &input.forces_n;
+                let force_um = match self.measured {
+                    MeasuredSet::None | MeasuredSet::F0 => c[0] * f[0],
+                    MeasuredSet::F1 => c[1] * f[1],
+                    MeasuredSet::F01 => c[0] * f[0] + c[1] * f[1],
+                    MeasuredSet::F2 => c[2] * f[2],
+                    MeasuredSet::F02 => c[0] * f[0] + c[2] * f[2],
+                    MeasuredSet::F12 => c[1] * f[1] + c[2] * f[2],
+                    MeasuredSet::F012 => c[0] * f[0] + c[1] * f[1] + c[2] * f[2],
+                };
                 if libm::fabsf(force_um) <= MAX_FORCE_TERM_UM {
                     total += force_um;
                 } else {
@@ -590,40 +641,43 @@ impl Compensator {
         // ---- clamp (also catches a non-finite total), slew ----
         let last = st.last_correction_um;
         let max = self.max_correction_um;
-        let mut desired = total;
-        if !(desired >= -max && desired <= max) {
-            if desired > max {
-                desired = max;
-                flags |= Flags::CLAMPED;
-            } else if desired < -max {
-                desired = -max;
-                flags |= Flags::CLAMPED;
-            } else {
-                // NaN: unreachable with a validated image and bounded inputs; hold.
-                desired = last;
-                flags |= Flags::NON_FINITE;
-            }
-        }
         let slew = self.max_slew_um_per_cycle;
-        let step = desired - last;
-        let mut applied = desired;
-        if libm::fabsf(step) > slew {
-            flags |= Flags::SLEWED;
-            if step > 0.0 {
-                let a = last + slew;
-                applied = if a > desired { desired } else { a };
-            } else {
-                let a = last - slew;
-                applied = if a < desired { desired } else { a };
-            }
-        }
+        // Common case first: within the clamp and the slew limit, two compares and no move
+        // (NaN fails the first). Otherwise the full rules of `limit`.
+        let applied = if libm::fabsf(total) <= max && libm::fabsf(total - last) <= slew {
+            total
+        } else {
+            cold_path();
+            let (applied, limit_flags) = limit(total, last, max, slew);
+            flags |= limit_flags;
+            applied
+        };
         st.last_correction_um = applied;
 
         // ---- to counts: round half away from zero, saturating ----
-        let counts = round_to_counts(applied / self.um_per_count);
+        // |applied| ≤ MAX_LIMIT_UM always: every image's clamp is validated ≤ MAX_LIMIT_UM, the
+        // slew only moves between the last applied value and the clamped one, and a NaN holds.
+        let quotient = applied / self.um_per_count;
+        let counts = if self.counts_bounded {
+            round_half_away_bounded(quotient)
+        } else {
+            cold_path();
+            round_to_counts(quotient)
+        };
+        // command − counts, saturating. |counts| < 2^31, so a command in [−2^62, 2^62) (bits 63
+        // and 62 equal: one test of the high word) cannot overflow; the saturating form only
+        // beyond, out of the way.
+        let command = input.command_counts;
+        let high = (command >> 32) as i32;
+        let corrected = if (high ^ (high << 1)) >= 0 {
+            command.wrapping_sub(counts as i64)
+        } else {
+            cold_path();
+            command.saturating_sub(counts as i64)
+        };
         CycleOutput {
             position_counts: pos,
-            corrected_command_counts: input.command_counts.saturating_sub(counts as i64),
+            corrected_command_counts: corrected,
             correction_counts: counts,
             correction_um: applied,
             flags,
@@ -763,6 +817,61 @@ impl Compensator {
         st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
         st.set_thermo_flag(Flags::FORCE_INVALID, invalid);
     }
+}
+
+/// Marks the branch that calls it as rarely taken, so the per-cycle path is laid out as the
+/// fall-through (a stand-in for `core::hint::cold_path`, which needs Rust 1.95; MSRV is 1.85).
+#[cold]
+#[inline(never)]
+fn cold_path() {}
+
+/// Clamp `total` to ±`max` (a NaN holds `last`: NON_FINITE), then limit the change from `last` to
+/// `slew`. The per-cycle path takes this only when a limit acts (or the total is NaN).
+#[inline(always)]
+fn limit(total: f32, last: f32, max: f32, slew: f32) -> (f32, Flags) {
+    let mut flags = Flags::NONE;
+    let mut desired = total;
+    // False for NaN too.
+    let within = libm::fabsf(desired) <= max;
+    if !within {
+        if desired > max {
+            desired = max;
+            flags |= Flags::CLAMPED;
+        } else if desired < -max {
+            desired = -max;
+            flags |= Flags::CLAMPED;
+        } else {
+            // NaN: unreachable with a validated image and bounded inputs; hold.
+            desired = last;
+            flags |= Flags::NON_FINITE;
+        }
+    }
+    let step = desired - last;
+    let mut applied = desired;
+    if libm::fabsf(step) > slew {
+        flags |= Flags::SLEWED;
+        if step > 0.0 {
+            let a = last + slew;
+            applied = if a > desired { desired } else { a };
+        } else {
+            let a = last - slew;
+            applied = if a < desired { desired } else { a };
+        }
+    }
+    (applied, flags)
+}
+
+/// Largest `max_correction_um` / `max_slew_um_per_cycle` an image may have (validated), µm.
+pub(crate) const MAX_LIMIT_UM: f32 = 1.0e5;
+
+/// [`round_to_counts`] for |x| < 2^30 (NaN → 0), in five integer/convert instructions: with
+/// t = trunc(2x) (exact), round half away from zero is (t + 1) >> 1 for t ≥ 0 and t >> 1 for
+/// t < 0 (arithmetic shifts, i.e. floor). Equality with [`round_to_counts`] over |x| < 2^30 is
+/// tested.
+#[inline]
+pub(crate) fn round_half_away_bounded(x: f32) -> i32 {
+    let t = (x + x) as i32;
+    t.wrapping_add(1).wrapping_add(t >> 31) >> 1
 }
 
 /// `libm::roundf(x) as i32` (round half away from zero, saturating, NaN → 0) without the
@@ -967,3 +1076,46 @@ impl State {
 }
 
 use crate::ImageError;
+
+#[cfg(test)]
+mod tests {
+    use super::{round_half_away_bounded, round_to_counts};
+
+    /// Reference: `round_to_counts` (itself property-tested equal to `libm::roundf` as i32);
+    /// tolerance: exact equality, over |x| < 2^30 as `round_half_away_bounded` requires.
+    #[test]
+    fn bounded_rounding_equals_round_to_counts() {
+        let limit = (1u32 << 30) as f32;
+        let mut checked = 0u32;
+        // A stride through every magnitude below 2^30 (bit patterns 0 .. 0x4E80_0000), both signs.
+        let mut bits = 0u32;
+        while bits < 0x4E80_0000 {
+            for x in [f32::from_bits(bits), -f32::from_bits(bits)] {
+                assert!(libm::fabsf(x) < limit);
+                assert_eq!(round_half_away_bounded(x), round_to_counts(x), "x = {x:e}");
+                checked += 1;
+            }
+            bits += 211;
+        }
+        // Every half-integer up to 2^22 (exact in f32) and its two neighbours, both signs.
+        for k in 0..(1i32 << 22) {
+            let h = k as f32 + 0.5;
+            for x in [
+                h,
+                f32::from_bits(h.to_bits() - 1),
+                f32::from_bits(h.to_bits() + 1),
+            ] {
+                assert_eq!(round_half_away_bounded(x), round_to_counts(x), "x = {x:e}");
+                assert_eq!(
+                    round_half_away_bounded(-x),
+                    round_to_counts(-x),
+                    "x = {:e}",
+                    -x
+                );
+                checked += 2;
+            }
+        }
+        assert_eq!(round_half_away_bounded(f32::NAN), 0);
+        assert!(checked > 30_000_000);
+    }
+}

@@ -45,7 +45,7 @@
 //! |x_ref| ≤ 2^62; |χ| ≤ 1e3 µm/N; |k| ≤ 1e9, |exponents| ≤ 10; max correction and max slew in
 //! (0, 1e5] µm; direction hysteresis ≤ 2^31 − 1 counts.
 
-use crate::compensator::{Compensator, SensorRt};
+use crate::compensator::{Compensator, MAX_LIMIT_UM, SensorRt};
 use crate::error::{Field, ImageError};
 use crate::spec::{ForceLaw, ImageSpec, OutsideStroke};
 use crate::{MAX_FORCES, MAX_IMAGE_LEN, MAX_SEGMENTS, MAX_SENSORS};
@@ -418,8 +418,8 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
 
     // ---- limits ----
     let o = layout.limits;
-    positive(f32_at(b, o), 1.0e5, Field::MaxCorrection, 0)?;
-    positive(f32_at(b, o + 4), 1.0e5, Field::MaxSlew, 0)?;
+    positive(f32_at(b, o), MAX_LIMIT_UM, Field::MaxCorrection, 0)?;
+    positive(f32_at(b, o + 4), MAX_LIMIT_UM, Field::MaxSlew, 0)?;
     check(u32_at(b, o + 8) <= i32::MAX as u32, Field::Hysteresis, 0)?;
     check(u32_at(b, o + 12) == 0, Field::Reserved, 0)?;
     Ok(layout)
@@ -461,10 +461,12 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
         } else {
             0.0
         };
-        let dirs = 1 + l.bidirectional as usize;
-        for d in 0..dirs {
+        // A unidirectional table is copied into both halves, so that the cycle selects the half
+        // by the direction alone.
+        for d in 0..2 {
+            let src = if l.bidirectional { d } else { 0 };
             for s in 0..n {
-                let at = o + TABLE_HEADER_LEN + 16 * (d * n + s);
+                let at = o + TABLE_HEADER_LEN + 16 * (src * n + s);
                 if let Some(dst) = c.coeffs.get_mut(d * MAX_SEGMENTS + s) {
                     for (k, v) in dst.iter_mut().enumerate() {
                         *v = f32_at(b, at + 4 * k);
@@ -498,6 +500,7 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
     c.force_predicted = [false; MAX_FORCES];
     c.measured_mask = 0;
     c.chi_measured = [0.0; MAX_FORCES];
+    c.measured = crate::compensator::MeasuredSet::None;
     c.thermo_flags_xor = 0;
     c.laws = [ForceLaw {
         k: 0.0,
@@ -563,10 +566,14 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
         }
     }
 
+    c.measured = crate::compensator::MeasuredSet::from_mask(c.measured_mask);
+
     let o = l.limits;
     c.max_correction_um = f32_at(b, o);
     c.max_slew_um_per_cycle = f32_at(b, o + 4);
     c.hysteresis_counts = u32_at(b, o + 8);
+    // 2^29 leaves a factor 2 of margin below the 2^30 that `round_half_away_bounded` needs.
+    c.counts_bounded = MAX_LIMIT_UM / upc < 536_870_912.0;
     c.loaded = true;
 }
 
