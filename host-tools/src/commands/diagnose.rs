@@ -65,6 +65,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             100.0 * r.share
         );
     }
+    for r in d.verdict_where.iter().take(2) {
+        println!(
+            "  verdict acts: {} {:.4} … {:.4} holds {:.1} % of what {} removes from the held-out gap",
+            r.variable,
+            r.from,
+            r.to,
+            100.0 * r.share,
+            d.verdict
+        );
+    }
     for c in d.effects.iter().take(5) {
         println!(
             "  candidate {:<20} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",

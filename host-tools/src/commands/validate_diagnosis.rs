@@ -3,7 +3,9 @@
 //! parameter recovery, shrink relative to the oracle and the confusion matrix (progress on stderr).
 //!
 //! Terms: *SNR* = peak of the withheld effect on held-out runs / noise σ; *oracle* = the model refitted
-//! with the true withheld contribution.
+//! with the true withheld contribution. Every case is measured with the same plan, the twin's survey
+//! (`axcomp_twin::SurveyPlan`: a campaign on which any single effect could show), so the plan never
+//! tells which effect was withheld.
 
 use std::path::PathBuf;
 

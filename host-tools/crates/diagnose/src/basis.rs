@@ -18,14 +18,14 @@
 //! | `end_effect` | exp(−(x−x_min)/λ) or exp(−(x_max−x)/λ), optionally also × d; or both ends | end, λ (1 … 10 % of the stroke) |
 //! | `following_error` | velocity and/or acceleration | terms |
 //! | `abbe` | offset × Legendre P0…P_k(x̃), k ≤ 2 | degree |
-//! | `time_drift` | Legendre P1…P_k of the scaled time, k ≤ 3 | degree |
+//! | `time_drift` | Legendre P1…P_k of the scaled time, k ≤ 3; or trend + settle `1 − exp(−(t − t₀)/τ)` | degree, or τ (1–30 % of the duration) |
 //!
 //! Each variant counts its columns plus its searched parameters (`n_params`); variants are selected by
 //! the training BIC of the whole refit, so a simpler variant wins unless the richer one pays for itself.
 
 use serde_json::{Map, Value, json};
 
-use crate::kind::EffectKind;
+use crate::EffectKind;
 use crate::obs::{Named, Observations};
 
 /// One setting of a family.
@@ -483,7 +483,7 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
                 .collect();
             let p2: Vec<f64> = ts.iter().map(|s| 1.5 * s * s - 0.5).collect();
             let p3: Vec<f64> = ts.iter().map(|s| 2.5 * s * s * s - 1.5 * s).collect();
-            let vars = vec![
+            let mut vars = vec![
                 var(
                     vec![ts.clone()],
                     map(json!({"basis": "legendre", "degree": 1})),
@@ -495,11 +495,23 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
                     0,
                 ),
                 var(
-                    vec![ts, p2, p3],
+                    vec![ts.clone(), p2, p3],
                     map(json!({"basis": "legendre", "degree": 3})),
                     0,
                 ),
             ];
+            // A drift that settles: linear trend plus `1 − exp(−(t − t₀)/τ)`, τ searched on a
+            // geometric grid from 1 % to 30 % of the campaign's duration.
+            let m = 6;
+            for k in 0..m {
+                let tau = ctx.duration_s * 0.01 * 30f64.powf(k as f64 / (m - 1) as f64);
+                let settle: Vec<f64> = t.iter().map(|v| 1.0 - (-(v - lo) / tau).exp()).collect();
+                vars.push(var(
+                    vec![ts.clone(), settle],
+                    map(json!({"basis": "settle", "tau_s": tau})),
+                    1,
+                ));
+            }
             fam(vars, 0)
         }
     }
@@ -536,11 +548,18 @@ mod tests {
         };
         let ctx = Context::new(&obs, 8);
         let kept: Vec<f64> = family(EffectKind::InterpolationError, &obs, &ctx)
-            .map(|f| f.variants.iter().map(|v| v.params["signal_period_um"].as_f64().unwrap()).collect())
+            .map(|f| {
+                f.variants
+                    .iter()
+                    .map(|v| v.params["signal_period_um"].as_f64().unwrap())
+                    .collect()
+            })
             .unwrap_or_default();
         assert!(!kept.contains(&20.0) && !kept.contains(&4.0), "{kept:?}");
         // Irregular positions keep every period.
-        let xi: Vec<f64> = (0..400).map(|i| i as f64 * 1.25 + 0.37 * ((i * 7919) % 13) as f64 / 13.0).collect();
+        let xi: Vec<f64> = (0..400)
+            .map(|i| i as f64 * 1.25 + 0.37 * ((i * 7919) % 13) as f64 / 13.0)
+            .collect();
         assert!(regular_spacing(&xi, &(0..400).collect::<Vec<_>>()).is_none());
     }
 

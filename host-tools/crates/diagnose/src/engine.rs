@@ -8,8 +8,8 @@
 //! residuals shrink; **score** = held-out ΔBIC, `n_ho·ln(RSS_before/RSS_after) − k·ln(n_ho)` with
 //! `k` = added columns + searched parameters; **tie** = two explaining candidates whose held-out squared
 //! residuals do not differ significantly (|t| < 2), or are practically equal (the second removes ≥ 90 % of
-//! what the first removes from the held-out RSS and leaves ≤ 5 % more): the one with fewer parameters is
-//! preferred.
+//! what the first removes from the held-out RSS and its score is less than 2 below): the one with fewer
+//! parameters is preferred.
 //!
 //! Further evidence per candidate (reported, not used for the verdict): residual cross-correlation with
 //! the candidate's columns, blocked cross-validation by run (or time block) on the training rows, and a
@@ -18,16 +18,20 @@
 use serde::Serialize;
 use serde_json::{Map, Value};
 
+use crate::EffectKind;
 use crate::basis::{self, Context, Family};
-use crate::kind::EffectKind;
 use crate::locate::{self, Region};
 use crate::lsq::{self, Projector};
 use crate::obs::Observations;
 use crate::stats;
 
-/// A candidate explaining at least this fraction of the best candidate's held-out RSS reduction (and
-/// leaving at most 5 % more RSS) is tied with it; the one with fewer parameters is preferred.
+/// A candidate explaining at least this fraction of the best candidate's held-out RSS reduction, with a
+/// held-out score (ΔBIC) less than [`TIE_SCORE`] below the best, is tied with it; the one with fewer
+/// parameters is preferred.
 pub const TIE_FRACTION: f64 = 0.9;
+/// Largest held-out ΔBIC difference of a practical tie (Kass & Raftery 1995: < 2 is "not worth more
+/// than a bare mention").
+pub const TIE_SCORE: f64 = 2.0;
 
 /// Settings of the diagnosis (validated by [`DiagnoseOptions::build`]).
 #[derive(Debug, Clone)]
@@ -143,6 +147,8 @@ pub struct Diagnosis {
     pub gap: Gap,
     #[serde(rename = "where")]
     pub where_: Vec<Region>,
+    /// Where the verdict's refit removes most of the held-out gap (empty when the verdict is `none`).
+    pub verdict_where: Vec<Region>,
     pub effects: Vec<Candidate>,
     pub verdict: String,
     /// Why the verdict was chosen (ties, nothing beyond noise, ...).
@@ -550,14 +556,15 @@ pub fn diagnose(
                 })
                 .collect();
             let (t, _) = stats::paired_t(&d);
-            // Tie: not significantly different, or practically equal (removing ≥ 90 % of what the best
-            // removes from the held-out RSS while leaving at most 5 % more of it).
+            // Tie: not significantly different, or practically equal: removing ≥ 90 % of what the best
+            // removes from the held-out RSS, with held-out ΔBIC scores within 2 of each other (Kass &
+            // Raftery 1995: a BIC difference < 2 is "not worth more than a bare mention").
             let (rss_w, rss_j) = (
                 ss(&effects[w].residual_after, &hold),
                 ss(&effects[j].residual_after, &hold),
             );
-            let practically_equal =
-                rss_ho0 - rss_j >= TIE_FRACTION * (rss_ho0 - rss_w) && rss_j <= 1.05 * rss_w;
+            let practically_equal = rss_ho0 - rss_j >= TIE_FRACTION * (rss_ho0 - rss_w)
+                && effects[w].score - effects[j].score < TIE_SCORE;
             if t.abs() < 2.0 || practically_equal {
                 group.push(j);
             }
@@ -612,6 +619,11 @@ pub fn diagnose(
         note = "no candidate explains the held-out gap beyond noise".into();
     }
 
+    let verdict_where = match effects.first() {
+        Some(c) if c.kind == verdict => locate::locate_gain(obs, &base.resid, &c.residual_after),
+        _ => Vec::new(),
+    };
+
     // ---- residual checks ----
     let pos_order = obs.position_mm.as_ref().map(|x| {
         let mut o = train.clone();
@@ -641,6 +653,7 @@ pub fn diagnose(
         model: model_terms,
         gap,
         where_,
+        verdict_where,
         effects,
         verdict,
         note,

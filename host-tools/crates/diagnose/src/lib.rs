@@ -17,13 +17,21 @@
 //! - **where**: contiguous regions of a variable (`target_mm`, `time_s`, `velocity_mm_s`, `direction`)
 //!   holding most of the held-out gap.
 //!
-//! The withheld-effect validation harness lives in [`validate`]; a small self-contained campaign
-//! generator for tests and calibration in [`synth`].
+//! Modules: [`obs`] (plain columns), [`dataset`] (from an `axcomp-data` CSV), [`basis`] (regressor
+//! families), [`lsq`] (rank-robust least squares and exact refit RSS drops), [`engine`] (the diagnosis),
+//! [`locate`] (where the gap lies), [`report`] (Markdown + SVG), [`validate`] (the withheld-effect
+//! validation harness on `axcomp-twin` campaigns), [`stats`] (F / t tails).
+//!
+//! ```no_run
+//! use axcomp_diagnose::{diagnose, DiagnoseOptions, EffectKind, Observations};
+//! # fn obs() -> Observations { unimplemented!() }
+//! let d = diagnose(&obs(), &[EffectKind::PitchError], &DiagnoseOptions::default()).unwrap();
+//! println!("{} ({})", d.verdict, d.note);
+//! ```
 
 pub mod basis;
 pub mod dataset;
 pub mod engine;
-pub mod kind;
 pub mod locate;
 pub mod lsq;
 pub mod obs;
@@ -31,7 +39,8 @@ pub mod report;
 pub mod stats;
 pub mod validate;
 
+/// The effect vocabulary is the twin's (one definition for the twin and the diagnosis).
+pub use axcomp_twin::EffectKind;
 pub use engine::{Candidate, DiagnoseOptions, Diagnosis, Gap, diagnose};
-pub use kind::EffectKind;
 pub use locate::Region;
 pub use obs::Observations;

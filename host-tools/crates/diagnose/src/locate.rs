@@ -5,8 +5,8 @@
 //! **share** = the fraction of the held-out gap energy inside it; **lift** = share / fraction of held-out
 //! rows inside it (1 = not concentrated).
 //!
-//! Method: per variable the held-out rows are binned (equal width, or one bin per distinct value when there
-//! are few), and the contiguous run of bins with the largest total excess is found (maximum-subarray,
+//! Method: per variable the held-out rows are binned (equal count — quantiles of the values — or one bin per
+//! distinct value when there are few), and the contiguous run of bins with the largest total excess is found (maximum-subarray,
 //! Kadane); a second, disjoint run is reported when it still holds ≥ 10 % of the gap.
 
 use serde::Serialize;
@@ -61,23 +61,35 @@ fn regions_of(name: &str, v: &[f64], g: &[f64], noise2: f64, out: &mut Vec<Regio
     uniq.sort_by(|a, b| a.total_cmp(b));
     uniq.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * (hi - lo));
     let nb_target = (n / 10).clamp(4, 24);
-    // Bin edges: per distinct value (few values) or equal width.
-    let edges: Vec<(f64, f64)> = if uniq.len() <= nb_target {
+    // Bin edges: per distinct value (few values), else equal-count bins (quantiles of the values), so
+    // that a densely measured range — e.g. the stroke ends of a survey — is resolved finely.
+    let few = uniq.len() <= nb_target;
+    let cuts: Vec<f64> = if few {
+        Vec::new()
+    } else {
+        let mut sorted = v.to_vec();
+        sorted.sort_by(|a, b| a.total_cmp(b));
+        let mut c: Vec<f64> = (1..nb_target).map(|k| sorted[k * n / nb_target]).collect();
+        c.dedup();
+        c.retain(|&x| x > lo);
+        c
+    };
+    let edges: Vec<(f64, f64)> = if few {
         uniq.iter().map(|&u| (u, u)).collect()
     } else {
-        let w = (hi - lo) / nb_target as f64;
-        (0..nb_target)
-            .map(|k| (lo + w * k as f64, lo + w * (k + 1) as f64))
-            .collect()
+        let mut bounds = vec![lo];
+        bounds.extend(&cuts);
+        bounds.push(hi);
+        bounds.windows(2).map(|w| (w[0], w[1])).collect()
     };
     let nb = edges.len();
     let bin_of = |x: f64| -> usize {
-        if uniq.len() <= nb_target {
+        if few {
             uniq.iter()
                 .position(|&u| (u - x).abs() <= 1e-9 * (hi - lo))
                 .unwrap_or(0)
         } else {
-            (((x - lo) / (hi - lo) * nb as f64).floor() as usize).min(nb - 1)
+            cuts.partition_point(|&c| c <= x)
         }
     };
     let mut energy = vec![0.0; nb];
@@ -140,6 +152,34 @@ pub fn locate(obs: &Observations, residual: &[f64], noise2: f64) -> Vec<Region> 
     out
 }
 
+/// Regions where a refit removes most held-out gap energy: per held-out row the *gain* is
+/// `before² − after²` (base residual vs. residual after the refit), binned and searched like
+/// [`locate`], with the average gain per row in place of the noise level (so a region is where the
+/// refit acts more than on average, lift > 1). Shares are fractions of the total gain.
+pub fn locate_gain(obs: &Observations, before: &[f64], after: &[f64]) -> Vec<Region> {
+    let ho = obs.holdout_rows();
+    let g: Vec<f64> = ho
+        .iter()
+        .map(|&i| before[i] * before[i] - after[i] * after[i])
+        .collect();
+    // Excess over the average gain per row: the region where the refit acts more than on average.
+    let mean_gain = g.iter().sum::<f64>() / g.len().max(1) as f64;
+    let mut out = Vec::new();
+    for (name, col) in [
+        ("target_mm", &obs.position_mm),
+        ("time_s", &obs.time_s),
+        ("velocity_mm_s", &obs.velocity_mm_s),
+        ("direction", &obs.direction),
+    ] {
+        if let Some(c) = col {
+            let v: Vec<f64> = ho.iter().map(|&i| c[i]).collect();
+            regions_of(name, &v, &g, mean_gain, &mut out);
+        }
+    }
+    out.sort_by(|a, b| b.share.total_cmp(&a.share).then(b.lift.total_cmp(&a.lift)));
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -164,5 +204,37 @@ mod tests {
             .map(|(_, g)| g)
             .sum();
         assert!((r.share - inside / g.iter().sum::<f64>()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn gain_is_located_where_the_refit_acts() {
+        // Residual before: noise ±0.5 everywhere plus 2 on x ≥ 190; after: the noise only. The gain
+        // (before² − after²) is 4 + 2·2·(±0.5) = 2 or 6 on x ≥ 190 and 0 elsewhere, so the top `target_mm`
+        // region must start at or after 180 (one bin of ~10 mm may be merged), hold the whole gain
+        // (share 1 within 1e-9: direct sum) and have a lift ≥ 5 (it covers ≤ 1/10 of the rows + 1 bin).
+        let n = 2001;
+        let x: Vec<f64> = (0..n).map(|i| i as f64 * 0.1).collect();
+        let noise: Vec<f64> = (0..n)
+            .map(|i| if i % 2 == 0 { 0.5 } else { -0.5 })
+            .collect();
+        let before: Vec<f64> = x
+            .iter()
+            .zip(&noise)
+            .map(|(&x, &e)| e + if x >= 190.0 { 2.0 } else { 0.0 })
+            .collect();
+        let obs = Observations {
+            target: before.clone(),
+            held_out: vec![true; n],
+            position_mm: Some(x),
+            ..Default::default()
+        };
+        let regions = locate_gain(&obs, &before, &noise);
+        let r = regions
+            .iter()
+            .find(|r| r.variable == "target_mm")
+            .expect("a target_mm region");
+        assert!(r.from >= 180.0 && r.to == 200.0, "{r:?}");
+        assert!((r.share - 1.0).abs() < 1e-9, "{r:?}");
+        assert!(r.lift >= 5.0, "{r:?}");
     }
 }

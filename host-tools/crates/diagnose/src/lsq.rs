@@ -6,11 +6,11 @@
 //! would give (`‖P_{Z̃} r‖²` with `Z̃` the candidate columns made orthogonal to the model).
 //!
 //! Method: columns are scaled to unit RMS, the Gram matrix is eigen-decomposed and eigenvalues below
-//! `1e-10·λ_max` are treated as zero (minimum-norm pseudo-inverse solution).
+//! `1e-9·λ_max` are treated as zero (minimum-norm pseudo-inverse solution).
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
-const REL_EIG_TOL: f64 = 1e-10;
+const REL_EIG_TOL: f64 = 1e-9;
 
 /// Coefficients of one least-squares fit.
 #[derive(Debug, Clone)]

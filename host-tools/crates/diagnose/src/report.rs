@@ -98,8 +98,8 @@ pub fn write_report(
                 Some(c) => vec![
                     format!("held-out rows, refitted with `{}`", c.kind),
                     format!(
-                        "{:.3} ({:+.1} % shrink)",
-                        c.holdout_rms_after_um, -c.shrink_pct
+                        "{:.3} (shrink {:.1} %)",
+                        c.holdout_rms_after_um, c.shrink_pct
                     ),
                     format!(
                         "{:.3}",

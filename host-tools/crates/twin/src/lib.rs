@@ -11,7 +11,7 @@
 //!   deviation, the sum of the effects' **contributions** at the scale position.
 //! - **plan** ([`Plan`]): what is measured when — ISO 230-2 runs ([`Iso230Plan`]), scans at several
 //!   speeds ([`ScanPlan`]), warm-up/cool-down ([`ThermalPlan`]), load steps ([`LoadPlan`]), Abbe offsets
-//!   (`Plan::by_name("abbe", ..)`); thermo-force campaigns under cutting load come from
+//!   (`Plan::by_name("abbe", ..)`), and all of them on one time line ([`SurveyPlan`]); thermo-force campaigns under cutting load come from
 //!   `axcomp-thermal`'s generator through [`simulate_spindle`] (see [`spindle`]).
 //! - **campaign** ([`Campaign`]): the measured **rows** (CSV) plus the per-row [`Truth`].
 //! - **scale counts**: `round(x_mm·1000 / axis.scale_um_per_count)`, zero at 0 mm — the count space of
@@ -62,7 +62,9 @@ pub use effects::{
     ThermalDrift, ThermalLag, TimeDrift, UnknownEffect, Wave,
 };
 pub use ideal::{IdealTable, IdealThermo, ideal_image};
-pub use plan::{Iso230Plan, LoadPlan, Plan, Sample, ScanPlan, ThermalPlan, UnknownPlan};
+pub use plan::{
+    Iso230Plan, LoadPlan, Plan, Sample, ScanPlan, SurveyPlan, ThermalPlan, UnknownPlan,
+};
 pub use sim::{SENSOR_PERIOD_MS, SimError};
 pub use spindle::{SpindleCampaign, simulate_spindle, spindle_config};
 pub use thermal::{DutyStep, Environment, ThermalModel};

@@ -17,6 +17,7 @@
 //! | `thermal` | warm-up then cool-down, 3 positions | `thermal_drift`, `thermal_lag`, `scale_expansion`, `time_drift` |
 //! | `load` | force steps at 3 positions | `force_deflection` |
 //! | `abbe` | ISO runs at several `offset_mm` | `abbe` |
+//! | `survey` ([`SurveyPlan`]) | all of the above on one time line, with dense targets near both stroke ends and a non-monotonic heat load (warm-up, plateau, cool-down, re-heat) | every effect (one plan for a blind diagnosis) |
 //! | `spindle` ([`crate::spindle`], not a [`Plan`]) | spindle speed, cutting force, 16 collinear sensors | `thermal_drift`, `thermal_lag`, `force_deflection` (from process parameters) |
 
 use serde::{Deserialize, Serialize};
@@ -348,6 +349,125 @@ impl LoadPlan {
     }
 }
 
+/// A survey: several plans measured one after another on one time line, in one environment (the
+/// parts' own environments are ignored). Runs are renumbered consecutively over the parts.
+///
+/// The standard survey ([`SurveyPlan::standard`]) is a campaign designed so that *any* single effect
+/// could show, whichever it is (for a blind diagnosis, the plan must not depend on the effect sought):
+/// 1. ISO 230-2 runs over the stroke at Abbe offsets 0, 50 and 100 mm (positional effects, `abbe`);
+/// 2. ISO 230-2 runs over the first and the last [`SurveyPlan::END_ZONE_MM`] of the stroke with
+///    targets about every 0.5–1 mm (`end_effect`: a decay of a few mm touches many targets);
+/// 3. scans at 10, 50, 100 and 200 mm/s (`following_error`);
+/// 4. load steps ±400 N (`force_deflection`);
+/// 5. measurement rounds at 10/50/90 % of the stroke while the axis heats and cools.
+///
+/// The heat load over the whole survey is not monotonic — duty 1 for the first 30 % of the time, a
+/// plateau at 0.4 up to 50 %, idle (cool-down) up to 75 %, then duty 1 again — and the ambient air
+/// swings by ±0.5 K with a 4 h period on top of a 0.1 K/h drift, so a lagged temperature, the
+/// temperatures themselves and a polynomial in time all differ.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SurveyPlan {
+    pub parts: Vec<Plan>,
+    /// Pause between two parts.
+    pub gap_s: f64,
+    pub environment: Environment,
+}
+
+impl SurveyPlan {
+    /// Length of each end zone measured densely (capped at a tenth of the stroke).
+    pub const END_ZONE_MM: f64 = 20.0;
+    /// Share of the rows per part (ISO/Abbe, end zones, scans, load steps, thermal rounds).
+    const SHARES: [f64; 5] = [0.30, 0.15, 0.15, 0.15, 0.25];
+
+    /// The standard survey on `start_mm..end_mm` (about 5,000 rows; see [`Plan::resize`]).
+    pub fn standard(start_mm: f64, end_mm: f64) -> SurveyPlan {
+        let len = end_mm - start_mm;
+        let zone = Self::END_ZONE_MM.min(0.1 * len);
+        let zone_plan = |a: f64, b: f64| {
+            Plan::Iso230(Iso230Plan {
+                targets: 21,
+                overshoot_mm: 1.0,
+                ..Iso230Plan::standard(a, b)
+            })
+        };
+        let mut thermal = ThermalPlan::standard(start_mm, end_mm);
+        thermal.warmup_s = 2.0 * 3600.0;
+        thermal.cooldown_s = 2.0 * 3600.0;
+        let mut survey = SurveyPlan {
+            parts: vec![
+                Plan::Iso230(Iso230Plan {
+                    offsets_mm: vec![0.0, 50.0, 100.0],
+                    ..Iso230Plan::standard(start_mm, end_mm)
+                }),
+                zone_plan(start_mm, start_mm + zone),
+                zone_plan(end_mm - zone, end_mm),
+                Plan::Scan(ScanPlan::standard(start_mm, end_mm)),
+                Plan::Load(LoadPlan::standard(start_mm, end_mm)),
+                Plan::Thermal(thermal),
+            ],
+            gap_s: 60.0,
+            environment: Environment::still(),
+        };
+        survey.resize(5000);
+        survey
+    }
+
+    fn resize(&mut self, rows: usize) {
+        let rows = rows as f64;
+        for (i, part) in self.parts.iter_mut().enumerate() {
+            let share = match i {
+                0 => Self::SHARES[0],
+                1 | 2 => 0.5 * Self::SHARES[1],
+                3 => Self::SHARES[2],
+                4 => Self::SHARES[3],
+                _ => Self::SHARES[4],
+            };
+            part.resize((share * rows).round() as usize);
+        }
+        self.schedule();
+    }
+
+    /// Sets the environment from the survey's duration (see the type's docs).
+    fn schedule(&mut self) {
+        let duration = self.samples().last().map_or(0.0, |s| s.time_s);
+        self.environment = Environment {
+            ambient_offset_k: 0.0,
+            ambient_rate_k_per_h: 0.1,
+            ambient_swing_k: 0.5,
+            ambient_period_h: 4.0,
+            duty: [(0.0, 1.0), (0.3, 0.4), (0.5, 0.0), (0.75, 1.0)]
+                .iter()
+                .map(|&(f, duty)| DutyStep {
+                    from_s: f * duration,
+                    duty,
+                })
+                .collect(),
+        };
+    }
+
+    fn samples(&self) -> Vec<Sample> {
+        let mut out = Vec::new();
+        let (mut t0, mut run0) = (0.0, 0u32);
+        for part in &self.parts {
+            let samples = part.samples();
+            let (mut t_end, mut run_end) = (t0, run0);
+            for s in samples {
+                let s = Sample {
+                    run: s.run + run0,
+                    time_s: s.time_s + t0,
+                    ..s
+                };
+                t_end = t_end.max(s.time_s);
+                run_end = run_end.max(s.run);
+                out.push(s);
+            }
+            t0 = t_end + self.gap_s;
+            run0 = run_end;
+        }
+        out
+    }
+}
+
 /// A measurement plan.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "plan", rename_all = "snake_case")]
@@ -356,6 +476,7 @@ pub enum Plan {
     Scan(ScanPlan),
     Thermal(ThermalPlan),
     Load(LoadPlan),
+    Survey(SurveyPlan),
 }
 
 /// A plan name that the twin does not know.
@@ -392,13 +513,14 @@ impl Plan {
         Ok(plan)
     }
 
-    /// Short name (`iso230`, `scan`, `thermal`, `load`).
+    /// Short name (`iso230`, `scan`, `thermal`, `load`, `survey`).
     pub fn name(&self) -> &'static str {
         match self {
             Plan::Iso230(_) => "iso230",
             Plan::Scan(_) => "scan",
             Plan::Thermal(_) => "thermal",
             Plan::Load(_) => "load",
+            Plan::Survey(_) => "survey",
         }
     }
 
@@ -433,6 +555,7 @@ impl Plan {
                         .collect()
                 };
             }
+            Plan::Survey(p) => p.resize(rows as usize),
         }
     }
 
@@ -443,6 +566,7 @@ impl Plan {
             Plan::Scan(p) => &p.environment,
             Plan::Thermal(p) => &p.environment,
             Plan::Load(p) => &p.environment,
+            Plan::Survey(p) => &p.environment,
         }
     }
 
@@ -453,7 +577,14 @@ impl Plan {
             Plan::Scan(p) => p.samples(),
             Plan::Thermal(p) => p.samples(),
             Plan::Load(p) => p.samples(),
+            Plan::Survey(p) => p.samples(),
         }
+    }
+}
+
+impl From<SurveyPlan> for Plan {
+    fn from(p: SurveyPlan) -> Plan {
+        Plan::Survey(p)
     }
 }
 
@@ -517,5 +648,44 @@ mod tests {
         assert!(samples.iter().any(|s| s.velocity_mm_s == 10.0));
         assert!(samples.iter().any(|s| s.accel_mm_s2 != 0.0));
         assert!(samples.windows(2).all(|w| w[1].time_s > w[0].time_s));
+    }
+
+    #[test]
+    fn survey_shows_every_variable_and_heats_non_monotonically() {
+        let plan = Plan::from(SurveyPlan::standard(0.0, 400.0));
+        let samples = plan.samples();
+        // Resized to about 5,000 rows (rounding to whole targets / positions / rounds → within 10 %).
+        assert!((4500..=5500).contains(&samples.len()), "{}", samples.len());
+        assert!(samples.windows(2).all(|w| w[1].time_s > w[0].time_s));
+        assert!(samples.windows(2).all(|w| w[1].run >= w[0].run));
+        let distinct = |f: &dyn Fn(&Sample) -> f64| {
+            let mut v: Vec<f64> = samples.iter().map(f).collect();
+            v.sort_by(|a, b| a.total_cmp(b));
+            v.dedup();
+            v.len()
+        };
+        assert_eq!(distinct(&|s| s.offset_mm), 3);
+        assert!(distinct(&|s| s.force_n) >= 9);
+        assert!(distinct(&|s| s.velocity_mm_s.abs()) >= 4);
+        assert!(
+            samples.iter().any(|s| s.direction == 1) && samples.iter().any(|s| s.direction == -1)
+        );
+        // Dense near both ends: ≥ 10 distinct targets within the first and within the last 10 mm.
+        let near = |lo: f64, hi: f64| {
+            distinct(&|s| {
+                if s.target_mm >= lo && s.target_mm <= hi && s.approach_from_mm.is_some() {
+                    s.target_mm
+                } else {
+                    -1.0
+                }
+            }) - 1
+        };
+        assert!(near(0.0, 10.0) >= 10, "{}", near(0.0, 10.0));
+        assert!(near(390.0, 400.0) >= 10, "{}", near(390.0, 400.0));
+        // Heat load: on, plateau, off, on again (not monotonic in time).
+        let duty: Vec<f64> = plan.environment().duty.iter().map(|d| d.duty).collect();
+        assert_eq!(duty, vec![1.0, 0.4, 0.0, 1.0]);
+        let end = samples.last().unwrap().time_s;
+        assert!(plan.environment().duty[3].from_s < end);
     }
 }
