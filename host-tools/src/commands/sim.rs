@@ -23,7 +23,8 @@ pub struct Args {
     /// axis (pitch_error, reversal, cogging, interpolation_error, scale_expansion).
     #[arg(long, value_name = "K1,K2,..", conflicts_with = "axis")]
     pub effects: Option<String>,
-    /// Measurement plan: iso230, scan, thermal, load, abbe, or spindle (thermo-force campaign under
+    /// Measurement plan: iso230, scan, thermal, load, abbe, survey (all of them on one time line, the
+    /// validation harness's plan), or spindle (thermo-force campaign under
     /// cutting load from axcomp-thermal's generator: 16 collinear sensors, spindle_rpm/ap_mm/fz_mm).
     #[arg(long, value_name = "PLAN", default_value = "iso230")]
     pub plan: String,

@@ -486,7 +486,7 @@ pub struct UnknownPlan(pub String);
 
 impl Plan {
     /// The plan names [`Plan::by_name`] accepts.
-    pub const NAMES: [&'static str; 5] = ["iso230", "scan", "thermal", "load", "abbe"];
+    pub const NAMES: [&'static str; 6] = ["iso230", "scan", "thermal", "load", "abbe", "survey"];
 
     /// The standard plan of that name on `start_mm..end_mm`; `abbe` is the ISO 230-2 test repeated at
     /// offsets 0, 50 and 100 mm. With `rows`, the plan is resized to about that many rows.
@@ -505,6 +505,7 @@ impl Plan {
             "scan" => Plan::Scan(ScanPlan::standard(start_mm, end_mm)),
             "thermal" => Plan::Thermal(ThermalPlan::standard(start_mm, end_mm)),
             "load" => Plan::Load(LoadPlan::standard(start_mm, end_mm)),
+            "survey" => Plan::Survey(SurveyPlan::standard(start_mm, end_mm)),
             other => return Err(UnknownPlan(other.to_owned())),
         };
         if let Some(rows) = rows {
