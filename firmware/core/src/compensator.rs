@@ -179,7 +179,7 @@ pub(crate) struct SensorRt {
 }
 
 impl SensorRt {
-    const ZERO: SensorRt = SensorRt {
+    pub(crate) const ZERO: SensorRt = SensorRt {
         reference_degc: 0.0,
         min_degc: 0.0,
         max_degc: 0.0,
@@ -191,7 +191,7 @@ impl SensorRt {
     };
 }
 
-const ZERO_LAW: ForceLaw = ForceLaw {
+pub(crate) const ZERO_LAW: ForceLaw = ForceLaw {
     k: 0.0,
     x_ap: 0.0,
     y_fz: 0.0,

@@ -502,24 +502,8 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
     c.chi_measured = [0.0; MAX_FORCES];
     c.measured = crate::compensator::MeasuredSet::None;
     c.thermo_flags_xor = 0;
-    c.laws = [ForceLaw {
-        k: 0.0,
-        x_ap: 0.0,
-        y_fz: 0.0,
-        z_n: 0.0,
-    }; MAX_FORCES];
-    for s in c.sensors.iter_mut() {
-        *s = SensorRt {
-            reference_degc: 0.0,
-            min_degc: 0.0,
-            max_degc: 0.0,
-            max_rate_degc_per_s: 0.0,
-            lag_tau_s: 0.0,
-            stale_timeout_ms: 0,
-            b_um_per_k: 0.0,
-            alpha: 0.0,
-        };
-    }
+    c.laws = [crate::compensator::ZERO_LAW; MAX_FORCES];
+    c.sensors = [SensorRt::ZERO; MAX_SENSORS];
     if let Some(o) = l.thermo {
         let period = u32_at(b, o);
         let period_s = period as f32 * 0.001;

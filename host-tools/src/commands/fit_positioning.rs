@@ -144,18 +144,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for x in v {
-        s += x * x;
-        n += 1;
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        (s / n as f64).sqrt()
-    }
-}
+use axcomp_positioning::fit::rms;
 
 fn iso(x: &[f64], d: &[i8], run: &[i64], dev: &[f64]) -> Result<Iso230Result, String> {
     let pts: Vec<iso230::Point> = (0..x.len())

@@ -246,7 +246,8 @@ pub struct FitResult {
 
 // ---------------------------------------------------------------------------------------------
 
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
+/// Root mean square of the values; NaN when there are none.
+pub fn rms(v: impl Iterator<Item = f64>) -> f64 {
     let (mut s, mut n) = (0.0, 0usize);
     for x in v {
         s += x * x;
