@@ -366,6 +366,20 @@ mod tests {
     use embedded_hal_mock::eh1::spi::{Mock, Transaction as T};
     use std::vec;
 
+    /// The driver's fault handling: read the fault status register (0x07), then write the configuration back
+    /// (0x80 ← 0xC3: bias on, auto conversion, fault-status clear).
+    fn status_then_restore_config(status: u8) -> [T<u8>; 7] {
+        [
+            T::transaction_start(),
+            T::write(0x07),
+            T::read_vec(vec![status]),
+            T::transaction_end(),
+            T::transaction_start(),
+            T::write_vec(vec![0x80, 0xC3]),
+            T::transaction_end(),
+        ]
+    }
+
     /// IEC 60751 table values (PT100, resistance rounded to 0.01 Ω in the standard).
     const IEC60751_PT100: &[(f32, f32)] = &[
         (-200.0, 18.52),
@@ -508,19 +522,13 @@ mod tests {
     #[test]
     fn fault_bit_reads_status_and_clears_latch() {
         // Open RTD: code saturates with the fault bit set; status = RTD high + FORCE− open (0x80 | 0x08).
-        let expectations = [
+        let mut expectations = vec![
             T::transaction_start(),
             T::write(0x01),
             T::read_vec(vec![0xFF, 0xFF]),
             T::transaction_end(),
-            T::transaction_start(),
-            T::write(0x07),
-            T::read_vec(vec![0x88]),
-            T::transaction_end(),
-            T::transaction_start(),
-            T::write_vec(vec![0x80, 0xC3]),
-            T::transaction_end(),
         ];
+        expectations.extend(status_then_restore_config(0x88));
         let mut spi = Mock::new(&expectations);
         let mut dev = Max31865::new(spi.clone(), SettingsBuilder::PT100.build().unwrap());
         let err = dev.read_temperature_degc().unwrap_err();
@@ -556,15 +564,7 @@ mod tests {
         ];
         expectations.extend(read_config(0x85));
         expectations.extend(read_config(0x81));
-        expectations.extend([
-            T::transaction_start(),
-            T::write(0x07),
-            T::read_vec(vec![0x04]),
-            T::transaction_end(),
-            T::transaction_start(),
-            T::write_vec(vec![0x80, 0xC3]),
-            T::transaction_end(),
-        ]);
+        expectations.extend(status_then_restore_config(0x04));
         let mut spi = Mock::new(&expectations);
         let mut dev = Max31865::new(spi.clone(), SettingsBuilder::PT100.build().unwrap());
         let st = dev.run_fault_detection(&mut NoopDelay).unwrap();
@@ -580,15 +580,7 @@ mod tests {
         for _ in 0..10 {
             expectations.extend(read_config(0x85));
         }
-        expectations.extend([
-            T::transaction_start(),
-            T::write(0x07),
-            T::read_vec(vec![0x00]),
-            T::transaction_end(),
-            T::transaction_start(),
-            T::write_vec(vec![0x80, 0xC3]),
-            T::transaction_end(),
-        ]);
+        expectations.extend(status_then_restore_config(0x00));
         let mut spi = Mock::new(&expectations);
         let mut dev = Max31865::new(spi.clone(), SettingsBuilder::PT100.build().unwrap());
         assert_eq!(
