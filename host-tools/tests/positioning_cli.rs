@@ -139,10 +139,12 @@ fn ess_b02_x_leave_one_cycle_out() {
     );
     // Raw RMS: reference = direct computation from the CSV, tolerance 1e-9 µm.
     assert!((raw - raw_ref).abs() < 1e-9, "raw {raw} vs {raw_ref}");
-    // Issue target: ≤ 3.5 µm. Measured: 3.539 µm — the target is missed by 0.04 µm, and honestly so: the
-    // runs drift ≈ −1.4 µm per cycle (per-run mean residual +3.9 … −3.1 µm, see `cv.per_run`), which no
-    // table fitted on the other cycles can know. Bound asserted here: the measured figure with 0.3 %
-    // margin, and no worse than the reference model (LOO of per-target means, 3.539 µm) + 1e-9.
+    // A static table alone: 3.539 µm, the floor for any table fitted on the other cycles here. The runs
+    // drift ≈ −1.4 µm per cycle (per-run mean residual +3.9 … −3.1 µm, see `cv.per_run`) as the motor warms,
+    // and the per-target mean of n − 1 = 4 cycles has a leave-one-out RMS of exactly s·√(n/(n−1)) with the
+    // pooled within-point s = 3.17 µm. The issue's ≤ 3.5 µm is reached with the warm-up drift
+    // (`ess_b02_x_with_warmup_drift`, 2.541 µm). Bound here: the measured static figure with 0.3 % margin,
+    // and no worse than the reference model (LOO of per-target means, 3.539 µm) + 1e-9.
     assert!(cv <= 3.55, "leave-one-cycle-out RMS {cv}");
     assert!(
         cv <= loo_ref + 1e-9,
@@ -209,28 +211,49 @@ fn ess_muts_runs_not_clearly_improved_trigger_the_guard() {
     let Some(shared) = shared() else { return };
     let csv = shared.join(ESS_CSV);
     let dir = scratch("muts");
-    for (id, expect_refused) in MUTS {
+    // The same outcomes with a warm-up drift allowed: the drifts these runs show (slip, a moving reference)
+    // exceed their raw RMS and are not kept, or do not lower the CV RMS.
+    for (id, expect_refused, drift) in MUTS
+        .iter()
+        .flat_map(|&(id, e)| [(id, e, false), (id, e, true)])
+    {
         let (table, json) = (
-            dir.join(format!("{id}.table.json")),
-            dir.join(format!("{id}.json")),
+            dir.join(format!("{id}.{drift}.table.json")),
+            dir.join(format!("{id}.{drift}.json")),
         );
-        let r = axcomp(&[
+        let filter = format!("test_id={id}");
+        let mut args = vec![
             "fit",
             "positioning",
             "--data",
             csv.to_str().unwrap(),
             "--where",
-            &format!("test_id={id}"),
+            &filter,
             "--cv",
             "cycle",
             "--out",
             table.to_str().unwrap(),
             "--json",
             json.to_str().unwrap(),
-        ]);
+        ];
+        if drift {
+            args.extend(["--drift", "cycle", "--run-period-s", "490"]);
+        }
+        let r = axcomp(&args);
         let j = read_json(&json);
         let (raw, cv) = (num(&j, "raw_rms_um"), num(&j, "cv_rms_um"));
-        println!("{id}: raw {raw:.3} µm, cv {cv:.3} µm, exit {}", r.code);
+        println!(
+            "{id}{}: raw {raw:.3} µm, cv {cv:.3} µm, exit {}",
+            if drift { " --drift" } else { "" },
+            r.code
+        );
+        if drift && expect_refused {
+            assert_eq!(
+                j["model"]["warmup"]["kept"], false,
+                "{id}: {}",
+                j["model"]["warmup"]
+            );
+        }
         check_iso(&j);
         // The rule (guard module): cv ≤ 0.8·raw and improvement in ≥ 80 % of the cycles.
         let not_clearly_below = cv > 0.8 * raw;
@@ -266,6 +289,154 @@ fn ess_muts_runs_not_clearly_improved_trigger_the_guard() {
             assert_eq!(j["table_written"], true);
             assert!(table.is_file());
         }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// B02 X with a warm-up drift (`--drift cycle`): the runs were measured back to back, 490 s per cycle
+/// (TestNumber 1101 at 12:48:40, 1201 at 12:56:50 in the raw log `x_230_2.log`), while the motor warmed
+/// from 28 to 48 °C (PROVENANCE.md). The drift is judged by leave-one-cycle-out with τ re-chosen in every
+/// fold, then carried into a firmware image and applied by the core's thermo-force term.
+#[test]
+fn ess_b02_x_with_warmup_drift() {
+    let Some(shared) = shared() else { return };
+    let csv = shared.join(ESS_CSV);
+    let dir = scratch("b02-drift");
+    let (table, json, model, image) = (
+        dir.join("table.json"),
+        dir.join("fit.json"),
+        dir.join("drift.json"),
+        dir.join("b02.axci"),
+    );
+    let r = axcomp(&[
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--where",
+        &format!("test_id={B02}"),
+        "--cv",
+        "cycle",
+        "--drift",
+        "cycle",
+        "--run-period-s",
+        "490",
+        "--out",
+        table.to_str().unwrap(),
+        "--drift-model",
+        model.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "stdout {}\nstderr {}", r.stdout, r.stderr);
+    let j = read_json(&json);
+    let w = &j["model"]["warmup"];
+    let (cv, static_cv) = (num(&j, "cv_rms_um"), num(w, "cv_rms_um_static"));
+    let (_, loo_ref) = loo_of_means(&csv, B02);
+    println!(
+        "B02 X: leave-one-cycle-out {cv:.3} µm with the warm-up drift, {static_cv:.3} µm static; τ {:.0} s, drift {:.3} µm",
+        num(w, "tau_s"),
+        num(w, "drift_um")
+    );
+    // Issue target: ≤ 3.5 µm leave-one-cycle-out. Measured 2.541 µm.
+    assert!(cv <= 3.5, "leave-one-cycle-out RMS {cv}");
+    assert_eq!(w["kept"], true, "{w}");
+    assert!((cv - num(w, "cv_rms_um_with_drift")).abs() < 1e-12);
+    // The static figure is the one of the plain fit (reference: LOO of per-target means, 3.539 µm).
+    assert!(
+        static_cv <= loo_ref + 1e-9 && static_cv > 3.4,
+        "static {static_cv}"
+    );
+    // Nested choice: one τ per held-out cycle, all on the candidate grid (> 0, finite).
+    let taus = w["tau_per_fold_s"].as_array().unwrap();
+    assert_eq!(taus.len(), 5);
+    assert!(taus.iter().all(|t| t.as_f64().is_some_and(|t| t > 0.0)));
+    // The drift removes the run-to-run trend: per-cycle mean residuals within ±2 µm (static: +3.9 … −3.1).
+    for p in j["cv"]["per_run"].as_array().unwrap() {
+        let m = num(p, "mean_residual_um");
+        assert!(m.abs() < 2.0, "cycle {}: mean residual {m}", p["run"]);
+    }
+    assert_eq!(j["guard"]["passed"], true);
+    assert_eq!(j["drift_model_written"], true);
+    // The drift model goes into a firmware image with the table…
+    let r = axcomp(&[
+        "image",
+        "build",
+        "--table",
+        table.to_str().unwrap(),
+        "--thermal",
+        model.to_str().unwrap(),
+        "--axis-id",
+        "1",
+        "--um-per-count",
+        "0.001",
+        "--max-slew-um",
+        "1000",
+        "--out",
+        image.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    // …and the core applies it: with the `warmup` input 0 at t = 0 and 1 every 100 ms after, the correction
+    // at a fixed position changes by drift_um·(1 − exp(−t/τ)). Reference: that closed form in f64;
+    // tolerance 0.02 µm (f32 lag state over up to 36 000 updates, table in f32).
+    let bytes = std::fs::read(&image).unwrap();
+    let mut comp = axcomp_core::Compensator::IDENTITY;
+    comp.load(&bytes).unwrap();
+    let mut st = axcomp_core::State::new();
+    let (tau, k) = (num(w, "tau_s"), num(w, "drift_um"));
+    let input = axcomp_core::CycleInput {
+        scale_raw: 5_000_000,
+        command_counts: 5_000_000,
+        forces_n: [0.0; axcomp_core::MAX_FORCES],
+    };
+    comp.update_temperatures(&mut st, 0, &[0.0]);
+    let cold = f64::from(comp.cycle(&mut st, &input).correction_um);
+    let mut worst: f64 = 0.0;
+    for n in 1..=36_000u32 {
+        comp.update_temperatures(&mut st, n * 100, &[1.0]);
+        if n % 600 == 0 {
+            let now = f64::from(comp.cycle(&mut st, &input).correction_um);
+            let t = f64::from(n) * 0.1;
+            let want = k * (1.0 - (-t / tau).exp());
+            worst = worst.max((now - cold - want).abs());
+        }
+    }
+    println!("firmware drift vs closed form: worst {worst:.4} µm over 1 h");
+    assert!(worst < 0.02, "worst {worst}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn drift_options_are_checked_and_nothing_is_written() {
+    let Some(shared) = shared() else { return };
+    let csv = shared.join(ESS_CSV);
+    let dir = scratch("drift-bad");
+    let table = dir.join("t.json");
+    let base = [
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--where",
+        "test_id=ESS_TDU_B02_X_2022-04-06",
+        "--out",
+        table.to_str().unwrap(),
+    ];
+    let cases: [(&[&str], &str); 4] = [
+        (&["--drift", "cycle"], "--run-period-s"),
+        (
+            &["--drift", "cycle", "--run-period-s", "0"],
+            "must be a finite number",
+        ),
+        (&["--drift", "time_s"], "time_s"),
+        (&["--drift-model", "m.json"], "--drift"),
+    ];
+    for (extra, needle) in cases {
+        let args: Vec<&str> = base.iter().chain(extra.iter()).copied().collect();
+        let r = axcomp(&args);
+        assert_ne!(r.code, 0, "{extra:?} was accepted");
+        assert!(r.stderr.contains(needle), "{extra:?}: {}", r.stderr);
+        assert!(!table.exists(), "{extra:?}: a table was written");
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -18,6 +18,8 @@ use axcomp_positioning::fit::{FitOptions, FitResult, Observation};
 use axcomp_positioning::guard::{self, GuardVerdict};
 use axcomp_positioning::iso230::{self, Iso230Result};
 use axcomp_positioning::table_file::write_atomic;
+use axcomp_positioning::warmup::{self, WarmupFit};
+use axcomp_thermal::model_file::{self, ModelSensor, ThermalModelFile};
 use serde_json::{Value, json};
 
 use crate::cli::DataArgs;
@@ -59,11 +61,30 @@ pub struct Args {
     /// Write the table even when the do-no-harm guard refuses.
     #[arg(long)]
     pub force: bool,
+    /// Also model a warm-up drift along COL: `time_s` (seconds since the axis was energised), or the run
+    /// column when the runs were measured back to back at a steady pace (then give --run-period-s). The
+    /// drift is kept only if it lowers the cross-validated RMS by more than 1 %.
+    #[arg(long, value_name = "COL")]
+    pub drift: Option<String>,
+    /// Duration of one run in seconds, for --drift on a run column: run r is taken as measured at
+    /// (r − first run + ½)·period after the axis was energised.
+    #[arg(long, value_name = "S", requires = "drift")]
+    pub run_period_s: Option<f64>,
+    /// Write the warm-up drift as a thermal model file for `axcomp image build --thermal`. Its one input,
+    /// `warmup`, must read 0 while the axis is cold or de-energised and 1 while it is energised; the
+    /// firmware lags it by the fitted time constant.
+    #[arg(long, value_name = "MODEL.json", requires = "drift")]
+    pub drift_model: Option<PathBuf>,
+    /// Rate at which the drive feeds the `warmup` input, for --drift-model.
+    #[arg(long, value_name = "MS", default_value_t = 100)]
+    pub drift_period_ms: u32,
 }
 
 /// Everything the command computed, before anything is written.
 struct Outcome {
     json: Value,
+    /// The warm-up drift as a thermal model file, when the drift was kept and --drift-model asks for it.
+    drift_model: Option<ThermalModelFile>,
     report: String,
     fit: FitResult,
     judged: Judged,
@@ -92,6 +113,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .with_context(|| format!("writing the table {}", out.display()))?;
             written.push(out.display().to_string());
         }
+    }
+    if let (Some(path), Some(model), false) =
+        (&args.drift_model, &outcome.drift_model, outcome.refused)
+    {
+        model
+            .save(path)
+            .with_context(|| format!("writing the drift model {}", path.display()))?;
+        written.push(path.display().to_string());
     }
     if let Some(dir) = &args.report {
         write_report(dir, &outcome)?;
@@ -231,40 +260,106 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         Some(Split::Holdout(h)) => Some(h.mask(&ds)?),
         _ => None,
     };
+    let ages = match &args.drift {
+        Some(col) => Some(drift_ages(&ds, col, args.run_period_s)?),
+        None => None,
+    };
+    // The warm-up drift is kept only when it lowers the CV RMS on the fitting rows by more than 1 % and is
+    // plausible as warm-up: smaller over the campaign than the raw error itself. A larger "drift" is slip,
+    // lost steps or a moving reference far more often than warm-up, and must not be extrapolated.
+    let keep = |w: &WarmupFit, static_fit: &FitResult| {
+        w.cv_rms_um <= 0.99 * static_fit.cv_rms_um
+            && w.drift_over_data_um.abs() <= static_fit.raw_rms_um
+    };
+    let mut warm_json = Value::Null;
+    let mut kept_warmup: Option<WarmupFit> = None;
     let (fit, judged, verdict, judged_rms, method) = match &holdout_mask {
         None => {
-            let fit = axcomp_positioning::fit(&obs, &opts)?;
-            let judged = Judged {
-                x: x.clone(),
-                direction: dir.clone(),
-                run: run.clone(),
-                deviation: dev.clone(),
-                predicted: fit.cv_predictions.clone(),
+            let static_fit = axcomp_positioning::fit(&obs, &opts)?;
+            let warm = match &ages {
+                Some(a) => Some(
+                    warmup::fit_with_warmup(&obs, a, &opts)
+                        .context("fitting the warm-up drift (--drift)")?,
+                ),
+                None => None,
             };
-            let verdict = fit.guard.clone();
-            let cv = fit.cv_rms_um;
-            let method = fit.split.method.clone();
-            (fit, judged, verdict, cv, method)
+            if let Some(w) = &warm {
+                warm_json = warmup_json(args, w, &static_fit, keep(w, &static_fit));
+            }
+            match warm.filter(|w| keep(w, &static_fit)) {
+                Some(w) => {
+                    let mut fit = w.static_part.clone();
+                    fit.table.cv_rms_um = w.cv_rms_um;
+                    fit.table.model = format!("{} + warmup_drift", fit.table.model);
+                    let judged = Judged {
+                        x: x.clone(),
+                        direction: dir.clone(),
+                        run: run.clone(),
+                        deviation: dev.clone(),
+                        predicted: w.cv_predictions.clone(),
+                    };
+                    let (verdict, cv) = (w.guard.clone(), w.cv_rms_um);
+                    let method = fit.split.method.clone();
+                    kept_warmup = Some(w);
+                    (fit, judged, verdict, cv, method)
+                }
+                None => {
+                    let fit = static_fit;
+                    let judged = Judged {
+                        x: x.clone(),
+                        direction: dir.clone(),
+                        run: run.clone(),
+                        deviation: dev.clone(),
+                        predicted: fit.cv_predictions.clone(),
+                    };
+                    let verdict = fit.guard.clone();
+                    let cv = fit.cv_rms_um;
+                    let method = fit.split.method.clone();
+                    (fit, judged, verdict, cv, method)
+                }
+            }
         }
         Some(mask) => {
-            let train: Vec<Observation> = obs
-                .iter()
-                .zip(mask)
-                .filter(|(_, h)| !**h)
-                .map(|(o, _)| *o)
-                .collect();
-            let mut fit = axcomp_positioning::fit(&train, &opts)
+            let train_rows: Vec<usize> = (0..obs.len()).filter(|&i| !mask[i]).collect();
+            let train: Vec<Observation> = train_rows.iter().map(|&i| obs[i]).collect();
+            let static_fit = axcomp_positioning::fit(&train, &opts)
                 .context("fitting on the rows not held out")?;
+            let warm =
+                match &ages {
+                    Some(a) => {
+                        let train_ages: Vec<f64> = train_rows.iter().map(|&i| a[i]).collect();
+                        Some(warmup::fit_with_warmup(&train, &train_ages, &opts).context(
+                            "fitting the warm-up drift (--drift) on the rows not held out",
+                        )?)
+                    }
+                    None => None,
+                };
+            if let Some(w) = &warm {
+                warm_json = warmup_json(args, w, &static_fit, keep(w, &static_fit));
+            }
+            let mut fit = match warm.filter(|w| keep(w, &static_fit)) {
+                Some(w) => {
+                    let mut f = w.static_part.clone();
+                    f.table.model = format!("{} + warmup_drift", f.table.model);
+                    kept_warmup = Some(w);
+                    f
+                }
+                None => static_fit,
+            };
             let idx: Vec<usize> = (0..obs.len()).filter(|&i| mask[i]).collect();
+            let drift_at = |i: usize| match (&kept_warmup, &ages) {
+                (Some(w), Some(a)) => w.warmup.offset_um(a[i]),
+                _ => 0.0,
+            };
             let judged = Judged {
                 x: idx.iter().map(|&i| x[i]).collect(),
                 direction: idx.iter().map(|&i| dir[i]).collect(),
                 run: idx.iter().map(|&i| run[i]).collect(),
                 deviation: idx.iter().map(|&i| dev[i]).collect(),
-                // The held-out rows are judged with the table the firmware would apply.
+                // The held-out rows are judged with the table the firmware would apply (plus the drift).
                 predicted: idx
                     .iter()
-                    .map(|&i| fit.table.deviation_um(x[i], dir[i]))
+                    .map(|&i| fit.table.deviation_um(x[i], dir[i]) + drift_at(i))
                     .collect(),
             };
             let mut runs: Vec<i64> = judged.run.clone();
@@ -360,6 +455,7 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
             "cv_folds": fit.split.folds,
             "cv_rms_um_on_fitting_rows": fit.cv_rms_um,
             "candidates": candidates,
+            "warmup": warm_json,
         },
         "cv": { "method": method, "column": cv_col, "folds": fit.split.folds, "per_run": per_run },
         "guard": guard_json(&verdict, refused, args.force),
@@ -380,14 +476,135 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
     } else {
         j["cv_rms_um"] = json!(judged_rms);
     }
+    let drift_model = match (&kept_warmup, &args.drift_model) {
+        (Some(w), Some(_)) => Some(drift_model_file(args, w, raw_rms, judged_rms)?),
+        (None, Some(path)) => {
+            eprintln!(
+                "axcomp: note: the warm-up drift was not kept (it does not lower the cross-validated RMS); {} not written",
+                path.display()
+            );
+            None
+        }
+        _ => None,
+    };
+    j["drift_model_written"] = json!(drift_model.is_some() && !refused);
     let report = report_markdown(args, &j, &fit, &verdict);
     Ok(Outcome {
+        drift_model,
         json: j,
         report,
         fit,
         judged,
         refused,
     })
+}
+
+/// Warm-up age (s) per row for `--drift COL`.
+fn drift_ages(ds: &Dataset, col: &str, run_period_s: Option<f64>) -> anyhow::Result<Vec<f64>> {
+    let v = ds
+        .numeric(col)
+        .with_context(|| format!("--drift {col}: the column must be numeric"))?;
+    if let Some(i) = v.iter().position(|a| !a.is_finite()) {
+        bail!("{}: --drift {col}: not a finite number", ds.locate(col, i));
+    }
+    if col.ends_with("_s") {
+        if run_period_s.is_some() {
+            bail!("--run-period-s is for a run column; --drift {col} is already in seconds");
+        }
+        if let Some(i) = v.iter().position(|&a| a < 0.0) {
+            bail!(
+                "{}: --drift {col}: {} s is before the axis was energised (ages must be ≥ 0)",
+                ds.locate(col, i),
+                v[i]
+            );
+        }
+        return Ok(v.to_vec());
+    }
+    let period = run_period_s.ok_or_else(|| {
+        anyhow::anyhow!(
+            "--drift {col}: `{col}` counts runs, not seconds; give --run-period-s (the duration of one run) \
+             so the warm-up time constant comes out in seconds, or use a time_s column"
+        )
+    })?;
+    if !(period.is_finite() && period > 0.0) {
+        bail!("--run-period-s {period}: must be a finite number of seconds > 0");
+    }
+    let first = v.iter().copied().fold(f64::INFINITY, f64::min);
+    Ok(v.iter().map(|&r| (r - first + 0.5) * period).collect())
+}
+
+fn warmup_json(args: &Args, w: &WarmupFit, static_fit: &FitResult, kept: bool) -> Value {
+    let static_cv = static_fit.cv_rms_um;
+    let raw = static_fit.raw_rms_um;
+    let why = if kept {
+        format!(
+            "kept: leave-one-run-out RMS {:.3} µm with the drift vs {:.3} µm without, and the drift over the \
+             data ({:.2} µm) is within the raw RMS ({:.3} µm)",
+            w.cv_rms_um, static_cv, w.drift_over_data_um, raw
+        )
+    } else if w.drift_over_data_um.abs() > raw {
+        format!(
+            "not kept: the fitted drift over the data ({:.2} µm) exceeds the raw RMS ({:.3} µm); a drift that \
+             large is slip, lost steps or a moving reference more often than warm-up, and is not extrapolated",
+            w.drift_over_data_um, raw
+        )
+    } else {
+        format!(
+            "not kept: leave-one-run-out RMS {:.3} µm with the drift is not more than 1 % below {:.3} µm without",
+            w.cv_rms_um, static_cv
+        )
+    };
+    json!({
+        "column": args.drift,
+        "kept": kept,
+        "reason": why,
+        "rule": "kept when the leave-one-run-out RMS with the drift is ≤ 0.99 × the static table's and the drift over the data is ≤ the raw RMS",
+        "cv_rms_um_static": static_cv,
+        "cv_rms_um_with_drift": w.cv_rms_um,
+        "tau_s": w.warmup.tau,
+        "drift_um": w.warmup.drift_um,
+        "state_ref": w.warmup.state_ref,
+        "drift_over_data_um": w.drift_over_data_um,
+        "tau_per_fold_s": w.tau_per_fold,
+        "tau_scores": w.warmup.tau_scores.iter().map(|(t, r)| json!({"tau_s": t, "cv_rms_um": r})).collect::<Vec<_>>(),
+        "static_part": w.static_part.chosen,
+        "model": "deviation = table(x, direction) + drift_um·(w − state_ref), w = 1 − exp(−age/tau_s)",
+    })
+}
+
+/// The kept warm-up drift as a thermal model file with one input, `warmup`.
+fn drift_model_file(
+    args: &Args,
+    w: &WarmupFit,
+    raw_rms: f64,
+    judged_rms: f64,
+) -> anyhow::Result<ThermalModelFile> {
+    if args.drift_period_ms == 0 {
+        bail!("--drift-period-ms must be > 0");
+    }
+    let m = ThermalModelFile {
+        format: model_file::FORMAT.into(),
+        target: args.target.clone(),
+        sensor_period_ms: args.drift_period_ms,
+        b0_um: -w.warmup.drift_um * w.warmup.state_ref,
+        sensors: vec![ModelSensor {
+            name: "warmup".into(),
+            reference_degc: 0.0,
+            tau_s: w.warmup.tau,
+            coef_um_per_k: w.warmup.drift_um,
+            // The input is 0 or 1; any step between them is plausible.
+            min_degc: -0.5,
+            max_degc: 1.5,
+            max_rate_degc_per_s: 1.0e6,
+            stale_timeout_ms: (10 * args.drift_period_ms).max(10_000),
+        }],
+        forces: vec![],
+        raw_rms_um: raw_rms,
+        holdout_rms_um: Some(judged_rms),
+    };
+    m.validate()
+        .map_err(|e| anyhow::anyhow!("the warm-up drift model is not usable: {e}"))?;
+    Ok(m)
 }
 
 fn guard_json(v: &GuardVerdict, refused: bool, forced: bool) -> Value {
@@ -430,6 +647,40 @@ fn report_markdown(args: &Args, j: &Value, fit: &FitResult, verdict: &GuardVerdi
         "Chosen model: **{}**: {}.\n\n",
         fit.chosen, fit.reason
     ));
+    if let Some(w) = j["model"]["warmup"].as_object() {
+        s.push_str("## Warm-up drift\n\n");
+        s.push_str(&format!(
+            "Model: `{}`, age from `--drift {}`. τ = {:.0} s, drift_um (cold → warm) = {:.3} µm, reference state \
+             {:.3}; fitted drift over the data {:.2} µm. Leave-one-run-out RMS {} µm with the drift, {} µm \
+             with the static table alone (τ chosen again inside every fold: {}).\n\n**{}**\n\n",
+            w["model"].as_str().unwrap_or(""),
+            w["column"].as_str().unwrap_or(""),
+            w["tau_s"].as_f64().unwrap_or(f64::NAN),
+            w["drift_um"].as_f64().unwrap_or(f64::NAN),
+            w["state_ref"].as_f64().unwrap_or(f64::NAN),
+            w["drift_over_data_um"].as_f64().unwrap_or(f64::NAN),
+            f3(&w["cv_rms_um_with_drift"]),
+            f3(&w["cv_rms_um_static"]),
+            w["tau_per_fold_s"]
+                .as_array()
+                .map(|a| a
+                    .iter()
+                    .filter_map(Value::as_f64)
+                    .map(|t| format!("{t:.0} s"))
+                    .collect::<Vec<_>>()
+                    .join(", "))
+                .unwrap_or_default(),
+            w["reason"].as_str().unwrap_or(""),
+        ));
+        if w["kept"] == true {
+            s.push_str(
+                "The table below holds the deviation at the reference state; the drive adds \
+                 drift_um·(w − reference) from its `warmup` input (0 de-energised, 1 energised) lagged by τ \
+                 (`--drift-model`, then `axcomp image build --thermal`). The candidates' CV figures are those \
+                 of the static part on the data minus the drift.\n\n",
+            );
+        }
+    }
     s.push_str("## Candidates (cross-validated on the fitting rows)\n\n");
     let rows: Vec<Vec<String>> = fit
         .candidates

@@ -23,6 +23,7 @@ pub mod guard;
 pub mod iso230;
 pub mod spline;
 pub mod table_file;
+pub mod warmup;
 
 pub use fit::{Candidate, Curves, FitError, FitOptions, FitResult, Observation, fit};
 pub use guard::GuardVerdict;
