@@ -1232,11 +1232,11 @@ mod smoothing {
 pub use smoothing::feature_breaks;
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Deterministic normal noise (Box–Muller over a 64-bit LCG) for tests without extra dependencies.
-    pub(crate) struct Noise(u64);
+    pub(crate) struct Noise(pub(crate) u64);
     impl Noise {
         fn uniform(&mut self) -> f64 {
             self.0 = self

@@ -322,22 +322,7 @@ pub fn fit_with_warmup(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Deterministic normal noise (Box–Muller on a 64-bit LCG).
-    struct Noise(u64);
-    impl Noise {
-        fn uniform(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        }
-        fn normal(&mut self) -> f64 {
-            let (u, v) = (self.uniform(), self.uniform());
-            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        }
-    }
+    use crate::fit::tests::Noise;
 
     /// ISO-style runs: 11 targets × 2 directions × `runs`, a pitch pattern, a reversal, and a warm-up
     /// drift of `k` µm with time constant `tau` (ages in run periods, run r measured at age r − 0.5).
