@@ -264,88 +264,41 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         Some(col) => Some(drift_ages(&ds, col, args.run_period_s)?),
         None => None,
     };
-    // The warm-up drift is kept only when it lowers the CV RMS on the fitting rows by more than 1 % and is
-    // plausible as warm-up: smaller over the campaign than the raw error itself. A larger "drift" is slip,
-    // lost steps or a moving reference far more often than warm-up, and must not be extrapolated.
-    let keep = |w: &WarmupFit, static_fit: &FitResult| {
-        w.cv_rms_um <= 0.99 * static_fit.cv_rms_um
-            && w.drift_over_data_um.abs() <= static_fit.raw_rms_um
-    };
-    let mut warm_json = Value::Null;
-    let mut kept_warmup: Option<WarmupFit> = None;
+    let warm_json: Value;
+    let kept_warmup: Option<WarmupFit>;
     let (fit, judged, verdict, judged_rms, method) = match &holdout_mask {
         None => {
             let static_fit = axcomp_positioning::fit(&obs, &opts)?;
-            let warm = match &ages {
-                Some(a) => Some(
-                    warmup::fit_with_warmup(&obs, a, &opts)
-                        .context("fitting the warm-up drift (--drift)")?,
-                ),
-                None => None,
+            let (fit, kept, wj) = with_warmup(args, &obs, ages.as_deref(), &opts, static_fit)?;
+            warm_json = wj;
+            let (predicted, verdict, cv) = match &kept {
+                Some(w) => (w.cv_predictions.clone(), w.guard.clone(), w.cv_rms_um),
+                None => (fit.cv_predictions.clone(), fit.guard.clone(), fit.cv_rms_um),
             };
-            if let Some(w) = &warm {
-                warm_json = warmup_json(args, w, &static_fit, keep(w, &static_fit));
-            }
-            match warm.filter(|w| keep(w, &static_fit)) {
-                Some(w) => {
-                    let mut fit = w.static_part.clone();
-                    fit.table.cv_rms_um = w.cv_rms_um;
-                    fit.table.model = format!("{} + warmup_drift", fit.table.model);
-                    let judged = Judged {
-                        x: x.clone(),
-                        direction: dir.clone(),
-                        run: run.clone(),
-                        deviation: dev.clone(),
-                        predicted: w.cv_predictions.clone(),
-                    };
-                    let (verdict, cv) = (w.guard.clone(), w.cv_rms_um);
-                    let method = fit.split.method.clone();
-                    kept_warmup = Some(w);
-                    (fit, judged, verdict, cv, method)
-                }
-                None => {
-                    let fit = static_fit;
-                    let judged = Judged {
-                        x: x.clone(),
-                        direction: dir.clone(),
-                        run: run.clone(),
-                        deviation: dev.clone(),
-                        predicted: fit.cv_predictions.clone(),
-                    };
-                    let verdict = fit.guard.clone();
-                    let cv = fit.cv_rms_um;
-                    let method = fit.split.method.clone();
-                    (fit, judged, verdict, cv, method)
-                }
-            }
+            kept_warmup = kept;
+            let judged = Judged {
+                x: x.clone(),
+                direction: dir.clone(),
+                run: run.clone(),
+                deviation: dev.clone(),
+                predicted,
+            };
+            let method = fit.split.method.clone();
+            (fit, judged, verdict, cv, method)
         }
         Some(mask) => {
             let train_rows: Vec<usize> = (0..obs.len()).filter(|&i| !mask[i]).collect();
             let train: Vec<Observation> = train_rows.iter().map(|&i| obs[i]).collect();
             let static_fit = axcomp_positioning::fit(&train, &opts)
                 .context("fitting on the rows not held out")?;
-            let warm =
-                match &ages {
-                    Some(a) => {
-                        let train_ages: Vec<f64> = train_rows.iter().map(|&i| a[i]).collect();
-                        Some(warmup::fit_with_warmup(&train, &train_ages, &opts).context(
-                            "fitting the warm-up drift (--drift) on the rows not held out",
-                        )?)
-                    }
-                    None => None,
-                };
-            if let Some(w) = &warm {
-                warm_json = warmup_json(args, w, &static_fit, keep(w, &static_fit));
-            }
-            let mut fit = match warm.filter(|w| keep(w, &static_fit)) {
-                Some(w) => {
-                    let mut f = w.static_part.clone();
-                    f.table.model = format!("{} + warmup_drift", f.table.model);
-                    kept_warmup = Some(w);
-                    f
-                }
-                None => static_fit,
-            };
+            let train_ages: Option<Vec<f64>> = ages
+                .as_ref()
+                .map(|a| train_rows.iter().map(|&i| a[i]).collect());
+            let (mut fit, kept, wj) =
+                with_warmup(args, &train, train_ages.as_deref(), &opts, static_fit)
+                    .context("on the rows not held out")?;
+            warm_json = wj;
+            kept_warmup = kept;
             let idx: Vec<usize> = (0..obs.len()).filter(|&i| mask[i]).collect();
             let drift_at = |i: usize| match (&kept_warmup, &ages) {
                 (Some(w), Some(a)) => w.warmup.offset_um(a[i]),
@@ -497,6 +450,35 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         judged,
         refused,
     })
+}
+
+/// With `--drift` (`ages` given): fits the warm-up drift on `obs` and keeps it when it lowers the CV RMS
+/// on these rows by more than 1 % and is plausible as warm-up (smaller over the data than the raw error
+/// itself; a larger "drift" is slip, lost steps or a moving reference far more often than warm-up, and must
+/// not be extrapolated). Returns the fit to use (the drift-free static part when kept; its table's
+/// `cv_rms_um` is the whole model's), the kept drift, and the `model.warmup` JSON (null without `--drift`).
+fn with_warmup(
+    args: &Args,
+    obs: &[Observation],
+    ages: Option<&[f64]>,
+    opts: &FitOptions,
+    static_fit: FitResult,
+) -> anyhow::Result<(FitResult, Option<WarmupFit>, Value)> {
+    let Some(ages) = ages else {
+        return Ok((static_fit, None, Value::Null));
+    };
+    let w =
+        warmup::fit_with_warmup(obs, ages, opts).context("fitting the warm-up drift (--drift)")?;
+    let kept = w.cv_rms_um <= 0.99 * static_fit.cv_rms_um
+        && w.drift_over_data_um.abs() <= static_fit.raw_rms_um;
+    let j = warmup_json(args, &w, &static_fit, kept);
+    if !kept {
+        return Ok((static_fit, None, j));
+    }
+    let mut fit = w.static_part.clone();
+    fit.table.cv_rms_um = w.cv_rms_um;
+    fit.table.model = format!("{} + warmup_drift", fit.table.model);
+    Ok((fit, Some(w), j))
 }
 
 /// Warm-up age (s) per row for `--drift COL`.
