@@ -212,6 +212,20 @@ impl<'e> ControlLoop<'e> {
         out
     }
 
+    /// Loads an image into the engine's spare slot (A/B swap on success; on error the running slot is
+    /// kept). The board's drive checks an image against the board first ([`crate::drive::Drive::offer_image`]).
+    pub fn load_image(&mut self, image: &[u8]) -> Result<(), axcomp_core::ImageError> {
+        self.engine.load_image(image)
+    }
+
+    /// The between-cycles access ([`Inbox`]) outside [`ControlLoop::run`] (e.g. for [`crate::drive::Drive::run`]).
+    pub fn inbox(&mut self) -> Inbox<'_> {
+        Inbox {
+            engine: self.engine,
+            stats: &self.stats,
+        }
+    }
+
     /// Applies a non-cycle record (temperatures, process parameters, a new image, a reset) between cycles.
     /// Returns the engine's output (always `None` for these records; a `Cycle` record is run as one).
     pub fn apply(&mut self, record: &Record) -> Option<OutputRecord> {

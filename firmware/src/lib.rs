@@ -9,7 +9,11 @@
 //!   chip; the loop and the drivers are generic over the traits in [`control`] and embedded-hal 1.0.
 //! - **Trace**: a binary recording of inputs (cycles, temperatures, process parameters, table images) that the
 //!   QEMU firmware and the host replay through the same `axcomp_core::Engine`.
-//! - **Overrun**: a cycle whose compute time exceeded the cycle period.
+//! - **Overrun**: a cycle whose compute time exceeded the cycle period ([`control::CycleStats`]); the drive
+//!   also counts cycles whose output came after the next cycle's deadline ([`drive::LatenessMeter`]).
+//! - **Drive**: the board's loop around [`control::ControlLoop`]: setpoint link ([`setpoint`]) and its
+//!   supervisor, board capabilities and the image check, lateness, watchdog, status word ([`status`]);
+//!   see [`drive`].
 //!
 //! Host builds (`cargo test`) compile the portable modules only; the board modules need `target_os = "none"`.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
@@ -18,9 +22,11 @@
 mod fmt;
 
 pub mod control;
+pub mod drive;
 pub mod max31865;
 pub mod replay;
 pub mod setpoint;
+pub mod status;
 
 #[cfg(target_os = "none")]
 pub mod board;

@@ -1,119 +1,707 @@
-//! Setpoint frames on the serial link between the motion controller and the compensation firmware.
+//! The serial setpoint link between the motion controller (CNC) and the compensation drive, version 2.
+//!
+//! Every cycle the CNC sends one **setpoint frame** with the commanded positions of all axes of the
+//! group (1–5), and the drive answers with one **reply frame** with the corrected commands and its
+//! **status word** (see [`crate::status`]). A drive corrects its own axes from the group's frame, so the
+//! other axes' commands (which the multi-axis correction needs) arrive on the same link in the same cycle.
 //!
 //! Glossary:
-//! - **Setpoint**: a position command in scale counts (`i64`).
-//! - **Frame**: `SYNC (0xA5)`, the setpoint as 8 bytes little endian, then a checksum byte
-//!   (XOR of the 8 payload bytes with 0x5A). 10 bytes; at 2 Mbaud (8N1) one frame takes 50 µs, so a frame
-//!   per 100 µs cycle in each direction fits.
-//! - **Decoder**: byte-at-a-time state machine that resynchronises on the next SYNC after a bad checksum.
+//! - **Command**: a position in scale counts. On the wire only its low 32 bits travel (`i32`, little
+//!   endian); the receiver extends them against the previous command of the same axis
+//!   ([`extend_command`]), exact while an axis moves less than 2^31 counts between two received frames
+//!   (at 1 nm per count that is 2.1 m per frame).
+//! - **Sequence**: a `u8` counter the sender increments by one per frame (wrapping). The receiver compares
+//!   it with the last accepted one: +1 is in order, 0 is a **repeated** frame (never applied), +k (k ≥ 2) a
+//!   frame after k − 1 **lost** frames (applied, the loss counted). A gap of exactly a multiple of 256 frames
+//!   aliases; an outage that long (25.6 ms at 10 kHz) is caught by the late-frame supervision anyway.
+//! - **Corrupt frame**: a candidate frame (sync byte and a valid header) whose CRC does not match. It is
+//!   never applied; the decoder resynchronises on the next sync byte *inside* the rejected bytes, so a
+//!   frame that starts within a corrupt one is still found. (A corrupt frame whose payload holds further
+//!   sync bytes followed by a valid-looking header may therefore count more than once.)
+//! - **Skipped bytes**: bytes outside any candidate frame (line noise, a partial frame after a restart).
+//!
+//! Layout (all integers little endian; the CRC covers every byte after the sync byte up to the CRC):
+//!
+//! | frame | bytes | content | length (n axes) |
+//! |---|---|---|---|
+//! | setpoint (CNC → drive) | `0xA5`, `0x20 \| n`, `seq`, n × `i32` command, `u16` CRC | version 2 in the high nibble, axis count 1–5 in the low nibble | 5 + 4n: 9 (n = 1), 17 (n = 3), 25 (n = 5) |
+//! | reply (drive → CNC) | `0x5A`, `0x20 \| n`, `seq`, n × `i32` corrected command, `u32` status, `u8` echo, `u8` counter id, `u16` counter value, `u16` CRC | `seq` = the drive's own reply counter (checked like the setpoints'), `echo` = sequence of the setpoint frame the corrected commands answer; one [`CounterId`] per frame, round robin, low 16 bits (the receiver extends them) | 13 + 4n: 17 (n = 1), 25 (n = 3) |
+//!
+//! **Link budget.** At 2 Mbaud, 8N1, a byte takes 5 µs, so a 100 µs cycle carries 20 bytes in each
+//! direction: a setpoint frame for up to 3 axes (17 bytes, 85 µs) and a one-axis reply (17 bytes, 85 µs)
+//! fit at 10 kHz. A five-axis setpoint frame (25 bytes, 125 µs) or a three-axis reply (25 bytes, 125 µs)
+//! needs ≥ 2.5 Mbaud at 10 kHz, or an 8 kHz cycle at 2 Mbaud; the format does not change with the rate. The STM32G474 board runs the link at
+//! `LINK_BAUD` (`board::stm32g474`) and, with today's one-axis engine, sends one-axis replies.
+//!
+//! **Why CRC-16/CCITT-FALSE** (poly 0x1021, init 0xFFFF, no reflection, no final XOR). Frames are at most
+//! 25 bytes (200 bits); for data up to 32 751 bits this CRC has Hamming distance 4 (every 1-, 2- and 3-bit
+//! error is detected), and since its polynomial has the factor (x + 1) every odd number of bit errors
+//! and every burst up to 16 bits is detected; a random frame passes with probability 2^−16. A CRC-32
+//! (Hamming distance 6 at this length) would add 2 bytes per frame = 10 µs at 2 Mbaud, 10 % of the cycle in
+//! each direction, which the link budget above does not have. The UART's own start/stop-bit framing
+//! errors come on top. The table-driven CRC costs one lookup per byte.
 
-/// First byte of every frame.
-pub const SYNC: u8 = 0xA5;
-/// Bytes per frame.
-pub const FRAME_LEN: usize = 10;
+/// First byte of a setpoint frame (CNC → drive).
+pub const SETPOINT_SYNC: u8 = 0xA5;
+/// First byte of a reply frame (drive → CNC); differs from [`SETPOINT_SYNC`] so a looped-back line is
+/// never mistaken for setpoints.
+pub const REPLY_SYNC: u8 = 0x5A;
+/// Frame format version (high nibble of the second byte).
+pub const VERSION: u8 = 2;
+/// Most axes a frame carries.
+pub const MAX_AXES: usize = 5;
+/// Sync, version/axis count, sequence.
+pub const HEADER_LEN: usize = 3;
+/// CRC-16 at the end of every frame.
+pub const CRC_LEN: usize = 2;
+/// Status word, echoed setpoint sequence, counter id and counter value of a reply frame.
+pub const REPLY_TAIL_LEN: usize = 4 + 1 + 1 + 2;
 
-fn checksum(payload: &[u8]) -> u8 {
-    payload.iter().fold(0x5A, |acc, b| acc ^ b)
+/// Bytes of a setpoint frame for `n_axes` axes.
+pub const fn setpoint_frame_len(n_axes: usize) -> usize {
+    HEADER_LEN + 4 * n_axes + CRC_LEN
 }
 
-/// Encodes one setpoint frame.
-pub fn encode(counts: i64) -> [u8; FRAME_LEN] {
-    let mut f = [0u8; FRAME_LEN];
-    f[0] = SYNC;
-    f[1..9].copy_from_slice(&counts.to_le_bytes());
-    f[9] = checksum(&f[1..9]);
-    f
+/// Bytes of a reply frame for `n_axes` axes.
+pub const fn reply_frame_len(n_axes: usize) -> usize {
+    HEADER_LEN + 4 * n_axes + REPLY_TAIL_LEN + CRC_LEN
 }
 
-/// Byte-wise frame decoder.
-#[derive(Clone, Debug, Default)]
-pub struct Decoder {
-    buf: [u8; FRAME_LEN],
+/// Longest setpoint frame (5 axes).
+pub const MAX_SETPOINT_FRAME_LEN: usize = setpoint_frame_len(MAX_AXES);
+/// Longest reply frame (5 axes).
+pub const MAX_REPLY_FRAME_LEN: usize = reply_frame_len(MAX_AXES);
+
+const CRC_TABLE: [u16; 256] = {
+    let mut t = [0u16; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut c = (i as u16) << 8;
+        let mut k = 0;
+        while k < 8 {
+            c = if c & 0x8000 != 0 {
+                (c << 1) ^ 0x1021
+            } else {
+                c << 1
+            };
+            k += 1;
+        }
+        t[i] = c;
+        i += 1;
+    }
+    t
+};
+
+/// CRC-16/CCITT-FALSE of `bytes` (check value of `b"123456789"`: 0x29B1).
+pub fn crc16(bytes: &[u8]) -> u16 {
+    bytes.iter().fold(0xFFFF, |crc, &b| {
+        (crc << 8) ^ CRC_TABLE[usize::from((crc >> 8) as u8 ^ b)]
+    })
+}
+
+/// Extends a command's low 32 bits (as sent) against the previous full command of that axis.
+pub fn extend_command(previous: i64, low: i32) -> i64 {
+    previous.wrapping_add(i64::from(low.wrapping_sub(previous as i32)))
+}
+
+/// Invalid frame contents given to an encoder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FrameError {
+    /// Axis count outside 1..=[`MAX_AXES`].
+    AxisCount(usize),
+}
+
+impl core::fmt::Display for FrameError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            FrameError::AxisCount(n) => write!(f, "axis count {n} outside 1..={MAX_AXES}"),
+        }
+    }
+}
+
+impl core::error::Error for FrameError {}
+
+/// One setpoint frame: the group's commands (low 32 bits) of one cycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SetpointFrame {
+    pub seq: u8,
+    n_axes: u8,
+    commands: [i32; MAX_AXES],
+}
+
+impl SetpointFrame {
+    /// A frame for `commands.len()` axes (1..=5).
+    pub fn new(seq: u8, commands: &[i32]) -> Result<Self, FrameError> {
+        if commands.is_empty() || commands.len() > MAX_AXES {
+            return Err(FrameError::AxisCount(commands.len()));
+        }
+        let mut c = [0; MAX_AXES];
+        c[..commands.len()].copy_from_slice(commands);
+        Ok(SetpointFrame {
+            seq,
+            n_axes: commands.len() as u8,
+            commands: c,
+        })
+    }
+
+    /// Commands (low 32 bits), one per axis in group order.
+    pub fn commands(&self) -> &[i32] {
+        &self.commands[..usize::from(self.n_axes)]
+    }
+
+    pub fn n_axes(&self) -> usize {
+        usize::from(self.n_axes)
+    }
+
+    /// Writes the frame into `out` (at least [`MAX_SETPOINT_FRAME_LEN`] bytes); returns its length.
+    pub fn encode_into(&self, out: &mut [u8; MAX_SETPOINT_FRAME_LEN]) -> usize {
+        let n = self.n_axes();
+        out[0] = SETPOINT_SYNC;
+        out[1] = (VERSION << 4) | self.n_axes;
+        out[2] = self.seq;
+        for (i, c) in self.commands().iter().enumerate() {
+            out[HEADER_LEN + 4 * i..HEADER_LEN + 4 * i + 4].copy_from_slice(&c.to_le_bytes());
+        }
+        let body = HEADER_LEN + 4 * n;
+        let crc = crc16(&out[1..body]);
+        out[body..body + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
+        body + CRC_LEN
+    }
+
+    fn decode(bytes: &[u8]) -> SetpointFrame {
+        let n = usize::from(bytes[1] & 0x0F);
+        let mut commands = [0; MAX_AXES];
+        for (i, c) in commands.iter_mut().enumerate().take(n) {
+            *c = i32_at(bytes, HEADER_LEN + 4 * i);
+        }
+        SetpointFrame {
+            seq: bytes[2],
+            n_axes: n as u8,
+            commands,
+        }
+    }
+}
+
+/// Status-word counters carried one per reply frame, round robin (low 16 bits; see [`crate::status`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum CounterId {
+    Cycles = 0,
+    FramesApplied = 1,
+    FramesCorrupt = 2,
+    FramesLost = 3,
+    FramesRepeated = 4,
+    CyclesWithoutFrame = 5,
+    LateCycles = 6,
+    Overruns = 7,
+    ImagesRefused = 8,
+    SensorRejected = 9,
+    MaxLatenessTicks = 10,
+    SkippedBytes = 11,
+}
+
+impl CounterId {
+    /// Every counter, in the round-robin order.
+    pub const ALL: [CounterId; 12] = [
+        CounterId::Cycles,
+        CounterId::FramesApplied,
+        CounterId::FramesCorrupt,
+        CounterId::FramesLost,
+        CounterId::FramesRepeated,
+        CounterId::CyclesWithoutFrame,
+        CounterId::LateCycles,
+        CounterId::Overruns,
+        CounterId::ImagesRefused,
+        CounterId::SensorRejected,
+        CounterId::MaxLatenessTicks,
+        CounterId::SkippedBytes,
+    ];
+
+    pub fn from_u8(v: u8) -> Option<CounterId> {
+        Self::ALL.get(usize::from(v)).copied()
+    }
+}
+
+/// One reply frame: the corrected commands (low 32 bits), the status word and one counter.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ReplyFrame {
+    /// The drive's reply counter (+1 per reply, wrapping).
+    pub seq: u8,
+    /// Sequence of the setpoint frame these corrected commands answer.
+    pub echo: u8,
+    n_axes: u8,
+    corrected: [i32; MAX_AXES],
+    /// Status word ([`crate::status::Status`] bits).
+    pub status: u32,
+    /// Which counter `counter_value` is (an unknown id decodes as `None`).
+    pub counter_id: Option<CounterId>,
+    /// Low 16 bits of that counter.
+    pub counter_value: u16,
+}
+
+impl ReplyFrame {
+    pub fn new(
+        seq: u8,
+        echo: u8,
+        corrected: &[i32],
+        status: u32,
+        counter_id: CounterId,
+        counter_value: u16,
+    ) -> Result<Self, FrameError> {
+        if corrected.is_empty() || corrected.len() > MAX_AXES {
+            return Err(FrameError::AxisCount(corrected.len()));
+        }
+        let mut c = [0; MAX_AXES];
+        c[..corrected.len()].copy_from_slice(corrected);
+        Ok(ReplyFrame {
+            seq,
+            echo,
+            n_axes: corrected.len() as u8,
+            corrected: c,
+            status,
+            counter_id: Some(counter_id),
+            counter_value,
+        })
+    }
+
+    pub fn corrected(&self) -> &[i32] {
+        &self.corrected[..usize::from(self.n_axes)]
+    }
+
+    pub fn n_axes(&self) -> usize {
+        usize::from(self.n_axes)
+    }
+
+    /// Writes the frame into `out`; returns its length.
+    pub fn encode_into(&self, out: &mut [u8; MAX_REPLY_FRAME_LEN]) -> usize {
+        let n = self.n_axes();
+        out[0] = REPLY_SYNC;
+        out[1] = (VERSION << 4) | self.n_axes;
+        out[2] = self.seq;
+        for (i, c) in self.corrected().iter().enumerate() {
+            out[HEADER_LEN + 4 * i..HEADER_LEN + 4 * i + 4].copy_from_slice(&c.to_le_bytes());
+        }
+        let t = HEADER_LEN + 4 * n;
+        out[t..t + 4].copy_from_slice(&self.status.to_le_bytes());
+        out[t + 4] = self.echo;
+        out[t + 5] = self.counter_id.map_or(0xFF, |c| c as u8);
+        out[t + 6..t + 8].copy_from_slice(&self.counter_value.to_le_bytes());
+        let body = t + REPLY_TAIL_LEN;
+        let crc = crc16(&out[1..body]);
+        out[body..body + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
+        body + CRC_LEN
+    }
+
+    fn decode(bytes: &[u8]) -> ReplyFrame {
+        let n = usize::from(bytes[1] & 0x0F);
+        let mut corrected = [0; MAX_AXES];
+        for (i, c) in corrected.iter_mut().enumerate().take(n) {
+            *c = i32_at(bytes, HEADER_LEN + 4 * i);
+        }
+        let t = HEADER_LEN + 4 * n;
+        ReplyFrame {
+            seq: bytes[2],
+            n_axes: n as u8,
+            corrected,
+            status: u32::from_le_bytes([bytes[t], bytes[t + 1], bytes[t + 2], bytes[t + 3]]),
+            echo: bytes[t + 4],
+            counter_id: CounterId::from_u8(bytes[t + 5]),
+            counter_value: u16::from_le_bytes([bytes[t + 6], bytes[t + 7]]),
+        }
+    }
+}
+
+fn i32_at(b: &[u8], at: usize) -> i32 {
+    i32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+/// Link counters of a decoder (wrapping `u32`s, since construction).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LinkCounters {
+    /// Frames returned to the caller (in order or after a gap).
+    pub frames_ok: u32,
+    /// Candidate frames rejected for a CRC mismatch.
+    pub corrupt: u32,
+    /// Frames missing according to the sequence counter.
+    pub lost: u32,
+    /// Frames with the sequence of the last accepted frame (dropped, never returned).
+    pub repeated: u32,
+    /// Bytes outside any candidate frame.
+    pub skipped_bytes: u32,
+}
+
+/// What happened on the link since the last [`FrameDecoder::take_events`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LinkEvents {
+    pub corrupt: bool,
+    pub lost: bool,
+    pub repeated: bool,
+}
+
+/// Which frame a [`FrameDecoder`] reads.
+pub trait FrameKind {
+    type Frame: Copy;
+    const SYNC: u8;
+    /// Bytes after the commands and before the CRC.
+    const TAIL_LEN: usize;
+    fn seq(frame: &Self::Frame) -> u8;
+    fn decode(bytes: &[u8]) -> Self::Frame;
+}
+
+/// Setpoint frames (drive side).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Setpoints;
+/// Reply frames (CNC side, host tools, tests).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Replies;
+
+impl FrameKind for Setpoints {
+    type Frame = SetpointFrame;
+    const SYNC: u8 = SETPOINT_SYNC;
+    const TAIL_LEN: usize = 0;
+    fn seq(f: &SetpointFrame) -> u8 {
+        f.seq
+    }
+    fn decode(bytes: &[u8]) -> SetpointFrame {
+        SetpointFrame::decode(bytes)
+    }
+}
+
+impl FrameKind for Replies {
+    type Frame = ReplyFrame;
+    const SYNC: u8 = REPLY_SYNC;
+    const TAIL_LEN: usize = REPLY_TAIL_LEN;
+    fn seq(f: &ReplyFrame) -> u8 {
+        f.seq
+    }
+    fn decode(bytes: &[u8]) -> ReplyFrame {
+        ReplyFrame::decode(bytes)
+    }
+}
+
+/// Byte-at-a-time resynchronising decoder with sequence checking.
+#[derive(Clone, Debug)]
+pub struct FrameDecoder<K: FrameKind> {
+    buf: [u8; MAX_REPLY_FRAME_LEN],
     len: usize,
-    /// Frames dropped for a bad checksum since construction.
-    pub bad_frames: u32,
+    last_seq: Option<u8>,
+    counters: LinkCounters,
+    events: LinkEvents,
+    kind: core::marker::PhantomData<K>,
 }
 
-impl Decoder {
+/// The drive's decoder of setpoint frames.
+pub type SetpointDecoder = FrameDecoder<Setpoints>;
+/// The CNC's (or a test's) decoder of reply frames.
+pub type ReplyDecoder = FrameDecoder<Replies>;
+
+enum Parse {
+    NeedMore,
+    /// Drop `n` leading bytes and look again (`corrupt`: a CRC mismatch).
+    Drop {
+        corrupt: bool,
+    },
+    Frame(usize),
+}
+
+impl<K: FrameKind> Default for FrameDecoder<K> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<K: FrameKind> FrameDecoder<K> {
     pub const fn new() -> Self {
-        Decoder {
-            buf: [0; FRAME_LEN],
+        FrameDecoder {
+            buf: [0; MAX_REPLY_FRAME_LEN],
             len: 0,
-            bad_frames: 0,
+            last_seq: None,
+            counters: LinkCounters {
+                frames_ok: 0,
+                corrupt: 0,
+                lost: 0,
+                repeated: 0,
+                skipped_bytes: 0,
+            },
+            events: LinkEvents {
+                corrupt: false,
+                lost: false,
+                repeated: false,
+            },
+            kind: core::marker::PhantomData,
         }
     }
 
-    /// Feeds one byte; returns a setpoint when it completes a valid frame.
-    pub fn push(&mut self, byte: u8) -> Option<i64> {
-        if self.len == 0 && byte != SYNC {
-            return None;
+    pub fn counters(&self) -> &LinkCounters {
+        &self.counters
+    }
+
+    /// Events since the previous call (then cleared).
+    pub fn take_events(&mut self) -> LinkEvents {
+        core::mem::take(&mut self.events)
+    }
+
+    /// Forget the last sequence (e.g. after the sender restarted on purpose): the next frame is in order.
+    pub fn reset_sequence(&mut self) {
+        self.last_seq = None;
+    }
+
+    fn parse(&self) -> Parse {
+        if self.len == 0 {
+            return Parse::NeedMore;
         }
+        if self.buf[0] != K::SYNC {
+            return Parse::Drop { corrupt: false };
+        }
+        if self.len < 2 {
+            return Parse::NeedMore;
+        }
+        let n = usize::from(self.buf[1] & 0x0F);
+        if self.buf[1] >> 4 != VERSION || n == 0 || n > MAX_AXES {
+            return Parse::Drop { corrupt: false };
+        }
+        let body = HEADER_LEN + 4 * n + K::TAIL_LEN;
+        let flen = body + CRC_LEN;
+        if self.len < flen {
+            return Parse::NeedMore;
+        }
+        let crc = u16::from_le_bytes([self.buf[body], self.buf[body + 1]]);
+        if crc16(&self.buf[1..body]) != crc {
+            return Parse::Drop { corrupt: true };
+        }
+        Parse::Frame(flen)
+    }
+
+    /// Feeds one byte; returns a frame when the byte completes a valid, not repeated one.
+    pub fn push(&mut self, byte: u8) -> Option<K::Frame> {
         self.buf[self.len] = byte;
         self.len += 1;
-        if self.len < FRAME_LEN {
-            return None;
-        }
-        self.len = 0;
-        if checksum(&self.buf[1..9]) != self.buf[9] {
-            self.bad_frames = self.bad_frames.wrapping_add(1);
-            // Resynchronise: restart at the next SYNC inside the rejected frame, if any.
-            if let Some(p) = self.buf[1..].iter().position(|&b| b == SYNC) {
-                let rest = self.buf;
-                let start = p + 1;
-                for &b in &rest[start..] {
-                    if let Some(v) = self.push(b) {
-                        return Some(v);
+        loop {
+            match self.parse() {
+                Parse::NeedMore => return None,
+                Parse::Drop { corrupt } => {
+                    if corrupt {
+                        self.counters.corrupt = self.counters.corrupt.wrapping_add(1);
+                        self.events.corrupt = true;
+                    } else {
+                        self.counters.skipped_bytes = self.counters.skipped_bytes.wrapping_add(1);
                     }
+                    // Resynchronise: continue at the next sync byte after the first one (skipping
+                    // the bytes before it), so a frame starting inside the dropped bytes is found.
+                    let next = self.buf[1..self.len]
+                        .iter()
+                        .position(|&b| b == K::SYNC)
+                        .map_or(self.len, |p| p + 1);
+                    if corrupt {
+                        // The sync byte of the corrupt frame is accounted for by `corrupt`; the bytes
+                        // up to the next sync are part of it, not skipped noise.
+                    } else {
+                        self.counters.skipped_bytes = self
+                            .counters
+                            .skipped_bytes
+                            .wrapping_add(next.saturating_sub(1) as u32);
+                    }
+                    self.buf.copy_within(next..self.len, 0);
+                    self.len -= next;
+                }
+                Parse::Frame(flen) => {
+                    let frame = K::decode(&self.buf[..flen]);
+                    self.buf.copy_within(flen..self.len, 0);
+                    self.len -= flen;
+                    let seq = K::seq(&frame);
+                    if let Some(last) = self.last_seq {
+                        let step = seq.wrapping_sub(last);
+                        if step == 0 {
+                            self.counters.repeated = self.counters.repeated.wrapping_add(1);
+                            self.events.repeated = true;
+                            continue;
+                        }
+                        if step > 1 {
+                            self.counters.lost =
+                                self.counters.lost.wrapping_add(u32::from(step - 1));
+                            self.events.lost = true;
+                        }
+                    }
+                    self.last_seq = Some(seq);
+                    self.counters.frames_ok = self.counters.frames_ok.wrapping_add(1);
+                    return Some(frame);
                 }
             }
-            return None;
         }
-        let mut p = [0u8; 8];
-        p.copy_from_slice(&self.buf[1..9]);
-        Some(i64::from_le_bytes(p))
     }
 }
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
+    use std::vec::Vec;
 
-    #[test]
-    fn roundtrip_and_noise() {
-        let mut d = Decoder::new();
-        let mut got = [None; 3];
-        let mut n = 0;
-        let mut stream = [0u8; 3 * FRAME_LEN + 3];
-        stream[0] = 0x00; // noise before the first frame
-        stream[1] = 0x13;
-        stream[2..12].copy_from_slice(&encode(-123_456_789_012));
-        stream[12..22].copy_from_slice(&encode(0));
-        stream[22..32].copy_from_slice(&encode(i64::MAX));
-        stream[32] = 0xFF;
-        for &b in &stream {
-            if let Some(v) = d.push(b) {
-                got[n] = Some(v);
-                n += 1;
-            }
-        }
-        assert_eq!(got, [Some(-123_456_789_012), Some(0), Some(i64::MAX)]);
-        assert_eq!(d.bad_frames, 0);
+    fn setpoint_bytes(seq: u8, cmds: &[i32]) -> Vec<u8> {
+        let mut b = [0u8; MAX_SETPOINT_FRAME_LEN];
+        let n = SetpointFrame::new(seq, cmds).unwrap().encode_into(&mut b);
+        b[..n].to_vec()
+    }
+
+    fn feed(d: &mut SetpointDecoder, bytes: &[u8]) -> Vec<SetpointFrame> {
+        bytes.iter().filter_map(|&b| d.push(b)).collect()
     }
 
     #[test]
-    fn bad_checksum_is_dropped_and_resyncs() {
-        let mut d = Decoder::new();
-        let mut bad = encode(42);
-        bad[9] ^= 1;
-        for &b in &bad {
-            assert_eq!(d.push(b), None);
+    fn crc16_check_value() {
+        // Reference: the CRC catalogue's check value of CRC-16/CCITT-FALSE for "123456789".
+        assert_eq!(crc16(b"123456789"), 0x29B1);
+    }
+
+    #[test]
+    fn frame_lengths_match_the_link_budget() {
+        assert_eq!(setpoint_frame_len(1), 9);
+        assert_eq!(setpoint_frame_len(3), 17);
+        assert_eq!(setpoint_frame_len(5), 25);
+        assert_eq!(reply_frame_len(1), 17);
+        assert_eq!(reply_frame_len(3), 25);
+        assert_eq!(setpoint_bytes(0, &[1, 2, 3]).len(), 17);
+    }
+
+    #[test]
+    fn setpoint_roundtrip_every_axis_count() {
+        let mut d = SetpointDecoder::new();
+        let cmds = [-123_456_789, 0, i32::MAX, i32::MIN, 42];
+        for n in 1..=MAX_AXES {
+            let got = feed(&mut d, &setpoint_bytes(n as u8, &cmds[..n]));
+            assert_eq!(got.len(), 1, "n = {n}");
+            assert_eq!(got[0].commands(), &cmds[..n]);
+            assert_eq!(got[0].seq, n as u8);
         }
-        assert_eq!(d.bad_frames, 1);
-        let good = encode(7);
-        let mut out = None;
-        for &b in &good {
-            out = out.or(d.push(b));
+        assert_eq!(d.counters().frames_ok, 5);
+        assert_eq!(
+            *d.counters(),
+            LinkCounters {
+                frames_ok: 5,
+                ..LinkCounters::default()
+            }
+        );
+        assert_eq!(
+            SetpointFrame::new(0, &[]).unwrap_err(),
+            FrameError::AxisCount(0)
+        );
+        assert_eq!(
+            SetpointFrame::new(0, &[0; 6]).unwrap_err(),
+            FrameError::AxisCount(6)
+        );
+    }
+
+    #[test]
+    fn reply_roundtrip() {
+        let f = ReplyFrame::new(
+            7,
+            200,
+            &[1, -2, 300_000],
+            0x8000_0421,
+            CounterId::FramesLost,
+            65_535,
+        )
+        .unwrap();
+        let mut b = [0u8; MAX_REPLY_FRAME_LEN];
+        let n = f.encode_into(&mut b);
+        assert_eq!(n, reply_frame_len(3));
+        let mut d = ReplyDecoder::new();
+        let got: Vec<_> = b[..n].iter().filter_map(|&x| d.push(x)).collect();
+        assert_eq!(got, [f]);
+        // A setpoint decoder never takes a reply (different sync byte): all bytes skipped.
+        let mut s = SetpointDecoder::new();
+        assert!(feed(&mut s, &b[..n]).is_empty());
+        assert_eq!(s.counters().frames_ok, 0);
+    }
+
+    #[test]
+    fn every_single_bit_flip_is_detected() {
+        // Every one-bit corruption of a three-axis frame (17 bytes × 8 bits) must be rejected; the
+        // following good frame must still be decoded (resynchronisation).
+        let good = setpoint_bytes(10, &[100, -200, 300]);
+        let next = setpoint_bytes(11, &[101, -201, 301]);
+        for bit in 0..good.len() * 8 {
+            let mut bad = good.clone();
+            bad[bit / 8] ^= 1 << (bit % 8);
+            let mut d = SetpointDecoder::new();
+            let mut stream = bad.clone();
+            stream.extend_from_slice(&next);
+            let got = feed(&mut d, &stream);
+            assert_eq!(got.len(), 1, "bit {bit}: only the good frame");
+            assert_eq!(got[0].seq, 11, "bit {bit}");
+            assert_eq!(got[0].commands(), &[101, -201, 301]);
+            let c = d.counters();
+            if bit / 8 >= 2 {
+                // Header intact (sync and version/count): the flip is in sequence, payload or CRC.
+                assert!(c.corrupt >= 1, "bit {bit}: counted corrupt");
+            } else {
+                // A flipped sync or header byte makes no candidate frame: its bytes are skipped or
+                // fail the CRC as a longer/shorter candidate.
+                assert!(c.corrupt + c.skipped_bytes >= 1, "bit {bit}");
+            }
         }
-        assert_eq!(out, Some(7));
+    }
+
+    #[test]
+    fn lost_and_repeated_frames_are_detected() {
+        let mut d = SetpointDecoder::new();
+        let mut stream = Vec::new();
+        for seq in [250u8, 251, 251, 254, 255, 0, 0, 0, 3] {
+            stream.extend_from_slice(&setpoint_bytes(seq, &[i32::from(seq)]));
+        }
+        let got: Vec<u8> = feed(&mut d, &stream).iter().map(|f| f.seq).collect();
+        // Repeated frames are never returned.
+        assert_eq!(got, [250, 251, 254, 255, 0, 3]);
+        let c = d.counters();
+        assert_eq!(c.repeated, 3, "251 once, 0 twice");
+        assert_eq!(c.lost, 2 + 2, "252-253 and 1-2 (through the wrap)");
+        assert_eq!(c.frames_ok, 6);
+        assert_eq!(c.corrupt, 0);
+        let e = d.take_events();
+        assert!(e.lost && e.repeated && !e.corrupt);
+        assert_eq!(d.take_events(), LinkEvents::default(), "events are cleared");
+    }
+
+    #[test]
+    fn resyncs_after_garbage_and_truncated_frames() {
+        let mut d = SetpointDecoder::new();
+        let mut stream = vec![0x00, 0xA5, 0xA5, 0x13, 0xFF];
+        // A truncated frame (the sender restarted mid-frame), then good frames.
+        stream.extend_from_slice(&setpoint_bytes(1, &[5, 6])[..7]);
+        stream.extend_from_slice(&setpoint_bytes(2, &[7, 8]));
+        stream.extend_from_slice(&[0xA5, 0x25]); // a sync and a valid header, then noise
+        stream.extend_from_slice(&[0x11; 30]);
+        stream.extend_from_slice(&setpoint_bytes(3, &[9, 10]));
+        let got = feed(&mut d, &stream);
+        let seqs: Vec<u8> = got.iter().map(|f| f.seq).collect();
+        assert_eq!(seqs, [2, 3]);
+        assert_eq!(got[1].commands(), &[9, 10]);
+        assert!(d.counters().skipped_bytes > 0);
+        assert!(d.counters().corrupt >= 1);
+    }
+
+    #[test]
+    fn command_extension_is_exact_through_the_32_bit_wrap() {
+        // Reference: the true i64 positions; the wire carries `as i32`.
+        let mut prev = 0i64;
+        let mut truth = (1i64 << 31) - 5_000;
+        for _ in 0..10 {
+            truth += 1_000;
+            prev = extend_command(prev, truth as i32);
+            assert_eq!(prev, truth);
+        }
+        let mut truth = -(1i64 << 33);
+        let mut prev = truth + 17;
+        for step in [-1_000_000i64, 2_000_000_000, -2_000_000_000, 1] {
+            truth += step;
+            prev = extend_command(prev, truth as i32);
+            assert_eq!(prev, truth);
+        }
     }
 }

@@ -1,18 +1,34 @@
-//! STM32G474RE board firmware: the 10 kHz compensation loop and the RTD temperature task.
+//! STM32G474RE board firmware: the 10 kHz compensation drive, the RTD temperature task and the status log.
 //!
 //! Flash and run: `cargo board-run` (probe-rs, chip STM32G474RETx). Table images are programmed into the
-//! flash slots A/B (see `memory.x`); at boot the firmware loads slot A, else slot B, else runs the identity.
+//! flash slots A/B (see `memory.x`); at boot the firmware offers slot A, else slot B, to the drive, which
+//! checks each against the board ([`axcomp_firmware::drive::BoardCaps`]) before loading it; with neither
+//! it runs the identity.
+//!
+//! Priorities: the drive (setpoint link, engine, status word, watchdog) runs on an interrupt-mode executor
+//! above thread mode; the RTD task (blocking SPI reads, about 50 µs per sensor at 1 MHz) and the status log
+//! run in thread mode, so they never delay a cycle; the drive's lateness counters show it on the board.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
 mod firmware {
+    use core::cell::Cell;
+    use core::sync::atomic::{AtomicU32, Ordering};
+
     use axcomp_core::trace::{Record, Temperatures};
     use axcomp_core::{Engine, MAX_SENSORS};
-    use axcomp_firmware::board::stm32g474::{self, CORE_CLOCK_HZ, RTD_COUNT, Rtd};
+    use axcomp_firmware::board::stm32g474::{
+        self, BoardIo, CORE_CLOCK_HZ, DwtClock, Iwdg, LOOP_PRIORITY, RTD_COUNT, Rtd,
+    };
     use axcomp_firmware::control::{ControlLoop, CycleTimer, LoopSettings};
+    use axcomp_firmware::drive::{Drive, DriveCounters, LinkSettings};
     use axcomp_firmware::max31865;
+    use axcomp_firmware::status::Status;
     use defmt_rtt as _;
-    use embassy_executor::Spawner;
+    use embassy_executor::{InterruptExecutor, Spawner};
+    use embassy_stm32::interrupt;
+    use embassy_stm32::interrupt::InterruptExt;
+    use embassy_sync::blocking_mutex::Mutex;
     use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
     use embassy_sync::channel::Channel;
     use embassy_time::{Duration, Instant, Ticker};
@@ -23,9 +39,26 @@ mod firmware {
     static ENGINE: ConstStaticCell<Engine> = ConstStaticCell::new(Engine::new());
     /// Temperature readings from the sensor task to the control loop (applied between two cycles).
     static READINGS: Channel<CriticalSectionRawMutex, Temperatures, 2> = Channel::new();
+    /// The loop's executor, pended through the (otherwise unused) UART4 interrupt.
+    static LOOP_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+    /// OR of the status words since the status task last looked (so a one-cycle fault is logged too).
+    static STATUS_SEEN: AtomicU32 = AtomicU32::new(0);
+    /// The drive's counters, published every [`PUBLISH_EVERY_CYCLES`].
+    static COUNTERS: Mutex<CriticalSectionRawMutex, Cell<Option<DriveCounters>>> =
+        Mutex::new(Cell::new(None));
 
-    /// Log the loop statistics this often (10 s at 10 kHz).
-    const STATS_EVERY_CYCLES: u64 = 100_000;
+    #[interrupt]
+    unsafe fn UART4() {
+        // SAFETY: the executor's interrupt handler, and only that; started before the interrupt is unmasked.
+        unsafe { LOOP_EXECUTOR.on_interrupt() }
+    }
+
+    /// Publish the counters this often (10 Hz at 10 kHz).
+    const PUBLISH_EVERY_CYCLES: u32 = 1_000;
+    /// The status task looks this often.
+    const STATUS_LOG_MS: u64 = 100;
+    /// Log the counters this often even without a change.
+    const COUNTERS_LOG_MS: u64 = 10_000;
 
     /// Default sensor period when the image has no thermo-force term.
     const DEFAULT_SENSOR_PERIOD_MS: u32 = 100;
@@ -46,7 +79,7 @@ mod firmware {
                 defmt::warn!("RTD {}: init failed: {}", i, e);
             }
             // Wiring check at start-up: the chip's automatic fault-detection cycle (busy-waits at most 1 ms
-            // per sensor, once; the loop's ticker catches up afterwards).
+            // per sensor, once, in thread mode: the drive preempts it).
             match rtd.run_fault_detection(&mut embassy_time::Delay) {
                 Ok(s) if s.0 == 0 => {}
                 Ok(s) => defmt::warn!("RTD {}: fault detection found 0x{:02x}", i, s.0),
@@ -79,55 +112,116 @@ mod firmware {
         }
     }
 
+    /// The status word out through defmt: every change of the flags seen (OR over the last
+    /// [`STATUS_LOG_MS`]), and the counters every [`COUNTERS_LOG_MS`].
+    #[embassy_executor::task]
+    async fn status_task() {
+        let mut ticker = Ticker::every(Duration::from_millis(STATUS_LOG_MS));
+        let mut last = None;
+        let mut since_counters = 0u64;
+        loop {
+            ticker.next().await;
+            let seen = Status(STATUS_SEEN.swap(0, Ordering::Relaxed));
+            if last != Some(seen) {
+                if !seen.is_empty() {
+                    defmt::warn!("status {}", seen);
+                } else {
+                    defmt::info!("status OK");
+                }
+                last = Some(seen);
+            }
+            since_counters += STATUS_LOG_MS;
+            if since_counters >= COUNTERS_LOG_MS {
+                since_counters = 0;
+                if let Some(c) = COUNTERS.lock(|c| c.get()) {
+                    defmt::info!("counters {}", c);
+                }
+            }
+        }
+    }
+
+    #[embassy_executor::task]
+    async fn drive_task(
+        mut ctl: ControlLoop<'static>,
+        mut drive: Drive,
+        mut io: BoardIo,
+        clock: DwtClock,
+        mut watchdog: Iwdg,
+    ) {
+        let cfg = *ctl.config();
+        let mut timer = TickerTimer(Ticker::every(Duration::from_hz(u64::from(cfg.rate_hz))));
+        watchdog.start();
+        defmt::info!(
+            "drive at {} Hz, watchdog {} us",
+            cfg.rate_hz,
+            stm32g474::WATCHDOG_TIMEOUT_US
+        );
+        drive
+            .run(
+                &mut ctl,
+                &mut io,
+                &clock,
+                &mut timer,
+                &mut watchdog,
+                |inbox, status, counters| {
+                    while let Ok(t) = READINGS.try_receive() {
+                        inbox.apply(&Record::Temperatures(t));
+                    }
+                    STATUS_SEEN.fetch_or(status.bits(), Ordering::Relaxed);
+                    if counters.cycles % PUBLISH_EVERY_CYCLES == 0 {
+                        COUNTERS.lock(|c| c.set(Some(*counters)));
+                    }
+                },
+            )
+            .await
+    }
+
     #[embassy_executor::main]
     async fn main(spawner: Spawner) {
         let board = stm32g474::init();
-        let engine = ENGINE.take();
+        if board.reset_cause.watchdog {
+            defmt::error!("reset by the watchdog");
+        }
+        let cfg = LoopSettings::new(CORE_CLOCK_HZ)
+            .build()
+            .expect("10 kHz at 170 MHz is valid");
+        let mut ctl = ControlLoop::new(ENGINE.take(), cfg);
+        let mut drive = Drive::new(
+            stm32g474::CAPS,
+            &cfg,
+            LinkSettings::defaults(cfg.rate_hz),
+            board.reset_cause,
+        );
         for (name, slot) in ["A", "B"].iter().zip(stm32g474::image_slots()) {
-            match engine.load_image(slot) {
+            match drive.offer_image(&mut ctl, slot) {
                 Ok(()) => {
                     defmt::info!(
-                        "image slot {} loaded (axis {})",
+                        "image slot {} loaded (axis {}, scale input {})",
                         name,
-                        engine.active().axis_id()
+                        ctl.engine().active().axis_id(),
+                        drive.input()
                     );
                     break;
                 }
-                Err(e) => defmt::warn!("image slot {} rejected: {}", name, defmt::Debug2Format(&e)),
+                Err(e) => {
+                    defmt::warn!("image slot {} refused: {}", name, defmt::Display2Format(&e))
+                }
             }
         }
-        let period_ms = match engine.active().sensor_period_ms() {
+        let period_ms = match ctl.engine().active().sensor_period_ms() {
             0 => DEFAULT_SENSOR_PERIOD_MS,
             p => p,
         };
         spawner
             .spawn(temperature_task(board.rtds, period_ms).expect("temperature task spawns once"));
+        spawner.spawn(status_task().expect("status task spawns once"));
 
-        let cfg = LoopSettings::new(CORE_CLOCK_HZ)
-            .build()
-            .expect("10 kHz at 170 MHz is valid");
-        let mut timer = TickerTimer(Ticker::every(Duration::from_hz(u64::from(cfg.rate_hz))));
-        let mut axis = board.axis;
-        let clock = board.clock;
-        let mut ctl = ControlLoop::new(engine, cfg);
-        defmt::info!("control loop at {} Hz", cfg.rate_hz);
-        ctl.run(&mut axis, &clock, &mut timer, |inbox| {
-            while let Ok(t) = READINGS.try_receive() {
-                inbox.apply(&Record::Temperatures(t));
-            }
-            let st = inbox.stats();
-            if st.cycles % STATS_EVERY_CYCLES == 0 && st.cycles > 0 {
-                defmt::info!(
-                    "cycles {} compute max {} mean {} ticks (period {}), overruns {}",
-                    st.cycles,
-                    st.max_compute_ticks,
-                    st.mean_compute_ticks(),
-                    cfg.period_ticks,
-                    st.overruns
-                );
-            }
-        })
-        .await
+        interrupt::UART4.set_priority(LOOP_PRIORITY);
+        let loop_spawner = LOOP_EXECUTOR.start(interrupt::UART4);
+        loop_spawner.spawn(
+            drive_task(ctl, drive, board.io, board.clock, board.watchdog)
+                .expect("drive task spawns once"),
+        );
     }
 }
 

@@ -1,13 +1,20 @@
 //! STM32G474RE board support (NUCLEO-G474RE wiring). The only module that names this chip.
 //!
 //! Glossary:
-//! - **QEI**: the timer in encoder mode counting the scale's A/B quadrature signals (TIM4: PB6 = A, PB7 = B);
-//!   a 16-bit counter, so images for this board use `counter_bits = 16`.
+//! - **Scale inputs**: three timers in encoder mode counting A/B quadrature signals, 16-bit counters, so
+//!   images for this board use `counter_bits = 16` ([`CAPS`] refuses others). Input 0: TIM4 (PB6 = A,
+//!   PB7 = B); input 1: TIM3 (PB4 = A, PB5 = B; Arduino D5/D4); input 2: TIM8 (PC6 = A, PC7 = B; CN10,
+//!   Arduino D9 = PC7). TIM2 is embassy's time driver; TIM1's encoder pins collide with USART1 (PA9).
 //! - **RTD bus**: SPI1 (PA5 SCK, PA6 MISO, PA7 MOSI, mode 1, 1 MHz) shared by the MAX31865 converters, chip
 //!   selects PB0, PB1 (sensor 0, 1).
-//! - **Setpoint link**: USART1 (PA9 TX, PA10 RX, 2 Mbaud 8N1) carrying [`crate::setpoint`] frames: commands in,
-//!   corrected commands out.
+//! - **Setpoint link**: USART1 (PA9 TX, PA10 RX, [`LINK_BAUD`] 8N1) carrying [`crate::setpoint`] frames:
+//!   the group's commands in, one reply frame (corrected command + status word) out per cycle.
 //! - **Cycle clock**: DWT CYCCNT at the core clock (170 MHz).
+//! - **Watchdog**: the IWDG (LSI ≈ 32 kHz), [`WATCHDOG_TIMEOUT_US`]; the reset flags in RCC_CSR tell the
+//!   next boot whether it fired ([`take_reset_cause`]).
+//! - **Loop priority**: the control loop runs on an interrupt-mode executor (pended through the unused
+//!   UART4 interrupt at [`LOOP_PRIORITY`]); the RTD task's blocking SPI reads stay in thread mode, so the
+//!   loop preempts them.
 //! - **Image slots**: the two 64 KiB flash regions `__slot_a_start` / `__slot_b_start` from `memory.x`.
 
 use core::cell::RefCell;
@@ -19,19 +26,39 @@ use embassy_stm32::spi::{self, Spi};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::qei::{self, Qei};
 use embassy_stm32::usart::{self, BufferedUart, BufferedUartRx, BufferedUartTx};
+use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Peri, bind_interrupts, peripherals};
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use static_cell::{ConstStaticCell, StaticCell};
 
-use crate::control::{AxisIo, CycleClock};
+use crate::control::CycleClock;
+use crate::drive::{BoardCaps, DriveIo, ResetCause, Watchdog};
 use crate::max31865::{Max31865, SettingsBuilder};
-use crate::setpoint;
 
 /// Core clock after [`config`]: HSI16 → PLL → 170 MHz.
 pub const CORE_CLOCK_HZ: u32 = 170_000_000;
 /// Number of RTD channels wired on this board.
 pub const RTD_COUNT: usize = 2;
+/// Scale inputs (timers in encoder mode) wired on this board.
+pub const SCALE_INPUTS: usize = 3;
+/// Axis id of each scale input (and its position in the setpoint frame): set them to the machine's.
+pub const AXIS_IDS: [u16; SCALE_INPUTS] = [1, 2, 3];
+/// What this board has: every image is checked against it before it is applied.
+pub const CAPS: BoardCaps = BoardCaps {
+    counter_bits: 16,
+    axis_ids: &AXIS_IDS,
+    sensors: RTD_COUNT as u16,
+};
+/// Setpoint link rate (see the link budget in [`crate::setpoint`]).
+pub const LINK_BAUD: u32 = 2_000_000;
+/// Watchdog timeout: 100 cycles at 10 kHz.
+pub const WATCHDOG_TIMEOUT_US: u32 = 10_000;
+/// NVIC priority of the loop's executor interrupt: above thread mode (the RTD task), below the
+/// peripherals' interrupts (USART1, the TIM2 time driver: priority 0), so received bytes are never lost
+/// to a long cycle.
+pub const LOOP_PRIORITY: embassy_stm32::interrupt::Priority =
+    embassy_stm32::interrupt::Priority::P6;
 
 bind_interrupts!(struct Irqs {
     USART1 => usart::BufferedInterruptHandler<peripherals::USART1>;
@@ -54,45 +81,74 @@ pub fn config() -> embassy_stm32::Config {
     c
 }
 
-/// The scale (QEI) and the setpoint link.
-pub struct Axis {
-    qei: Qei<'static, peripherals::TIM4>,
+/// The scale inputs and the setpoint link.
+pub struct BoardIo {
+    qei0: Qei<'static, peripherals::TIM4>,
+    qei1: Qei<'static, peripherals::TIM3>,
+    qei2: Qei<'static, peripherals::TIM8>,
     rx: BufferedUartRx<'static>,
     tx: BufferedUartTx<'static>,
-    decoder: setpoint::Decoder,
-    command: i64,
 }
 
-impl AxisIo for Axis {
-    fn read_scale(&mut self) -> u32 {
-        u32::from(self.qei.count())
+impl DriveIo for BoardIo {
+    fn read_scale(&mut self, input: usize) -> u32 {
+        u32::from(match input {
+            0 => self.qei0.count(),
+            1 => self.qei1.count(),
+            _ => self.qei2.count(),
+        })
     }
 
-    fn read_command(&mut self) -> i64 {
+    fn read_link(&mut self, buf: &mut [u8]) -> usize {
         use embedded_io::Read;
         use embedded_io_async::ReadReady;
-        let mut buf = [0u8; 32];
-        // Drain whatever arrived; keep the newest complete setpoint.
-        while matches!(self.rx.read_ready(), Ok(true)) {
-            match self.rx.read(&mut buf) {
-                Ok(n) => {
-                    for &b in &buf[..n] {
-                        if let Some(v) = self.decoder.push(b) {
-                            self.command = v;
-                        }
-                    }
-                }
-                Err(_) => break,
-            }
+        // Only what has arrived: `read` blocks on an empty buffer, so ask first.
+        if !matches!(self.rx.read_ready(), Ok(true)) {
+            return 0;
         }
-        self.command
+        self.rx.read(buf).unwrap_or(0)
     }
 
-    fn write_command(&mut self, counts: i64) {
-        use embedded_io::Write;
-        // The TX ring holds several frames; a frame per cycle at 2 Mbaud never fills it.
-        let _ = self.tx.write_all(&setpoint::encode(counts));
+    fn write_link(&mut self, frame: &[u8]) -> bool {
+        use core::future::Future;
+        use core::task::{Context, Poll, Waker};
+        // The async write queues the whole frame, or pends (without writing) when the ring lacks room:
+        // polled once, it is "queue or drop". The blocking `embedded_io::Write` would instead spin until
+        // the line has sent enough, and a cycle must never wait for the line.
+        let mut fut = core::pin::pin!(embedded_io_async::Write::write(&mut self.tx, frame));
+        matches!(
+            fut.as_mut().poll(&mut Context::from_waker(Waker::noop())),
+            Poll::Ready(Ok(n)) if n == frame.len()
+        )
     }
+}
+
+/// The independent watchdog, started.
+pub struct Iwdg(IndependentWatchdog<'static, peripherals::IWDG>);
+
+impl Iwdg {
+    /// Starts the IWDG with [`WATCHDOG_TIMEOUT_US`]; from now on the loop must feed it.
+    pub fn start(&mut self) {
+        self.0.unleash();
+    }
+}
+
+impl Watchdog for Iwdg {
+    fn feed(&mut self) {
+        self.0.pet();
+    }
+}
+
+/// Reads why the chip reset (RCC_CSR: IWDGRSTF, WWDGRSTF) and clears the flags (RMVF), so a later reset
+/// by another cause is not mistaken for a watchdog one.
+pub fn take_reset_cause() -> ResetCause {
+    let rcc = embassy_stm32::pac::RCC;
+    let csr = rcc.csr().read();
+    let cause = ResetCause {
+        watchdog: csr.iwdgrstf() || csr.wwdgrstf(),
+    };
+    rcc.csr().modify(|w| w.set_rmvf(true));
+    cause
 }
 
 /// DWT cycle counter at [`CORE_CLOCK_HZ`].
@@ -121,9 +177,13 @@ pub type Rtd = Max31865<
 
 /// Peripherals the application tasks use.
 pub struct Board {
-    pub axis: Axis,
+    pub io: BoardIo,
     pub rtds: [Rtd; RTD_COUNT],
     pub clock: DwtClock,
+    /// Configured, not started ([`Iwdg::start`]).
+    pub watchdog: Iwdg,
+    /// Why the chip last reset (read before anything else, flags cleared).
+    pub reset_cause: ResetCause,
 }
 
 /// Brings up clocks and peripherals.
@@ -133,12 +193,16 @@ pub fn init() -> Board {
     static UART_RX_BUF: ConstStaticCell<[u8; 256]> = ConstStaticCell::new([0; 256]);
 
     let p = embassy_stm32::init(config());
+    let reset_cause = take_reset_cause();
     let core = cortex_m::Peripherals::take().expect("core peripherals taken once");
 
-    let qei = Qei::new(p.TIM4, p.PB6, p.PB7, qei::Config::default());
+    let qei0 = Qei::new(p.TIM4, p.PB6, p.PB7, qei::Config::default());
+    let qei1 = Qei::new(p.TIM3, p.PB4, p.PB5, qei::Config::default());
+    let qei2 = Qei::new(p.TIM8, p.PC6, p.PC7, qei::Config::default());
+    let watchdog = Iwdg(IndependentWatchdog::new(p.IWDG, WATCHDOG_TIMEOUT_US));
 
     let mut ucfg = usart::Config::default();
-    ucfg.baudrate = 2_000_000;
+    ucfg.baudrate = LINK_BAUD;
     let uart = BufferedUart::new(
         p.USART1,
         p.PA10,
@@ -166,15 +230,17 @@ pub fn init() -> Board {
     let rtds = [rtd(p.PB0.into()), rtd(p.PB1.into())];
 
     Board {
-        axis: Axis {
-            qei,
+        io: BoardIo {
+            qei0,
+            qei1,
+            qei2,
             rx,
             tx,
-            decoder: setpoint::Decoder::new(),
-            command: 0,
         },
         rtds,
         clock: DwtClock::new(core),
+        watchdog,
+        reset_cause,
     }
 }
 

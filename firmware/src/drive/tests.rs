@@ -1,0 +1,799 @@
+//! Host tests of the drive: board capabilities, link faults, lateness, watchdog, status word, and the
+//! fault matrix (every fault of the table in `docs/firmware.md` ends in its documented state).
+
+extern crate std;
+use std::boxed::Box;
+use std::vec;
+use std::vec::Vec;
+
+use axcomp_core::trace::{Record, Temperatures};
+use axcomp_core::{
+    Engine, ImageError, ImageSpec, LimitSpec, OutsideStroke, SensorSpec, TableSpec,
+    ThermoForceSpec, write_image,
+};
+
+use super::fake::{FakeDriveIo, FakeWatchdog};
+use super::*;
+use crate::control::LoopSettings;
+use crate::control::fake::SteppingClock;
+use crate::setpoint::{MAX_SETPOINT_FRAME_LEN, ReplyDecoder, SetpointFrame, reply_frame_len};
+
+/// The board of these tests: 16-bit counters, axes 1, 2, 3 on inputs 0, 1, 2, two RTDs.
+const CAPS: BoardCaps = BoardCaps {
+    counter_bits: 16,
+    axis_ids: &[1, 2, 3],
+    sensors: 2,
+};
+
+/// A constant forward table of `table_um` (one segment per 1000 counts over ±1e6 counts is not needed:
+/// `Hold` outside the stroke keeps the value everywhere), `n_sensors` sensors with b = 0.
+struct ImageArgs {
+    axis_id: u16,
+    counter_bits: u8,
+    n_sensors: usize,
+    table_um: f32,
+    max_correction_um: f32,
+}
+
+const BASE: ImageArgs = ImageArgs {
+    axis_id: 1,
+    counter_bits: 16,
+    n_sensors: 0,
+    table_um: 2.0,
+    max_correction_um: 100.0,
+};
+
+const SENSOR: SensorSpec = SensorSpec {
+    reference_degc: 20.0,
+    min_degc: 0.0,
+    max_degc: 60.0,
+    max_rate_degc_per_s: 5.0,
+    lag_tau_s: 0.0,
+    stale_timeout_ms: 500,
+};
+
+fn image(a: ImageArgs) -> Vec<u8> {
+    let fwd = [[a.table_um, 0.0, 0.0, 0.0]; 4];
+    let sensors = [SENSOR; 4];
+    let b = [0.0f32; 4];
+    let spec = ImageSpec {
+        axis_id: a.axis_id,
+        um_per_count: 0.1,
+        counter_bits: a.counter_bits,
+        table: Some(TableSpec {
+            start_counts: 0,
+            segment_counts: 1000,
+            forward: &fwd,
+            backward: &[],
+            outside: OutsideStroke::Hold,
+        }),
+        thermo: (a.n_sensors > 0).then_some(ThermoForceSpec {
+            sensor_period_ms: 100,
+            sensors: &sensors[..a.n_sensors],
+            b0_um: 0.0,
+            b_um_per_k: &b[..a.n_sensors],
+            expansion: None,
+            forces: &[],
+        }),
+        limits: LimitSpec {
+            max_correction_um: a.max_correction_um,
+            max_slew_um_per_cycle: 10.0,
+            direction_hysteresis_counts: 5,
+        },
+    };
+    let mut buf = vec![0u8; 4096];
+    let n = write_image(&spec, &mut buf).expect("test image");
+    buf.truncate(n);
+    buf
+}
+
+/// 10 kHz loop on a 10 MHz clock: 1000 ticks per cycle (lateness tolerance 100 ticks).
+fn config() -> LoopConfig {
+    LoopSettings::new(10_000_000).build().unwrap()
+}
+
+/// Hold 5 cycles, ramp 0.5 µm per cycle.
+const LINK: LinkSettings = LinkSettings {
+    hold_cycles: 5,
+    ramp_um_per_cycle: 0.5,
+};
+
+fn frame(seq: u8, cmds: &[i32]) -> Vec<u8> {
+    let mut b = [0u8; MAX_SETPOINT_FRAME_LEN];
+    let n = SetpointFrame::new(seq, cmds).unwrap().encode_into(&mut b);
+    b[..n].to_vec()
+}
+
+fn send(io: &mut FakeDriveIo, seq: u8, cmds: &[i32]) {
+    io.rx.extend(frame(seq, cmds));
+}
+
+/// Everything one drive needs; the control loop borrows the boxed engine inside each test.
+struct Rig {
+    drive: Drive,
+    io: FakeDriveIo,
+    clock: SteppingClock,
+}
+
+impl Rig {
+    fn new(reset: ResetCause) -> Self {
+        Rig {
+            drive: Drive::new(CAPS, &config(), LINK, reset),
+            io: FakeDriveIo::default(),
+            clock: SteppingClock::default(),
+        }
+    }
+    fn cycle(&mut self, ctl: &mut ControlLoop<'_>) -> DriveCycle {
+        self.drive
+            .cycle(ctl, &mut self.io, &self.clock, &mut NoWatchdog)
+    }
+}
+
+fn engine() -> Box<Engine> {
+    Box::new(Engine::new())
+}
+
+const LINK_FLAGS: Status = Status(
+    Status::FRAME_LATE.0
+        | Status::FRAME_CORRUPT.0
+        | Status::FRAME_REPEATED.0
+        | Status::FRAME_MISSING.0
+        | Status::LINK_HOLD.0
+        | Status::LINK_RAMP.0,
+);
+
+// ---- board capabilities -------------------------------------------------------------------------
+
+#[test]
+fn images_that_do_not_fit_the_board_are_refused_and_the_running_slot_kept() {
+    let mut e = engine();
+    let cfg = config();
+    let mut ctl = ControlLoop::new(&mut e, cfg);
+    let mut rig = Rig::new(ResetCause::default());
+    rig.drive.offer_image(&mut ctl, &image(BASE)).unwrap();
+    assert_eq!(ctl.engine().active_slot(), 1);
+    let good_crc = inspect_image(&image(BASE)).unwrap().crc;
+
+    let cases: [(Vec<u8>, ImageRefusal); 4] = [
+        // The case: a default (32-bit) image on the board's 16-bit timer.
+        (
+            image(ImageArgs {
+                counter_bits: 32,
+                ..BASE
+            }),
+            ImageRefusal::CounterWidth {
+                image: 32,
+                board: 16,
+            },
+        ),
+        (
+            image(ImageArgs { axis_id: 9, ..BASE }),
+            ImageRefusal::AxisNotWired { axis_id: 9 },
+        ),
+        (
+            image(ImageArgs {
+                n_sensors: 3,
+                ..BASE
+            }),
+            ImageRefusal::SensorsNotWired { image: 3, board: 2 },
+        ),
+        (
+            {
+                let mut b = image(ImageArgs {
+                    table_um: 3.0,
+                    ..BASE
+                });
+                let mid = b.len() / 2;
+                b[mid] ^= 0x01;
+                b
+            },
+            ImageRefusal::Invalid(ImageError::BadCrc),
+        ),
+    ];
+    for (i, (bytes, want)) in cases.iter().enumerate() {
+        assert_eq!(
+            rig.drive.offer_image(&mut ctl, bytes),
+            Err(*want),
+            "case {i}"
+        );
+        // Never loaded: same slot, same image, the engine saw no image at all for the board refusals.
+        assert_eq!(ctl.engine().active_slot(), 1, "case {i}");
+        assert_eq!(ctl.engine().stats().images_accepted, 1, "case {i}");
+        assert_eq!(ctl.engine().active().axis_id(), 1);
+        send(&mut rig.io, i as u8, &[1000]);
+        let c = rig.cycle(&mut ctl);
+        assert!(
+            c.status.contains(Status::IMAGE_REFUSED),
+            "case {i}: latched"
+        );
+        assert_eq!(
+            c.corrected_command_counts,
+            1000 - 20,
+            "case {i}: old table runs"
+        );
+    }
+    assert_eq!(rig.drive.counters().images_refused, 4);
+    assert_eq!(
+        ctl.engine().stats().images_rejected,
+        0,
+        "refused before the engine"
+    );
+    assert_eq!(
+        CAPS.check_compensator(ctl.engine().active()),
+        Ok(0),
+        "running image fits"
+    );
+    let _ = good_crc;
+    // An image for axis 3 fits: accepted, the flag clears, the drive follows frame slot / input 2.
+    rig.drive
+        .offer_image(&mut ctl, &image(ImageArgs { axis_id: 3, ..BASE }))
+        .unwrap();
+    assert_eq!(rig.drive.input(), 2);
+    send(&mut rig.io, 10, &[5, 6, 7000]);
+    rig.io.scales = [0, 0, 100, 0, 0];
+    let c = rig.cycle(&mut ctl);
+    assert!(!c.status.contains(Status::IMAGE_REFUSED));
+    assert_eq!(c.command_counts, 7000);
+    assert_eq!(c.engine.unwrap().position_counts, 100, "input 2's scale");
+}
+
+// ---- link faults -----------------------------------------------------------------------------
+
+#[test]
+fn late_frames_hold_then_ramp_out_then_ramp_back_in() {
+    let mut e = engine();
+    let mut ctl = ControlLoop::new(&mut e, config());
+    let mut rig = Rig::new(ResetCause::default());
+    rig.drive.offer_image(&mut ctl, &image(BASE)).unwrap();
+    // Reference: table 2.0 µm / 0.1 µm per count = 20 counts, subtracted from the command.
+    for seq in 0..10u8 {
+        send(&mut rig.io, seq, &[1000 + i32::from(seq)]);
+        let c = rig.cycle(&mut ctl);
+        assert_eq!(c.corrected_command_counts, 1000 + i64::from(seq) - 20);
+        assert_eq!(c.applied.phase, LinkPhase::Following);
+        assert!(!c.status.intersects(LINK_FLAGS), "seq {seq}: {}", c.status);
+    }
+    // The CNC goes silent. Hold 5 cycles (LINK.hold_cycles) at exactly the last correction and command.
+    for k in 1..=5 {
+        let c = rig.cycle(&mut ctl);
+        assert_eq!(c.command_counts, 1009, "late {k}: last fresh command");
+        assert_eq!(c.corrected_command_counts, 1009 - 20, "late {k}");
+        assert_eq!(c.applied.phase, LinkPhase::Holding);
+        assert!(
+            c.status.contains(Status::FRAME_LATE | Status::LINK_HOLD),
+            "late {k}: {}",
+            c.status
+        );
+        // The engine itself keeps running (counter extension) with its own correction.
+        assert_eq!(c.engine.unwrap().correction_counts, 20);
+    }
+    // Then 0.5 µm per cycle towards zero: 15, 10, 5, 0 counts, and 0 from then on.
+    for (k, want) in [15, 10, 5, 0, 0, 0].into_iter().enumerate() {
+        let c = rig.cycle(&mut ctl);
+        assert_eq!(c.applied.correction_counts, want, "ramp-out cycle {k}");
+        assert_eq!(c.corrected_command_counts, 1009 - i64::from(want));
+        assert_eq!(c.applied.phase, LinkPhase::RampingOut);
+        assert!(c.status.contains(Status::FRAME_LATE | Status::LINK_RAMP));
+        assert!(!c.status.contains(Status::LINK_HOLD));
+    }
+    assert_eq!(rig.drive.counters().cycles_without_frame, 11);
+    // Frames return (seq 21: 11 frames were lost): applied at once, the correction ramps back in.
+    for (k, want) in [5, 10, 15].into_iter().enumerate() {
+        let seq = 21 + k as u8;
+        send(&mut rig.io, seq, &[2000]);
+        let c = rig.cycle(&mut ctl);
+        assert_eq!(c.command_counts, 2000);
+        assert_eq!(c.applied.correction_counts, want, "ramp-in cycle {k}");
+        assert_eq!(c.applied.phase, LinkPhase::RampingIn);
+        assert!(c.status.contains(Status::LINK_RAMP));
+        assert!(!c.status.contains(Status::FRAME_LATE));
+        assert_eq!(c.status.contains(Status::FRAME_MISSING), k == 0);
+    }
+    send(&mut rig.io, 24, &[2000]);
+    let c = rig.cycle(&mut ctl);
+    assert_eq!(c.applied.phase, LinkPhase::Following);
+    assert_eq!(c.corrected_command_counts, 2000 - 20);
+    assert!(!c.status.intersects(LINK_FLAGS));
+    assert_eq!(rig.drive.counters().link.lost, 11);
+}
+
+#[test]
+fn corrupt_repeated_and_short_frames_are_never_applied() {
+    let mut e = engine();
+    let mut ctl = ControlLoop::new(&mut e, config());
+    let mut rig = Rig::new(ResetCause::default());
+    rig.drive
+        .offer_image(&mut ctl, &image(ImageArgs { axis_id: 2, ..BASE }))
+        .unwrap();
+    send(&mut rig.io, 1, &[111, 1000]);
+    assert_eq!(rig.cycle(&mut ctl).command_counts, 1000);
+
+    // Corrupt: one bit of axis 2's command flipped.
+    let mut bad = frame(2, &[111, 5000]);
+    bad[8] ^= 0x10;
+    rig.io.rx.extend(bad);
+    let c = rig.cycle(&mut ctl);
+    assert_eq!(c.command_counts, 1000, "corrupt frame not applied");
+    assert!(
+        c.status
+            .contains(Status::FRAME_CORRUPT | Status::FRAME_LATE | Status::LINK_HOLD)
+    );
+
+    // Repeated: sequence 1 again, with other contents.
+    send(&mut rig.io, 1, &[111, 7000]);
+    let c = rig.cycle(&mut ctl);
+    assert_eq!(c.command_counts, 1000, "repeated frame not applied");
+    assert!(
+        c.status
+            .contains(Status::FRAME_REPEATED | Status::FRAME_LATE)
+    );
+    assert!(!c.status.contains(Status::FRAME_CORRUPT));
+
+    // Short: a one-axis frame has nothing for axis 2 (input 1).
+    send(&mut rig.io, 2, &[9999]);
+    let c = rig.cycle(&mut ctl);
+    assert_eq!(c.command_counts, 1000, "short frame not applied");
+    assert!(
+        c.status
+            .contains(Status::FRAME_CORRUPT | Status::FRAME_LATE)
+    );
+
+    // In order again: applied, no flags.
+    send(&mut rig.io, 3, &[111, 1200]);
+    let c = rig.cycle(&mut ctl);
+    assert_eq!(c.command_counts, 1200);
+    assert_eq!(c.corrected_command_counts, 1200 - 20);
+    assert!(!c.status.intersects(LINK_FLAGS), "{}", c.status);
+    let n = rig.drive.counters();
+    assert_eq!((n.link.corrupt, n.link.repeated, n.short_frames), (1, 1, 1));
+}
+
+#[test]
+fn several_frames_in_one_cycle_the_newest_wins() {
+    let mut e = engine();
+    let mut ctl = ControlLoop::new(&mut e, config());
+    let mut rig = Rig::new(ResetCause::default());
+    rig.drive.offer_image(&mut ctl, &image(BASE)).unwrap();
+    send(&mut rig.io, 1, &[100]);
+    send(&mut rig.io, 2, &[200]);
+    let c = rig.cycle(&mut ctl);
+    assert_eq!(c.command_counts, 200);
+    assert!(!c.status.intersects(LINK_FLAGS));
+}
+
+#[test]
+fn commands_are_extended_past_the_32_bit_wire_range() {
+    let mut e = engine();
+    let mut ctl = ControlLoop::new(&mut e, config());
+    let mut rig = Rig::new(ResetCause::default());
+    rig.drive.offer_image(&mut ctl, &image(BASE)).unwrap();
+    let mut truth = i64::from(i32::MAX) - 3_000;
+    for seq in 0..6u8 {
+        send(&mut rig.io, seq, &[truth as i32]);
+        assert_eq!(rig.cycle(&mut ctl).command_counts, truth);
+        truth += 1_000;
+    }
+}
+
+// ---- lateness and overrun -------------------------------------------------------------------------
+
+#[test]
+fn lateness_is_measured_against_the_deadline_not_the_compute_time() {
+    let mut e = engine();
+    let cfg = config();
+    let mut ctl = ControlLoop::new(&mut e, cfg);
+    let mut rig = Rig::new(ResetCause::default());
+    assert_eq!(cfg.period_ticks, 1000);
+    // (start tick, ticks per clock read): the drive reads the clock at the start, the loop twice
+    // (compute time = one step), and the drive at the end (= start + 3 steps).
+    let plan = [
+        (0, 1),      // defines the schedule
+        (1000, 1),   // on time
+        (2250, 1),   // 250 late > tolerance 100: late
+        (3050, 1),   // 50 late: within tolerance
+        (4950, 20),  // 950 late, output at 5010 > next deadline 5000: overrun with 20 ticks compute
+        (5000, 1),   // reports the overrun of the previous cycle
+        (6000, 400), // compute 400, done at 7200 > 7000: overrun without being late
+        (7000, 1),
+    ];
+    let mut got = vec![];
+    for (start, step) in plan {
+        rig.clock.ticks.set(start);
+        rig.clock.step.set(step);
+        send(&mut rig.io, (start / 1000) as u8, &[0]);
+        let c = rig.cycle(&mut ctl);
+        got.push((
+            c.status.contains(Status::CYCLE_LATE),
+            c.status.contains(Status::OVERRUN),
+        ));
+    }
+    assert_eq!(
+        got,
+        [
+            (false, false),
+            (false, false),
+            (true, false),
+            (false, false),
+            (true, false),
+            (false, true),
+            (false, false),
+            (false, true),
+        ]
+    );
+    let s = rig.drive.counters().lateness;
+    assert_eq!(s.late_cycles, 2);
+    assert_eq!(s.overruns, 2);
+    assert_eq!(s.max_lateness_ticks, 950);
+    // The compute-time statistic alone (CycleStats) sees none of them: no compute time exceeded the period.
+    assert_eq!(
+        ctl.stats().overruns,
+        0,
+        "compute time never exceeded the period"
+    );
+}
+
+// ---- watchdog ----------------------------------------------------------------------------------
+
+#[test]
+fn a_hung_loop_is_reset_by_the_watchdog_and_the_next_boot_reports_it() {
+    let mut wd = FakeWatchdog::new(3_000); // 3 cycles of 1000 ticks
+    {
+        let mut e = engine();
+        let mut ctl = ControlLoop::new(&mut e, config());
+        let mut rig = Rig::new(ResetCause::default());
+        for seq in 0..100u8 {
+            wd.advance(1_000);
+            send(&mut rig.io, seq, &[0]);
+            let c = rig.drive.cycle(&mut ctl, &mut rig.io, &rig.clock, &mut wd);
+            assert!(!c.status.contains(Status::WATCHDOG_RESET));
+        }
+        assert!(!wd.expired);
+        assert_eq!(wd.feeds, 100, "fed once per completed cycle");
+        // The loop hangs (no more cycles) while time goes on.
+        wd.advance(2_999);
+        assert!(!wd.expired, "within the timeout");
+        wd.advance(1);
+        assert!(wd.expired, "reset after the timeout");
+    }
+    // Next boot: the reset flags say watchdog; the status word carries it on every cycle.
+    let mut e = engine();
+    let mut ctl = ControlLoop::new(&mut e, config());
+    let mut rig = Rig::new(wd.reset_cause());
+    for seq in 0..20u8 {
+        send(&mut rig.io, seq, &[0]);
+        assert!(rig.cycle(&mut ctl).status.contains(Status::WATCHDOG_RESET));
+    }
+    // A boot by another cause does not.
+    let mut rig = Rig::new(ResetCause::default());
+    assert!(!rig.cycle(&mut ctl).status.contains(Status::WATCHDOG_RESET));
+}
+
+// ---- status word on the link ----------------------------------------------------------------------
+
+#[test]
+fn every_cycle_sends_one_reply_with_the_status_word_and_a_counter() {
+    let mut e = engine();
+    let mut ctl = ControlLoop::new(&mut e, config());
+    let mut rig = Rig::new(ResetCause::default());
+    rig.drive.offer_image(&mut ctl, &image(BASE)).unwrap();
+    let mut bad = frame(0, &[1]);
+    bad[4] ^= 1;
+    rig.io.rx.extend(bad); // one corrupt frame before the first good one
+    let mut statuses = vec![];
+    for seq in 0..24u8 {
+        if seq != 5 {
+            send(&mut rig.io, seq, &[500 + i32::from(seq)]);
+        }
+        let c = rig.cycle(&mut ctl);
+        statuses.push((c.status, c.corrected_command_counts));
+    }
+    assert_eq!(rig.io.tx.len(), 24, "one reply per cycle");
+    let mut d = ReplyDecoder::new();
+    let mut seen = [None; CounterId::ALL.len()];
+    for (k, bytes) in rig.io.tx.iter().enumerate() {
+        assert_eq!(bytes.len(), reply_frame_len(1));
+        let got: Vec<_> = bytes.iter().filter_map(|&b| d.push(b)).collect();
+        assert_eq!(got.len(), 1, "reply {k} decodes");
+        let r = got[0];
+        assert_eq!(r.status, statuses[k].0.bits(), "reply {k}");
+        assert_eq!(i64::from(r.corrected()[0]), statuses[k].1);
+        assert_eq!(r.seq, k as u8, "the drive's reply counter");
+        // Echo: the setpoint the correction answers (seq 4 again in the late cycle 5).
+        assert_eq!(r.echo, if k == 5 { 4 } else { k as u8 });
+        let id = r.counter_id.expect("known counter id");
+        seen[id as usize] = Some(r.counter_value);
+    }
+    assert!(
+        seen.iter().all(Option::is_some),
+        "every counter sent within 12 cycles"
+    );
+    assert_eq!(seen[CounterId::FramesCorrupt as usize], Some(1));
+    assert!(statuses[0].0.contains(Status::FRAME_CORRUPT));
+    assert!(
+        statuses[5]
+            .0
+            .contains(Status::FRAME_LATE | Status::LINK_HOLD)
+    );
+    assert!(
+        statuses[6].0.contains(Status::FRAME_MISSING),
+        "seq 5 never came"
+    );
+    // A full transmit buffer drops the reply and says so in the next one.
+    rig.io.tx_full = true;
+    send(&mut rig.io, 24, &[0]);
+    rig.cycle(&mut ctl);
+    rig.io.tx_full = false;
+    send(&mut rig.io, 25, &[0]);
+    assert!(rig.cycle(&mut ctl).status.contains(Status::REPLY_DROPPED));
+    assert_eq!(rig.drive.counters().replies_dropped, 1);
+}
+
+// ---- the fault matrix ----------------------------------------------------------------------------
+
+/// One fault of the table in `docs/firmware.md`: what is done to the drive, and the state it must end in.
+struct Fault {
+    name: &'static str,
+    /// Status bits that must be set in the last cycle.
+    flags: Status,
+    run: fn(&mut ControlLoop<'_>, &mut Rig) -> DriveCycle,
+    /// The documented end state, checked on the last cycle.
+    check: fn(&ControlLoop<'_>, &Rig, &DriveCycle) -> bool,
+}
+
+fn good_cycles(ctl: &mut ControlLoop<'_>, rig: &mut Rig, n: u8) -> DriveCycle {
+    let mut last = None;
+    for seq in 0..n {
+        send(&mut rig.io, seq, &[1000]);
+        last = Some(rig.cycle(ctl));
+    }
+    last.expect("n > 0")
+}
+
+fn temps(ctl: &mut ControlLoop<'_>, now_ms: u32, r: &[f32]) {
+    ctl.apply(&Record::Temperatures(Temperatures::new(now_ms, r)));
+}
+
+const FAULTS: &[Fault] = &[
+    Fault {
+        name: "counter-width mismatch",
+        flags: Status::IMAGE_REFUSED,
+        run: |ctl, rig| {
+            let r = rig.drive.offer_image(
+                ctl,
+                &image(ImageArgs {
+                    counter_bits: 32,
+                    ..BASE
+                }),
+            );
+            assert!(matches!(r, Err(ImageRefusal::CounterWidth { .. })));
+            good_cycles(ctl, rig, 3)
+        },
+        check: |ctl, _, c| {
+            ctl.engine().active().axis_id() == 1 && c.corrected_command_counts == 980
+        },
+    },
+    Fault {
+        name: "axis-id mismatch",
+        flags: Status::IMAGE_REFUSED,
+        run: |ctl, rig| {
+            let r = rig
+                .drive
+                .offer_image(ctl, &image(ImageArgs { axis_id: 7, ..BASE }));
+            assert_eq!(r, Err(ImageRefusal::AxisNotWired { axis_id: 7 }));
+            good_cycles(ctl, rig, 3)
+        },
+        check: |ctl, _, c| {
+            ctl.engine().active().axis_id() == 1 && c.corrected_command_counts == 980
+        },
+    },
+    Fault {
+        name: "sensor-count mismatch",
+        flags: Status::IMAGE_REFUSED,
+        run: |ctl, rig| {
+            let r = rig.drive.offer_image(
+                ctl,
+                &image(ImageArgs {
+                    n_sensors: 4,
+                    ..BASE
+                }),
+            );
+            assert_eq!(r, Err(ImageRefusal::SensorsNotWired { image: 4, board: 2 }));
+            good_cycles(ctl, rig, 3)
+        },
+        check: |ctl, _, _| ctl.engine().active().sensor_count() == 0,
+    },
+    Fault {
+        name: "corrupt image",
+        flags: Status::IMAGE_REFUSED,
+        run: |ctl, rig| {
+            let mut b = image(BASE);
+            b[20] ^= 0x40;
+            assert!(matches!(
+                rig.drive.offer_image(ctl, &b),
+                Err(ImageRefusal::Invalid(_))
+            ));
+            good_cycles(ctl, rig, 3)
+        },
+        check: |ctl, _, c| {
+            ctl.engine().stats().images_accepted == 1 && c.corrected_command_counts == 980
+        },
+    },
+    Fault {
+        name: "stale sensor",
+        flags: Status(Status::SENSOR_STALE.0 | Status::THERMAL_FROZEN.0),
+        run: |ctl, rig| {
+            assert!(
+                rig.drive
+                    .offer_image(
+                        ctl,
+                        &image(ImageArgs {
+                            n_sensors: 2,
+                            ..BASE
+                        })
+                    )
+                    .is_ok()
+            );
+            for k in 0..5 {
+                temps(ctl, k * 100, &[21.0, 21.0]);
+            }
+            // Sensor 1 stops reporting; stale after its 500 ms timeout.
+            for k in 5..12 {
+                temps(ctl, k * 100, &[21.0, f32::NAN]);
+            }
+            good_cycles(ctl, rig, 3)
+        },
+        check: |ctl, _, _| {
+            ctl.engine().state().sensor_stale(1) && !ctl.engine().state().thermal_live()
+        },
+    },
+    Fault {
+        name: "out-of-range (implausible) input",
+        flags: Status::SENSOR_IMPLAUSIBLE,
+        run: |ctl, rig| {
+            assert!(
+                rig.drive
+                    .offer_image(
+                        ctl,
+                        &image(ImageArgs {
+                            n_sensors: 2,
+                            ..BASE
+                        })
+                    )
+                    .is_ok()
+            );
+            temps(ctl, 0, &[21.0, 21.0]);
+            temps(ctl, 100, &[21.0, 99.0]); // above max_degc 60
+            good_cycles(ctl, rig, 3)
+        },
+        check: |ctl, _, c| {
+            ctl.engine().state().rejected_readings(1) == 1
+                && !c.status.contains(Status::SENSOR_STALE)
+        },
+    },
+    Fault {
+        name: "late setpoint frame",
+        flags: Status(Status::FRAME_LATE.0 | Status::LINK_HOLD.0),
+        run: |ctl, rig| {
+            good_cycles(ctl, rig, 3);
+            rig.cycle(ctl)
+        },
+        check: |_, _, c| c.corrected_command_counts == 980 && c.applied.phase == LinkPhase::Holding,
+    },
+    Fault {
+        name: "setpoint link lost beyond the hold time",
+        flags: Status(Status::FRAME_LATE.0 | Status::LINK_RAMP.0),
+        run: |ctl, rig| {
+            good_cycles(ctl, rig, 3);
+            let mut c = rig.cycle(ctl);
+            for _ in 0..20 {
+                c = rig.cycle(ctl);
+            }
+            c
+        },
+        check: |_, _, c| c.corrected_command_counts == 1000 && c.applied.correction_counts == 0,
+    },
+    Fault {
+        name: "corrupt setpoint frame",
+        flags: Status(Status::FRAME_CORRUPT.0 | Status::FRAME_LATE.0),
+        run: |ctl, rig| {
+            good_cycles(ctl, rig, 3);
+            let mut b = frame(3, &[5000]);
+            b[5] ^= 0x80;
+            rig.io.rx.extend(b);
+            rig.cycle(ctl)
+        },
+        check: |_, _, c| c.command_counts == 1000,
+    },
+    Fault {
+        name: "repeated setpoint frame",
+        flags: Status(Status::FRAME_REPEATED.0 | Status::FRAME_LATE.0),
+        run: |ctl, rig| {
+            good_cycles(ctl, rig, 3);
+            send(&mut rig.io, 2, &[5000]);
+            rig.cycle(ctl)
+        },
+        check: |_, _, c| c.command_counts == 1000,
+    },
+    Fault {
+        name: "missing (lost) setpoint frames",
+        flags: Status::FRAME_MISSING,
+        run: |ctl, rig| {
+            good_cycles(ctl, rig, 3);
+            send(&mut rig.io, 9, &[1500]);
+            rig.cycle(ctl)
+        },
+        check: |_, rig, c| c.command_counts == 1500 && rig.drive.counters().link.lost == 6,
+    },
+    Fault {
+        name: "overrun",
+        flags: Status::OVERRUN,
+        run: |ctl, rig| {
+            good_cycles(ctl, rig, 1);
+            rig.clock.ticks.set(1000);
+            rig.clock.step.set(500); // done at 2500 > next deadline 2000
+            send(&mut rig.io, 1, &[1000]);
+            rig.cycle(ctl);
+            rig.clock.ticks.set(2600);
+            rig.clock.step.set(0);
+            send(&mut rig.io, 2, &[1000]);
+            rig.cycle(ctl)
+        },
+        check: |_, rig, c| {
+            rig.drive.counters().lateness.overruns == 1
+                && c.status.contains(Status::CYCLE_LATE)
+                && c.corrected_command_counts == 980
+        },
+    },
+    Fault {
+        name: "clamp active",
+        flags: Status::CLAMP_ACTIVE,
+        run: |ctl, rig| {
+            assert!(
+                rig.drive
+                    .offer_image(
+                        ctl,
+                        &image(ImageArgs {
+                            max_correction_um: 1.0,
+                            ..BASE
+                        })
+                    )
+                    .is_ok()
+            );
+            good_cycles(ctl, rig, 3)
+        },
+        check: |_, _, c| c.corrected_command_counts == 1000 - 10,
+    },
+];
+
+#[test]
+fn fault_matrix() {
+    std::println!("{:<40} {:<60} state", "fault", "status word");
+    for f in FAULTS {
+        let mut e = engine();
+        let mut ctl = ControlLoop::new(&mut e, config());
+        let mut rig = Rig::new(ResetCause::default());
+        rig.drive.offer_image(&mut ctl, &image(BASE)).unwrap();
+        let c = (f.run)(&mut ctl, &mut rig);
+        let ok = (f.check)(&ctl, &rig, &c);
+        std::println!(
+            "{:<40} {:<60} {}",
+            f.name,
+            std::format!("{}", c.status),
+            if ok { "ok" } else { "WRONG" }
+        );
+        assert!(
+            c.status.contains(f.flags),
+            "{}: status {} lacks {}",
+            f.name,
+            c.status,
+            f.flags
+        );
+        assert!(ok, "{}: end state", f.name);
+        assert_eq!(
+            rig.io.tx.len() as u32,
+            rig.drive.counters().cycles,
+            "{}: a reply every cycle",
+            f.name
+        );
+    }
+}
