@@ -192,6 +192,8 @@ mod firmware {
             LinkSettings::defaults(cfg.rate_hz),
             board.reset_cause,
         );
+        // Each slot is offered whole (64 KiB: the image, then erased flash); the core reads the image's
+        // own length from its header.
         for (name, slot) in ["A", "B"].iter().zip(stm32g474::image_slots()) {
             match drive.offer_image(&mut ctl, slot) {
                 Ok(()) => {

@@ -745,6 +745,26 @@ const FAULTS: &[Fault] = &[
         },
     },
     Fault {
+        name: "hung loop (watchdog reset)",
+        flags: Status::WATCHDOG_RESET,
+        run: |ctl, rig| {
+            let mut wd = FakeWatchdog::new(3_000);
+            for seq in 0..10u8 {
+                wd.advance(1_000);
+                send(&mut rig.io, seq, &[1000]);
+                rig.drive.cycle(ctl, &mut rig.io, &rig.clock, &mut wd);
+            }
+            wd.advance(3_000); // no cycle completes for three periods
+            assert!(wd.expired);
+            // Reboot: a new drive with the reset cause read at boot, the same image offered again.
+            rig.drive = Drive::new(CAPS, &config(), LINK, wd.reset_cause());
+            rig.io.tx.clear();
+            rig.drive.offer_image(ctl, &image(BASE)).unwrap();
+            good_cycles(ctl, rig, 3)
+        },
+        check: |_, rig, c| rig.drive.counters().cycles == 3 && c.corrected_command_counts == 980,
+    },
+    Fault {
         name: "clamp active",
         flags: Status::CLAMP_ACTIVE,
         run: |ctl, rig| {
