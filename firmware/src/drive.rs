@@ -516,6 +516,11 @@ impl Drive {
         self.input
     }
 
+    /// Cycles run since construction (wrapping).
+    pub fn cycles(&self) -> u32 {
+        self.counters.cycles
+    }
+
     pub fn counters(&self) -> DriveCounters {
         let mut c = self.counters;
         c.link = *self.decoder.counters();
@@ -715,7 +720,7 @@ impl Drive {
     }
 
     /// Runs forever at the timer's pace; `between` runs before each cycle with the loop's [`Inbox`]
-    /// (temperatures, process parameters) and the previous cycle's status and counters.
+    /// (temperatures, process parameters) and the drive (the previous cycle's status, the counters).
     pub async fn run<Io, C, T, W, F>(
         &mut self,
         ctl: &mut ControlLoop<'_>,
@@ -730,12 +735,11 @@ impl Drive {
         C: CycleClock,
         T: CycleTimer,
         W: Watchdog,
-        F: FnMut(&mut Inbox<'_>, Status, &DriveCounters),
+        F: FnMut(&mut Inbox<'_>, &Drive),
     {
         loop {
             timer.next_cycle().await;
-            let counters = self.counters();
-            between(&mut ctl.inbox(), self.last_status, &counters);
+            between(&mut ctl.inbox(), self);
             self.cycle(ctl, io, clock, watchdog);
         }
     }

@@ -163,13 +163,13 @@ mod firmware {
                 &clock,
                 &mut timer,
                 &mut watchdog,
-                |inbox, status, counters| {
+                |inbox, drive| {
                     while let Ok(t) = READINGS.try_receive() {
                         inbox.apply(&Record::Temperatures(t));
                     }
-                    STATUS_SEEN.fetch_or(status.bits(), Ordering::Relaxed);
-                    if counters.cycles % PUBLISH_EVERY_CYCLES == 0 {
-                        COUNTERS.lock(|c| c.set(Some(*counters)));
+                    STATUS_SEEN.fetch_or(drive.status().bits(), Ordering::Relaxed);
+                    if drive.cycles() % PUBLISH_EVERY_CYCLES == 0 {
+                        COUNTERS.lock(|c| c.set(Some(drive.counters())));
                     }
                 },
             )

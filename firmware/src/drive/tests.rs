@@ -237,6 +237,138 @@ fn images_that_do_not_fit_the_board_are_refused_and_the_running_slot_kept() {
     assert_eq!(c.engine.unwrap().position_counts, 100, "input 2's scale");
 }
 
+/// Deterministic xorshift32 (test input generator only).
+fn xorshift(state: &mut u32) -> u32 {
+    let mut x = *state;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    *state = x;
+    x
+}
+
+#[test]
+fn board_counter_width_extends_exactly_and_a_32_bit_image_would_jump() {
+    // Reference: the true position, integrated from the steps; the board delivers it as a wrapping
+    // 16-bit counter (`truth as u16`). Any step below half the counter range (|step| < 2^15) must be
+    // extended exactly by the image the board accepts (counter_bits = 16).
+    let mut e = engine();
+    let mut ctl = ControlLoop::new(&mut e, config());
+    let mut rig = Rig::new(ResetCause::default());
+    rig.drive.offer_image(&mut ctl, &image(BASE)).unwrap();
+    let mut rng = 0x1234_5678u32;
+    let mut truth: i64 = 0;
+    for k in 0..20_000u32 {
+        let max_step = [3, 300, 32_767][(k / 1000 % 3) as usize];
+        let step = i64::from(xorshift(&mut rng) % (2 * max_step + 1)) - i64::from(max_step);
+        truth += step;
+        rig.io.scales[0] = truth as u16 as u32;
+        send(&mut rig.io, k as u8, &[0]);
+        let c = rig.cycle(&mut ctl);
+        assert_eq!(c.engine.unwrap().position_counts, truth, "cycle {k}");
+    }
+    assert!(
+        truth.unsigned_abs() > 1 << 16,
+        "the walk wrapped the counter"
+    );
+
+    // The case: a 32-bit image (the old `image build` default) on this 16-bit counter, loaded
+    // without the board check, is 65 536 counts off after one wrap — silently. The drive refuses it.
+    let img32 = image(ImageArgs {
+        counter_bits: 32,
+        ..BASE
+    });
+    let mut e32 = engine();
+    e32.load_image(&img32).unwrap();
+    let mut pos = 0i64;
+    let mut last = None;
+    for raw in (0..=70_000i64).step_by(1000) {
+        pos = raw;
+        let input = axcomp_core::CycleInput {
+            scale_raw: raw as u16 as u32,
+            command_counts: 0,
+            forces_n: [0.0; MAX_FORCES],
+        };
+        last = e32.step(&Record::Cycle(input));
+    }
+    assert_eq!(pos - last.unwrap().position_counts, 65_536);
+    assert_eq!(
+        rig.drive.offer_image(&mut ctl, &img32),
+        Err(ImageRefusal::CounterWidth {
+            image: 32,
+            board: 16
+        })
+    );
+}
+
+/// A timer that is due `remaining` times, then pends forever.
+struct CountdownTimer {
+    remaining: u32,
+}
+
+impl crate::control::CycleTimer for CountdownTimer {
+    fn next_cycle(&mut self) -> impl core::future::Future<Output = ()> {
+        let due = self.remaining > 0;
+        self.remaining = self.remaining.saturating_sub(1);
+        core::future::poll_fn(move |_| {
+            if due {
+                core::task::Poll::Ready(())
+            } else {
+                core::task::Poll::Pending
+            }
+        })
+    }
+}
+
+#[test]
+fn run_paces_on_the_timer_and_shows_the_board_each_status_between_cycles() {
+    use core::pin::pin;
+    use core::task::{Context, Poll, Waker};
+    let mut e = engine();
+    let mut ctl = ControlLoop::new(&mut e, config());
+    let mut rig = Rig::new(ResetCause::default());
+    rig.drive.offer_image(&mut ctl, &image(BASE)).unwrap();
+    // A frame for the first cycle only: the later ones are late.
+    send(&mut rig.io, 0, &[100]);
+    let mut timer = CountdownTimer { remaining: 4 };
+    let mut watchdog = NoWatchdog;
+    let mut seen = vec![];
+    {
+        let fut = rig.drive.run(
+            &mut ctl,
+            &mut rig.io,
+            &rig.clock,
+            &mut timer,
+            &mut watchdog,
+            |inbox, drive| {
+                seen.push((drive.cycles(), drive.status()));
+                if drive.cycles() == 1 {
+                    // Between cycles the board hands over what arrived (here: a temperature record,
+                    // which this image ignores) — the inbox is the loop's.
+                    inbox.apply(&Record::Temperatures(Temperatures::new(0, &[20.0])));
+                }
+            },
+        );
+        let mut fut = pin!(fut);
+        let mut cx = Context::from_waker(Waker::noop());
+        // Four due ticks, then the timer pends: one poll runs exactly four cycles.
+        assert!(matches!(fut.as_mut().poll(&mut cx), Poll::Pending));
+    }
+    let cycles: Vec<u32> = seen.iter().map(|(c, _)| *c).collect();
+    assert_eq!(cycles, [0, 1, 2, 3], "between runs before each cycle");
+    assert!(
+        !seen[1].1.contains(Status::FRAME_LATE),
+        "cycle 1 had its frame"
+    );
+    assert!(
+        seen[2].1.contains(Status::FRAME_LATE | Status::LINK_HOLD),
+        "cycle 2 had none"
+    );
+    assert_eq!(rig.drive.cycles(), 4);
+    assert_eq!(rig.io.tx.len(), 4);
+    assert_eq!(ctl.engine().stats().temperature_updates, 1);
+}
+
 // ---- link faults -----------------------------------------------------------------------------
 
 #[test]
