@@ -584,10 +584,8 @@ impl Drive {
             if n == 0 {
                 break;
             }
-            for &b in &buf[..n.min(buf.len())] {
-                if let Some(f) = self.decoder.push(b) {
-                    fresh = Some(f);
-                }
+            if let Some(f) = self.decoder.push_bytes(&buf[..n.min(buf.len())]) {
+                fresh = Some(f);
             }
         }
         let events = self.decoder.take_events();
@@ -695,16 +693,18 @@ impl Drive {
     fn next_counter_value(&mut self, ctl: &ControlLoop<'_>) -> (CounterId, u16) {
         let id = CounterId::ALL[usize::from(self.next_counter) % CounterId::ALL.len()];
         self.next_counter = ((usize::from(self.next_counter) + 1) % CounterId::ALL.len()) as u8;
-        let c = self.counters();
+        let c = &self.counters;
+        let link = self.decoder.counters();
+        let late = self.meter.stats();
         let v = match id {
             CounterId::Cycles => c.cycles,
-            CounterId::FramesApplied => c.link.frames_ok,
-            CounterId::FramesCorrupt => c.link.corrupt.wrapping_add(c.short_frames),
-            CounterId::FramesLost => c.link.lost,
-            CounterId::FramesRepeated => c.link.repeated,
+            CounterId::FramesApplied => link.frames_ok,
+            CounterId::FramesCorrupt => link.corrupt.wrapping_add(c.short_frames),
+            CounterId::FramesLost => link.lost,
+            CounterId::FramesRepeated => link.repeated,
             CounterId::CyclesWithoutFrame => c.cycles_without_frame,
-            CounterId::LateCycles => c.lateness.late_cycles,
-            CounterId::Overruns => c.lateness.overruns,
+            CounterId::LateCycles => late.late_cycles,
+            CounterId::Overruns => late.overruns,
             CounterId::ImagesRefused => c
                 .images_refused
                 .wrapping_add(ctl.engine().stats().images_rejected),
@@ -713,8 +713,8 @@ impl Drive {
                 let st = ctl.engine().state();
                 (0..comp.sensor_count()).fold(0u32, |a, i| a.wrapping_add(st.rejected_readings(i)))
             }
-            CounterId::MaxLatenessTicks => c.lateness.max_lateness_ticks,
-            CounterId::SkippedBytes => c.link.skipped_bytes,
+            CounterId::MaxLatenessTicks => late.max_lateness_ticks,
+            CounterId::SkippedBytes => link.skipped_bytes,
         };
         (id, v as u16)
     }

@@ -390,6 +390,8 @@ impl FrameKind for Replies {
 pub struct FrameDecoder<K: FrameKind> {
     buf: [u8; MAX_REPLY_FRAME_LEN],
     len: usize,
+    /// Length of the candidate frame in `buf` once its header was checked (0: not yet).
+    need: usize,
     last_seq: Option<u8>,
     counters: LinkCounters,
     events: LinkEvents,
@@ -421,6 +423,7 @@ impl<K: FrameKind> FrameDecoder<K> {
         FrameDecoder {
             buf: [0; MAX_REPLY_FRAME_LEN],
             len: 0,
+            need: 0,
             last_seq: None,
             counters: LinkCounters {
                 frames_ok: 0,
@@ -478,13 +481,49 @@ impl<K: FrameKind> FrameDecoder<K> {
         Parse::Frame(flen)
     }
 
+    /// Feeds every byte of `bytes`; returns the newest valid, not repeated frame they complete.
+    pub fn push_bytes(&mut self, bytes: &[u8]) -> Option<K::Frame> {
+        let mut newest = None;
+        for &b in bytes {
+            if let Some(f) = self.push(b) {
+                newest = Some(f);
+            }
+        }
+        newest
+    }
+
     /// Feeds one byte; returns a frame when the byte completes a valid, not repeated one.
+    #[inline]
     pub fn push(&mut self, byte: u8) -> Option<K::Frame> {
+        // Fast path: inside a candidate frame whose header was checked, just collect.
+        if self.len < self.need.saturating_sub(1) {
+            self.buf[self.len] = byte;
+            self.len += 1;
+            return None;
+        }
+        self.push_slow(byte)
+    }
+
+    fn push_slow(&mut self, byte: u8) -> Option<K::Frame> {
+        if self.len >= self.buf.len() {
+            // Unreachable (a candidate never outgrows the longest frame); start over rather than panic.
+            self.len = 0;
+            self.need = 0;
+        }
         self.buf[self.len] = byte;
         self.len += 1;
         loop {
+            self.need = 0;
             match self.parse() {
-                Parse::NeedMore => return None,
+                Parse::NeedMore => {
+                    if self.len >= 2 {
+                        self.need = HEADER_LEN
+                            + 4 * usize::from(self.buf[1] & 0x0F)
+                            + K::TAIL_LEN
+                            + CRC_LEN;
+                    }
+                    return None;
+                }
                 Parse::Drop { corrupt } => {
                     if corrupt {
                         self.counters.corrupt = self.counters.corrupt.wrapping_add(1);

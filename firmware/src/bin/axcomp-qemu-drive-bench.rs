@@ -1,0 +1,228 @@
+//! QEMU instruction-count benchmark of one drive cycle (`Drive::cycle`: setpoint bytes → decoder with CRC
+//! and sequence check → link supervisor → `ControlLoop::cycle` → status word → reply frame → watchdog),
+//! next to the bare `ControlLoop::cycle`, run with `-icount shift=0` like `axcomp-qemu-bench`.
+//!
+//! Method: as `axcomp-qemu-bench` (SysTick calibrated against 1 002 001 instructions; batches of `BATCH`
+//! calls with varying inputs through a function pointer, minus the same loop calling an empty function of
+//! the same signature). Workload: the core's reference image (table + 8 sensors + forces + clamps), one
+//! fresh setpoint frame per cycle (1 or 3 axes, pre-encoded outside the timed loop), one reply frame
+//! written to a RAM sink. Prints `bench NAME VALUE UNIT` lines and exits.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod firmware {
+    use core::hint::black_box;
+
+    use axcomp_core::trace::Record;
+    use axcomp_core::{Engine, bench};
+    use axcomp_firmware::board::semihosting;
+    use axcomp_firmware::control::{ControlLoop, LoopSettings, fake::SteppingClock};
+    use axcomp_firmware::drive::{BoardCaps, Drive, DriveIo, LinkSettings, NoWatchdog, ResetCause};
+    use axcomp_firmware::setpoint::{MAX_SETPOINT_FRAME_LEN, SetpointFrame};
+    use cortex_m::peripheral::{SYST, syst::SystClkSource};
+    use cortex_m_rt::entry;
+    use cortex_m_semihosting::hprintln;
+    use static_cell::ConstStaticCell;
+
+    const BATCH: usize = 100;
+    const BATCHES: u32 = 100;
+    const IMAGE_BUF_LEN: usize = 36 * 1024;
+
+    static ENGINE: ConstStaticCell<Engine> = ConstStaticCell::new(Engine::new());
+    static IMAGE: ConstStaticCell<[u8; IMAGE_BUF_LEN]> = ConstStaticCell::new([0; IMAGE_BUF_LEN]);
+
+    /// The reference image's board: 32-bit counter, axis 1 (plus 2 and 3 for the three-axis frame), 8 sensors.
+    const CAPS: BoardCaps = BoardCaps {
+        counter_bits: 32,
+        axis_ids: &[1, 2, 3],
+        sensors: 8,
+    };
+
+    fn now() -> u32 {
+        SYST::get_current()
+    }
+
+    fn ticks_since(t0: u32) -> u32 {
+        t0.wrapping_sub(now()) & 0x00FF_FFFF
+    }
+
+    /// SysTick ticks for 1 002 001 instructions. Never inlined: LLVM sizes the `.rept` block as one
+    /// instruction, so a literal pool of the caller could land out of reach behind it.
+    #[inline(never)]
+    fn calibrate() -> u32 {
+        let t0 = now();
+        // SAFETY: pure register arithmetic on a scratch register.
+        unsafe {
+            core::arch::asm!(
+                "mov {n}, #1000",
+                "2:",
+                ".rept 1000",
+                "nop",
+                ".endr",
+                "subs {n}, {n}, #1",
+                "bne 2b",
+                n = out(reg) _,
+                options(nomem, nostack),
+            );
+        }
+        ticks_since(t0)
+    }
+    const CALIBRATION_INSTRUCTIONS: f32 = 1_002_001.0;
+
+    /// A link that delivers one pre-encoded frame per cycle and a scale input; replies go to a RAM sink.
+    struct BenchIo {
+        frames: [[u8; MAX_SETPOINT_FRAME_LEN]; BATCH],
+        frame_len: usize,
+        next: usize,
+        delivered: bool,
+        scale_raw: u32,
+        sink: [u8; 32],
+    }
+
+    impl DriveIo for BenchIo {
+        fn read_scale(&mut self, _input: usize) -> u32 {
+            self.scale_raw
+        }
+        fn read_link(&mut self, buf: &mut [u8]) -> usize {
+            if self.delivered {
+                return 0;
+            }
+            self.delivered = true;
+            let n = self.frame_len.min(buf.len());
+            buf[..n].copy_from_slice(&self.frames[self.next % BATCH][..n]);
+            n
+        }
+        fn write_link(&mut self, frame: &[u8]) -> bool {
+            let n = frame.len().min(self.sink.len());
+            self.sink[..n].copy_from_slice(&frame[..n]);
+            true
+        }
+    }
+
+    type DriveCall = fn(&mut Drive, &mut ControlLoop<'_>, &mut BenchIo, &SteppingClock);
+
+    #[inline(never)]
+    fn drive_cycle(d: &mut Drive, ctl: &mut ControlLoop<'_>, io: &mut BenchIo, c: &SteppingClock) {
+        black_box(d.cycle(ctl, io, c, &mut NoWatchdog));
+    }
+
+    #[inline(never)]
+    fn empty_cycle(_: &mut Drive, _: &mut ControlLoop<'_>, _: &mut BenchIo, _: &SteppingClock) {}
+
+    /// Mean instructions per `Drive::cycle` with `n_axes` in the setpoint frame.
+    fn measure(drive: &mut Drive, ctl: &mut ControlLoop<'_>, n_axes: usize, ipt: f32) -> f32 {
+        let clock = SteppingClock::default();
+        let mut io = BenchIo {
+            frames: [[0; MAX_SETPOINT_FRAME_LEN]; BATCH],
+            frame_len: 0,
+            next: 0,
+            delivered: false,
+            scale_raw: 0,
+            sink: [0; 32],
+        };
+        let run: DriveCall = black_box(drive_cycle);
+        let skip: DriveCall = black_box(empty_cycle);
+        let mut full: u64 = 0;
+        let mut empty: u64 = 0;
+        // Continues the sequence of an earlier call (the drive checks it across calls).
+        let mut seq = drive.counters().link.frames_ok as u8;
+        for b in 0..BATCHES {
+            let t =
+                axcomp_core::trace::Temperatures::new(b * 100, &bench::reference_temperatures(b));
+            ctl.apply(&Record::Temperatures(t));
+            // Untimed: this batch's frames (fresh sequence numbers, the reference commands).
+            for k in 0..BATCH {
+                let input = bench::reference_input(b * BATCH as u32 + k as u32);
+                let c = input.command_counts as i32;
+                let f = match SetpointFrame::new(seq, &[c, c / 2, -c][..n_axes]) {
+                    Ok(f) => f,
+                    Err(e) => panic!("{}", e),
+                };
+                seq = seq.wrapping_add(1);
+                io.frame_len = f.encode_into(&mut io.frames[k]);
+            }
+            for (call, acc) in [(run, &mut full), (skip, &mut empty)] {
+                let t0 = now();
+                for k in 0..BATCH {
+                    io.next = k;
+                    io.delivered = false;
+                    io.scale_raw = bench::reference_input(b * BATCH as u32 + k as u32).scale_raw;
+                    call(
+                        black_box(&mut *drive),
+                        black_box(&mut *ctl),
+                        black_box(&mut io),
+                        &clock,
+                    );
+                }
+                *acc += u64::from(ticks_since(t0));
+            }
+        }
+        full.saturating_sub(empty) as f32 / (BATCHES as f32 * BATCH as f32) * ipt
+    }
+
+    #[entry]
+    fn main() -> ! {
+        let mut core = cortex_m::Peripherals::take().expect("core peripherals taken once");
+        core.SYST.set_clock_source(SystClkSource::Core);
+        core.SYST.set_reload(0x00FF_FFFF);
+        core.SYST.clear_current();
+        core.SYST.enable_counter();
+        let cal = calibrate();
+        let ipt = CALIBRATION_INSTRUCTIONS / cal as f32;
+
+        let engine = ENGINE.take();
+        let image = IMAGE.take();
+        let n = match bench::write_reference_image(image) {
+            Ok(n) => n,
+            Err(e) => panic!("writing the bench image: {}", e),
+        };
+        let cfg = match LoopSettings::new(168_000_000).build() {
+            Ok(c) => c,
+            Err(e) => panic!("{}", e),
+        };
+        let mut ctl = ControlLoop::new(engine, cfg);
+        let mut drive = Drive::new(
+            CAPS,
+            &cfg,
+            LinkSettings::defaults(cfg.rate_hz),
+            ResetCause::default(),
+        );
+        if let Err(e) = drive.offer_image(&mut ctl, &image[..n]) {
+            panic!("bench image refused: {}", e);
+        }
+        ctl.apply(&Record::Process(bench::PROCESS));
+
+        let one = measure(&mut drive, &mut ctl, 1, ipt);
+        let three = measure(&mut drive, &mut ctl, 3, ipt);
+        let c = drive.counters();
+        if c.link.frames_ok != 2 * BATCHES * BATCH as u32 || c.link.corrupt != 0 || c.link.lost != 0
+        {
+            panic!("bench link counters wrong: {:?}", c.link);
+        }
+        hprintln!("calls per workload: {}", BATCHES * BATCH as u32);
+        hprintln!(
+            "bench qemu_instructions_per_drive_cycle_frame1 {:.1} instructions",
+            one
+        );
+        hprintln!(
+            "bench qemu_instructions_per_drive_cycle_frame3 {:.1} instructions",
+            three
+        );
+        semihosting::exit_success()
+    }
+
+    #[panic_handler]
+    fn panic(info: &core::panic::PanicInfo) -> ! {
+        hprintln!("axcomp-qemu-drive-bench: panic: {}", info);
+        semihosting::exit_failure()
+    }
+}
+
+/// Host builds get a stub: this program only runs on the target.
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!(
+        "axcomp-qemu-drive-bench is firmware: build it with `cargo qemu-build` (thumbv7em-none-eabihf)"
+    );
+    std::process::exit(2);
+}
