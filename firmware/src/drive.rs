@@ -22,7 +22,8 @@
 //!   its timeout it resets the chip, and the next boot reports it ([`ResetCause`], status
 //!   [`Status::WATCHDOG_RESET`]).
 //!
-//! Everything here is host-testable with the fakes in [`crate::control::fake`] and [`fake`].
+//! Everything here is host-testable with the fakes in [`crate::control::fake`] and `drive::fake` (tests and
+//! feature `std`).
 
 use axcomp_core::trace::OutputRecord;
 use axcomp_core::{Compensator, Flags, ImageError, ImageInfo, MAX_FORCES, inspect_image};

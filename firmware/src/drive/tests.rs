@@ -947,5 +947,15 @@ fn fault_matrix() {
             "{}: a reply every cycle",
             f.name
         );
+        // The status word leaves the drive: the last reply frame carries it.
+        let mut d = ReplyDecoder::new();
+        let last = rig.io.tx.last().expect("a reply");
+        let r = last
+            .iter()
+            .filter_map(|&b| d.push(b))
+            .last()
+            .expect("reply decodes");
+        assert_eq!(Status(r.status), c.status, "{}: reply status", f.name);
+        assert_eq!(i64::from(r.corrected()[0]), c.corrected_command_counts);
     }
 }
