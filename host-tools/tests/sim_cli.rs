@@ -120,6 +120,36 @@ fn every_plan_runs() {
 }
 
 #[test]
+fn large_thermal_and_survey_plans_run_with_progress() {
+    // Issue 13: `--plan thermal` failed from ~14,000 rows and `--plan survey` from ~29,000 ("time runs
+    // backwards"). 100,000 rows each (the plan-level test in axcomp-twin goes to 10⁶); progress on stderr.
+    let dir = scratch("large");
+    for plan in ["thermal", "survey"] {
+        let out = dir.join(format!("{plan}.csv"));
+        let o = axcomp(&[
+            "sim",
+            "--out",
+            out.to_str().unwrap(),
+            "--plan",
+            plan,
+            "--rows",
+            "100000",
+        ]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{plan}: {stderr}");
+        assert!(
+            stderr.contains("simulating") && stderr.contains("writing"),
+            "{stderr}"
+        );
+        let ds = axcomp_data::Dataset::load(&out, &axcomp_data::LoadOptions::default()).unwrap();
+        let n = ds.n_rows() as f64;
+        // Rounding to whole positions / rounds → within 15 % of the request.
+        assert!((n / 100_000.0 - 1.0).abs() < 0.15, "{plan}: {n} rows");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn bad_options_fail_clearly_and_write_nothing() {
     let dir = scratch("bad");
     let out = dir.join("x.csv");

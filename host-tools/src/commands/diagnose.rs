@@ -13,6 +13,7 @@ use crate::cli::DataArgs;
 use crate::commands::common;
 
 #[derive(Debug, clap::Args)]
+#[command(after_help = axcomp_diagnose::engine::VERDICT_HELP)]
 pub struct Args {
     #[command(flatten)]
     pub data: DataArgs,
@@ -35,11 +36,17 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let model = EffectKind::parse_list(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
-    let opts = DiagnoseOptions::default()
-        .build()
-        .map_err(anyhow::Error::msg)?;
     let ds = common::load_dataset(&args.data)?;
     let obs = dataset::observations(&ds, &args.target, &args.holdout)?;
+    // The observations hold every column the diagnosis uses: free the table before the search.
+    drop(ds);
+    let opts = DiagnoseOptions {
+        // Progress on stderr where the search takes seconds (≳ 20,000 rows).
+        progress: obs.n_rows() >= 20_000,
+        ..DiagnoseOptions::default()
+    }
+    .build()
+    .map_err(anyhow::Error::msg)?;
     let d = axcomp_diagnose::diagnose(&obs, &model, &opts)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.data.data.display()))?;
     println!(
@@ -84,6 +91,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c.shrink_pct,
             if c.explains {
                 ""
+            } else if c.train_p_value < opts.alpha {
+                "  (significant, not material)"
             } else {
                 "  (not beyond noise)"
             }

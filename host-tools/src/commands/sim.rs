@@ -200,8 +200,33 @@ impl Config {
     }
 }
 
+/// Progress on stderr for large campaigns (the steps take seconds from about 10⁵ rows on).
+struct Progress {
+    on: bool,
+    t0: std::time::Instant,
+}
+
+impl Progress {
+    fn step(&self, what: &str) {
+        if self.on {
+            eprintln!("[{:>6.1} s] {what}", self.t0.elapsed().as_secs_f64());
+        }
+    }
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let progress = Progress {
+        on: args.rows.is_some_and(|n| n >= 100_000),
+        t0: std::time::Instant::now(),
+    };
     let cfg = Config::from_args(args)?;
+    progress.step(&format!(
+        "simulating the {} campaign",
+        match &cfg.plan {
+            PlanChoice::Standard(p) => p.name(),
+            PlanChoice::Spindle(_) => "spindle",
+        }
+    ));
     let (campaign, truth_json) = match &cfg.plan {
         PlanChoice::Standard(plan) => {
             let campaign = simulate(&cfg.axis, plan, cfg.compensator.as_deref(), cfg.seed)
@@ -227,6 +252,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (sc.campaign, json)
         }
     };
+    progress.step(&format!(
+        "writing {} rows to {}",
+        campaign.rows.len(),
+        cfg.out.display()
+    ));
     let csv = campaign.to_csv_string();
     write_atomically(&cfg.out, csv.as_bytes())
         .with_context(|| format!("writing {}", cfg.out.display()))?;
@@ -235,6 +265,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_atomically(path, json.as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
     }
+    progress.step("done");
     let kinds: Vec<&str> = cfg.axis.kinds().iter().map(|k| k.name()).collect();
     println!(
         "wrote {}: {} rows, plan {}, effects {}, seed {}, noise σ {} µm, {}; deviation RMS {:.3} µm (noise-free {:.3} µm)",

@@ -9,24 +9,30 @@
 
 use std::path::PathBuf;
 
-use axcomp_diagnose::validate::{self, ValidateOptions};
+use axcomp_diagnose::validate::{self, Profile, ValidateOptions};
 
 use crate::commands::common;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
+    /// Case generator: `standard` (5,000 rows, SNR 3–8, held out: every third run) or `hard` (1,500 rows,
+    /// 3 ISO cycles, SNR 2–8, held out outside the training regime: last cycles, fastest scan, largest
+    /// loads, the re-heat's thermal rounds).
+    #[arg(long, value_name = "NAME", default_value = "standard")]
+    pub harness: String,
     /// Number of simulated cases (every 4th is a null case: nothing withheld).
     #[arg(long, default_value_t = 100)]
     pub cases: usize,
     /// Seed of the case generator.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// SNRs to cycle through (peak of the withheld effect on held-out runs / noise σ).
-    #[arg(long, value_delimiter = ',', default_value = "3,4,6,8")]
-    pub snr: Vec<f64>,
-    /// Rows per simulated campaign.
-    #[arg(long, default_value_t = 5000)]
-    pub rows: usize,
+    /// SNRs to cycle through (peak of the withheld effect on held-out runs / noise σ) [default: 3,4,6,8;
+    /// hard: 2,4,6,8].
+    #[arg(long, value_delimiter = ',')]
+    pub snr: Option<Vec<f64>>,
+    /// Rows per simulated campaign [default: 5000; hard: 1500].
+    #[arg(long)]
+    pub rows: Option<usize>,
     /// Measurement noise σ of the simulated deviation (µm).
     #[arg(long, default_value_t = 0.5)]
     pub noise_um: f64,
@@ -39,11 +45,13 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let profile = Profile::parse(&args.harness).map_err(|e| anyhow::anyhow!("--harness: {e}"))?;
     let opts = ValidateOptions {
+        profile,
         cases: args.cases,
         seed: args.seed,
-        snrs: args.snr.clone(),
-        rows: args.rows,
+        snrs: args.snr.clone().unwrap_or_else(|| profile.default_snrs()),
+        rows: args.rows.unwrap_or_else(|| profile.default_rows()),
         noise_um: args.noise_um,
         ..ValidateOptions::default()
     }

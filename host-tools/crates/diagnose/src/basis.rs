@@ -23,20 +23,52 @@
 //! Each variant counts its columns plus its searched parameters (`n_params`); variants are selected by
 //! the training BIC of the whole refit, so a simpler variant wins unless the richer one pays for itself.
 
+use std::sync::Arc;
+
 use serde_json::{Map, Value, json};
 
 use crate::EffectKind;
 use crate::obs::{Named, Observations};
 
-/// One setting of a family.
-#[derive(Debug, Clone)]
+/// Builds a variant's columns over all rows, on demand.
+pub type ColumnBuilder = Arc<dyn Fn(&Context, &Observations) -> Vec<Vec<f64>> + Send + Sync>;
+
+/// One setting of a family. Its columns are built on demand ([`Variant::columns`]), so a family with
+/// hundreds of searched variants holds only their parameters (memory O(rows), not O(rows·variants)).
+#[derive(Clone)]
 pub struct Variant {
-    /// Columns over all rows.
-    pub cols: Vec<Vec<f64>>,
     /// Searched parameters (and descriptive ones) for the report.
     pub params: Map<String, Value>,
     /// Parameters counted for "the simpler explanation": columns + searched nonlinear parameters.
     pub n_params: usize,
+    /// Number of columns.
+    pub n_cols: usize,
+    build: ColumnBuilder,
+}
+
+impl std::fmt::Debug for Variant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Variant")
+            .field("params", &self.params)
+            .field("n_params", &self.n_params)
+            .field("n_cols", &self.n_cols)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Variant {
+    /// The columns over all rows.
+    pub fn columns(&self, ctx: &Context, obs: &Observations) -> Vec<Vec<f64>> {
+        (self.build)(ctx, obs)
+    }
+
+    /// The columns restricted to `rows` (indexed by position in `rows`).
+    pub fn columns_on(&self, ctx: &Context, obs: &Observations, rows: &[usize]) -> Vec<Vec<f64>> {
+        self.columns(ctx, obs)
+            .into_iter()
+            .map(|c| rows.iter().map(|&i| c[i]).collect())
+            .collect()
+    }
 }
 
 /// The regressors of one effect kind.
@@ -46,12 +78,17 @@ pub struct Family {
     pub variants: Vec<Variant>,
 }
 
-fn var(cols: Vec<Vec<f64>>, params: Map<String, Value>, searched: usize) -> Variant {
-    let n_params = cols.len() + searched;
+fn var(
+    n_cols: usize,
+    params: Map<String, Value>,
+    searched: usize,
+    build: impl Fn(&Context, &Observations) -> Vec<Vec<f64>> + Send + Sync + 'static,
+) -> Variant {
     Variant {
-        cols,
         params,
-        n_params,
+        n_params: n_cols + searched,
+        n_cols,
+        build: Arc::new(build),
     }
 }
 
@@ -192,10 +229,6 @@ pub fn first_order_lag(u: &[f64], t: &[f64], order: &[usize], tau_s: f64) -> Vec
     out
 }
 
-fn one(params: Map<String, Value>, cols: Vec<Vec<f64>>) -> Vec<Variant> {
-    vec![var(cols, params, 0)]
-}
-
 fn sincos(x: &[f64], period: f64) -> Vec<Vec<f64>> {
     let w = 2.0 * core::f64::consts::PI / period;
     vec![
@@ -211,75 +244,114 @@ fn map(v: Value) -> Map<String, Value> {
     }
 }
 
+/// Position scaled to [−1, 1] (`ctx.xs`), or an empty column when absent (never called then).
+fn xs_of(ctx: &Context) -> &[f64] {
+    ctx.xs.as_deref().unwrap_or(&[])
+}
+
+fn x_of(ctx: &Context) -> &[f64] {
+    ctx.x.as_deref().unwrap_or(&[])
+}
+
+fn d_of(ctx: &Context) -> &[f64] {
+    ctx.d.as_deref().unwrap_or(&[])
+}
+
+fn t_of(ctx: &Context) -> &[f64] {
+    ctx.t.as_deref().unwrap_or(&[])
+}
+
+fn product(a: &[f64], b: &[f64]) -> Vec<f64> {
+    a.iter().zip(b).map(|(p, q)| p * q).collect()
+}
+
+/// Scaled time in [−1, 1] over the campaign.
+fn time_scaled(ctx: &Context) -> Vec<f64> {
+    let t = t_of(ctx);
+    let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
+    t.iter()
+        .map(|v| 2.0 * (v - lo) / ctx.duration_s - 1.0)
+        .collect()
+}
+
 /// The family of `kind` for these observations, or `None` when the columns it needs are absent or constant.
+/// Columns are built on demand from `ctx` and `obs` (see [`Variant::columns`]).
 pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Family> {
-    let n = ctx.n;
-    let fam = |variants: Vec<Variant>, _searched: usize| Some(Family { kind, variants });
+    let fam = |variants: Vec<Variant>| Some(Family { kind, variants });
     match kind {
         EffectKind::PitchError => {
-            let x = ctx.x.as_ref()?;
+            ctx.x.as_ref()?;
             let u = ctx.n_unique_x_train;
             if u < 2 {
                 return None;
             }
             if u < 5 {
                 // Polynomial of degree u−1 (the constant is the model's intercept).
-                let xs = ctx.xs.as_ref()?;
-                let cols = (1..u)
-                    .map(|p| xs.iter().map(|v| v.powi(p as i32)).collect())
-                    .collect();
-                return fam(
-                    one(map(json!({"basis": "polynomial", "degree": u - 1})), cols),
+                ctx.xs.as_ref()?;
+                return fam(vec![var(
+                    u - 1,
+                    map(json!({"basis": "polynomial", "degree": u - 1})),
                     0,
-                );
+                    move |ctx, _| {
+                        (1..u)
+                            .map(|p| xs_of(ctx).iter().map(|v| v.powi(p as i32)).collect())
+                            .collect()
+                    },
+                )]);
             }
             let k = (u - 3).clamp(1, ctx.pitch_segments_max.max(1));
-            let cols = bspline_basis(x, ctx.x_min, ctx.x_max, k);
-            fam(
-                one(
-                    map(
-                        json!({"basis": "cubic_bspline", "segments": k, "knot_spacing_mm": ctx.stroke() / k as f64}),
-                    ),
-                    cols,
+            fam(vec![var(
+                k + 3,
+                map(
+                    json!({"basis": "cubic_bspline", "segments": k, "knot_spacing_mm": ctx.stroke() / k as f64}),
                 ),
                 0,
-            )
+                move |ctx, _| bspline_basis(x_of(ctx), ctx.x_min, ctx.x_max, k),
+            )])
         }
         EffectKind::Reversal => {
-            let d = ctx.d.as_ref()?;
-            let mut vars = vec![var(vec![d.clone()], map(json!({"form": "constant"})), 0)];
-            if let Some(xs) = &ctx.xs {
-                let dx = d.iter().zip(xs).map(|(a, b)| a * b).collect();
-                vars.push(var(
-                    vec![d.clone(), dx],
-                    map(json!({"form": "linear_in_x"})),
-                    0,
-                ));
+            ctx.d.as_ref()?;
+            let mut vars = vec![var(1, map(json!({"form": "constant"})), 0, |ctx, _| {
+                vec![d_of(ctx).to_vec()]
+            })];
+            if ctx.xs.is_some() {
+                vars.push(var(2, map(json!({"form": "linear_in_x"})), 0, |ctx, _| {
+                    vec![d_of(ctx).to_vec(), product(d_of(ctx), xs_of(ctx))]
+                }));
             }
-            fam(vars, 0)
+            fam(vars)
         }
         EffectKind::ScaleExpansion => {
             // c·(x − x_ref)·ΔT_s with x_ref on a grid reaching half a measured range beyond each end (the
             // reference may lie outside the measured positions); one column, so it never absorbs a
             // position-independent drift.
-            let x = ctx.x.as_ref()?;
+            ctx.x.as_ref()?;
             if ctx.dt.is_empty() {
                 return None;
             }
             let searched = 1 + usize::from(ctx.dt.len() > 1);
             let mut vars = Vec::new();
-            for s in &ctx.dt {
+            for (si, s) in ctx.dt.iter().enumerate() {
                 for k in 0..=16 {
                     let xr = ctx.x_min + ctx.stroke() * (k as f64 / 8.0 - 0.5);
-                    let col: Vec<f64> = (0..n).map(|i| (x[i] - xr) * s.values[i]).collect();
                     vars.push(var(
-                        vec![col],
+                        1,
                         map(json!({"sensor": s.name, "x_ref_mm": xr})),
                         searched,
+                        move |ctx, _| {
+                            let dt = &ctx.dt[si].values;
+                            vec![
+                                x_of(ctx)
+                                    .iter()
+                                    .zip(dt)
+                                    .map(|(x, t)| (x - xr) * t)
+                                    .collect(),
+                            ]
+                        },
                     ));
                 }
             }
-            fam(vars, 0)
+            fam(vars)
         }
         EffectKind::ThermalDrift => {
             if ctx.dt.is_empty() {
@@ -288,23 +360,25 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             let names: Vec<&str> = ctx.dt.iter().map(|s| s.name.as_str()).collect();
             let mut vars = Vec::new();
             if ctx.dt.len() > 1 {
-                for s in &ctx.dt {
+                for (si, s) in ctx.dt.iter().enumerate() {
                     vars.push(var(
-                        vec![s.values.clone()],
+                        1,
                         map(json!({"sensors": [s.name]})),
                         1,
+                        move |ctx, _| vec![ctx.dt[si].values.clone()],
                     ));
                 }
             }
             vars.push(var(
-                ctx.dt.iter().map(|s| s.values.clone()).collect(),
+                ctx.dt.len(),
                 map(json!({"sensors": names})),
                 0,
+                |ctx, _| ctx.dt.iter().map(|s| s.values.clone()).collect(),
             ));
-            fam(vars, 0)
+            fam(vars)
         }
         EffectKind::ThermalLag => {
-            let t = ctx.t.as_ref()?;
+            ctx.t.as_ref()?;
             if ctx.dt.is_empty() || ctx.duration_s <= 0.0 {
                 return None;
             }
@@ -314,39 +388,54 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             for k in 0..m {
                 let frac = 0.0005 * (1.0f64 / 0.0005).powf(k as f64 / (m - 1) as f64);
                 let tau = frac * ctx.duration_s;
-                let cols: Vec<Vec<f64>> = ctx
-                    .dt
-                    .iter()
-                    .map(|s| first_order_lag(&s.values, t, &ctx.time_order, tau))
-                    .collect();
                 if ctx.dt.len() > 1 {
-                    for (s, c) in ctx.dt.iter().zip(&cols) {
+                    for (si, s) in ctx.dt.iter().enumerate() {
                         vars.push(var(
-                            vec![c.clone()],
+                            1,
                             map(json!({"tau_s": tau, "sensors": [s.name]})),
                             2,
+                            move |ctx, _| {
+                                vec![first_order_lag(
+                                    &ctx.dt[si].values,
+                                    t_of(ctx),
+                                    &ctx.time_order,
+                                    tau,
+                                )]
+                            },
                         ));
                     }
                 }
-                vars.push(var(cols, map(json!({"tau_s": tau, "sensors": names})), 1));
+                vars.push(var(
+                    ctx.dt.len(),
+                    map(json!({"tau_s": tau, "sensors": names})),
+                    1,
+                    move |ctx, _| {
+                        ctx.dt
+                            .iter()
+                            .map(|s| first_order_lag(&s.values, t_of(ctx), &ctx.time_order, tau))
+                            .collect()
+                    },
+                ));
             }
-            fam(vars, 1)
+            fam(vars)
         }
         EffectKind::ForceDeflection => {
-            let cols: Vec<Vec<f64>> = obs
-                .forces
-                .iter()
-                .filter(|f| varies(&f.values, &ctx.train))
-                .map(|f| f.values.clone())
+            let idx: Vec<usize> = (0..obs.forces.len())
+                .filter(|&j| varies(&obs.forces[j].values, &ctx.train))
                 .collect();
-            if cols.is_empty() {
+            if idx.is_empty() {
                 return None;
             }
             let names: Vec<&str> = obs.forces.iter().map(|f| f.name.as_str()).collect();
-            fam(one(map(json!({"forces": names})), cols), 0)
+            fam(vec![var(
+                idx.len(),
+                map(json!({"forces": names})),
+                0,
+                move |_, obs| idx.iter().map(|&j| obs.forces[j].values.clone()).collect(),
+            )])
         }
         EffectKind::Cogging => {
-            let x = ctx.x.as_ref()?;
+            ctx.x.as_ref()?;
             let l = ctx.stroke();
             if l < 5.0 {
                 return None;
@@ -358,15 +447,17 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
             let vars = (0..=steps)
                 .map(|k| {
                     let f = f_lo + (f_hi - f_lo) * k as f64 / steps as f64;
-                    var(sincos(x, 1.0 / f), map(json!({"period_mm": 1.0 / f})), 1)
+                    var(2, map(json!({"period_mm": 1.0 / f})), 1, move |ctx, _| {
+                        sincos(x_of(ctx), 1.0 / f)
+                    })
                 })
                 .collect();
-            fam(vars, 1)
+            fam(vars)
         }
         EffectKind::InterpolationError => {
             let x = ctx.x.as_ref()?;
             let mut vars = Vec::new();
-            let all: Vec<usize> = (0..n).collect();
+            let all: Vec<usize> = (0..ctx.n).collect();
             let grid = regular_spacing(x, &all);
             for p_um in [4.0, 8.0, 10.0, 20.0, 40.0, 100.0, 200.0] {
                 for (h, label) in [(1.0, 1), (2.0, 2)] {
@@ -381,138 +472,188 @@ pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Fam
                         }
                     }
                     vars.push(var(
-                        sincos(x, period_mm),
+                        2,
                         map(json!({"signal_period_um": p_um, "harmonic": label})),
                         1,
+                        move |ctx, _| sincos(x_of(ctx), period_mm),
                     ));
                 }
             }
             if vars.is_empty() {
                 return None;
             }
-            fam(vars, 1)
+            fam(vars)
         }
         EffectKind::EndEffect => {
-            let x = ctx.x.as_ref()?;
+            ctx.x.as_ref()?;
             let l = ctx.stroke();
+            let has_d = ctx.d.is_some();
             let mut vars = Vec::new();
+            let decay = |ctx: &Context, lam: f64, end: bool| -> Vec<f64> {
+                x_of(ctx)
+                    .iter()
+                    .map(|v| {
+                        if end {
+                            (-(ctx.x_max - v) / lam).exp()
+                        } else {
+                            (-(v - ctx.x_min) / lam).exp()
+                        }
+                    })
+                    .collect()
+            };
             for frac in [0.01, 0.015, 0.02, 0.03, 0.04, 0.055, 0.075, 0.1] {
                 let lam = frac * l;
-                let lo: Vec<f64> = x.iter().map(|v| (-(v - ctx.x_min) / lam).exp()).collect();
-                let hi: Vec<f64> = x.iter().map(|v| (-(ctx.x_max - v) / lam).exp()).collect();
-                let dir = |e: &[f64]| -> Option<Vec<f64>> {
-                    ctx.d
-                        .as_ref()
-                        .map(|d| e.iter().zip(d).map(|(a, b)| a * b).collect())
-                };
-                for (end, e) in [("start", &lo), ("end", &hi)] {
+                for (end, at_end) in [("start", false), ("end", true)] {
                     let p = map(
                         json!({"decay_mm": lam, "stroke_end": end, "end_mm": if end == "start" { ctx.x_min } else { ctx.x_max }}),
                     );
-                    vars.push(var(vec![e.clone()], p.clone(), 2));
-                    if let Some(de) = dir(e) {
+                    vars.push(var(1, p.clone(), 2, move |ctx, _| {
+                        vec![decay(ctx, lam, at_end)]
+                    }));
+                    if has_d {
                         let mut p = p;
                         p.insert("by_direction".into(), Value::Bool(true));
-                        vars.push(var(vec![e.clone(), de], p, 2));
+                        vars.push(var(2, p, 2, move |ctx, _| {
+                            let e = decay(ctx, lam, at_end);
+                            let de = product(&e, d_of(ctx));
+                            vec![e, de]
+                        }));
                     }
                 }
-                let mut cols = vec![lo.clone(), hi.clone()];
-                if let (Some(a), Some(b)) = (dir(&lo), dir(&hi)) {
-                    cols.push(a);
-                    cols.push(b);
-                }
                 vars.push(var(
-                    cols,
+                    if has_d { 4 } else { 2 },
                     map(json!({"decay_mm": lam, "stroke_end": "both"})),
                     1,
+                    move |ctx, _| {
+                        let lo = decay(ctx, lam, false);
+                        let hi = decay(ctx, lam, true);
+                        let mut cols = Vec::new();
+                        if ctx.d.is_some() {
+                            cols.push(product(&lo, d_of(ctx)));
+                            cols.push(product(&hi, d_of(ctx)));
+                        }
+                        cols.insert(0, hi);
+                        cols.insert(0, lo);
+                        cols
+                    },
                 ));
             }
-            fam(vars, 1)
+            fam(vars)
         }
         EffectKind::FollowingError => {
-            let v = obs.velocity_mm_s.as_ref().filter(|v| varies(v, &ctx.train));
-            let a = obs.accel_mm_s2.as_ref().filter(|a| varies(a, &ctx.train));
+            let v = obs
+                .velocity_mm_s
+                .as_ref()
+                .is_some_and(|v| varies(v, &ctx.train));
+            let a = obs
+                .accel_mm_s2
+                .as_ref()
+                .is_some_and(|a| varies(a, &ctx.train));
+            let vel = |o: &Observations| o.velocity_mm_s.clone().unwrap_or_default();
+            let acc = |o: &Observations| o.accel_mm_s2.clone().unwrap_or_default();
             let mut vars = Vec::new();
-            if let Some(v) = v {
-                vars.push(var(vec![v.clone()], map(json!({"terms": ["velocity"]})), 0));
-            }
-            if let Some(a) = a {
+            if v {
                 vars.push(var(
-                    vec![a.clone()],
-                    map(json!({"terms": ["acceleration"]})),
+                    1,
+                    map(json!({"terms": ["velocity"]})),
                     0,
+                    move |_, o| vec![vel(o)],
                 ));
             }
-            if let (Some(v), Some(a)) = (v, a) {
+            if a {
                 vars.push(var(
-                    vec![v.clone(), a.clone()],
+                    1,
+                    map(json!({"terms": ["acceleration"]})),
+                    0,
+                    move |_, o| vec![acc(o)],
+                ));
+            }
+            if v && a {
+                vars.push(var(
+                    2,
                     map(json!({"terms": ["velocity", "acceleration"]})),
                     0,
+                    move |_, o| vec![vel(o), acc(o)],
                 ));
             }
             if vars.is_empty() {
                 return None;
             }
-            fam(vars, 0)
+            fam(vars)
         }
         EffectKind::Abbe => {
-            let o = obs.offset_mm.as_ref().filter(|o| varies(o, &ctx.train))?;
-            let mut vars = vec![var(vec![o.clone()], map(json!({"degree": 0})), 0)];
-            if let Some(xs) = &ctx.xs {
-                let ox: Vec<f64> = o.iter().zip(xs).map(|(a, b)| a * b).collect();
-                let ox2: Vec<f64> = o
-                    .iter()
-                    .zip(xs)
-                    .map(|(a, b)| a * (1.5 * b * b - 0.5))
-                    .collect();
-                vars.push(var(
-                    vec![o.clone(), ox.clone()],
-                    map(json!({"degree": 1})),
-                    0,
-                ));
-                vars.push(var(vec![o.clone(), ox, ox2], map(json!({"degree": 2})), 0));
+            obs.offset_mm.as_ref().filter(|o| varies(o, &ctx.train))?;
+            let off = |o: &Observations| o.offset_mm.clone().unwrap_or_default();
+            let mut vars = vec![var(1, map(json!({"degree": 0})), 0, move |_, o| {
+                vec![off(o)]
+            })];
+            if ctx.xs.is_some() {
+                for degree in 1..=2usize {
+                    vars.push(var(
+                        degree + 1,
+                        map(json!({"degree": degree})),
+                        0,
+                        move |ctx, o| {
+                            let o = off(o);
+                            let xs = xs_of(ctx);
+                            let mut cols = vec![product(&o, xs)];
+                            if degree == 2 {
+                                cols.push(
+                                    o.iter()
+                                        .zip(xs)
+                                        .map(|(a, b)| a * (1.5 * b * b - 0.5))
+                                        .collect(),
+                                );
+                            }
+                            cols.insert(0, o);
+                            cols
+                        },
+                    ));
+                }
             }
-            fam(vars, 0)
+            fam(vars)
         }
         EffectKind::TimeDrift => {
-            let t = ctx.t.as_ref()?;
-            let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
-            let ts: Vec<f64> = t
-                .iter()
-                .map(|v| 2.0 * (v - lo) / ctx.duration_s - 1.0)
+            ctx.t.as_ref()?;
+            let mut vars: Vec<Variant> = (1..=3usize)
+                .map(|degree| {
+                    var(
+                        degree,
+                        map(json!({"basis": "legendre", "degree": degree})),
+                        0,
+                        move |ctx, _| {
+                            let ts = time_scaled(ctx);
+                            let mut cols = Vec::new();
+                            if degree >= 2 {
+                                cols.push(ts.iter().map(|s| 1.5 * s * s - 0.5).collect());
+                            }
+                            if degree >= 3 {
+                                cols.push(ts.iter().map(|s| 2.5 * s * s * s - 1.5 * s).collect());
+                            }
+                            cols.insert(0, ts);
+                            cols
+                        },
+                    )
+                })
                 .collect();
-            let p2: Vec<f64> = ts.iter().map(|s| 1.5 * s * s - 0.5).collect();
-            let p3: Vec<f64> = ts.iter().map(|s| 2.5 * s * s * s - 1.5 * s).collect();
-            let mut vars = vec![
-                var(
-                    vec![ts.clone()],
-                    map(json!({"basis": "legendre", "degree": 1})),
-                    0,
-                ),
-                var(
-                    vec![ts.clone(), p2.clone()],
-                    map(json!({"basis": "legendre", "degree": 2})),
-                    0,
-                ),
-                var(
-                    vec![ts.clone(), p2, p3],
-                    map(json!({"basis": "legendre", "degree": 3})),
-                    0,
-                ),
-            ];
             // A drift that settles: linear trend plus `1 − exp(−(t − t₀)/τ)`, τ searched on a
             // geometric grid from 1 % to 30 % of the campaign's duration.
             let m = 6;
             for k in 0..m {
                 let tau = ctx.duration_s * 0.01 * 30f64.powf(k as f64 / (m - 1) as f64);
-                let settle: Vec<f64> = t.iter().map(|v| 1.0 - (-(v - lo) / tau).exp()).collect();
                 vars.push(var(
-                    vec![ts.clone(), settle],
+                    2,
                     map(json!({"basis": "settle", "tau_s": tau})),
                     1,
+                    move |ctx, _| {
+                        let t = t_of(ctx);
+                        let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
+                        let settle = t.iter().map(|v| 1.0 - (-(v - lo) / tau).exp()).collect();
+                        vec![time_scaled(ctx), settle]
+                    },
                 ));
             }
-            fam(vars, 0)
+            fam(vars)
         }
     }
 }

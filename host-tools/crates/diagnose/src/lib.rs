@@ -12,8 +12,9 @@
 //!   candidate's family added on the training rows and predicting the held-out rows.
 //! - **shrink**: `100·(1 − rms_after/rms_before)` of the held-out gap.
 //! - **verdict**: the candidate judged responsible, or `none` when no candidate explains the gap beyond
-//!   noise (training F-test with Bonferroni over all searched variants, and a paired test of the held-out
-//!   squared errors).
+//!   noise: training F-test with Bonferroni over all searched variants, and a *material* held-out gain
+//!   (≥ 5 % of the gap and ≥ 0.05 σ, independent of the number of held-out rows); ties between nested
+//!   effects by held-out evidence ([`engine::VERDICT_RULE`]).
 //! - **where**: contiguous regions of a variable (`target_mm`, `time_s`, `velocity_mm_s`, `direction`)
 //!   holding most of the held-out gap.
 //!

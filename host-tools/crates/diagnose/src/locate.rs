@@ -2,7 +2,7 @@
 //!
 //! Glossary: **gap energy** = squared held-out residual of the model; **excess** = gap energy minus the
 //! noise level estimated on the training rows; **region** = a contiguous range of one variable; its
-//! **share** = the fraction of the held-out gap energy inside it; **lift** = share / fraction of held-out
+//! **share** = the fraction of the held-out gap energy inside it (of the positive part of a gain, so always in 0..1); **lift** = share / fraction of held-out
 //! rows inside it (1 = not concentrated).
 //!
 //! Method: per variable the held-out rows are binned (equal count — quantiles of the values — or one bin per
@@ -48,7 +48,9 @@ fn kadane(x: &[f64], allowed: &[bool]) -> Option<(usize, usize, f64)> {
 
 fn regions_of(name: &str, v: &[f64], g: &[f64], noise2: f64, out: &mut Vec<Region>) {
     let n = v.len();
-    let total: f64 = g.iter().sum();
+    // Shares are of the positive part of `g` (a refit's gain can be negative on some rows: a share of the
+    // signed total could exceed 100 %), so every share lies in 0..1.
+    let total: f64 = g.iter().map(|x| x.max(0.0)).sum();
     if n < 4 || total <= 0.0 {
         return;
     }
@@ -93,10 +95,12 @@ fn regions_of(name: &str, v: &[f64], g: &[f64], noise2: f64, out: &mut Vec<Regio
         }
     };
     let mut energy = vec![0.0; nb];
+    let mut positive = vec![0.0; nb];
     let mut count = vec![0usize; nb];
     for i in 0..n {
         let b = bin_of(v[i]);
         energy[b] += g[i];
+        positive[b] += g[i].max(0.0);
         count[b] += 1;
     }
     let excess: Vec<f64> = (0..nb)
@@ -107,7 +111,7 @@ fn regions_of(name: &str, v: &[f64], g: &[f64], noise2: f64, out: &mut Vec<Regio
         let Some((s, e, _)) = kadane(&excess, &allowed) else {
             break;
         };
-        let share = energy[s..=e].iter().sum::<f64>() / total;
+        let share = (positive[s..=e].iter().sum::<f64>() / total).clamp(0.0, 1.0);
         let rows = count[s..=e].iter().sum::<usize>() as f64 / n as f64;
         if k == 1 && share < 0.1 {
             break;
@@ -204,6 +208,25 @@ mod tests {
             .map(|(_, g)| g)
             .sum();
         assert!((r.share - inside / g.iter().sum::<f64>()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn shares_stay_within_0_and_1_when_gains_are_negative() {
+        // Issue 13: a refit that gains 4 on x ≥ 90 and loses 0.35 elsewhere has a signed total of
+        // 4·11 − 0.35·90 = 12.5, so the signed share of the gaining region was 44/12.5 = 352 %. Shares are
+        // now of the positive part: the gaining region holds exactly 100 % (reference: direct sum, tol 1e-12).
+        let v: Vec<f64> = (0..=100).map(|i| i as f64).collect();
+        let g: Vec<f64> = v
+            .iter()
+            .map(|&x| if x >= 90.0 { 4.0 } else { -0.35 })
+            .collect();
+        let mut out = Vec::new();
+        regions_of("target_mm", &v, &g, 0.0, &mut out);
+        assert!(!out.is_empty());
+        for r in &out {
+            assert!((0.0..=1.0).contains(&r.share), "{r:?}");
+        }
+        assert!((out[0].share - 1.0).abs() < 1e-12, "{:?}", out[0]);
     }
 
     #[test]

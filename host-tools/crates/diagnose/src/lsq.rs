@@ -23,14 +23,18 @@ pub struct LsFit {
 
 impl LsFit {
     /// Prediction for row `i`.
-    pub fn predict(&self, cols: &[Vec<f64>], i: usize) -> f64 {
-        cols.iter().zip(&self.coef).map(|(c, b)| c[i] * b).sum()
+    pub fn predict<C: AsRef<[f64]>>(&self, cols: &[C], i: usize) -> f64 {
+        cols.iter()
+            .zip(&self.coef)
+            .map(|(c, b)| c.as_ref()[i] * b)
+            .sum()
     }
 }
 
-fn scales(cols: &[Vec<f64>], rows: &[usize]) -> Vec<f64> {
+fn scales<C: AsRef<[f64]>>(cols: &[C], rows: &[usize]) -> Vec<f64> {
     cols.iter()
         .map(|c| {
+            let c = c.as_ref();
             let ss: f64 = rows.iter().map(|&i| c[i] * c[i]).sum();
             let rms = (ss / rows.len().max(1) as f64).sqrt();
             if rms.is_finite() && rms > 1e-300 {
@@ -42,7 +46,7 @@ fn scales(cols: &[Vec<f64>], rows: &[usize]) -> Vec<f64> {
         .collect()
 }
 
-fn gram(cols: &[Vec<f64>], s: &[f64], rows: &[usize]) -> DMatrix<f64> {
+fn gram<C: AsRef<[f64]>>(cols: &[C], s: &[f64], rows: &[usize]) -> DMatrix<f64> {
     let p = cols.len();
     let mut g = DMatrix::<f64>::zeros(p, p);
     for a in 0..p {
@@ -53,7 +57,7 @@ fn gram(cols: &[Vec<f64>], s: &[f64], rows: &[usize]) -> DMatrix<f64> {
             if s[b] == 0.0 {
                 continue;
             }
-            let (ca, cb) = (&cols[a], &cols[b]);
+            let (ca, cb) = (cols[a].as_ref(), cols[b].as_ref());
             let v: f64 = rows.iter().map(|&i| ca[i] * cb[i]).sum::<f64>() / (s[a] * s[b]);
             g[(a, b)] = v;
             g[(b, a)] = v;
@@ -63,7 +67,7 @@ fn gram(cols: &[Vec<f64>], s: &[f64], rows: &[usize]) -> DMatrix<f64> {
 }
 
 /// Least-squares fit of `y` on `cols` using `rows`.
-pub fn fit(cols: &[Vec<f64>], y: &[f64], rows: &[usize]) -> LsFit {
+pub fn fit<C: AsRef<[f64]>>(cols: &[C], y: &[f64], rows: &[usize]) -> LsFit {
     let p = cols.len();
     if p == 0 {
         return LsFit {
@@ -76,7 +80,8 @@ pub fn fit(cols: &[Vec<f64>], y: &[f64], rows: &[usize]) -> LsFit {
     let mut xty = DVector::<f64>::zeros(p);
     for a in 0..p {
         if s[a] != 0.0 {
-            xty[a] = rows.iter().map(|&i| cols[a][i] * y[i]).sum::<f64>() / s[a];
+            let c = cols[a].as_ref();
+            xty[a] = rows.iter().map(|&i| c[i] * y[i]).sum::<f64>() / s[a];
         }
     }
     let eig = SymmetricEigen::new(g);
@@ -106,7 +111,7 @@ pub struct Projector {
 }
 
 impl Projector {
-    pub fn new(cols: &[Vec<f64>], rows: &[usize]) -> Projector {
+    pub fn new<C: AsRef<[f64]>>(cols: &[C], rows: &[usize]) -> Projector {
         let p = cols.len();
         if p == 0 {
             return Projector { q: vec![] };
@@ -128,8 +133,9 @@ impl Projector {
                     continue;
                 }
                 let w = v[a] / s[a];
+                let ca = cols[a].as_ref();
                 for (j, &i) in rows.iter().enumerate() {
-                    col[j] += cols[a][i] * w;
+                    col[j] += ca[i] * w;
                 }
             }
             // Re-orthonormalise against earlier vectors (guards against the squared condition).

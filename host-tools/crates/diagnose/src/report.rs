@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use axcomp_plot::{Figure, markdown_table};
+use axcomp_plot::{Figure, PALETTE, markdown_table};
 
 use crate::engine::Diagnosis;
 use crate::obs::Observations;
@@ -22,7 +22,34 @@ fn fmt_params(p: &serde_json::Map<String, serde_json::Value>) -> String {
         .join(", ")
 }
 
+/// Most points drawn per series: larger data are shown as every k-th held-out row (deterministic stride),
+/// which keeps every SVG well below a few MB whatever the campaign size.
+pub const MAX_POINTS_PER_SERIES: usize = 4000;
+
+/// The time unit of a plot: seconds, minutes or hours, chosen by the span so the ticks read naturally.
+pub fn time_unit(span_s: f64) -> (&'static str, f64) {
+    if span_s < 600.0 {
+        ("s", 1.0)
+    } else if span_s < 10.0 * 3600.0 {
+        ("min", 60.0)
+    } else {
+        ("h", 3600.0)
+    }
+}
+
+/// Every `stride`-th index of `rows` (all of them when they fit [`MAX_POINTS_PER_SERIES`]).
+fn thin(rows: &[usize]) -> (Vec<usize>, usize) {
+    let stride = rows.len().div_ceil(MAX_POINTS_PER_SERIES).max(1);
+    (rows.iter().step_by(stride).cloned().collect(), stride)
+}
+
 /// Writes `diagnosis.md` and the figures into `dir` (created if needed). Returns the files written.
+///
+/// Figures: one per variable (`target_mm`, `time_s`, `velocity_mm_s`) of the held-out gap of the model as
+/// given, and, when there is a verdict, a second panel with the gap after refitting with it
+/// (`gap_<var>_after.svg`, same colours). When the verdict is `reversal` or the gap lies in one direction,
+/// the points are coloured by approach direction (forward blue, reverse orange in both panels). Time is in
+/// s, min or h by the span; units are written `quantity (unit)` throughout.
 pub fn write_report(
     dir: &Path,
     obs: &Observations,
@@ -31,39 +58,105 @@ pub fn write_report(
     std::fs::create_dir_all(dir)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     let hold = obs.holdout_rows();
+    let (shown, stride) = thin(&hold);
     let after = d.verdict_candidate().map(|c| &c.residual_after);
+    let by_direction = obs.direction.as_ref().filter(|dir| {
+        let both = hold.iter().any(|&i| dir[i] > 0.0) && hold.iter().any(|&i| dir[i] < 0.0);
+        both && (d.verdict == "reversal" || d.where_.iter().any(|r| r.variable == "direction"))
+    });
     let mut written = Vec::new();
     let mut figs = Vec::new();
-    for (var, col, unit) in [
-        ("target_mm", &obs.position_mm, "target position (mm)"),
-        ("time_s", &obs.time_s, "time (s)"),
-        ("velocity_mm_s", &obs.velocity_mm_s, "velocity (mm/s)"),
+    for (var, col) in [
+        ("target_mm", &obs.position_mm),
+        ("time_s", &obs.time_s),
+        ("velocity_mm_s", &obs.velocity_mm_s),
     ] {
         let Some(x) = col else { continue };
-        let xs: Vec<f64> = hold.iter().map(|&i| x[i]).collect();
-        if xs.iter().all(|v| *v == xs[0]) {
+        if hold.iter().all(|&i| x[i] == x[hold[0]]) {
             continue;
         }
-        let before: Vec<f64> = hold.iter().map(|&i| d.residual[i]).collect();
-        let mut f = Figure::new(
-            &format!("Held-out gap of {} over {var}", d.target),
-            unit,
-            &format!("{} residual (µm)", d.target),
-        );
-        for r in d.where_.iter().filter(|r| r.variable == var) {
-            f.vspan(r.from, r.to, &format!("{:.0} % of gap", 100.0 * r.share));
+        let (label, scale) = match var {
+            "target_mm" => ("target position (mm)".to_string(), 1.0),
+            "time_s" => {
+                let lo = hold.iter().map(|&i| x[i]).fold(f64::INFINITY, f64::min);
+                let hi = hold.iter().map(|&i| x[i]).fold(f64::NEG_INFINITY, f64::max);
+                let (u, k) = time_unit(hi - lo);
+                (format!("time ({u})"), k)
+            }
+            _ => ("velocity (mm/s)".to_string(), 1.0),
+        };
+        let subset = if stride > 1 {
+            format!(", 1 in {stride} of {} held-out rows shown", hold.len())
+        } else {
+            String::new()
+        };
+        let panels: Vec<(&str, &Vec<f64>, String)> = std::iter::once((
+            "",
+            &d.residual,
+            format!(
+                "Held-out gap of {} — model as given (RMS {:.3} µm){subset}",
+                d.target, d.gap.holdout_rms_um
+            ),
+        ))
+        .chain(after.map(|a| {
+            (
+                "_after",
+                a,
+                format!(
+                    "Held-out gap of {} — refitted with {} (RMS {:.3} µm){subset}",
+                    d.target,
+                    d.verdict,
+                    d.verdict_candidate()
+                        .map_or(f64::NAN, |c| c.holdout_rms_after_um)
+                ),
+            )
+        }))
+        .collect();
+        for (suffix, resid, title) in panels {
+            let mut f = Figure::new(&title, &label, "residual (µm)");
+            let regions = if suffix.is_empty() {
+                &d.where_
+            } else {
+                &d.verdict_where
+            };
+            for r in regions.iter().filter(|r| r.variable == var) {
+                let what = if suffix.is_empty() { "gap" } else { "gain" };
+                f.vspan(
+                    r.from / scale,
+                    r.to / scale,
+                    &format!("{:.0} % of {what}", 100.0 * r.share),
+                );
+            }
+            match by_direction {
+                Some(dir) => {
+                    for (name, colour, sign) in [
+                        ("forward (+) approach", PALETTE[0], 1.0),
+                        ("reverse (−) approach", PALETTE[1], -1.0),
+                    ] {
+                        let rows: Vec<usize> = shown
+                            .iter()
+                            .cloned()
+                            .filter(|&i| dir[i] * sign > 0.0)
+                            .collect();
+                        let xs: Vec<f64> = rows.iter().map(|&i| x[i] / scale).collect();
+                        let ys: Vec<f64> = rows.iter().map(|&i| resid[i]).collect();
+                        f.points_coloured(name, &xs, &ys, colour);
+                    }
+                }
+                None => {
+                    let xs: Vec<f64> = shown.iter().map(|&i| x[i] / scale).collect();
+                    let ys: Vec<f64> = shown.iter().map(|&i| resid[i]).collect();
+                    f.points_coloured("held-out rows", &xs, &ys, PALETTE[0]);
+                }
+            }
+            f.hline(0.0, "");
+            let name = format!("gap_{var}{suffix}.svg");
+            let path = dir.join(&name);
+            f.save_svg(&path)
+                .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+            figs.push(name);
+            written.push(path);
         }
-        f.points("model as given (held out)", &xs, &before);
-        if let Some(a) = after {
-            let ys: Vec<f64> = hold.iter().map(|&i| a[i]).collect();
-            f.points(&format!("refitted with {} (held out)", d.verdict), &xs, &ys);
-        }
-        let name = format!("gap_{var}.svg");
-        let path = dir.join(&name);
-        f.save_svg(&path)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
-        figs.push(name);
-        written.push(path);
     }
 
     let mut md = String::new();
@@ -80,6 +173,7 @@ pub fn write_report(
         d.n_holdout
     ));
     md.push_str(&format!("**Verdict: `{}`** — {}.\n\n", d.verdict, d.note));
+    md.push_str(&format!("Verdict rule: {}\n\n", d.verdict_rule));
     md.push_str("## Gap\n\n");
     md.push_str(&markdown_table(
         &["", "RMS (µm)", "max (µm)"],
@@ -158,13 +252,21 @@ pub fn write_report(
                     c.kind,
                     if c.explains {
                         ""
+                    } else if c.material {
+                        " (not significant on the training rows)"
                     } else {
-                        " (not beyond noise)"
+                        " (not material)"
                     }
                 ),
                 format!("{:.1}", c.score),
                 format!("{:.3}", c.holdout_rms_after_um),
                 format!("{:.1}", c.shrink_pct),
+                format!(
+                    "{:.3} µm = {:.2} σ{}",
+                    c.holdout_gain_um,
+                    c.holdout_gain_um / c.noise_um,
+                    if c.material { " ✓" } else { "" }
+                ),
                 c.n_params.to_string(),
                 format!("{:.2e}", c.train_p_value),
                 format!("{:.2e}", c.holdout_p_value),
@@ -179,9 +281,10 @@ pub fn write_report(
             "score (held-out ΔBIC)",
             "held-out RMS after (µm)",
             "shrink %",
+            "held-out gain (material ✓)",
             "parameters",
             "train p (Bonferroni)",
-            "held-out p",
+            "held-out p (not used: scales with rows)",
             "train ΔBIC",
             "searched / derived parameters",
         ],

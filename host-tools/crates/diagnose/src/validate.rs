@@ -20,6 +20,15 @@
 //!
 //! **Model**: `pitch_error` and `reversal` (unless withheld) plus up to two further kinds drawn at
 //! random from the rest (never the withheld one). Held out: runs with `run % 3 == 0`.
+//!
+//! **Profiles** ([`Profile`]): `standard` is the above (5,000 rows, SNR 3–8). `hard` is at least as hard as
+//! a real campaign: fewer rows (1,500) and runs (3 ISO 230-2 cycles instead of 5), weaker effects (SNR 2–8,
+//! down to twice the noise), and a held-out set *outside the training regime* — the last ISO 230-2 cycle
+//! at each offset and in each end zone (forward in time), the fastest scan speed (200 mm/s, training sees
+//! ≤ 100 mm/s), the largest loads (±400 N, training sees ≤ 300 N) and the thermal rounds of the last
+//! quarter of the survey (the re-heat after the cool-down: the training rows cover only part of that
+//! temperature history). The withheld effect is scaled to the SNR on those held-out rows, so an effect
+//! may be weaker still on the training rows.
 
 use std::time::Instant;
 
@@ -35,9 +44,53 @@ use crate::lsq;
 use crate::obs::{Named, Observations};
 use crate::stats;
 
+/// Which case generator (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Profile {
+    Standard,
+    Hard,
+}
+
+impl Profile {
+    pub fn parse(s: &str) -> Result<Profile, String> {
+        match s {
+            "standard" => Ok(Profile::Standard),
+            "hard" => Ok(Profile::Hard),
+            other => Err(format!(
+                "unknown harness `{other}` (expected standard or hard)"
+            )),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Profile::Standard => "standard",
+            Profile::Hard => "hard",
+        }
+    }
+
+    /// Default rows per case.
+    pub fn default_rows(self) -> usize {
+        match self {
+            Profile::Standard => 5000,
+            Profile::Hard => 1500,
+        }
+    }
+
+    /// Default SNRs.
+    pub fn default_snrs(self) -> Vec<f64> {
+        match self {
+            Profile::Standard => vec![3.0, 4.0, 6.0, 8.0],
+            Profile::Hard => vec![2.0, 4.0, 6.0, 8.0],
+        }
+    }
+}
+
 /// Settings of a validation run (validated by [`ValidateOptions::build`]).
 #[derive(Debug, Clone)]
 pub struct ValidateOptions {
+    pub profile: Profile,
     pub cases: usize,
     pub seed: u64,
     pub snrs: Vec<f64>,
@@ -50,6 +103,7 @@ pub struct ValidateOptions {
 impl Default for ValidateOptions {
     fn default() -> Self {
         ValidateOptions {
+            profile: Profile::Standard,
             cases: 100,
             seed: 1,
             snrs: vec![3.0, 4.0, 6.0, 8.0],
@@ -125,6 +179,10 @@ pub struct CaseResult {
     pub param_rel_error: Option<f64>,
     /// corr² between the fitted and the true contribution on held-out rows when the verdict is right.
     pub contribution_r2: Option<f64>,
+    /// Shares of `where` and `verdict_where` outside 0..1 (must be 0).
+    pub shares_out_of_range: usize,
+    /// The candidates passing the training test: (kind, held-out shrink %, held-out gain / σ, material).
+    pub significant: Vec<(String, f64, f64, bool)>,
     pub seconds: f64,
 }
 
@@ -221,6 +279,49 @@ fn corr2(a: &[f64], b: &[f64]) -> f64 {
     }
 }
 
+/// ISO 230-2 cycles per offset / end zone in the hard profile (the standard survey has 5).
+pub const HARD_ISO_CYCLES: usize = 3;
+
+/// The hard profile's held-out rows, in the survey's row order (see the module docs): per part of the
+/// standard survey, the last ISO 230-2 cycle of each offset / end zone, the fastest scan passes, the largest
+/// loads, and the thermal rounds in the last quarter of the survey's time.
+pub fn hard_holdout(sp: &twin::SurveyPlan) -> Vec<bool> {
+    let parts: Vec<Vec<twin::Sample>> = sp.parts.iter().map(|p| p.samples()).collect();
+    let total: usize = parts.iter().map(Vec::len).sum();
+    // Start time of each part on the survey's time line (parts follow one another after `gap_s`).
+    let mut starts = Vec::with_capacity(parts.len());
+    let mut end_s = 0.0;
+    for samples in &parts {
+        starts.push(end_s);
+        let t_end = samples.iter().map(|s| s.time_s).fold(0.0, f64::max);
+        end_s += t_end + sp.gap_s;
+    }
+    end_s -= sp.gap_s;
+    let mut out = Vec::with_capacity(total);
+    for ((part, samples), &t0) in sp.parts.iter().zip(&parts).zip(&starts) {
+        match part {
+            twin::Plan::Iso230(p) => {
+                let cycles = p.cycles.max(1) as u32;
+                out.extend(samples.iter().map(|s| s.run % cycles == 0));
+            }
+            twin::Plan::Scan(p) => {
+                let vmax = p.speeds_mm_s.iter().cloned().fold(0.0, f64::max);
+                // Runs are numbered pass by pass: speed k has runs 2k+1 and 2k+2.
+                out.extend(samples.iter().map(|s| {
+                    let k = ((s.run - 1) / 2) as usize;
+                    p.speeds_mm_s.get(k).is_some_and(|&v| v >= vmax)
+                }));
+            }
+            twin::Plan::Load(p) => {
+                let fmax = p.forces_n.iter().map(|f| f.abs()).fold(0.0, f64::max);
+                out.extend(samples.iter().map(|s| s.force_n.abs() >= fmax - 1e-9));
+            }
+            _ => out.extend(samples.iter().map(|s| s.time_s + t0 >= 0.75 * end_s)),
+        }
+    }
+    out
+}
+
 /// One simulated case, ready to diagnose.
 pub struct CaseData {
     pub index: usize,
@@ -253,11 +354,29 @@ pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, Strin
     let mut kinds = model.clone();
     kinds.extend(withheld);
     let axis = twin::Axis::random(&kinds, &mut rng).with_noise_um(opts.noise_um);
-    let mut plan = twin::Plan::from(twin::SurveyPlan::standard(axis.start_mm, axis.end_mm));
+    let mut survey = twin::SurveyPlan::standard(axis.start_mm, axis.end_mm);
+    if opts.profile == Profile::Hard {
+        for part in &mut survey.parts {
+            if let twin::Plan::Iso230(p) = part {
+                p.cycles = HARD_ISO_CYCLES;
+            }
+        }
+    }
+    let mut plan = twin::Plan::from(survey);
     plan.resize(opts.rows);
     let campaign = twin::simulate(&axis, &plan, None, seed).map_err(|e| e.to_string())?;
     let mut y = campaign.deviations_um();
-    let probe = observations_from_campaign(&campaign, &y);
+    let mut probe = observations_from_campaign(&campaign, &y);
+    if opts.profile == Profile::Hard {
+        if let twin::Plan::Survey(sp) = &plan {
+            probe.held_out = hard_holdout(sp);
+        }
+        if probe.validate().is_err() {
+            return Err(format!(
+                "case {index}: the hard held-out set is empty or covers every row"
+            ));
+        }
+    }
     let hold = probe.holdout_rows();
     // Scale the withheld effect so that its held-out peak is snr·σ.
     let mut truth_c = vec![0.0; y.len()];
@@ -372,6 +491,25 @@ pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, Stri
         localised,
         param_rel_error,
         contribution_r2,
+        shares_out_of_range: d
+            .where_
+            .iter()
+            .chain(&d.verdict_where)
+            .filter(|r| !(0.0..=1.0).contains(&r.share))
+            .count(),
+        significant: d
+            .effects
+            .iter()
+            .filter(|c| c.train_p_value < DiagnoseOptions::default().alpha)
+            .map(|c| {
+                (
+                    c.kind.clone(),
+                    c.shrink_pct,
+                    c.holdout_gain_um / c.noise_um,
+                    c.material,
+                )
+            })
+            .collect(),
         seconds,
     })
 }
@@ -393,6 +531,7 @@ pub struct SnrRow {
 /// The validation summary (`--json` writes this with the cases).
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
+    pub harness: Profile,
     pub cases: usize,
     pub rows_per_case: usize,
     pub noise_um: f64,
@@ -402,6 +541,14 @@ pub struct Summary {
     pub false_alarm_rate: f64,
     pub detection_rate: f64,
     pub top1_attribution: f64,
+    /// Top-1 attribution over the non-null cases with SNR ≥ 4.
+    pub top1_attribution_snr_ge_4: f64,
+    pub cases_snr_ge_4: usize,
+    /// The same over the identifiable ones (oracle shrink ≥ [`IDENTIFIABLE_ORACLE_SHRINK_PCT`]).
+    pub identifiable_top1_attribution_snr_ge_4: f64,
+    pub identifiable_cases_snr_ge_4: usize,
+    /// Shares (of `where` / `verdict_where`) outside 0..1 over all cases.
+    pub shares_out_of_range: usize,
     pub localisation_accuracy: Option<f64>,
     pub localisation_cases: usize,
     pub median_param_rel_error: Option<f64>,
@@ -417,7 +564,7 @@ pub struct Summary {
 }
 
 /// Minimum oracle held-out shrink (%) for a case to count as identifiable.
-pub const IDENTIFIABLE_ORACLE_SHRINK_PCT: f64 = 1.0;
+pub const IDENTIFIABLE_ORACLE_SHRINK_PCT: f64 = engine::MIN_SHRINK_PCT;
 
 fn identifiable(c: &CaseResult) -> bool {
     c.oracle_shrink_pct
@@ -489,6 +636,7 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
     let mut secs: Vec<f64> = results.iter().map(|c| c.seconds).collect();
     let max_seconds = secs.iter().cloned().fold(0.0, f64::max);
     Summary {
+        harness: opts.profile,
         cases: results.len(),
         rows_per_case: opts.rows,
         noise_um: opts.noise_um,
@@ -498,6 +646,27 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
         false_alarm_rate: frac(nulls.iter().map(|c| c.verdict != "none")),
         detection_rate: frac(non_null.iter().map(|c| c.verdict != "none")),
         top1_attribution: frac(non_null.iter().map(|c| c.correct)),
+        top1_attribution_snr_ge_4: frac(
+            non_null
+                .iter()
+                .filter(|c| c.snr.is_some_and(|s| s >= 4.0))
+                .map(|c| c.correct),
+        ),
+        cases_snr_ge_4: non_null
+            .iter()
+            .filter(|c| c.snr.is_some_and(|s| s >= 4.0))
+            .count(),
+        identifiable_top1_attribution_snr_ge_4: frac(
+            non_null
+                .iter()
+                .filter(|c| c.snr.is_some_and(|s| s >= 4.0) && identifiable(c))
+                .map(|c| c.correct),
+        ),
+        identifiable_cases_snr_ge_4: non_null
+            .iter()
+            .filter(|c| c.snr.is_some_and(|s| s >= 4.0) && identifiable(c))
+            .count(),
+        shares_out_of_range: results.iter().map(|c| c.shares_out_of_range).sum(),
         localisation_accuracy: if loc.is_empty() {
             None
         } else {
@@ -542,10 +711,11 @@ impl Summary {
     pub fn to_markdown(&self) -> String {
         let mut s = String::new();
         s.push_str(&format!(
-            "Withheld-effect validation: {} cases ({} null), {} rows each, noise σ {} µm, seed {}.\n\n",
+            "Withheld-effect validation, {} harness: {} cases ({} null), {} rows each, noise σ {} µm, seed {}.\n\n",
+            self.harness.name(),
             self.cases, self.null_cases, self.rows_per_case, self.noise_um, self.seed
         ));
-        s.push_str("| SNR | cases | detection | top-1 attribution | median shrink / oracle | identifiable cases (oracle shrink ≥ 1 %) | top-1 on those |\n|---|---|---|---|---|---|---|\n");
+        s.push_str("| SNR | cases | detection | top-1 attribution | median shrink / oracle | identifiable cases (oracle shrink ≥ 5 %, the verdict rule's floor) | top-1 on those |\n|---|---|---|---|---|---|---|\n");
         for r in &self.per_snr {
             s.push_str(&format!(
                 "| {} | {} | {:.1} % | {:.1} % | {:.2} | {} | {:.1} % |\n",
@@ -564,11 +734,16 @@ impl Summary {
             None => "–".into(),
         };
         s.push_str(&format!(
-            "\n| figure | value |\n|---|---|\n| false alarms on nulls | {:.1} % ({} cases) |\n| detection (all SNR) | {:.1} % |\n| top-1 attribution (all SNR) | {:.1} % |\n| localisation (end_effect, {} cases) | {} |\n| median relative error of the searched parameter | {} |\n| median corr² fitted vs true contribution | {} |\n| median held-out shrink / oracle | {:.2} |\n| diagnosis time per case (median / max) | {:.3} s / {:.3} s |\n",
+            "\n| figure | value |\n|---|---|\n| false alarms on nulls | {:.1} % ({} cases) |\n| detection (all SNR) | {:.1} % |\n| top-1 attribution (all SNR) | {:.1} % |\n| top-1 attribution at SNR ≥ 4 | {:.1} % ({} cases) |\n| top-1 at SNR ≥ 4, identifiable cases | {:.1} % ({} cases) |\n| shares outside 0–100 % | {} |\n| localisation (end_effect, {} cases) | {} |\n| median relative error of the searched parameter | {} |\n| median corr² fitted vs true contribution | {} |\n| median held-out shrink / oracle | {:.2} |\n| diagnosis time per case (median / max) | {:.3} s / {:.3} s |\n",
             100.0 * self.false_alarm_rate,
             self.null_cases,
             100.0 * self.detection_rate,
             100.0 * self.top1_attribution,
+            100.0 * self.top1_attribution_snr_ge_4,
+            self.cases_snr_ge_4,
+            100.0 * self.identifiable_top1_attribution_snr_ge_4,
+            self.identifiable_cases_snr_ge_4,
+            self.shares_out_of_range,
             self.localisation_cases,
             opt(self.localisation_accuracy, true),
             opt(self.median_param_rel_error, false),

@@ -18,6 +18,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+mod coloured;
+
 /// Colours cycled through by series that do not choose one (colour-blind friendly, Okabe–Ito).
 pub const PALETTE: [&str; 8] = [
     "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442",

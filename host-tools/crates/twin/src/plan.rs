@@ -272,6 +272,9 @@ impl ThermalPlan {
     fn samples(&self) -> Vec<Sample> {
         let rounds = ((self.warmup_s + self.cooldown_s) / self.interval_s).floor() as usize + 1;
         let mut out = Vec::with_capacity(rounds * self.positions_mm.len());
+        // Positions of a round 3 s apart, or closer when the rounds are dense (a resized plan), so a
+        // round always ends before the next one starts (time never runs backwards).
+        let step_s = 3.0f64.min(self.interval_s / (self.positions_mm.len() as f64 + 1.0));
         for r in 0..rounds {
             let t_round = r as f64 * self.interval_s;
             for (j, &target) in self.positions_mm.iter().enumerate() {
@@ -279,7 +282,7 @@ impl ThermalPlan {
                     run: r as u32 + 1,
                     direction: 1,
                     target_mm: target,
-                    time_s: t_round + 3.0 * (j as f64 + 1.0),
+                    time_s: t_round + step_s * (j as f64 + 1.0),
                     velocity_mm_s: 0.0,
                     accel_mm_s2: 0.0,
                     force_n: 0.0,
@@ -633,6 +636,28 @@ mod tests {
             Plan::by_name("nope", 0.0, 1.0, None),
             Err(UnknownPlan("nope".into()))
         );
+    }
+
+    #[test]
+    fn every_plan_keeps_time_monotonic_up_to_a_million_rows() {
+        // Issue 13: `thermal` failed from ~14,000 rows and `survey` from ~29,000 ("time runs
+        // backwards"): the positions of a thermal round were 3 s apart whatever the round interval.
+        for name in Plan::NAMES {
+            for rows in [14_000, 30_000, 1_000_000] {
+                let plan = Plan::by_name(name, 0.0, 200.0, Some(rows)).unwrap();
+                let samples = plan.samples();
+                assert!(
+                    samples.windows(2).all(|w| w[1].time_s >= w[0].time_s),
+                    "{name} at {rows} rows: time runs backwards"
+                );
+                // Rounding to whole targets / positions / rounds → within 15 %.
+                let n = samples.len() as f64;
+                assert!(
+                    (n / rows as f64 - 1.0).abs() < 0.15,
+                    "{name}: {n} rows for {rows}"
+                );
+            }
+        }
     }
 
     #[test]
