@@ -12,7 +12,7 @@
 //! - **three-lobe kinematic pretravel**: a resistive kinematic probe has three contact pairs at 120°; the
 //!   lateral trigger force (so the bending before trigger) grows as 1/cos of the angle from the nearest pivot
 //!   axis' normal, which gives three lobes with cusps: `δ_lat(θ) = base + lobe·(1/cos ψ − 1)` with
-//!   ψ = ((θ − θ0) mod 120°) − 60° ∈ [−60°, 60°); an axial (z) touch has its own pretravel `δ_axial`.
+//!   ψ = ((θ − θ0 + 60°) mod 120°) − 60° ∈ [−60°, 60°); an axial (z) touch has its own pretravel `δ_axial`.
 //!   The two mix as `δ_lat(θ)·cos²φ + δ_axial·sin²φ`.
 //! - **speed-linear term**: `speed_um_per_mm_s · v` (mechanical pretravel grows with speed, seed 003).
 //! - **latch latency** `latency_ms`: the controller latches `latency` after the switch, i.e. `v·latency`
@@ -107,9 +107,15 @@ impl ProbeModel {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Artefact {
     /// A sphere (touched from outside).
-    Sphere { centre_mm: [f64; 3], diameter_mm: f64 },
+    Sphere {
+        centre_mm: [f64; 3],
+        diameter_mm: f64,
+    },
     /// A ring gauge with a vertical axis (touched from inside, in the plane `z = centre.z`).
-    Ring { centre_mm: [f64; 3], diameter_mm: f64 },
+    Ring {
+        centre_mm: [f64; 3],
+        diameter_mm: f64,
+    },
     /// The plane `z = z_mm` touched from above.
     Plane { z_mm: f64 },
 }
@@ -326,7 +332,11 @@ pub fn simulate_touches(probe: &ProbeModel, plan: &ProbePlan, seed: u64) -> Vec<
                 let e = dir(t.azimuth_deg, 0.0);
                 let r = diameter_mm / 2.0;
                 (
-                    [centre_mm[0] + r * e[0], centre_mm[1] + r * e[1], centre_mm[2]],
+                    [
+                        centre_mm[0] + r * e[0],
+                        centre_mm[1] + r * e[1],
+                        centre_mm[2],
+                    ],
                     [-e[0], -e[1], 0.0],
                 )
             }
@@ -389,9 +399,8 @@ pub fn simulate_touches(probe: &ProbeModel, plan: &ProbePlan, seed: u64) -> Vec<
 
 /// The touches as the contract's touch CSV (latched positions to 0.1 nm so rounding does not add noise).
 pub fn touches_csv(touches: &[SimTouch]) -> String {
-    let mut s = String::from(
-        "x_mm,y_mm,z_mm,approach_x,approach_y,approach_z,feed_mm_min,artefact,run\n",
-    );
+    let mut s =
+        String::from("x_mm,y_mm,z_mm,approach_x,approach_y,approach_z,feed_mm_min,artefact,run\n");
     for t in touches {
         s.push_str(&format!(
             "{:.7},{:.7},{:.7},{:.9},{:.9},{:.9},{},{},{}\n",
