@@ -82,6 +82,9 @@ pub struct Args {
     pub report: Option<PathBuf>,
 }
 
+/// Evaluation rows, the artefact's diameter, which rows (`holdout` / `calibration`), flagged held-out rows.
+type Evaluation = (Vec<Touch>, f64, &'static str, Vec<serde_json::Value>);
+
 fn sphere_json(s: &Sphere) -> serde_json::Value {
     json!({ "center_mm": s.center_mm, "radius_mm": s.radius_mm, "rms_um": s.rms_um })
 }
@@ -169,7 +172,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             bail!("--stylus-diameter-mm {d}: must be > 0");
         }
     }
-    if !(args.outlier_mad > 0.0) {
+    if args.outlier_mad.is_nan() || args.outlier_mad <= 0.0 {
         bail!("--outlier-mad {}: must be > 0", args.outlier_mad);
     }
     if args.centres_out.is_some() && args.group.is_empty() {
@@ -225,39 +228,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     // ---- evaluation: held-out rows, else the calibration inliers ----
     let outlier_idx: Vec<usize> = res.outliers.iter().map(|o| o.index).collect();
-    let (eval_touches, eval_d, on, eval_outliers): (Vec<Touch>, f64, &str, Vec<serde_json::Value>) =
-        if test.is_empty() {
-            let t: Vec<Touch> = (0..tr_touches.len())
-                .filter(|i| !outlier_idx.contains(i))
-                .map(|i| tr_touches[i])
-                .collect();
-            (t, args.sphere_diameter_mm, "calibration", Vec::new())
-        } else {
-            let d = args.holdout_diameter_mm.unwrap_or(args.sphere_diameter_mm);
-            let t: Vec<Touch> = test.iter().map(|&i| touches[i]).collect();
-            for (k, tt) in t.iter().enumerate() {
-                cal.check_touch(tt)
-                    .map_err(|why| anyhow::anyhow!("{}: {why}", labels[test[k]]))?;
+    let (eval_touches, eval_d, on, eval_outliers): Evaluation = if test.is_empty() {
+        let t: Vec<Touch> = (0..tr_touches.len())
+            .filter(|i| !outlier_idx.contains(i))
+            .map(|i| tr_touches[i])
+            .collect();
+        (t, args.sphere_diameter_mm, "calibration", Vec::new())
+    } else {
+        let d = args.holdout_diameter_mm.unwrap_or(args.sphere_diameter_mm);
+        let t: Vec<Touch> = test.iter().map(|&i| touches[i]).collect();
+        for (k, tt) in t.iter().enumerate() {
+            cal.check_touch(tt)
+                .map_err(|why| anyhow::anyhow!("{}: {why}", labels[test[k]]))?;
+        }
+        // Flag glitches of the held-out touches the same way (robust, reported, not used).
+        let (_, r) = radial_about_fitted_centre(cal, &t, d / 2.0)?;
+        let mut sorted = r.clone();
+        sorted.sort_by(f64::total_cmp);
+        let med = sorted[sorted.len() / 2];
+        let mut dev: Vec<f64> = r.iter().map(|e| (e - med).abs()).collect();
+        dev.sort_by(f64::total_cmp);
+        let s = (1.4826 * dev[dev.len() / 2]).max(0.05);
+        let mut keep = Vec::new();
+        let mut flagged = Vec::new();
+        for (k, e) in r.iter().enumerate() {
+            if (e - med).abs() > args.outlier_mad * s {
+                flagged.push(json!({ "row": labels[test[k]], "residual_um": e }));
+            } else {
+                keep.push(t[k]);
             }
-            // Flag glitches of the held-out touches the same way (robust, reported, not used).
-            let (_, r) = radial_about_fitted_centre(cal, &t, d / 2.0)?;
-            let mut sorted = r.clone();
-            sorted.sort_by(f64::total_cmp);
-            let med = sorted[sorted.len() / 2];
-            let mut dev: Vec<f64> = r.iter().map(|e| (e - med).abs()).collect();
-            dev.sort_by(f64::total_cmp);
-            let s = (1.4826 * dev[dev.len() / 2]).max(0.05);
-            let mut keep = Vec::new();
-            let mut flagged = Vec::new();
-            for (k, e) in r.iter().enumerate() {
-                if (e - med).abs() > args.outlier_mad * s {
-                    flagged.push(json!({ "row": labels[test[k]], "residual_um": e }));
-                } else {
-                    keep.push(t[k]);
-                }
-            }
-            (keep, d, "holdout", flagged)
-        };
+        }
+        (keep, d, "holdout", flagged)
+    };
     if eval_touches.len() < 4 {
         bail!(
             "{} evaluation touches: a diameter needs at least 4",
@@ -500,7 +502,9 @@ fn write_report(
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let cal = &res.calibration;
     // Radial residual over the sphere: azimuth on x, one series per elevation ring.
-    let mut rings: BTreeMap<i64, (Vec<f64>, Vec<f64>, Vec<f64>)> = BTreeMap::new();
+    // Per elevation ring (0.1°): azimuths, residuals after, residuals with one radius.
+    type Ring = (Vec<f64>, Vec<f64>, Vec<f64>);
+    let mut rings: BTreeMap<i64, Ring> = BTreeMap::new();
     let out: Vec<usize> = res.outliers.iter().map(|o| o.index).collect();
     let radius = cal.sphere_diameter_mm / 2.0;
     let plain_c = res.plain.sphere_center_mm;

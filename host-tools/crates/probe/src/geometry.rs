@@ -40,7 +40,7 @@ pub fn check_not_coplanar(points: &[[f64; 3]], labels: &[String]) -> Result<(), 
     let (lo, hi) = (e.min(), e.max());
     // Out-of-plane spread below 1e-3 of the in-plane spread (e.g. 14 µm on a Ø25 mm sphere): the centre
     // is not determined across the plane.
-    if !(hi > 0.0) || lo / hi < 1e-6 {
+    if hi.is_nan() || hi <= 0.0 || lo / hi < 1e-6 {
         let first = labels.first().map(String::as_str).unwrap_or("?");
         let last = labels.last().map(String::as_str).unwrap_or("?");
         return Err(ProbeError::Degenerate(format!(
@@ -86,7 +86,7 @@ pub fn algebraic_sphere(points: &[[f64; 3]]) -> Result<Sphere, ProbeError> {
         .map_err(|e| ProbeError::Degenerate(format!("algebraic sphere fit: {e}")))?;
     let c = [x[0] + m[0], x[1] + m[1], x[2] + m[2]];
     let r2 = x[3] + x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
-    if !(r2 > 0.0) {
+    if r2.is_nan() || r2 <= 0.0 {
         return Err(ProbeError::Degenerate(
             "algebraic sphere fit gave no real radius".into(),
         ));

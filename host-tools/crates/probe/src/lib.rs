@@ -215,7 +215,8 @@ impl Calibration {
         }
         if self.coef_mm.iter().any(|c| !c.is_finite())
             || !self.stylus_radius_mm.is_finite()
-            || !(self.sphere_diameter_mm > 0.0)
+            || self.sphere_diameter_mm.is_nan()
+            || self.sphere_diameter_mm <= 0.0
         {
             return Err("non-finite coefficient, stylus radius or diameter".into());
         }
