@@ -36,6 +36,8 @@ pub enum Command {
     ValidateDiagnosis(commands::validate_diagnosis::Args),
     /// Apply a fitted model file (positioning table, thermal model, probe calibration) to the rows of a CSV and write them with the predictions added.
     Predict(commands::predict::Args),
+    /// Simulate touches of the twin's touch-trigger probe (calibration sphere, or a sphere, ring gauge and plane) as a touch CSV.
+    SimProbe(commands::fit_probe::SimArgs),
 }
 
 #[derive(Debug, Subcommand)]

@@ -329,3 +329,57 @@ fn per_pose_centres_as_rtest_rows() {
         }
     }
 }
+
+#[test]
+fn sim_probe_writes_touches_and_truth_that_fit_probe_reads() {
+    let dir = tmp_dir("sim");
+    let (cal_csv, m_csv, truth) = (
+        dir.join("cal.csv"),
+        dir.join("m.csv"),
+        dir.join("truth.csv"),
+    );
+    let (ok, o, e) = run(&[
+        "sim-probe",
+        "--plan",
+        "probe-cal",
+        "--out",
+        s(&cal_csv),
+        "--seed",
+        "5",
+    ]);
+    assert!(ok, "{o}\n{e}");
+    let (ok, o, e) = run(&[
+        "sim-probe",
+        "--plan",
+        "probe-measure",
+        "--feed",
+        "200",
+        "--no-glitches",
+        "--out",
+        s(&m_csv),
+        "--truth",
+        s(&truth),
+    ]);
+    assert!(ok, "{o}\n{e}");
+    let rows = |p: &Path| std::fs::read_to_string(p).unwrap().lines().count();
+    assert_eq!(rows(&m_csv), rows(&truth));
+    assert_eq!(rows(&m_csv), 1 + 64 + 36 + 25);
+    let j = dir.join("fit.json");
+    let (ok, o, e) = run(&[
+        "fit",
+        "probe",
+        "--data",
+        s(&cal_csv),
+        "--sphere-diameter-mm",
+        "25",
+        "--json",
+        s(&j),
+    ]);
+    assert!(ok, "{o}\n{e}");
+    // Without --holdout the diameter error is judged on the calibration rows themselves.
+    assert_eq!(json(&j)["diameter_error_um"]["on"], "calibration");
+    // An unknown plan is refused and writes nothing.
+    let bad = dir.join("bad.csv");
+    let (ok, _, e) = run(&["sim-probe", "--plan", "helix", "--out", s(&bad)]);
+    assert!(!ok && e.contains("helix") && !bad.exists(), "{e}");
+}

@@ -38,6 +38,8 @@ How it works: algebraic sphere fit, then Levenberg–Marquardt geometric fits (c
 
 Correction (axcomp predict --model CAL): contact = latched + r_eff(n, v)·approach.
 
+diameter_error_um is judged on the held-out rows (--holdout, an artefact of --holdout-diameter-mm); without --holdout it is computed on the calibration rows, where the model fixes the diameter (after ≈ 0 by construction): use a held-out artefact to judge.
+
 Example (twin data):
   axcomp fit probe --data touches.csv --sphere-diameter-mm 25 --holdout artefact=sphere2
     --holdout-diameter-mm 19.05 --stylus-diameter-mm 3 --out cal.json --json fit.json --report rep";
@@ -723,5 +725,104 @@ fn write_report(
          ![plain](residual_map_plain.svg)\n\n## Pretravel versus speed\n\n![pretravel](pretravel_speed.svg)"
     );
     write_atomic(&dir.join("report.md"), md.as_bytes())?;
+    Ok(())
+}
+
+/// `axcomp sim-probe`: touches of the twin's probe (`axcomp_twin::probe`) as a touch CSV. Kept in this module
+/// (not in `sim.rs`) so that `axcomp sim --plan probe-cal|probe-measure` can call it later.
+#[derive(Debug, clap::Args)]
+pub struct SimArgs {
+    /// `probe-cal` (Ø25 mm sphere, rings at 0/22.5/45/67.5/90°, 24 azimuths, 100/300/600 mm/min, 2 runs) or
+    /// `probe-measure` (a Ø19.05 mm sphere, a Ø50 mm ring gauge and a plane at --feed).
+    #[arg(long, value_name = "PLAN")]
+    pub plan: String,
+    /// Output touch CSV.
+    #[arg(long, value_name = "F.csv")]
+    pub out: PathBuf,
+    /// Probing speed of `probe-measure`, mm/min.
+    #[arg(long, default_value_t = 450.0, value_name = "F")]
+    pub feed: f64,
+    /// Repeats of the plan.
+    #[arg(long, value_name = "N")]
+    pub repeats: Option<u32>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// No bounce and no false triggers.
+    #[arg(long)]
+    pub no_glitches: bool,
+    /// Per-row truth (surface point, normal, pretravel, kind) as CSV.
+    #[arg(long, value_name = "F.csv")]
+    pub truth: Option<PathBuf>,
+}
+
+/// Runs `axcomp sim-probe`.
+pub fn sim_probe(args: SimArgs) -> anyhow::Result<()> {
+    use axcomp_twin::probe::{ProbeModel, ProbePlan, TouchKind, simulate_touches, touches_csv};
+    let plan = match args.plan.as_str() {
+        "probe-cal" | "cal" => {
+            let mut p = ProbePlan::standard_calibration();
+            if let Some(r) = args.repeats {
+                p = ProbePlan::calibration(
+                    [100.0, 50.0, 20.0],
+                    25.0,
+                    &[0.0, 22.5, 45.0, 67.5, 90.0],
+                    24,
+                    &[100.0, 300.0, 600.0],
+                    r,
+                );
+            }
+            p
+        }
+        "probe-measure" | "measure" => {
+            if !(args.feed.is_finite() && args.feed > 0.0) {
+                bail!("--feed {}: must be > 0", args.feed);
+            }
+            ProbePlan::measurement(args.feed, args.repeats.unwrap_or(1))
+        }
+        other => bail!("--plan `{other}`: expected probe-cal or probe-measure"),
+    };
+    if args.repeats == Some(0) {
+        bail!("--repeats must be ≥ 1");
+    }
+    let mut probe = ProbeModel::kinematic_demo();
+    if args.no_glitches {
+        probe = probe.without_glitches();
+    }
+    let t = simulate_touches(&probe, &plan, args.seed);
+    let csv = touches_csv(&t);
+    let truth = args.truth.as_ref().map(|_| {
+        let mut s = String::from(
+            "surface_x_mm,surface_y_mm,surface_z_mm,normal_x,normal_y,normal_z,pretravel_um,kind\n",
+        );
+        for x in &t {
+            let kind = match x.kind {
+                TouchKind::Good => "good",
+                TouchKind::Bounce => "bounce",
+                TouchKind::FalseTrigger => "false_trigger",
+            };
+            let _ = writeln!(
+                s,
+                "{:.7},{:.7},{:.7},{:.9},{:.9},{:.9},{:.4},{kind}",
+                x.surface_mm[0],
+                x.surface_mm[1],
+                x.surface_mm[2],
+                x.normal[0],
+                x.normal[1],
+                x.normal[2],
+                x.pretravel_um
+            );
+        }
+        s
+    });
+    if let (Some(p), Some(text)) = (&args.truth, &truth) {
+        write_atomic(p, text.as_bytes())?;
+    }
+    write_atomic(&args.out, csv.as_bytes())?;
+    println!(
+        "sim-probe: {} touches ({} bounce / false-trigger rows) → {}",
+        t.len(),
+        t.iter().filter(|x| x.kind != TouchKind::Good).count(),
+        args.out.display()
+    );
     Ok(())
 }

@@ -33,5 +33,6 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Diagnose(a) => diagnose::run(a),
         Command::ValidateDiagnosis(a) => validate_diagnosis::run(a),
         Command::Predict(a) => predict::run(a),
+        Command::SimProbe(a) => fit_probe::sim_probe(a),
     }
 }

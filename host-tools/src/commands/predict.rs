@@ -263,6 +263,14 @@ pub fn predict_probe(cal: &Calibration, ds: &mut Dataset) -> anyhow::Result<Vec<
             ds.source()
         );
     }
+    if !ds.has("feed_mm_min") && cal.feed_range_mm_min[1] > 0.0 {
+        bail!(
+            "{}: missing column `feed_mm_min`: the calibration was made at {} … {} mm/min and holds only there",
+            ds.source(),
+            cal.feed_range_mm_min[0],
+            cal.feed_range_mm_min[1]
+        );
+    }
     let (touches, labels) = read_touches(ds)?;
     axcomp_probe::validate_touches(&touches, &labels)?;
     let mut out = [Vec::new(), Vec::new(), Vec::new()];
