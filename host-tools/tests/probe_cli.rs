@@ -257,16 +257,18 @@ fn bad_input_names_the_row_and_writes_nothing() {
 #[test]
 fn per_pose_centres_as_rtest_rows() {
     // Three poses of a five-axis calibration: the sphere sits at the commanded tool point plus a known
-    // offset (the location error to identify). Reference: those offsets; tolerance 0.5 µm (centre of ~400
-    // touches with σ = 0.5 µm plus the calibration's uncertainty).
+    // offset (the location error to identify). Reference: those offsets; tolerance 1 µm: the centre's z
+    // carries the calibration's z uncertainty, 0.25 µm 1σ (`cargo run -p axcomp-probe --example probe_seeds`), so 4σ.
+    // The probe has bounce and false triggers: every pose's glitches are flagged and left out of its centre.
     let dir = tmp_dir("groups");
-    let probe = ProbeModel::kinematic_demo().without_glitches();
+    let probe = ProbeModel::kinematic_demo();
     let poses = [
         ("0", "0", [100.0, 50.0, 20.0], [0.0, 0.0, 0.0]),
         ("30", "90", [80.0, 60.0, 30.0], [4.0, -3.0, 2.5]),
         ("-30", "180", [120.0, 40.0, 25.0], [-2.0, 6.0, -1.5]),
     ];
     let mut csv = String::new();
+    let mut glitches = 0;
     for (k, (a, c, cmd, off)) in poses.iter().enumerate() {
         let centre = [
             cmd[0] + off[0] * 1e-3,
@@ -282,6 +284,7 @@ fn per_pose_centres_as_rtest_rows() {
             1,
         );
         let t = simulate_touches(&probe, &plan, 20 + k as u64);
+        glitches += t.iter().filter(|x| x.kind != TouchKind::Good).count();
         let text = touches_csv(&t);
         for (i, line) in text.lines().enumerate() {
             if i == 0 {
@@ -298,7 +301,7 @@ fn per_pose_centres_as_rtest_rows() {
     }
     let data = dir.join("poses.csv");
     std::fs::write(&data, csv).unwrap();
-    let cen = dir.join("centres.csv");
+    let (cen, j) = (dir.join("centres.csv"), dir.join("fit.json"));
     let (ok, out, err) = run(&[
         "fit",
         "probe",
@@ -310,8 +313,20 @@ fn per_pose_centres_as_rtest_rows() {
         "a_deg,c_deg",
         "--centres-out",
         s(&cen),
+        "--json",
+        s(&j),
     ]);
     assert!(ok, "{out}\n{err}");
+    let v = json(&j);
+    let flagged: usize = v["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|g| g["outliers"].as_array().unwrap().len())
+        .sum::<usize>()
+        + v["outliers"].as_array().unwrap().len();
+    println!("flagged {flagged} glitch rows over the poses ({glitches} simulated)");
+    assert!(flagged >= glitches, "{flagged} < {glitches}");
     let text = std::fs::read_to_string(&cen).unwrap();
     println!("{text}");
     let mut lines = text.lines();
@@ -325,7 +340,7 @@ fn per_pose_centres_as_rtest_rows() {
         assert_eq!(f[0].parse::<f64>().unwrap(), cmd[0]);
         for k in 0..3 {
             let d: f64 = f[5 + k].parse().unwrap();
-            assert!((d - off[k]).abs() < 0.5, "{line}: {d} vs {}", off[k]);
+            assert!((d - off[k]).abs() < 1.0, "{line}: {d} vs {}", off[k]);
         }
     }
 }

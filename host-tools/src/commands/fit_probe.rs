@@ -119,6 +119,20 @@ fn radial_about_fitted_centre(
     Ok((s, res))
 }
 
+/// |e − median| > k·max(1.4826·MAD, 0.05 µm), as in the calibration.
+fn robust_flags(r: &[f64], k: f64) -> Vec<bool> {
+    if r.is_empty() {
+        return Vec::new();
+    }
+    let mut sorted = r.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let med = sorted[sorted.len() / 2];
+    let mut dev: Vec<f64> = r.iter().map(|e| (e - med).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    let s = (1.4826 * dev[dev.len() / 2]).max(0.05);
+    r.iter().map(|e| (e - med).abs() > k * s).collect()
+}
+
 fn rms(v: &[f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -245,16 +259,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         // Flag glitches of the held-out touches the same way (robust, reported, not used).
         let (_, r) = radial_about_fitted_centre(cal, &t, d / 2.0)?;
-        let mut sorted = r.clone();
-        sorted.sort_by(f64::total_cmp);
-        let med = sorted[sorted.len() / 2];
-        let mut dev: Vec<f64> = r.iter().map(|e| (e - med).abs()).collect();
-        dev.sort_by(f64::total_cmp);
-        let s = (1.4826 * dev[dev.len() / 2]).max(0.05);
+        let flags = robust_flags(&r, args.outlier_mad);
         let mut keep = Vec::new();
         let mut flagged = Vec::new();
         for (k, e) in r.iter().enumerate() {
-            if (e - med).abs() > args.outlier_mad * s {
+            if flags[k] {
                 flagged.push(json!({ "row": labels[test[k]], "residual_um": e }));
             } else {
                 keep.push(t[k]);
@@ -328,10 +337,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 cal.check_touch(t)
                     .map_err(|why| anyhow::anyhow!("{}: {why}", labels[rows[k]]))?;
             }
-            let s = fit_center(cal, &gt, args.sphere_diameter_mm / 2.0)
-                .with_context(|| format!("group `{}`", key.replace('\u{1f}', ",")))?;
+            let gname = key.replace('\u{1f}', ",");
+            let radius = args.sphere_diameter_mm / 2.0;
+            let (_, r) = radial_about_fitted_centre(cal, &gt, radius)
+                .with_context(|| format!("group `{gname}`"))?;
+            // Glitches of this pose's touches: flagged like the calibration's, listed, not used.
+            let flags = robust_flags(&r, args.outlier_mad);
+            let kept: Vec<Touch> = (0..gt.len())
+                .filter(|&k| !flags[k])
+                .map(|k| gt[k])
+                .collect();
+            let flagged: Vec<String> = (0..gt.len())
+                .filter(|&k| flags[k])
+                .map(|k| labels[rows[k]].clone())
+                .collect();
+            let s = fit_center(cal, &kept, radius).with_context(|| format!("group `{gname}`"))?;
             let values: Vec<String> = key.split('\u{1f}').map(str::to_string).collect();
-            group_rows.push((point, values, s, rows.len()));
+            group_rows.push((point, values, s, kept.len(), flagged));
         }
     }
 
@@ -420,8 +442,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "touches": ds.n_rows(),
         "calibration_touches": train.len(),
         "holdout_touches": test.len(),
-        "groups": group_rows.iter().map(|(p, v, s, n)| json!({
-            "group": v, "touches": n, "commanded_mm": p, "center_mm": s.center_mm, "rms_um": s.rms_um,
+        "groups": group_rows.iter().map(|(p, v, s, n, flagged)| json!({
+            "group": v, "touches": n, "outliers": flagged, "commanded_mm": p, "center_mm": s.center_mm, "rms_um": s.rms_um,
             "dx_um": (s.center_mm[0] - p[0]) * 1000.0, "dy_um": (s.center_mm[1] - p[1]) * 1000.0,
             "dz_um": (s.center_mm[2] - p[2]) * 1000.0 })).collect::<Vec<_>>(),
     });
@@ -433,7 +455,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             s.push_str(c);
         }
         s.push_str(",dx_um,dy_um,dz_um\n");
-        for (p, v, c, _) in &group_rows {
+        for (p, v, c, _, _) in &group_rows {
             let _ = write!(s, "{},{},{}", p[0], p[1], p[2]);
             for x in v {
                 let _ = write!(s, ",{x}");
