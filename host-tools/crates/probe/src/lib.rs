@@ -372,6 +372,12 @@ fn direction_key(d: DirSpeed) -> (i64, i64) {
 /// (bilinear: first differences between neighbouring nodes, so a node without data takes its neighbours'
 /// value; otherwise a ridge on the non-constant coefficients). Returns `None` when singular.
 fn fit_linear(s: &Structure, ds: &[DirSpeed], y: &[f64], rows: &[usize]) -> Option<Vec<f64>> {
+    let (g, b) = gram(s, ds, y, rows);
+    solve_penalised(s, g, b)
+}
+
+/// ΦᵀΦ and Φᵀy over `rows`.
+fn gram(s: &Structure, ds: &[DirSpeed], y: &[f64], rows: &[usize]) -> (DMatrix<f64>, DVector<f64>) {
     let p = s.len();
     let mut g = DMatrix::<f64>::zeros(p, p);
     let mut b = DVector::<f64>::zeros(p);
@@ -388,7 +394,7 @@ fn fit_linear(s: &Structure, ds: &[DirSpeed], y: &[f64], rows: &[usize]) -> Opti
             }
         }
     }
-    solve_penalised(s, g, b)
+    (g, b)
 }
 
 fn solve_penalised(s: &Structure, mut g: DMatrix<f64>, b: DVector<f64>) -> Option<Vec<f64>> {
@@ -538,16 +544,26 @@ fn cv_rms(
 ) -> f64 {
     let mut sse = 0.0;
     let mut n = 0usize;
-    for f in 0..k {
-        let train: Vec<usize> = rows.iter().copied().filter(|&i| fold[i] != f).collect();
-        let test: Vec<usize> = rows.iter().copied().filter(|&i| fold[i] == f).collect();
+    // Per-fold Gram matrices once; a fold's training Gram is the total minus its own.
+    let tests: Vec<Vec<usize>> = (0..k)
+        .map(|f| rows.iter().copied().filter(|&i| fold[i] == f).collect())
+        .collect();
+    let parts: Vec<(DMatrix<f64>, DVector<f64>)> =
+        tests.iter().map(|t| gram(s, ds, y, t)).collect();
+    let mut g_all = DMatrix::<f64>::zeros(s.len(), s.len());
+    let mut b_all = DVector::<f64>::zeros(s.len());
+    for (g, b) in &parts {
+        g_all += g;
+        b_all += b;
+    }
+    for (f, test) in tests.iter().enumerate() {
         if test.is_empty() {
             continue;
         }
-        let Some(coef) = fit_linear(s, ds, y, &train) else {
+        let Some(coef) = solve_penalised(s, &g_all - &parts[f].0, &b_all - &parts[f].1) else {
             return f64::INFINITY;
         };
-        for &i in &test {
+        for &i in test {
             let e = (y[i] - s.eval(&coef, ds[i])) * 1000.0;
             sse += e * e;
             n += 1;
@@ -649,7 +665,7 @@ pub fn calibrate(
     };
 
     // ---- candidates ----
-    let speed_terms: &[usize] = if one_speed { &[0] } else { &[1, 2] };
+    let speed_terms: &[usize] = if one_speed { &[0] } else { &[0, 1, 2] };
     let ring_az = {
         // The most azimuths on one elevation ring bounds the azimuthal order.
         let mut per: std::collections::HashMap<i64, std::collections::HashSet<i64>> =
