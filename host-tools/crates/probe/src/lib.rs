@@ -774,8 +774,14 @@ pub fn calibrate(
         .map(|p| norm(sub(*p, geometric_free.center_mm)) - radius)
         .collect();
     let mut candidates = Vec::new();
+    // A candidate needs more training touches per fold than unknowns (its coefficients and the centre).
+    let per_fold = inl.len() * (folds - 1) / folds;
     let mut score = |s: &Structure, y: &[f64]| {
-        let cv = cv_rms(s, &ds, y, &inl, &fold, folds);
+        let cv = if s.len() + 3 < per_fold {
+            cv_rms(s, &ds, y, &inl, &fold, folds)
+        } else {
+            f64::INFINITY
+        };
         candidates.push(CandidateScore {
             model: s.name(),
             structure: s.clone(),
@@ -801,7 +807,14 @@ pub fn calibrate(
     let cv_c = candidates[0].cv_rms_um;
     let (chosen, why) = match opts.model {
         ModelChoice::Auto => {
-            let best = best_of(&|_| true).expect("candidates");
+            // The lowest CV; among candidates tied with it (within 1e-6 relative), the fewest coefficients.
+            let lowest = best_of(&|_| true).expect("candidates").cv_rms_um;
+            let best = candidates
+                .iter()
+                .filter(|c| c.cv_rms_um <= lowest * (1.0 + 1e-6) + 1e-9)
+                .min_by_key(|c| c.coefficients)
+                .cloned()
+                .expect("candidates");
             let why = format!(
                 "lowest cross-validated radial RMS over {} direction folds: {} {:.3} µm (bilinear reference \
                  {:.3} µm, constant {:.3} µm, best harmonic {:.3} µm)",
@@ -914,7 +927,6 @@ pub fn calibrate(
     }
     let repeatability_2sigma_um = (dof > 0).then(|| 2.0 * (ss / dof as f64).sqrt() * 1000.0);
 
-    let _ = one_speed;
     Ok(CalibrationResult {
         calibration,
         reference,
@@ -975,4 +987,64 @@ pub fn measured_diameter_mm(
         })
         .collect();
     geometric_sphere(&contacts, None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn exact(n_az: usize, els: &[f64], r_eff: f64) -> Vec<Touch> {
+        let mut v = Vec::new();
+        for &el in els {
+            for k in 0..n_az {
+                let (a, e) = (
+                    (360.0 * k as f64 / n_az as f64 + el).to_radians(),
+                    el.to_radians(),
+                );
+                let n = [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()];
+                let d = 12.5 + r_eff;
+                v.push(Touch {
+                    position_mm: [1.0 + d * n[0], 2.0 + d * n[1], 3.0 + d * n[2]],
+                    approach: [-n[0], -n[1], -n[2]],
+                    feed_mm_min: 100.0,
+                });
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn few_exact_touches_give_the_plain_radius_and_the_centre() {
+        // Exact touches (one effective radius 1.49 mm): every candidate ties at zero CV error or has too few
+        // touches, so the fewest coefficients win. Reference: the generating values; tolerance 1e-9 mm.
+        for (n_az, els) in [
+            (2usize, &[0.0, 60.0][..]),
+            (3, &[0.0, 45.0][..]),
+            (8, &[30.0, 60.0][..]),
+        ] {
+            let t = exact(n_az, els, 1.49);
+            let labels: Vec<String> = (0..t.len()).map(|i| format!("row {i}")).collect();
+            let r = calibrate(&t, &labels, &CalibrationOptions::new(25.0)).unwrap();
+            assert_eq!(r.calibration.structure, Structure::Constant, "{n_az}");
+            assert!((r.calibration.stylus_radius_mm - 1.49).abs() < 1e-9);
+            let c = r.calibration.sphere_center_mm;
+            assert!(
+                (c[0] - 1.0).abs() < 1e-9 && (c[1] - 2.0).abs() < 1e-9 && (c[2] - 3.0).abs() < 1e-9
+            );
+            assert!(r.outliers.is_empty());
+        }
+    }
+
+    #[test]
+    fn contact_point_is_the_latched_point_moved_by_the_effective_radius() {
+        let t = exact(8, &[0.0, 45.0], 1.49);
+        let labels: Vec<String> = (0..t.len()).map(|i| format!("row {i}")).collect();
+        let r = calibrate(&t, &labels, &CalibrationOptions::new(25.0)).unwrap();
+        // Reference: the generating sphere's surface; tolerance 1e-9 mm.
+        for x in &t {
+            let s = r.calibration.contact_mm(x);
+            let d = ((s[0] - 1.0).powi(2) + (s[1] - 2.0).powi(2) + (s[2] - 3.0).powi(2)).sqrt();
+            assert!((d - 12.5).abs() < 1e-9, "{d}");
+        }
+    }
 }
