@@ -34,6 +34,10 @@ pub enum Command {
     Diagnose(commands::diagnose::Args),
     /// Check the diagnosis on many twin campaigns with one effect withheld (detection, attribution, false alarms).
     ValidateDiagnosis(commands::validate_diagnosis::Args),
+    /// Apply a fitted model file (positioning table, thermal model, probe calibration) to the rows of a CSV and write them with the predictions added.
+    Predict(commands::predict::Args),
+    /// Simulate touches of the twin's touch-trigger probe (calibration sphere, or a sphere, ring gauge and plane) as a touch CSV.
+    SimProbe(commands::fit_probe::SimArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -44,6 +48,8 @@ pub enum FitCommand {
     Thermal(commands::fit_thermal::Args),
     /// Fit cutting-force laws F = K·ap^x·fz^y·n^z and milling force coefficients.
     Force(commands::fit_force::Args),
+    /// Calibrate a touch-trigger probe on a reference sphere: effective stylus radius and pretravel by direction and speed.
+    Probe(commands::fit_probe::Args),
 }
 
 #[derive(Debug, Subcommand)]

@@ -6,8 +6,10 @@ pub mod diagnose;
 pub mod export;
 pub mod fit_force;
 pub mod fit_positioning;
+pub mod fit_probe;
 pub mod fit_thermal;
 pub mod image;
+pub mod predict;
 pub mod replay;
 pub mod sim;
 pub mod trace;
@@ -21,6 +23,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(FitCommand::Positioning(a)) => fit_positioning::run(a),
         Command::Fit(FitCommand::Thermal(a)) => fit_thermal::run(a),
         Command::Fit(FitCommand::Force(a)) => fit_force::run(a),
+        Command::Fit(FitCommand::Probe(a)) => fit_probe::run(a),
         Command::Image(ImageCommand::Build(a)) => image::build(a),
         Command::Image(ImageCommand::Inspect(a)) => image::inspect(a),
         Command::Replay(a) => replay::run(a),
@@ -29,5 +32,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Sim(a) => sim::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::ValidateDiagnosis(a) => validate_diagnosis::run(a),
+        Command::Predict(a) => predict::run(a),
+        Command::SimProbe(a) => fit_probe::sim_probe(a),
     }
 }

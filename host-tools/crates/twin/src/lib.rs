@@ -50,6 +50,7 @@ pub mod drive;
 pub mod effects;
 pub mod ideal;
 pub mod plan;
+pub mod probe;
 pub mod sim;
 pub mod spindle;
 pub mod thermal;

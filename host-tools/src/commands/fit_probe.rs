@@ -1,0 +1,850 @@
+//! `axcomp fit probe`: touch-probe calibration on a reference sphere (contract: "Touch probe: calibration and
+//! correction"; method: `axcomp_probe`, seed 003).
+//!
+//! Glossary:
+//! - **uncorrected** (the "before" of `diameter_error_um`): contact points with the nominal stylus ball
+//!   radius (`--stylus-diameter-mm`), or, without it, with one calibrated effective radius (the plain method).
+//! - **after**: contact points with the chosen model (effective radius by direction and speed).
+//! - **evaluation rows**: the held-out rows (`--holdout`, sphere of `--holdout-diameter-mm`, default the
+//!   reference sphere's) when given, else the calibration rows (inliers).
+//! - **group** (`--group COL,..`): one pose of a five-axis calibration. The probe is calibrated on the first
+//!   group's rows (file order: the reference pose); every group's sphere centre is then fitted with that
+//!   calibration (radius fixed). **Commanded tool point** of a group: the columns `cmd_x_mm, cmd_y_mm,
+//!   cmd_z_mm` (constant within the group): the position the linear axes were commanded to so that, by the
+//!   nominal kinematics, the tool point (stylus-tip centre) sits at the sphere's nominal centre. The R-test
+//!   row's `dx_um, dy_um, dz_um` = fitted centre − commanded tool point.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use axcomp_data::{Dataset, HoldoutSpec};
+use axcomp_plot::{Figure, markdown_table};
+use axcomp_probe::{
+    Calibration, CalibrationOptions, CalibrationResult, DirSpeed, ModelChoice, Sphere, Touch,
+    calibrate, fit_center, measured_diameter_mm,
+};
+use serde_json::json;
+
+use crate::cli::DataArgs;
+use crate::commands::common::{load_dataset, write_atomic, write_json};
+use crate::commands::predict::read_touches;
+
+const LONG_HELP: &str = "\
+Touch CSV: x_mm, y_mm, z_mm (latched stylus-tip centre), approach_x/y/z (unit vector of the probing move, toward the surface), optional feed_mm_min, artefact, run.
+
+How it works: algebraic sphere fit, then Levenberg–Marquardt geometric fits (centre + effective radius with the sphere's diameter fixed; a free-radius fit too). The effective radius r_eff(n, v) = stylus radius − pretravel is modelled by the surface normal's azimuth and elevation and the probing speed: `constant` (one radius), `bilinear` (the seed's azimuth × elevation grid at the calibration directions + one speed slope; the reference method) and `harmonic` (azimuthal harmonics 2..K × even polynomials in sin(elevation) + speed terms). The default (auto) takes the lowest cross-validated radial RMS (folds by direction: every 5th distinct direction held out). First-order direction terms are not modelled: on one sphere they cannot be told from its centre. Outliers (false triggers, bounce) are flagged at 6 robust σ (MAD) of the radial residual, excluded from the fit and listed in the JSON. Repeatability 2σ is pooled over repeated touches (same direction and speed).
+
+Correction (axcomp predict --model CAL): contact = latched + r_eff(n, v)·approach.
+
+diameter_error_um is judged on the held-out rows (--holdout, an artefact of --holdout-diameter-mm); without --holdout it is computed on the calibration rows, where the model fixes the diameter (after ≈ 0 by construction): use a held-out artefact to judge.
+
+Example (twin data):
+  axcomp fit probe --data touches.csv --sphere-diameter-mm 25 --holdout artefact=sphere2
+    --holdout-diameter-mm 19.05 --stylus-diameter-mm 3 --out cal.json --json fit.json --report rep";
+
+#[derive(Debug, clap::Args)]
+#[command(after_long_help = LONG_HELP)]
+pub struct Args {
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// Diameter of the reference sphere (its calibration certificate), mm.
+    #[arg(long, value_name = "D")]
+    pub sphere_diameter_mm: f64,
+    /// Rows held out from the calibration and used only to judge: COL=V1,V2 | COL>=X | COL<X.
+    #[arg(long, value_name = "SPEC")]
+    pub holdout: Option<String>,
+    /// Diameter of the held-out artefact (a sphere), mm (default: the reference sphere's).
+    #[arg(long, value_name = "D")]
+    pub holdout_diameter_mm: Option<f64>,
+    /// Nominal stylus ball diameter, mm: the uncorrected method ("before") uses its radius.
+    #[arg(long, value_name = "D")]
+    pub stylus_diameter_mm: Option<f64>,
+    /// Model of the effective radius: auto (lowest CV), constant, bilinear, harmonic.
+    #[arg(long, default_value = "auto", value_name = "MODEL")]
+    pub pretravel_model: String,
+    /// Outlier threshold in robust standard deviations of the radial residual.
+    #[arg(long, default_value_t = 6.0, value_name = "K")]
+    pub outlier_mad: f64,
+    /// Columns naming a pose (e.g. a_deg,c_deg): fit one sphere centre per group.
+    #[arg(long, value_delimiter = ',', value_name = "COL,..")]
+    pub group: Vec<String>,
+    /// With --group: write one R-test row per group (x_mm,y_mm,z_mm,<group cols>,dx_um,dy_um,dz_um).
+    #[arg(long, value_name = "F.csv")]
+    pub centres_out: Option<PathBuf>,
+    /// Write the calibration (input of `axcomp predict --model`).
+    #[arg(long, value_name = "CAL.json")]
+    pub out: Option<PathBuf>,
+    /// Machine-readable result.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Write report.md and SVG plots into DIR.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+}
+
+/// Evaluation rows, the artefact's diameter, which rows (`holdout` / `calibration`), flagged held-out rows.
+type Evaluation = (Vec<Touch>, f64, &'static str, Vec<serde_json::Value>);
+
+fn sphere_json(s: &Sphere) -> serde_json::Value {
+    json!({ "center_mm": s.center_mm, "radius_mm": s.radius_mm, "rms_um": s.rms_um })
+}
+
+/// Diameter error (µm) of a free sphere through the contacts under `r_of`, or None when it cannot be fitted.
+fn diameter_error_um(touches: &[Touch], d_mm: f64, r_of: &dyn Fn(&Touch) -> f64) -> Option<f64> {
+    measured_diameter_mm(touches, r_of)
+        .ok()
+        .map(|s| (2.0 * s.radius_mm - d_mm) * 1000.0)
+}
+
+/// Radial residuals (µm) of contacts about a sphere of known radius whose centre is fitted.
+fn radial_about_fitted_centre(
+    cal: &Calibration,
+    touches: &[Touch],
+    radius_mm: f64,
+) -> anyhow::Result<(Sphere, Vec<f64>)> {
+    let s = fit_center(cal, touches, radius_mm)?;
+    let res = touches
+        .iter()
+        .map(|t| {
+            let c = cal.contact_mm(t);
+            let d = ((c[0] - s.center_mm[0]).powi(2)
+                + (c[1] - s.center_mm[1]).powi(2)
+                + (c[2] - s.center_mm[2]).powi(2))
+            .sqrt();
+            (d - radius_mm) * 1000.0
+        })
+        .collect();
+    Ok((s, res))
+}
+
+/// |e − median| > k·max(1.4826·MAD, 0.05 µm), as in the calibration.
+fn robust_flags(r: &[f64], k: f64) -> Vec<bool> {
+    if r.is_empty() {
+        return Vec::new();
+    }
+    let mut sorted = r.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let med = sorted[sorted.len() / 2];
+    let mut dev: Vec<f64> = r.iter().map(|e| (e - med).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    let s = (1.4826 * dev[dev.len() / 2]).max(0.05);
+    r.iter().map(|e| (e - med).abs() > k * s).collect()
+}
+
+fn rms(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+}
+
+/// A calibration with one fixed effective radius (the uncorrected method with a nominal ball).
+fn nominal(cal: &Calibration, radius_mm: f64) -> Calibration {
+    Calibration {
+        structure: axcomp_probe::Structure::Constant,
+        coef_mm: vec![radius_mm],
+        stylus_radius_mm: radius_mm,
+        ..cal.clone()
+    }
+}
+
+fn group_keys(ds: &Dataset, cols: &[String]) -> anyhow::Result<Vec<String>> {
+    let texts: Vec<Vec<&str>> = cols
+        .iter()
+        .map(|c| ds.text(c).map_err(anyhow::Error::from))
+        .collect::<anyhow::Result<_>>()?;
+    Ok((0..ds.n_rows())
+        .map(|i| {
+            texts
+                .iter()
+                .map(|t| t[i].trim())
+                .collect::<Vec<_>>()
+                .join("\u{1f}")
+        })
+        .collect())
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    // ---- options first ----
+    let model: ModelChoice = args.pretravel_model.parse()?;
+    if !(args.sphere_diameter_mm > 0.0 && args.sphere_diameter_mm.is_finite()) {
+        bail!(
+            "--sphere-diameter-mm {}: must be > 0",
+            args.sphere_diameter_mm
+        );
+    }
+    if let Some(d) = args.holdout_diameter_mm {
+        if !(d > 0.0 && d.is_finite()) {
+            bail!("--holdout-diameter-mm {d}: must be > 0");
+        }
+        if args.holdout.is_none() {
+            bail!("--holdout-diameter-mm needs --holdout");
+        }
+    }
+    if let Some(d) = args.stylus_diameter_mm {
+        if !(d > 0.0 && d.is_finite()) {
+            bail!("--stylus-diameter-mm {d}: must be > 0");
+        }
+    }
+    if args.outlier_mad.is_nan() || args.outlier_mad <= 0.0 {
+        bail!("--outlier-mad {}: must be > 0", args.outlier_mad);
+    }
+    if args.centres_out.is_some() && args.group.is_empty() {
+        bail!("--centres-out needs --group COL,..");
+    }
+    let holdout = args
+        .holdout
+        .as_deref()
+        .map(HoldoutSpec::parse)
+        .transpose()?;
+
+    // ---- data ----
+    let ds = load_dataset(&args.data)?;
+    let (touches, labels) = read_touches(&ds)?;
+    axcomp_probe::validate_touches(&touches, &labels)?;
+    let held: Vec<bool> = match &holdout {
+        Some(h) => h.mask(&ds)?,
+        None => vec![false; ds.n_rows()],
+    };
+    let groups = if args.group.is_empty() {
+        None
+    } else {
+        Some(group_keys(&ds, &args.group)?)
+    };
+    // Calibration rows: not held out (and, with --group, the first group's).
+    let first_group = groups
+        .as_ref()
+        .and_then(|g| (0..g.len()).find(|&i| !held[i]).map(|i| g[i].clone()));
+    let train: Vec<usize> = (0..ds.n_rows())
+        .filter(|&i| !held[i])
+        .filter(|&i| match (&groups, &first_group) {
+            (Some(g), Some(f)) => &g[i] == f,
+            _ => true,
+        })
+        .collect();
+    let test: Vec<usize> = (0..ds.n_rows()).filter(|&i| held[i]).collect();
+    if holdout.is_some() && test.is_empty() {
+        bail!(
+            "{}: --holdout {} selects no rows",
+            ds.source(),
+            args.holdout.as_deref().unwrap_or("")
+        );
+    }
+    let tr_touches: Vec<Touch> = train.iter().map(|&i| touches[i]).collect();
+    let tr_labels: Vec<String> = train.iter().map(|&i| labels[i].clone()).collect();
+    let opts = CalibrationOptions {
+        model,
+        outlier_mad: args.outlier_mad,
+        ..CalibrationOptions::new(args.sphere_diameter_mm)
+    };
+    let res = calibrate(&tr_touches, &tr_labels, &opts)?;
+    let cal = &res.calibration;
+
+    // ---- evaluation: held-out rows, else the calibration inliers ----
+    let outlier_idx: Vec<usize> = res.outliers.iter().map(|o| o.index).collect();
+    let (eval_touches, eval_d, on, eval_outliers): Evaluation = if test.is_empty() {
+        let t: Vec<Touch> = (0..tr_touches.len())
+            .filter(|i| !outlier_idx.contains(i))
+            .map(|i| tr_touches[i])
+            .collect();
+        (t, args.sphere_diameter_mm, "calibration", Vec::new())
+    } else {
+        let d = args.holdout_diameter_mm.unwrap_or(args.sphere_diameter_mm);
+        let t: Vec<Touch> = test.iter().map(|&i| touches[i]).collect();
+        for (k, tt) in t.iter().enumerate() {
+            cal.check_touch(tt)
+                .map_err(|why| anyhow::anyhow!("{}: {why}", labels[test[k]]))?;
+        }
+        // Flag glitches of the held-out touches the same way (robust, reported, not used).
+        let (_, r) = radial_about_fitted_centre(cal, &t, d / 2.0)?;
+        let flags = robust_flags(&r, args.outlier_mad);
+        let mut keep = Vec::new();
+        let mut flagged = Vec::new();
+        for (k, e) in r.iter().enumerate() {
+            if flags[k] {
+                flagged.push(json!({ "row": labels[test[k]], "residual_um": e }));
+            } else {
+                keep.push(t[k]);
+            }
+        }
+        (keep, d, "holdout", flagged)
+    };
+    if eval_touches.len() < 4 {
+        bail!(
+            "{} evaluation touches: a diameter needs at least 4",
+            eval_touches.len()
+        );
+    }
+    let r_eval = eval_d / 2.0;
+    let before_cal = match args.stylus_diameter_mm {
+        Some(d) => nominal(cal, d / 2.0),
+        None => res.plain.clone(),
+    };
+    let before_method = match args.stylus_diameter_mm {
+        Some(d) => format!("nominal stylus ball Ø{d} mm (no pretravel correction)"),
+        None => "one calibrated effective radius (plain method)".to_string(),
+    };
+    let de =
+        |c: &Calibration| diameter_error_um(&eval_touches, eval_d, &|t| c.effective_radius_mm(t));
+    let (_, after_res) = radial_about_fitted_centre(cal, &eval_touches, r_eval)?;
+    let (_, before_res) = radial_about_fitted_centre(&before_cal, &eval_touches, r_eval)?;
+    let (_, ref_res) = radial_about_fitted_centre(&res.reference, &eval_touches, r_eval)?;
+    let holdout_rms = (!test.is_empty()).then(|| rms(&after_res));
+
+    // ---- groups ----
+    let mut group_rows = Vec::new();
+    if let Some(g) = &groups {
+        let mut order: Vec<String> = Vec::new();
+        for k in g {
+            if !order.contains(k) {
+                order.push(k.clone());
+            }
+        }
+        let cmd = ["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"]
+            .iter()
+            .map(|c| {
+                ds.numeric(c).map(<[f64]>::to_vec).with_context(|| {
+                    format!(
+                        "--group: each group's commanded tool point comes from `{c}` (see `axcomp fit probe \
+                         --help`)"
+                    )
+                })
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        for key in &order {
+            let rows: Vec<usize> = (0..ds.n_rows())
+                .filter(|&i| &g[i] == key && !held[i])
+                .collect();
+            if rows.is_empty() {
+                continue;
+            }
+            let mut point = [0.0; 3];
+            for k in 0..3 {
+                point[k] = cmd[k][rows[0]];
+                if let Some(&bad) = rows.iter().find(|&&i| cmd[k][i] != point[k]) {
+                    bail!(
+                        "{}: the commanded tool point differs within group `{}` (first row {})",
+                        ds.locate(["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"][k], bad),
+                        key.replace('\u{1f}', ","),
+                        labels[rows[0]]
+                    );
+                }
+            }
+            let gt: Vec<Touch> = rows.iter().map(|&i| touches[i]).collect();
+            for (k, t) in gt.iter().enumerate() {
+                cal.check_touch(t)
+                    .map_err(|why| anyhow::anyhow!("{}: {why}", labels[rows[k]]))?;
+            }
+            let gname = key.replace('\u{1f}', ",");
+            let radius = args.sphere_diameter_mm / 2.0;
+            let (_, r) = radial_about_fitted_centre(cal, &gt, radius)
+                .with_context(|| format!("group `{gname}`"))?;
+            // Glitches of this pose's touches: flagged like the calibration's, listed, not used.
+            let flags = robust_flags(&r, args.outlier_mad);
+            let kept: Vec<Touch> = (0..gt.len())
+                .filter(|&k| !flags[k])
+                .map(|k| gt[k])
+                .collect();
+            let flagged: Vec<String> = (0..gt.len())
+                .filter(|&k| flags[k])
+                .map(|k| labels[rows[k]].clone())
+                .collect();
+            let s = fit_center(cal, &kept, radius).with_context(|| format!("group `{gname}`"))?;
+            let values: Vec<String> = key.split('\u{1f}').map(str::to_string).collect();
+            group_rows.push((point, values, s, kept.len(), flagged));
+        }
+    }
+
+    // ---- outputs: everything computed; now write ----
+    let pretravel_table: Vec<serde_json::Value> = {
+        let mut v = Vec::new();
+        let els: Vec<f64> = match &cal.structure {
+            axcomp_probe::Structure::Bilinear {
+                elevation_nodes_deg,
+                ..
+            } => elevation_nodes_deg.clone(),
+            _ => vec![0.0, 30.0, 60.0, 90.0],
+        };
+        let feeds = if cal.feed_range_mm_min[1] > cal.feed_range_mm_min[0] {
+            vec![0.0, cal.feed_range_mm_min[0], cal.feed_range_mm_min[1]]
+        } else {
+            vec![cal.feed_range_mm_min[0]]
+        };
+        for &el in &els {
+            for k in 0..12 {
+                let az = 30.0 * k as f64;
+                if el >= 89.9 && k > 0 {
+                    break;
+                }
+                for &f in &feeds {
+                    let d = DirSpeed {
+                        t: el.to_radians().sin(),
+                        theta: az.to_radians(),
+                        v: f / 60.0,
+                    };
+                    v.push(
+                        json!({ "azimuth_deg": az, "elevation_deg": el, "feed_mm_min": f,
+                                   "pretravel_um": cal.pretravel_um(d) }),
+                    );
+                }
+            }
+        }
+        v
+    };
+    let speed_slope = |c: &Calibration| -> f64 {
+        // Mean over the calibration directions of d(pretravel)/dv, µm per mm/s.
+        let d = DirSpeed {
+            t: 0.5f64.sqrt(),
+            theta: 0.0,
+            v: 1.0,
+        };
+        -c.structure.speed_part(&c.coef_mm, d) * 1000.0
+    };
+    let report = json!({
+        "sphere_center_mm": cal.sphere_center_mm,
+        "sphere_diameter_mm": args.sphere_diameter_mm,
+        "stylus_radius_mm": cal.stylus_radius_mm,
+        "pretravel": {
+            "model": cal.structure.name(),
+            "structure": cal.structure,
+            "coefficients_mm": cal.coef_mm,
+            "speed_um_per_mm_s": speed_slope(cal),
+            "definition": "pretravel_um = (stylus_radius_mm − r_eff(n, v))·1000; direction = surface normal n = −approach (azimuth, elevation); v = feed_mm_min/60",
+            "table": pretravel_table,
+            "cv": res.candidates,
+            "chosen_why": res.why,
+        },
+        "repeatability_2sigma_um": res.repeatability_2sigma_um,
+        "repeat_groups": res.repeat_groups,
+        "fit_rms_um": cal.fit_rms_um,
+        "holdout_rms_um": holdout_rms,
+        "holdout_rms_before_um": (!test.is_empty()).then(|| rms(&before_res)),
+        "holdout_rms_reference_um": (!test.is_empty()).then(|| rms(&ref_res)),
+        "diameter_error_um": {
+            "before": de(&before_cal),
+            "after": de(cal),
+            "reference_bilinear": de(&res.reference),
+            "plain_one_radius": de(&res.plain),
+            "on": on,
+            "artefact_diameter_mm": eval_d,
+            "before_method": before_method,
+        },
+        "outliers": res.outliers,
+        "holdout_outliers": eval_outliers,
+        "fit": {
+            "algebraic": sphere_json(&res.algebraic),
+            "geometric_free_radius": sphere_json(&res.geometric_free),
+            "reference_bilinear_fit_rms_um": res.reference.fit_rms_um,
+            "plain_fit_rms_um": res.plain.fit_rms_um,
+        },
+        "touches": ds.n_rows(),
+        "calibration_touches": train.len(),
+        "holdout_touches": test.len(),
+        "groups": group_rows.iter().map(|(p, v, s, n, flagged)| json!({
+            "group": v, "touches": n, "outliers": flagged, "commanded_mm": p, "center_mm": s.center_mm, "rms_um": s.rms_um,
+            "dx_um": (s.center_mm[0] - p[0]) * 1000.0, "dy_um": (s.center_mm[1] - p[1]) * 1000.0,
+            "dz_um": (s.center_mm[2] - p[2]) * 1000.0 })).collect::<Vec<_>>(),
+    });
+
+    let centres_csv = args.centres_out.as_ref().map(|_| {
+        let mut s = String::from("x_mm,y_mm,z_mm");
+        for c in &args.group {
+            s.push(',');
+            s.push_str(c);
+        }
+        s.push_str(",dx_um,dy_um,dz_um\n");
+        for (p, v, c, _, _) in &group_rows {
+            let _ = write!(s, "{},{},{}", p[0], p[1], p[2]);
+            for x in v {
+                let _ = write!(s, ",{x}");
+            }
+            let _ = writeln!(
+                s,
+                ",{},{},{}",
+                (c.center_mm[0] - p[0]) * 1000.0,
+                (c.center_mm[1] - p[1]) * 1000.0,
+                (c.center_mm[2] - p[2]) * 1000.0
+            );
+        }
+        s
+    });
+
+    if let Some(dir) = &args.report {
+        write_report(
+            dir,
+            &res,
+            &tr_touches,
+            &eval_touches,
+            eval_d,
+            &before_cal,
+            &report,
+        )?;
+    }
+    if let (Some(p), Some(text)) = (&args.centres_out, &centres_csv) {
+        write_atomic(p, text.as_bytes())?;
+    }
+    if let Some(p) = &args.out {
+        write_atomic(p, cal.to_json().as_bytes())?;
+    }
+    if let Some(p) = &args.json {
+        write_json(p, &report)?;
+    }
+    let f = |v: Option<f64>| v.map_or("–".to_string(), |x| format!("{x:+.3}"));
+    println!(
+        "fit probe: {} touches ({} outliers), model {}; centre [{:.4}, {:.4}, {:.4}] mm, stylus radius {:.4} mm",
+        train.len(),
+        res.outliers.len(),
+        cal.structure.name(),
+        cal.sphere_center_mm[0],
+        cal.sphere_center_mm[1],
+        cal.sphere_center_mm[2],
+        cal.stylus_radius_mm
+    );
+    println!(
+        "  fit RMS {:.3} µm; repeatability 2σ {}; diameter error on {on}: before {} µm, after {} µm{}",
+        cal.fit_rms_um,
+        res.repeatability_2sigma_um
+            .map_or("–".into(), |r| format!("{r:.3} µm")),
+        f(de(&before_cal)),
+        f(de(cal)),
+        holdout_rms.map_or(String::new(), |r| format!("; holdout RMS {r:.3} µm"))
+    );
+    Ok(())
+}
+
+fn write_report(
+    dir: &std::path::Path,
+    res: &CalibrationResult,
+    touches: &[Touch],
+    eval_touches: &[Touch],
+    eval_d: f64,
+    before_cal: &Calibration,
+    report: &serde_json::Value,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let cal = &res.calibration;
+    // Radial residual over the sphere: azimuth on x, one series per elevation ring.
+    // Per elevation ring (0.1°): azimuths, residuals after, residuals with one radius.
+    type Ring = (Vec<f64>, Vec<f64>, Vec<f64>);
+    let mut rings: BTreeMap<i64, Ring> = BTreeMap::new();
+    let out: Vec<usize> = res.outliers.iter().map(|o| o.index).collect();
+    let radius = cal.sphere_diameter_mm / 2.0;
+    let plain_c = res.plain.sphere_center_mm;
+    for (i, t) in touches.iter().enumerate() {
+        if out.contains(&i) {
+            continue;
+        }
+        let d = t.dir_speed();
+        let e = rings
+            .entry((d.elevation_deg() * 10.0).round() as i64)
+            .or_default();
+        e.0.push(d.azimuth_deg());
+        e.1.push(res.residual_um[i]);
+        let dist = ((t.position_mm[0] - plain_c[0]).powi(2)
+            + (t.position_mm[1] - plain_c[1]).powi(2)
+            + (t.position_mm[2] - plain_c[2]).powi(2))
+        .sqrt();
+        e.2.push((dist - radius - res.plain.effective_radius_mm(t)) * 1000.0);
+    }
+    let mut after = Figure::new(
+        "Radial residual over the sphere after correction (chosen model)",
+        "azimuth of the surface normal / deg",
+        "radial residual / µm",
+    );
+    let mut before = Figure::new(
+        "Radial residual over the sphere with one effective radius (plain method)",
+        "azimuth of the surface normal / deg",
+        "radial residual / µm",
+    );
+    for (el, (az, r_after, r_plain)) in &rings {
+        let name = format!("elevation {:.1}°", *el as f64 / 10.0);
+        after.points(&name, az, r_after);
+        before.points(&name, az, r_plain);
+    }
+    after.hline(0.0, "");
+    before.hline(0.0, "");
+    after.save_svg(dir.join("residual_map.svg"))?;
+    before.save_svg(dir.join("residual_map_plain.svg"))?;
+
+    // Pretravel versus speed: measured (stylus radius − |p − C| + R) per touch, model at a few directions.
+    let mut pv = Figure::new(
+        "Pretravel versus probing speed",
+        "feed / mm/min",
+        "pretravel / µm",
+    );
+    let c = cal.sphere_center_mm;
+    let (fx, fy): (Vec<f64>, Vec<f64>) = touches
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !out.contains(i))
+        .map(|(_, t)| {
+            let dist = ((t.position_mm[0] - c[0]).powi(2)
+                + (t.position_mm[1] - c[1]).powi(2)
+                + (t.position_mm[2] - c[2]).powi(2))
+            .sqrt();
+            (
+                t.feed_mm_min,
+                (cal.stylus_radius_mm - (dist - radius)) * 1000.0,
+            )
+        })
+        .unzip();
+    pv.points("touches", &fx, &fy);
+    let fmax = cal.feed_range_mm_min[1].max(1.0) * 1.5;
+    let feeds: Vec<f64> = (0..=20).map(|k| fmax * k as f64 / 20.0).collect();
+    for (az, el) in [(0.0, 0.0), (60.0, 0.0), (0.0, 45.0), (0.0, 90.0)] {
+        let ys: Vec<f64> = feeds
+            .iter()
+            .map(|f| {
+                cal.pretravel_um(DirSpeed {
+                    t: f64::sin(f64::to_radians(el)),
+                    theta: f64::to_radians(az),
+                    v: f / 60.0,
+                })
+            })
+            .collect();
+        pv.dashed(&format!("model az {az}° el {el}°"), &feeds, &ys);
+    }
+    pv.save_svg(dir.join("pretravel_speed.svg"))?;
+
+    // Diameter error by speed on the evaluation rows: before, reference, after.
+    let mut speeds: Vec<f64> = eval_touches.iter().map(|t| t.feed_mm_min).collect();
+    speeds.sort_by(f64::total_cmp);
+    speeds.dedup();
+    let mut dfig = Figure::new(
+        "Diameter error by probing speed",
+        "feed / mm/min",
+        "diameter error / µm",
+    );
+    let mut rows_md = Vec::new();
+    let mut series: [(String, Vec<f64>); 3] = [
+        ("before".into(), Vec::new()),
+        ("bilinear reference".into(), Vec::new()),
+        ("after".into(), Vec::new()),
+    ];
+    let mut xs = Vec::new();
+    for &f in &speeds {
+        let ts: Vec<Touch> = eval_touches
+            .iter()
+            .copied()
+            .filter(|t| t.feed_mm_min == f)
+            .collect();
+        let cals = [before_cal, &res.reference, cal];
+        let vals: Vec<Option<f64>> = cals
+            .iter()
+            .map(|c| {
+                measured_diameter_mm(&ts, |t| c.effective_radius_mm(t))
+                    .ok()
+                    .map(|s| (2.0 * s.radius_mm - eval_d) * 1000.0)
+            })
+            .collect();
+        if vals.iter().all(Option::is_some) {
+            xs.push(f);
+            for (k, v) in vals.iter().enumerate() {
+                series[k].1.push(v.unwrap());
+            }
+            rows_md.push(vec![
+                format!("{f}"),
+                format!("{}", ts.len()),
+                format!("{:+.3}", vals[0].unwrap()),
+                format!("{:+.3}", vals[1].unwrap()),
+                format!("{:+.3}", vals[2].unwrap()),
+            ]);
+        }
+    }
+    for (name, ys) in &series {
+        dfig.line(name, &xs, ys);
+    }
+    dfig.hline(0.0, "");
+    dfig.save_svg(dir.join("diameter_error.svg"))?;
+
+    let de = &report["diameter_error_um"];
+    let num = |v: &serde_json::Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:+.3}"));
+    let mut md = String::new();
+    let _ = writeln!(md, "# Probe calibration\n");
+    let _ = writeln!(
+        md,
+        "Sphere centre [{:.4}, {:.4}, {:.4}] mm, Ø{} mm; stylus (effective) radius {:.4} mm at zero speed.\n",
+        cal.sphere_center_mm[0],
+        cal.sphere_center_mm[1],
+        cal.sphere_center_mm[2],
+        cal.sphere_diameter_mm,
+        cal.stylus_radius_mm
+    );
+    let _ = writeln!(md, "Model: **{}** — {}.\n", cal.structure.name(), res.why);
+    let cand: Vec<Vec<String>> = res
+        .candidates
+        .iter()
+        .map(|c| {
+            vec![
+                c.model.clone(),
+                c.coefficients.to_string(),
+                format!("{:.3}", c.cv_rms_um),
+            ]
+        })
+        .collect();
+    let _ = writeln!(
+        md,
+        "{}",
+        markdown_table(&["candidate", "coefficients", "CV RMS / µm"], &cand)
+    );
+    let _ = writeln!(
+        md,
+        "\nFit RMS {:.3} µm; repeatability 2σ {}; {} outliers (listed in the JSON).\n",
+        cal.fit_rms_um,
+        res.repeatability_2sigma_um
+            .map_or("– (no repeated touches)".into(), |r| format!("{r:.3} µm")),
+        res.outliers.len()
+    );
+    let _ = writeln!(
+        md,
+        "## Diameter error (on the {} rows, Ø{} mm)\n",
+        de["on"].as_str().unwrap_or(""),
+        eval_d
+    );
+    let _ = writeln!(
+        md,
+        "{}",
+        markdown_table(
+            &[
+                "before",
+                "bilinear reference",
+                "plain (one radius)",
+                "after"
+            ],
+            &[vec![
+                num(&de["before"]),
+                num(&de["reference_bilinear"]),
+                num(&de["plain_one_radius"]),
+                num(&de["after"]),
+            ]]
+        )
+    );
+    let _ = writeln!(
+        md,
+        "\n\"before\" = {}.\n",
+        de["before_method"].as_str().unwrap_or("")
+    );
+    let _ = writeln!(
+        md,
+        "{}",
+        markdown_table(
+            &[
+                "feed / mm/min",
+                "touches",
+                "before / µm",
+                "bilinear / µm",
+                "after / µm"
+            ],
+            &rows_md
+        )
+    );
+    let _ = writeln!(
+        md,
+        "\n![diameter error](diameter_error.svg)\n\n## Radial residual over the sphere\n\nEach point is a touch at \
+         the azimuth of its surface normal, one series per elevation ring.\n\n![after](residual_map.svg)\n\n\
+         ![plain](residual_map_plain.svg)\n\n## Pretravel versus speed\n\n![pretravel](pretravel_speed.svg)"
+    );
+    write_atomic(&dir.join("report.md"), md.as_bytes())?;
+    Ok(())
+}
+
+/// `axcomp sim-probe`: touches of the twin's probe (`axcomp_twin::probe`) as a touch CSV. Kept in this module
+/// (not in `sim.rs`) so that `axcomp sim --plan probe-cal|probe-measure` can call it later.
+#[derive(Debug, clap::Args)]
+pub struct SimArgs {
+    /// `probe-cal` (Ø25 mm sphere, rings at 0/22.5/45/67.5/90°, 24 azimuths, 100/300/600 mm/min, 2 runs) or
+    /// `probe-measure` (a Ø19.05 mm sphere, a Ø50 mm ring gauge and a plane at --feed).
+    #[arg(long, value_name = "PLAN")]
+    pub plan: String,
+    /// Output touch CSV.
+    #[arg(long, value_name = "F.csv")]
+    pub out: PathBuf,
+    /// Probing speed of `probe-measure`, mm/min.
+    #[arg(long, default_value_t = 450.0, value_name = "F")]
+    pub feed: f64,
+    /// Repeats of the plan.
+    #[arg(long, value_name = "N")]
+    pub repeats: Option<u32>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// No bounce and no false triggers.
+    #[arg(long)]
+    pub no_glitches: bool,
+    /// Per-row truth (surface point, normal, pretravel, kind) as CSV.
+    #[arg(long, value_name = "F.csv")]
+    pub truth: Option<PathBuf>,
+}
+
+/// Runs `axcomp sim-probe`.
+pub fn sim_probe(args: SimArgs) -> anyhow::Result<()> {
+    use axcomp_twin::probe::{ProbeModel, ProbePlan, TouchKind, simulate_touches, touches_csv};
+    let plan = match args.plan.as_str() {
+        "probe-cal" | "cal" => {
+            let mut p = ProbePlan::standard_calibration();
+            if let Some(r) = args.repeats {
+                p = ProbePlan::calibration(
+                    [100.0, 50.0, 20.0],
+                    25.0,
+                    &[0.0, 22.5, 45.0, 67.5, 90.0],
+                    24,
+                    &[100.0, 300.0, 600.0],
+                    r,
+                );
+            }
+            p
+        }
+        "probe-measure" | "measure" => {
+            if !(args.feed.is_finite() && args.feed > 0.0) {
+                bail!("--feed {}: must be > 0", args.feed);
+            }
+            ProbePlan::measurement(args.feed, args.repeats.unwrap_or(1))
+        }
+        other => bail!("--plan `{other}`: expected probe-cal or probe-measure"),
+    };
+    if args.repeats == Some(0) {
+        bail!("--repeats must be ≥ 1");
+    }
+    let mut probe = ProbeModel::kinematic_demo();
+    if args.no_glitches {
+        probe = probe.without_glitches();
+    }
+    let t = simulate_touches(&probe, &plan, args.seed);
+    let csv = touches_csv(&t);
+    let truth = args.truth.as_ref().map(|_| {
+        let mut s = String::from(
+            "surface_x_mm,surface_y_mm,surface_z_mm,normal_x,normal_y,normal_z,pretravel_um,kind\n",
+        );
+        for x in &t {
+            let kind = match x.kind {
+                TouchKind::Good => "good",
+                TouchKind::Bounce => "bounce",
+                TouchKind::FalseTrigger => "false_trigger",
+            };
+            let _ = writeln!(
+                s,
+                "{:.7},{:.7},{:.7},{:.9},{:.9},{:.9},{:.4},{kind}",
+                x.surface_mm[0],
+                x.surface_mm[1],
+                x.surface_mm[2],
+                x.normal[0],
+                x.normal[1],
+                x.normal[2],
+                x.pretravel_um
+            );
+        }
+        s
+    });
+    if let (Some(p), Some(text)) = (&args.truth, &truth) {
+        write_atomic(p, text.as_bytes())?;
+    }
+    write_atomic(&args.out, csv.as_bytes())?;
+    println!(
+        "sim-probe: {} touches ({} bounce / false-trigger rows) → {}",
+        t.len(),
+        t.iter().filter(|x| x.kind != TouchKind::Good).count(),
+        args.out.display()
+    );
+    Ok(())
+}

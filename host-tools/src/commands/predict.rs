@@ -1,0 +1,290 @@
+//! `axcomp predict`: apply any fitted model file to the rows of a measurement CSV and write them back with
+//! the model's predictions added as columns (contract: "Any fitted model: `axcomp predict`").
+//!
+//! Model kinds, told apart by the file's `format` field:
+//! - positioning table (`axcomp-positioning-table/1`, `axcomp fit positioning --out`): inputs `target_mm`
+//!   (and `direction` for a bidirectional table) → `pred_deviation_um`; a target outside the table's stroke
+//!   is an error naming the row (the table holds end values there, which is not a prediction).
+//! - thermal model (`axcomp-thermal-model/1`, `axcomp fit thermal --out`): inputs the sensors' `<name>_degC`,
+//!   `time_s` when a sensor has a lag, the force columns (or `ap_mm`, `fz_mm` and one `*_rpm` column for a
+//!   force given by a law) → `pred_<target>`. The lags run over the rows in file order exactly as in the fit
+//!   (start in equilibrium with the first row, restart where time does not increase). A temperature outside
+//!   the model's plausibility range is an error naming the row (the firmware would reject it too).
+//! - probe calibration (`axcomp-probe-calibration/1`, `axcomp fit probe --out`): inputs `x_mm, y_mm, z_mm,
+//!   approach_x, approach_y, approach_z` and `feed_mm_min` when the calibration depends on the speed →
+//!   `contact_x_mm, contact_y_mm, contact_z_mm`, the touch corrected to the surface point.
+//!
+//! Nothing is half-written: the output goes to a temporary file beside the target and is renamed.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use axcomp_data::Dataset;
+use axcomp_positioning::TableFile;
+use axcomp_probe::{Calibration, Touch};
+use axcomp_thermal::model_file::ThermalModelFile;
+
+use crate::cli::DataArgs;
+use crate::commands::common::{load_dataset, write_atomic};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A model file written by a `fit` command (positioning table, thermal model, probe calibration).
+    #[arg(long, value_name = "MODEL")]
+    pub model: PathBuf,
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// Output CSV: the input rows with the prediction columns added.
+    #[arg(long, value_name = "F.csv")]
+    pub out: PathBuf,
+}
+
+/// The kind of a model file, from its `format` field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelKind {
+    Positioning,
+    Thermal,
+    Probe,
+}
+
+/// Reads the `format` field of a model file.
+pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a JSON model file", path.display()))?;
+    let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
+    Ok(match format {
+        axcomp_positioning::table_file::FORMAT => ModelKind::Positioning,
+        axcomp_thermal::model_file::FORMAT => ModelKind::Thermal,
+        axcomp_probe::FORMAT => ModelKind::Probe,
+        other => bail!(
+            "{}: unknown model format `{other}` (expected {}, {} or {})",
+            path.display(),
+            axcomp_positioning::table_file::FORMAT,
+            axcomp_thermal::model_file::FORMAT,
+            axcomp_probe::FORMAT
+        ),
+    })
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let kind = model_kind(&args.model)?;
+    let mut ds = load_dataset(&args.data)?;
+    let added = match kind {
+        ModelKind::Positioning => {
+            let table = TableFile::load(&args.model)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", args.model.display()))?;
+            predict_positioning(&table, &mut ds)?
+        }
+        ModelKind::Thermal => {
+            let model = ThermalModelFile::load(&args.model)?;
+            predict_thermal(&model, &mut ds)?
+        }
+        ModelKind::Probe => {
+            let p = args.model.display().to_string();
+            let text = std::fs::read_to_string(&args.model)
+                .with_context(|| format!("{p}: cannot read"))?;
+            let cal = Calibration::from_json(&p, &text)?;
+            predict_probe(&cal, &mut ds)?
+        }
+    };
+    write_atomic(&args.out, ds.to_csv_string().as_bytes())?;
+    println!(
+        "predict: {} rows, added {} → {}",
+        ds.n_rows(),
+        added.join(", "),
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn row_name(ds: &Dataset, row: usize) -> String {
+    format!("{}:{} (row {})", ds.source(), ds.line_of_row(row), row + 1)
+}
+
+/// Adds `pred_deviation_um`.
+pub fn predict_positioning(table: &TableFile, ds: &mut Dataset) -> anyhow::Result<Vec<String>> {
+    let x = ds.numeric("target_mm")?.to_vec();
+    let dir = ds.direction()?;
+    if !table.backward.is_empty() && dir.is_none() {
+        bail!(
+            "{}: missing column `direction`: the table is bidirectional (forward and backward), so every row \
+             needs its approach direction",
+            ds.source()
+        );
+    }
+    let (lo, hi) = (table.start_mm, table.end_mm());
+    let tol = 1e-9 * (hi - lo).abs().max(1.0);
+    let mut pred = Vec::with_capacity(x.len());
+    for (i, &xi) in x.iter().enumerate() {
+        if !xi.is_finite() {
+            bail!("{}: target_mm is {xi}", ds.locate("target_mm", i));
+        }
+        if xi < lo - tol || xi > hi + tol {
+            bail!(
+                "{}: target_mm {xi} is outside the table's stroke [{lo}, {hi}] mm; the model cannot predict it",
+                row_name(ds, i)
+            );
+        }
+        let d = dir.as_ref().map_or(0, |d| d[i]);
+        pred.push(table.deviation_um(xi, d));
+    }
+    ds.add_numeric_column("pred_deviation_um", pred)?;
+    Ok(vec!["pred_deviation_um".into()])
+}
+
+/// Adds `pred_<target>`.
+pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result<Vec<String>> {
+    let n = ds.n_rows();
+    let needs_time = m.sensors.iter().any(|s| s.tau_s > 0.0);
+    let time: Vec<f64> = if needs_time {
+        if !ds.has("time_s") {
+            bail!(
+                "{}: missing column `time_s` (or `time`): the model's sensor lags need the time of each row",
+                ds.source()
+            );
+        }
+        let t = ds.numeric("time_s")?.to_vec();
+        if let Some(i) = t.iter().position(|v| !v.is_finite()) {
+            bail!("{}: time_s is {}", ds.locate("time_s", i), t[i]);
+        }
+        t
+    } else {
+        vec![0.0; n]
+    };
+    let mut pred = vec![m.b0_um; n];
+    for s in &m.sensors {
+        let col = format!("{}_degC", s.name);
+        let v = ds.numeric(&col)?.to_vec();
+        for (i, &t) in v.iter().enumerate() {
+            if !(t >= s.min_degc && t <= s.max_degc) {
+                bail!(
+                    "{}: {t} °C is outside the model's plausible range [{}, {}] °C for sensor `{}`; the model \
+                     cannot predict this row",
+                    ds.locate(&col, i),
+                    s.min_degc,
+                    s.max_degc,
+                    s.name
+                );
+            }
+        }
+        let l = axcomp_thermal::lag::lag(&time, &v, s.tau_s);
+        for (p, y) in pred.iter_mut().zip(l) {
+            *p += s.coef_um_per_k * (y - s.reference_degc);
+        }
+    }
+    for f in &m.forces {
+        let force: Vec<f64> = match &f.law {
+            None => {
+                let v = ds.numeric(&f.column)?.to_vec();
+                if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                    bail!("{}: force is {}", ds.locate(&f.column, i), v[i]);
+                }
+                v
+            }
+            Some(law) => {
+                let ap = ds.numeric("ap_mm")?.to_vec();
+                let fz = ds.numeric("fz_mm")?.to_vec();
+                let rpm_cols: Vec<String> = ds
+                    .column_names()
+                    .into_iter()
+                    .filter(|c| c.ends_with("_rpm"))
+                    .map(str::to_string)
+                    .collect();
+                let nn: Vec<f64> = match rpm_cols.as_slice() {
+                    [c] => ds.numeric(c)?.to_vec(),
+                    [] if law.z_n == 0.0 => vec![1.0; n],
+                    [] => bail!(
+                        "{}: missing a `*_rpm` column: the force law of `{}` depends on the spindle speed",
+                        ds.source(),
+                        f.column
+                    ),
+                    many => bail!(
+                        "{}: several `*_rpm` columns ({}): keep one (e.g. with --rename)",
+                        ds.source(),
+                        many.join(", ")
+                    ),
+                };
+                let mut out = Vec::with_capacity(n);
+                for i in 0..n {
+                    let v =
+                        law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n);
+                    if !v.is_finite() {
+                        bail!(
+                            "{}: the force law of `{}` gives no finite force for ap_mm {}, fz_mm {}, n {}",
+                            row_name(ds, i),
+                            f.column,
+                            ap[i],
+                            fz[i],
+                            nn[i]
+                        );
+                    }
+                    out.push(v);
+                }
+                out
+            }
+        };
+        for (p, v) in pred.iter_mut().zip(force) {
+            *p += f.chi_um_per_n * v;
+        }
+    }
+    let name = format!("pred_{}", m.target);
+    ds.add_numeric_column(&name, pred)?;
+    Ok(vec![name])
+}
+
+/// Reads the touch columns (names the cell of a non-numeric value). `feed_mm_min` is 0 when absent.
+pub fn read_touches(ds: &Dataset) -> anyhow::Result<(Vec<Touch>, Vec<String>)> {
+    let col = |c: &str| -> anyhow::Result<Vec<f64>> { Ok(ds.numeric(c)?.to_vec()) };
+    let (x, y, z) = (col("x_mm")?, col("y_mm")?, col("z_mm")?);
+    let (ax, ay, az) = (col("approach_x")?, col("approach_y")?, col("approach_z")?);
+    let feed = if ds.has("feed_mm_min") {
+        col("feed_mm_min")?
+    } else {
+        vec![0.0; ds.n_rows()]
+    };
+    let touches = (0..ds.n_rows())
+        .map(|i| Touch {
+            position_mm: [x[i], y[i], z[i]],
+            approach: [ax[i], ay[i], az[i]],
+            feed_mm_min: feed[i],
+        })
+        .collect();
+    let labels = (0..ds.n_rows()).map(|i| row_name(ds, i)).collect();
+    Ok((touches, labels))
+}
+
+/// Adds `contact_x_mm, contact_y_mm, contact_z_mm`.
+pub fn predict_probe(cal: &Calibration, ds: &mut Dataset) -> anyhow::Result<Vec<String>> {
+    if cal.structure.has_speed() && !ds.has("feed_mm_min") {
+        bail!(
+            "{}: missing column `feed_mm_min`: the calibration's pretravel depends on the probing speed",
+            ds.source()
+        );
+    }
+    if !ds.has("feed_mm_min") && cal.feed_range_mm_min[1] > 0.0 {
+        bail!(
+            "{}: missing column `feed_mm_min`: the calibration was made at {} … {} mm/min and holds only there",
+            ds.source(),
+            cal.feed_range_mm_min[0],
+            cal.feed_range_mm_min[1]
+        );
+    }
+    let (touches, labels) = read_touches(ds)?;
+    axcomp_probe::validate_touches(&touches, &labels)?;
+    let mut out = [Vec::new(), Vec::new(), Vec::new()];
+    for (i, t) in touches.iter().enumerate() {
+        cal.check_touch(t)
+            .map_err(|why| anyhow::anyhow!("{}: {why}", labels[i]))?;
+        let c = cal.contact_mm(t);
+        for k in 0..3 {
+            out[k].push(c[k]);
+        }
+    }
+    let names = ["contact_x_mm", "contact_y_mm", "contact_z_mm"];
+    for (name, v) in names.iter().zip(out) {
+        ds.add_numeric_column(name, v)?;
+    }
+    Ok(names.iter().map(|s| s.to_string()).collect())
+}
