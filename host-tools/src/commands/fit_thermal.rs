@@ -59,13 +59,20 @@ pub struct Args {
     /// Write the model file (input of `axcomp image build --thermal`).
     #[arg(long, value_name = "MODEL.json")]
     pub out: Option<PathBuf>,
-    /// Fit a first-order lag (time constant) per selected sensor.
+    /// With --select: fit a first-order lag (time constant) per selected sensor. The default choice always has
+    /// lagged candidates (unless --no-lags).
     #[arg(long)]
     pub lags: bool,
-    /// Ridge penalty on the standardized coefficients: a number λ ≥ 0, or `auto` (chosen by inner CV).
+    /// Leave lagged candidates out of the default choice.
+    #[arg(long, conflicts_with = "lags")]
+    pub no_lags: bool,
+    /// Ridge penalty on the standardized coefficients: a number λ ≥ 0 (applied to the chosen structure; no
+    /// shrinkage candidates), or `auto` (default: ridge and elastic net are candidates of the default choice;
+    /// with --select, λ chosen by inner CV).
     #[arg(long, value_name = "λ|auto")]
     pub ridge: Option<String>,
-    /// Sensor selection: auto (lower nested CV error), fcm-gra, forward, all (no selection).
+    /// Model choice: auto (the candidate with the lowest transfer-validation RMS), or a forced selection that
+    /// runs only itself: fcm-gra, forward, all (every sensor; plain least squares, with --lags per-sensor lags).
     #[arg(long = "select", default_value = "auto", value_name = "METHOD")]
     pub select: String,
     /// Most sensors in the model (1..=16).
@@ -91,8 +98,10 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     // ---- validate options before reading anything ----
+    let forced_selection = args.select != "auto";
     let ridge = match args.ridge.as_deref() {
-        None => Ridge::Off,
+        None if forced_selection => Ridge::Off,
+        None => Ridge::Auto,
         Some("auto") => Ridge::Auto,
         Some(s) => match s.parse::<f64>() {
             Ok(l) if l >= 0.0 && l.is_finite() => Ridge::Fixed(l),
@@ -109,11 +118,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.sensor_period_ms == 0 {
         bail!("--sensor-period-ms must be > 0");
     }
+    if let Some(0) = args.zero_at_start {
+        bail!("--zero-at-start 0: must be at least 1");
+    }
     let opts = ThermalOptions {
-        lags: args.lags,
+        // The default choice always compares lagged candidates (unless --no-lags); a forced selection fits
+        // lags only with --lags.
+        lags: if forced_selection {
+            args.lags
+        } else {
+            !args.no_lags
+        },
         ridge,
         max_sensors: args.max_sensors,
         selection,
+        reference_rows: args.zero_at_start.unwrap_or(1),
         ..ThermalOptions::default()
     }
     .build()?;
@@ -265,10 +284,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         fit.chosen_method,
         fit.why
     );
+    for c in &fit.candidates {
+        println!(
+            "  candidate {:<13} validation RMS {:>10.4} µm{}{}{}",
+            c.name,
+            c.validation_rms_um,
+            if !c.eligible {
+                "  (reported only: one regime)"
+            } else if c.beats_reference {
+                "  (beats plain LS by > 1 SE)"
+            } else {
+                ""
+            },
+            c.holdout_rms_um
+                .map_or(String::new(), |h| format!("  (held-out {h:.4} µm)")),
+            if c.chosen { "  ← chosen" } else { "" }
+        );
+    }
     match fit.holdout_rms_um {
         Some(h) => println!(
-            "held-out RMS: raw {:.3} µm → {:.3} µm ({} rows)",
-            fit.raw_rms_um, h, fit.holdout_rows
+            "held-out RMS: raw {:.3} µm → {:.3} µm ({} rows; raw = target − {:.3} µm, its reference value)",
+            fit.raw_rms_um, h, fit.holdout_rows, fit.raw_reference_um
         ),
         None => println!(
             "RMS: raw {:.3} µm, training residual {:.3} µm",
@@ -297,14 +333,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_thermal_report(dir, &fit, &input, &args.target)
             .with_context(|| format!("writing the report into {}", dir.display()))?;
     }
-    if let Some(out) = &args.out {
-        if !write_model {
-            bail!(
-                "do-no-harm guard: {}; the model was not written to {} (use --force to write it anyway)",
-                fit.guard.reason,
-                out.display()
-            );
+    if !fit.guard.passed && !args.force {
+        return Err(crate::Refused {
+            code: crate::EXIT_GUARD_REFUSED,
+            reason: match &args.out {
+                Some(out) => format!(
+                    "do-no-harm guard: {}; the model was not written to {} (use --force to write it anyway)",
+                    fit.guard.reason,
+                    out.display()
+                ),
+                None => format!("do-no-harm guard: {}", fit.guard.reason),
+            },
         }
+        .into());
+    }
+    if let Some(out) = &args.out {
         let mut file =
             ThermalModelFile::from_fit(&fit, &input, &args.target, args.sensor_period_ms);
         for (col, law) in &laws {
@@ -319,8 +362,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map_err(|e| anyhow::anyhow!("model not written: {e}"))?;
         file.save(out)?;
         println!("model written to {}", out.display());
-    } else if !fit.guard.passed {
-        eprintln!("warning: do-no-harm guard failed: {}", fit.guard.reason);
     }
     Ok(())
 }
