@@ -209,9 +209,15 @@ pub fn transfer_blocks(
 /// lagged copy is then only a function of the time since the start, which the data cannot tell from a lag.
 /// `values`, `time_s`: the sensor and the time on the training rows, in file order.
 pub fn lag_supported(time_s: &[f64], values: &[f64]) -> bool {
+    lag_support(time_s, values).0 >= 2
+}
+
+/// (episodes of change, duration of the longest one in seconds) of a sensor's training trace (see
+/// [`lag_supported`]).
+pub fn lag_support(time_s: &[f64], values: &[f64]) -> (usize, f64) {
     let m = values.len();
     if m < 10 {
-        return false;
+        return (0, 0.0);
     }
     let w = (m / 50).max(2);
     let smooth: Vec<f64> = (0..m)
@@ -233,7 +239,7 @@ pub fn lag_supported(time_s: &[f64], values: &[f64]) -> bool {
         .collect();
     let top = rate.iter().fold(0.0f64, |a, r| a.max(r.abs()));
     if top <= 0.0 {
-        return false;
+        return (0, 0.0);
     }
     let state: Vec<i8> = rate
         .iter()
@@ -258,7 +264,14 @@ pub fn lag_supported(time_s: &[f64], values: &[f64]) -> bool {
     let mut episodes = 0;
     let mut last_sign = 0i8;
     let mut rest_since_last = true;
+    let mut longest: f64 = 0.0;
+    let mut start = 0usize;
     for &(s, len) in &runs {
+        let from = start;
+        start += len;
+        if s != 0 && len >= w {
+            longest = longest.max(time_s[(from + len).min(m - 1)] - time_s[from]);
+        }
         if s == 0 {
             if len >= w {
                 rest_since_last = true;
@@ -274,7 +287,7 @@ pub fn lag_supported(time_s: &[f64], values: &[f64]) -> bool {
         last_sign = s;
         rest_since_last = false;
     }
-    episodes >= 2
+    (episodes, longest)
 }
 
 #[cfg(test)]

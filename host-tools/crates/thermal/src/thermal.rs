@@ -264,6 +264,11 @@ pub struct ValidationReport {
     pub raw_rms_um: f64,
 }
 
+/// With one episode of change in the training rows (a step, a single rise), a sensor's lag is tried only up
+/// to this fraction of that episode's duration: a longer lag of it is, on these rows, only a function of the
+/// time since the start.
+pub const LAG_CAP_FRACTION: f64 = 1.0 / 3.0;
+
 /// Elastic-net mixing α (0.5: half LASSO, half ridge).
 pub const ENET_ALPHA: f64 = 0.5;
 
@@ -389,6 +394,9 @@ pub struct ThermalFit {
     /// Per usable sensor: whether the training rows support a lag for it (two or more separate episodes of
     /// change; otherwise only τ = 0 is tried).
     pub lag_supported: Vec<(String, bool)>,
+    /// Per usable sensor (same order): the longest lag tried (s); `null` (infinite) with two or more
+    /// episodes of change.
+    pub lag_cap_s: Vec<f64>,
     /// How the inner CV grouped the training rows.
     pub inner_groups: String,
     pub per_condition: Vec<ConditionResidual>,
@@ -547,19 +555,28 @@ pub fn fit_thermal(
     let mut cands: Vec<Candidate> = vec![];
     let mut cols: Vec<Vec<f64>> = vec![];
     // A lag per sensor only where the training rows support one (see `blocks::lag_supported`).
-    let lag_ok: Vec<bool> = sens
+    let lag_cap: Vec<f64> = sens
         .iter()
         .map(|&si| {
             let v: Vec<f64> = train_idx
                 .iter()
                 .map(|&i| input.sensors[si].values[i])
                 .collect();
-            crate::blocks::lag_supported(&t_train, &v)
+            let (episodes, longest_s) = crate::blocks::lag_support(&t_train, &v);
+            if episodes >= 2 {
+                f64::INFINITY
+            } else {
+                LAG_CAP_FRACTION * longest_s
+            }
         })
+        .collect();
+    let lag_ok: Vec<bool> = lag_cap
+        .iter()
+        .map(|c| *c >= grid.get(1).copied().unwrap_or(f64::INFINITY))
         .collect();
     for (k, &si) in sens.iter().enumerate() {
         for &tau in &grid {
-            if tau > 0.0 && !lag_ok[k] {
+            if tau > lag_cap[k] {
                 continue;
             }
             let l = lag(&input.time_s, &input.sensors[si].values, tau);
@@ -1266,6 +1283,7 @@ pub fn fit_thermal(
         ridge_lambda: lambda,
         lags: opts.lags,
         lag_grid_s: grid,
+        lag_cap_s: lag_cap.clone(),
         lag_supported: sens
             .iter()
             .map(|&si| input.sensors[si].name.clone())
