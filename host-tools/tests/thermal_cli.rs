@@ -650,3 +650,73 @@ fn force_law_from_fit_force_goes_into_the_model_file() {
     ]);
     assert!(!ok && err.contains("x.json"), "{err}");
 }
+
+#[test]
+fn guard_refusal_exits_3_and_a_forced_selection_runs_only_itself() {
+    // The guard data of `guard_refuses_a_model_worse_than_raw`: the held-out rows keep warming while their
+    // error stays 0, so any thermal model is worse than raw there.
+    let dir = tmp_dir("exit3");
+    let csv = dir.join("g.csv");
+    let mut text = String::from("time_s,part,a_degC,b_degC,error_um\n");
+    for k in 0..60 {
+        let t = 20.0 + 0.1 * k as f64 + if k % 2 == 0 { 0.01 } else { -0.01 };
+        let (part, e) = if k < 40 {
+            ("train", t - 20.0)
+        } else {
+            ("late", 0.0)
+        };
+        text += &format!("{k},{part},{t},{},{e}\n", 20.0 + 0.05 * k as f64);
+    }
+    std::fs::write(&csv, text).unwrap();
+    let j = dir.join("g.json");
+    let args = [
+        "fit",
+        "thermal",
+        "--data",
+        csv.to_str().unwrap(),
+        "--target",
+        "error_um",
+        "--holdout",
+        "part=late",
+        "--json",
+        j.to_str().unwrap(),
+    ];
+    let out = bin().args(args).output().unwrap();
+    assert_eq!(out.status.code(), Some(3), "guard refusal must exit 3");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("refused") && err.contains("do-no-harm guard"),
+        "{err}"
+    );
+    let v = json(&j);
+    assert_eq!(v["guard"]["passed"], false);
+    // The default compared candidates; a forced selection compares none and runs no FCM.
+    assert!(v["candidates"].as_array().is_some_and(|c| c.len() >= 3));
+    let mut forced = args.to_vec();
+    forced.extend(["--select", "all", "--force"]);
+    let out = bin().args(&forced).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json(&j);
+    assert_eq!(v["candidates"].as_array().map(|c| c.len()), Some(0));
+    assert!(v["fcm_gra_detail"].is_null());
+    assert_eq!(v["fcm_gra"]["ran"], false);
+    assert_eq!(v["forward"]["ran"], false);
+    assert_eq!(v["chosen_method"], "all");
+    // Bad input exits 2.
+    let out = bin()
+        .args([
+            "fit",
+            "thermal",
+            "--data",
+            csv.to_str().unwrap(),
+            "--select",
+            "x",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}

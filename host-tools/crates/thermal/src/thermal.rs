@@ -7,12 +7,24 @@
 //!   jointly with the thermal terms (coupled thermo-force model).
 //! - **model**: `e = b0 + Σ b_s ΔT_s + Σ χ_f F_f`, the predicted error (µm), which the firmware subtracts.
 //! - **training / held-out rows**: `--holdout` rows are never used for fitting or selection, only to judge.
-//! - **inner CV**: leave-one-group-out over the training rows only (groups = `--cv` conditions, or contiguous
-//!   time blocks), used for selection, lag grid and ridge choice.
-//! - **nested CV**: to compare the two selection methods fairly, each method's whole selection is re-run
-//!   without the left-out group, then judged on it.
-//! - **do-no-harm guard**: the model must not be worse than no compensation (raw) on the held-out rows
-//!   (without `--holdout`: on the cross-validated training rows).
+//! - **raw**: the target minus its reference value (the mean of its first `reference_rows` rows, i.e. the
+//!   state where every ΔT = 0); every raw figure (held-out, training, per condition, validation) uses it.
+//! - **blocks**: the training rows cut by operating condition / thermal regime ([`crate::blocks`]); the inner
+//!   CV (lag grid, ridge and elastic-net λ, forward selection) leaves one block out at a time.
+//! - **transfer validation** (the default's model choice): every candidate procedure — plain least squares on
+//!   every sensor, every sensor with one lag per sensor, ridge, elastic net, greedy forward selection with
+//!   lags, FCM + GRA — is re-run without each block (all its own choices included) and predicts that block;
+//!   the default is the candidate with the lowest RMS over the blocks among those that beat plain least
+//!   squares by more than one standard error of the per-block paired difference (else plain least squares).
+//!   With a single regime among the training rows only plain least squares and every-sensor-with-lags are
+//!   eligible (the others are reported): these rows cannot show how dropping or shrinking collinear sensors
+//!   transfers to another regime.
+//! - **lag support**: a sensor whose training trace shows one episode of change (a step, a single rise) gets
+//!   lags only up to a third of that episode ([`LAG_CAP_FRACTION`]); with two or more episodes, any lag on the
+//!   grid.
+//! - **do-no-harm guard**: with held-out rows, the model's RMS on them must not exceed raw; without, the
+//!   default's validation RMS must not exceed raw over the same blocks (no candidate beats raw → refused), a
+//!   forced selection's leave-one-block-out RMS must not exceed raw on the training rows.
 
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -898,6 +910,10 @@ pub fn fit_thermal(
         c.beats_reference = beats_reference(k) && k != 0;
     }
     candidates[chosen_idx].chosen = true;
+    if requested {
+        // A forced selection compares nothing: no candidate table.
+        candidates.clear();
+    }
     let chosen_kind = kinds[chosen_idx];
     let chosen = finals[chosen_idx].clone();
     let table = candidates
