@@ -12,9 +12,16 @@
 //!      runs shorter than `max(10, rows / 50)` rows are merged into the run before them;
 //!   3. while there are fewer than B blocks (B = the `time_blocks` setting, 5), the longest block of at least twice that length is cut in two
 //!      halves in time (forward-in-time blocks inside one regime);
-//!   4. with fewer than 3 blocks after that (very short data), B equal contiguous blocks.
+//!   4. with fewer than 3 blocks after that (very short data), B equal contiguous blocks;
+//!   5. with more than [`MAX_BLOCKS`] blocks, consecutive conditions, or consecutive runs of one regime, share
+//!      a block (a block never mixes heating and cooling). The ±2 % smoothing itself resolves at most about
+//!      25 regime runs.
 //! - **time order** of blocks: by their first row; forward validation predicts each block from the blocks
 //!   before it only.
+
+/// Most validation blocks: beyond it, runs of one regime (or consecutive conditions) share a block, so the
+/// cost of the validation stays bounded on long campaigns.
+pub const MAX_BLOCKS: usize = 24;
 
 /// The validation blocks of the training rows.
 #[derive(Debug, Clone)]
@@ -64,12 +71,33 @@ pub fn transfer_blocks(
         }
         if names.len() >= 3 {
             let k = names.len();
+            // More than MAX_BLOCKS conditions: consecutive conditions (first-appearance order) share a block.
+            let b = k.min(MAX_BLOCKS);
+            let chunk = |c: usize| c * b / k;
+            for g in group_of_row.iter_mut().flatten() {
+                *g = chunk(*g);
+            }
+            let merged: Vec<String> = (0..b)
+                .map(|j| {
+                    let members: Vec<&str> = (0..k)
+                        .filter(|&c| chunk(c) == j)
+                        .map(|c| names[c].as_str())
+                        .collect();
+                    format!("condition {}", members.join("+"))
+                })
+                .collect();
             return Blocks {
                 group_of_row,
-                names: names.iter().map(|s| format!("condition {s}")).collect(),
-                order: (0..k).collect(),
+                names: merged,
+                order: (0..b).collect(),
                 by_condition: true,
-                rule: format!("{k} training conditions (--cv), each left out in turn"),
+                rule: if b < k {
+                    format!(
+                        "{k} training conditions (--cv) in {b} blocks of consecutive conditions"
+                    )
+                } else {
+                    format!("{k} training conditions (--cv), each left out in turn")
+                },
                 regimes: k,
             };
         }
@@ -168,11 +196,53 @@ pub fn transfer_blocks(
             }
         );
     }
-    let mut names = vec![];
-    for (g, b) in blocks.iter().enumerate() {
-        for &i in &train_idx[b.0..b.1] {
-            group_of_row[i] = Some(g);
+    // More than MAX_BLOCKS runs (long campaigns): the runs of each regime, in time order, are grouped into
+    // consecutive chunks (a block may then hold several runs of the same regime, never two regimes).
+    let mut block_of_run: Vec<usize> = (0..blocks.len()).collect();
+    let mut n_blocks = blocks.len();
+    if blocks.len() > MAX_BLOCKS {
+        let mut labels: Vec<(String, bool)> = vec![];
+        for b in &blocks {
+            if !labels.contains(&b.2) {
+                labels.push(b.2.clone());
+            }
         }
+        let total = blocks.len();
+        n_blocks = 0;
+        for l in &labels {
+            let runs: Vec<usize> = (0..total).filter(|&r| blocks[r].2 == *l).collect();
+            let g = ((MAX_BLOCKS * runs.len()) as f64 / total as f64)
+                .round()
+                .max(1.0) as usize;
+            let g = g.min(runs.len());
+            for (j, &r) in runs.iter().enumerate() {
+                block_of_run[r] = n_blocks + j * g / runs.len();
+            }
+            n_blocks += g;
+        }
+        rule += &format!(
+            "; the {total} runs grouped into {n_blocks} blocks, each holding consecutive runs of one regime"
+        );
+    }
+    let mut members: Vec<Vec<usize>> = vec![vec![]; n_blocks];
+    for (r, &g) in block_of_run.iter().enumerate() {
+        members[g].push(r);
+    }
+    let mut names = vec![];
+    for (g, runs) in members.iter().enumerate() {
+        for &r in runs {
+            for &i in &train_idx[blocks[r].0..blocks[r].1] {
+                group_of_row[i] = Some(g);
+            }
+        }
+        let b = &blocks[runs[0]];
+        let last = &blocks[*runs.last().expect("a block holds a run")];
+        let b = &(b.0, last.1, b.2.clone());
+        let runs_note = if runs.len() > 1 {
+            format!(" ({} runs)", runs.len())
+        } else {
+            String::new()
+        };
         let (t0, t1) = (time_s[train_idx[b.0]], time_s[train_idx[b.1 - 1]]);
         let regime = if rule.starts_with("equal") || rule.contains("equal contiguous") {
             String::new()
@@ -186,7 +256,11 @@ pub fn transfer_blocks(
         } else {
             format!(", condition {}", b.2.0)
         };
-        names.push(format!("{}–{}{cond}{regime}", fmt_h(t0), fmt_h(t1)));
+        names.push(format!(
+            "{}–{}{cond}{regime}{runs_note}",
+            fmt_h(t0),
+            fmt_h(t1)
+        ));
     }
     if names.is_empty() {
         rule = "no training rows".into();
@@ -312,6 +386,23 @@ mod tests {
             })
             .collect();
         assert!(lag_supported(&t, &up_down));
+    }
+
+    #[test]
+    fn many_conditions_share_at_most_max_blocks() {
+        // 30 conditions of 50 rows: 30 > MAX_BLOCKS, so consecutive conditions share blocks; every row keeps
+        // a block and every condition lies in exactly one block.
+        let t: Vec<f64> = (0..1500).map(|k| k as f64 * 60.0).collect();
+        let s: Vec<f64> = (0..1500).map(|k| (k as f64 * 0.01).sin()).collect();
+        let cond: Vec<String> = (0..1500).map(|k| format!("c{}", k / 50)).collect();
+        let train: Vec<usize> = (0..1500).collect();
+        let b = transfer_blocks(&t, &[&s], Some(&cond), &train, 5);
+        assert!(b.by_condition);
+        assert_eq!(b.names.len(), MAX_BLOCKS, "{:?}", b.names);
+        for c in 0..30 {
+            let g = b.group_of_row[c * 50];
+            assert!((c * 50..c * 50 + 50).all(|i| b.group_of_row[i] == g));
+        }
     }
 
     #[test]
