@@ -501,6 +501,44 @@ fn twin_spindle_campaign_default_at_or_below_plain_ls_and_greedy_lags_per_channe
 }
 
 #[test]
+fn voron_frame_growth_beats_plain_least_squares_on_the_cooling_phase() {
+    let Some(shared) = shared() else { return };
+    let dir = tmp_dir("voron");
+    let file = shared
+        .join(VORON)
+        .join("frame_exp_quant_v3_2021-06-13_05-41-53.csv");
+    // step_dist = 0.0025 mm (header) → 2.5 µm per microstep; hold out the cooling phase.
+    let base = voron_args(&file, Some("2.5"));
+    let fit = |extra: &[&str], name: &str| {
+        let j = dir.join(name);
+        let mut a = base.clone();
+        a.extend(["--holdout", "bed_target=0", "--json", j.to_str().unwrap()].map(String::from));
+        a.extend(extra.iter().map(|s| s.to_string()));
+        let out = bin().args(&a).output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        json(&j)
+    };
+    // Reference: plain least squares on all four sensors without lags (measured here, not hard-coded).
+    let plain = fit(&["--select", "all"], "plain.json");
+    let ours = fit(&["--lags"], "lags.json");
+    let (raw, p, h) = (
+        ours["raw_rms_um"].as_f64().unwrap(),
+        plain["holdout_rms_um"].as_f64().unwrap(),
+        ours["holdout_rms_um"].as_f64().unwrap(),
+    );
+    println!(
+        "voron 05-41-53: raw {raw:.2} µm, plain LS (4 sensors, no lags) {p:.2} µm, ours {h:.2} µm ({}: {})",
+        ours["chosen_method"], ours["formula"]
+    );
+    assert!(h < p, "ours {h} µm not below plain least squares {p} µm");
+    assert!(h <= raw, "ours {h} µm worse than raw {raw} µm");
+}
+
+#[test]
 fn voron_other_files_never_worse_than_raw() {
     let Some(shared) = shared() else { return };
     let dir = tmp_dir("voron-guard");
