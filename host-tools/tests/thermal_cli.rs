@@ -235,6 +235,271 @@ fn voron_args(file: &Path, um_per_step: Option<&str>) -> Vec<String> {
     a
 }
 
+// ---- plain references, computed here from the data (independently of the tool's own candidates) ----
+
+/// Held-out RMS of a least-squares fit `target ~ 1 + Σ cols` on the training rows (QR, no penalty).
+fn ls_holdout_rms(cols: &[Vec<f64>], target: &[f64], held: &[bool]) -> f64 {
+    let train: Vec<usize> = (0..target.len()).filter(|&i| !held[i]).collect();
+    let x = axcomp_thermal::linalg::DMatrix::from_fn(train.len(), cols.len() + 1, |r, c| {
+        if c == 0 { 1.0 } else { cols[c - 1][train[r]] }
+    });
+    let y: Vec<f64> = train.iter().map(|&i| target[i]).collect();
+    let fit = axcomp_thermal::linalg::lstsq(&x, &y, 0.0, Some(0)).expect("plain least squares");
+    let res: Vec<f64> = (0..target.len())
+        .filter(|&i| held[i])
+        .map(|i| {
+            target[i]
+                - fit.coef[0]
+                - cols
+                    .iter()
+                    .enumerate()
+                    .map(|(j, c)| fit.coef[j + 1] * c[i])
+                    .sum::<f64>()
+        })
+        .collect();
+    axcomp_thermal::stats::rms(&res)
+}
+
+/// Temperature rises (from the first row) of the sensors that vary on the training rows.
+fn rises(sensors: &[Vec<f64>], held: &[bool]) -> Vec<Vec<f64>> {
+    sensors
+        .iter()
+        .filter(|s| {
+            let v: Vec<f64> = (0..s.len()).filter(|&i| !held[i]).map(|i| s[i]).collect();
+            axcomp_thermal::stats::std_dev(&v) > 1e-9
+        })
+        .map(|s| s.iter().map(|v| v - s[0]).collect())
+        .collect()
+}
+
+/// Greedy selection of up to 4 sensors, each through a first-order lag (the firmware's, τ from
+/// {0, 60·2^k s, k = 0..7}), each step adding the (sensor, τ) with the lowest training SSE; `fixed` columns
+/// (forces) always in. Returns the held-out RMS.
+fn greedy_lags_holdout_rms(
+    time_s: &[f64],
+    rises: &[Vec<f64>],
+    fixed: &[Vec<f64>],
+    target: &[f64],
+    held: &[bool],
+) -> f64 {
+    let taus: Vec<f64> = std::iter::once(0.0)
+        .chain((0..8).map(|k| 60.0 * 2f64.powi(k)))
+        .collect();
+    let lagged: Vec<Vec<Vec<f64>>> = rises
+        .iter()
+        .map(|r| {
+            taus.iter()
+                .map(|&t| axcomp_thermal::lag::lag(time_s, r, t))
+                .collect()
+        })
+        .collect();
+    let train: Vec<usize> = (0..target.len()).filter(|&i| !held[i]).collect();
+    let train_sse = |cols: &[Vec<f64>]| -> f64 {
+        let x = axcomp_thermal::linalg::DMatrix::from_fn(train.len(), cols.len() + 1, |r, c| {
+            if c == 0 { 1.0 } else { cols[c - 1][train[r]] }
+        });
+        let y: Vec<f64> = train.iter().map(|&i| target[i]).collect();
+        axcomp_thermal::linalg::lstsq(&x, &y, 0.0, Some(0)).map_or(f64::INFINITY, |f| f.sse)
+    };
+    let mut chosen: Vec<Vec<f64>> = fixed.to_vec();
+    let mut used = vec![false; rises.len()];
+    for _ in 0..4.min(rises.len()) {
+        let mut best: Option<(usize, usize, f64)> = None;
+        for s in 0..rises.len() {
+            if used[s] {
+                continue;
+            }
+            for t in 0..taus.len() {
+                let mut cols = chosen.clone();
+                cols.push(lagged[s][t].clone());
+                let sse = train_sse(&cols);
+                if best.is_none_or(|b| sse < b.2) {
+                    best = Some((s, t, sse));
+                }
+            }
+        }
+        let (s, t, _) = best.expect("a sensor left");
+        if std::env::var_os("AXCOMP_TEST_VERBOSE").is_some() {
+            println!("  greedy: sensor {s} τ {} s", taus[t]);
+        }
+        used[s] = true;
+        chosen.push(lagged[s][t].clone());
+    }
+    ls_holdout_rms(&chosen, target, held)
+}
+
+/// The issue's form of the Voron command: `--rename` of every column, the Z trigger position in µm, no
+/// zeroing option (the raw figures are zeroed by the tool itself).
+fn voron_issue_args(file: &Path, um_per_step: Option<&str>, json: &Path) -> Vec<String> {
+    let mut a: Vec<String> = vec!["fit".into(), "thermal".into(), "--data".into()];
+    a.push(file.display().to_string());
+    let (target, scale) = match um_per_step {
+        Some(f) => ("z_um", Some(f)),
+        None => ("z_steps", None),
+    };
+    a.extend(["--rename".into(), format!("mcu_pos_z={target}")]);
+    if let Some(f) = scale {
+        a.extend(["--scale".into(), format!("{target}={f}")]);
+    }
+    for r in [
+        "frame_t=frame_degC",
+        "chamber_t=chamber_degC",
+        "bed_t=bed_degC",
+        "he_t=hotend_degC",
+    ] {
+        a.extend(["--rename".to_string(), r.to_string()]);
+    }
+    a.extend(
+        [
+            "--target",
+            target,
+            "--holdout",
+            "bed_target<1",
+            "--json",
+            json.to_str().unwrap(),
+        ]
+        .map(String::from),
+    );
+    a
+}
+
+#[test]
+fn voron_default_at_or_below_plain_ls_and_greedy_lags_on_every_cooling_holdout() {
+    let Some(shared) = shared() else { return };
+    let dir = tmp_dir("voron-default");
+    // Every Voron file with a heating and a cooling phase; the cooling phase (heater off) is held out.
+    let runs: [(&str, Option<&str>); 3] = [
+        ("frame_exp_quant_v3_2021-06-13_05-41-53.csv", Some("2.5")),
+        (
+            "expansion_quant_whoppingpochard_2514_2021-06-13_20-04-43.csv",
+            Some("12.5"),
+        ),
+        (
+            "frame_exp_quant_v3_2021-06-12_12-54-36-mvieleers_V2.1253.csv",
+            None,
+        ),
+    ];
+    for (k, (f, scale)) in runs.iter().enumerate() {
+        let file = shared.join(VORON).join(f);
+        let j = dir.join(format!("{k}.json"));
+        let out = bin()
+            .args(voron_issue_args(&file, *scale, &j))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{f}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v = json(&j);
+        let (raw, h) = (
+            v["raw_rms_um"].as_f64().unwrap(),
+            v["holdout_rms_um"].as_f64().unwrap(),
+        );
+        // References from the data, in this run.
+        let ds = axcomp_data::Dataset::load(&file, &axcomp_data::LoadOptions::default()).unwrap();
+        let factor: f64 = scale.map_or(1.0, |s| s.parse().unwrap());
+        let target: Vec<f64> = ds
+            .numeric("mcu_pos_z")
+            .unwrap()
+            .iter()
+            .map(|v| v * factor)
+            .collect();
+        let held: Vec<bool> = ds
+            .numeric("bed_target")
+            .unwrap()
+            .iter()
+            .map(|b| *b < 1.0)
+            .collect();
+        let time_s = ds.time_s().unwrap().to_vec();
+        let sensors: Vec<Vec<f64>> = ["frame_t", "chamber_t", "bed_t", "he_t"]
+            .iter()
+            .map(|c| ds.numeric(c).unwrap().to_vec())
+            .collect();
+        let r = rises(&sensors, &held);
+        let plain = ls_holdout_rms(&r, &target, &held);
+        let greedy = greedy_lags_holdout_rms(&time_s, &r, &[], &target, &held);
+        // Raw: the target minus its first reading (the sensors' reference row), on the held-out rows.
+        let raw_here = axcomp_thermal::stats::rms(
+            &(0..target.len())
+                .filter(|&i| held[i])
+                .map(|i| target[i] - target[0])
+                .collect::<Vec<_>>(),
+        );
+        println!(
+            "{f}: raw {raw:.3}, default {h:.3} ({}), plain LS {plain:.3}, greedy 4 + lags {greedy:.3}",
+            v["chosen_method"]
+        );
+        // Reference: the raw figure computed here; tolerance 1e-9 relative (same arithmetic).
+        assert!(
+            (raw - raw_here).abs() <= 1e-9 * raw_here,
+            "raw {raw} vs {raw_here}"
+        );
+        // Done-when of issue 13: at or below both references. Tolerance 1e-6 relative: the default may be
+        // the same least-squares fit solved by another routine (round-off only).
+        assert!(
+            h <= plain * (1.0 + 1e-6),
+            "{f}: default {h} > plain LS {plain}"
+        );
+        assert!(
+            h <= greedy * (1.0 + 1e-6),
+            "{f}: default {h} > greedy + lags {greedy}"
+        );
+        if k == 0 {
+            // README's Voron row: raw 89.3 µm (print precision 0.05).
+            assert!((raw - 89.3).abs() < 0.05, "raw {raw} vs README 89.3");
+        }
+    }
+}
+
+#[test]
+fn twin_spindle_campaign_default_at_or_below_plain_ls_and_greedy_lags_per_channel() {
+    // A campaign like the real spindle study: 16 collinear sensors, 5 channels, 46 h at nine speeds, the last
+    // (variable-speed) block held out. References in this run: plain least squares on every sensor and the
+    // force, greedy 4 sensors + lags (+ force), and the oracle (each channel's truth on the measured columns).
+    let dir = tmp_dir("spindle");
+    let c = axcomp_thermal::synth::spindle_campaign(1, 60.0);
+    let csv = dir.join("spindle.csv");
+    std::fs::write(&csv, c.to_csv()).unwrap();
+    let d = &c.data;
+    let held: Vec<bool> = d.condition.iter().map(|&k| k == 9).collect();
+    let r = rises(&d.sensors_degc, &held);
+    let force = vec![d.force_n.clone()];
+    let mut plain_cols = r.clone();
+    plain_cols.push(d.force_n.clone());
+    for (ch, (name, err, _)) in c.channels.iter().enumerate() {
+        let j = dir.join(format!("{name}.json"));
+        let (ok, out, errs) = run(&[
+            "fit",
+            "thermal",
+            "--data",
+            csv.to_str().unwrap(),
+            "--target",
+            name,
+            "--holdout",
+            "condition=variable",
+            "--json",
+            j.to_str().unwrap(),
+        ]);
+        assert!(ok, "{out}\n{errs}");
+        let v = json(&j);
+        let h = v["holdout_rms_um"].as_f64().unwrap();
+        let plain = ls_holdout_rms(&plain_cols, err, &held);
+        let greedy = greedy_lags_holdout_rms(&d.time_s, &r, &force, err, &held);
+        let oracle: Vec<f64> = err.iter().zip(c.oracle(ch)).map(|(a, b)| a - b).collect();
+        let o = axcomp_thermal::stats::rms_masked(&oracle, &held);
+        println!(
+            "twin spindle {name}: default {h:.4} µm ({}), plain LS {plain:.4}, greedy 4 + lags {greedy:.4}, \
+             oracle {o:.4}",
+            v["chosen_method"]
+        );
+        assert!(h <= plain, "{name}: default {h} > plain LS {plain}");
+        assert!(h <= greedy, "{name}: default {h} > greedy + lags {greedy}");
+        // Within 1.2× the oracle (the twin's done-when of the thermal issue).
+        assert!(h <= 1.2 * o, "{name}: default {h} > 1.2 × oracle {o}");
+    }
+}
+
 #[test]
 fn voron_frame_growth_beats_plain_least_squares_on_the_cooling_phase() {
     let Some(shared) = shared() else { return };
@@ -422,4 +687,74 @@ fn force_law_from_fit_force_goes_into_the_model_file() {
         "spindle_N=x.json",
     ]);
     assert!(!ok && err.contains("x.json"), "{err}");
+}
+
+#[test]
+fn guard_refusal_exits_3_and_a_forced_selection_runs_only_itself() {
+    // The guard data of `guard_refuses_a_model_worse_than_raw`: the held-out rows keep warming while their
+    // error stays 0, so any thermal model is worse than raw there.
+    let dir = tmp_dir("exit3");
+    let csv = dir.join("g.csv");
+    let mut text = String::from("time_s,part,a_degC,b_degC,error_um\n");
+    for k in 0..60 {
+        let t = 20.0 + 0.1 * k as f64 + if k % 2 == 0 { 0.01 } else { -0.01 };
+        let (part, e) = if k < 40 {
+            ("train", t - 20.0)
+        } else {
+            ("late", 0.0)
+        };
+        text += &format!("{k},{part},{t},{},{e}\n", 20.0 + 0.05 * k as f64);
+    }
+    std::fs::write(&csv, text).unwrap();
+    let j = dir.join("g.json");
+    let args = [
+        "fit",
+        "thermal",
+        "--data",
+        csv.to_str().unwrap(),
+        "--target",
+        "error_um",
+        "--holdout",
+        "part=late",
+        "--json",
+        j.to_str().unwrap(),
+    ];
+    let out = bin().args(args).output().unwrap();
+    assert_eq!(out.status.code(), Some(3), "guard refusal must exit 3");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("refused") && err.contains("do-no-harm guard"),
+        "{err}"
+    );
+    let v = json(&j);
+    assert_eq!(v["guard"]["passed"], false);
+    // The default compared candidates; a forced selection compares none and runs no FCM.
+    assert!(v["candidates"].as_array().is_some_and(|c| c.len() >= 3));
+    let mut forced = args.to_vec();
+    forced.extend(["--select", "all", "--force"]);
+    let out = bin().args(&forced).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json(&j);
+    assert_eq!(v["candidates"].as_array().map(|c| c.len()), Some(0));
+    assert!(v["fcm_gra_detail"].is_null());
+    assert_eq!(v["fcm_gra"]["ran"], false);
+    assert_eq!(v["forward"]["ran"], false);
+    assert_eq!(v["chosen_method"], "all");
+    // Bad input exits 2.
+    let out = bin()
+        .args([
+            "fit",
+            "thermal",
+            "--data",
+            csv.to_str().unwrap(),
+            "--select",
+            "x",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
 }

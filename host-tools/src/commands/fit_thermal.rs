@@ -6,7 +6,8 @@
 //! - **held-out rows** (`--holdout`): never used for fitting or selection; `raw_rms_um` / `holdout_rms_um`
 //!   are the target's RMS on them before / after the model.
 //! - **guard**: the model is written (`--out`) only if it is not worse than raw on the held-out rows (or, with
-//!   no holdout, in cross-validation); `--force` writes it anyway.
+//!   no holdout, in the validation); otherwise the command exits 3 ([`crate::EXIT_GUARD_REFUSED`]);
+//!   `--force` writes it anyway.
 
 use std::path::PathBuf;
 
@@ -19,18 +20,26 @@ use axcomp_thermal::{Ridge, Selection, Series, ThermalInput, ThermalOptions, fit
 use crate::cli::DataArgs;
 
 const LONG_HELP: &str = "\
-How it works: sensors are the `*_degC` columns (or the --sensors subset), forces the `*_N` columns (fitted jointly as χ·F terms unless --no-forces), the target a `*_um` column. Three structures are compared by nested leave-one-group-out cross-validation on the training rows only (groups: the --cv conditions, or 5 contiguous time blocks): the reference selection fuzzy c-means (m = 2, Xie–Beni cluster count) + grey relational analysis (ρ = 0.5, best sensor per cluster), forward selection scored by inner CV, and no selection (every sensor, when at most 16). The best one is used unless --select names one; all are reported in the JSON. Coefficients by QR least squares (optional ridge); condition number and VIF are reported.
+How it works: sensors are the `*_degC` columns (or the --sensors subset), forces the `*_N` columns (fitted jointly as χ·F terms unless --no-forces), the target a `*_um` column.
 
-With --lags every sensor term gets a first-order lag y += α(u − y), α = 1 − exp(−Δt/τ) from the actual sample interval, exactly as the firmware runs it; τ is chosen on a grid by inner CV and refined by golden-section search.
+Raw figures: the target minus its reference value, the mean of its first N rows (N = 1, or --zero-at-start N), the rows where every sensor's rise ΔT is zero. `raw_rms_um`, `train_raw_rms_um`, the per-condition and the validation raw figures all use it (`raw_reference_um` in the JSON).
 
-Do-no-harm guard: the model is written (--out) only if it is not worse than the raw error on the held-out rows (without --holdout: in cross-validation); otherwise the command fails saying why, unless --force.
+Model choice (default): the training rows are cut into blocks: the --cv conditions when there are at least 3, otherwise contiguous runs of one thermal regime (heating or cooling: the sign of the sensors' smoothed mean rate), the longest cut in halves until there are 5. Each candidate is re-run without each block, with all its own choices (sensors, lags, penalty) made on the other blocks, and predicts that block: plain least squares on every sensor (the reference), every sensor with one first-order lag per sensor, ridge and elastic net (α = 0.5) on those, greedy forward selection with lags, and fuzzy c-means + grey relational analysis (the reference method of the literature). The default is the candidate with the lowest RMS over the blocks among those that beat plain least squares by more than one standard error of the per-block paired difference; otherwise plain least squares. With a single regime among the training rows only plain least squares and every-sensor-with-lags can be chosen (the rows cannot show how dropping or shrinking collinear sensors transfers to another regime); the others are still reported. All candidates' scores are in the JSON (`candidates`, `validation`) and the report.
+
+Lags: y += α(u − y), α = 1 − exp(−Δt/τ) from the actual sample interval, exactly as the firmware runs it; τ per sensor on a grid by inner CV, refined by golden-section search. A sensor whose training trace shows a single episode of change (a heater switched on once, one monotone rise) gets lags only up to a third of that episode: a longer lag of it is only a function of the time since the start. --no-lags leaves lags out.
+
+--select all | forward | fcm-gra is a forced selection: only that structure is fitted (no comparison; --select all without --lags is plain least squares; FCM runs only for fcm-gra).
+
+Do-no-harm guard: with --holdout, the model's RMS on the held-out rows must be <= raw on them; without, the default's validation RMS must be <= raw over the same blocks (a forced selection: its leave-one-block-out RMS <= raw on the training rows). When it fails, the JSON and report are still written, no model is written, and the command exits 3, unless --force.
+
+Exit codes: 0 done; 2 bad input (file, column, option); 3 refused by the do-no-harm guard.
 
 Example (Voron frame data, header step_dist = 0.0025 mm, so 2.5 µm per microstep; cooling phase held out):
   axcomp fit thermal --data frame.csv --target z_um
-    --rename mcu_pos_z=z_um --scale z_um=2.5 --zero-at-start 1
+    --rename mcu_pos_z=z_um --scale z_um=2.5
     --rename frame_t=frame_degC --rename chamber_t=chamber_degC
-    --rename bed_t=bed_degC --rename he_t=he_degC
-    --holdout bed_target=0 --lags --json fit.json --out model.json";
+    --rename bed_t=bed_degC --rename he_t=hotend_degC
+    --holdout 'bed_target<1' --json fit.json --out model.json";
 
 #[derive(Debug, clap::Args)]
 #[command(after_long_help = LONG_HELP)]
@@ -59,13 +68,20 @@ pub struct Args {
     /// Write the model file (input of `axcomp image build --thermal`).
     #[arg(long, value_name = "MODEL.json")]
     pub out: Option<PathBuf>,
-    /// Fit a first-order lag (time constant) per selected sensor.
+    /// With --select: fit a first-order lag (time constant) per selected sensor. The default choice always has
+    /// lagged candidates (unless --no-lags).
     #[arg(long)]
     pub lags: bool,
-    /// Ridge penalty on the standardized coefficients: a number λ ≥ 0, or `auto` (chosen by inner CV).
+    /// Leave lagged candidates out of the default choice.
+    #[arg(long, conflicts_with = "lags")]
+    pub no_lags: bool,
+    /// Ridge penalty on the standardized coefficients: a number λ ≥ 0 (applied to the chosen structure; no
+    /// shrinkage candidates), or `auto` (default: ridge and elastic net are candidates of the default choice;
+    /// with --select, λ chosen by inner CV).
     #[arg(long, value_name = "λ|auto")]
     pub ridge: Option<String>,
-    /// Sensor selection: auto (lower nested CV error), fcm-gra, forward, all (no selection).
+    /// Model choice: auto (the candidate with the lowest transfer-validation RMS), or a forced selection that
+    /// runs only itself: fcm-gra, forward, all (every sensor; plain least squares, with --lags per-sensor lags).
     #[arg(long = "select", default_value = "auto", value_name = "METHOD")]
     pub select: String,
     /// Most sensors in the model (1..=16).
@@ -91,8 +107,10 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     // ---- validate options before reading anything ----
+    let forced_selection = args.select != "auto";
     let ridge = match args.ridge.as_deref() {
-        None => Ridge::Off,
+        None if forced_selection => Ridge::Off,
+        None => Ridge::Auto,
         Some("auto") => Ridge::Auto,
         Some(s) => match s.parse::<f64>() {
             Ok(l) if l >= 0.0 && l.is_finite() => Ridge::Fixed(l),
@@ -109,11 +127,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.sensor_period_ms == 0 {
         bail!("--sensor-period-ms must be > 0");
     }
+    if let Some(0) = args.zero_at_start {
+        bail!("--zero-at-start 0: must be at least 1");
+    }
     let opts = ThermalOptions {
-        lags: args.lags,
+        // The default choice always compares lagged candidates (unless --no-lags); a forced selection fits
+        // lags only with --lags.
+        lags: if forced_selection {
+            args.lags
+        } else {
+            !args.no_lags
+        },
         ridge,
         max_sensors: args.max_sensors,
         selection,
+        reference_rows: args.zero_at_start.unwrap_or(1),
         ..ThermalOptions::default()
     }
     .build()?;
@@ -265,10 +293,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         fit.chosen_method,
         fit.why
     );
+    for c in &fit.candidates {
+        println!(
+            "  candidate {:<13} validation RMS {:>10.4} µm{}{}{}",
+            c.name,
+            c.validation_rms_um,
+            if !c.eligible {
+                "  (reported only: one regime)"
+            } else if c.beats_reference {
+                "  (beats plain LS by > 1 SE)"
+            } else {
+                ""
+            },
+            c.holdout_rms_um
+                .map_or(String::new(), |h| format!("  (held-out {h:.4} µm)")),
+            if c.chosen { "  ← chosen" } else { "" }
+        );
+    }
     match fit.holdout_rms_um {
         Some(h) => println!(
-            "held-out RMS: raw {:.3} µm → {:.3} µm ({} rows)",
-            fit.raw_rms_um, h, fit.holdout_rows
+            "held-out RMS: raw {:.3} µm → {:.3} µm ({} rows; raw = target − {:.3} µm, its reference value)",
+            fit.raw_rms_um, h, fit.holdout_rows, fit.raw_reference_um
         ),
         None => println!(
             "RMS: raw {:.3} µm, training residual {:.3} µm",
@@ -297,14 +342,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_thermal_report(dir, &fit, &input, &args.target)
             .with_context(|| format!("writing the report into {}", dir.display()))?;
     }
-    if let Some(out) = &args.out {
-        if !write_model {
-            bail!(
-                "do-no-harm guard: {}; the model was not written to {} (use --force to write it anyway)",
-                fit.guard.reason,
-                out.display()
-            );
+    if !fit.guard.passed && !args.force {
+        return Err(crate::Refused {
+            code: crate::EXIT_GUARD_REFUSED,
+            reason: match &args.out {
+                Some(out) => format!(
+                    "do-no-harm guard: {}; the model was not written to {} (use --force to write it anyway)",
+                    fit.guard.reason,
+                    out.display()
+                ),
+                None => format!("do-no-harm guard: {}", fit.guard.reason),
+            },
         }
+        .into());
+    }
+    if let Some(out) = &args.out {
         let mut file =
             ThermalModelFile::from_fit(&fit, &input, &args.target, args.sensor_period_ms);
         for (col, law) in &laws {
@@ -319,8 +371,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map_err(|e| anyhow::anyhow!("model not written: {e}"))?;
         file.save(out)?;
         println!("model written to {}", out.display());
-    } else if !fit.guard.passed {
-        eprintln!("warning: do-no-harm guard failed: {}", fit.guard.reason);
     }
     Ok(())
 }

@@ -12,6 +12,7 @@
 //!   Kte, Kre, Kae (edge) of a milling cutter from mean forces ([`milling`]).
 //! - **twin data**: synthetic temperatures, forces and errors with known truth ([`synth`]).
 
+pub mod blocks;
 pub mod fcm;
 pub mod force;
 pub mod gra;
@@ -26,6 +27,6 @@ pub mod synth;
 pub mod thermal;
 
 pub use thermal::{
-    ForceTerm, Ridge, Selection, SensorTerm, Series, ThermalError, ThermalFit, ThermalInput,
-    ThermalModel, ThermalOptions, fit_thermal,
+    CandidateReport, ForceTerm, Ridge, Selection, SensorTerm, Series, ThermalError, ThermalFit,
+    ThermalInput, ThermalModel, ThermalOptions, ValidationReport, fit_thermal,
 };

@@ -11,7 +11,9 @@
 //! - **VIF** (variance inflation factor) of a term: `1/(1 − R²)` of that term regressed on all others; the
 //!   diagonal of the inverse correlation matrix.
 
-use nalgebra::{DMatrix, DVector};
+/// The matrix type of [`lstsq`] (re-exported for callers without their own nalgebra).
+pub use nalgebra::DMatrix;
+use nalgebra::DVector;
 
 /// Why a least-squares solve failed.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]

@@ -100,53 +100,64 @@ pub fn write_thermal_report(
         "## Sensor selection\n\nChosen: **{}** ({}).\n",
         fit.chosen_method, fit.why
     );
-    let rows: Vec<Vec<String>> = [
-        Some(&fit.fcm_gra),
-        Some(&fit.forward),
-        fit.all_sensors.as_ref(),
-    ]
-    .iter()
-    .flatten()
-    .map(|m| {
-        vec![
-            m.method.clone(),
-            m.sensors.join(", "),
-            m.tau_s
+    if fit.candidates.is_empty() {
+        let _ = writeln!(md, "No candidates compared (forced selection).\n");
+    } else {
+        let _ = writeln!(
+            md,
+            "Candidates judged by {} validation on blocks the candidate (and all its choices) never saw; \
+             blocks: {} ({}). Raw RMS over the predicted blocks {:.4} µm.\n",
+            fit.validation.scheme,
+            fit.validation.blocks.join("; "),
+            fit.validation.rule,
+            fit.validation.raw_rms_um
+        );
+        let rows: Vec<Vec<String>> = fit
+            .candidates
+            .iter()
+            .map(|c| {
+                vec![
+                    format!("{}{}", c.name, if c.chosen { " (chosen)" } else { "" }),
+                    c.sensors.join(", "),
+                    c.tau_s
+                        .iter()
+                        .map(|t| format!("{t:.0}"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    c.penalty.clone(),
+                    format!("{:.4}", c.validation_rms_um),
+                    c.holdout_rms_um.map_or("–".into(), |h| format!("{h:.4}")),
+                ]
+            })
+            .collect();
+        md += &markdown_table(
+            &[
+                "candidate",
+                "sensors",
+                "τ / s",
+                "penalty",
+                "validation RMS / µm",
+                "held-out RMS / µm (not used to choose)",
+            ],
+            &rows,
+        );
+    }
+    if let Some(fg) = &fit.fcm_gra_detail {
+        let _ = writeln!(
+            md,
+            "\nFCM: {} clusters (Xie–Beni {:?}); grey relational grades: {}.\n",
+            fg.clusters,
+            fg.xie_beni
                 .iter()
-                .map(|t| format!("{t:.0}"))
+                .map(|(c, x)| format!("c={c}: {x:.4}"))
+                .collect::<Vec<_>>(),
+            fg.grades
+                .iter()
+                .map(|g| format!("{g:.3}"))
                 .collect::<Vec<_>>()
-                .join(", "),
-            format!("{:.4}", m.inner_cv_rms_um),
-            format!("{:.4}", m.nested_cv_rms_um),
-        ]
-    })
-    .collect();
-    md += &markdown_table(
-        &[
-            "method",
-            "sensors",
-            "τ / s",
-            "inner CV RMS / µm",
-            "nested CV RMS / µm",
-        ],
-        &rows,
-    );
-    let _ = writeln!(
-        md,
-        "\nFCM: {} clusters (Xie–Beni {:?}); grey relational grades: {}.\n",
-        fit.fcm_gra_detail.clusters,
-        fit.fcm_gra_detail
-            .xie_beni
-            .iter()
-            .map(|(c, x)| format!("c={c}: {x:.4}"))
-            .collect::<Vec<_>>(),
-        fit.fcm_gra_detail
-            .grades
-            .iter()
-            .map(|g| format!("{g:.3}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+                .join(", ")
+        );
+    }
     let _ = writeln!(
         md,
         "## Terms\n\nCondition number {:.1}, ridge λ = {}.\n",

@@ -131,6 +131,22 @@ pub fn generate(cfg: &SynthConfig) -> SynthData {
             }
         })
         .collect();
+    simulate(cfg, &mut rng, time_s, condition, spindle_rpm, ap_mm, fz_mm)
+}
+
+/// Sensors, force and error for a given schedule (speed, depth of cut, feed per row); the rest of
+/// [`generate`], shared with [`spindle_campaign`].
+fn simulate(
+    cfg: &SynthConfig,
+    rng: &mut StdRng,
+    time_s: Vec<f64>,
+    condition: Vec<usize>,
+    spindle_rpm: Vec<f64>,
+    ap_mm: Vec<f64>,
+    fz_mm: Vec<f64>,
+) -> SynthData {
+    let n = time_s.len();
+    let running: Vec<bool> = spindle_rpm.iter().map(|s| *s > 0.0).collect();
     let [k_law, x, y, z] = cfg.law;
     let force_true: Vec<f64> = (0..n)
         .map(|k| {
@@ -149,7 +165,7 @@ pub fn generate(cfg: &SynthConfig) -> SynthData {
     let heat2: Vec<f64> = spindle_rpm.iter().map(|s| 5.0 * s / 12000.0).collect();
     let s1 = lag(&time_s, &prepend_zero(&heat1), 900.0);
     let s2 = lag(&time_s, &prepend_zero(&heat2), 2400.0);
-    let phase = Uniform::new(0.0, std::f64::consts::TAU).sample(&mut rng);
+    let phase = Uniform::new(0.0, std::f64::consts::TAU).sample(rng);
     let s3: Vec<f64> = time_s
         .iter()
         .map(|t| 1.2 * (std::f64::consts::TAU * t / 86400.0 + phase).sin())
@@ -167,16 +183,16 @@ pub fn generate(cfg: &SynthConfig) -> SynthData {
         let mut t = vec![20.0; n];
         for (j, s) in sources.iter().enumerate() {
             let w = if j == main {
-                0.6 + uw.sample(&mut rng)
+                0.6 + uw.sample(rng)
             } else {
-                uw.sample(&mut rng)
+                uw.sample(rng)
             };
-            let l = lag(&time_s, s, ut.sample(&mut rng));
+            let l = lag(&time_s, s, ut.sample(rng));
             for (tv, lv) in t.iter_mut().zip(l) {
                 *tv += w * lv;
             }
         }
-        let meas: Vec<f64> = t.iter().map(|v| v + noise_t.sample(&mut rng)).collect();
+        let meas: Vec<f64> = t.iter().map(|v| v + noise_t.sample(rng)).collect();
         sensor_names.push(format!("s{:02}", i + 1));
         sensors_true.push(t);
         sensors.push(meas);
@@ -184,7 +200,7 @@ pub fn generate(cfg: &SynthConfig) -> SynthData {
     let noise_f = Normal::new(0.0, 1.0).unwrap();
     let force_n: Vec<f64> = force_true
         .iter()
-        .map(|f| f * (1.0 + cfg.force_noise_rel * noise_f.sample(&mut rng)))
+        .map(|f| f * (1.0 + cfg.force_noise_rel * noise_f.sample(rng)))
         .collect();
     let truth = ThermalModel {
         b0_um: cfg.b0_um,
@@ -226,7 +242,7 @@ pub fn generate(cfg: &SynthConfig) -> SynthData {
     let noise_e = Normal::new(0.0, cfg.error_noise_um.max(1e-12)).unwrap();
     let error_um = error_true_um
         .iter()
-        .map(|e| e + noise_e.sample(&mut rng))
+        .map(|e| e + noise_e.sample(rng))
         .collect();
     SynthData {
         time_s,
@@ -241,6 +257,202 @@ pub fn generate(cfg: &SynthConfig) -> SynthData {
         error_um,
         error_true_um,
         truth,
+    }
+}
+
+/// A campaign resembling a machine-tool spindle study: nine constant speeds (each heating 3 h under cut, then
+/// 1.5 h stopped), then a 5.5 h block whose speed changes every 20 min among the nine levels and stops —
+/// 46 h, 16 collinear sensors, one force column and five displacement channels, each with its own true
+/// sensors, coefficients, lags and force compliance (truths in [`SpindleCampaign::channels`]).
+#[derive(Debug, Clone)]
+pub struct SpindleCampaign {
+    /// The sensors, force and schedule; `condition` 0–8 are the constant speeds, 9 the variable block;
+    /// `error_um` is channel 1.
+    pub data: SynthData,
+    /// Channel name, measured error (µm), truth model.
+    pub channels: Vec<(String, Vec<f64>, ThermalModel)>,
+}
+
+/// Generates the spindle campaign (see [`SpindleCampaign`]), deterministic for a seed; sample interval
+/// `dt_s`, error noise σ 0.3 µm.
+pub fn spindle_campaign(seed: u64, dt_s: f64) -> SpindleCampaign {
+    let speeds = [
+        2000.0, 4000.0, 6000.0, 8000.0, 10000.0, 12000.0, 9000.0, 5000.0, 3000.0,
+    ];
+    let ap = [1.0, 2.0, 1.5, 2.5, 1.2, 1.0, 1.8, 2.2, 1.4];
+    let fz = [0.08, 0.05, 0.1, 0.06, 0.12, 0.07, 0.09, 0.05, 0.1];
+    let (heat_s, cool_s, var_s, step_s) = (3.0 * 3600.0, 1.5 * 3600.0, 5.5 * 3600.0, 1200.0);
+    let per = heat_s + cool_s;
+    let total = 9.0 * per + var_s;
+    let n = (total / dt_s).round() as usize;
+    let time_s: Vec<f64> = (0..n).map(|k| k as f64 * dt_s).collect();
+    let mut rng = StdRng::seed_from_u64(seed);
+    let levels = Uniform::new(0usize, 10);
+    let var_steps = (var_s / step_s).ceil() as usize;
+    // Level 9 = stopped.
+    let var_level: Vec<usize> = (0..var_steps).map(|_| levels.sample(&mut rng)).collect();
+    let mut condition = vec![0usize; n];
+    let mut spindle_rpm = vec![0.0; n];
+    let mut ap_mm = vec![0.0; n];
+    let mut fz_mm = vec![0.0; n];
+    for k in 0..n {
+        let t = time_s[k];
+        let level = if t < 9.0 * per {
+            let c = (t / per) as usize;
+            condition[k] = c;
+            (t % per < heat_s).then_some(c)
+        } else {
+            condition[k] = 9;
+            let l = var_level[(((t - 9.0 * per) / step_s) as usize).min(var_steps - 1)];
+            (l < 9).then_some(l)
+        };
+        if let Some(l) = level {
+            spindle_rpm[k] = speeds[l];
+            ap_mm[k] = ap[l];
+            fz_mm[k] = fz[l];
+        }
+    }
+    let cfg = SynthConfig {
+        seed,
+        dt_s,
+        speeds_rpm: speeds.to_vec(),
+        ap_mm: ap.to_vec(),
+        fz_mm: fz.to_vec(),
+        ..SynthConfig::default()
+    };
+    let data = simulate(&cfg, &mut rng, time_s, condition, spindle_rpm, ap_mm, fz_mm);
+    // Channel truths: (true sensors, µm/K, τ / s, b0 / µm, χ / µm/N).
+    let truths: [([usize; 3], [f64; 3], [f64; 3], f64, f64); 5] = [
+        (
+            [1, 6, 11],
+            [3.0, -2.0, 1.5],
+            [600.0, 1800.0, 0.0],
+            1.0,
+            0.01,
+        ),
+        (
+            [0, 4, 8],
+            [2.0, 1.0, -1.0],
+            [300.0, 0.0, 1200.0],
+            -0.5,
+            -0.005,
+        ),
+        (
+            [2, 7, 13],
+            [-1.5, 2.5, 1.0],
+            [0.0, 900.0, 2400.0],
+            0.0,
+            0.02,
+        ),
+        ([3, 9, 14], [1.0, 1.0, 1.0], [1200.0, 600.0, 0.0], 2.0, 0.0),
+        (
+            [5, 10, 15],
+            [4.0, -3.0, 0.5],
+            [0.0, 3000.0, 300.0],
+            0.5,
+            0.008,
+        ),
+    ];
+    let true_series: Vec<Series> = data
+        .sensor_names
+        .iter()
+        .zip(&data.sensors_true_degc)
+        .map(|(name, v)| Series {
+            name: name.clone(),
+            values: v.clone(),
+        })
+        .collect();
+    let [k_law, x, y, z] = cfg.law;
+    let force_true: Vec<f64> = (0..n)
+        .map(|k| {
+            if data.spindle_rpm[k] > 0.0 {
+                k_law * data.ap_mm[k].powf(x) * data.fz_mm[k].powf(y) * data.spindle_rpm[k].powf(z)
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let noise_e = Normal::new(0.0, cfg.error_noise_um).unwrap();
+    let channels = truths
+        .iter()
+        .enumerate()
+        .map(|(c, (sens, coef, tau, b0, chi))| {
+            let truth = ThermalModel {
+                b0_um: *b0,
+                terms: (0..3)
+                    .map(|j| SensorTerm {
+                        sensor: data.sensor_names[sens[j]].clone(),
+                        reference_degc: data.sensors_true_degc[sens[j]][0],
+                        tau_s: tau[j],
+                        coef_um_per_k: coef[j],
+                    })
+                    .collect(),
+                forces: vec![ForceTerm {
+                    column: "force_N".into(),
+                    chi_um_per_n: *chi,
+                }],
+            };
+            let clean = truth
+                .predict(
+                    &data.time_s,
+                    &true_series,
+                    &[Series {
+                        name: "force_N".into(),
+                        values: force_true.clone(),
+                    }],
+                )
+                .expect("truth uses generated columns");
+            let err: Vec<f64> = clean.iter().map(|e| e + noise_e.sample(&mut rng)).collect();
+            (format!("ch{}_um", c + 1), err, truth)
+        })
+        .collect();
+    SpindleCampaign { data, channels }
+}
+
+impl SpindleCampaign {
+    /// The campaign as CSV: time, condition (`0`–`8`, `variable`), schedule, force, sensors, the five
+    /// channels.
+    pub fn to_csv(&self) -> String {
+        let d = &self.data;
+        let mut s = String::from("time_s,condition,spindle_rpm,ap_mm,fz_mm,force_N");
+        for n in &d.sensor_names {
+            s += &format!(",{n}_degC");
+        }
+        for (name, _, _) in &self.channels {
+            s += &format!(",{name}");
+        }
+        s.push('\n');
+        for k in 0..d.time_s.len() {
+            let cond = if d.condition[k] == 9 {
+                "variable".to_string()
+            } else {
+                d.condition[k].to_string()
+            };
+            s += &format!(
+                "{},{cond},{},{},{},{:.3}",
+                d.time_s[k], d.spindle_rpm[k], d.ap_mm[k], d.fz_mm[k], d.force_n[k]
+            );
+            for t in &d.sensors_degc {
+                s += &format!(",{:.4}", t[k]);
+            }
+            for (_, e, _) in &self.channels {
+                s += &format!(",{:.4}", e[k]);
+            }
+            s.push('\n');
+        }
+        s
+    }
+
+    /// The oracle of channel `c`: its truth on the measured sensor and force columns.
+    pub fn oracle(&self, c: usize) -> Vec<f64> {
+        self.channels[c]
+            .2
+            .predict(
+                &self.data.time_s,
+                &self.data.sensor_series(),
+                &self.data.force_series(),
+            )
+            .expect("oracle uses generated columns")
     }
 }
 
