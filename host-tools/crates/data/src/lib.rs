@@ -24,9 +24,12 @@
 
 mod cells;
 mod csv;
+pub mod provenance;
+pub mod sanity;
 mod split;
 mod timestamp;
 
+pub use provenance::Provenance;
 pub use split::{HoldoutSpec, Split, groups};
 
 use std::path::Path;
@@ -124,6 +127,17 @@ pub enum DataError {
         option: &'static str,
         text: String,
         reason: String,
+    },
+    #[error(
+        "{file}: column `{column}` holds {count} different values ({values}); one model fits one test of one \
+         axis: choose one with --where {column}={example}"
+    )]
+    SeveralValues {
+        file: String,
+        column: String,
+        count: usize,
+        values: String,
+        example: String,
     },
     #[error("{file}: column `{name}` has {found} values but the dataset has {expected} rows")]
     LengthMismatch {
