@@ -61,6 +61,9 @@ pub struct FitOptions {
     pub runs_improved_fraction: f64,
     /// Restrict the candidates to these names (empty = all).
     pub only: Vec<String>,
+    /// At most this many cross-validation folds: with more runs, consecutive runs are grouped into this
+    /// many folds (`leave-runs-out`), so a campaign of thousands of cycles costs ~`max_folds` fits.
+    pub max_folds: usize,
 }
 
 impl Default for FitOptions {
@@ -73,9 +76,13 @@ impl Default for FitOptions {
             improvement_ratio: guard::DEFAULT_IMPROVEMENT_RATIO,
             runs_improved_fraction: guard::DEFAULT_RUNS_IMPROVED_FRACTION,
             only: Vec::new(),
+            max_folds: DEFAULT_MAX_FOLDS,
         }
     }
 }
+
+/// Default [`FitOptions::max_folds`].
+pub const DEFAULT_MAX_FOLDS: usize = 20;
 
 /// Why a fit failed.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -308,7 +315,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     if !(hi > lo) {
         return Err(FitError::NoStroke(lo));
     }
-    let (fold, folds, split) = make_folds(obs, opts.row_folds.max(3));
+    let (fold, folds, split) = make_folds(obs, opts.row_folds.max(3), opts.max_folds);
     let has_fwd = obs.iter().any(|o| o.direction > 0);
     let has_bwd = obs.iter().any(|o| o.direction < 0);
     let bidirectional = has_fwd && has_bwd;
@@ -484,6 +491,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
         cv_rms_um: cv_rms,
         raw_rms_um: raw_rms,
         cv_method: split.method.clone(),
+        provenance: None,
     };
     let candidates = evaluated.iter().map(|e| e.cand.clone()).collect();
     let chosen_name = chosen.cand.name.clone();
@@ -504,11 +512,35 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     })
 }
 
-/// Fold index per row: leave-one-run-out when there are ≥ 3 runs, otherwise every k-th row.
-fn make_folds(obs: &[Observation], row_folds: usize) -> (Vec<usize>, usize, CvSplit) {
+/// Fold index per row: leave-one-run-out when there are 3 ..= `max_folds` runs, consecutive runs grouped
+/// into `max_folds` folds when there are more (`leave-runs-out`), otherwise every k-th row.
+fn make_folds(
+    obs: &[Observation],
+    row_folds: usize,
+    max_folds: usize,
+) -> (Vec<usize>, usize, CvSplit) {
     let mut runs: Vec<i64> = obs.iter().map(|o| o.run).collect();
     runs.sort_unstable();
     runs.dedup();
+    let max_folds = max_folds.max(3);
+    if runs.len() > max_folds {
+        // Run index i of n goes to group ⌊i·k/n⌋: k groups of consecutive runs, sizes differing by ≤ 1.
+        let (n, k) = (runs.len(), max_folds);
+        let index: HashMap<i64, usize> = runs
+            .iter()
+            .enumerate()
+            .map(|(i, &r)| (r, i * k / n))
+            .collect();
+        let fold = obs.iter().map(|o| index[&o.run]).collect();
+        return (
+            fold,
+            k,
+            CvSplit {
+                method: "leave-runs-out".into(),
+                folds: k,
+            },
+        );
+    }
     if runs.len() >= 3 {
         let index: HashMap<i64, usize> = runs.iter().enumerate().map(|(i, &r)| (r, i)).collect();
         let fold = obs.iter().map(|o| index[&o.run]).collect();
