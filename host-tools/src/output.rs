@@ -46,6 +46,8 @@ pub enum OutputError {
     DirIsAFile(PathBuf),
     /// The directory the file should go into does not exist.
     NoSuchDirectory { path: PathBuf, dir: PathBuf },
+    /// A declared output directory cannot be created: its parent is missing or not a directory.
+    CannotCreateDir { dir: PathBuf, why: String },
     /// Two outputs name the same file.
     Duplicate { path: PathBuf, other: PathBuf },
     /// Creating, writing or renaming failed.
@@ -77,6 +79,9 @@ impl std::fmt::Display for OutputError {
                 path.display(),
                 dir.display()
             ),
+            OutputError::CannotCreateDir { dir, why } => {
+                write!(f, "cannot create {}: {why}", dir.display())
+            }
             OutputError::Duplicate { path, other } => write!(
                 f,
                 "output {} and {} name the same file",
@@ -191,9 +196,14 @@ impl OutputSet {
             if !d.exists() {
                 let p = parent_of(d);
                 if !p.is_dir() {
-                    return Err(OutputError::NoSuchDirectory {
-                        path: d.clone(),
-                        dir: p,
+                    let why = if p.exists() {
+                        format!("{} is not a directory", p.display())
+                    } else {
+                        format!("directory {} does not exist", p.display())
+                    };
+                    return Err(OutputError::CannotCreateDir {
+                        dir: d.clone(),
+                        why,
                     });
                 }
             }

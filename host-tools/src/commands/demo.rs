@@ -30,7 +30,7 @@ use axcomp_positioning::iso230::{self, Iso230Result};
 use axcomp_twin::{Axis, Campaign, IdealTable, Iso230Plan, Plan, simulate};
 use serde_json::json;
 
-use super::common::write_atomic;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -91,18 +91,47 @@ fn image_bytes(spec: &ImageSpec) -> anyhow::Result<Vec<u8>> {
     Ok(buf)
 }
 
-/// Output files, written only once everything has been computed (each through a temporary file).
-#[derive(Default)]
-struct Outputs(Vec<(&'static str, Vec<u8>)>);
+/// The files the demo writes into `--out` (all together or none, see [`OutputSet`]).
+const FILES: [&str; 11] = [
+    "measurement.csv",
+    "table.json",
+    "image.bin",
+    "measurement_compensated.csv",
+    "trace.bin",
+    "replay.bin",
+    "deviation_before.svg",
+    "deviation_after.svg",
+    "iso230_before_after.svg",
+    "demo.json",
+    "report.md",
+];
+
+/// Output files, collected while the demo runs and written only once everything has been computed.
+struct Outputs {
+    dir: PathBuf,
+    set: OutputSet,
+}
 
 impl Outputs {
-    fn add(&mut self, name: &'static str, bytes: impl Into<Vec<u8>>) {
-        self.0.push((name, bytes.into()));
-    }
-    fn write_all(&self, dir: &Path) -> anyhow::Result<()> {
-        for (name, bytes) in &self.0 {
-            write_atomic(&dir.join(name), bytes)?;
+    /// Declares `dir` and every file, and checks the paths before any work.
+    fn new(dir: &Path) -> anyhow::Result<Self> {
+        let mut set = OutputSet::new();
+        set.dir(dir);
+        for name in FILES {
+            set.planned(dir.join(name));
         }
+        set.check()?;
+        Ok(Outputs {
+            dir: dir.to_path_buf(),
+            set,
+        })
+    }
+    fn add(&mut self, name: &'static str, bytes: impl Into<Vec<u8>>) {
+        debug_assert!(FILES.contains(&name), "{name} not in FILES");
+        self.set.file(self.dir.join(name), bytes);
+    }
+    fn write_all(self) -> anyhow::Result<()> {
+        self.set.commit()?;
         Ok(())
     }
 }
@@ -237,7 +266,7 @@ fn closed_loop_trace(
 pub fn run(args: Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let out = &args.out;
-    let mut files = Outputs::default();
+    let mut files = Outputs::new(out)?;
 
     // 1. The twin and its ISO 230-2 campaign.
     let axis = Axis::linear_motor_demo();
@@ -548,8 +577,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
          (`axcomp image inspect image.bin`), `demo.json` (figures).\n"
     );
     files.add("report.md", md);
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    files.write_all(out)?;
+    files.write_all()?;
     print!("{console}");
     Ok(())
 }
