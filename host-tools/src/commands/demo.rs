@@ -349,59 +349,91 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let curve = |f: &dyn Fn(f64) -> f64| xs.iter().map(|&x| f(x)).collect::<Vec<f64>>();
     let [(xf, df), (xb, db)] = split_by_direction(&before.data)?;
+    let (up, down) = (axcomp_plot::PALETTE[0], axcomp_plot::PALETTE[1]);
+    let test = format!(
+        "twin {}, ISO 230-2 {} targets × 5 runs",
+        axis.name,
+        before.iso.targets.len()
+    );
     let mut fig = Figure::new(
-        "Measured deviation and fitted table (before compensation)",
+        &format!(
+            "{test}: measured deviation and fitted table ({}, CV RMS {:.2} µm, raw {:.2} µm)",
+            fitted.chosen, fitted.cv_rms_um, fitted.raw_rms_um
+        ),
         "target / mm",
         "deviation / µm",
     );
-    fig.points("measured ↑", &xf, &df)
-        .points("measured ↓", &xb, &db)
-        .line(
-            "table forward",
-            &xs,
-            &curve(&|x| fitted.table.deviation_um(x, 1)),
-        )
-        .line(
-            "table backward",
-            &xs,
-            &curve(&|x| fitted.table.deviation_um(x, -1)),
-        )
+    fig.points("measured ↑ (positive)", &xf, &df)
+        .with_colour(up)
+        .line("table ↑", &xs, &curve(&|x| fitted.table.deviation_um(x, 1)))
+        .with_colour(up)
         .dashed(
-            "truth forward",
+            "truth ↑",
             &xs,
             &curve(&|x| axis.true_deviation_um(x, 1, &cond)),
         )
+        .with_colour(up)
+        .points("measured ↓ (negative)", &xb, &db)
+        .with_colour(down)
+        .line(
+            "table ↓",
+            &xs,
+            &curve(&|x| fitted.table.deviation_um(x, -1)),
+        )
+        .with_colour(down)
         .dashed(
-            "truth backward",
+            "truth ↓",
             &xs,
             &curve(&|x| axis.true_deviation_um(x, -1, &cond)),
-        );
+        )
+        .with_colour(down);
     files.add("deviation_before.svg", fig.to_svg());
 
     let [(xf2, df2), (xb2, db2)] = split_by_direction(&after.data)?;
     let mut fig = Figure::new(
-        "Measured deviation after compensation (new campaign through the firmware compensator)",
+        &format!(
+            "{test}: deviation after compensation (new campaign through the firmware compensator, RMS {:.2} µm)",
+            after.rms_um
+        ),
         "target / mm",
         "deviation / µm",
     );
-    fig.points("positive approach", &xf2, &df2)
-        .points("negative approach", &xb2, &db2)
+    fig.points("positive approach ↑", &xf2, &df2)
+        .with_colour(up)
+        .points("negative approach ↓", &xb2, &db2)
+        .with_colour(down)
         .hline(0.0, "0");
     files.add("deviation_after.svg", fig.to_svg());
 
-    let mut fig = Figure::new(
-        "ISO 230-2: mean deviation ± 2s per target, before and after",
-        "target / mm",
-        "deviation / µm",
-    );
-    for (label, e) in [("before", &before), ("after", &after)] {
-        for (dname, d) in [("↑", 1i8), ("↓", -1i8)] {
+    // Before and after as two panels (each on its own scale), one colour per direction.
+    let panel = |label: &str, e: &Evaluated| {
+        let mut fig = Figure::new(
+            &format!(
+                "{label}: A {:.2}, E {:.2}, B {:.2} µm",
+                e.iso.a_um, e.iso.e_um, e.iso.b_um
+            ),
+            "target / mm",
+            "mean deviation ± 2s / µm",
+        );
+        fig.size(700.0, 460.0);
+        for (dname, d, colour) in [("↑", 1i8, up), ("↓", -1i8, down)] {
             let [t, m, lo, hi] = per_direction(&e.iso, d);
-            fig.band(&format!("{label} {dname} ±2s"), &t, &lo, &hi)
-                .line(&format!("{label} {dname} mean"), &t, &m);
+            fig.band(&format!("{dname} ±2s"), &t, &lo, &hi)
+                .with_colour(colour)
+                .line(&format!("{dname} mean"), &t, &m)
+                .with_colour(colour);
         }
-    }
-    files.add("iso230_before_after.svg", fig.to_svg());
+        fig.hline(0.0, "");
+        fig
+    };
+    let (pb, pa) = (
+        panel("Before (uncompensated)", &before),
+        panel("After (firmware compensator)", &after),
+    );
+    files.add(
+        "iso230_before_after.svg",
+        axcomp_plot::panels_svg(&[&pb, &pa], 2),
+    );
     let t_plot = t0.elapsed();
 
     // 7. Figures: console, JSON, report.

@@ -425,6 +425,9 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         Some(col) => Some(drift_ages(&ds, col, args.run_period_s)?),
         None => None,
     };
+    // Everything needed from the dataset has been taken: free it before the fit (large files).
+    let n_rows = ds.n_rows();
+    drop(ds);
     let warm_json: Value;
     let kept_warmup: Option<WarmupFit>;
     progress("fitting the candidates (cross-validated)");
@@ -605,7 +608,7 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         "command": "fit positioning",
         "data": args.data.data.display().to_string(),
         "target": args.target,
-        "rows": ds.n_rows(),
+        "rows": n_rows,
         "rows_judged": judged.x.len(),
         "raw_rms_um": raw_rms,
         "iso230_2_before": iso_json(&before),

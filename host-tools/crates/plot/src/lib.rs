@@ -210,9 +210,10 @@ impl Figure {
             .map(|s| s.name.chars().count())
             .max()
             .unwrap_or(0);
-        let mr = (40.0 + 7.0 * longest as f64).clamp(60.0, w * 0.45);
+        // Legend: marker (18 px) + gap (6 px) + text (~7.5 px a character at 12 px) + 12 px to the edge.
+        let mr = (50.0 + 7.5 * longest as f64).clamp(90.0, w * 0.45);
         // Legend names longer than the margin holds are shortened (…) rather than cut by the frame.
-        let legend_chars = ((mr - 30.0) / 7.0).max(4.0) as usize;
+        let legend_chars = ((mr - 50.0) / 7.5).max(4.0) as usize;
         // Titles wider than the figure (~8 px a character at 15 px) wrap onto more lines.
         let title_lines = wrap(&self.title, ((w - 20.0) / 8.0).max(10.0) as usize);
         let (ml, mb) = (70.0, 55.0);
