@@ -352,6 +352,18 @@ fn identity_dir(dir: &Path) -> PathBuf {
     })
 }
 
+/// `, peak N MB` (the process's peak resident memory, Linux `VmHWM`) for progress lines; empty elsewhere.
+pub fn peak_memory_note() -> String {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("VmHWM:"))
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        })
+        .map_or(String::new(), |kb| format!(", peak {} MB", kb / 1024))
+}
+
 /// Writes one file through an [`OutputSet`] (for commands with a single output).
 pub fn write_one(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     let mut set = OutputSet::new();

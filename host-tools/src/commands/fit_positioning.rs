@@ -172,8 +172,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let big = outcome.judged.x.len() >= PROGRESS_ROWS;
         if big {
             eprintln!(
-                "axcomp: [{:.1} s] drawing the report ({} rows)",
+                "axcomp: [{:.1} s{}] drawing the report ({} rows)",
                 t0.elapsed().as_secs_f64(),
+                crate::output::peak_memory_note(),
                 outcome.judged.x.len()
             );
         }
@@ -229,16 +230,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 use axcomp_positioning::fit::rms;
 
-fn iso(x: &[f64], d: &[i8], run: &[i64], dev: &[f64]) -> Result<Iso230Figures, String> {
-    let pts: Vec<iso230::Point> = (0..x.len())
-        .map(|i| iso230::Point {
-            target_mm: x[i],
-            run: run[i].clamp(0, u32::MAX as i64) as u32,
-            direction: if d[i] < 0 { -1 } else { 1 },
-            deviation_um: dev[i],
-        })
-        .collect();
-    iso230::figures(&pts).map_err(|e| e.to_string())
+fn iso(x: &[f64], d: &[i8], _run: &[i64], dev: &[f64]) -> Result<Iso230Figures, String> {
+    iso230::figures_of_columns(x, d, dev).map_err(|e| e.to_string())
 }
 
 /// The mean of each figure over the folds; `None` (with the first fold's reason) when any fold lacks it.
@@ -337,21 +330,25 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
     let big = ds.n_rows() >= PROGRESS_ROWS;
     let progress = |what: &str| {
         if big {
-            eprintln!("axcomp: [{:.1} s] {what}", t0.elapsed().as_secs_f64());
+            eprintln!(
+                "axcomp: [{:.1} s{}] {what}",
+                t0.elapsed().as_secs_f64(),
+                crate::output::peak_memory_note()
+            );
         }
     };
     progress(&format!("read {} rows", ds.n_rows()));
     sanity::single_campaign(&ds, &["test_id", "axis"])?;
     let split = Split::from_args(args.holdout.as_deref(), args.cv.as_deref())?;
-    let x = ds.numeric("target_mm")?.to_vec();
-    let dev = ds.numeric(&args.target)?.to_vec();
-    let dir = ds.direction()?.unwrap_or_else(|| vec![0; ds.n_rows()]);
+    let mut x = ds.numeric("target_mm")?.to_vec();
+    let mut dev = ds.numeric(&args.target)?.to_vec();
+    let mut dir = ds.direction()?.unwrap_or_else(|| vec![0; ds.n_rows()]);
     let cv_col: Option<String> = match &split {
         Some(Split::Cv(c)) => Some(c.clone()),
         _ if ds.has("run") => Some("run".to_string()),
         _ => None,
     };
-    let (run, run_labels): (Vec<i64>, Vec<String>) = match &cv_col {
+    let (mut run, run_labels): (Vec<i64>, Vec<String>) = match &cv_col {
         Some(c) => {
             let (ids, labels) = axcomp_data::groups(&ds, c)?;
             (ids.into_iter().map(|g| g as i64 + 1).collect(), labels)
@@ -434,18 +431,24 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
     let (mut fit, judged, verdict, judged_rms, method) = match &holdout_mask {
         None => {
             let static_fit = axcomp_positioning::fit(&obs, &opts)?;
-            let (fit, kept, wj) = with_warmup(args, &obs, ages.as_deref(), &opts, static_fit)?;
+            let (mut fit, kept, wj) =
+                with_warmup(args, &obs, ages.as_deref(), &opts, static_fit)?;
             warm_json = wj;
             let (predicted, verdict, cv) = match &kept {
                 Some(w) => (w.cv_predictions.clone(), w.guard.clone(), w.cv_rms_um),
-                None => (fit.cv_predictions.clone(), fit.guard.clone(), fit.cv_rms_um),
+                None => (
+                    std::mem::take(&mut fit.cv_predictions),
+                    fit.guard.clone(),
+                    fit.cv_rms_um,
+                ),
             };
             kept_warmup = kept;
             let judged = Judged {
-                x: x.clone(),
-                direction: dir.clone(),
-                run: run.clone(),
-                deviation: dev.clone(),
+                // Moved, not copied: the judged rows are all rows (large campaigns).
+                x: std::mem::take(&mut x),
+                direction: std::mem::take(&mut dir),
+                run: std::mem::take(&mut run),
+                deviation: std::mem::take(&mut dev),
                 predicted,
             };
             let method = fit.split.method.clone();
@@ -572,13 +575,16 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
     };
     let refused = !verdict.passed && !args.force;
     // Per run: raw and judged RMS and the mean residual (a drifting mean shows drift between runs).
+    let mut rows_of_run: Vec<Vec<usize>> = vec![Vec::new(); run_labels.len()];
+    for (i, &r) in judged.run.iter().enumerate() {
+        if let Some(v) = rows_of_run.get_mut((r - 1) as usize) {
+            v.push(i);
+        }
+    }
     let per_run: Vec<Value> = run_labels
         .iter()
-        .enumerate()
-        .filter_map(|(g, label)| {
-            let rows: Vec<usize> = (0..judged.x.len())
-                .filter(|&i| judged.run[i] == g as i64 + 1)
-                .collect();
+        .zip(&rows_of_run)
+        .filter_map(|(label, rows)| {
             if rows.is_empty() {
                 return None;
             }
@@ -592,6 +598,7 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
             }))
         })
         .collect();
+    drop(rows_of_run);
     let table_written = args.out.is_some() && !refused;
 
     let candidates: Vec<Value> = fit

@@ -233,17 +233,24 @@ struct Column {
     /// 1-based field index in the file; `None` for derived columns (`time_s` from `time`), which are
     /// reported by their index in the dataset.
     file_column: Option<usize>,
-    text: Cells,
+    /// The cells as text. A numeric column does not keep its text (half the memory of a large file): it is
+    /// written from the values on first use ([`Column::cells`]), in the shortest form that reads back as
+    /// the same number (`1.0` → `1`), as a `--scale`d column always was.
+    text: std::sync::OnceLock<Cells>,
     values: Result<Vec<f64>, BadCell>,
 }
 
 impl Column {
     fn new(name: String, file_column: Option<usize>, text: Cells) -> Self {
         let values = parse_numbers(&text);
+        let cells = std::sync::OnceLock::new();
+        if values.is_err() {
+            let _ = cells.set(text);
+        }
         Self {
             name,
             file_column,
-            text,
+            text: cells,
             values,
         }
     }
@@ -252,9 +259,17 @@ impl Column {
         Self {
             name,
             file_column: None,
-            text: values.iter().map(|v| format_number(*v)).collect(),
+            text: std::sync::OnceLock::new(),
             values: Ok(values),
         }
+    }
+
+    /// The text of every cell (see the field's docs).
+    fn cells(&self) -> &Cells {
+        self.text.get_or_init(|| match &self.values {
+            Ok(v) => v.iter().map(|x| format_number(*x)).collect(),
+            Err(_) => Cells::default(),
+        })
     }
 }
 
@@ -412,7 +427,7 @@ impl Dataset {
         // A numeric `time` column is not a timestamp column: leave it alone.
         if col.values.is_ok()
             || col
-                .text
+                .cells()
                 .iter()
                 .next()
                 .and_then(timestamp::parse_timestamp)
@@ -420,8 +435,8 @@ impl Dataset {
         {
             return Ok(());
         }
-        let mut secs = Vec::with_capacity(col.text.len());
-        for (row, t) in col.text.iter().enumerate() {
+        let mut secs = Vec::with_capacity(col.cells().len());
+        for (row, t) in col.cells().iter().enumerate() {
             match timestamp::parse_timestamp(t) {
                 Some(s) => secs.push(s),
                 None => {
@@ -449,7 +464,7 @@ impl Dataset {
             .ok_or_else(|| self.missing(col, " (named by --scale)"))?;
         let values: Vec<f64> = self.numeric_at(i)?.iter().map(|v| v * factor).collect();
         let c = &mut self.columns[i];
-        c.text = values.iter().map(|v| format_number(*v)).collect();
+        c.text = std::sync::OnceLock::new();
         c.values = Ok(values);
         Ok(())
     }
@@ -484,7 +499,7 @@ impl Dataset {
         match &c.values {
             Ok(v) => Ok(v),
             Err(BadCell { row }) => {
-                let text = c.text.get(*row);
+                let text = c.cells().get(*row);
                 let (file, line, column, name) = (
                     self.source.clone(),
                     self.lines[*row],
@@ -566,7 +581,7 @@ impl Dataset {
         Ok(match &c.values {
             Ok(v) => v.clone(),
             Err(_) => c
-                .text
+                .cells()
                 .iter()
                 .map(|t| parse_number(t).unwrap_or(f64::NAN))
                 .collect(),
@@ -576,7 +591,7 @@ impl Dataset {
     /// Any column as text (numbers as written in the file, or as rescaled).
     pub fn text(&self, col: &str) -> Result<Vec<&str>, DataError> {
         let c = self.column(col, "")?;
-        Ok(c.text.iter().collect())
+        Ok(c.cells().iter().collect())
     }
 
     /// Names (without the `_degC` suffix) of the temperature sensor columns, in file order.
@@ -605,8 +620,8 @@ impl Dataset {
             return Ok(None);
         };
         let c = &self.columns[i];
-        let mut out = Vec::with_capacity(c.text.len());
-        for (row, t) in c.text.iter().enumerate() {
+        let mut out = Vec::with_capacity(c.cells().len());
+        for (row, t) in c.cells().iter().enumerate() {
             let d = parse_direction(t).ok_or_else(|| DataError::BadDirection {
                 file: self.source.clone(),
                 line: self.lines[row],
@@ -623,7 +638,7 @@ impl Dataset {
     pub fn run(&self) -> Option<Vec<String>> {
         self.index_of("run").map(|i| {
             self.columns[i]
-                .text
+                .cells()
                 .iter()
                 .map(|t| t.trim().to_string())
                 .collect()
@@ -663,15 +678,22 @@ impl Dataset {
                 .columns
                 .iter()
                 .map(|c| {
-                    let text = pick(&c.text);
-                    let values = match &c.values {
-                        Ok(v) => Ok(v
-                            .iter()
-                            .zip(mask)
-                            .filter(|(_, m)| **m)
-                            .map(|(x, _)| *x)
-                            .collect()),
-                        Err(_) => parse_numbers(&text),
+                    let (text, values) = match &c.values {
+                        Ok(v) => (
+                            std::sync::OnceLock::new(),
+                            Ok(v.iter()
+                                .zip(mask)
+                                .filter(|(_, m)| **m)
+                                .map(|(x, _)| *x)
+                                .collect()),
+                        ),
+                        Err(_) => {
+                            let text = pick(c.cells());
+                            let values = parse_numbers(&text);
+                            let cell = std::sync::OnceLock::new();
+                            let _ = cell.set(text);
+                            (cell, values)
+                        }
                     };
                     Column {
                         name: c.name.clone(),
@@ -699,7 +721,7 @@ impl Dataset {
                 if i > 0 {
                     out.push(',');
                 }
-                csv::write_field(&mut out, &c.text[r]);
+                csv::write_field(&mut out, &c.cells()[r]);
             }
             out.push('\n');
         }
@@ -920,7 +942,7 @@ impl Builder {
             for (col, value) in &opts.filters {
                 let c = ds.column(col, " (named by --where)")?;
                 let want_num = parse_number(value);
-                for (k, t) in keep.iter_mut().zip(c.text.iter()) {
+                for (k, t) in keep.iter_mut().zip(c.cells().iter()) {
                     let hit = match (want_num, parse_number(t)) {
                         (Some(a), Some(b)) => a == b,
                         _ => t.trim() == value,

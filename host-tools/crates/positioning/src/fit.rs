@@ -372,11 +372,19 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     }
     kinds.extend([Kind::SmoothingSplineUniform, Kind::SmoothingSplineFeature]);
 
+    // The per-fold curves are kept, not the per-row predictions (15 candidates × rows would dominate the
+    // memory of a large campaign); the chosen one's predictions are computed again at the end.
     struct Evaluated {
         cand: Candidate,
-        preds: Vec<f64>,
+        fold_curves: Vec<Curves>,
         final_curves: Curves,
     }
+    let predict = |fold_curves: &[Curves]| -> Vec<f64> {
+        obs.iter()
+            .zip(&p.fold)
+            .map(|(o, &f)| fold_curves[f].predict(o.target_mm, o.direction))
+            .collect()
+    };
     let mut evaluated: Vec<Evaluated> = Vec::new();
     let mut failures: Vec<String> = Vec::new();
     for kind in kinds {
@@ -395,12 +403,10 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
             let name = format!("{}/{}", kind.name(), structure.name());
             match ev {
                 Ok((fold_curves, final_curves, rho)) => {
-                    let preds: Vec<f64> = obs
+                    let cv = rms(obs
                         .iter()
                         .zip(&p.fold)
-                        .map(|(o, &f)| fold_curves[f].predict(o.target_mm, o.direction))
-                        .collect();
-                    let cv = rms(obs.iter().zip(&preds).map(|(o, q)| o.deviation_um - q));
+                        .map(|(o, &f)| o.deviation_um - fold_curves[f].predict(o.target_mm, o.direction)));
                     if cv.is_finite() {
                         evaluated.push(Evaluated {
                             cand: Candidate {
@@ -411,7 +417,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
                                 rho,
                                 intervals: final_curves.forward.coeffs.len(),
                             },
-                            preds,
+                            fold_curves,
                             final_curves,
                         });
                     } else {
@@ -437,6 +443,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
         })
         .unwrap();
     let chosen = &evaluated[chosen_idx];
+    let chosen_preds = predict(&chosen.fold_curves);
     let reason = if chosen_idx == 0 {
         format!(
             "lowest {} RMS ({:.3} µm) of {} candidates",
@@ -456,7 +463,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     let dev: Vec<f64> = obs.iter().map(|o| o.deviation_um).collect();
     let verdict = guard::judge(
         &dev,
-        &chosen.preds,
+        &chosen_preds,
         &p.fold,
         opts.improvement_ratio,
         opts.runs_improved_fraction,
@@ -495,7 +502,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     };
     let candidates = evaluated.iter().map(|e| e.cand.clone()).collect();
     let chosen_name = chosen.cand.name.clone();
-    let preds = chosen.preds.clone();
+    let preds = chosen_preds;
     Ok(FitResult {
         table,
         curves,

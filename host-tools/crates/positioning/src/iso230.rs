@@ -365,10 +365,31 @@ fn side(v: &[f64]) -> Option<Side> {
 /// The figures the points define (see [`Iso230Figures`]). Errors only for input that is not a set of
 /// points at all (empty, non-finite, direction not ±1).
 pub fn figures(points: &[Point]) -> Result<Iso230Figures, Iso230Error> {
-    if points.is_empty() {
+    figures_by(points.len(), |i| points[i])
+}
+
+/// [`figures`] of points given as columns (target mm, direction ±1 (0 counts as +1), deviation µm),
+/// without building a point list (large campaigns).
+pub fn figures_of_columns(
+    target_mm: &[f64],
+    direction: &[i8],
+    deviation_um: &[f64],
+) -> Result<Iso230Figures, Iso230Error> {
+    let n = target_mm.len().min(direction.len()).min(deviation_um.len());
+    figures_by(n, |i| Point {
+        target_mm: target_mm[i],
+        run: 0,
+        direction: if direction[i] < 0 { -1 } else { 1 },
+        deviation_um: deviation_um[i],
+    })
+}
+
+fn figures_by(n: usize, point: impl Fn(usize) -> Point) -> Result<Iso230Figures, Iso230Error> {
+    if n == 0 {
         return Err(Iso230Error::Empty);
     }
-    for (index, p) in points.iter().enumerate() {
+    for index in 0..n {
+        let p = point(index);
         if !p.target_mm.is_finite() || !p.deviation_um.is_finite() {
             return Err(Iso230Error::NonFinite { index });
         }
@@ -379,11 +400,15 @@ pub fn figures(points: &[Point]) -> Result<Iso230Figures, Iso230Error> {
             });
         }
     }
-    let mut order: Vec<usize> = (0..points.len()).collect();
-    order.sort_by(|&a, &b| points[a].target_mm.total_cmp(&points[b].target_mm));
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    order.sort_by(|&a, &b| {
+        point(a as usize)
+            .target_mm
+            .total_cmp(&point(b as usize).target_mm)
+    });
     let mut groups: Vec<(f64, Vec<f64>, Vec<f64>)> = Vec::new();
     for &k in &order {
-        let p = points[k];
+        let p = point(k as usize);
         if !groups
             .last()
             .is_some_and(|g| (p.target_mm - g.0).abs() <= TARGET_TOLERANCE_MM)
