@@ -280,10 +280,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let obs = observations(&before.data)?;
     let fitted: FitResult = fit(&obs, &FitOptions::default()).context("fitting the table")?;
     if !fitted.guard.passed {
-        anyhow::bail!(
-            "the do-no-harm guard refused the fitted table: {}",
-            fitted.guard.reasons.join("; ")
-        );
+        return Err(crate::Refused {
+            code: crate::EXIT_GUARD_REFUSED,
+            reason: format!(
+                "the do-no-harm guard refused the fitted table: {}",
+                fitted.guard.reasons.join("; ")
+            ),
+        }
+        .into());
     }
     fitted.table.validate()?;
     files.add(

@@ -320,8 +320,20 @@ fn data_warnings(
 /// Rows from which the command reports its steps on stderr (each can take seconds).
 const PROGRESS_ROWS: usize = 200_000;
 
+/// When the command started (for the progress lines of the fit).
+static STARTED: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+
+fn fit_progress(note: &str) {
+    let t = STARTED.get_or_init(std::time::Instant::now);
+    eprintln!(
+        "axcomp: [{:.1} s{}] {note}",
+        t.elapsed().as_secs_f64(),
+        crate::output::peak_memory_note()
+    );
+}
+
 fn compute(args: &Args) -> anyhow::Result<Outcome> {
-    let t0 = std::time::Instant::now();
+    let t0 = *STARTED.get_or_init(std::time::Instant::now);
     let load = LoadOptions::from_args(&args.data.where_, &args.data.rename, &args.data.scale)?;
     let ds = Dataset::load(&args.data.data, &load)?;
     if ds.n_rows() == 0 {
@@ -400,6 +412,7 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         segments: args.segments,
         segment_mm: args.segment_mm,
         max_folds: args.max_folds,
+        progress: axcomp_positioning::fit::Progress(big.then_some(fit_progress as fn(&str))),
         ..FitOptions::default()
     };
     if args.max_folds < 3 {
@@ -431,8 +444,7 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
     let (mut fit, judged, verdict, judged_rms, method) = match &holdout_mask {
         None => {
             let static_fit = axcomp_positioning::fit(&obs, &opts)?;
-            let (mut fit, kept, wj) =
-                with_warmup(args, &obs, ages.as_deref(), &opts, static_fit)?;
+            let (mut fit, kept, wj) = with_warmup(args, &obs, ages.as_deref(), &opts, static_fit)?;
             warm_json = wj;
             let (predicted, verdict, cv) = match &kept {
                 Some(w) => (w.cv_predictions.clone(), w.guard.clone(), w.cv_rms_um),

@@ -64,6 +64,28 @@ pub struct FitOptions {
     /// At most this many cross-validation folds: with more runs, consecutive runs are grouped into this
     /// many folds (`leave-runs-out`), so a campaign of thousands of cycles costs ~`max_folds` fits.
     pub max_folds: usize,
+    /// Called with a short note after each candidate kind is cross-validated (progress on large data).
+    pub progress: Progress,
+}
+
+/// An optional progress callback of [`FitOptions`] (equal to any other: it does not change the fit).
+#[derive(Clone, Copy, Default)]
+pub struct Progress(pub Option<fn(&str)>);
+
+impl std::fmt::Debug for Progress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() {
+            "Progress(on)"
+        } else {
+            "Progress(off)"
+        })
+    }
+}
+
+impl PartialEq for Progress {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 impl Default for FitOptions {
@@ -77,6 +99,7 @@ impl Default for FitOptions {
             runs_improved_fraction: guard::DEFAULT_RUNS_IMPROVED_FRACTION,
             only: Vec::new(),
             max_folds: DEFAULT_MAX_FOLDS,
+            progress: Progress(None),
         }
     }
 }
@@ -403,10 +426,9 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
             let name = format!("{}/{}", kind.name(), structure.name());
             match ev {
                 Ok((fold_curves, final_curves, rho)) => {
-                    let cv = rms(obs
-                        .iter()
-                        .zip(&p.fold)
-                        .map(|(o, &f)| o.deviation_um - fold_curves[f].predict(o.target_mm, o.direction)));
+                    let cv = rms(obs.iter().zip(&p.fold).map(|(o, &f)| {
+                        o.deviation_um - fold_curves[f].predict(o.target_mm, o.direction)
+                    }));
                     if cv.is_finite() {
                         evaluated.push(Evaluated {
                             cand: Candidate {
@@ -426,6 +448,13 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
                 }
                 Err(e) => failures.push(format!("{name}: {e}")),
             }
+        }
+        if let Some(note) = opts.progress.0 {
+            note(&format!(
+                "{} cross-validated in {folds} folds ({} candidates so far)",
+                kind.name(),
+                evaluated.len() + failures.len()
+            ));
         }
     }
     if evaluated.is_empty() {
