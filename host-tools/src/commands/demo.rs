@@ -272,13 +272,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let axis = Axis::linear_motor_demo();
     let plan = Plan::from(Iso230Plan::standard(axis.start_mm, axis.end_mm));
     let measured = simulate(&axis, &plan, None, args.seed).context("simulating the campaign")?;
-    files.add("measurement.csv", measured.to_csv_string());
+    let measurement_csv = measured.to_csv_string();
+    let provenance = axcomp_data::Provenance {
+        source_file: "measurement.csv".into(),
+        source_sha256: axcomp_data::provenance::sha256_hex(measurement_csv.as_bytes()),
+        source_bytes: measurement_csv.len() as u64,
+        where_: vec![],
+        rename: vec![],
+        scale: vec![],
+        holdout: None,
+        cv: None,
+        target: "deviation_um".into(),
+        tool: concat!("axcomp ", env!("CARGO_PKG_VERSION")).into(),
+        command: format!("demo --seed {}", args.seed),
+        created_utc: axcomp_data::provenance::utc_iso8601(std::time::SystemTime::now()),
+    };
+    files.add("measurement.csv", measurement_csv);
     let before = evaluate("measurement.csv", measured)?;
     let t_sim = t0.elapsed();
 
     // 2. Fit (cross-validated, guarded).
     let obs = observations(&before.data)?;
-    let fitted: FitResult = fit(&obs, &FitOptions::default()).context("fitting the table")?;
+    let mut fitted: FitResult = fit(&obs, &FitOptions::default()).context("fitting the table")?;
+    fitted.table.provenance = Some(provenance);
     if !fitted.guard.passed {
         return Err(crate::Refused {
             code: crate::EXIT_GUARD_REFUSED,

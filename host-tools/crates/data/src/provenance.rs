@@ -74,6 +74,11 @@ pub fn file_sha256(path: &Path) -> Result<(String, u64), DataError> {
     Ok((hex(&h.finalize()), n))
 }
 
+/// SHA-256 (lower-case hex) of bytes in memory (e.g. a CSV written in the same run).
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
 fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
@@ -193,6 +198,7 @@ mod tests {
             "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
         );
         assert_eq!(n, 3);
+        assert_eq!(sha256_hex(b"abc"), h);
         let pr = Provenance::of_file(
             &p,
             &["test_id=B02".into()],
