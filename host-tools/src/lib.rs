@@ -3,11 +3,25 @@
 
 pub mod cli;
 pub mod commands;
+pub mod output;
 
 use clap::Parser;
 
+/// Exit code for bad input: an unreadable or malformed file, a bad option, an output path that cannot be
+/// written (then nothing is written), data that fails a `--strict` sanity check.
+pub const EXIT_BAD_INPUT: u8 = 2;
+
 /// Exit code when a do-no-harm guard refuses to write a model (its JSON and report are still written).
 pub const EXIT_GUARD_REFUSED: u8 = 3;
+
+/// The exit codes as `--help` and the README state them.
+pub const EXIT_CODES_HELP: &str = "\
+Exit codes (every command):
+  0  success
+  2  bad input: unreadable or malformed data, a bad option, an output path that cannot be written
+     (then no output file is written or changed), or a data warning under --strict
+  3  refused by a guard: the model is not clearly better than no compensation; the JSON and report
+     say why and are written, the model file is not (unless --force)";
 
 /// A command finished its analysis but refuses to write its result (e.g. the do-no-harm guard found the
 /// model not clearly better than raw). Carries the process exit code; `main` maps it.
@@ -27,9 +41,11 @@ impl std::fmt::Display for Refused {
 
 impl std::error::Error for Refused {}
 
-/// The process exit code for an error returned by [`run`]: a [`Refused`] carries its own, anything else is 2.
+/// The process exit code for an error returned by [`run`]: a [`Refused`] carries its own, anything else is
+/// [`EXIT_BAD_INPUT`].
 pub fn exit_code(err: &anyhow::Error) -> u8 {
-    err.downcast_ref::<Refused>().map_or(2, |r| r.code)
+    err.downcast_ref::<Refused>()
+        .map_or(EXIT_BAD_INPUT, |r| r.code)
 }
 
 /// Parses `args` and runs the chosen command.

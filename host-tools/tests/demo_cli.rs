@@ -130,3 +130,33 @@ fn demo_into_an_unwritable_place_fails_cleanly() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("cannot create file/sub"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue 14 item 8: the demo's table names its source: the SHA-256 of the `measurement.csv` written next to
+/// it (reference: `sha256sum` when installed), its length, the tool version and the date.
+#[test]
+fn demo_table_carries_the_provenance_of_its_measurement() {
+    let dir = scratch("provenance");
+    let o = Command::new(env!("CARGO_BIN_EXE_axcomp"))
+        .args(["demo", "--out", "d"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let t = axcomp_positioning::TableFile::load(&dir.join("d/table.json")).unwrap();
+    let p = t.provenance.expect("provenance");
+    let csv = dir.join("d/measurement.csv");
+    assert_eq!(p.source_bytes, std::fs::metadata(&csv).unwrap().len());
+    assert_eq!(
+        p.source_sha256,
+        axcomp_data::provenance::file_sha256(&csv).unwrap().0
+    );
+    if let Ok(o) = Command::new("sha256sum").arg(&csv).output() {
+        let want = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(
+            Some(p.source_sha256.as_str()),
+            want.split_whitespace().next()
+        );
+    }
+    assert!(p.tool.starts_with("axcomp ") && p.created_utc.ends_with('Z'));
+    let _ = std::fs::remove_dir_all(&dir);
+}

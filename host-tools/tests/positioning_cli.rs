@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use serde_json::Value;
+use serde_json::{Value, json};
 
 mod common;
 use common::{read_json, scratch, shared};
@@ -38,14 +38,20 @@ fn num(j: &Value, key: &str) -> f64 {
         .unwrap_or_else(|| panic!("JSON field {key} missing or not a number: {j}"))
 }
 
+/// The contract's ISO 230-2 fields are present: a finite number, or (issue 14: figures the judged runs
+/// cannot define, e.g. A and R of single-run CV folds, are no longer invented) `null` with a reason.
+/// Before is always fully defined on these bidirectional multi-run campaigns.
 fn check_iso(j: &Value) {
     for part in ["iso230_2_before", "iso230_2_after"] {
         for k in ["A_um", "E_um", "M_um", "R_um", "B_um"] {
-            assert!(
-                j[part][k].as_f64().is_some_and(f64::is_finite),
-                "{part}.{k} missing: {}",
-                j[part]
-            );
+            let v = &j[part][k];
+            let ok = v.as_f64().is_some_and(f64::is_finite)
+                || (part == "iso230_2_after"
+                    && v.is_null()
+                    && j[part]["null_reasons"][k]
+                        .as_str()
+                        .is_some_and(|r| !r.is_empty()));
+            assert!(ok, "{part}.{k} missing: {}", j[part]);
         }
     }
 }
@@ -667,5 +673,523 @@ fn bad_input_names_file_line_and_column_and_writes_nothing() {
     assert_eq!(r.code, 2);
     assert!(r.stderr.contains("segments"), "{}", r.stderr);
     assert!(!json.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Issue 14 / issue 13: honest figures, after-figures from a compensated campaign, data sanity,
+// traceability, grouped folds.
+
+/// One-direction data: unidirectional ISO 230-2 figures, `null` + reason for every bidirectional one
+/// (issue 14: `A_down_um == A_up_um`, `B_um: 0` were invented), and no "bidirectional" heading.
+#[test]
+fn one_direction_data_gets_unidirectional_figures_only() {
+    let dir = scratch("onedir");
+    let (csv, json, report) = (dir.join("u.csv"), dir.join("j.json"), dir.join("rep"));
+    let mut rng = Rng(11);
+    let mut s = String::from("target_mm,run,direction,deviation_um\n");
+    for run in 1..=5 {
+        for k in 0..21 {
+            let x = 20.0 * k as f64;
+            s.push_str(&format!(
+                "{x},{run},+,{:.4}\n",
+                truth(x, 1) + 0.5 * rng.normal()
+            ));
+        }
+    }
+    std::fs::write(&csv, s).unwrap();
+    let r = axcomp(&[
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let j = read_json(&json);
+    for part in ["iso230_2_before", "iso230_2_after"] {
+        let f = &j[part];
+        assert_eq!(f["directions"], "positive only", "{f}");
+        assert_eq!(f["bidirectional"], false);
+        for k in [
+            "A_um",
+            "E_um",
+            "M_um",
+            "R_um",
+            "B_um",
+            "A_down_um",
+            "E_down_um",
+            "R_down_um",
+        ] {
+            assert!(f[k].is_null(), "{part}.{k} = {}", f[k]);
+            assert!(f["null_reasons"][k].is_string(), "{part}.{k}: no reason");
+        }
+        assert!(
+            f["null_reasons"]["B_um"]
+                .as_str()
+                .unwrap()
+                .contains("one approach direction")
+        );
+    }
+    // Before: the ↑ figures of the raw data are defined (5 runs per target).
+    for k in ["A_up_um", "E_up_um", "R_up_um"] {
+        assert!(j["iso230_2_before"][k].as_f64().is_some(), "{k}");
+    }
+    let md = std::fs::read_to_string(report.join("report.md")).unwrap();
+    assert!(!md.contains("(bidirectional)"), "{md}");
+    assert!(md.contains("unidirectional") && md.contains("A_up_um"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `--holdout cycle=5` (one held-out cycle): the contract's `A_um … B_um` are all present; E, M, B (from
+/// the per-target means) are numbers, A and R (which need s, i.e. ≥ 2 runs) are `null` with the reason.
+/// Reference for E, M, B: computed here from the CSV rows of cycle 5 (max − min of the per-target
+/// means, tolerance 1e-9 µm).
+#[test]
+fn holdout_of_one_cycle_keeps_every_computable_figure() {
+    let Some(shared) = shared() else { return };
+    let csv = shared.join(ESS_CSV);
+    let dir = scratch("holdout5");
+    let json = dir.join("j.json");
+    let r = axcomp(&[
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--where",
+        &format!("test_id={B02}"),
+        "--holdout",
+        "cycle=5",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let j = read_json(&json);
+    let b = &j["iso230_2_before"];
+    for k in ["A_um", "E_um", "M_um", "R_um", "B_um"] {
+        assert!(b.get(k).is_some(), "{k} dropped: {b}");
+    }
+    for k in ["A_um", "R_um"] {
+        assert!(b[k].is_null());
+        assert!(
+            b["null_reasons"][k]
+                .as_str()
+                .unwrap()
+                .contains("at least 2 runs")
+        );
+    }
+    // Independent reference from the raw rows of cycle 5.
+    let ds = axcomp_data::Dataset::load(
+        &csv,
+        &axcomp_data::LoadOptions::from_args(
+            &[format!("test_id={B02}"), "cycle=5".into()],
+            &[],
+            &[],
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    let (x, d, dir_) = (
+        ds.numeric("target_mm").unwrap(),
+        ds.numeric("deviation_um").unwrap(),
+        ds.direction().unwrap().unwrap(),
+    );
+    let mut up = std::collections::BTreeMap::new();
+    let mut down = std::collections::BTreeMap::new();
+    for i in 0..x.len() {
+        let m = if dir_[i] > 0 { &mut up } else { &mut down };
+        m.insert((x[i] * 1000.0).round() as i64, d[i]);
+    }
+    let all: Vec<f64> = up.values().chain(down.values()).copied().collect();
+    let e_ref =
+        all.iter().copied().fold(f64::MIN, f64::max) - all.iter().copied().fold(f64::MAX, f64::min);
+    let mids: Vec<f64> = up.iter().map(|(t, u)| 0.5 * (u + down[t])).collect();
+    let m_ref = mids.iter().copied().fold(f64::MIN, f64::max)
+        - mids.iter().copied().fold(f64::MAX, f64::min);
+    let b_ref = up
+        .iter()
+        .map(|(t, u)| (u - down[t]).abs())
+        .fold(0.0, f64::max);
+    for (k, want) in [("E_um", e_ref), ("M_um", m_ref), ("B_um", b_ref)] {
+        let got = num(b, k);
+        assert!((got - want).abs() < 1e-9, "{k}: {got} vs {want}");
+    }
+    for k in ["E_um", "M_um", "B_um"] {
+        assert!(j["iso230_2_after"][k].as_f64().is_some(), "after {k}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Issue 13 item 4 on the twin: `iso230_2_after` of `--holdout` equals the ISO 230-2 figures of the truly
+/// compensated campaign — the same held-out runs simulated with the written table loaded into the core's
+/// compensator (same noise seed) — within 0.05 µm (the issue's tolerance; the differences are the
+/// firmware's f32 table and count rounding, and the error evaluated at the compensated position).
+/// The axis is the demo's linear-motor axis without its interpolation error: that error has a 20 µm period,
+/// so the compensated axis, sitting a correction (~10 µm) away from the target, reads it at another phase
+/// (±0.15 µm) — a real difference no position table can predict, not an error of the after-figures.
+#[test]
+fn twin_after_figures_equal_the_truly_compensated_campaign() {
+    use axcomp_twin::{Axis, EffectKind, Iso230Plan, Plan, simulate};
+    let dir = scratch("twin-after");
+    let (csv, json, table) = (dir.join("m.csv"), dir.join("j.json"), dir.join("t.json"));
+    let axis = Axis::typical(
+        "linear_motor_demo_without_interpolation_error",
+        0.0,
+        200.0,
+        &[
+            EffectKind::PitchError,
+            EffectKind::Reversal,
+            EffectKind::Cogging,
+            EffectKind::ScaleExpansion,
+        ],
+    );
+    let mut iso_plan = Iso230Plan::standard(axis.start_mm, axis.end_mm);
+    iso_plan.cycles = 10;
+    let plan = Plan::from(iso_plan);
+    let seed = 7;
+    let measured = simulate(&axis, &plan, None, seed).unwrap();
+    std::fs::write(&csv, measured.to_csv_string()).unwrap();
+    let r = axcomp(&[
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--holdout",
+        "run=6,7,8,9,10",
+        "--out",
+        table.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let j = read_json(&json);
+    // The truly compensated campaign: the written table in a firmware image, driven by the twin.
+    let t = axcomp_positioning::TableFile::load(&table).unwrap();
+    let core = t.try_to_core(axis.scale_um_per_count).unwrap();
+    let spec = axcomp_core::ImageSpec {
+        axis_id: 1,
+        um_per_count: axis.scale_um_per_count as f32,
+        counter_bits: 32,
+        table: Some(core.spec()),
+        thermo: None,
+        limits: axcomp_twin::ideal::default_limits(&axis),
+    };
+    let mut image = vec![0u8; axcomp_core::image_len(&spec)];
+    let n = axcomp_core::write_image(&spec, &mut image).unwrap();
+    image.truncate(n);
+    let mut comp = axcomp_core::Compensator::IDENTITY;
+    comp.load(&image).unwrap();
+    let compensated = simulate(&axis, &plan, Some(&comp), seed).unwrap();
+    let pts: Vec<axcomp_positioning::iso230::Point> = compensated
+        .rows
+        .iter()
+        .filter(|r| r.run >= 6)
+        .map(|r| axcomp_positioning::iso230::Point {
+            target_mm: r.target_mm,
+            run: r.run,
+            direction: r.direction,
+            deviation_um: r.deviation_um,
+        })
+        .collect();
+    let truly = axcomp_positioning::iso230::evaluate(&pts).unwrap();
+    let truly = serde_json::to_value(&truly).unwrap();
+    let after = &j["iso230_2_after"];
+    for k in [
+        "A_um",
+        "E_um",
+        "M_um",
+        "R_um",
+        "B_um",
+        "A_up_um",
+        "A_down_um",
+        "R_up_um",
+        "R_down_um",
+    ] {
+        let (got, want) = (num(after, k), num(&truly, k));
+        println!("twin after {k}: CLI {got:.4} µm, truly compensated {want:.4} µm");
+        assert!((got - want).abs() <= 0.05, "{k}: {got} vs {want}");
+    }
+    // And compensation did something: A after well below A before.
+    assert!(num(after, "A_um") < 0.5 * num(&j["iso230_2_before"], "A_um"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Issue 13 item 4 on the real ESS runs: with the last two cycles held out, no after-figure is an
+/// artefact. Where the guard writes a table, A after ≤ A before. R after is consistent with the held-out
+/// runs' own repeatability: a static table subtracts the same value from every run at a target, so the
+/// unidirectional R↑ and R↓ after (4s of the residuals) equal R↑ and R↓ before (4s of the held-out
+/// deviations) — reference: the before figures, tolerance 1e-9 µm — and the bidirectional R after is at most
+/// R before plus what the reversal after adds (R_i = 2s↑ + 2s↓ + |B_i|).
+#[test]
+fn ess_after_figures_are_not_artefacts() {
+    let Some(shared) = shared() else { return };
+    let csv = shared.join(ESS_CSV);
+    let dir = scratch("ess-after");
+    let ids = [B02].into_iter().chain(MUTS.iter().map(|m| m.0));
+    let mut tables = 0;
+    for id in ids {
+        let json = dir.join(format!("{id}.json"));
+        let r = axcomp(&[
+            "fit",
+            "positioning",
+            "--data",
+            csv.to_str().unwrap(),
+            "--where",
+            &format!("test_id={id}"),
+            "--holdout",
+            "cycle=4,5",
+            "--json",
+            json.to_str().unwrap(),
+        ]);
+        assert!(r.code == 0 || r.code == 3, "{id}: {}", r.stderr);
+        let j = read_json(&json);
+        let (b, a) = (&j["iso230_2_before"], &j["iso230_2_after"]);
+        let passed = j["guard"]["passed"] == true;
+        println!(
+            "{id}: A {:.2} → {:.2} µm, R {:.2} → {:.2} µm, R↑ {:.3} → {:.3}, guard {}",
+            num(b, "A_um"),
+            num(a, "A_um"),
+            num(b, "R_um"),
+            num(a, "R_um"),
+            num(b, "R_up_um"),
+            num(a, "R_up_um"),
+            if passed { "passed" } else { "refused" }
+        );
+        for k in ["R_up_um", "R_down_um"] {
+            assert!((num(a, k) - num(b, k)).abs() < 1e-9, "{id} {k}");
+        }
+        let rev_after = num(a, "B_um");
+        assert!(
+            num(a, "R_um") <= num(b, "R_um") + rev_after + 1e-9,
+            "{id} R"
+        );
+        if passed {
+            tables += 1;
+            assert!(num(a, "A_um") <= num(b, "A_um"), "{id}: A after > A before");
+        }
+    }
+    assert!(tables >= 2, "at least B02 and one MUTS run get a table");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Writes the B02 rows of the ESS file with `edit(row, cycle, deviation)` applied to `deviation_um`.
+fn b02_edited(shared: &Path, out: &Path, edit: impl Fn(usize, f64, f64) -> f64) {
+    let ds = axcomp_data::Dataset::load(
+        &shared.join(ESS_CSV),
+        &axcomp_data::LoadOptions::from_args(&[format!("test_id={B02}")], &[], &[]).unwrap(),
+    )
+    .unwrap();
+    let (x, c, d, v) = (
+        ds.numeric("target_mm").unwrap(),
+        ds.numeric("cycle").unwrap(),
+        ds.direction().unwrap().unwrap(),
+        ds.numeric("deviation_um").unwrap(),
+    );
+    let mut s = String::from("test_id,target_mm,cycle,direction,deviation_um\n");
+    for i in 0..x.len() {
+        s.push_str(&format!(
+            "{B02},{},{},{},{}\n",
+            x[i],
+            c[i],
+            d[i],
+            edit(i, c[i], v[i])
+        ));
+    }
+    std::fs::write(out, s).unwrap();
+}
+
+/// Issue 14 "Why": a value mistyped ×10 was fitted silently (the table moved by 9.9 µm). Now it is a
+/// warning on stderr and in the JSON naming its line; `--strict` refuses the data with exit code 2 and
+/// writes nothing.
+#[test]
+fn a_value_mistyped_ten_times_is_flagged_and_strict_refuses_it() {
+    let Some(shared) = shared() else { return };
+    let dir = scratch("typo");
+    let (csv, json, table) = (dir.join("b02.csv"), dir.join("j.json"), dir.join("t.json"));
+    b02_edited(&shared, &csv, |i, _, v| if i == 40 { v * 10.0 } else { v });
+    let args = [
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--out",
+        table.to_str().unwrap(),
+    ];
+    let r = axcomp(&args);
+    assert!(r.code == 0 || r.code == 3, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("warning") && r.stderr.contains("line 42"),
+        "{}",
+        r.stderr
+    );
+    let j = read_json(&json);
+    let w = j["warnings"].as_array().unwrap();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert_eq!(w[0]["kind"], "outlier");
+    assert_eq!(w[0]["lines"], json!([42]));
+    std::fs::remove_file(&json).unwrap();
+    let _ = std::fs::remove_file(&table);
+    let strict: Vec<&str> = args.iter().copied().chain(["--strict"]).collect();
+    let r = axcomp(&strict);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    assert!(r.stderr.contains("--strict"), "{}", r.stderr);
+    assert!(
+        !json.exists() && !table.exists(),
+        "--strict wrote something"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Issue 14 "Why": half the rows in mm instead of µm were fitted silently. Now a `unit_mix` warning.
+#[test]
+fn half_the_rows_in_mm_is_a_unit_warning() {
+    let Some(shared) = shared() else { return };
+    let dir = scratch("units");
+    let (csv, json) = (dir.join("b02.csv"), dir.join("j.json"));
+    // Cycles 3–5 logged in mm.
+    b02_edited(
+        &shared,
+        &csv,
+        |_, c, v| if c >= 3.0 { v / 1000.0 } else { v },
+    );
+    let r = axcomp(&[
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--strict",
+    ]);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    assert!(r.stderr.contains("mm mixed with µm"), "{}", r.stderr);
+    assert!(!json.exists());
+    let r = axcomp(&[
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(r.code == 0 || r.code == 3, "{}", r.stderr);
+    let j = read_json(&json);
+    assert_eq!(j["warnings"][0]["kind"], "unit_mix", "{}", j["warnings"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Issue 14 "Why": the ESS file holds nine `test_id`s; without `--where` it was fitted as one axis. Now a
+/// clear error (exit 2) listing them, and nothing written.
+#[test]
+fn several_test_ids_without_where_are_an_error_listing_them() {
+    let Some(shared) = shared() else { return };
+    let dir = scratch("nine");
+    let json = dir.join("j.json");
+    let r = axcomp(&[
+        "fit",
+        "positioning",
+        "--data",
+        shared.join(ESS_CSV).to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("holds 9 different values"),
+        "{}",
+        r.stderr
+    );
+    for (id, _) in MUTS {
+        assert!(r.stderr.contains(id), "{id} not listed: {}", r.stderr);
+    }
+    assert!(r.stderr.contains("--where test_id="), "{}", r.stderr);
+    assert!(!json.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Issue 14 item 8: the table file names its source (SHA-256 of the file's bytes, length), the filters,
+/// the tool version and the date. Reference for the digest: `sha256sum` when installed.
+#[test]
+fn the_table_file_carries_its_provenance() {
+    let dir = scratch("provenance");
+    let (csv, table) = (dir.join("s.csv"), dir.join("t.json"));
+    synthetic_csv(&csv, 6, 1.0, 5);
+    let r = axcomp(&[
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--holdout",
+        "run=6",
+        "--scale",
+        "deviation_um=1",
+        "--out",
+        table.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let t = axcomp_positioning::TableFile::load(&table).unwrap();
+    let p = t.provenance.expect("provenance in the table file");
+    assert_eq!(p.source_bytes, std::fs::metadata(&csv).unwrap().len());
+    assert_eq!(p.source_sha256.len(), 64);
+    if let Ok(o) = Command::new("sha256sum").arg(&csv).output() {
+        let want = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(
+            Some(p.source_sha256.as_str()),
+            want.split_whitespace().next()
+        );
+    }
+    assert_eq!(p.holdout.as_deref(), Some("run=6"));
+    assert_eq!(p.scale, vec!["deviation_um=1".to_string()]);
+    assert_eq!(p.tool, concat!("axcomp ", env!("CARGO_PKG_VERSION")));
+    assert!(
+        p.created_utc.len() == 20 && p.created_utc.ends_with('Z'),
+        "{}",
+        p.created_utc
+    );
+    let line = p.header_line();
+    assert!(
+        line.contains("holdout=run=6") && line.contains(&p.source_sha256[..16]),
+        "{line}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Issue 13 item 6: a campaign of many runs is cross-validated in at most `--max-folds` (default 20)
+/// folds of consecutive runs, and the JSON says so.
+#[test]
+fn many_runs_are_grouped_into_at_most_twenty_folds() {
+    let dir = scratch("folds");
+    let (csv, json) = (dir.join("s.csv"), dir.join("j.json"));
+    synthetic_csv(&csv, 50, 1.0, 9);
+    let r = axcomp(&[
+        "fit",
+        "positioning",
+        "--data",
+        csv.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let j = read_json(&json);
+    assert_eq!(j["cv"]["method"], "leave-runs-out");
+    assert_eq!(j["cv"]["folds"], 20);
+    assert_eq!(j["cv"]["grouped"], true);
+    assert!(
+        j["cv"]["note"]
+            .as_str()
+            .unwrap()
+            .contains("50 runs grouped into 20 folds")
+    );
+    // Folds of 2–3 runs: every after-figure is defined (s from ≥ 2 runs per fold).
+    check_iso(&j);
+    assert_eq!(j["iso230_2_per_fold"].as_array().unwrap().len(), 20);
+    assert!(j["iso230_2_after"]["A_um"].as_f64().is_some());
+    // Close to σ = 1 µm (the generator's noise) on unseen runs.
+    assert!(num(&j, "cv_rms_um") < 1.1, "{}", j["cv_rms_um"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }

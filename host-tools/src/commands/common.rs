@@ -4,11 +4,10 @@
 //! Terms:
 //! - *common options*: `--data`, `--where`, `--rename`, `--scale` ([`crate::cli::DataArgs`]).
 //! - *atomic write*: the bytes go to a temporary file next to the target, which is then renamed over it;
-//!   a failure leaves no partial file behind.
+//!   a failure leaves no partial file behind. Several outputs: [`crate::output::OutputSet`] (all or none).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use anyhow::Context;
 use axcomp_data::{Dataset, LoadOptions, Split};
 
 use crate::cli::DataArgs;
@@ -33,24 +32,11 @@ pub fn split_from(holdout: Option<&str>, cv: Option<&str>) -> anyhow::Result<Opt
     Ok(Split::from_args(holdout, cv)?)
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory and a rename.
+/// Writes `bytes` to `path` through a temporary file in the same directory and a rename (a one-file
+/// [`crate::output::OutputSet`]; commands with several outputs use the set directly).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .with_context(|| format!("{}: not a file name", path.display()))?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(".tmp{}", std::process::id()));
-    let tmp = dir.join(tmp_name);
-    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        anyhow::anyhow!("cannot write {}: {e}", path.display())
-    })
+    crate::output::write_one(path, bytes)?;
+    Ok(())
 }
 
 /// Serialises `value` as pretty JSON and writes it atomically.

@@ -30,7 +30,7 @@ use axcomp_positioning::iso230::{self, Iso230Result};
 use axcomp_twin::{Axis, Campaign, IdealTable, Iso230Plan, Plan, simulate};
 use serde_json::json;
 
-use super::common::write_atomic;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -91,18 +91,47 @@ fn image_bytes(spec: &ImageSpec) -> anyhow::Result<Vec<u8>> {
     Ok(buf)
 }
 
-/// Output files, written only once everything has been computed (each through a temporary file).
-#[derive(Default)]
-struct Outputs(Vec<(&'static str, Vec<u8>)>);
+/// The files the demo writes into `--out` (all together or none, see [`OutputSet`]).
+const FILES: [&str; 11] = [
+    "measurement.csv",
+    "table.json",
+    "image.bin",
+    "measurement_compensated.csv",
+    "trace.bin",
+    "replay.bin",
+    "deviation_before.svg",
+    "deviation_after.svg",
+    "iso230_before_after.svg",
+    "demo.json",
+    "report.md",
+];
+
+/// Output files, collected while the demo runs and written only once everything has been computed.
+struct Outputs {
+    dir: PathBuf,
+    set: OutputSet,
+}
 
 impl Outputs {
-    fn add(&mut self, name: &'static str, bytes: impl Into<Vec<u8>>) {
-        self.0.push((name, bytes.into()));
-    }
-    fn write_all(&self, dir: &Path) -> anyhow::Result<()> {
-        for (name, bytes) in &self.0 {
-            write_atomic(&dir.join(name), bytes)?;
+    /// Declares `dir` and every file, and checks the paths before any work.
+    fn new(dir: &Path) -> anyhow::Result<Self> {
+        let mut set = OutputSet::new();
+        set.dir(dir);
+        for name in FILES {
+            set.planned(dir.join(name));
         }
+        set.check()?;
+        Ok(Outputs {
+            dir: dir.to_path_buf(),
+            set,
+        })
+    }
+    fn add(&mut self, name: &'static str, bytes: impl Into<Vec<u8>>) {
+        debug_assert!(FILES.contains(&name), "{name} not in FILES");
+        self.set.file(self.dir.join(name), bytes);
+    }
+    fn write_all(self) -> anyhow::Result<()> {
+        self.set.commit()?;
         Ok(())
     }
 }
@@ -237,24 +266,44 @@ fn closed_loop_trace(
 pub fn run(args: Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let out = &args.out;
-    let mut files = Outputs::default();
+    let mut files = Outputs::new(out)?;
 
     // 1. The twin and its ISO 230-2 campaign.
     let axis = Axis::linear_motor_demo();
     let plan = Plan::from(Iso230Plan::standard(axis.start_mm, axis.end_mm));
     let measured = simulate(&axis, &plan, None, args.seed).context("simulating the campaign")?;
-    files.add("measurement.csv", measured.to_csv_string());
+    let measurement_csv = measured.to_csv_string();
+    let provenance = axcomp_data::Provenance {
+        source_file: "measurement.csv".into(),
+        source_sha256: axcomp_data::provenance::sha256_hex(measurement_csv.as_bytes()),
+        source_bytes: measurement_csv.len() as u64,
+        where_: vec![],
+        rename: vec![],
+        scale: vec![],
+        holdout: None,
+        cv: None,
+        target: "deviation_um".into(),
+        tool: concat!("axcomp ", env!("CARGO_PKG_VERSION")).into(),
+        command: format!("demo --seed {}", args.seed),
+        created_utc: axcomp_data::provenance::utc_iso8601(std::time::SystemTime::now()),
+    };
+    files.add("measurement.csv", measurement_csv);
     let before = evaluate("measurement.csv", measured)?;
     let t_sim = t0.elapsed();
 
     // 2. Fit (cross-validated, guarded).
     let obs = observations(&before.data)?;
-    let fitted: FitResult = fit(&obs, &FitOptions::default()).context("fitting the table")?;
+    let mut fitted: FitResult = fit(&obs, &FitOptions::default()).context("fitting the table")?;
+    fitted.table.provenance = Some(provenance);
     if !fitted.guard.passed {
-        anyhow::bail!(
-            "the do-no-harm guard refused the fitted table: {}",
-            fitted.guard.reasons.join("; ")
-        );
+        return Err(crate::Refused {
+            code: crate::EXIT_GUARD_REFUSED,
+            reason: format!(
+                "the do-no-harm guard refused the fitted table: {}",
+                fitted.guard.reasons.join("; ")
+            ),
+        }
+        .into());
     }
     fitted.table.validate()?;
     files.add(
@@ -320,59 +369,91 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let curve = |f: &dyn Fn(f64) -> f64| xs.iter().map(|&x| f(x)).collect::<Vec<f64>>();
     let [(xf, df), (xb, db)] = split_by_direction(&before.data)?;
+    let (up, down) = (axcomp_plot::PALETTE[0], axcomp_plot::PALETTE[1]);
+    let test = format!(
+        "twin {}, ISO 230-2 {} targets × 5 runs",
+        axis.name,
+        before.iso.targets.len()
+    );
     let mut fig = Figure::new(
-        "Measured deviation and fitted table (before compensation)",
+        &format!(
+            "{test}: measured deviation and fitted table ({}, CV RMS {:.2} µm, raw {:.2} µm)",
+            fitted.chosen, fitted.cv_rms_um, fitted.raw_rms_um
+        ),
         "target / mm",
         "deviation / µm",
     );
-    fig.points("measured ↑", &xf, &df)
-        .points("measured ↓", &xb, &db)
-        .line(
-            "table forward",
-            &xs,
-            &curve(&|x| fitted.table.deviation_um(x, 1)),
-        )
-        .line(
-            "table backward",
-            &xs,
-            &curve(&|x| fitted.table.deviation_um(x, -1)),
-        )
+    fig.points("measured ↑ (positive)", &xf, &df)
+        .with_colour(up)
+        .line("table ↑", &xs, &curve(&|x| fitted.table.deviation_um(x, 1)))
+        .with_colour(up)
         .dashed(
-            "truth forward",
+            "truth ↑",
             &xs,
             &curve(&|x| axis.true_deviation_um(x, 1, &cond)),
         )
+        .with_colour(up)
+        .points("measured ↓ (negative)", &xb, &db)
+        .with_colour(down)
+        .line(
+            "table ↓",
+            &xs,
+            &curve(&|x| fitted.table.deviation_um(x, -1)),
+        )
+        .with_colour(down)
         .dashed(
-            "truth backward",
+            "truth ↓",
             &xs,
             &curve(&|x| axis.true_deviation_um(x, -1, &cond)),
-        );
+        )
+        .with_colour(down);
     files.add("deviation_before.svg", fig.to_svg());
 
     let [(xf2, df2), (xb2, db2)] = split_by_direction(&after.data)?;
     let mut fig = Figure::new(
-        "Measured deviation after compensation (new campaign through the firmware compensator)",
+        &format!(
+            "{test}: deviation after compensation (new campaign through the firmware compensator, RMS {:.2} µm)",
+            after.rms_um
+        ),
         "target / mm",
         "deviation / µm",
     );
-    fig.points("positive approach", &xf2, &df2)
-        .points("negative approach", &xb2, &db2)
+    fig.points("positive approach ↑", &xf2, &df2)
+        .with_colour(up)
+        .points("negative approach ↓", &xb2, &db2)
+        .with_colour(down)
         .hline(0.0, "0");
     files.add("deviation_after.svg", fig.to_svg());
 
-    let mut fig = Figure::new(
-        "ISO 230-2: mean deviation ± 2s per target, before and after",
-        "target / mm",
-        "deviation / µm",
-    );
-    for (label, e) in [("before", &before), ("after", &after)] {
-        for (dname, d) in [("↑", 1i8), ("↓", -1i8)] {
+    // Before and after as two panels (each on its own scale), one colour per direction.
+    let panel = |label: &str, e: &Evaluated| {
+        let mut fig = Figure::new(
+            &format!(
+                "{label}: A {:.2}, E {:.2}, B {:.2} µm",
+                e.iso.a_um, e.iso.e_um, e.iso.b_um
+            ),
+            "target / mm",
+            "mean deviation ± 2s / µm",
+        );
+        fig.size(700.0, 460.0);
+        for (dname, d, colour) in [("↑", 1i8, up), ("↓", -1i8, down)] {
             let [t, m, lo, hi] = per_direction(&e.iso, d);
-            fig.band(&format!("{label} {dname} ±2s"), &t, &lo, &hi)
-                .line(&format!("{label} {dname} mean"), &t, &m);
+            fig.band(&format!("{dname} ±2s"), &t, &lo, &hi)
+                .with_colour(colour)
+                .line(&format!("{dname} mean"), &t, &m)
+                .with_colour(colour);
         }
-    }
-    files.add("iso230_before_after.svg", fig.to_svg());
+        fig.hline(0.0, "");
+        fig
+    };
+    let (pb, pa) = (
+        panel("Before (uncompensated)", &before),
+        panel("After (firmware compensator)", &after),
+    );
+    files.add(
+        "iso230_before_after.svg",
+        axcomp_plot::panels_svg(&[&pb, &pa], 2),
+    );
     let t_plot = t0.elapsed();
 
     // 7. Figures: console, JSON, report.
@@ -548,8 +629,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
          (`axcomp image inspect image.bin`), `demo.json` (figures).\n"
     );
     files.add("report.md", md);
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    files.write_all(out)?;
+    files.write_all()?;
     print!("{console}");
     Ok(())
 }

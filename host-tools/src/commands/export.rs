@@ -13,7 +13,7 @@ use anyhow::Context;
 use axcomp_positioning::TableFile;
 use axcomp_positioning::export::{ExportFormat, export};
 
-use super::common::write_atomic;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -33,10 +33,14 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let format: ExportFormat = args.format.parse()?;
+    let mut output = OutputSet::new();
+    output.planned(&args.out);
+    output.check()?;
     let table = TableFile::load(&args.table)
         .with_context(|| format!("reading table {}", args.table.display()))?;
     let text = export(&table, format, args.step)?;
-    write_atomic(&args.out, text.as_bytes())?;
+    output.file(&args.out, text.as_bytes());
+    output.commit()?;
     let lines = text.lines().count() - usize::from(format == ExportFormat::Csv);
     println!(
         "wrote {} ({} entries, {:.4} .. {:.4} mm, format {})",

@@ -12,12 +12,14 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use axcomp_data::{Dataset, LoadOptions};
-use axcomp_plot::{Figure, markdown_table, write_atomic};
+use axcomp_plot::{Figure, markdown_table};
 use axcomp_thermal::force::{FixedExponents, PowerLawData, PowerLawFit, fit_power_law};
 use axcomp_thermal::milling::{
     AxisMap, DynoWare, MillingCoefficients, fz_from_file_name, mean_forces, slotting_coefficients,
 };
 use serde_json::json;
+
+use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
 --kind power reads a measurement CSV (--data with --where/--rename/--scale): columns ap_mm, fz_mm, a `*_rpm` column and a force column (--force-col, default the only `*_N` column). A parameter column the file lacks can be given a constant with --set COL=VALUE; the exponent of a parameter that does not vary must be fixed (--fix x_ap=1: Kienzle's force ∝ chip width; --fix z_n=0). Without a `*_rpm` column z_n = 0. Fit: log-linear least squares as start, Levenberg–Marquardt on the force residuals; 95 % intervals θ ± t(0.975, n−p)·sqrt(diag(s²(JᵀJ)⁻¹)). With x_ap fixed at 1 the Kienzle parameters kc1.1 = K and mc = 1 − y are reported. --validate FILE applies the law to a second file (same options plus --validate-rename; --set only fills columns that file lacks) and reports its residuals. --out LAW.json writes the law for `axcomp fit thermal --force-law COL=LAW.json` (the firmware then predicts that force from ap, fz and n).
@@ -95,11 +97,28 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Every output path is checked before the work; all are written together at the end, or none.
+    let mut outputs = OutputSet::new();
+    for p in [&args.out, &args.json].into_iter().flatten() {
+        outputs.planned(p);
+    }
+    if let Some(dir) = &args.report {
+        outputs.dir(dir);
+        outputs.planned(dir.join("report.md"));
+    }
+    outputs.check()?;
     match args.kind.as_str() {
-        "power" => run_power(&args),
-        "milling" => run_milling(&args),
+        "power" => run_power(&args, &mut outputs)?,
+        "milling" => run_milling(&args, &mut outputs)?,
         k => bail!("--kind `{k}`: expected power or milling"),
     }
+    let written = outputs.commit()?;
+    if let (Some(p), true) = (&args.out, args.kind == "power") {
+        if written.contains(p) {
+            println!("force law written to {}", p.display());
+        }
+    }
+    Ok(())
 }
 
 fn parse_pairs(opt: &str, v: &[String]) -> anyhow::Result<Vec<(String, f64)>> {
@@ -204,7 +223,7 @@ fn power_columns(
     })
 }
 
-fn run_power(args: &Args) -> anyhow::Result<()> {
+fn run_power(args: &Args, outputs: &mut OutputSet) -> anyhow::Result<()> {
     let data = args
         .data
         .as_ref()
@@ -316,28 +335,25 @@ fn run_power(args: &Args) -> anyhow::Result<()> {
             y_fz: fit.y_fz.value,
             z_n: fit.z_n.value,
         };
-        write_atomic(p, serde_json::to_string_pretty(&law)?.as_bytes())
-            .with_context(|| format!("writing {}", p.display()))?;
-        println!("force law written to {}", p.display());
+        outputs.file(p, serde_json::to_string_pretty(&law)?);
     }
     if let Some(j) = &args.json {
-        write_atomic(j, serde_json::to_string_pretty(&out)?.as_bytes())
-            .with_context(|| format!("writing {}", j.display()))?;
+        outputs.file(j, serde_json::to_string_pretty(&out)?);
     }
     if let Some(dir) = &args.report {
-        power_report(dir, &fit, &cols.data, &out)
-            .with_context(|| format!("writing the report into {}", dir.display()))?;
+        for (name, bytes) in power_report(&fit, &cols.data, &out) {
+            outputs.file(dir.join(name), bytes);
+        }
     }
     Ok(())
 }
 
+/// `force_fit.svg` and `report.md` of a power-law fit.
 fn power_report(
-    dir: &std::path::Path,
     fit: &PowerLawFit,
     d: &PowerLawData,
     out: &serde_json::Value,
-) -> std::io::Result<()> {
-    std::fs::create_dir_all(dir)?;
+) -> Vec<(&'static str, Vec<u8>)> {
     let pred: Vec<f64> = (0..d.force_n.len())
         .map(|i| fit.predict(d.ap_mm[i], d.fz_mm[i], d.n_rpm[i]))
         .collect();
@@ -363,7 +379,7 @@ fn power_report(
         .min(0.0);
     let hi = d.force_n.iter().cloned().fold(0.0, f64::max) * 1.1;
     f.dashed("ideal", &[lo, hi], &[lo, hi]);
-    f.save_svg(dir.join("force_fit.svg"))?;
+    let svg = f.to_svg();
     let mut md = format!(
         "# Force law\n\nF = {:.4}·ap^{:.4}·fz^{:.4}·n^{:.4}, residual RMS {:.3} N ({}).\n\n",
         fit.k.value, fit.x_ap.value, fit.y_fz.value, fit.z_n.value, fit.rms_n, fit.method
@@ -390,10 +406,13 @@ fn power_report(
     .collect();
     md += &markdown_table(&["parameter", "value", "95 % CI"], &rows);
     md += "\n![fit](force_fit.svg)\n";
-    write_atomic(&dir.join("report.md"), md.as_bytes())
+    vec![
+        ("force_fit.svg", svg.into_bytes()),
+        ("report.md", md.into_bytes()),
+    ]
 }
 
-fn run_milling(args: &Args) -> anyhow::Result<()> {
+fn run_milling(args: &Args, outputs: &mut OutputSet) -> anyhow::Result<()> {
     if args.out.is_some() {
         bail!("--out writes a power law; it applies to --kind power only");
     }
@@ -475,11 +494,9 @@ fn run_milling(args: &Args) -> anyhow::Result<()> {
     let out = json!({"kind": "milling", "n_rpm": n_rpm, "flutes": flutes, "ap_mm": ap, "axes": args.axes,
                      "tests": tests, "coefficients": k});
     if let Some(j) = &args.json {
-        write_atomic(j, serde_json::to_string_pretty(&out)?.as_bytes())
-            .with_context(|| format!("writing {}", j.display()))?;
+        outputs.file(j, serde_json::to_string_pretty(&out)?);
     }
     if let Some(dir) = &args.report {
-        std::fs::create_dir_all(dir)?;
         let c: Vec<f64> = tests.iter().map(|t| t.fz_mm).collect();
         let mut f = Figure::new(
             "Mean forces vs feed per tooth (slotting)",
@@ -502,7 +519,7 @@ fn run_milling(args: &Args) -> anyhow::Result<()> {
                 .collect();
             f.line(&format!("{name} line"), &c, &fit);
         }
-        f.save_svg(dir.join("mean_forces.svg"))?;
+        outputs.file(dir.join("mean_forces.svg"), f.to_svg());
         let mut md = String::from(
             "# Milling force coefficients (slotting, Altintas average-force method)\n\n",
         );
@@ -531,7 +548,7 @@ fn run_milling(args: &Args) -> anyhow::Result<()> {
         .collect();
         md += &markdown_table(&["coefficient", "value", "± 95 %", "unit"], &rows);
         md += "\n![mean forces](mean_forces.svg)\n";
-        write_atomic(&dir.join("report.md"), md.as_bytes())?;
+        outputs.file(dir.join("report.md"), md);
     }
     Ok(())
 }

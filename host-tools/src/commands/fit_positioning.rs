@@ -7,22 +7,33 @@
 //! - *guard*: the do-no-harm rule (see `axcomp_positioning::guard`); when it refuses, no table is written
 //!   (unless `--force`), the JSON says `"table_written": false` and the exit code is 3.
 //!
-//! Outputs: `--out` the table (`axcomp-positioning-table/1` JSON), `--json` the figures, `--report DIR` a
-//! Markdown report and SVG plots. Every file is written through a temporary file and a rename.
+//! - *data warnings*: per-target outliers, unit mixes and implausible magnitudes (`axcomp_data::sanity`);
+//!   printed on stderr and listed in the JSON (`warnings`); `--strict` refuses the data (exit 2). A file
+//!   holding several `test_id` or `axis` values is always refused: choose one with `--where`.
+//! - *after-figures*: ISO 230-2 of the judged runs with the predicted correction subtracted, as a
+//!   compensated campaign would measure them: with `--holdout` the held-out runs and the table fitted
+//!   without them; with cross-validation each fold's held-out runs and the model fitted without them,
+//!   evaluated per fold (`iso230_2_per_fold`) and averaged over the folds (`iso230_2_after`). A figure a
+//!   fold cannot define (A and R need ≥ 2 runs per target) is `null` with its reason.
+//!
+//! Outputs: `--out` the table (`axcomp-positioning-table/1` JSON, with its provenance), `--json` the
+//! figures, `--report DIR` a Markdown report and SVG plots. All of them are written together or none
+//! (`crate::output::OutputSet`): a bad output path fails before the fit, and nothing is changed.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use axcomp_data::sanity::{self, DataWarning};
 use axcomp_data::{Dataset, LoadOptions, Split};
 use axcomp_positioning::fit::{FitOptions, FitResult, Observation};
 use axcomp_positioning::guard::{self, GuardVerdict};
-use axcomp_positioning::iso230::{self, Iso230Result};
-use axcomp_positioning::table_file::write_atomic;
+use axcomp_positioning::iso230::{self, Iso230Figures};
 use axcomp_positioning::warmup::{self, WarmupFit};
 use axcomp_thermal::model_file::{self, ModelSensor, ThermalModelFile};
 use serde_json::{Value, json};
 
 use crate::cli::DataArgs;
+use crate::output::OutputSet;
 
 /// Exit code when the do-no-harm guard refuses to write a table.
 pub use crate::EXIT_GUARD_REFUSED;
@@ -78,11 +89,20 @@ pub struct Args {
     /// Rate at which the drive feeds the `warmup` input, for --drift-model.
     #[arg(long, value_name = "MS", default_value_t = 100)]
     pub drift_period_ms: u32,
+    /// Treat data warnings (outliers, mixed units, implausible magnitudes) as errors (exit code 2).
+    #[arg(long)]
+    pub strict: bool,
+    /// At most this many cross-validation folds; with more runs, consecutive runs are grouped.
+    #[arg(long, value_name = "N", default_value_t = axcomp_positioning::fit::DEFAULT_MAX_FOLDS)]
+    pub max_folds: usize,
 }
 
 /// Everything the command computed, before anything is written.
 struct Outcome {
     json: Value,
+    /// Data warnings (already printed on stderr).
+    #[allow(dead_code)]
+    warnings: Vec<DataWarning>,
     /// The warm-up drift as a thermal model file, when the drift was kept and --drift-model asks for it.
     drift_model: Option<ThermalModelFile>,
     report: String,
@@ -100,38 +120,73 @@ struct Judged {
     predicted: Vec<f64>,
 }
 
+/// The output files, declared before the work so that a bad path fails first.
+fn planned_outputs(args: &Args) -> OutputSet {
+    let mut set = OutputSet::new();
+    if let Some(p) = &args.out {
+        set.planned(p);
+    }
+    if let Some(p) = &args.drift_model {
+        set.planned(p);
+    }
+    if let Some(dir) = &args.report {
+        set.dir(dir);
+        for name in REPORT_FILES {
+            set.planned(dir.join(name));
+        }
+    }
+    if let Some(p) = &args.json {
+        set.planned(p);
+    }
+    set
+}
+
+/// The files `--report DIR` holds.
+const REPORT_FILES: [&str; 3] = ["report.md", "positioning.svg", "residual.svg"];
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut outputs = planned_outputs(&args);
+    outputs.check()?;
+    let t0 = std::time::Instant::now();
     let outcome = compute(&args)?;
     // Outputs: the table only when the guard passed (or --force); JSON and report always.
-    let mut written = Vec::new();
     if let Some(out) = &args.out {
         if !outcome.refused {
-            outcome
+            let text = outcome
                 .fit
                 .table
-                .save(out)
-                .with_context(|| format!("writing the table {}", out.display()))?;
-            written.push(out.display().to_string());
+                .to_json_string()
+                .with_context(|| format!("the table for {}", out.display()))?;
+            outputs.file(out, text);
         }
     }
     if let (Some(path), Some(model), false) =
         (&args.drift_model, &outcome.drift_model, outcome.refused)
     {
         model
-            .save(path)
-            .with_context(|| format!("writing the drift model {}", path.display()))?;
-        written.push(path.display().to_string());
+            .validate()
+            .map_err(|e| anyhow::anyhow!("the warm-up drift model for {}: {e}", path.display()))?;
+        outputs.json(path, model)?;
     }
     if let Some(dir) = &args.report {
-        write_report(dir, &outcome)?;
-        written.push(dir.join("report.md").display().to_string());
+        let big = outcome.judged.x.len() >= PROGRESS_ROWS;
+        if big {
+            eprintln!(
+                "axcomp: [{:.1} s{}] drawing the report ({} rows)",
+                t0.elapsed().as_secs_f64(),
+                crate::output::peak_memory_note(),
+                outcome.judged.x.len()
+            );
+        }
+        for (name, bytes) in report_files(&args, &outcome) {
+            outputs.file(dir.join(name), bytes);
+        }
     }
     if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&outcome.json)?;
-        write_atomic(path, text.as_bytes())
-            .with_context(|| format!("writing {}", path.display()))?;
-        written.push(path.display().to_string());
+        outputs.json(path, &outcome.json)?;
     }
+    let written = outputs.commit()?;
+    let written: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
     let j = &outcome.json;
     let judged_key = if args.holdout.is_some() {
         "holdout_rms_um"
@@ -175,47 +230,137 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 use axcomp_positioning::fit::rms;
 
-fn iso(x: &[f64], d: &[i8], run: &[i64], dev: &[f64]) -> Result<Iso230Result, String> {
-    let pts: Vec<iso230::Point> = (0..x.len())
-        .map(|i| iso230::Point {
-            target_mm: x[i],
-            run: run[i].clamp(0, u32::MAX as i64) as u32,
-            direction: if d[i] < 0 { -1 } else { 1 },
-            deviation_um: dev[i],
-        })
-        .collect();
-    iso230::evaluate(&pts).map_err(|e| e.to_string())
+fn iso(x: &[f64], d: &[i8], _run: &[i64], dev: &[f64]) -> Result<Iso230Figures, String> {
+    iso230::figures_of_columns(x, d, dev).map_err(|e| e.to_string())
 }
 
-fn iso_json(r: &Result<Iso230Result, String>) -> Value {
-    match r {
-        Ok(v) => {
-            let mut j = serde_json::to_value(v).unwrap_or(Value::Null);
-            if let Some(o) = j.as_object_mut() {
-                o.remove("targets");
-            }
-            j
+/// The mean of each figure over the folds; `None` (with the first fold's reason) when any fold lacks it.
+fn mean_figures(folds: &[Result<Iso230Figures, String>]) -> Result<Iso230Figures, String> {
+    let ok: Vec<&Iso230Figures> = folds.iter().filter_map(|f| f.as_ref().ok()).collect();
+    if ok.len() != folds.len() || ok.is_empty() {
+        return Err(folds
+            .iter()
+            .find_map(|f| f.as_ref().err().cloned())
+            .unwrap_or_else(|| "no folds".into()));
+    }
+    let mut out = ok[0].clone();
+    let mut reasons = std::collections::BTreeMap::new();
+    for name in Iso230Figures::NAMES {
+        let v: Vec<Option<f64>> = ok.iter().map(|f| f.get(name)).collect();
+        let mean = if v.iter().all(Option::is_some) {
+            Some(v.iter().flatten().sum::<f64>() / v.len() as f64)
+        } else {
+            let why = ok
+                .iter()
+                .find_map(|f| f.null_reasons.get(name).cloned())
+                .unwrap_or_default();
+            reasons.insert(name, format!("undefined in a fold: {why}"));
+            None
+        };
+        match name {
+            "A_um" => out.a_um = mean,
+            "E_um" => out.e_um = mean,
+            "M_um" => out.m_um = mean,
+            "R_um" => out.r_um = mean,
+            "B_um" => out.b_um = mean,
+            "B_mean_um" => out.b_mean_um = mean,
+            "A_up_um" => out.a_up_um = mean,
+            "A_down_um" => out.a_down_um = mean,
+            "E_up_um" => out.e_up_um = mean,
+            "E_down_um" => out.e_down_um = mean,
+            "R_up_um" => out.r_up_um = mean,
+            _ => out.r_down_um = mean,
         }
+    }
+    out.min_runs_per_target = ok.iter().map(|f| f.min_runs_per_target).min().unwrap_or(0);
+    out.null_reasons = reasons;
+    Ok(out)
+}
+
+fn iso_json(r: &Result<Iso230Figures, String>) -> Value {
+    match r {
+        Ok(v) => serde_json::to_value(v).unwrap_or(Value::Null),
         Err(e) => json!({ "error": e }),
     }
 }
 
+/// Data warnings (see `axcomp_data::sanity`) on the error column and the targets.
+fn data_warnings(
+    ds: &Dataset,
+    target: &str,
+    x: &[f64],
+    dev: &[f64],
+    dir: &[i8],
+) -> Vec<DataWarning> {
+    let dir1: Vec<i8> = dir.iter().map(|&d| if d < 0 { -1 } else { 1 }).collect();
+    let mut w = Vec::new();
+    w.extend(sanity::unit_mix(ds, target, dev, Some((x, &dir1))));
+    w.extend(sanity::unit_mix(ds, "target_mm", x, None));
+    // An outlier test on mixed units would only repeat the unit finding row by row.
+    if w.is_empty() {
+        w.extend(sanity::per_target_outliers(ds, target, dev, x, &dir1));
+    }
+    w.extend(sanity::implausible_magnitude(
+        ds,
+        target,
+        dev,
+        5000.0,
+        "a positioning error of more than 5 mm is not plausible in µm: nm, or not a deviation column?",
+    ));
+    w.extend(sanity::implausible_magnitude(
+        ds,
+        "target_mm",
+        x,
+        1.0e5,
+        "targets beyond 100 m are not plausible in mm: µm?",
+    ));
+    w
+}
+
+/// Rows from which the command reports its steps on stderr (each can take seconds).
+const PROGRESS_ROWS: usize = 200_000;
+
+/// When the command started (for the progress lines of the fit).
+static STARTED: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+
+fn fit_progress(note: &str) {
+    let t = STARTED.get_or_init(std::time::Instant::now);
+    eprintln!(
+        "axcomp: [{:.1} s{}] {note}",
+        t.elapsed().as_secs_f64(),
+        crate::output::peak_memory_note()
+    );
+}
+
 fn compute(args: &Args) -> anyhow::Result<Outcome> {
+    let t0 = *STARTED.get_or_init(std::time::Instant::now);
     let load = LoadOptions::from_args(&args.data.where_, &args.data.rename, &args.data.scale)?;
     let ds = Dataset::load(&args.data.data, &load)?;
     if ds.n_rows() == 0 {
         bail!("{}: no rows left after --where", args.data.data.display());
     }
+    let big = ds.n_rows() >= PROGRESS_ROWS;
+    let progress = |what: &str| {
+        if big {
+            eprintln!(
+                "axcomp: [{:.1} s{}] {what}",
+                t0.elapsed().as_secs_f64(),
+                crate::output::peak_memory_note()
+            );
+        }
+    };
+    progress(&format!("read {} rows", ds.n_rows()));
+    sanity::single_campaign(&ds, &["test_id", "axis"])?;
     let split = Split::from_args(args.holdout.as_deref(), args.cv.as_deref())?;
-    let x = ds.numeric("target_mm")?.to_vec();
-    let dev = ds.numeric(&args.target)?.to_vec();
-    let dir = ds.direction()?.unwrap_or_else(|| vec![0; ds.n_rows()]);
+    let mut x = ds.numeric("target_mm")?.to_vec();
+    let mut dev = ds.numeric(&args.target)?.to_vec();
+    let mut dir = ds.direction()?.unwrap_or_else(|| vec![0; ds.n_rows()]);
     let cv_col: Option<String> = match &split {
         Some(Split::Cv(c)) => Some(c.clone()),
         _ if ds.has("run") => Some("run".to_string()),
         _ => None,
     };
-    let (run, run_labels): (Vec<i64>, Vec<String>) = match &cv_col {
+    let (mut run, run_labels): (Vec<i64>, Vec<String>) = match &cv_col {
         Some(c) => {
             let (ids, labels) = axcomp_data::groups(&ds, c)?;
             (ids.into_iter().map(|g| g as i64 + 1).collect(), labels)
@@ -234,6 +379,27 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
             );
         }
     }
+    let warnings = data_warnings(&ds, &args.target, &x, &dev, &dir);
+    for w in &warnings {
+        eprintln!("axcomp: warning: {}", w.message);
+    }
+    if args.strict && !warnings.is_empty() {
+        bail!(
+            "--strict: {} data warning(s) (above); fix the data or drop --strict",
+            warnings.len()
+        );
+    }
+    let provenance = axcomp_data::Provenance::of_file(
+        &args.data.data,
+        &args.data.where_,
+        &args.data.rename,
+        &args.data.scale,
+        args.holdout.as_deref(),
+        args.cv.as_deref(),
+        &args.target,
+        concat!("axcomp ", env!("CARGO_PKG_VERSION")),
+        "fit positioning",
+    )?;
     let axis = match &args.axis {
         Some(a) => a.clone(),
         None => match ds.text("axis") {
@@ -245,8 +411,13 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         axis,
         segments: args.segments,
         segment_mm: args.segment_mm,
+        max_folds: args.max_folds,
+        progress: axcomp_positioning::fit::Progress(big.then_some(fit_progress as fn(&str))),
         ..FitOptions::default()
     };
+    if args.max_folds < 3 {
+        bail!("--max-folds {}: needs at least 3", args.max_folds);
+    }
     let obs: Vec<Observation> = (0..ds.n_rows())
         .map(|i| Observation {
             target_mm: x[i],
@@ -264,23 +435,32 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         Some(col) => Some(drift_ages(&ds, col, args.run_period_s)?),
         None => None,
     };
+    // Everything needed from the dataset has been taken: free it before the fit (large files).
+    let n_rows = ds.n_rows();
+    drop(ds);
     let warm_json: Value;
     let kept_warmup: Option<WarmupFit>;
-    let (fit, judged, verdict, judged_rms, method) = match &holdout_mask {
+    progress("fitting the candidates (cross-validated)");
+    let (mut fit, judged, verdict, judged_rms, method) = match &holdout_mask {
         None => {
             let static_fit = axcomp_positioning::fit(&obs, &opts)?;
-            let (fit, kept, wj) = with_warmup(args, &obs, ages.as_deref(), &opts, static_fit)?;
+            let (mut fit, kept, wj) = with_warmup(args, &obs, ages.as_deref(), &opts, static_fit)?;
             warm_json = wj;
             let (predicted, verdict, cv) = match &kept {
                 Some(w) => (w.cv_predictions.clone(), w.guard.clone(), w.cv_rms_um),
-                None => (fit.cv_predictions.clone(), fit.guard.clone(), fit.cv_rms_um),
+                None => (
+                    std::mem::take(&mut fit.cv_predictions),
+                    fit.guard.clone(),
+                    fit.cv_rms_um,
+                ),
             };
             kept_warmup = kept;
             let judged = Judged {
-                x: x.clone(),
-                direction: dir.clone(),
-                run: run.clone(),
-                deviation: dev.clone(),
+                // Moved, not copied: the judged rows are all rows (large campaigns).
+                x: std::mem::take(&mut x),
+                direction: std::mem::take(&mut dir),
+                run: std::mem::take(&mut run),
+                deviation: std::mem::take(&mut dev),
                 predicted,
             };
             let method = fit.split.method.clone();
@@ -355,17 +535,68 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         .zip(&judged.predicted)
         .map(|(d, p)| d - p)
         .collect();
+    progress("ISO 230-2 before and after");
     let before = iso(&judged.x, &judged.direction, &judged.run, &judged.deviation);
-    let after = iso(&judged.x, &judged.direction, &judged.run, &residual);
+    // After: with --holdout the held-out runs minus the table; with CV each fold's held-out runs minus the
+    // model fitted without them, evaluated per fold and averaged.
+    let (after, per_fold_json, after_method) = if holdout_mask.is_some() {
+        (
+            iso(&judged.x, &judged.direction, &judged.run, &residual),
+            Value::Null,
+            "ISO 230-2 of the held-out runs with the table's predicted correction subtracted"
+                .to_string(),
+        )
+    } else {
+        let folds = &fit.fold_of_row;
+        let n_folds = folds.iter().copied().max().map_or(0, |m| m + 1);
+        let mut per_fold = Vec::new();
+        let mut figs = Vec::new();
+        for f in 0..n_folds {
+            let rows: Vec<usize> = (0..judged.x.len()).filter(|&i| folds[i] == f).collect();
+            if rows.is_empty() {
+                continue;
+            }
+            let pick = |v: &[f64]| rows.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+            let fx = pick(&judged.x);
+            let fd: Vec<i8> = rows.iter().map(|&i| judged.direction[i]).collect();
+            let fr: Vec<i64> = rows.iter().map(|&i| judged.run[i]).collect();
+            let b = iso(&fx, &fd, &fr, &pick(&judged.deviation));
+            let a = iso(&fx, &fd, &fr, &pick(&residual));
+            let mut labels: Vec<&str> = fr
+                .iter()
+                .map(|&r| run_labels.get((r - 1) as usize).map_or("?", |s| s.as_str()))
+                .collect();
+            labels.dedup();
+            labels.sort_unstable();
+            labels.dedup();
+            per_fold.push(json!({
+                "fold": f + 1, "runs": labels, "rows": rows.len(),
+                "before": iso_json(&b), "after": iso_json(&a),
+            }));
+            figs.push(a);
+        }
+        (
+            mean_figures(&figs),
+            Value::Array(per_fold),
+            format!(
+                "ISO 230-2 of each fold's held-out runs with the correction predicted by the model fitted \
+                 without them, averaged over the {} folds (a figure is null when a fold cannot define it)",
+                figs.len()
+            ),
+        )
+    };
     let refused = !verdict.passed && !args.force;
     // Per run: raw and judged RMS and the mean residual (a drifting mean shows drift between runs).
+    let mut rows_of_run: Vec<Vec<usize>> = vec![Vec::new(); run_labels.len()];
+    for (i, &r) in judged.run.iter().enumerate() {
+        if let Some(v) = rows_of_run.get_mut((r - 1) as usize) {
+            v.push(i);
+        }
+    }
     let per_run: Vec<Value> = run_labels
         .iter()
-        .enumerate()
-        .filter_map(|(g, label)| {
-            let rows: Vec<usize> = (0..judged.x.len())
-                .filter(|&i| judged.run[i] == g as i64 + 1)
-                .collect();
+        .zip(&rows_of_run)
+        .filter_map(|(label, rows)| {
             if rows.is_empty() {
                 return None;
             }
@@ -379,6 +610,7 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
             }))
         })
         .collect();
+    drop(rows_of_run);
     let table_written = args.out.is_some() && !refused;
 
     let candidates: Vec<Value> = fit
@@ -395,11 +627,15 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         "command": "fit positioning",
         "data": args.data.data.display().to_string(),
         "target": args.target,
-        "rows": ds.n_rows(),
+        "rows": n_rows,
         "rows_judged": judged.x.len(),
         "raw_rms_um": raw_rms,
         "iso230_2_before": iso_json(&before),
         "iso230_2_after": iso_json(&after),
+        "iso230_2_after_method": after_method,
+        "iso230_2_per_fold": per_fold_json,
+        "warnings": warnings,
+        "provenance": provenance,
         "model": {
             "chosen": fit.chosen,
             "reason": fit.reason,
@@ -410,7 +646,12 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
             "candidates": candidates,
             "warmup": warm_json,
         },
-        "cv": { "method": method, "column": cv_col, "folds": fit.split.folds, "per_run": per_run },
+        "cv": { "method": method, "column": cv_col, "folds": fit.split.folds, "max_folds": args.max_folds,
+                 "grouped": fit.split.method == "leave-runs-out",
+                 "note": if fit.split.method == "leave-runs-out" {
+                     json!(format!("{} runs grouped into {} folds of consecutive runs (--max-folds)", run_labels.len(), fit.split.folds))
+                 } else { Value::Null },
+                 "per_run": per_run },
         "guard": guard_json(&verdict, refused, args.force),
         "table_written": table_written,
         "table": {
@@ -441,9 +682,11 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         _ => None,
     };
     j["drift_model_written"] = json!(drift_model.is_some() && !refused);
+    fit.table.provenance = Some(provenance);
     let report = report_markdown(args, &j, &fit, &verdict);
     Ok(Outcome {
         drift_model,
+        warnings,
         json: j,
         report,
         fit,
@@ -699,8 +942,24 @@ fn report_markdown(args: &Args, j: &Value, fit: &FitResult, verdict: &GuardVerdi
         ],
         &rows,
     ));
-    s.push_str("\n## ISO 230-2 (bidirectional), judged rows\n\n");
-    let keys = ["A_um", "E_um", "M_um", "R_um", "B_um"];
+    let bidirectional = j["iso230_2_before"]["bidirectional"] == true;
+    let directions = j["iso230_2_before"]["directions"].as_str().unwrap_or("");
+    if bidirectional {
+        s.push_str("\n## ISO 230-2 (bidirectional), judged rows\n\n");
+    } else {
+        s.push_str(&format!(
+            "\n## ISO 230-2 ({}), judged rows\n\nThe data holds {directions} approaches: unidirectional figures \
+             only; the bidirectional ones (A, E, M, R, B) are not defined (–).\n\n",
+            if directions.is_empty() { "not evaluable" } else { "unidirectional" }
+        ));
+    }
+    let keys = if bidirectional {
+        vec!["A_um", "E_um", "M_um", "R_um", "B_um"]
+    } else if directions == "negative only" {
+        vec!["A_down_um", "E_down_um", "R_down_um"]
+    } else {
+        vec!["A_up_um", "E_up_um", "R_up_um"]
+    };
     let iso_rows: Vec<Vec<String>> = keys
         .iter()
         .map(|k| {
@@ -715,16 +974,30 @@ fn report_markdown(args: &Args, j: &Value, fit: &FitResult, verdict: &GuardVerdi
         &["figure", "before / µm", "after / µm"],
         &iso_rows,
     ));
-    if let Some(e) = j["iso230_2_before"]["error"].as_str() {
-        s.push_str(&format!("\nISO 230-2 not evaluable on these rows: {e}\n"));
+    for part in ["iso230_2_before", "iso230_2_after"] {
+        if let Some(e) = j[part]["error"].as_str() {
+            s.push_str(&format!("\n{part}: not evaluable on these rows: {e}\n"));
+        }
+        if let Some(r) = j[part]["null_reasons"].as_object() {
+            for k in &keys {
+                if let Some(why) = r.get(*k).and_then(Value::as_str) {
+                    s.push_str(&format!("\n{part}.{k} is not defined: {why}.\n"));
+                }
+            }
+        }
     }
-    s.push_str(
-        "\n“After” is ISO 230-2 evaluated on deviation − prediction, each prediction from a model that never saw \
-         the judged row (cross-validated or held out). For models through per-target means, leave-one-run-out \
-         residuals average to zero at each target (E, M, B after ≈ 0 by construction) and their scatter is \
-         n/(n−1) times the scatter about the mean, so R and A after read higher than the axis's repeatability \
-         before: that is the honest price of judging on unseen runs.\n",
-    );
+    s.push_str(&format!(
+        "\n“After”: {}. A static correction leaves the scatter between runs as it is, so R after should be \
+         about R before; A after contains the held-out runs' own scatter and their offset from the runs the model \
+         was fitted on (drift between runs).\n",
+        j["iso230_2_after_method"].as_str().unwrap_or("")
+    ));
+    if let Some(w) = j["warnings"].as_array().filter(|w| !w.is_empty()) {
+        s.push_str("\n## Data warnings\n\n");
+        for x in w {
+            s.push_str(&format!("- {}\n", x["message"].as_str().unwrap_or("")));
+        }
+    }
     s.push_str("\n## Do-no-harm guard\n\n");
     s.push_str(&format!("Rule: {}.\n\n", verdict.rule));
     s.push_str(&format!(
@@ -756,11 +1029,44 @@ fn report_markdown(args: &Args, j: &Value, fit: &FitResult, verdict: &GuardVerdi
         j["table_written"]
     ));
     s.push_str("\nPlots: `positioning.svg` (measured deviation and the fitted table per direction), `residual.svg` (residual after compensation per row and its range per target).\n");
+    if let Some(p) = j["provenance"].as_object() {
+        s.push_str(&format!(
+            "\n## Provenance\n\nData SHA-256 `{}` ({} bytes); written by {} on {} (also in the table file).\n",
+            p["source_sha256"].as_str().unwrap_or(""),
+            p["source_bytes"],
+            p["tool"].as_str().unwrap_or(""),
+            p["created_utc"].as_str().unwrap_or("")
+        ));
+    }
     s
 }
 
-fn write_report(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+/// What the plots are about: the `--where` filters, else the data file's name.
+fn data_label(args: &Args) -> String {
+    if args.data.where_.is_empty() {
+        args.data.data.file_name().map_or_else(
+            || args.data.data.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        )
+    } else {
+        args.data
+            .where_
+            .iter()
+            .map(|w| w.split_once('=').map_or(w.as_str(), |(_, v)| v))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// Colours per approach direction (the same in every plot): forward/positive, backward/negative, one table.
+const DIRECTION_COLOURS: [&str; 3] = [
+    axcomp_plot::PALETTE[0],
+    axcomp_plot::PALETTE[1],
+    axcomp_plot::PALETTE[2],
+];
+
+/// `report.md`, `positioning.svg` and `residual.svg` (the names in [`REPORT_FILES`]).
+fn report_files(args: &Args, o: &Outcome) -> Vec<(&'static str, Vec<u8>)> {
     let j = &o.judged;
     let table = &o.fit.table;
     let lo =
@@ -776,23 +1082,57 @@ fn write_report(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
     let xs: Vec<f64> = (0..=400)
         .map(|k| lo + (hi - lo) * k as f64 / 400.0)
         .collect();
+    let judged_key = if args.holdout.is_some() {
+        "holdout"
+    } else {
+        "CV"
+    };
+    let raw = o.json["raw_rms_um"].as_f64().unwrap_or(f64::NAN);
+    let after = o.json[if args.holdout.is_some() {
+        "holdout_rms_um"
+    } else {
+        "cv_rms_um"
+    }]
+    .as_f64()
+    .unwrap_or(f64::NAN);
+    let label = data_label(args);
     let mut fig = axcomp_plot::Figure::new(
-        "Measured deviation and fitted table",
+        &format!(
+            "{label}: measured deviation and fitted table ({}, {judged_key} RMS {after:.2} µm, raw {raw:.2} µm)",
+            o.fit.chosen
+        ),
         "target position / mm",
         "deviation / µm",
     );
     let mut res = axcomp_plot::Figure::new(
-        "Residual after compensation (each row predicted by a model that did not see it)",
+        &format!(
+            "{label}: residual after compensation, each row predicted by a model that did not see it ({judged_key} RMS {after:.2} µm)"
+        ),
         "target position / mm",
         "residual / µm",
     );
     let bidir = !table.backward.is_empty();
-    let dirs: &[(i8, &str)] = if bidir {
-        &[(1, "forward"), (-1, "backward")]
+    let has_dir = j.direction.iter().any(|&d| d != 0);
+    let dirs: Vec<(i8, &str, &str)> = if bidir {
+        vec![
+            (1, "forward (+)", DIRECTION_COLOURS[0]),
+            (-1, "backward (−)", DIRECTION_COLOURS[1]),
+        ]
+    } else if has_dir && j.direction.iter().all(|&d| d == j.direction[0]) {
+        let name = if j.direction[0] < 0 {
+            "backward (−)"
+        } else {
+            "forward (+)"
+        };
+        vec![(
+            j.direction[0],
+            name,
+            DIRECTION_COLOURS[usize::from(j.direction[0] < 0)],
+        )]
     } else {
-        &[(1, "all")]
+        vec![(1, "both directions", DIRECTION_COLOURS[2])]
     };
-    for &(d, name) in dirs {
+    for &(d, name, colour) in &dirs {
         let sel: Vec<usize> = (0..j.x.len())
             .filter(|&i| !bidir || (j.direction[i] < 0) == (d < 0))
             .collect();
@@ -803,24 +1143,26 @@ fn write_report(dir: &Path, o: &Outcome) -> anyhow::Result<()> {
             .map(|&i| j.deviation[i] - j.predicted[i])
             .collect();
         let ty: Vec<f64> = xs.iter().map(|&x| table.deviation_um(x, d)).collect();
-        fig.line(&format!("table {name}"), &xs, &ty);
-        fig.points(&format!("measured {name}"), &px, &py);
+        fig.points(&format!("measured {name}"), &px, &py)
+            .with_colour(colour);
+        fig.line(&format!("table {name}"), &xs, &ty)
+            .with_colour(colour);
         // Residual range per target (or per bin for scattered positions).
         let (bx, blo, bhi) = residual_band(&px, &ry, lo, hi);
         if !bx.is_empty() {
-            res.band(&format!("range {name}"), &bx, &blo, &bhi);
+            res.band(&format!("range {name}"), &bx, &blo, &bhi)
+                .with_colour(colour);
         }
-        res.points(&format!("residual {name}"), &px, &ry);
+        res.points(&format!("residual {name}"), &px, &ry)
+            .with_colour(colour);
     }
     fig.hline(0.0, "");
     res.hline(0.0, "");
-    for (f, name) in [(&fig, "positioning.svg"), (&res, "residual.svg")] {
-        f.save_svg(dir.join(name))
-            .with_context(|| format!("writing {}", dir.join(name).display()))?;
-    }
-    let md = dir.join("report.md");
-    write_atomic(&md, o.report.as_bytes()).with_context(|| format!("writing {}", md.display()))?;
-    Ok(())
+    vec![
+        ("report.md", o.report.clone().into_bytes()),
+        ("positioning.svg", fig.to_svg().into_bytes()),
+        ("residual.svg", res.to_svg().into_bytes()),
+    ]
 }
 
 /// Min/max of the residuals per distinct position (≤ 64 positions) or per bin of 40 equal bins.

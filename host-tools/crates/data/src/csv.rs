@@ -37,14 +37,42 @@ fn trim_blanks(s: &str) -> &str {
 }
 
 /// Splits `text` into records. The first non-blank, non-comment record is the header.
+#[cfg(test)]
 pub(crate) fn parse(text: &str) -> Result<Vec<Record<'_>>, CsvFault> {
+    let mut records = Vec::new();
+    parse_each(text, false, 1, &mut |r| {
+        records.push(r);
+        Ok(())
+    })
+    .map_err(|e| match e {
+        ParseStop::Csv(f) => f,
+        ParseStop::Other(()) => unreachable!(),
+    })?;
+    Ok(records)
+}
+
+/// Why [`parse_each`] stopped: the text is not CSV, or the callback said so.
+#[derive(Debug)]
+pub(crate) enum ParseStop<E> {
+    Csv(CsvFault),
+    Other(E),
+}
+
+/// Calls `each` with every record of `text` in order, without collecting them. `seen_header`: a header was
+/// already read (then `#` lines are data, not comments); `first_line`: the physical line number of the
+/// first line of `text`.
+pub(crate) fn parse_each<'a, E>(
+    text: &'a str,
+    seen_header: bool,
+    first_line: usize,
+    each: &mut dyn FnMut(Record<'a>) -> Result<(), E>,
+) -> Result<(), ParseStop<E>> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let b = text.as_bytes();
     let n = b.len();
-    let mut records = Vec::new();
     let mut i = 0usize;
-    let mut line = 1usize;
-    let mut seen_header = false;
+    let mut line = first_line;
+    let mut seen_header = seen_header;
     while i < n {
         // Blank line, or comment line before the header: skip the physical line.
         let eol = b[i..].iter().position(|&c| c == b'\n').map_or(n, |k| i + k);
@@ -69,10 +97,10 @@ pub(crate) fn parse(text: &str) -> Result<Vec<Record<'_>>, CsvFault> {
                 let mut owned: Option<String> = None;
                 loop {
                     if k >= n {
-                        return Err(CsvFault::UnterminatedQuote {
+                        return Err(ParseStop::Csv(CsvFault::UnterminatedQuote {
                             line: record_line,
                             column: fields.len() + 1,
-                        });
+                        }));
                     }
                     match b[k] {
                         b'"' if k + 1 < n && b[k + 1] == b'"' => {
@@ -116,10 +144,10 @@ pub(crate) fn parse(text: &str) -> Result<Vec<Record<'_>>, CsvFault> {
                         break;
                     }
                     _ => {
-                        return Err(CsvFault::TextAfterQuote {
+                        return Err(ParseStop::Csv(CsvFault::TextAfterQuote {
                             line: record_line,
                             column: fields.len(),
-                        });
+                        }));
                     }
                 }
             } else {
@@ -146,12 +174,74 @@ pub(crate) fn parse(text: &str) -> Result<Vec<Record<'_>>, CsvFault> {
             }
         }
         seen_header = true;
-        records.push(Record {
+        each(Record {
             line: record_line,
             fields,
-        });
+        })
+        .map_err(ParseStop::Other)?;
     }
-    Ok(records)
+    Ok(())
+}
+
+/// Reads CSV from `reader` one record at a time (a record spans physical lines while a quote is open)
+/// and calls `each` with it; memory is bounded by the longest record, not the file. Bytes that are not
+/// UTF-8 are replaced (U+FFFD), as for text read whole.
+pub(crate) fn read_each<R: std::io::BufRead, E>(
+    mut reader: R,
+    each: &mut dyn FnMut(Record<'_>) -> Result<(), E>,
+) -> Result<(), ReadStop<E>> {
+    let mut seen_header = false;
+    let mut line = 1usize;
+    let mut raw: Vec<u8> = Vec::new();
+    let mut chunk = String::new();
+    let mut first = true;
+    loop {
+        // One physical line, then more while a quote is open.
+        chunk.clear();
+        let start_line = line;
+        let mut quotes = 0usize;
+        loop {
+            raw.clear();
+            let k = reader.read_until(b'\n', &mut raw).map_err(ReadStop::Io)?;
+            if k == 0 {
+                break;
+            }
+            let mut text = String::from_utf8_lossy(&raw);
+            if first {
+                first = false;
+                if let Some(t) = text.strip_prefix('\u{feff}') {
+                    text = std::borrow::Cow::Owned(t.to_owned());
+                }
+            }
+            quotes += text.bytes().filter(|&c| c == b'"').count();
+            chunk.push_str(&text);
+            line += 1;
+            if quotes % 2 == 0 {
+                break;
+            }
+        }
+        if chunk.is_empty() {
+            return Ok(());
+        }
+        let mut got_record = false;
+        parse_each(&chunk, seen_header, start_line, &mut |r| {
+            got_record = true;
+            each(r)
+        })
+        .map_err(|e| match e {
+            ParseStop::Csv(f) => ReadStop::Csv(f),
+            ParseStop::Other(o) => ReadStop::Other(o),
+        })?;
+        seen_header |= got_record;
+    }
+}
+
+/// Why [`read_each`] stopped.
+#[derive(Debug)]
+pub(crate) enum ReadStop<E> {
+    Io(std::io::Error),
+    Csv(CsvFault),
+    Other(E),
 }
 
 /// Writes one field, quoting it when reading it back would otherwise change it.

@@ -24,9 +24,12 @@
 
 mod cells;
 mod csv;
+pub mod provenance;
+pub mod sanity;
 mod split;
 mod timestamp;
 
+pub use provenance::Provenance;
 pub use split::{HoldoutSpec, Split, groups};
 
 use std::path::Path;
@@ -125,6 +128,17 @@ pub enum DataError {
         text: String,
         reason: String,
     },
+    #[error(
+        "{file}: column `{column}` holds {count} different values ({values}); one model fits one test of one \
+         axis: choose one with --where {column}={example}"
+    )]
+    SeveralValues {
+        file: String,
+        column: String,
+        count: usize,
+        values: String,
+        example: String,
+    },
     #[error("{file}: column `{name}` has {found} values but the dataset has {expected} rows")]
     LengthMismatch {
         file: String,
@@ -219,17 +233,24 @@ struct Column {
     /// 1-based field index in the file; `None` for derived columns (`time_s` from `time`), which are
     /// reported by their index in the dataset.
     file_column: Option<usize>,
-    text: Cells,
+    /// The cells as text. A numeric column does not keep its text (half the memory of a large file): it is
+    /// written from the values on first use ([`Column::cells`]), in the shortest form that reads back as
+    /// the same number (`1.0` → `1`), as a `--scale`d column always was.
+    text: std::sync::OnceLock<Cells>,
     values: Result<Vec<f64>, BadCell>,
 }
 
 impl Column {
     fn new(name: String, file_column: Option<usize>, text: Cells) -> Self {
         let values = parse_numbers(&text);
+        let cells = std::sync::OnceLock::new();
+        if values.is_err() {
+            let _ = cells.set(text);
+        }
         Self {
             name,
             file_column,
-            text,
+            text: cells,
             values,
         }
     }
@@ -238,9 +259,17 @@ impl Column {
         Self {
             name,
             file_column: None,
-            text: values.iter().map(|v| format_number(*v)).collect(),
+            text: std::sync::OnceLock::new(),
             values: Ok(values),
         }
+    }
+
+    /// The text of every cell (see the field's docs).
+    fn cells(&self) -> &Cells {
+        self.text.get_or_init(|| match &self.values {
+            Ok(v) => v.iter().map(|x| format_number(*x)).collect(),
+            Err(_) => Cells::default(),
+        })
     }
 }
 
@@ -275,14 +304,36 @@ const ALIASES: &[(&str, &str)] = &[("run", "cycle"), ("direction", "approach_dir
 
 impl Dataset {
     /// Reads and parses `path` (see [`Dataset::from_csv_str`]); messages name the path as given.
+    ///
+    /// The file is read one record at a time, and rows that a `--where` on an unscaled file column
+    /// rejects are dropped as they are read, so memory holds the kept cells (text, end offsets and, for
+    /// numeric columns, the values; about 2–3× the kept part of the file), not the file itself.
     pub fn load(path: &Path, opts: &LoadOptions) -> Result<Dataset, DataError> {
         let file = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|cause| DataError::Io {
+        let io = |cause| DataError::Io {
             file: file.clone(),
             cause,
-        })?;
-        let text = String::from_utf8_lossy(&bytes);
-        Self::from_csv_str(&file, &text, opts)
+        };
+        let f = std::fs::File::open(path).map_err(io)?;
+        let size = f.metadata().map(|m| m.len()).unwrap_or(0);
+        let reader = std::io::BufReader::with_capacity(1 << 16, f);
+        let mut builder: Option<Builder> = None;
+        let result = csv::read_each(reader, &mut |rec| match &mut builder {
+            None => {
+                builder = Some(Builder::new(&file, rec, opts, size)?);
+                Ok(())
+            }
+            Some(b) => b.push(rec),
+        });
+        match result {
+            Ok(()) => {}
+            Err(csv::ReadStop::Io(cause)) => return Err(io(cause)),
+            Err(csv::ReadStop::Csv(f)) => return Err(csv_fault(&file, f)),
+            Err(csv::ReadStop::Other(e)) => return Err(e),
+        }
+        builder
+            .ok_or_else(|| DataError::NoHeader { file: file.clone() })?
+            .finish(opts)
     }
 
     /// Parses CSV `text`; `source` is the name used in messages.
@@ -292,122 +343,22 @@ impl Dataset {
         opts: &LoadOptions,
     ) -> Result<Dataset, DataError> {
         let file = source.to_string();
-        let records = csv::parse(text).map_err(|f| match f {
-            csv::CsvFault::UnterminatedQuote { line, column } => DataError::UnterminatedQuote {
-                file: file.clone(),
-                line,
-                column,
-            },
-            csv::CsvFault::TextAfterQuote { line, column } => DataError::TextAfterQuote {
-                file: file.clone(),
-                line,
-                column,
-            },
-        })?;
-        let mut records = records.into_iter();
-        let header = records
-            .next()
-            .ok_or_else(|| DataError::NoHeader { file: file.clone() })?;
-        let mut names: Vec<String> = header.fields.into_iter().map(String::from).collect();
-        // `--rename` before anything else (so a rename can also fix a duplicate).
-        for (old, new) in &opts.renames {
-            let Some(i) = names.iter().position(|n| n == old) else {
-                return Err(DataError::MissingColumn {
-                    file,
-                    name: old.clone(),
-                    purpose: " (named by --rename)".into(),
-                    available: names.join(", "),
-                });
-            };
-            names[i] = new.clone();
-        }
-        for (i, name) in names.iter().enumerate() {
-            if name.is_empty() {
-                return Err(DataError::EmptyColumnName {
-                    file,
-                    line: header.line,
-                    column: i + 1,
-                });
+        let mut builder: Option<Builder> = None;
+        let result = csv::parse_each(text, false, 1, &mut |rec| match &mut builder {
+            None => {
+                builder = Some(Builder::new(&file, rec, opts, text.len() as u64)?);
+                Ok(())
             }
-            if let Some(first) = names[..i].iter().position(|n| n == name) {
-                return Err(DataError::DuplicateColumn {
-                    file,
-                    line: header.line,
-                    column: i + 1,
-                    name: name.clone(),
-                    first: first + 1,
-                });
-            }
+            Some(b) => b.push(rec),
+        });
+        match result {
+            Ok(()) => {}
+            Err(csv::ParseStop::Csv(f)) => return Err(csv_fault(&file, f)),
+            Err(csv::ParseStop::Other(e)) => return Err(e),
         }
-        let width = names.len();
-        let mut lines = Vec::new();
-        let approx_rows = records.len();
-        let mut cells: Vec<Cells> = (0..width)
-            .map(|_| Cells::with_capacity(approx_rows, 8 * approx_rows))
-            .collect();
-        for rec in records {
-            if rec.fields.len() != width {
-                return Err(DataError::RaggedRow {
-                    file,
-                    line: rec.line,
-                    column: rec.fields.len().min(width) + 1,
-                    found: rec.fields.len(),
-                    expected: width,
-                });
-            }
-            lines.push(rec.line);
-            for (c, f) in rec.fields.iter().enumerate() {
-                cells[c].push(f);
-            }
-        }
-        if lines.is_empty() {
-            return Err(DataError::NoRows {
-                file,
-                why: "after the header".into(),
-            });
-        }
-        let columns = names
-            .into_iter()
-            .zip(cells)
-            .enumerate()
-            .map(|(i, (name, text))| Column::new(name, Some(i + 1), text))
-            .collect();
-        let mut ds = Dataset {
-            source: file,
-            lines,
-            columns,
-        };
-        ds.derive_time_s()?;
-        for (col, factor) in &opts.scales {
-            ds.scale_column(col, *factor)?;
-        }
-        if !opts.filters.is_empty() {
-            let mut keep = vec![true; ds.n_rows()];
-            for (col, value) in &opts.filters {
-                let c = ds.column(col, " (named by --where)")?;
-                let want_num = parse_number(value);
-                for (k, t) in keep.iter_mut().zip(c.text.iter()) {
-                    let hit = match (want_num, parse_number(t)) {
-                        (Some(a), Some(b)) => a == b,
-                        _ => t.trim() == value,
-                    };
-                    *k &= hit;
-                }
-            }
-            ds = ds.select_rows(&keep);
-            if ds.n_rows() == 0 {
-                let what: Vec<String> = opts
-                    .filters
-                    .iter()
-                    .map(|(c, v)| format!("{c}={v}"))
-                    .collect();
-                return Err(DataError::NoRows {
-                    file: ds.source,
-                    why: format!("match --where {}", what.join(" --where ")),
-                });
-            }
-        }
-        Ok(ds)
+        builder
+            .ok_or_else(|| DataError::NoHeader { file: file.clone() })?
+            .finish(opts)
     }
 
     /// A dataset of numeric columns built in memory (e.g. by the twin); `source` names it in messages.
@@ -463,7 +414,9 @@ impl Dataset {
         Ok(())
     }
 
-    fn derive_time_s(&mut self) -> Result<(), DataError> {
+    /// Adds `time_s` (seconds since `first`, the file's first `time` cell, else this dataset's first row)
+    /// from a timestamp `time` column.
+    fn derive_time_s(&mut self, first: Option<&str>) -> Result<(), DataError> {
         if self.columns.iter().any(|c| c.name == "time_s") {
             return Ok(());
         }
@@ -474,7 +427,7 @@ impl Dataset {
         // A numeric `time` column is not a timestamp column: leave it alone.
         if col.values.is_ok()
             || col
-                .text
+                .cells()
                 .iter()
                 .next()
                 .and_then(timestamp::parse_timestamp)
@@ -482,8 +435,8 @@ impl Dataset {
         {
             return Ok(());
         }
-        let mut secs = Vec::with_capacity(col.text.len());
-        for (row, t) in col.text.iter().enumerate() {
+        let mut secs = Vec::with_capacity(col.cells().len());
+        for (row, t) in col.cells().iter().enumerate() {
             match timestamp::parse_timestamp(t) {
                 Some(s) => secs.push(s),
                 None => {
@@ -497,7 +450,9 @@ impl Dataset {
                 }
             }
         }
-        let t0 = secs[0];
+        let t0 = first
+            .and_then(timestamp::parse_timestamp)
+            .unwrap_or_else(|| secs[0]);
         let rel = secs.into_iter().map(|s| s - t0).collect();
         self.columns.push(Column::from_values("time_s".into(), rel));
         Ok(())
@@ -509,7 +464,7 @@ impl Dataset {
             .ok_or_else(|| self.missing(col, " (named by --scale)"))?;
         let values: Vec<f64> = self.numeric_at(i)?.iter().map(|v| v * factor).collect();
         let c = &mut self.columns[i];
-        c.text = values.iter().map(|v| format_number(*v)).collect();
+        c.text = std::sync::OnceLock::new();
         c.values = Ok(values);
         Ok(())
     }
@@ -544,7 +499,7 @@ impl Dataset {
         match &c.values {
             Ok(v) => Ok(v),
             Err(BadCell { row }) => {
-                let text = c.text.get(*row);
+                let text = c.cells().get(*row);
                 let (file, line, column, name) = (
                     self.source.clone(),
                     self.lines[*row],
@@ -626,7 +581,7 @@ impl Dataset {
         Ok(match &c.values {
             Ok(v) => v.clone(),
             Err(_) => c
-                .text
+                .cells()
                 .iter()
                 .map(|t| parse_number(t).unwrap_or(f64::NAN))
                 .collect(),
@@ -636,7 +591,7 @@ impl Dataset {
     /// Any column as text (numbers as written in the file, or as rescaled).
     pub fn text(&self, col: &str) -> Result<Vec<&str>, DataError> {
         let c = self.column(col, "")?;
-        Ok(c.text.iter().collect())
+        Ok(c.cells().iter().collect())
     }
 
     /// Names (without the `_degC` suffix) of the temperature sensor columns, in file order.
@@ -665,8 +620,8 @@ impl Dataset {
             return Ok(None);
         };
         let c = &self.columns[i];
-        let mut out = Vec::with_capacity(c.text.len());
-        for (row, t) in c.text.iter().enumerate() {
+        let mut out = Vec::with_capacity(c.cells().len());
+        for (row, t) in c.cells().iter().enumerate() {
             let d = parse_direction(t).ok_or_else(|| DataError::BadDirection {
                 file: self.source.clone(),
                 line: self.lines[row],
@@ -683,7 +638,7 @@ impl Dataset {
     pub fn run(&self) -> Option<Vec<String>> {
         self.index_of("run").map(|i| {
             self.columns[i]
-                .text
+                .cells()
                 .iter()
                 .map(|t| t.trim().to_string())
                 .collect()
@@ -723,15 +678,22 @@ impl Dataset {
                 .columns
                 .iter()
                 .map(|c| {
-                    let text = pick(&c.text);
-                    let values = match &c.values {
-                        Ok(v) => Ok(v
-                            .iter()
-                            .zip(mask)
-                            .filter(|(_, m)| **m)
-                            .map(|(x, _)| *x)
-                            .collect()),
-                        Err(_) => parse_numbers(&text),
+                    let (text, values) = match &c.values {
+                        Ok(v) => (
+                            std::sync::OnceLock::new(),
+                            Ok(v.iter()
+                                .zip(mask)
+                                .filter(|(_, m)| **m)
+                                .map(|(x, _)| *x)
+                                .collect()),
+                        ),
+                        Err(_) => {
+                            let text = pick(c.cells());
+                            let values = parse_numbers(&text);
+                            let cell = std::sync::OnceLock::new();
+                            let _ = cell.set(text);
+                            (cell, values)
+                        }
                     };
                     Column {
                         name: c.name.clone(),
@@ -759,11 +721,251 @@ impl Dataset {
                 if i > 0 {
                     out.push(',');
                 }
-                csv::write_field(&mut out, &c.text[r]);
+                csv::write_field(&mut out, &c.cells()[r]);
             }
             out.push('\n');
         }
         out
+    }
+}
+
+fn csv_fault(file: &str, f: csv::CsvFault) -> DataError {
+    match f {
+        csv::CsvFault::UnterminatedQuote { line, column } => DataError::UnterminatedQuote {
+            file: file.to_string(),
+            line,
+            column,
+        },
+        csv::CsvFault::TextAfterQuote { line, column } => DataError::TextAfterQuote {
+            file: file.to_string(),
+            line,
+            column,
+        },
+    }
+}
+
+/// Index of `name` (or its alias) among `names`.
+fn resolve(names: &[String], name: &str) -> Option<usize> {
+    names.iter().position(|n| n == name).or_else(|| {
+        ALIASES
+            .iter()
+            .filter(|(canon, _)| *canon == name)
+            .find_map(|(_, alias)| names.iter().position(|n| n == alias))
+    })
+}
+
+/// Collects the records of one CSV into columns (see [`Dataset::load`]).
+struct Builder {
+    file: String,
+    names: Vec<String>,
+    lines: Vec<usize>,
+    cells: Vec<Cells>,
+    /// `--where` filters applied while reading: (column index, wanted text, wanted number).
+    early: Vec<(usize, String, Option<f64>)>,
+    /// The first data row's `time` cell (before any filter): `time_s` is relative to it.
+    first_time: Option<String>,
+    time_col: Option<usize>,
+    /// Size of the input in bytes, for the capacity estimate after the first rows.
+    size: u64,
+    records: usize,
+    bytes_read: u64,
+}
+
+impl Builder {
+    fn new(
+        file: &str,
+        header: csv::Record<'_>,
+        opts: &LoadOptions,
+        size: u64,
+    ) -> Result<Self, DataError> {
+        let file = file.to_string();
+        let mut names: Vec<String> = header.fields.into_iter().map(String::from).collect();
+        // `--rename` before anything else (so a rename can also fix a duplicate).
+        for (old, new) in &opts.renames {
+            let Some(i) = names.iter().position(|n| n == old) else {
+                return Err(DataError::MissingColumn {
+                    file,
+                    name: old.clone(),
+                    purpose: " (named by --rename)".into(),
+                    available: names.join(", "),
+                });
+            };
+            names[i] = new.clone();
+        }
+        for (i, name) in names.iter().enumerate() {
+            if name.is_empty() {
+                return Err(DataError::EmptyColumnName {
+                    file,
+                    line: header.line,
+                    column: i + 1,
+                });
+            }
+            if let Some(first) = names[..i].iter().position(|n| n == name) {
+                return Err(DataError::DuplicateColumn {
+                    file,
+                    line: header.line,
+                    column: i + 1,
+                    name: name.clone(),
+                    first: first + 1,
+                });
+            }
+        }
+        let scaled: Vec<usize> = opts
+            .scales
+            .iter()
+            .filter_map(|(c, _)| resolve(&names, c))
+            .collect();
+        let early = opts
+            .filters
+            .iter()
+            .filter_map(|(c, v)| {
+                let i = resolve(&names, c)?;
+                (!scaled.contains(&i)).then(|| (i, v.clone(), parse_number(v)))
+            })
+            .collect();
+        let time_col = if names.iter().any(|n| n == "time_s") {
+            None
+        } else {
+            names.iter().position(|n| n == "time")
+        };
+        let width = names.len();
+        Ok(Builder {
+            file,
+            names,
+            lines: Vec::new(),
+            cells: (0..width).map(|_| Cells::default()).collect(),
+            early,
+            first_time: None,
+            time_col,
+            size,
+            records: 0,
+            bytes_read: 0,
+        })
+    }
+
+    fn push(&mut self, rec: csv::Record<'_>) -> Result<(), DataError> {
+        let width = self.names.len();
+        if rec.fields.len() != width {
+            return Err(DataError::RaggedRow {
+                file: self.file.clone(),
+                line: rec.line,
+                column: rec.fields.len().min(width) + 1,
+                found: rec.fields.len(),
+                expected: width,
+            });
+        }
+        if self.records == 0 {
+            if let Some(t) = self.time_col {
+                self.first_time = Some(rec.fields[t].to_string());
+            }
+        }
+        self.records += 1;
+        let row_bytes: usize = rec.fields.iter().map(|f| f.len() + 1).sum();
+        self.bytes_read += row_bytes as u64;
+        if self.records == 1024 {
+            self.reserve();
+        }
+        let keep = self.early.iter().all(|(c, value, want_num)| {
+            let t = &rec.fields[*c];
+            match (*want_num, parse_number(t)) {
+                (Some(a), Some(b)) => a == b,
+                _ => t.trim() == value,
+            }
+        });
+        if !keep {
+            return Ok(());
+        }
+        for (c, f) in rec.fields.iter().enumerate() {
+            if !self.cells[c].fits(f.len()) {
+                return Err(DataError::BadOption {
+                    option: "--data",
+                    text: self.file.clone(),
+                    reason: format!(
+                        "column `{}` holds more than 4 GiB of text; split the file or select rows with --where",
+                        self.names[c]
+                    ),
+                });
+            }
+            self.cells[c].push(f);
+        }
+        self.lines.push(rec.line);
+        Ok(())
+    }
+
+    /// After the first rows: reserve room for the rows the file size suggests (when no early filter
+    /// drops rows), so the columns do not grow by doubling (which can hold twice the memory).
+    fn reserve(&mut self) {
+        if !self.early.is_empty() || self.bytes_read == 0 {
+            return;
+        }
+        let per_row = self.bytes_read as f64 / self.records as f64;
+        let rows = ((self.size as f64 / per_row) * 1.05) as usize;
+        let extra = rows.saturating_sub(self.lines.len());
+        self.lines.reserve(extra);
+        for c in &mut self.cells {
+            let per_cell = c.bytes() as f64 / c.len().max(1) as f64;
+            c.reserve(extra, (extra as f64 * per_cell * 1.05) as usize);
+        }
+    }
+
+    fn finish(self, opts: &LoadOptions) -> Result<Dataset, DataError> {
+        let file = self.file;
+        if self.records == 0 {
+            return Err(DataError::NoRows {
+                file,
+                why: "after the header".into(),
+            });
+        }
+        let columns = self
+            .names
+            .into_iter()
+            .zip(self.cells)
+            .enumerate()
+            .map(|(i, (name, mut text))| {
+                text.shrink_to_fit();
+                Column::new(name, Some(i + 1), text)
+            })
+            .collect();
+        let mut lines = self.lines;
+        lines.shrink_to_fit();
+        let mut ds = Dataset {
+            source: file,
+            lines,
+            columns,
+        };
+        ds.derive_time_s(self.first_time.as_deref())?;
+        for (col, factor) in &opts.scales {
+            ds.scale_column(col, *factor)?;
+        }
+        if !opts.filters.is_empty() {
+            let mut keep = vec![true; ds.n_rows()];
+            for (col, value) in &opts.filters {
+                let c = ds.column(col, " (named by --where)")?;
+                let want_num = parse_number(value);
+                for (k, t) in keep.iter_mut().zip(c.cells().iter()) {
+                    let hit = match (want_num, parse_number(t)) {
+                        (Some(a), Some(b)) => a == b,
+                        _ => t.trim() == value,
+                    };
+                    *k &= hit;
+                }
+            }
+            if keep.iter().any(|k| !k) || ds.n_rows() == 0 {
+                ds = ds.select_rows(&keep);
+            }
+            if ds.n_rows() == 0 {
+                let what: Vec<String> = opts
+                    .filters
+                    .iter()
+                    .map(|(c, v)| format!("{c}={v}"))
+                    .collect();
+                return Err(DataError::NoRows {
+                    file: ds.source,
+                    why: format!("match --where {}", what.join(" --where ")),
+                });
+            }
+        }
+        Ok(ds)
     }
 }
 

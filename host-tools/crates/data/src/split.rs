@@ -204,21 +204,28 @@ pub fn groups(ds: &Dataset, col: &str) -> Result<(Vec<usize>, Vec<String>), Data
     let text = ds
         .text(col)
         .map_err(|e| with_purpose(e, " (named by --cv)"))?;
+    // Keyed by the number (0.0 and −0.0 alike) when the cell reads as one, else by the trimmed text:
+    // one hash lookup per row (campaigns of thousands of runs).
+    #[derive(Hash, PartialEq, Eq)]
+    enum Key {
+        Number(u64),
+        Text(String),
+    }
     let mut labels: Vec<String> = Vec::new();
-    let mut keys: Vec<(Option<f64>, String)> = Vec::new();
+    let mut index: std::collections::HashMap<Key, usize> = std::collections::HashMap::new();
     let mut ids = Vec::with_capacity(text.len());
     for t in text {
         let t = t.trim();
-        let num = parse_number(t);
-        let found = keys.iter().position(|(kn, kt)| match (kn, num) {
-            (Some(a), Some(b)) => *a == b,
-            _ => kt == t,
-        });
-        let id = found.unwrap_or_else(|| {
-            keys.push((num, t.to_string()));
+        let key = match parse_number(t) {
+            Some(v) if v == 0.0 => Key::Number(0),
+            Some(v) => Key::Number(v.to_bits()),
+            None => Key::Text(t.to_string()),
+        };
+        let next = labels.len();
+        let id = *index.entry(key).or_insert(next);
+        if id == next {
             labels.push(t.to_string());
-            labels.len() - 1
-        });
+        }
         ids.push(id);
     }
     Ok((ids, labels))

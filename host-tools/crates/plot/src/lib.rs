@@ -132,6 +132,15 @@ impl Figure {
         )
     }
 
+    /// Sets the colour (any SVG colour, e.g. one of [`PALETTE`]) of the series added last, so that a line
+    /// and its points can share one colour: `fig.points(..).with_colour(PALETTE[1])`.
+    pub fn with_colour(&mut self, colour: &str) -> &mut Self {
+        if let Some(s) = self.series.last_mut() {
+            s.colour = colour.to_owned();
+        }
+        self
+    }
+
     /// A shaded vertical region `from..to` with a label.
     pub fn vspan(&mut self, from: f64, to: f64, label: &str) -> &mut Self {
         self.spans.push(Span {
@@ -203,8 +212,14 @@ impl Figure {
             .map(|s| s.name.chars().count())
             .max()
             .unwrap_or(0);
-        let mr = (40.0 + 7.0 * longest as f64).clamp(60.0, w * 0.45);
-        let (ml, mt, mb) = (70.0, 40.0, 55.0);
+        // Legend: marker (18 px) + gap (6 px) + text (~7.5 px a character at 12 px) + 12 px to the edge.
+        let mr = (50.0 + 7.5 * longest as f64).clamp(90.0, w * 0.45);
+        // Legend names longer than the margin holds are shortened (…) rather than cut by the frame.
+        let legend_chars = ((mr - 50.0) / 7.5).max(4.0) as usize;
+        // Titles wider than the figure (~8 px a character at 15 px) wrap onto more lines.
+        let title_lines = wrap(&self.title, ((w - 20.0) / 8.0).max(10.0) as usize);
+        let (ml, mb) = (70.0, 55.0);
+        let mt = 22.0 + 18.0 * title_lines.len() as f64;
         let (pw, ph) = (w - ml - mr, h - mt - mb);
         let ((x0, x1), (y0, y1)) = self.bounds();
         let xt = nice_ticks(x0, x1, 8);
@@ -220,12 +235,15 @@ impl Figure {
             r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
         );
         let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-        let _ = writeln!(
-            s,
-            r#"<text x="{}" y="24" font-size="15" text-anchor="middle">{}</text>"#,
-            ml + pw / 2.0,
-            esc(&self.title)
-        );
+        for (k, line) in title_lines.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                r#"<text x="{}" y="{}" font-size="15" text-anchor="middle">{}</text>"#,
+                w / 2.0,
+                24.0 + 18.0 * k as f64,
+                esc(line)
+            );
+        }
         for sp in &self.spans {
             let (a, b) = (sx(sp.from.max(x0)), sx(sp.to.min(x1)));
             let _ = writeln!(
@@ -311,7 +329,8 @@ impl Figure {
                 Kind::Line { dashed } => {
                     let mut d = String::new();
                     let mut pen_down = false;
-                    for (&x, &y) in se.xs.iter().zip(&se.ys) {
+                    let (xs, ys) = decimate_line(&se.xs, &se.ys, pw, &sx);
+                    for (&x, &y) in xs.iter().zip(&ys) {
                         if x.is_finite() && y.is_finite() {
                             let _ = write!(
                                 d,
@@ -333,6 +352,25 @@ impl Figure {
                     let _ = writeln!(
                         s,
                         r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.6"{dash}/>"#,
+                        se.colour
+                    );
+                }
+                Kind::Points if se.xs.len() > DENSE_POINTS => {
+                    // Dense: one mark per occupied 2 × 2 px cell, all in one path of round dots, so the
+                    // file stays small (bounded by the plot area, not by the number of points).
+                    let mut seen = std::collections::HashSet::new();
+                    let mut d = String::new();
+                    for (&x, &y) in se.xs.iter().zip(&se.ys) {
+                        if x.is_finite() && y.is_finite() {
+                            let (px, py) = (sx(x), sy(y));
+                            if seen.insert(((px / 2.0) as i64, (py / 2.0) as i64)) {
+                                let _ = write!(d, "M{px:.1},{py:.1}h0");
+                            }
+                        }
+                    }
+                    let _ = writeln!(
+                        s,
+                        r#"<path d="{d}" stroke="{}" stroke-opacity="0.6" stroke-width="4" stroke-linecap="round" fill="none"/>"#,
                         se.colour
                     );
                 }
@@ -367,8 +405,13 @@ impl Figure {
             esc(&self.y_label)
         );
         let lx = ml + pw + 14.0;
+        let step = if self.series.is_empty() {
+            18.0
+        } else {
+            (ph / self.series.len() as f64).clamp(11.0, 18.0)
+        };
         for (k, se) in self.series.iter().enumerate() {
-            let ly = mt + 10.0 + 18.0 * k as f64;
+            let ly = mt + 10.0 + step * k as f64;
             let mark = match se.kind {
                 Kind::Points => format!(
                     r#"<circle cx="{}" cy="{ly}" r="3.5" fill="{}"/>"#,
@@ -396,7 +439,7 @@ impl Figure {
                 r#"{mark}<text x="{}" y="{}">{}</text>"#,
                 lx + 24.0,
                 ly + 4.0,
-                esc(&se.name)
+                esc(&shorten(&se.name, legend_chars))
             );
         }
         s.push_str("</svg>\n");
@@ -407,6 +450,263 @@ impl Figure {
     pub fn save_svg(&self, path: impl AsRef<Path>) -> std::io::Result<()> {
         write_atomic(path.as_ref(), self.to_svg().as_bytes())
     }
+}
+
+/// Several figures side by side in one SVG (`columns` per row), each keeping its own title, axes and
+/// legend — for comparisons that would crowd one panel (e.g. before / after per direction).
+pub fn panels_svg(figures: &[&Figure], columns: usize) -> String {
+    let columns = columns.max(1);
+    let rows = figures.len().div_ceil(columns);
+    let cw = figures.iter().map(|f| f.width).fold(0.0, f64::max);
+    let ch = figures.iter().map(|f| f.height).fold(0.0, f64::max);
+    let (w, h) = (cw * columns as f64, ch * rows as f64);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+    for (k, f) in figures.iter().enumerate() {
+        let (x, y) = (cw * (k % columns) as f64, ch * (k / columns) as f64);
+        // Each panel's clip path gets its own id.
+        let inner = f
+            .to_svg()
+            .replace("id=\"plotarea\"", &format!("id=\"plotarea{k}\""))
+            .replace("url(#plotarea)", &format!("url(#plotarea{k})"));
+        let inner = inner.replacen("<svg ", &format!("<svg x=\"{x}\" y=\"{y}\" "), 1);
+        s.push_str(&inner);
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+/// A bar chart of values per category (e.g. a residual RMS per operating condition), one bar per series
+/// within each category, with the value printed above each bar. The y axis starts at 0 when all values are
+/// ≥ 0.
+#[derive(Debug, Clone)]
+pub struct BarChart {
+    title: String,
+    y_label: String,
+    categories: Vec<String>,
+    series: Vec<(String, Vec<f64>, String)>,
+}
+
+impl BarChart {
+    pub fn new(title: &str, y_label: &str, categories: &[&str]) -> Self {
+        BarChart {
+            title: title.to_owned(),
+            y_label: y_label.to_owned(),
+            categories: categories.iter().map(|c| (*c).to_owned()).collect(),
+            series: Vec::new(),
+        }
+    }
+
+    /// One value per category (missing or non-finite values draw no bar).
+    pub fn series(&mut self, name: &str, values: &[f64]) -> &mut Self {
+        let colour = PALETTE[self.series.len() % PALETTE.len()].to_owned();
+        self.series.push((name.to_owned(), values.to_vec(), colour));
+        self
+    }
+
+    pub fn to_svg(&self) -> String {
+        let n = self.categories.len().max(1);
+        let per = self.series.len().max(1);
+        let w = (140.0 + n as f64 * (24.0 * per as f64 + 40.0)).clamp(500.0, 1400.0);
+        let h = 460.0;
+        let longest = self
+            .series
+            .iter()
+            .map(|s| s.0.chars().count())
+            .max()
+            .unwrap_or(0);
+        let mr = (40.0 + 7.0 * longest as f64).clamp(40.0, w * 0.4);
+        let title_lines = wrap(&self.title, ((w - 20.0) / 8.0) as usize);
+        let (ml, mb) = (70.0, 80.0);
+        let mt = 22.0 + 18.0 * title_lines.len() as f64 + 14.0;
+        let (pw, ph) = (w - ml - mr, h - mt - mb);
+        let vals = self
+            .series
+            .iter()
+            .flat_map(|s| s.1.iter().copied())
+            .filter(|v| v.is_finite());
+        let (mut y0, mut y1) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+        if !y0.is_finite() {
+            (y0, y1) = (0.0, 1.0);
+        }
+        y0 = y0.min(0.0);
+        y1 = y1.max(0.0);
+        if y1 - y0 <= 0.0 {
+            y1 = y0 + 1.0;
+        }
+        y1 += 0.08 * (y1 - y0); // room for the value labels
+        let yt = nice_ticks(y0, y1, 6);
+        let (y0, y1) = (y0.min(yt[0]), y1.max(*yt.last().unwrap_or(&y1)));
+        let sy = |v: f64| mt + ph - (v - y0) / (y1 - y0) * ph;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
+        );
+        let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+        for (k, line) in title_lines.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                r#"<text x="{}" y="{}" font-size="15" text-anchor="middle">{}</text>"#,
+                w / 2.0,
+                24.0 + 18.0 * k as f64,
+                esc(line)
+            );
+        }
+        for &t in &yt {
+            let py = sy(t);
+            let _ = writeln!(
+                s,
+                r##"<line x1="{ml}" y1="{py:.2}" x2="{}" y2="{py:.2}" stroke="#e5e5e5"/><text x="{}" y="{:.2}" text-anchor="end">{}</text>"##,
+                ml + pw,
+                ml - 6.0,
+                py + 4.0,
+                fmt_tick(t)
+            );
+        }
+        let slot = pw / n as f64;
+        let bw = (slot * 0.8 / per as f64).min(60.0);
+        for (c, cat) in self.categories.iter().enumerate() {
+            let cx = ml + slot * (c as f64 + 0.5);
+            for (k, (_, v, colour)) in self.series.iter().enumerate() {
+                let Some(&v) = v.get(c) else { continue };
+                if !v.is_finite() {
+                    continue;
+                }
+                let x = cx - bw * per as f64 / 2.0 + bw * k as f64;
+                let (top, bottom) = (sy(v.max(0.0)), sy(v.min(0.0)));
+                let _ = writeln!(
+                    s,
+                    r#"<rect x="{x:.2}" y="{top:.2}" width="{:.2}" height="{:.2}" fill="{colour}"/><text x="{:.2}" y="{:.2}" font-size="10" text-anchor="middle">{}</text>"#,
+                    bw * 0.92,
+                    (bottom - top).max(0.5),
+                    x + bw * 0.46,
+                    top - 3.0,
+                    fmt_value(v)
+                );
+            }
+            let _ = writeln!(
+                s,
+                r#"<text x="{cx:.2}" y="{}" text-anchor="middle">{}</text>"#,
+                mt + ph + 16.0,
+                esc(&shorten(cat, (slot / 6.5).max(4.0) as usize))
+            );
+        }
+        let _ = writeln!(
+            s,
+            r##"<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="none" stroke="#333"/><line x1="{ml}" y1="{:.2}" x2="{}" y2="{:.2}" stroke="#333"/>"##,
+            sy(0.0),
+            ml + pw,
+            sy(0.0)
+        );
+        let _ = writeln!(
+            s,
+            r#"<text transform="translate(18,{}) rotate(-90)" text-anchor="middle">{}</text>"#,
+            mt + ph / 2.0,
+            esc(&self.y_label)
+        );
+        for (k, (name, _, colour)) in self.series.iter().enumerate() {
+            let ly = mt + 10.0 + 18.0 * k as f64;
+            let _ = writeln!(
+                s,
+                r#"<rect x="{}" y="{}" width="14" height="10" fill="{colour}"/><text x="{}" y="{}">{}</text>"#,
+                ml + pw + 12.0,
+                ly - 5.0,
+                ml + pw + 32.0,
+                ly + 4.0,
+                esc(name)
+            );
+        }
+        s.push_str("</svg>\n");
+        s
+    }
+}
+
+fn fmt_value(v: f64) -> String {
+    if v.abs() >= 100.0 {
+        format!("{v:.0}")
+    } else if v.abs() >= 10.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.2}")
+    }
+}
+
+/// Points series with more points than this are drawn as density (one mark per 2 × 2 px cell).
+pub const DENSE_POINTS: usize = 2000;
+
+/// A line with more than 4 vertices per pixel column is reduced to the first, lowest, highest and last
+/// vertex of each column (its drawn shape is unchanged); gaps (non-finite values) are kept.
+fn decimate_line(xs: &[f64], ys: &[f64], pw: f64, sx: &dyn Fn(f64) -> f64) -> (Vec<f64>, Vec<f64>) {
+    if (xs.len() as f64) <= 4.0 * pw {
+        return (xs.to_vec(), ys.to_vec());
+    }
+    let (mut ox, mut oy) = (Vec::new(), Vec::new());
+    let mut i = 0;
+    while i < xs.len() {
+        if !(xs[i].is_finite() && ys[i].is_finite()) {
+            ox.push(f64::NAN);
+            oy.push(f64::NAN);
+            i += 1;
+            continue;
+        }
+        let col = sx(xs[i]).floor();
+        let start = i;
+        let (mut lo, mut hi) = (i, i);
+        while i < xs.len() && xs[i].is_finite() && ys[i].is_finite() && sx(xs[i]).floor() == col {
+            if ys[i] < ys[lo] {
+                lo = i;
+            }
+            if ys[i] > ys[hi] {
+                hi = i;
+            }
+            i += 1;
+        }
+        let mut keep = vec![start, lo, hi, i - 1];
+        keep.sort_unstable();
+        keep.dedup();
+        for k in keep {
+            ox.push(xs[k]);
+            oy.push(ys[k]);
+        }
+    }
+    (ox, oy)
+}
+
+/// `text` cut to `max` characters with a final `…` when longer.
+fn shorten(text: &str, max: usize) -> String {
+    if text.chars().count() <= max {
+        text.to_owned()
+    } else {
+        let mut t: String = text.chars().take(max.saturating_sub(1)).collect();
+        t.push('…');
+        t
+    }
+}
+
+/// Splits a title into lines of at most `max_chars` characters at spaces.
+fn wrap(text: &str, max_chars: usize) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    let mut cur = String::new();
+    for word in text.split(' ') {
+        if !cur.is_empty() && cur.chars().count() + 1 + word.chars().count() > max_chars {
+            lines.push(std::mem::take(&mut cur));
+        }
+        if !cur.is_empty() {
+            cur.push(' ');
+        }
+        cur.push_str(word);
+    }
+    if !cur.is_empty() {
+        lines.push(cur);
+    }
+    lines
 }
 
 /// Writes `bytes` to `path` via a sibling temporary file and a rename.
@@ -521,6 +821,44 @@ mod tests {
             .find(|l| l.contains("stroke-width=\"1.6\""))
             .unwrap();
         assert_eq!(path.matches('M').count(), 2, "{path}");
+    }
+
+    /// A 1e6-point series becomes a density of at most one mark per 2 × 2 px cell: the SVG stays under
+    /// 1 MB (bound: the plot area / 4 cells × ~20 bytes), and a 1e6-vertex line is reduced per pixel column.
+    #[test]
+    fn large_series_stay_small() {
+        let n = 1_000_000;
+        let xs: Vec<f64> = (0..n).map(|i| i as f64 / n as f64 * 400.0).collect();
+        let ys: Vec<f64> = xs
+            .iter()
+            .enumerate()
+            .map(|(i, x)| (x / 30.0).sin() * 20.0 + (i % 97) as f64 * 0.05)
+            .collect();
+        let mut f = Figure::new("big", "x", "y");
+        f.points("p", &xs, &ys).line("l", &xs, &ys);
+        let svg = f.to_svg();
+        assert!(svg.len() < 1_000_000, "{} bytes", svg.len());
+        assert!(svg.contains("stroke-linecap=\"round\""));
+    }
+
+    #[test]
+    fn panels_and_bars_render() {
+        let mut a = Figure::new("a", "x", "y");
+        a.line("l", &[0.0, 1.0], &[0.0, 1.0]);
+        let b = a.clone();
+        let s = panels_svg(&[&a, &b], 2);
+        assert!(s.contains("plotarea0") && s.contains("plotarea1"));
+        assert!(s.contains("x=\"900\""), "second panel to the right");
+        let mut bars = BarChart::new("RMS per condition", "RMS / µm", &["heating", "cooling"]);
+        bars.series("raw", &[10.0, 20.0])
+            .series("model", &[2.0, 5.5]);
+        let svg = bars.to_svg();
+        assert_eq!(
+            svg.matches("<rect").count(),
+            1 + 4 + 2 + 1,
+            "background + 4 bars + 2 legend + frame"
+        );
+        assert!(svg.contains(">5.50<") && svg.contains(">cooling<"));
     }
 
     #[test]

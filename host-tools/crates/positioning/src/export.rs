@@ -206,6 +206,7 @@ mod tests {
             cv_rms_um: 0.0,
             raw_rms_um: 0.0,
             cv_method: String::new(),
+            provenance: None,
         }
     }
 

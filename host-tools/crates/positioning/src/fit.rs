@@ -61,6 +61,31 @@ pub struct FitOptions {
     pub runs_improved_fraction: f64,
     /// Restrict the candidates to these names (empty = all).
     pub only: Vec<String>,
+    /// At most this many cross-validation folds: with more runs, consecutive runs are grouped into this
+    /// many folds (`leave-runs-out`), so a campaign of thousands of cycles costs ~`max_folds` fits.
+    pub max_folds: usize,
+    /// Called with a short note after each candidate kind is cross-validated (progress on large data).
+    pub progress: Progress,
+}
+
+/// An optional progress callback of [`FitOptions`] (equal to any other: it does not change the fit).
+#[derive(Clone, Copy, Default)]
+pub struct Progress(pub Option<fn(&str)>);
+
+impl std::fmt::Debug for Progress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() {
+            "Progress(on)"
+        } else {
+            "Progress(off)"
+        })
+    }
+}
+
+impl PartialEq for Progress {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 impl Default for FitOptions {
@@ -73,9 +98,14 @@ impl Default for FitOptions {
             improvement_ratio: guard::DEFAULT_IMPROVEMENT_RATIO,
             runs_improved_fraction: guard::DEFAULT_RUNS_IMPROVED_FRACTION,
             only: Vec::new(),
+            max_folds: DEFAULT_MAX_FOLDS,
+            progress: Progress(None),
         }
     }
 }
+
+/// Default [`FitOptions::max_folds`].
+pub const DEFAULT_MAX_FOLDS: usize = 20;
 
 /// Why a fit failed.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -308,7 +338,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     if !(hi > lo) {
         return Err(FitError::NoStroke(lo));
     }
-    let (fold, folds, split) = make_folds(obs, opts.row_folds.max(3));
+    let (fold, folds, split) = make_folds(obs, opts.row_folds.max(3), opts.max_folds);
     let has_fwd = obs.iter().any(|o| o.direction > 0);
     let has_bwd = obs.iter().any(|o| o.direction < 0);
     let bidirectional = has_fwd && has_bwd;
@@ -365,11 +395,19 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     }
     kinds.extend([Kind::SmoothingSplineUniform, Kind::SmoothingSplineFeature]);
 
+    // The per-fold curves are kept, not the per-row predictions (15 candidates × rows would dominate the
+    // memory of a large campaign); the chosen one's predictions are computed again at the end.
     struct Evaluated {
         cand: Candidate,
-        preds: Vec<f64>,
+        fold_curves: Vec<Curves>,
         final_curves: Curves,
     }
+    let predict = |fold_curves: &[Curves]| -> Vec<f64> {
+        obs.iter()
+            .zip(&p.fold)
+            .map(|(o, &f)| fold_curves[f].predict(o.target_mm, o.direction))
+            .collect()
+    };
     let mut evaluated: Vec<Evaluated> = Vec::new();
     let mut failures: Vec<String> = Vec::new();
     for kind in kinds {
@@ -388,12 +426,9 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
             let name = format!("{}/{}", kind.name(), structure.name());
             match ev {
                 Ok((fold_curves, final_curves, rho)) => {
-                    let preds: Vec<f64> = obs
-                        .iter()
-                        .zip(&p.fold)
-                        .map(|(o, &f)| fold_curves[f].predict(o.target_mm, o.direction))
-                        .collect();
-                    let cv = rms(obs.iter().zip(&preds).map(|(o, q)| o.deviation_um - q));
+                    let cv = rms(obs.iter().zip(&p.fold).map(|(o, &f)| {
+                        o.deviation_um - fold_curves[f].predict(o.target_mm, o.direction)
+                    }));
                     if cv.is_finite() {
                         evaluated.push(Evaluated {
                             cand: Candidate {
@@ -404,7 +439,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
                                 rho,
                                 intervals: final_curves.forward.coeffs.len(),
                             },
-                            preds,
+                            fold_curves,
                             final_curves,
                         });
                     } else {
@@ -413,6 +448,13 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
                 }
                 Err(e) => failures.push(format!("{name}: {e}")),
             }
+        }
+        if let Some(note) = opts.progress.0 {
+            note(&format!(
+                "{} cross-validated in {folds} folds ({} candidates so far)",
+                kind.name(),
+                evaluated.len() + failures.len()
+            ));
         }
     }
     if evaluated.is_empty() {
@@ -430,6 +472,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
         })
         .unwrap();
     let chosen = &evaluated[chosen_idx];
+    let chosen_preds = predict(&chosen.fold_curves);
     let reason = if chosen_idx == 0 {
         format!(
             "lowest {} RMS ({:.3} µm) of {} candidates",
@@ -449,7 +492,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     let dev: Vec<f64> = obs.iter().map(|o| o.deviation_um).collect();
     let verdict = guard::judge(
         &dev,
-        &chosen.preds,
+        &chosen_preds,
         &p.fold,
         opts.improvement_ratio,
         opts.runs_improved_fraction,
@@ -484,10 +527,11 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
         cv_rms_um: cv_rms,
         raw_rms_um: raw_rms,
         cv_method: split.method.clone(),
+        provenance: None,
     };
     let candidates = evaluated.iter().map(|e| e.cand.clone()).collect();
     let chosen_name = chosen.cand.name.clone();
-    let preds = chosen.preds.clone();
+    let preds = chosen_preds;
     Ok(FitResult {
         table,
         curves,
@@ -504,11 +548,35 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     })
 }
 
-/// Fold index per row: leave-one-run-out when there are ≥ 3 runs, otherwise every k-th row.
-fn make_folds(obs: &[Observation], row_folds: usize) -> (Vec<usize>, usize, CvSplit) {
+/// Fold index per row: leave-one-run-out when there are 3 ..= `max_folds` runs, consecutive runs grouped
+/// into `max_folds` folds when there are more (`leave-runs-out`), otherwise every k-th row.
+fn make_folds(
+    obs: &[Observation],
+    row_folds: usize,
+    max_folds: usize,
+) -> (Vec<usize>, usize, CvSplit) {
     let mut runs: Vec<i64> = obs.iter().map(|o| o.run).collect();
     runs.sort_unstable();
     runs.dedup();
+    let max_folds = max_folds.max(3);
+    if runs.len() > max_folds {
+        // Run index i of n goes to group ⌊i·k/n⌋: k groups of consecutive runs, sizes differing by ≤ 1.
+        let (n, k) = (runs.len(), max_folds);
+        let index: HashMap<i64, usize> = runs
+            .iter()
+            .enumerate()
+            .map(|(i, &r)| (r, i * k / n))
+            .collect();
+        let fold = obs.iter().map(|o| index[&o.run]).collect();
+        return (
+            fold,
+            k,
+            CvSplit {
+                method: "leave-runs-out".into(),
+                folds: k,
+            },
+        );
+    }
     if runs.len() >= 3 {
         let index: HashMap<i64, usize> = runs.iter().enumerate().map(|(i, &r)| (r, i)).collect();
         let fold = obs.iter().map(|o| index[&o.run]).collect();

@@ -262,6 +262,352 @@ pub fn evaluate(points: &[Point]) -> Result<Iso230Result, Iso230Error> {
     })
 }
 
+/// ISO 230-2 figures that say what the points cannot determine (µm): a figure the points do not define
+/// is `None` (JSON `null`) and `null_reasons` says why. Unlike [`evaluate`], one-direction data gets its
+/// unidirectional figures and no bidirectional ones (B, A, E, M, R need both directions), and a target
+/// measured once per direction gets E, M and B (from the means) but no A or R (the standard uncertainty s
+/// needs ≥ 2 runs). JSON names follow the contract (`A_um` … `B_um`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Iso230Figures {
+    #[serde(rename = "A_um")]
+    pub a_um: Option<f64>,
+    #[serde(rename = "E_um")]
+    pub e_um: Option<f64>,
+    #[serde(rename = "M_um")]
+    pub m_um: Option<f64>,
+    #[serde(rename = "R_um")]
+    pub r_um: Option<f64>,
+    #[serde(rename = "B_um")]
+    pub b_um: Option<f64>,
+    #[serde(rename = "B_mean_um")]
+    pub b_mean_um: Option<f64>,
+    #[serde(rename = "A_up_um")]
+    pub a_up_um: Option<f64>,
+    #[serde(rename = "A_down_um")]
+    pub a_down_um: Option<f64>,
+    #[serde(rename = "E_up_um")]
+    pub e_up_um: Option<f64>,
+    #[serde(rename = "E_down_um")]
+    pub e_down_um: Option<f64>,
+    #[serde(rename = "R_up_um")]
+    pub r_up_um: Option<f64>,
+    #[serde(rename = "R_down_um")]
+    pub r_down_um: Option<f64>,
+    /// Both approach directions were measured at every target.
+    pub bidirectional: bool,
+    /// `both`, `positive only` or `negative only`.
+    pub directions: &'static str,
+    /// Number of distinct targets.
+    pub targets: usize,
+    /// Fewest points of one target in one measured direction (the runs behind each mean).
+    pub min_runs_per_target: usize,
+    /// For every `None` figure, why (keyed by its JSON name).
+    pub null_reasons: std::collections::BTreeMap<&'static str, String>,
+}
+
+impl Iso230Figures {
+    /// A figure by its JSON name (`A_um`, `E_up_um`, …); `None` when undefined or unknown.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        match name {
+            "A_um" => self.a_um,
+            "E_um" => self.e_um,
+            "M_um" => self.m_um,
+            "R_um" => self.r_um,
+            "B_um" => self.b_um,
+            "B_mean_um" => self.b_mean_um,
+            "A_up_um" => self.a_up_um,
+            "A_down_um" => self.a_down_um,
+            "E_up_um" => self.e_up_um,
+            "E_down_um" => self.e_down_um,
+            "R_up_um" => self.r_up_um,
+            "R_down_um" => self.r_down_um,
+            _ => None,
+        }
+    }
+
+    /// Every figure's JSON name, contract figures first.
+    pub const NAMES: [&'static str; 12] = [
+        "A_um",
+        "E_um",
+        "M_um",
+        "R_um",
+        "B_um",
+        "B_mean_um",
+        "A_up_um",
+        "A_down_um",
+        "E_up_um",
+        "E_down_um",
+        "R_up_um",
+        "R_down_um",
+    ];
+}
+
+/// Per side of one target: mean and (with ≥ 2 points) s.
+#[derive(Clone, Copy)]
+struct Side {
+    n: usize,
+    mean: f64,
+    s: Option<f64>,
+}
+
+fn side(v: &[f64]) -> Option<Side> {
+    if v.is_empty() {
+        return None;
+    }
+    let m = mean(v);
+    Some(Side {
+        n: v.len(),
+        mean: m,
+        s: (v.len() >= 2).then(|| std_n1(v, m)),
+    })
+}
+
+/// The figures the points define (see [`Iso230Figures`]). Errors only for input that is not a set of
+/// points at all (empty, non-finite, direction not ±1).
+pub fn figures(points: &[Point]) -> Result<Iso230Figures, Iso230Error> {
+    figures_by(points.len(), |i| points[i])
+}
+
+/// [`figures`] of points given as columns (target mm, direction ±1 (0 counts as +1), deviation µm),
+/// without building a point list (large campaigns).
+pub fn figures_of_columns(
+    target_mm: &[f64],
+    direction: &[i8],
+    deviation_um: &[f64],
+) -> Result<Iso230Figures, Iso230Error> {
+    let n = target_mm.len().min(direction.len()).min(deviation_um.len());
+    figures_by(n, |i| Point {
+        target_mm: target_mm[i],
+        run: 0,
+        direction: if direction[i] < 0 { -1 } else { 1 },
+        deviation_um: deviation_um[i],
+    })
+}
+
+fn figures_by(n: usize, point: impl Fn(usize) -> Point) -> Result<Iso230Figures, Iso230Error> {
+    if n == 0 {
+        return Err(Iso230Error::Empty);
+    }
+    for index in 0..n {
+        let p = point(index);
+        if !p.target_mm.is_finite() || !p.deviation_um.is_finite() {
+            return Err(Iso230Error::NonFinite { index });
+        }
+        if p.direction != 1 && p.direction != -1 {
+            return Err(Iso230Error::BadDirection {
+                index,
+                direction: p.direction,
+            });
+        }
+    }
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    order.sort_by(|&a, &b| {
+        point(a as usize)
+            .target_mm
+            .total_cmp(&point(b as usize).target_mm)
+    });
+    let mut groups: Vec<(f64, Vec<f64>, Vec<f64>)> = Vec::new();
+    for &k in &order {
+        let p = point(k as usize);
+        if !groups
+            .last()
+            .is_some_and(|g| (p.target_mm - g.0).abs() <= TARGET_TOLERANCE_MM)
+        {
+            groups.push((p.target_mm, Vec::new(), Vec::new()));
+        }
+        let g = groups.last_mut().expect("pushed");
+        if p.direction > 0 {
+            g.1.push(p.deviation_um);
+        } else {
+            g.2.push(p.deviation_um);
+        }
+    }
+    let has_up = groups.iter().any(|g| !g.1.is_empty());
+    let has_down = groups.iter().any(|g| !g.2.is_empty());
+    let ups: Vec<Option<Side>> = groups.iter().map(|g| side(&g.1)).collect();
+    let downs: Vec<Option<Side>> = groups.iter().map(|g| side(&g.2)).collect();
+    let mut reasons = std::collections::BTreeMap::new();
+    let m = groups.len();
+    let min_runs = groups
+        .iter()
+        .flat_map(|g| {
+            [
+                (has_up).then_some(g.1.len()),
+                (has_down).then_some(g.2.len()),
+            ]
+        })
+        .flatten()
+        .min()
+        .unwrap_or(0);
+    let mut out = Iso230Figures {
+        a_um: None,
+        e_um: None,
+        m_um: None,
+        r_um: None,
+        b_um: None,
+        b_mean_um: None,
+        a_up_um: None,
+        a_down_um: None,
+        e_up_um: None,
+        e_down_um: None,
+        r_up_um: None,
+        r_down_um: None,
+        bidirectional: false,
+        directions: match (has_up, has_down) {
+            (true, true) => "both",
+            (true, false) => "positive only",
+            _ => "negative only",
+        },
+        targets: m,
+        min_runs_per_target: min_runs,
+        null_reasons: std::collections::BTreeMap::new(),
+    };
+    if m < 2 {
+        for k in Iso230Figures::NAMES {
+            reasons.insert(
+                k,
+                format!("only {m} target position(s); ISO 230-2 needs at least 2"),
+            );
+        }
+        out.null_reasons = reasons;
+        return Ok(out);
+    }
+    // Unidirectional figures, per side: complete = every target measured on this side.
+    struct SideFigures {
+        e: Option<f64>,
+        a: Option<f64>,
+        r: Option<f64>,
+        why_e: Option<String>,
+        why_ar: Option<String>,
+    }
+    let side_figures = |sides: &[Option<Side>], present: bool, name: &str| -> SideFigures {
+        if !present {
+            let why = format!("no {name}-approach points");
+            return SideFigures {
+                e: None,
+                a: None,
+                r: None,
+                why_e: Some(why.clone()),
+                why_ar: Some(why),
+            };
+        }
+        if let Some(i) = sides.iter().position(Option::is_none) {
+            let why = format!(
+                "target {} mm has no {name}-approach point while others do",
+                groups[i].0
+            );
+            return SideFigures {
+                e: None,
+                a: None,
+                r: None,
+                why_e: Some(why.clone()),
+                why_ar: Some(why),
+            };
+        }
+        let ss: Vec<Side> = sides.iter().map(|s| s.expect("complete")).collect();
+        let e = max_of(ss.iter().map(|s| s.mean)) - min_of(ss.iter().map(|s| s.mean));
+        if let Some(i) = ss.iter().position(|s| s.s.is_none()) {
+            return SideFigures {
+                e: Some(e),
+                a: None,
+                r: None,
+                why_e: None,
+                why_ar: Some(format!(
+                    "target {} mm has {} {name}-approach point(s); the standard uncertainty s needs at least 2 runs",
+                    groups[i].0, ss[i].n
+                )),
+            };
+        }
+        let a = max_of(ss.iter().map(|s| s.mean + 2.0 * s.s.unwrap_or(0.0)))
+            - min_of(ss.iter().map(|s| s.mean - 2.0 * s.s.unwrap_or(0.0)));
+        let r = max_of(ss.iter().map(|s| 4.0 * s.s.unwrap_or(0.0)));
+        SideFigures {
+            e: Some(e),
+            a: Some(a),
+            r: Some(r),
+            why_e: None,
+            why_ar: None,
+        }
+    };
+    let up = side_figures(&ups, has_up, "positive");
+    let down = side_figures(&downs, has_down, "negative");
+    for (k, v, why) in [
+        ("E_up_um", up.e, &up.why_e),
+        ("A_up_um", up.a, &up.why_ar),
+        ("R_up_um", up.r, &up.why_ar),
+        ("E_down_um", down.e, &down.why_e),
+        ("A_down_um", down.a, &down.why_ar),
+        ("R_down_um", down.r, &down.why_ar),
+    ] {
+        if v.is_none() {
+            reasons.insert(k, why.clone().unwrap_or_default());
+        }
+    }
+    (out.e_up_um, out.a_up_um, out.r_up_um) = (up.e, up.a, up.r);
+    (out.e_down_um, out.a_down_um, out.r_down_um) = (down.e, down.a, down.r);
+    // Bidirectional figures: both sides at every target.
+    let both_complete = up.why_e.is_none() && down.why_e.is_none();
+    if !both_complete {
+        let why = if !(has_up && has_down) {
+            format!(
+                "one approach direction only ({}): bidirectional figures need both",
+                out.directions
+            )
+        } else {
+            up.why_e.clone().or(down.why_e.clone()).unwrap_or_default()
+        };
+        for k in ["A_um", "E_um", "M_um", "R_um", "B_um", "B_mean_um"] {
+            reasons.insert(k, why.clone());
+        }
+        out.null_reasons = reasons;
+        return Ok(out);
+    }
+    out.bidirectional = true;
+    let pairs: Vec<(Side, Side)> = ups
+        .iter()
+        .zip(&downs)
+        .map(|(u, d)| (u.expect("complete"), d.expect("complete")))
+        .collect();
+    let rev: Vec<f64> = pairs.iter().map(|(u, d)| u.mean - d.mean).collect();
+    out.b_um = Some(max_of(rev.iter().map(|b| b.abs())));
+    out.b_mean_um = Some(rev.iter().sum::<f64>() / rev.len() as f64);
+    out.e_um = Some(
+        max_of(pairs.iter().flat_map(|(u, d)| [u.mean, d.mean]))
+            - min_of(pairs.iter().flat_map(|(u, d)| [u.mean, d.mean])),
+    );
+    let mid: Vec<f64> = pairs.iter().map(|(u, d)| 0.5 * (u.mean + d.mean)).collect();
+    out.m_um = Some(max_of(mid.iter().copied()) - min_of(mid.iter().copied()));
+    if up.why_ar.is_none() && down.why_ar.is_none() {
+        let s = |x: &Side| x.s.unwrap_or(0.0);
+        out.a_um = Some(
+            max_of(
+                pairs
+                    .iter()
+                    .flat_map(|(u, d)| [u.mean + 2.0 * s(u), d.mean + 2.0 * s(d)]),
+            ) - min_of(
+                pairs
+                    .iter()
+                    .flat_map(|(u, d)| [u.mean - 2.0 * s(u), d.mean - 2.0 * s(d)]),
+            ),
+        );
+        out.r_um = Some(max_of(pairs.iter().zip(&rev).map(|((u, d), b)| {
+            (2.0 * s(u) + 2.0 * s(d) + b.abs())
+                .max(4.0 * s(u))
+                .max(4.0 * s(d))
+        })));
+    } else {
+        let why = up
+            .why_ar
+            .clone()
+            .or(down.why_ar.clone())
+            .unwrap_or_default();
+        reasons.insert("A_um", why.clone());
+        reasons.insert("R_um", why);
+    }
+    out.null_reasons = reasons;
+    Ok(out)
+}
+
 /// Points of a dataset: `target_mm`, the error column `target_col` (e.g. `deviation_um`), `run`/`cycle`
 /// (numbered by first appearance; all 1 when absent) and `direction`/`approach_direction` (all +1 when
 /// absent: a unidirectional test). Errors name file, line and column.
@@ -356,6 +702,59 @@ mod tests {
         // E = E↑ = 2 − 0; R = R↑ = 4√2 (hand-computed).
         assert_eq!(r.e_um, 2.0);
         assert!((r.r_um - 4.0 * 2f64.sqrt()).abs() < 1e-12);
+    }
+
+    /// The honest figures agree with [`evaluate`] on a full bidirectional test (same hand-computed example
+    /// as above, tolerance 1e-12), leave bidirectional figures `null` on one-direction data (issue 14: the
+    /// old `B_um: 0`, `A_down_um == A_up_um` were invented) and A/R `null` with one run per target.
+    #[test]
+    fn honest_figures() {
+        let pts = [
+            pt(0.0, 1, 1, 1.0),
+            pt(0.0, 2, 1, 3.0),
+            pt(0.0, 1, -1, -1.0),
+            pt(0.0, 2, -1, -1.0),
+            pt(10.0, 1, 1, 4.0),
+            pt(10.0, 2, 1, 4.0),
+            pt(10.0, 1, -1, 2.0),
+            pt(10.0, 2, -1, 6.0),
+        ];
+        let full = evaluate(&pts).unwrap();
+        let f = figures(&pts).unwrap();
+        let json = serde_json::to_value(&full).unwrap();
+        for k in Iso230Figures::NAMES {
+            let want = json[k].as_f64().unwrap();
+            assert!((f.get(k).unwrap() - want).abs() < 1e-12, "{k}");
+        }
+        assert!(f.null_reasons.is_empty() && f.bidirectional);
+        // One direction: unidirectional figures only.
+        let up: Vec<Point> = pts.iter().copied().filter(|p| p.direction > 0).collect();
+        let f = figures(&up).unwrap();
+        assert_eq!(f.directions, "positive only");
+        assert_eq!((f.e_up_um, f.a_up_um), (Some(2.0), Some(full.a_up_um)));
+        for k in [
+            "A_um",
+            "E_um",
+            "M_um",
+            "R_um",
+            "B_um",
+            "A_down_um",
+            "E_down_um",
+        ] {
+            assert!(f.get(k).is_none(), "{k}");
+            assert!(
+                f.null_reasons[k].contains("direction") || f.null_reasons[k].contains("negative")
+            );
+        }
+        let j = serde_json::to_value(&f).unwrap();
+        assert!(j["B_um"].is_null() && j["null_reasons"]["B_um"].is_string());
+        // One run per target and direction: E, M, B from the means; no A, R.
+        let one: Vec<Point> = pts.iter().copied().filter(|p| p.run == 1).collect();
+        let f = figures(&one).unwrap();
+        // Means ↑ {1, 4}, ↓ {−1, 2}: E = 4 − (−1) = 5, M = max(0, 3) − min = 3, B = max |{2, 2}| = 2.
+        assert_eq!((f.e_um, f.m_um, f.b_um), (Some(5.0), Some(3.0), Some(2.0)));
+        assert!(f.a_um.is_none() && f.r_um.is_none());
+        assert!(f.null_reasons["A_um"].contains("at least 2 runs"));
     }
 
     #[test]

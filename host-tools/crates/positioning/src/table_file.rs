@@ -43,6 +43,11 @@ pub struct TableFile {
     /// How `cv_rms_um` was obtained (`leave-one-run-out`, `k-fold-by-row`, `holdout`).
     #[serde(default)]
     pub cv_method: String,
+    /// Where the table came from: the data file's SHA-256, the filters, the tool version and the date
+    /// ([`axcomp_data::Provenance`]; [`axcomp_data::Provenance::header_line`] is the one-line form for an
+    /// image header). Absent in tables written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub provenance: Option<axcomp_data::Provenance>,
 }
 
 /// Why a table file is not usable.
@@ -277,13 +282,23 @@ impl TableFile {
 
     /// Writes the table as JSON through a temporary file and a rename (never half-written).
     pub fn save(&self, path: &Path) -> Result<(), TableError> {
-        self.validate()?;
-        let io = |m: String| TableError::Io {
+        let text = self.to_json_string()?;
+        write_atomic(path, text.as_bytes()).map_err(|e| TableError::Io {
             path: path.display().to_string(),
-            message: m,
-        };
-        let text = serde_json::to_string_pretty(self).map_err(|e| io(e.to_string()))?;
-        write_atomic(path, text.as_bytes()).map_err(|e| io(e.to_string()))
+            message: e.to_string(),
+        })
+    }
+
+    /// The validated table as the JSON text [`TableFile::save`] writes (for writers that collect several
+    /// outputs before writing any).
+    pub fn to_json_string(&self) -> Result<String, TableError> {
+        self.validate()?;
+        let mut text = serde_json::to_string_pretty(self).map_err(|e| TableError::Io {
+            path: String::new(),
+            message: e.to_string(),
+        })?;
+        text.push('\n');
+        Ok(text)
     }
 }
 
@@ -322,6 +337,7 @@ mod tests {
             cv_rms_um: 1.0,
             raw_rms_um: 2.0,
             cv_method: "leave-one-run-out".into(),
+            provenance: None,
         }
     }
 

@@ -1,0 +1,470 @@
+//! All-or-nothing output files: [`OutputSet`].
+//!
+//! A command collects every file it will write (path and bytes) in one [`OutputSet`], then calls
+//! [`OutputSet::commit`]. Nothing on disk changes unless every file can be written:
+//!
+//! 1. *check*: every path is checked before anything is written: it names a file (not a directory), its
+//!    directory exists (or is declared with [`OutputSet::dir`] and its own parent exists), and no two
+//!    outputs name the same file;
+//! 2. *stage*: each file is written to a temporary beside its target (`.NAME.axcomp-tmp-PID-K`); declared
+//!    directories are created first;
+//! 3. *swap*: the temporaries are renamed over their targets, an existing target being kept aside
+//!    (hard link) until every rename succeeded.
+//!
+//! On any error the temporaries are removed, replaced targets are put back, directories created by the set
+//! are removed again, and the error names the user's path (never a temporary). Commands should call
+//! [`OutputSet::check`] right after parsing their arguments, so that a bad output path fails before a long
+//! computation, and [`OutputSet::commit`] at the very end.
+
+use std::collections::HashSet;
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+
+/// One planned output file.
+#[derive(Debug, Clone)]
+struct Planned {
+    path: PathBuf,
+    /// `None`: declared with [`OutputSet::planned`] and not filled; checked but not written.
+    bytes: Option<Vec<u8>>,
+}
+
+/// Output files written all together or not at all (see the module docs).
+#[derive(Debug, Clone, Default)]
+pub struct OutputSet {
+    files: Vec<Planned>,
+    dirs: Vec<PathBuf>,
+}
+
+/// Why an output cannot be written; always names the user's path.
+#[derive(Debug)]
+pub enum OutputError {
+    /// The path ends in `/`, `.` or `..`, or is empty.
+    NotAFileName(PathBuf),
+    /// The target exists and is a directory.
+    IsADirectory(PathBuf),
+    /// A declared output directory exists as a file.
+    DirIsAFile(PathBuf),
+    /// The directory the file should go into does not exist.
+    NoSuchDirectory { path: PathBuf, dir: PathBuf },
+    /// A declared output directory cannot be created: its parent is missing or not a directory.
+    CannotCreateDir { dir: PathBuf, why: String },
+    /// Two outputs name the same file.
+    Duplicate { path: PathBuf, other: PathBuf },
+    /// Creating, writing or renaming failed.
+    Io {
+        path: PathBuf,
+        cause: std::io::Error,
+    },
+}
+
+impl std::fmt::Display for OutputError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            OutputError::NotAFileName(p) => {
+                write!(f, "output {}: not a file name", p.display())
+            }
+            OutputError::IsADirectory(p) => write!(
+                f,
+                "output {}: is a directory (give a file name)",
+                p.display()
+            ),
+            OutputError::DirIsAFile(p) => write!(
+                f,
+                "output directory {}: exists and is not a directory",
+                p.display()
+            ),
+            OutputError::NoSuchDirectory { path, dir } => write!(
+                f,
+                "output {}: directory {} does not exist",
+                path.display(),
+                dir.display()
+            ),
+            OutputError::CannotCreateDir { dir, why } => {
+                write!(f, "cannot create {}: {why}", dir.display())
+            }
+            OutputError::Duplicate { path, other } => write!(
+                f,
+                "output {} and {} name the same file",
+                path.display(),
+                other.display()
+            ),
+            OutputError::Io { path, cause } => {
+                write!(f, "cannot write {}: {cause}", path.display())
+            }
+        }
+    }
+}
+
+impl std::error::Error for OutputError {}
+
+/// The directory a path's file lives in (`.` for a bare file name).
+fn parent_of(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// A sibling of `path` named `.NAME.axcomp-KIND-PID-K`.
+fn sibling(path: &Path, kind: &str, k: usize) -> PathBuf {
+    let mut name = OsString::from(".");
+    name.push(path.file_name().unwrap_or_default());
+    name.push(format!(".axcomp-{kind}-{}-{k}", std::process::id()));
+    parent_of(path).join(name)
+}
+
+/// A key that is equal for two spellings of the same file (`a/x` and `a/./x`), as far as the existing
+/// directories allow.
+fn identity(path: &Path) -> PathBuf {
+    let dir = parent_of(path);
+    let dir = std::fs::canonicalize(&dir).unwrap_or_else(|_| {
+        dir.components().collect::<PathBuf>() // normalises `a/./b` and trailing separators
+    });
+    dir.join(path.file_name().unwrap_or_default())
+}
+
+impl OutputSet {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Declares a directory the outputs may be written into (e.g. `--report DIR`); it is created at
+    /// commit when missing (its parent must exist) and removed again if the commit fails.
+    pub fn dir(&mut self, dir: impl Into<PathBuf>) -> &mut Self {
+        let dir = dir.into();
+        if !self.dirs.contains(&dir) {
+            self.dirs.push(dir);
+        }
+        self
+    }
+
+    /// Adds (or replaces) a file.
+    pub fn file(&mut self, path: impl Into<PathBuf>, bytes: impl Into<Vec<u8>>) -> &mut Self {
+        let path = path.into();
+        let bytes = Some(bytes.into());
+        match self.files.iter_mut().find(|f| f.path == path) {
+            Some(f) => f.bytes = bytes,
+            None => self.files.push(Planned { path, bytes }),
+        }
+        self
+    }
+
+    /// Declares a file whose content is not known yet, so that [`OutputSet::check`] can test its path
+    /// before the work; give the content later with [`OutputSet::file`]. A planned file that never gets
+    /// content is not written (e.g. a table the guard refused).
+    pub fn planned(&mut self, path: impl Into<PathBuf>) -> &mut Self {
+        let path = path.into();
+        if !self.files.iter().any(|f| f.path == path) {
+            self.files.push(Planned { path, bytes: None });
+        }
+        self
+    }
+
+    /// Removes a planned file (e.g. a table the guard refused).
+    pub fn remove(&mut self, path: &Path) -> &mut Self {
+        self.files.retain(|f| f.path != path);
+        self
+    }
+
+    /// Adds `value` as pretty JSON with a final newline.
+    pub fn json<T: serde::Serialize>(
+        &mut self,
+        path: impl Into<PathBuf>,
+        value: &T,
+    ) -> anyhow::Result<&mut Self> {
+        let mut text = serde_json::to_string_pretty(value)?;
+        text.push('\n');
+        Ok(self.file(path, text))
+    }
+
+    /// The files that will be written, in order.
+    pub fn paths(&self) -> Vec<&Path> {
+        self.files
+            .iter()
+            .filter(|f| f.bytes.is_some())
+            .map(|f| f.path.as_path())
+            .collect()
+    }
+
+    /// Checks every path without writing anything (step 1 of the module docs).
+    pub fn check(&self) -> Result<(), OutputError> {
+        let declared: HashSet<PathBuf> = self.dirs.iter().map(|d| identity_dir(d)).collect();
+        for d in &self.dirs {
+            if d.exists() && !d.is_dir() {
+                return Err(OutputError::DirIsAFile(d.clone()));
+            }
+            if !d.exists() {
+                let p = parent_of(d);
+                if !p.is_dir() {
+                    let why = if p.exists() {
+                        format!("{} is not a directory", p.display())
+                    } else {
+                        format!("directory {} does not exist", p.display())
+                    };
+                    return Err(OutputError::CannotCreateDir {
+                        dir: d.clone(),
+                        why,
+                    });
+                }
+            }
+        }
+        let mut seen: Vec<(PathBuf, &Path)> = Vec::new();
+        for f in &self.files {
+            let p = &f.path;
+            let name_ok =
+                p.file_name().is_some() && !p.as_os_str().to_string_lossy().ends_with(['/', '\\']);
+            if !name_ok {
+                return Err(OutputError::NotAFileName(p.clone()));
+            }
+            if p.is_dir() {
+                return Err(OutputError::IsADirectory(p.clone()));
+            }
+            let dir = parent_of(p);
+            if !dir.is_dir() && !declared.contains(&identity_dir(&dir)) {
+                return Err(OutputError::NoSuchDirectory {
+                    path: p.clone(),
+                    dir,
+                });
+            }
+            if declared.contains(&identity_dir(p)) {
+                return Err(OutputError::Duplicate {
+                    path: p.clone(),
+                    other: p.clone(),
+                });
+            }
+            let id = identity(p);
+            if let Some((_, other)) = seen.iter().find(|(k, _)| *k == id) {
+                return Err(OutputError::Duplicate {
+                    path: p.clone(),
+                    other: other.to_path_buf(),
+                });
+            }
+            seen.push((id, p));
+        }
+        Ok(())
+    }
+
+    /// Writes every file or none (steps 1–3 of the module docs). Returns the paths written.
+    pub fn commit(mut self) -> Result<Vec<PathBuf>, OutputError> {
+        self.check()?;
+        self.files.retain(|f| f.bytes.is_some());
+        // Directories, outermost first.
+        let mut created: Vec<PathBuf> = Vec::new();
+        let undo_dirs = |created: &[PathBuf]| {
+            for d in created.iter().rev() {
+                let _ = std::fs::remove_dir(d);
+            }
+        };
+        for d in &self.dirs {
+            if !d.is_dir() {
+                if let Err(cause) = std::fs::create_dir(d) {
+                    undo_dirs(&created);
+                    return Err(OutputError::Io {
+                        path: d.clone(),
+                        cause,
+                    });
+                }
+                created.push(d.clone());
+            }
+        }
+        // Stage.
+        let mut staged: Vec<PathBuf> = Vec::new();
+        for (k, f) in self.files.iter().enumerate() {
+            let tmp = sibling(&f.path, "tmp", k);
+            let bytes = f.bytes.as_deref().unwrap_or_default();
+            if let Err(cause) = std::fs::write(&tmp, bytes) {
+                let _ = std::fs::remove_file(&tmp);
+                for t in &staged {
+                    let _ = std::fs::remove_file(t);
+                }
+                undo_dirs(&created);
+                return Err(OutputError::Io {
+                    path: f.path.clone(),
+                    cause,
+                });
+            }
+            staged.push(tmp);
+        }
+        // Swap, keeping replaced targets aside until every rename succeeded.
+        let mut done: Vec<(usize, Option<PathBuf>)> = Vec::new();
+        for (k, f) in self.files.iter().enumerate() {
+            let mut kept = None;
+            let mut failure = None;
+            if f.path.exists() {
+                let old = sibling(&f.path, "old", k);
+                let _ = std::fs::remove_file(&old);
+                match std::fs::hard_link(&f.path, &old)
+                    .or_else(|_| std::fs::copy(&f.path, &old).map(|_| ()))
+                {
+                    Ok(()) => kept = Some(old),
+                    Err(cause) => failure = Some(cause),
+                }
+            }
+            if failure.is_none() {
+                if let Err(cause) = std::fs::rename(&staged[k], &f.path) {
+                    failure = Some(cause);
+                    if let Some(old) = kept.take() {
+                        let _ = std::fs::remove_file(old);
+                    }
+                }
+            }
+            if let Some(cause) = failure {
+                // Roll back: put the old files back, remove new ones, drop the rest of the temporaries.
+                for (j, old) in done.iter().rev() {
+                    let target = &self.files[*j].path;
+                    match old {
+                        Some(old) => {
+                            let _ = std::fs::rename(old, target);
+                        }
+                        None => {
+                            let _ = std::fs::remove_file(target);
+                        }
+                    }
+                }
+                for t in &staged[k..] {
+                    let _ = std::fs::remove_file(t);
+                }
+                undo_dirs(&created);
+                return Err(OutputError::Io {
+                    path: f.path.clone(),
+                    cause,
+                });
+            }
+            done.push((k, kept));
+        }
+        for (_, old) in done {
+            if let Some(old) = old {
+                let _ = std::fs::remove_file(old);
+            }
+        }
+        Ok(self.files.into_iter().map(|f| f.path).collect())
+    }
+}
+
+/// Like [`identity`] for a directory path itself.
+fn identity_dir(dir: &Path) -> PathBuf {
+    std::fs::canonicalize(dir).unwrap_or_else(|_| {
+        if dir.file_name().is_some() {
+            identity(dir)
+        } else {
+            dir.components().collect()
+        }
+    })
+}
+
+/// `, peak N MB` (the process's peak resident memory, Linux `VmHWM`) for progress lines; empty elsewhere.
+pub fn peak_memory_note() -> String {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("VmHWM:"))
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        })
+        .map_or(String::new(), |kb| format!(", peak {} MB", kb / 1024))
+}
+
+/// Writes one file through an [`OutputSet`] (for commands with a single output).
+pub fn write_one(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    let mut set = OutputSet::new();
+    set.file(path, bytes);
+    set.commit().map(|_| ())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("axcomp-output-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn listing(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn writes_all_and_replaces_old_files() {
+        let d = scratch("all");
+        std::fs::write(d.join("a.txt"), "old a").unwrap();
+        let mut s = OutputSet::new();
+        s.file(d.join("a.txt"), "new a")
+            .dir(d.join("rep"))
+            .file(d.join("rep/r.md"), "report");
+        let written = s.commit().unwrap();
+        assert_eq!(written.len(), 2);
+        assert_eq!(std::fs::read_to_string(d.join("a.txt")).unwrap(), "new a");
+        assert_eq!(
+            std::fs::read_to_string(d.join("rep/r.md")).unwrap(),
+            "report"
+        );
+        assert_eq!(listing(&d), ["a.txt", "rep"]); // no temporary or kept-aside file left
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_bad_last_path_touches_nothing_and_names_the_user_path() {
+        let d = scratch("bad");
+        std::fs::write(d.join("t.json"), "old").unwrap();
+        let mut s = OutputSet::new();
+        s.file(d.join("t.json"), "new")
+            .dir(d.join("report"))
+            .file(d.join("report/x.md"), "x")
+            .file(d.join("missing-dir/f.json"), "j");
+        let e = s.clone().commit().unwrap_err().to_string();
+        assert!(
+            e.contains("missing-dir/f.json") && !e.contains("axcomp-tmp"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read_to_string(d.join("t.json")).unwrap(), "old");
+        assert_eq!(listing(&d), ["t.json"]);
+        // A directory where a file should go; duplicate paths.
+        std::fs::create_dir(d.join("isdir")).unwrap();
+        let mut s = OutputSet::new();
+        s.file(d.join("t.json"), "new").file(d.join("isdir"), "x");
+        assert!(matches!(s.commit(), Err(OutputError::IsADirectory(_))));
+        let mut s = OutputSet::new();
+        s.file(d.join("t.json"), "1")
+            .file(d.join("isdir/../t.json"), "2");
+        assert!(matches!(s.commit(), Err(OutputError::Duplicate { .. })));
+        assert_eq!(std::fs::read_to_string(d.join("t.json")).unwrap(), "old");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_write_failure_after_the_check_rolls_back() {
+        use std::os::unix::fs::PermissionsExt;
+        let d = scratch("ro");
+        std::fs::write(d.join("a.txt"), "old a").unwrap();
+        let ro = d.join("ro");
+        std::fs::create_dir(&ro).unwrap();
+        std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o555)).unwrap();
+        if std::fs::write(ro.join("probe"), "x").is_ok() {
+            // Running as root: permissions do not stop writes; nothing to test here.
+            println!("skipped: directory permissions are not enforced (root)");
+            std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
+            std::fs::remove_dir_all(&d).unwrap();
+            return;
+        }
+        let mut s = OutputSet::new();
+        s.file(d.join("a.txt"), "new a")
+            .dir(d.join("newdir"))
+            .file(d.join("newdir/n.txt"), "n")
+            .file(ro.join("b.txt"), "b");
+        let e = s.commit().unwrap_err().to_string();
+        assert!(e.contains("ro/b.txt") && !e.contains("axcomp-tmp"), "{e}");
+        assert_eq!(std::fs::read_to_string(d.join("a.txt")).unwrap(), "old a");
+        assert_eq!(listing(&d), ["a.txt", "ro"]);
+        std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}
