@@ -45,9 +45,11 @@
 //! |x_ref| ≤ 2^62; |χ| ≤ 1e3 µm/N; |k| ≤ 1e9, |exponents| ≤ 10; max correction and max slew in
 //! (0, 1e5] µm; direction hysteresis ≤ 2^31 − 1 counts.
 
-use crate::compensator::{Compensator, MAX_LIMIT_UM, SensorRt};
+use crate::compensator::Compensator;
 use crate::error::{Field, ImageError};
+use crate::limits::MAX_LIMIT_UM;
 use crate::spec::{ForceLaw, ImageSpec, OutsideStroke};
+use crate::thermo::SensorRt;
 use crate::{MAX_FORCES, MAX_IMAGE_LEN, MAX_SEGMENTS, MAX_SENSORS};
 
 /// Image magic.
@@ -500,9 +502,9 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
     c.force_predicted = [false; MAX_FORCES];
     c.measured_mask = 0;
     c.chi_measured = [0.0; MAX_FORCES];
-    c.measured = crate::compensator::MeasuredSet::None;
+    c.measured = crate::thermo::MeasuredSet::None;
     c.thermo_flags_xor = 0;
-    c.laws = [crate::compensator::ZERO_LAW; MAX_FORCES];
+    c.laws = [crate::thermo::ZERO_LAW; MAX_FORCES];
     c.sensors = [SensorRt::ZERO; MAX_SENSORS];
     if let Some(o) = l.thermo {
         let period = u32_at(b, o);
@@ -550,7 +552,7 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
         }
     }
 
-    c.measured = crate::compensator::MeasuredSet::from_mask(c.measured_mask);
+    c.measured = crate::thermo::MeasuredSet::from_mask(c.measured_mask);
 
     let o = l.limits;
     c.max_correction_um = f32_at(b, o);

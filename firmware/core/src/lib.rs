@@ -63,24 +63,28 @@ extern crate std;
 
 pub mod bench;
 mod compensator;
+mod counter;
 mod engine;
 mod error;
 pub mod image;
 mod le;
+mod limits;
 mod spec;
+mod table;
+mod thermo;
 pub mod trace;
 
-pub use compensator::{
-    Compensator, CycleInput, CycleOutput, Direction, Flags, ForceSource, ProcessParams, State,
-    round_to_counts,
-};
+pub use compensator::{Compensator, CycleInput, CycleOutput, Flags, State};
+pub use counter::Direction;
 pub use engine::{Engine, EngineStats};
 pub use error::{Field, ImageError};
 pub use image::{ImageInfo, crc32, image_len, inspect_image, write_image};
+pub use limits::round_to_counts;
 pub use spec::{
     ExpansionSpec, ForceLaw, ForceSpec, ImageSpec, LimitSpec, OutsideStroke, SensorSpec, TableSpec,
     ThermoForceSpec,
 };
+pub use thermo::{ForceSource, ProcessParams};
 
 /// Segments per direction of the positioning table.
 pub const MAX_SEGMENTS: usize = 1024;

@@ -1,0 +1,95 @@
+//! The positioning table: uniform cubic segments per approach direction, hold or taper beyond
+//! the stroke.
+//!
+//! # Glossary
+//! - **knot**: a segment boundary; knot k sits at `start_counts + k·segment_counts`.
+//! - **segment**: the interval between two knots, polynomial `[c0, c1, c2, c3]` in Horner form
+//!   evaluated at t = (position − knot)/segment_counts in [0, 1).
+//! - **stroke**: `[start_counts, start_counts + n·segment_counts)`; beyond it the end value is
+//!   held or tapered to 0 over `taper_length_counts`.
+
+use crate::MAX_SEGMENTS;
+use crate::compensator::Compensator;
+use crate::counter::Direction;
+use crate::spec::OutsideStroke;
+
+impl Compensator {
+    /// True if a positioning table is loaded.
+    pub fn has_table(&self) -> bool {
+        self.has_table
+    }
+    /// Position of knot 0.
+    pub fn table_start_counts(&self) -> i64 {
+        self.start_counts
+    }
+    /// Knot spacing.
+    pub fn segment_counts(&self) -> u32 {
+        self.segment_counts
+    }
+    /// Behaviour beyond the stroke.
+    pub fn outside(&self) -> OutsideStroke {
+        if self.taper {
+            OutsideStroke::Taper {
+                length_counts: self.taper_counts,
+            }
+        } else {
+            OutsideStroke::Hold
+        }
+    }
+    /// Forward segments (empty without a table).
+    pub fn forward_segments(&self) -> &[[f32; 4]] {
+        let n = (self.n_segments as usize).min(MAX_SEGMENTS);
+        self.coeffs.get(..n).unwrap_or(&[])
+    }
+    /// Backward segments (empty for a unidirectional table).
+    pub fn backward_segments(&self) -> &[[f32; 4]] {
+        let n = if self.bidirectional {
+            (self.n_segments as usize).min(MAX_SEGMENTS)
+        } else {
+            0
+        };
+        self.coeffs
+            .get(MAX_SEGMENTS..MAX_SEGMENTS + n)
+            .unwrap_or(&[])
+    }
+    /// Positioning-table value (µm) at `position_counts` for `direction`, and whether the position
+    /// was outside the stroke. 0 without a table.
+    #[inline]
+    pub fn table_um(&self, direction: Direction, position_counts: i64) -> (f32, bool) {
+        if !self.has_table {
+            return (0.0, false);
+        }
+        // A unidirectional table has its forward segments in the backward half too (see `load`).
+        let dir = (direction == Direction::Backward) as usize;
+        // Compare first, then subtract: exact for every i64 without a saturating subtraction.
+        let (end, dist) = if position_counts < self.start_counts {
+            (
+                self.edge[dir][0],
+                self.start_counts.wrapping_sub(position_counts) as u64,
+            )
+        } else {
+            let diff = position_counts.wrapping_sub(self.start_counts) as u64;
+            if diff < self.span_counts as u64 {
+                // span ≤ u32::MAX is validated, so the offset fits in u32.
+                let offset = diff as u32;
+                let seg_counts = self.segment_counts;
+                // Never 0 for a loaded table; `checked_div` keeps the code panic-free.
+                let seg = offset.checked_div(seg_counts).unwrap_or(0);
+                let rem = offset - seg.wrapping_mul(seg_counts);
+                let t = rem as f32 * self.inv_segment;
+                let idx = (seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1);
+                let c = &self.coeffs[idx];
+                return (c[0] + t * (c[1] + t * (c[2] + t * c[3])), false);
+            }
+            (self.edge[dir][1], diff - self.span_counts as u64)
+        };
+        let v = if !self.taper {
+            end
+        } else if dist >= self.taper_counts as u64 {
+            0.0
+        } else {
+            end * (1.0 - dist as u32 as f32 * self.inv_taper)
+        };
+        (v, true)
+    }
+}
