@@ -11,10 +11,9 @@
 
 use crate::ImageError;
 use crate::counter::Direction;
-use crate::limits::{cold_path, limit, round_half_away_bounded, round_to_counts};
 use crate::spec::{ForceLaw, LimitSpec};
 use crate::thermo::{MeasuredSet, SensorRt, SensorState, ZERO_LAW};
-use crate::{MAX_FORCE_TERM_UM, MAX_FORCES, MAX_SEGMENTS, MAX_SENSORS};
+use crate::{MAX_FORCES, MAX_SEGMENTS, MAX_SENSORS};
 
 /// Input of one control cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -75,8 +74,8 @@ impl Flags {
     }
 }
 
-// `Compensator::cycle` builds the BACKWARD bit with a shift.
-const _: () = assert!(Flags::BACKWARD.0 == 1 << 7);
+// `Compensator::cycle` builds the BACKWARD and TABLE_OUTSIDE bits with a shift and a cast.
+const _: () = assert!(Flags::BACKWARD.0 == 1 << 7 && Flags::TABLE_OUTSIDE.0 == 1);
 
 impl core::ops::BitOr for Flags {
     type Output = Flags;
@@ -120,13 +119,14 @@ pub struct Compensator {
     pub(crate) sext_shift: u32,
     pub(crate) um_per_count: f32,
     // ---- positioning table ----
-    pub(crate) has_table: bool,
     pub(crate) bidirectional: bool,
     pub(crate) taper: bool,
     pub(crate) n_segments: u32,
     pub(crate) start_counts: i64,
-    pub(crate) segment_counts: u32,
-    pub(crate) span_counts: i64,
+    /// Knot spacing; `None` = no table (so the division needs no zero check).
+    pub(crate) segment: Option<core::num::NonZeroU32>,
+    /// n·segment_counts ≤ u32::MAX (validated).
+    pub(crate) span_counts: u32,
     pub(crate) inv_segment: f32,
     pub(crate) taper_counts: u32,
     pub(crate) inv_taper: f32,
@@ -160,10 +160,13 @@ pub struct Compensator {
     pub(crate) max_correction_um: f32,
     pub(crate) max_slew_um_per_cycle: f32,
     pub(crate) hysteresis_counts: u32,
-    /// True if every applied correction, in counts, is below 2^29 in magnitude
-    /// ([`MAX_LIMIT_UM`] / `um_per_count` < 2^29), so the cycle may round with
-    /// [`round_half_away_bounded`].
-    pub(crate) counts_bounded: bool,
+    /// `um_per_count / 2` (exact), so that the cycle's quotient is already doubled for the
+    /// bounded rounding.
+    pub(crate) half_um_per_count: f32,
+    /// `max_correction_um` if every applied correction, in counts, is below 2^29 in magnitude
+    /// (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else −1: the cycle's fast path (within the
+    /// clamp, rounded with `round_half_away_bounded`) is never taken for an unbounded image.
+    pub(crate) fast_max_um: f32,
     /// Forward segments at `0..n`, backward at `MAX_SEGMENTS..MAX_SEGMENTS + n` (a copy of the
     /// forward ones for a unidirectional table). Last, so that
     /// every other field is within a load's immediate offset of `self`.
@@ -184,12 +187,11 @@ impl Compensator {
         counter_bits: 0,
         sext_shift: 0,
         um_per_count: 0.0,
-        has_table: false,
         bidirectional: false,
         taper: false,
         n_segments: 0,
         start_counts: 0,
-        segment_counts: 0,
+        segment: None,
         span_counts: 0,
         inv_segment: 0.0,
         taper_counts: 0,
@@ -216,7 +218,8 @@ impl Compensator {
         max_correction_um: 0.0,
         max_slew_um_per_cycle: 0.0,
         hysteresis_counts: 0,
-        counts_bounded: false,
+        half_um_per_count: 0.0,
+        fast_max_um: 0.0,
         coeffs: [[0.0; 4]; 2 * MAX_SEGMENTS],
     };
 
@@ -232,7 +235,7 @@ impl Compensator {
     /// Back to the identity (in place, no large temporary).
     pub fn clear(&mut self) {
         self.loaded = false;
-        self.has_table = false;
+        self.segment = None;
         self.has_thermo = false;
         self.n_segments = 0;
         self.n_sensors = 0;
@@ -247,7 +250,8 @@ impl Compensator {
         self.counter_bits = 0;
         self.sext_shift = 0;
         self.um_per_count = 0.0;
-        self.counts_bounded = false;
+        self.half_um_per_count = 0.0;
+        self.fast_max_um = 0.0;
     }
 
     /// True once an image has been loaded (false for the identity).
@@ -278,8 +282,8 @@ impl Compensator {
     ///
     /// No library calls, no i64 multiplication/division, no i64↔f32 conversion, no panic path.
     /// Cost on a Cortex-M4F (QEMU count by `.ci/bench`, firmware bin `axcomp-qemu-bench`): about
-    /// 127 instructions for the [`crate::bench`] workload (table + 8-sensor thermo-force + 3
-    /// forces), about 95 with the table only. The common case is laid out as the fall-through
+    /// 119 instructions for the [`crate::bench`] workload (table + 8-sensor thermo-force + 3
+    /// forces), about 86 with the table only. The common case is laid out as the fall-through
     /// (the rare branches — first cycle, clamp/slew acting, command near ±2^63 — are marked
     /// cold) and is sensitive to register pressure: measure any change with `.ci/bench`.
     ///
@@ -287,152 +291,42 @@ impl Compensator {
     /// and [`Compensator::set_process`] (b0 + Σ b_i·ΔT_i + predicted forces), the expansion term
     /// (one multiply-add with the cached c·ΔT_s) and the measured forces of this input.
     pub fn cycle(&self, st: &mut State, input: &CycleInput) -> CycleOutput {
-        // ---- counter extension (wrap-safe, sign-extended delta) ----
-        let shift = self.sext_shift;
-        let raw = input.scale_raw;
-        if !st.primed {
-            cold_path();
-            let base = if st.raw_pending { st.last_raw } else { raw };
-            st.position = ((base.wrapping_shl(shift) as i32) >> shift) as i64;
-            st.last_raw = base;
-            st.back_counts = 0;
-            st.primed = true;
-            st.raw_pending = false;
-        }
-        let delta = ((raw.wrapping_sub(st.last_raw)).wrapping_shl(shift) as i32) >> shift;
-        st.last_raw = raw;
-        let pos = st.position.wrapping_add(delta as i64);
-        st.position = pos;
-
-        // ---- direction with hysteresis ----
-        // back = distance moved against the current direction since its extreme
-        // (= extreme − position going forward), ≥ 0, saturating; hysteresis ≤ i32::MAX (validated).
-        // (A delta of exactly −2^31, a half turn of a 32-bit counter, is ambiguous anyway; its
-        // wrapping negation keeps it "forward".)
-        let against = if st.backward {
-            delta
-        } else {
-            delta.wrapping_neg()
-        };
-        let back = st.back_counts.saturating_add(against);
-        if back > self.hysteresis_counts as i32 {
-            st.backward = !st.backward;
-            st.back_counts = 0;
-        } else {
-            st.back_counts = if back < 0 { 0 } else { back };
-        }
-
-        let mut flags = Flags((st.backward as u16) << 7); // Flags::BACKWARD
+        let pos = self.track(st, input.scale_raw);
         if !self.loaded {
-            flags |= Flags::IDENTITY;
             return CycleOutput {
                 position_counts: pos,
                 corrected_command_counts: input.command_counts,
                 correction_counts: 0,
                 correction_um: 0.0,
-                flags,
+                flags: Flags(((st.backward as u16) << 7) | Flags::IDENTITY.0),
             };
         }
+        let (total, flags) = self.axis_error_um(st, pos, &input.forces_n);
+        self.finish(st, pos, total, input.command_counts, flags)
+    }
 
-        // ---- table ----
-        let mut total = 0.0f32;
-        if self.has_table {
-            let direction = if st.backward {
-                Direction::Backward
-            } else {
-                Direction::Forward
-            };
-            let (table, outside) = self.table_um(direction, pos);
-            if outside {
-                flags |= Flags::TABLE_OUTSIDE;
-            }
-            total = table;
-        }
-
-        // ---- thermo-force ----
+    /// Table + thermo-force term at the extended position `pos` (µm, before the limits), and
+    /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags).
+    #[inline(always)]
+    pub(crate) fn axis_error_um(
+        &self,
+        st: &State,
+        pos: i64,
+        forces_n: &[f32; MAX_FORCES],
+    ) -> (f32, Flags) {
+        let direction = if st.backward {
+            Direction::Backward
+        } else {
+            Direction::Forward
+        };
+        let (mut total, outside) = self.table_um(direction, pos);
+        // BACKWARD is bit 7, TABLE_OUTSIDE bit 0: built here, after the lookup, so that no flag
+        // register is live across it.
+        let mut flags = Flags(((st.backward as u16) << 7) | outside as u16);
         if self.has_thermo {
-            // x − x_ref as i32 (saturated) so that the conversion to f32 is one instruction.
-            // Positions and x_ref within ±2^62 (x_ref is validated, positions are physical) never
-            // wrap; beyond, the term stays finite and the clamp holds.
-            let d = pos.wrapping_sub(self.x_ref_counts);
-            let d32 = if d as i32 as i64 == d {
-                d as i32
-            } else if d < 0 {
-                i32::MIN
-            } else {
-                i32::MAX
-            };
-            // b0 + Σ b_i·ΔT_i + Σ χ_j·F_j (predicted) is cached at the sensor/process rate.
-            total += st.cached_um + st.expansion_um_per_count * d32 as f32;
-            // Measured forces: one multiply-add each, one plausibility check of their sum
-            // (catches NaN, ±inf and absurd readings; the whole measured term is then dropped).
-            // One straight-line sum per set of measured terms (in index order), so inputs of
-            // unmeasured terms (NaN = no reading) are never read and no per-term select is paid.
-            if self.measured != MeasuredSet::None {
-                let c = &self.chi_measured;
-                let f = &input.forces_n;
-                let force_um = match self.measured {
-                    MeasuredSet::None | MeasuredSet::F0 => c[0] * f[0],
-                    MeasuredSet::F1 => c[1] * f[1],
-                    MeasuredSet::F01 => c[0] * f[0] + c[1] * f[1],
-                    MeasuredSet::F2 => c[2] * f[2],
-                    MeasuredSet::F02 => c[0] * f[0] + c[2] * f[2],
-                    MeasuredSet::F12 => c[1] * f[1] + c[2] * f[2],
-                    MeasuredSet::F012 => c[0] * f[0] + c[1] * f[1] + c[2] * f[2],
-                };
-                if libm::fabsf(force_um) <= MAX_FORCE_TERM_UM {
-                    total += force_um;
-                } else {
-                    flags |= Flags::FORCE_INVALID;
-                }
-            }
-            flags |= Flags(st.thermo_bits ^ self.thermo_flags_xor);
+            total += self.thermo_um(st, pos, forces_n, &mut flags);
         }
-
-        // ---- clamp (also catches a non-finite total), slew ----
-        let last = st.last_correction_um;
-        let max = self.max_correction_um;
-        let slew = self.max_slew_um_per_cycle;
-        // Common case first: within the clamp and the slew limit, two compares and no move
-        // (NaN fails the first). Otherwise the full rules of `limit`.
-        let applied = if libm::fabsf(total) <= max && libm::fabsf(total - last) <= slew {
-            total
-        } else {
-            cold_path();
-            let (applied, limit_flags) = limit(total, last, max, slew);
-            flags |= limit_flags;
-            applied
-        };
-        st.last_correction_um = applied;
-
-        // ---- to counts: round half away from zero, saturating ----
-        // |applied| ≤ MAX_LIMIT_UM always: every image's clamp is validated ≤ MAX_LIMIT_UM, the
-        // slew only moves between the last applied value and the clamped one, and a NaN holds.
-        let quotient = applied / self.um_per_count;
-        let counts = if self.counts_bounded {
-            round_half_away_bounded(quotient)
-        } else {
-            cold_path();
-            round_to_counts(quotient)
-        };
-        // command − counts, saturating. |counts| < 2^31, so a command in [−2^62, 2^62) (bits 63
-        // and 62 equal: one test of the high word) cannot overflow; the saturating form only
-        // beyond, out of the way.
-        let command = input.command_counts;
-        let high = (command >> 32) as i32;
-        let corrected = if (high ^ (high << 1)) >= 0 {
-            command.wrapping_sub(counts as i64)
-        } else {
-            cold_path();
-            command.saturating_sub(counts as i64)
-        };
-        CycleOutput {
-            position_counts: pos,
-            corrected_command_counts: corrected,
-            correction_counts: counts,
-            correction_um: applied,
-            flags,
-        }
+        (total, flags)
     }
 }
 

@@ -17,3 +17,46 @@ pub enum Direction {
     /// Decreasing scale position.
     Backward,
 }
+
+use crate::compensator::{Compensator, State};
+use crate::limits::cold_path;
+
+impl Compensator {
+    /// Counter extension (wrap-safe, sign-extended delta) and the direction hysteresis; returns
+    /// the extended position (also stored in `st`).
+    #[inline(always)]
+    pub(crate) fn track(&self, st: &mut State, raw: u32) -> i64 {
+        let shift = self.sext_shift;
+        if !st.primed {
+            cold_path();
+            let base = if st.raw_pending { st.last_raw } else { raw };
+            st.position = ((base.wrapping_shl(shift) as i32) >> shift) as i64;
+            st.last_raw = base;
+            st.back_counts = 0;
+            st.primed = true;
+            st.raw_pending = false;
+        }
+        let delta = ((raw.wrapping_sub(st.last_raw)).wrapping_shl(shift) as i32) >> shift;
+        st.last_raw = raw;
+        let pos = st.position.wrapping_add(delta as i64);
+        st.position = pos;
+
+        // back = distance moved against the current direction since its extreme
+        // (= extreme − position going forward), ≥ 0, saturating; hysteresis ≤ i32::MAX (validated).
+        // (A delta of exactly −2^31, a half turn of a 32-bit counter, is ambiguous anyway; its
+        // wrapping negation keeps it "forward".)
+        let against = if st.backward {
+            delta
+        } else {
+            delta.wrapping_neg()
+        };
+        let back = st.back_counts.saturating_add(against);
+        if back > self.hysteresis_counts as i32 {
+            st.backward = !st.backward;
+            st.back_counts = 0;
+        } else {
+            st.back_counts = if back < 0 { 0 } else { back };
+        }
+        pos
+    }
+}

@@ -436,12 +436,11 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
     c.sext_shift = 32u32.saturating_sub(bits as u32);
     c.um_per_count = upc;
 
-    c.has_table = l.table.is_some();
     c.bidirectional = false;
     c.taper = false;
     c.n_segments = 0;
     c.start_counts = 0;
-    c.segment_counts = 0;
+    c.segment = None;
     c.span_counts = 0;
     c.inv_segment = 0.0;
     c.taper_counts = 0;
@@ -453,8 +452,8 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
         c.bidirectional = l.bidirectional;
         c.n_segments = n as u32;
         c.start_counts = i64_at(b, o);
-        c.segment_counts = seg;
-        c.span_counts = seg as i64 * n as i64;
+        c.segment = core::num::NonZeroU32::new(seg);
+        c.span_counts = seg.wrapping_mul(n as u32);
         c.inv_segment = 1.0 / seg as f32;
         c.taper = u8_at(b, o + 15) == 1;
         c.taper_counts = u32_at(b, o + 16);
@@ -559,7 +558,12 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
     c.max_slew_um_per_cycle = f32_at(b, o + 4);
     c.hysteresis_counts = u32_at(b, o + 8);
     // 2^29 leaves a factor 2 of margin below the 2^30 that `round_half_away_bounded` needs.
-    c.counts_bounded = MAX_LIMIT_UM / upc < 536_870_912.0;
+    c.half_um_per_count = 0.5 * upc;
+    c.fast_max_um = if MAX_LIMIT_UM / upc < 536_870_912.0 {
+        c.max_correction_um
+    } else {
+        -1.0
+    };
     c.loaded = true;
 }
 

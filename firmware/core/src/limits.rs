@@ -5,7 +5,67 @@
 //! - **slew**: the change of the applied correction per cycle ≤ `max_slew_um_per_cycle`.
 //! - **counts**: the applied correction in scale counts, rounded half away from zero.
 
-use crate::compensator::Flags;
+use crate::compensator::{Compensator, CycleOutput, Flags, State};
+
+impl Compensator {
+    /// Clamp, slew, rounding to counts and the corrected command: the last stage of an axis.
+    ///
+    /// Common case first: within the clamp and the slew limit (two compares, NaN fails the
+    /// first), rounded in five instructions from `applied · 2/um_per_count` (see
+    /// `round_half_away_bounded`); otherwise the full rules of `limit` and `round_to_counts`.
+    /// µm → counts divides by `um_per_count / 2` (exact halving at load), which is bit for bit
+    /// 2·(applied / um_per_count): the doubling of the bounded rounding costs nothing and the
+    /// counts equal `libm::roundf(applied / um_per_count)`. (A multiply by a reciprocal computed
+    /// at load would save the division's 13 extra cycles on a Cortex-M4F, but not an
+    /// instruction, and it rounds differently near half counts: 9000 µm at 0.001 µm/count would
+    /// give 8 999 999 counts instead of 9 000 000.)
+    #[inline(always)]
+    pub(crate) fn finish(
+        &self,
+        st: &mut State,
+        pos: i64,
+        total: f32,
+        command: i64,
+        mut flags: Flags,
+    ) -> CycleOutput {
+        let last = st.last_correction_um;
+        let slew = self.max_slew_um_per_cycle;
+        let (applied, counts) =
+            if libm::fabsf(total) <= self.fast_max_um && libm::fabsf(total - last) <= slew {
+                // |total| ≤ max ≤ MAX_LIMIT_UM and the image is bounded: |counts| < 2^29.
+                (
+                    total,
+                    round_half_away_bounded2(total / self.half_um_per_count),
+                )
+            } else {
+                cold_path();
+                let (applied, limit_flags) = limit(total, last, self.max_correction_um, slew);
+                flags |= limit_flags;
+                // |applied| ≤ MAX_LIMIT_UM always: every image's clamp is validated ≤
+                // MAX_LIMIT_UM, the slew only moves between the last applied value and the
+                // clamped one, and a NaN holds.
+                (applied, round_to_counts(applied / self.um_per_count))
+            };
+        st.last_correction_um = applied;
+        // command − counts, saturating. |counts| < 2^31, so a command in [−2^62, 2^62) (bits 63
+        // and 62 equal: one test of the high word) cannot overflow; the saturating form only
+        // beyond, out of the way.
+        let high = (command >> 32) as i32;
+        let corrected = if (high ^ (high << 1)) >= 0 {
+            command.wrapping_sub(counts as i64)
+        } else {
+            cold_path();
+            command.saturating_sub(counts as i64)
+        };
+        CycleOutput {
+            position_counts: pos,
+            corrected_command_counts: corrected,
+            correction_counts: counts,
+            correction_um: applied,
+            flags,
+        }
+    }
+}
 
 /// Marks the branch that calls it as rarely taken, so the per-cycle path is laid out as the
 /// fall-through (a stand-in for `core::hint::cold_path`, which needs Rust 1.95; MSRV is 1.85).
@@ -56,9 +116,16 @@ pub(crate) const MAX_LIMIT_UM: f32 = 1.0e5;
 /// t = trunc(2x) (exact), round half away from zero is (t + 1) >> 1 for t ≥ 0 and t >> 1 for
 /// t < 0 (arithmetic shifts, i.e. floor). Equality with [`round_to_counts`] over |x| < 2^30 is
 /// tested.
-#[inline]
+#[cfg(test)]
 pub(crate) fn round_half_away_bounded(x: f32) -> i32 {
-    let t = (x + x) as i32;
+    round_half_away_bounded2(x + x)
+}
+
+/// [`round_half_away_bounded`] of x given `twice_x` = 2x (e.g. a quotient by a halved divisor,
+/// which is exactly twice the quotient), so that the doubling folds into a load-time constant.
+#[inline]
+pub(crate) fn round_half_away_bounded2(twice_x: f32) -> i32 {
+    let t = twice_x as i32;
     t.wrapping_add(1).wrapping_add(t >> 31) >> 1
 }
 

@@ -11,12 +11,13 @@
 use crate::MAX_SEGMENTS;
 use crate::compensator::Compensator;
 use crate::counter::Direction;
+use crate::limits::cold_path;
 use crate::spec::OutsideStroke;
 
 impl Compensator {
     /// True if a positioning table is loaded.
     pub fn has_table(&self) -> bool {
-        self.has_table
+        self.segment.is_some()
     }
     /// Position of knot 0.
     pub fn table_start_counts(&self) -> i64 {
@@ -24,7 +25,7 @@ impl Compensator {
     }
     /// Knot spacing.
     pub fn segment_counts(&self) -> u32 {
-        self.segment_counts
+        self.segment.map_or(0, |s| s.get())
     }
     /// Behaviour beyond the stroke.
     pub fn outside(&self) -> OutsideStroke {
@@ -56,11 +57,32 @@ impl Compensator {
     /// was outside the stroke. 0 without a table.
     #[inline]
     pub fn table_um(&self, direction: Direction, position_counts: i64) -> (f32, bool) {
-        if !self.has_table {
+        let Some(seg_counts) = self.segment else {
             return (0.0, false);
-        }
+        };
         // A unidirectional table has its forward segments in the backward half too (see `load`).
         let dir = (direction == Direction::Backward) as usize;
+        // One unsigned compare covers both ends: |start| ≤ 2^62 (validated), so a position below
+        // the start wraps to a difference ≥ 2^62 > span.
+        let diff = position_counts.wrapping_sub(self.start_counts) as u64;
+        // span ≤ u32::MAX is validated: a 32-bit compare of the low word once the high word is 0.
+        let offset = diff as u32;
+        if (diff >> 32) == 0 && offset < self.span_counts {
+            let seg = offset / seg_counts;
+            let rem = offset - seg.wrapping_mul(seg_counts.get());
+            let t = rem as f32 * self.inv_segment;
+            let idx = (seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1);
+            let c = &self.coeffs[idx];
+            return (c[0] + t * (c[1] + t * (c[2] + t * c[3])), false);
+        }
+        cold_path();
+        self.outside_um(dir, position_counts)
+    }
+
+    /// Table value beyond the stroke (hold or taper), for direction half `dir`.
+    #[inline(always)]
+    fn outside_um(&self, dir: usize, position_counts: i64) -> (f32, bool) {
+        let dir = dir & 1;
         // Compare first, then subtract: exact for every i64 without a saturating subtraction.
         let (end, dist) = if position_counts < self.start_counts {
             (
@@ -69,19 +91,10 @@ impl Compensator {
             )
         } else {
             let diff = position_counts.wrapping_sub(self.start_counts) as u64;
-            if diff < self.span_counts as u64 {
-                // span ≤ u32::MAX is validated, so the offset fits in u32.
-                let offset = diff as u32;
-                let seg_counts = self.segment_counts;
-                // Never 0 for a loaded table; `checked_div` keeps the code panic-free.
-                let seg = offset.checked_div(seg_counts).unwrap_or(0);
-                let rem = offset - seg.wrapping_mul(seg_counts);
-                let t = rem as f32 * self.inv_segment;
-                let idx = (seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1);
-                let c = &self.coeffs[idx];
-                return (c[0] + t * (c[1] + t * (c[2] + t * c[3])), false);
-            }
-            (self.edge[dir][1], diff - self.span_counts as u64)
+            (
+                self.edge[dir][1],
+                diff.wrapping_sub(self.span_counts as u64),
+            )
         };
         let v = if !self.taper {
             end

@@ -10,7 +10,7 @@
 
 use crate::compensator::{Compensator, Flags, State};
 use crate::spec::{ExpansionSpec, ForceLaw, ForceSpec, SensorSpec};
-use crate::{MAX_FORCE_N, MAX_FORCES, MAX_SENSORS, RECOVERY_READINGS};
+use crate::{MAX_FORCE_N, MAX_FORCE_TERM_UM, MAX_FORCES, MAX_SENSORS, RECOVERY_READINGS};
 
 /// Where the force F_j of a force term comes from.
 ///
@@ -101,6 +101,56 @@ pub(crate) const ZERO_LAW: ForceLaw = ForceLaw {
 };
 
 impl Compensator {
+    /// The thermo-force term at `pos` for one cycle (µm): the cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j
+    /// (predicted), the expansion term (one multiply-add with the cached c·ΔT_s) and the
+    /// measured forces of this input; ORs the thermo flags into `flags`.
+    #[inline(always)]
+    pub(crate) fn thermo_um(
+        &self,
+        st: &State,
+        pos: i64,
+        forces_n: &[f32; MAX_FORCES],
+        flags: &mut Flags,
+    ) -> f32 {
+        // x − x_ref as i32 (saturated) so that the conversion to f32 is one instruction.
+        // Positions and x_ref within ±2^62 (x_ref is validated, positions are physical) never
+        // wrap; beyond, the term stays finite and the clamp holds.
+        let d = pos.wrapping_sub(self.x_ref_counts);
+        let d32 = if d as i32 as i64 == d {
+            d as i32
+        } else if d < 0 {
+            i32::MIN
+        } else {
+            i32::MAX
+        };
+        // b0 + Σ b_i·ΔT_i + Σ χ_j·F_j (predicted) is cached at the sensor/process rate.
+        let mut total = st.cached_um + st.expansion_um_per_count * d32 as f32;
+        // Measured forces: one multiply-add each, one plausibility check of their sum
+        // (catches NaN, ±inf and absurd readings; the whole measured term is then dropped).
+        // One straight-line sum per set of measured terms (in index order), so inputs of
+        // unmeasured terms (NaN = no reading) are never read and no per-term select is paid.
+        if self.measured != MeasuredSet::None {
+            let c = &self.chi_measured;
+            let f = forces_n;
+            let force_um = match self.measured {
+                MeasuredSet::None | MeasuredSet::F0 => c[0] * f[0],
+                MeasuredSet::F1 => c[1] * f[1],
+                MeasuredSet::F01 => c[0] * f[0] + c[1] * f[1],
+                MeasuredSet::F2 => c[2] * f[2],
+                MeasuredSet::F02 => c[0] * f[0] + c[2] * f[2],
+                MeasuredSet::F12 => c[1] * f[1] + c[2] * f[2],
+                MeasuredSet::F012 => c[0] * f[0] + c[1] * f[1] + c[2] * f[2],
+            };
+            if libm::fabsf(force_um) <= MAX_FORCE_TERM_UM {
+                total += force_um;
+            } else {
+                *flags |= Flags::FORCE_INVALID;
+            }
+        }
+        *flags |= Flags(st.thermo_bits ^ self.thermo_flags_xor);
+        total
+    }
+
     /// True if a thermo-force term is loaded.
     pub fn has_thermo(&self) -> bool {
         self.has_thermo
