@@ -105,13 +105,19 @@ pub struct CycleOutput {
     pub flags: Flags,
 }
 
-/// The validated runtime compensation object: owned, fixed capacity, no borrow of the image.
+/// The validated runtime compensation object of one axis: owned, fixed capacity, no borrow of
+/// the image.
 ///
 /// [`Compensator::IDENTITY`] is all zero bytes, so a `static` holding it (or an [`crate::Engine`])
 /// lands in `.bss` (checked on thumbv7em: a `static` Engine adds 67 400 bytes of `.bss`, no `.data`).
+pub type Compensator = AxisCompensator<OwnTable>;
+
+/// One axis's pipeline (counter, direction, table, thermo-force, limits) with its table segments
+/// kept by `S`: in the object itself ([`OwnTable`], the single-axis [`Compensator`]) or in the
+/// coefficient pool of an axis group ([`crate::group`]).
 #[derive(Debug, Clone)]
 #[repr(C)]
-pub struct Compensator {
+pub struct AxisCompensator<S> {
     pub(crate) loaded: bool,
     pub(crate) axis_id: u16,
     pub(crate) counter_bits: u8,
@@ -167,10 +173,29 @@ pub struct Compensator {
     /// (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else −1: the cycle's fast path (within the
     /// clamp, rounded with `round_half_away_bounded`) is never taken for an unbounded image.
     pub(crate) fast_max_um: f32,
-    /// Forward segments at `0..n`, backward at `MAX_SEGMENTS..MAX_SEGMENTS + n` (a copy of the
-    /// forward ones for a unidirectional table). Last, so that
-    /// every other field is within a load's immediate offset of `self`.
-    pub(crate) coeffs: [[f32; 4]; 2 * MAX_SEGMENTS],
+    /// The table segments (or where to find them). Last, so that every other field is within a
+    /// load's immediate offset of `self`.
+    pub(crate) table: S,
+}
+
+/// Where an axis keeps its table segments: `[c0, c1, c2, c3]` per segment and direction half
+/// (0 forward, 1 backward; a unidirectional table has its forward segments in both halves).
+pub trait TableStore {
+    /// Segment `seg` (< the axis's segment count, checked by the caller) of half `dir`; `pool` is
+    /// the group's coefficient pool (unused by [`OwnTable`]).
+    fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4];
+}
+
+/// The single-axis table storage: forward segments at `0..n`, backward at
+/// `MAX_SEGMENTS..MAX_SEGMENTS + n`.
+#[derive(Debug, Clone)]
+pub struct OwnTable(pub(crate) [[f32; 4]; 2 * MAX_SEGMENTS]);
+
+impl TableStore for OwnTable {
+    #[inline(always)]
+    fn segment<'a>(&'a self, _pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4] {
+        &self.0[(seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1)]
+    }
 }
 
 impl Default for Compensator {
@@ -181,7 +206,7 @@ impl Default for Compensator {
 
 impl Compensator {
     /// Zero correction, valid. All zero bytes.
-    pub const IDENTITY: Compensator = Compensator {
+    pub const IDENTITY: Compensator = AxisCompensator {
         loaded: false,
         axis_id: 0,
         counter_bits: 0,
@@ -220,7 +245,7 @@ impl Compensator {
         hysteresis_counts: 0,
         half_um_per_count: 0.0,
         fast_max_um: 0.0,
-        coeffs: [[0.0; 4]; 2 * MAX_SEGMENTS],
+        table: OwnTable([[0.0; 4]; 2 * MAX_SEGMENTS]),
     };
 
     /// Parse and validate `image`, then copy it into `self`. On `Err`, `self` is untouched.
@@ -232,6 +257,22 @@ impl Compensator {
         Ok(())
     }
 
+    /// The per-cycle call: counter extension, direction, table + thermo-force, clamp, slew, counts.
+    ///
+    /// See [`AxisCompensator::cycle_in`] (the same call for an axis of a group).
+    pub fn cycle(&self, st: &mut State, input: &CycleInput) -> CycleOutput {
+        self.cycle_in(&[], st, input)
+    }
+
+    /// Positioning-table value (µm) at `position_counts` for `direction`, and whether the position
+    /// was outside the stroke. 0 without a table.
+    #[inline]
+    pub fn table_um(&self, direction: Direction, position_counts: i64) -> (f32, bool) {
+        self.table_um_in(&[], direction, position_counts)
+    }
+}
+
+impl<S: TableStore> AxisCompensator<S> {
     /// Back to the identity (in place, no large temporary).
     pub fn clear(&mut self) {
         self.loaded = false;
@@ -290,7 +331,8 @@ impl Compensator {
     /// The thermo-force term adds the contribution cached by [`Compensator::update_temperatures`]
     /// and [`Compensator::set_process`] (b0 + Σ b_i·ΔT_i + predicted forces), the expansion term
     /// (one multiply-add with the cached c·ΔT_s) and the measured forces of this input.
-    pub fn cycle(&self, st: &mut State, input: &CycleInput) -> CycleOutput {
+    #[inline(always)]
+    pub fn cycle_in(&self, pool: &[[f32; 4]], st: &mut State, input: &CycleInput) -> CycleOutput {
         let pos = self.track(st, input.scale_raw);
         if !self.loaded {
             return CycleOutput {
@@ -301,16 +343,19 @@ impl Compensator {
                 flags: Flags(((st.backward as u16) << 7) | Flags::IDENTITY.0),
             };
         }
-        let (total, flags) = self.axis_error_um(st, pos, &input.forces_n);
+        let (total, flags) = self.axis_error_um(pool, st, pos, pos, &input.forces_n);
         self.finish(st, pos, total, input.command_counts, flags)
     }
 
-    /// Table + thermo-force term at the extended position `pos` (µm, before the limits), and
+    /// Table (at `table_pos`: the extended position, or a rotary axis's angle within the turn) +
+    /// thermo-force term (at the extended position `pos`), µm before the limits, and
     /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags).
     #[inline(always)]
     pub(crate) fn axis_error_um(
         &self,
+        pool: &[[f32; 4]],
         st: &State,
+        table_pos: i64,
         pos: i64,
         forces_n: &[f32; MAX_FORCES],
     ) -> (f32, Flags) {
@@ -319,7 +364,7 @@ impl Compensator {
         } else {
             Direction::Forward
         };
-        let (mut total, outside) = self.table_um(direction, pos);
+        let (mut total, outside) = self.table_um_in(pool, direction, table_pos);
         // BACKWARD is bit 7, TABLE_OUTSIDE bit 0: built here, after the lookup, so that no flag
         // register is live across it.
         let mut flags = Flags(((st.backward as u16) << 7) | outside as u16);

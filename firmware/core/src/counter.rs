@@ -18,10 +18,10 @@ pub enum Direction {
     Backward,
 }
 
-use crate::compensator::{Compensator, State};
+use crate::compensator::{AxisCompensator, State, TableStore};
 use crate::limits::cold_path;
 
-impl Compensator {
+impl<S: TableStore> AxisCompensator<S> {
     /// Counter extension (wrap-safe, sign-extended delta) and the direction hysteresis; returns
     /// the extended position (also stored in `st`).
     #[inline(always)]

@@ -45,7 +45,7 @@
 //! |x_ref| ≤ 2^62; |χ| ≤ 1e3 µm/N; |k| ≤ 1e9, |exponents| ≤ 10; max correction and max slew in
 //! (0, 1e5] µm; direction hysteresis ≤ 2^31 − 1 counts.
 
-use crate::compensator::Compensator;
+use crate::compensator::{AxisCompensator, Compensator, TableStore};
 use crate::error::{Field, ImageError};
 use crate::limits::MAX_LIMIT_UM;
 use crate::spec::{ForceLaw, ImageSpec, OutsideStroke};
@@ -427,8 +427,38 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
     Ok(layout)
 }
 
+/// Segment `s` (< n) of direction half `d` of a validated image's table (the forward segments
+/// for both halves of a unidirectional table).
+pub(crate) fn table_segment(l: &Layout, b: &[u8], d: usize, s: usize) -> [f32; 4] {
+    let Some(o) = l.table else {
+        return [0.0; 4];
+    };
+    let src = if l.bidirectional { d & 1 } else { 0 };
+    let at = o + TABLE_HEADER_LEN + 16 * (src * l.n_segments + s);
+    [
+        f32_at(b, at),
+        f32_at(b, at + 4),
+        f32_at(b, at + 8),
+        f32_at(b, at + 12),
+    ]
+}
+
 /// Copy a validated image into `c` (cannot fail).
 pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
+    // A unidirectional table is copied into both halves, so that the cycle selects the half by
+    // the direction alone.
+    for d in 0..2 {
+        for s in 0..l.n_segments.min(MAX_SEGMENTS) {
+            if let Some(dst) = c.table.0.get_mut(d * MAX_SEGMENTS + s) {
+                *dst = table_segment(l, b, d, s);
+            }
+        }
+    }
+    copy_params_into(l, b, c);
+}
+
+/// Copy everything but the table segments of a validated image into `c` (cannot fail).
+pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut AxisCompensator<S>) {
     let bits = u8_at(b, 14);
     let upc = f32_at(b, 16);
     c.axis_id = u16_at(b, 12);
@@ -462,27 +492,9 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
         } else {
             0.0
         };
-        // A unidirectional table is copied into both halves, so that the cycle selects the half
-        // by the direction alone.
         for d in 0..2 {
-            let src = if l.bidirectional { d } else { 0 };
-            for s in 0..n {
-                let at = o + TABLE_HEADER_LEN + 16 * (src * n + s);
-                if let Some(dst) = c.coeffs.get_mut(d * MAX_SEGMENTS + s) {
-                    for (k, v) in dst.iter_mut().enumerate() {
-                        *v = f32_at(b, at + 4 * k);
-                    }
-                }
-            }
-        }
-        for d in 0..2 {
-            let base = if d == 1 && l.bidirectional {
-                MAX_SEGMENTS
-            } else {
-                0
-            };
-            let first = c.coeffs[base];
-            let last = c.coeffs[(base + n - 1) & (2 * MAX_SEGMENTS - 1)];
+            let first = table_segment(l, b, d, 0);
+            let last = table_segment(l, b, d, n - 1);
             c.edge[d] = [first[0], last[0] + last[1] + last[2] + last[3]];
         }
     }

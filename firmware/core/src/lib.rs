@@ -74,7 +74,9 @@ mod table;
 mod thermo;
 pub mod trace;
 
-pub use compensator::{Compensator, CycleInput, CycleOutput, Flags, State};
+pub use compensator::{
+    AxisCompensator, Compensator, CycleInput, CycleOutput, Flags, OwnTable, State, TableStore,
+};
 pub use counter::Direction;
 pub use engine::{Engine, EngineStats};
 pub use error::{Field, ImageError};

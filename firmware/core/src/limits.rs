@@ -5,9 +5,9 @@
 //! - **slew**: the change of the applied correction per cycle ≤ `max_slew_um_per_cycle`.
 //! - **counts**: the applied correction in scale counts, rounded half away from zero.
 
-use crate::compensator::{Compensator, CycleOutput, Flags, State};
+use crate::compensator::{AxisCompensator, CycleOutput, Flags, State, TableStore};
 
-impl Compensator {
+impl<S: TableStore> AxisCompensator<S> {
     /// Clamp, slew, rounding to counts and the corrected command: the last stage of an axis.
     ///
     /// Common case first: within the clamp and the slew limit (two compares, NaN fails the

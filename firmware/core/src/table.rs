@@ -9,12 +9,12 @@
 //!   held or tapered to 0 over `taper_length_counts`.
 
 use crate::MAX_SEGMENTS;
-use crate::compensator::Compensator;
+use crate::compensator::{AxisCompensator, Compensator, TableStore};
 use crate::counter::Direction;
 use crate::limits::cold_path;
 use crate::spec::OutsideStroke;
 
-impl Compensator {
+impl<S: TableStore> AxisCompensator<S> {
     /// True if a positioning table is loaded.
     pub fn has_table(&self) -> bool {
         self.segment.is_some()
@@ -37,26 +37,15 @@ impl Compensator {
             OutsideStroke::Hold
         }
     }
-    /// Forward segments (empty without a table).
-    pub fn forward_segments(&self) -> &[[f32; 4]] {
-        let n = (self.n_segments as usize).min(MAX_SEGMENTS);
-        self.coeffs.get(..n).unwrap_or(&[])
-    }
-    /// Backward segments (empty for a unidirectional table).
-    pub fn backward_segments(&self) -> &[[f32; 4]] {
-        let n = if self.bidirectional {
-            (self.n_segments as usize).min(MAX_SEGMENTS)
-        } else {
-            0
-        };
-        self.coeffs
-            .get(MAX_SEGMENTS..MAX_SEGMENTS + n)
-            .unwrap_or(&[])
-    }
     /// Positioning-table value (µm) at `position_counts` for `direction`, and whether the position
-    /// was outside the stroke. 0 without a table.
-    #[inline]
-    pub fn table_um(&self, direction: Direction, position_counts: i64) -> (f32, bool) {
+    /// was outside the stroke. 0 without a table. `pool`: the group's coefficient pool.
+    #[inline(always)]
+    pub fn table_um_in(
+        &self,
+        pool: &[[f32; 4]],
+        direction: Direction,
+        position_counts: i64,
+    ) -> (f32, bool) {
         let Some(seg_counts) = self.segment else {
             return (0.0, false);
         };
@@ -71,8 +60,7 @@ impl Compensator {
             let seg = offset / seg_counts;
             let rem = offset - seg.wrapping_mul(seg_counts.get());
             let t = rem as f32 * self.inv_segment;
-            let idx = (seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1);
-            let c = &self.coeffs[idx];
+            let c = self.table.segment(pool, dir, seg);
             return (c[0] + t * (c[1] + t * (c[2] + t * c[3])), false);
         }
         cold_path();
@@ -104,5 +92,25 @@ impl Compensator {
             end * (1.0 - dist as u32 as f32 * self.inv_taper)
         };
         (v, true)
+    }
+}
+
+impl Compensator {
+    /// Forward segments (empty without a table).
+    pub fn forward_segments(&self) -> &[[f32; 4]] {
+        let n = (self.n_segments as usize).min(MAX_SEGMENTS);
+        self.table.0.get(..n).unwrap_or(&[])
+    }
+    /// Backward segments (empty for a unidirectional table).
+    pub fn backward_segments(&self) -> &[[f32; 4]] {
+        let n = if self.bidirectional {
+            (self.n_segments as usize).min(MAX_SEGMENTS)
+        } else {
+            0
+        };
+        self.table
+            .0
+            .get(MAX_SEGMENTS..MAX_SEGMENTS + n)
+            .unwrap_or(&[])
     }
 }

@@ -8,7 +8,7 @@
 //!   the [`State`]; the cycle only adds them (see [`Compensator::cycle`]).
 //! - **stale**: no accepted reading for `stale_timeout_ms`; the thermal contribution freezes.
 
-use crate::compensator::{Compensator, Flags, State};
+use crate::compensator::{AxisCompensator, Flags, State, TableStore};
 use crate::spec::{ExpansionSpec, ForceLaw, ForceSpec, SensorSpec};
 use crate::{MAX_FORCE_N, MAX_FORCE_TERM_UM, MAX_FORCES, MAX_SENSORS, RECOVERY_READINGS};
 
@@ -100,7 +100,7 @@ pub(crate) const ZERO_LAW: ForceLaw = ForceLaw {
     z_n: 0.0,
 };
 
-impl Compensator {
+impl<S: TableStore> AxisCompensator<S> {
     /// The thermo-force term at `pos` for one cycle (µm): the cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j
     /// (predicted), the expansion term (one multiply-add with the cached c·ΔT_s) and the
     /// measured forces of this input; ORs the thermo flags into `flags`.
