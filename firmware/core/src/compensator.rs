@@ -198,6 +198,53 @@ impl TableStore for OwnTable {
     }
 }
 
+impl<S> AxisCompensator<S> {
+    /// The identity (zero correction, valid) with table storage `table`.
+    pub const fn identity_with(table: S) -> AxisCompensator<S> {
+        AxisCompensator {
+            loaded: false,
+            axis_id: 0,
+            counter_bits: 0,
+            sext_shift: 0,
+            um_per_count: 0.0,
+            bidirectional: false,
+            taper: false,
+            n_segments: 0,
+            start_counts: 0,
+            segment: None,
+            span_counts: 0,
+            inv_segment: 0.0,
+            taper_counts: 0,
+            inv_taper: 0.0,
+            edge: [[0.0; 2]; 2],
+            has_thermo: false,
+            sensor_period_ms: 0,
+            n_sensors: 0,
+            sensors: [SensorRt::ZERO; MAX_SENSORS],
+            b0_um: 0.0,
+            has_expansion: false,
+            expansion_sensor: 0,
+            x_ref_counts: 0,
+            c_um_per_mm_k: 0.0,
+            expansion_um_per_count_k: 0.0,
+            n_forces: 0,
+            chi_um_per_n: [0.0; MAX_FORCES],
+            force_predicted: [false; MAX_FORCES],
+            measured_mask: 0,
+            chi_measured: [0.0; MAX_FORCES],
+            measured: MeasuredSet::None,
+            thermo_flags_xor: 0,
+            laws: [ZERO_LAW; MAX_FORCES],
+            max_correction_um: 0.0,
+            max_slew_um_per_cycle: 0.0,
+            hysteresis_counts: 0,
+            half_um_per_count: 0.0,
+            fast_max_um: 0.0,
+            table,
+        }
+    }
+}
+
 impl Default for Compensator {
     fn default() -> Self {
         Compensator::IDENTITY
@@ -206,47 +253,8 @@ impl Default for Compensator {
 
 impl Compensator {
     /// Zero correction, valid. All zero bytes.
-    pub const IDENTITY: Compensator = AxisCompensator {
-        loaded: false,
-        axis_id: 0,
-        counter_bits: 0,
-        sext_shift: 0,
-        um_per_count: 0.0,
-        bidirectional: false,
-        taper: false,
-        n_segments: 0,
-        start_counts: 0,
-        segment: None,
-        span_counts: 0,
-        inv_segment: 0.0,
-        taper_counts: 0,
-        inv_taper: 0.0,
-        edge: [[0.0; 2]; 2],
-        has_thermo: false,
-        sensor_period_ms: 0,
-        n_sensors: 0,
-        sensors: [SensorRt::ZERO; MAX_SENSORS],
-        b0_um: 0.0,
-        has_expansion: false,
-        expansion_sensor: 0,
-        x_ref_counts: 0,
-        c_um_per_mm_k: 0.0,
-        expansion_um_per_count_k: 0.0,
-        n_forces: 0,
-        chi_um_per_n: [0.0; MAX_FORCES],
-        force_predicted: [false; MAX_FORCES],
-        measured_mask: 0,
-        chi_measured: [0.0; MAX_FORCES],
-        measured: MeasuredSet::None,
-        thermo_flags_xor: 0,
-        laws: [ZERO_LAW; MAX_FORCES],
-        max_correction_um: 0.0,
-        max_slew_um_per_cycle: 0.0,
-        hysteresis_counts: 0,
-        half_um_per_count: 0.0,
-        fast_max_um: 0.0,
-        table: OwnTable([[0.0; 4]; 2 * MAX_SEGMENTS]),
-    };
+    pub const IDENTITY: Compensator =
+        AxisCompensator::identity_with(OwnTable([[0.0; 4]; 2 * MAX_SEGMENTS]));
 
     /// Parse and validate `image`, then copy it into `self`. On `Err`, `self` is untouched.
     ///
@@ -328,8 +336,8 @@ impl<S: TableStore> AxisCompensator<S> {
     /// (the rare branches — first cycle, clamp/slew acting, command near ±2^63 — are marked
     /// cold) and is sensitive to register pressure: measure any change with `.ci/bench`.
     ///
-    /// The thermo-force term adds the contribution cached by [`Compensator::update_temperatures`]
-    /// and [`Compensator::set_process`] (b0 + Σ b_i·ΔT_i + predicted forces), the expansion term
+    /// The thermo-force term adds the contribution cached by [`AxisCompensator::update_temperatures`]
+    /// and [`AxisCompensator::set_process`] (b0 + Σ b_i·ΔT_i + predicted forces), the expansion term
     /// (one multiply-add with the cached c·ΔT_s) and the measured forces of this input.
     #[inline(always)]
     pub fn cycle_in(&self, pool: &[[f32; 4]], st: &mut State, input: &CycleInput) -> CycleOutput {

@@ -116,14 +116,14 @@ use crate::le::{Put, f32_at, i64_at, rd, u8_at, u16_at, u32_at};
 /// Section offsets and counts of a validated image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Layout {
-    len: usize,
-    table: Option<usize>,
-    n_segments: usize,
-    bidirectional: bool,
-    thermo: Option<usize>,
-    n_sensors: usize,
-    n_forces: usize,
-    limits: usize,
+    pub(crate) len: usize,
+    pub(crate) table: Option<usize>,
+    pub(crate) n_segments: usize,
+    pub(crate) bidirectional: bool,
+    pub(crate) thermo: Option<usize>,
+    pub(crate) n_sensors: usize,
+    pub(crate) n_forces: usize,
+    pub(crate) limits: usize,
 }
 
 /// Summary of a valid image (see [`inspect_image`]).
@@ -425,6 +425,12 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
     check(u32_at(b, o + 8) <= i32::MAX as u32, Field::Hysteresis, 0)?;
     check(u32_at(b, o + 12) == 0, Field::Reserved, 0)?;
     Ok(layout)
+}
+
+/// `(start_counts, segment_counts, n_segments)` of a validated image's table.
+pub(crate) fn table_grid(l: &Layout, b: &[u8]) -> Option<(i64, u32, usize)> {
+    let o = l.table?;
+    Some((i64_at(b, o), u32_at(b, o + 8), l.n_segments))
 }
 
 /// Segment `s` (< n) of direction half `d` of a validated image's table (the forward segments

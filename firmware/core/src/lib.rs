@@ -15,10 +15,10 @@
 //! - **thermo-force term**: E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
 //! - **ΔT**: a (lagged) sensor temperature minus its reference temperature, kelvin.
 //! - **force source**: a force term is *predicted* (from the cutting-force law and the process
-//!   parameters given to [`Compensator::set_process`]) if its [`ForceSpec`] has a `law`, else
+//!   parameters given to [`AxisCompensator::set_process`]) if its [`ForceSpec`] has a `law`, else
 //!   *measured* (from [`CycleInput::forces_n`] at the same index).
 //! - **sensor rate / cycle rate**: lags, sensor health, b0 + Σ b_i·ΔT_i, c·ΔT_s and predicted
-//!   forces are computed at the sensor rate ([`Compensator::update_temperatures`]) and cached in
+//!   forces are computed at the sensor rate ([`AxisCompensator::update_temperatures`]) and cached in
 //!   the [`State`]; [`Compensator::cycle`] only adds them up.
 //! - **lag**: first-order filter y += α(u − y), α = 1 − exp(−period/τ), modelling the delay
 //!   between a sensor and the structure it stands for.
@@ -66,9 +66,11 @@ mod compensator;
 mod counter;
 mod engine;
 mod error;
+pub mod group;
 pub mod image;
 mod le;
 mod limits;
+pub mod rotary;
 mod spec;
 mod table;
 mod thermo;

@@ -3,7 +3,7 @@
 //!
 //! # Glossary
 //! - **thermo-force term**: E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
-//! - **sensor rate**: [`Compensator::update_temperatures`] and [`Compensator::set_process`] run
+//! - **sensor rate**: [`AxisCompensator::update_temperatures`] and [`AxisCompensator::set_process`] run
 //!   at the sensor/process rate and cache b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted) and c·ΔT_s in
 //!   the [`State`]; the cycle only adds them (see [`Compensator::cycle`]).
 //! - **stale**: no accepted reading for `stale_timeout_ms`; the thermal contribution freezes.
@@ -15,7 +15,7 @@ use crate::{MAX_FORCE_N, MAX_FORCE_TERM_UM, MAX_FORCES, MAX_SENSORS, RECOVERY_RE
 /// Where the force F_j of a force term comes from.
 ///
 /// Chosen by the image: a [`ForceSpec`] with a `law` is `Predicted` (from the process parameters
-/// given to [`Compensator::set_process`]; 0 N until the first call), one without is `Measured`
+/// given to [`AxisCompensator::set_process`]; 0 N until the first call), one without is `Measured`
 /// (from [`crate::CycleInput::forces_n`] at the same index).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ForceSource {
@@ -234,7 +234,7 @@ impl<S: TableStore> AxisCompensator<S> {
     /// `readings[i]` is sensor i in °C; NaN (or a missing entry) = no reading. Call it every
     /// `sensor_period_ms` (the lag coefficients assume that period), also when the image has no
     /// sensors: the cycle adds a cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted), refreshed here
-    /// and in [`Compensator::set_process`] (a fresh [`State`] contributes 0 until then). Rules:
+    /// and in [`AxisCompensator::set_process`] (a fresh [`State`] contributes 0 until then). Rules:
     /// - a reading is accepted if finite, within `[min_degc, max_degc]` and, after the first
     ///   accepted one, within `max_rate_degc_per_s · (now − time of the last accepted reading)` of
     ///   the last accepted value; otherwise it is rejected (counted) and the last good value held;
