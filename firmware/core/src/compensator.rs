@@ -124,6 +124,9 @@ pub struct AxisCompensator<S> {
     /// 32 − counter_bits (0 for the identity: a 32-bit counter).
     pub(crate) sext_shift: u32,
     pub(crate) um_per_count: f32,
+    /// Counts per revolution of a rotary group axis (its table is indexed by the position within
+    /// the turn); 0 for a linear axis and always for [`OwnTable`] storage.
+    pub(crate) counts_per_rev: u32,
     // ---- positioning table ----
     pub(crate) bidirectional: bool,
     pub(crate) taper: bool,
@@ -184,6 +187,8 @@ pub trait TableStore {
     /// Segment `seg` (< the axis's segment count, checked by the caller) of half `dir`; `pool` is
     /// the group's coefficient pool (unused by [`OwnTable`]).
     fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4];
+    /// True if axes with this storage may be rotary (turn tracking compiled in).
+    const TURNS: bool = false;
 }
 
 /// The single-axis table storage: forward segments at `0..n`, backward at
@@ -207,6 +212,7 @@ impl<S> AxisCompensator<S> {
             counter_bits: 0,
             sext_shift: 0,
             um_per_count: 0.0,
+            counts_per_rev: 0,
             bidirectional: false,
             taper: false,
             n_segments: 0,
@@ -299,6 +305,7 @@ impl<S: TableStore> AxisCompensator<S> {
         self.counter_bits = 0;
         self.sext_shift = 0;
         self.um_per_count = 0.0;
+        self.counts_per_rev = 0;
         self.half_um_per_count = 0.0;
         self.fast_max_um = 0.0;
     }
@@ -351,22 +358,29 @@ impl<S: TableStore> AxisCompensator<S> {
                 flags: Flags(((st.backward as u16) << 7) | Flags::IDENTITY.0),
             };
         }
-        let (total, flags) = self.axis_error_um(pool, st, pos, pos, &input.forces_n);
+        let (total, flags) = self.axis_error_um(pool, st, pos, &input.forces_n, true);
         self.finish(st, pos, total, input.command_counts, flags)
     }
 
-    /// Table (at `table_pos`: the extended position, or a rotary axis's angle within the turn) +
+    /// Table (at the extended position, or a rotary axis's position within the turn) +
     /// thermo-force term (at the extended position `pos`), µm before the limits, and
     /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags).
     #[inline(always)]
     pub(crate) fn axis_error_um(
         &self,
         pool: &[[f32; 4]],
-        st: &State,
-        table_pos: i64,
+        st: &mut State,
         pos: i64,
         forces_n: &[f32; MAX_FORCES],
+        may_be_rotary: bool,
     ) -> (f32, Flags) {
+        // `may_be_rotary` is a constant at each call: false where the caller knows the axis is
+        // linear, so that the check is compiled out.
+        let table_pos = if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
+            self.turn_position(st, pos) as i64
+        } else {
+            pos
+        };
         let direction = if st.backward {
             Direction::Backward
         } else {
@@ -410,6 +424,11 @@ pub struct State {
     pub(crate) cached_um: f32,
     pub(crate) predicted_forces_n: [f32; MAX_FORCES],
     pub(crate) sensors: [SensorState; MAX_SENSORS],
+    /// Rotary axis of a group: `pos_in_turn` follows the extended position (see
+    /// [`crate::counter`]).
+    pub(crate) turn_primed: bool,
+    pub(crate) turn_last_pos: i64,
+    pub(crate) pos_in_turn: u32,
 }
 
 impl Default for State {
@@ -440,6 +459,9 @@ impl State {
             cached_um: 0.0,
             predicted_forces_n: [0.0; MAX_FORCES],
             sensors: [SensorState::NEW; MAX_SENSORS],
+            turn_primed: false,
+            turn_last_pos: 0,
+            pos_in_turn: 0,
         }
     }
 
@@ -459,6 +481,7 @@ impl State {
         self.last_raw = scale_raw;
         self.position = position_counts;
         self.back_counts = 0;
+        self.turn_primed = false;
     }
 
     /// A new image became active: sensor health, lags and the sensor clock restart (the new image
@@ -473,6 +496,7 @@ impl State {
         self.thermo_bits = 0;
         self.predicted_um = 0.0;
         self.predicted_forces_n = [0.0; MAX_FORCES];
+        self.turn_primed = false;
     }
 
     pub(crate) fn set_thermo_flag(&mut self, flag: Flags, on: bool) {

@@ -5,6 +5,9 @@
 //! - **counter width**: `counter_bits` (16..=32) of the hardware counter; it wraps at 2^bits.
 //! - **extension**: the extended position adds the sign-extended counter delta each cycle, so any
 //!   sequence of steps below half the counter range is followed exactly.
+//! - **turn position** (rotary axes of a group): the extended position modulo the counts per
+//!   revolution, in `[0, counts_per_rev)`, followed incrementally (one add and one compare per
+//!   cycle; the full modulo only on the first cycle or a step of a whole turn or more).
 //! - **reversal / hysteresis**: the direction flips only after moving more than
 //!   `direction_hysteresis_counts` against it (state: distance moved back since the extreme).
 
@@ -59,4 +62,47 @@ impl<S: TableStore> AxisCompensator<S> {
         }
         pos
     }
+}
+
+impl<S: TableStore> AxisCompensator<S> {
+    /// The position within the turn of a rotary axis (`counts_per_rev` > 0) at extended
+    /// position `pos`; kept in `st`.
+    #[inline(always)]
+    pub(crate) fn turn_position(&self, st: &mut State, pos: i64) -> u32 {
+        let cpr = self.counts_per_rev;
+        st.pos_in_turn = if st.turn_primed {
+            step_in_turn(st.pos_in_turn, pos.wrapping_sub(st.turn_last_pos), cpr, pos)
+        } else {
+            cold_path();
+            st.turn_primed = true;
+            wrap(pos, cpr)
+        };
+        st.turn_last_pos = pos;
+        st.pos_in_turn
+    }
+}
+
+/// `in_turn + delta` modulo `cpr` (> 0), for `in_turn < cpr` and `absolute` ≡ in_turn + delta:
+/// one add and one compare when the step is below a turn, the full (slow) modulo otherwise.
+#[inline(always)]
+pub(crate) fn step_in_turn(in_turn: u32, delta: i64, cpr: u32, absolute: i64) -> u32 {
+    let c = cpr as i64;
+    if delta > -c && delta < c {
+        let v = in_turn as i64 + delta;
+        if v < 0 {
+            (v + c) as u32
+        } else if v >= c {
+            (v - c) as u32
+        } else {
+            v as u32
+        }
+    } else {
+        cold_path();
+        wrap(absolute, cpr)
+    }
+}
+
+/// `x` modulo `cpr` in `[0, cpr)` (0 for `cpr` = 0).
+pub(crate) fn wrap(x: i64, cpr: u32) -> u32 {
+    x.rem_euclid((cpr as i64).max(1)) as u32
 }

@@ -29,8 +29,10 @@
 
 use crate::MAX_FORCES;
 use crate::compensator::{AxisCompensator, CycleInput, CycleOutput, Flags, State, TableStore};
+use crate::counter::{step_in_turn, wrap};
 use crate::error::{Field, ImageError};
 use crate::image::{self, Layout};
+use crate::limits::cold_path;
 use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryStage};
 use crate::thermo::ProcessParams;
 
@@ -132,10 +134,15 @@ pub struct PoolTable {
 const ZERO_SEGMENT: [f32; 4] = [0.0; 4];
 
 impl TableStore for PoolTable {
+    const TURNS: bool = true;
     #[inline(always)]
     fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4] {
-        // In range for a loaded group (checked at load); the fallback keeps the path panic-free.
-        pool.get(self.base[dir & 1] as usize + seg as usize)
+        // In range for a loaded group (checked at load). The remainder is a no-op for valid
+        // indices; with the pool's length known at the call (a power of two), it is a mask and
+        // the bounds check folds away. The fallbacks keep the path panic-free.
+        let i = self.base[dir & 1] as usize + seg as usize;
+        i.checked_rem(pool.len())
+            .and_then(|j| pool.get(j))
             .unwrap_or(&ZERO_SEGMENT)
     }
 }
@@ -178,12 +185,9 @@ impl GroupOutput {
     };
 }
 
-/// Turn tracking of a rotary axis: the scale's and the command's position within the turn.
+/// The commanded position within the turn of a rotary axis used by the cross-axis stage.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Turn {
-    primed: bool,
-    last_pos: i64,
-    pos_in_turn: u32,
     cmd_primed: bool,
     last_cmd: i64,
     cmd_in_turn: u32,
@@ -191,38 +195,10 @@ pub(crate) struct Turn {
 
 impl Turn {
     const NEW: Turn = Turn {
-        primed: false,
-        last_pos: 0,
-        pos_in_turn: 0,
         cmd_primed: false,
         last_cmd: 0,
         cmd_in_turn: 0,
     };
-}
-
-/// `in_turn + delta` modulo `cpr` (> 0), for `in_turn < cpr`: one add and one compare when the
-/// step is below a turn, the full (slow) modulo otherwise.
-#[inline(always)]
-fn step_in_turn(in_turn: u32, delta: i64, cpr: u32, absolute: i64) -> u32 {
-    let c = cpr as i64;
-    if delta > -c && delta < c {
-        let v = in_turn as i64 + delta;
-        if v < 0 {
-            (v + c) as u32
-        } else if v >= c {
-            (v - c) as u32
-        } else {
-            v as u32
-        }
-    } else {
-        crate::limits::cold_path();
-        wrap(absolute, cpr)
-    }
-}
-
-/// `x` modulo `cpr` (> 0) in `[0, cpr)`.
-fn wrap(x: i64, cpr: u32) -> u32 {
-    x.rem_euclid((cpr as i64).max(1)) as u32
 }
 
 /// Everything that changes while a group runs: each axis's [`State`], the rotary axes' turn
@@ -273,9 +249,9 @@ impl GroupState {
     /// Position within the turn of rotary slot `i` (None before its first cycle or for a
     /// linear slot).
     pub fn turn_position(&self, i: usize) -> Option<u32> {
-        self.turns
+        self.axes
             .get(i)
-            .and_then(|t| t.primed.then_some(t.pos_in_turn))
+            .and_then(|s| s.turn_primed.then_some(s.pos_in_turn))
     }
     /// How often the stage recomputed sin/cos (once per change of a commanded angle).
     pub fn angle_refreshes(&self) -> u32 {
@@ -360,6 +336,7 @@ impl<const POOL: usize> Group<POOL> {
                 base: [next, next + (halves - 1) * n],
             };
             next += halves * n;
+            dst.counts_per_rev = a.counts_per_rev;
             self.names[i] = a.name;
             self.counts_per_rev[i] = a.counts_per_rev;
         }
@@ -378,9 +355,8 @@ impl<const POOL: usize> Group<POOL> {
                 slot(AxisName::C),
             ];
             let upc = |k: usize| self.axes[slots[k] as usize].um_per_count;
-            let rad =
-                |k: usize| core::f32::consts::TAU / self.counts_per_rev[slots[k] as usize] as f32;
-            self.stage = RotaryStage::new(spec, [upc(0), upc(1), upc(2)], [rad(3), rad(4)], slots);
+            let cpr = |k: usize| self.counts_per_rev[slots[k] as usize];
+            self.stage = RotaryStage::new(spec, [upc(0), upc(1), upc(2)], [cpr(3), cpr(4)], slots);
             self.has_stage = true;
         }
         self.loaded = true;
@@ -447,64 +423,81 @@ impl<const POOL: usize> Group<POOL> {
         }
     }
 
-    /// One group cycle (see the module's order of stages). Writes every slot of `out`: the
-    /// group's axes, and identity outputs beyond them (or for every slot without an image).
+    /// One group cycle (see the module's order of stages). Writes the group's slots of `out`
+    /// (every slot, as identity outputs, while no group is loaded); slots beyond the group's
+    /// axes are left as they are.
     pub fn cycle(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
         if !self.loaded {
-            for i in 0..MAX_AXES {
-                out.axes[i] = self.axes[i].cycle_in(&self.pool, &mut st.axes[i], &input.axes[i]);
-            }
+            self.identity_cycle(st, input, out);
             return;
         }
-        let n = (self.n_axes as usize).min(MAX_AXES);
-        let mut total = [0.0f32; MAX_AXES];
-        let mut flags = [Flags::NONE; MAX_AXES];
-        let mut pos = [0i64; MAX_AXES];
-        for i in 0..n {
-            let ax = &self.axes[i];
-            let s = &mut st.axes[i];
-            let inp = &input.axes[i];
-            let p = ax.track(s, inp.scale_raw);
-            let cpr = self.counts_per_rev[i];
-            let table_pos = if cpr == 0 {
-                p
-            } else {
-                let t = &mut st.turns[i];
-                t.pos_in_turn = if t.primed {
-                    step_in_turn(t.pos_in_turn, p.wrapping_sub(t.last_pos), cpr, p)
-                } else {
-                    t.primed = true;
-                    wrap(p, cpr)
-                };
-                t.last_pos = p;
-                t.pos_in_turn as i64
-            };
-            let (e, f) = ax.axis_error_um(&self.pool, s, table_pos, p, &inp.forces_n);
-            total[i] = e;
-            flags[i] = f;
-            pos[i] = p;
-        }
         if self.has_stage {
-            self.rotary_stage(st, input, &mut total);
+            self.cycle_with_stage(st, input, out);
+            return;
         }
+        // No cross-axis stage: each axis's whole pipeline in one call.
+        let n = (self.n_axes as usize).min(MAX_AXES);
         for i in 0..n {
-            out.axes[i] = self.axes[i].finish(
+            let call = if self.counts_per_rev[i] == 0 {
+                axis_cycle::<POOL, false>
+            } else {
+                axis_cycle::<POOL, true>
+            };
+            call(
+                &self.axes[i],
+                &self.pool,
                 &mut st.axes[i],
-                pos[i],
-                total[i],
-                input.axes[i].command_counts,
-                flags[i],
+                &input.axes[i],
+                &mut out.axes[i],
             );
         }
-        for i in n..MAX_AXES {
+    }
+
+    /// [`Group::cycle`] without a group: every slot is an identity axis.
+    #[cold]
+    #[inline(never)]
+    fn identity_cycle(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        for i in 0..MAX_AXES {
             out.axes[i] = self.axes[i].cycle_in(&self.pool, &mut st.axes[i], &input.axes[i]);
+        }
+    }
+
+    /// [`Group::cycle`] of a group with the cross-axis stage.
+    #[inline(never)]
+    fn cycle_with_stage(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        let n = (self.n_axes as usize).min(MAX_AXES);
+        // Stage 1 per axis; the output record holds the axis's error until stage 3.
+        for i in 0..n {
+            let call = if self.counts_per_rev[i] == 0 {
+                axis_error::<POOL, false>
+            } else {
+                axis_error::<POOL, true>
+            };
+            call(
+                &self.axes[i],
+                &self.pool,
+                &mut st.axes[i],
+                &input.axes[i],
+                &mut out.axes[i],
+            );
+        }
+        // Stage 2: the cross-axis stage adds its deviation to X, Y, Z.
+        self.rotary_stage(st, input, out);
+        // Stage 3 per axis.
+        for i in 0..n {
+            axis_finish(
+                &self.axes[i],
+                &mut st.axes[i],
+                input.axes[i].command_counts,
+                &mut out.axes[i],
+            );
         }
     }
 
     /// The rotary location-error stage: commanded angles within the turn, cached angle terms,
     /// deviation added to X, Y, Z.
     #[inline(always)]
-    fn rotary_stage(&self, st: &mut GroupState, input: &GroupInput, total: &mut [f32; MAX_AXES]) {
+    fn rotary_stage(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
         let g = &self.stage;
         let mut angle = [0u32; 2];
         for (k, a) in angle.iter_mut().enumerate() {
@@ -515,6 +508,7 @@ impl<const POOL: usize> Group<POOL> {
             t.cmd_in_turn = if t.cmd_primed {
                 step_in_turn(t.cmd_in_turn, cmd.wrapping_sub(t.last_cmd), cpr, cmd)
             } else {
+                cold_path();
                 t.cmd_primed = true;
                 wrap(cmd, cpr)
             };
@@ -523,16 +517,66 @@ impl<const POOL: usize> Group<POOL> {
         }
         let c = &mut st.rotary;
         if !c.valid || c.a_counts != angle[0] || c.c_counts != angle[1] {
+            cold_path();
             g.refresh(c, angle[0], angle[1]);
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
         }
         let cmd = |k: usize| input.axes[g.slot[k] as usize % MAX_AXES].command_counts;
         let q = g.tool_tip_um([cmd(0), cmd(1), cmd(2)]);
         let d = RotaryStage::deviation_um(&st.rotary, q);
-        for k in 0..3 {
-            total[g.slot[k] as usize % MAX_AXES] += d[k];
+        for (slot, dk) in g.slot.iter().zip(d) {
+            out.axes[*slot as usize % MAX_AXES].correction_um += dk;
         }
     }
+}
+
+/// One axis's whole pipeline of a loaded group (not inlined: each axis gets the register
+/// allocation of the single-axis call).
+#[inline(never)]
+fn axis_cycle<const POOL: usize, const ROTARY: bool>(
+    ax: &AxisCompensator<PoolTable>,
+    pool: &[[f32; 4]; POOL],
+    st: &mut State,
+    input: &CycleInput,
+    out: &mut CycleOutput,
+) {
+    let pos = ax.track(st, input.scale_raw);
+    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY);
+    *out = ax.finish(st, pos, e, input.command_counts, f);
+}
+
+/// Stage 1 of one axis: extended position, table, thermo-force term; the error and flags are
+/// kept in `out` until [`axis_finish`].
+#[inline(never)]
+fn axis_error<const POOL: usize, const ROTARY: bool>(
+    ax: &AxisCompensator<PoolTable>,
+    pool: &[[f32; 4]; POOL],
+    st: &mut State,
+    input: &CycleInput,
+    out: &mut CycleOutput,
+) {
+    let pos = ax.track(st, input.scale_raw);
+    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY);
+    out.position_counts = pos;
+    out.correction_um = e;
+    out.flags = f;
+}
+
+/// Stage 3 of one axis: limits, counts and the corrected command from the error in `out`.
+#[inline(never)]
+fn axis_finish(
+    ax: &AxisCompensator<PoolTable>,
+    st: &mut State,
+    command: i64,
+    out: &mut CycleOutput,
+) {
+    *out = ax.finish(
+        st,
+        out.position_counts,
+        out.correction_um,
+        command,
+        out.flags,
+    );
 }
 
 /// Why a group was refused: the error and the axis it concerns (None: the group as a whole or

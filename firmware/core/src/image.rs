@@ -471,6 +471,7 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
     c.counter_bits = bits;
     c.sext_shift = 32u32.saturating_sub(bits as u32);
     c.um_per_count = upc;
+    c.counts_per_rev = 0;
 
     c.bidirectional = false;
     c.taper = false;
