@@ -51,6 +51,9 @@ impl Flags {
     pub const BACKWARD: Flags = Flags(1 << 7);
     /// No image is loaded: identity correction.
     pub const IDENTITY: Flags = Flags(1 << 8);
+    /// A sensor has been stale for longer than [`crate::STALE_HOLD_MS`]: the frozen thermal term
+    /// (Σ b_i·ΔT_i and c·ΔT_s) is ramping out, or has ramped out, to b0 + predicted forces.
+    pub const THERMAL_RAMP_OUT: Flags = Flags(1 << 9);
 
     /// Raw bits.
     pub const fn bits(self) -> u16 {
@@ -429,6 +432,11 @@ pub struct State {
     pub(crate) turn_primed: bool,
     pub(crate) turn_last_pos: i64,
     pub(crate) pos_in_turn: u32,
+    /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
+    pub(crate) stale_ramp: bool,
+    pub(crate) stale_since_ms: u32,
+    pub(crate) frozen_sensor_um: f32,
+    pub(crate) frozen_expansion_um_per_count: f32,
 }
 
 impl Default for State {
@@ -462,6 +470,10 @@ impl State {
             turn_primed: false,
             turn_last_pos: 0,
             pos_in_turn: 0,
+            stale_ramp: false,
+            stale_since_ms: 0,
+            frozen_sensor_um: 0.0,
+            frozen_expansion_um_per_count: 0.0,
         }
     }
 
@@ -497,6 +509,7 @@ impl State {
         self.predicted_um = 0.0;
         self.predicted_forces_n = [0.0; MAX_FORCES];
         self.turn_primed = false;
+        self.stale_ramp = false;
     }
 
     pub(crate) fn set_thermo_flag(&mut self, flag: Flags, on: bool) {

@@ -167,6 +167,52 @@ pub enum ImageError {
         /// Segments needed.
         needed: u32,
     } = 18,
+    /// Bytes follow the image's declared end.
+    TrailingBytes = 19,
+    /// A mandatory section of a type this build does not know.
+    UnknownSection {
+        /// The section type.
+        kind: u16,
+    } = 20,
+    /// A mandatory section of a known type (or version) this build does not support yet.
+    UnsupportedSection {
+        /// The section type.
+        kind: u16,
+    } = 21,
+    /// A section's offset/length is out of the image, overflows, overlaps or is malformed.
+    SectionBounds {
+        /// Directory index.
+        index: u16,
+    } = 22,
+    /// A section's CRC-32 does not match.
+    SectionCrc {
+        /// Directory index.
+        index: u16,
+    } = 23,
+    /// The image was built for another counter width than the board's.
+    CounterWidthMismatch {
+        /// Counter bits in the image.
+        image: u8,
+        /// Counter bits of the board.
+        board: u8,
+    } = 24,
+    /// The image is for an axis id the board does not drive.
+    AxisIdMismatch {
+        /// Axis id in the image.
+        image: u16,
+    } = 25,
+    /// The image needs more temperature inputs than the board has wired.
+    TooFewSensorInputs {
+        /// Sensors the image needs.
+        needed: u8,
+        /// Inputs wired on the board.
+        wired: u8,
+    } = 26,
+    /// Sensor names missing, not one per sensor, empty or not UTF-8.
+    SensorNames {
+        /// The axis ([`crate::group::AxisName`] code).
+        axis: u8,
+    } = 27,
 }
 
 impl fmt::Display for ImageError {
@@ -216,6 +262,42 @@ impl fmt::Display for ImageError {
             ImageError::PoolTooSmall { needed } => write!(
                 f,
                 "the tables need {needed} segments, more than this build's group pool holds"
+            ),
+            ImageError::TrailingBytes => f.write_str("bytes follow the end of the image"),
+            ImageError::UnknownSection { kind } => {
+                write!(f, "unknown mandatory section type {kind}")
+            }
+            ImageError::UnsupportedSection { kind } => {
+                write!(
+                    f,
+                    "mandatory section type {kind} is not supported by this build"
+                )
+            }
+            ImageError::SectionBounds { index } => {
+                write!(
+                    f,
+                    "section {index} is out of bounds, overlapping or malformed"
+                )
+            }
+            ImageError::SectionCrc { index } => write!(f, "section {index}: CRC-32 mismatch"),
+            ImageError::CounterWidthMismatch { image, board } => write!(
+                f,
+                "the image is for a {image}-bit counter, the board's counters have {board} bits"
+            ),
+            ImageError::AxisIdMismatch { image } => {
+                write!(
+                    f,
+                    "the image is for axis id {image}, which this board does not drive"
+                )
+            }
+            ImageError::TooFewSensorInputs { needed, wired } => write!(
+                f,
+                "the image needs {needed} temperature inputs, the board has {wired} wired"
+            ),
+            ImageError::SensorNames { axis } => write!(
+                f,
+                "axis {}: sensor names must be one non-empty UTF-8 name per sensor",
+                axis_letter(axis)
             ),
         }
     }

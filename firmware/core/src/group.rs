@@ -363,6 +363,14 @@ impl<const POOL: usize> Group<POOL> {
         Ok(())
     }
 
+    /// Parse a group image (schema 2, or a schema-1 single-axis image as axis X) with
+    /// [`crate::group_image::parse`] and load it. On `Err` `self` is untouched.
+    pub fn load_image(&mut self, image: &[u8]) -> Result<(), GroupError> {
+        let view = crate::group_image::parse(image)?;
+        let (axes, n) = view.axis_images();
+        self.load(&axes[..n], view.rotary.as_ref())
+    }
+
     /// True once a group image is loaded.
     pub fn is_loaded(&self) -> bool {
         self.loaded
@@ -607,7 +615,7 @@ impl From<ImageError> for GroupError {
 }
 
 /// Every check of [`Group::load`]; the layouts of the axis images by slot.
-fn validate_group<const POOL: usize>(
+pub(crate) fn validate_group<const POOL: usize>(
     axes: &[GroupAxisImage],
     stage: Option<&RotaryLocationSpec>,
 ) -> Result<[Option<Layout>; MAX_AXES], GroupError> {
@@ -750,6 +758,22 @@ impl<const POOL: usize> GroupEngine<POOL> {
                 Ok(())
             }
             Err(e) => {
+                self.stats.images_rejected = self.stats.images_rejected.wrapping_add(1);
+                self.stats.last_error = Some(e);
+                Err(e)
+            }
+        }
+    }
+
+    /// [`GroupEngine::load`] from a group image (see [`Group::load_image`]).
+    pub fn load_image(&mut self, image: &[u8]) -> Result<(), GroupError> {
+        match crate::group_image::parse(image) {
+            Ok(view) => {
+                let (axes, n) = view.axis_images();
+                self.load(&axes[..n], view.rotary.as_ref())
+            }
+            Err(error) => {
+                let e = GroupError { axis: None, error };
                 self.stats.images_rejected = self.stats.images_rejected.wrapping_add(1);
                 self.stats.last_error = Some(e);
                 Err(e)

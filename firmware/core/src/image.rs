@@ -433,6 +433,13 @@ pub(crate) fn table_grid(l: &Layout, b: &[u8]) -> Option<(i64, u32, usize)> {
     Some((i64_at(b, o), u32_at(b, o + 8), l.n_segments))
 }
 
+/// `(start_counts, segment_counts, n_segments)` of a valid image's table (None without a table
+/// or for an invalid image).
+pub(crate) fn table_grid_of(b: &[u8]) -> Option<(i64, u32, usize)> {
+    let l = validate(b).ok()?;
+    table_grid(&l, b)
+}
+
 /// Segment `s` (< n) of direction half `d` of a validated image's table (the forward segments
 /// for both halves of a unidirectional table).
 pub(crate) fn table_segment(l: &Layout, b: &[u8], d: usize, s: usize) -> [f32; 4] {

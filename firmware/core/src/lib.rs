@@ -26,7 +26,8 @@
 //!   `max_slew_um_per_cycle` so that a new table or a temperature step never makes the axis jump.
 //! - **clamp**: the limit `max_correction_um` on the magnitude of the total correction.
 //! - **stale**: a sensor that has had no accepted reading for `stale_timeout_ms`; the thermal
-//!   contribution is then frozen at its last good value.
+//!   contribution is then frozen at its last good value for [`STALE_HOLD_MS`], then ramps out
+//!   over [`STALE_RAMP_MS`] to b0 + predicted forces (flag [`Flags::THERMAL_RAMP_OUT`]).
 //! - **image**: the versioned, CRC-protected binary form of an [`ImageSpec`] that the host writes
 //!   and the firmware loads ([`write_image`], [`Compensator::load`]); see [`image`] for the layout.
 //! - **slot**: one of the two [`Compensator`]s of the [`Engine`] (A/B); a new image is loaded into
@@ -67,6 +68,7 @@ mod counter;
 mod engine;
 mod error;
 pub mod group;
+pub mod group_image;
 pub mod image;
 mod le;
 mod limits;
@@ -102,5 +104,11 @@ pub const RECOVERY_READINGS: u8 = 3;
 pub const MAX_FORCE_N: f32 = 1.0e7;
 /// A sum of measured force terms Σ χ_j·F_j beyond this (or NaN/inf) is dropped and flagged, µm.
 pub const MAX_FORCE_TERM_UM: f32 = 1.0e4;
+/// How long a frozen thermal term is held after a sensor went stale, ms (then it ramps out).
+pub const STALE_HOLD_MS: u32 = 60_000;
+/// How long the ramp-out of a frozen thermal term takes, ms: Σ b_i·ΔT_i and c·ΔT_s go linearly to
+/// 0, leaving b0 + predicted forces (the value that needs no sensor), flagged
+/// [`Flags::THERMAL_RAMP_OUT`].
+pub const STALE_RAMP_MS: u32 = 60_000;
 /// Largest image this build accepts (one flash slot).
 pub const MAX_IMAGE_LEN: usize = 64 * 1024;

@@ -259,6 +259,7 @@ impl<S: TableStore> AxisCompensator<S> {
             }
         }
         let mut all_healthy = true;
+        let mut any_stale = false;
         let mut fault = false;
         for (i, (cfg, s)) in self.sensors.iter().zip(st.sensors.iter_mut()).enumerate() {
             if i >= n {
@@ -301,6 +302,7 @@ impl<S: TableStore> AxisCompensator<S> {
             if !s.seen || s.stale {
                 all_healthy = false;
             }
+            any_stale |= s.stale;
             if s.stale || s.last_rejected {
                 fault = true;
             }
@@ -308,12 +310,38 @@ impl<S: TableStore> AxisCompensator<S> {
         st.sensor_fault = fault;
         st.thermal_live = all_healthy;
         let mut bits = st.thermo_bits ^ self.thermo_flags_xor;
-        bits &= !(Flags::SENSOR_FAULT.0 | Flags::THERMAL_FROZEN.0);
+        bits &= !(Flags::SENSOR_FAULT.0 | Flags::THERMAL_FROZEN.0 | Flags::THERMAL_RAMP_OUT.0);
         if fault {
             bits |= Flags::SENSOR_FAULT.0;
         }
         if !all_healthy {
             bits |= Flags::THERMAL_FROZEN.0;
+        }
+        // Stale ramp-out: a frozen term is held for STALE_HOLD_MS after a sensor went stale, then
+        // Σ b_i·ΔT_i and c·ΔT_s ramp linearly to 0 over STALE_RAMP_MS, leaving the safe value
+        // b0 + predicted forces (which need no sensor).
+        if any_stale {
+            if !st.stale_ramp {
+                st.stale_ramp = true;
+                st.stale_since_ms = now_ms;
+                st.frozen_sensor_um = st.sensor_um;
+                st.frozen_expansion_um_per_count = st.expansion_um_per_count;
+            }
+            let since = now_ms.wrapping_sub(st.stale_since_ms);
+            if since > crate::STALE_HOLD_MS {
+                let into = since - crate::STALE_HOLD_MS;
+                let k = if into >= crate::STALE_RAMP_MS {
+                    0.0
+                } else {
+                    1.0 - into as f32 / crate::STALE_RAMP_MS as f32
+                };
+                st.sensor_um = st.frozen_sensor_um * k;
+                st.expansion_um_per_count = st.frozen_expansion_um_per_count * k;
+                st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
+                bits |= Flags::THERMAL_RAMP_OUT.0;
+            }
+        } else {
+            st.stale_ramp = false;
         }
         st.thermo_bits = bits ^ self.thermo_flags_xor;
         if all_healthy {
