@@ -143,7 +143,11 @@ impl Engine {
                 }
                 None
             }
-            Record::End => None,
+            // Group records are for a `GroupEngine`.
+            Record::GroupCycle { .. }
+            | Record::AxisTemperatures { .. }
+            | Record::GroupReset { .. }
+            | Record::End => None,
         }
     }
 

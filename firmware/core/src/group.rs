@@ -35,6 +35,9 @@ use crate::image::{self, Layout};
 use crate::limits::cold_path;
 use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryStage};
 use crate::thermo::ProcessParams;
+use crate::trace::{
+    OutputRecord, Record, STATUS_IMAGE_ACCEPTED, STATUS_IMAGE_REJECTED, STATUS_NO_IMAGE,
+};
 
 /// Axes in a group.
 pub const MAX_AXES: usize = 5;
@@ -703,6 +706,7 @@ pub struct GroupEngine<const POOL: usize> {
     state: GroupState,
     stats: GroupStats,
     process: Option<ProcessParams>,
+    pending_status: u8,
 }
 
 impl<const POOL: usize> Default for GroupEngine<POOL> {
@@ -725,6 +729,7 @@ impl<const POOL: usize> GroupEngine<POOL> {
                 last_error: None,
             },
             process: None,
+            pending_status: 0,
         }
     }
 
@@ -737,6 +742,7 @@ impl<const POOL: usize> GroupEngine<POOL> {
         self.state = GroupState::new();
         self.stats = GroupStats::default();
         self.process = None;
+        self.pending_status = 0;
     }
 
     /// Load a group into the spare slot; on success it becomes active for every axis at once and
@@ -755,11 +761,13 @@ impl<const POOL: usize> GroupEngine<POOL> {
                     self.slots[spare].set_process(&mut self.state, &p);
                 }
                 self.stats.images_accepted = self.stats.images_accepted.wrapping_add(1);
+                self.pending_status |= STATUS_IMAGE_ACCEPTED;
                 Ok(())
             }
             Err(e) => {
                 self.stats.images_rejected = self.stats.images_rejected.wrapping_add(1);
                 self.stats.last_error = Some(e);
+                self.pending_status |= STATUS_IMAGE_REJECTED;
                 Err(e)
             }
         }
@@ -776,8 +784,60 @@ impl<const POOL: usize> GroupEngine<POOL> {
                 let e = GroupError { axis: None, error };
                 self.stats.images_rejected = self.stats.images_rejected.wrapping_add(1);
                 self.stats.last_error = Some(e);
+                self.pending_status |= STATUS_IMAGE_REJECTED;
                 Err(e)
             }
+        }
+    }
+
+    /// Process one trace record (see [`crate::trace`]); for a `GroupCycle` of `n` axes, writes
+    /// `n` output records (one per slot, in slot order) into `out` and returns `n`, else 0.
+    /// Single-axis `Cycle`, `Temperatures` and `Reset` records are ignored (they are for an
+    /// [`crate::Engine`]); `Image` takes a group image or a schema-1 image.
+    pub fn step(&mut self, record: &Record, out: &mut [OutputRecord; MAX_AXES]) -> usize {
+        match record {
+            Record::GroupCycle { n, input } => {
+                let n = (*n as usize).clamp(1, MAX_AXES);
+                let mut o = GroupOutput::ZERO;
+                let a = (self.active as usize) & 1;
+                self.slots[a].cycle(&mut self.state, input, &mut o);
+                let mut status = self.pending_status;
+                if !self.slots[a].is_loaded() {
+                    status |= STATUS_NO_IMAGE;
+                }
+                self.pending_status = 0;
+                for (dst, c) in out.iter_mut().zip(o.axes.iter()).take(n) {
+                    *dst = OutputRecord {
+                        cycle: self.stats.cycles,
+                        position_counts: c.position_counts,
+                        corrected_command_counts: c.corrected_command_counts,
+                        correction_counts: c.correction_counts,
+                        correction_um_bits: c.correction_um.to_bits(),
+                        flags: c.flags.bits(),
+                        slot: a as u8,
+                        status,
+                    };
+                }
+                self.stats.cycles = self.stats.cycles.wrapping_add(1);
+                n
+            }
+            Record::AxisTemperatures { slot, t } => {
+                self.update_temperatures(*slot as usize, t.now_ms, t.readings());
+                0
+            }
+            Record::Process(p) => {
+                self.set_process(p);
+                0
+            }
+            Record::Image(bytes) => {
+                let _ = self.load_image(bytes);
+                0
+            }
+            Record::GroupReset { scale_raw, .. } => {
+                self.reset(scale_raw);
+                0
+            }
+            Record::Cycle(_) | Record::Temperatures(_) | Record::Reset { .. } | Record::End => 0,
         }
     }
 
