@@ -88,7 +88,10 @@ impl TraceBuilder {
         trace::encode_record(rec, &mut self.bytes[at..]).expect("record fits its encoded length");
     }
 
+    /// The trace with its `Crc` record (CRC-32 of every byte before it) and `End`.
     pub fn finish(mut self) -> Vec<u8> {
+        let crc = axcomp_core::crc32(&self.bytes);
+        self.push(&Record::Crc(crc));
         self.push(&Record::End);
         self.bytes
     }

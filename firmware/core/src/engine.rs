@@ -147,6 +147,7 @@ impl Engine {
             Record::GroupCycle { .. }
             | Record::AxisTemperatures { .. }
             | Record::GroupReset { .. }
+            | Record::Crc(_)
             | Record::End => None,
         }
     }

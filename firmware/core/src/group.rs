@@ -837,7 +837,11 @@ impl<const POOL: usize> GroupEngine<POOL> {
                 self.reset(scale_raw);
                 0
             }
-            Record::Cycle(_) | Record::Temperatures(_) | Record::Reset { .. } | Record::End => 0,
+            Record::Cycle(_)
+            | Record::Temperatures(_)
+            | Record::Reset { .. }
+            | Record::Crc(_)
+            | Record::End => 0,
         }
     }
 

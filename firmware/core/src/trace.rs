@@ -15,7 +15,12 @@
 //! | 6 | `GroupCycle` | `n` u8 (1..=5), 3 reserved bytes (0), then per axis slot the `Cycle` payload (4 + 24n bytes) |
 //! | 7 | `AxisTemperatures` | `slot` u8 (< 5), 3 reserved bytes (0), then the `Temperatures` payload |
 //! | 8 | `GroupReset` | `n` u8 (1..=5), 3 reserved bytes (0), `scale_raw` u32 per slot (4 + 4n bytes) |
+//! | 9 | `Crc` | CRC-32 (u32) of every trace byte before this record; written just before `End` |
 //! | 255 | `End` | empty; the reader stops after it |
+//!
+//! [`verify`] checks a whole trace before use: every record well formed, `End` last with nothing
+//! after it, and, if the trace has a `Crc` record (every trace `axcomp trace` writes does), the
+//! CRC — so a truncated trace is always refused and a bit flip in a trace with a `Crc` record too.
 //!
 //! A group trace uses `GroupCycle`, `AxisTemperatures`, `GroupReset`, `Process` and `Image` (a
 //! group image of schema 2, or a schema-1 image as a single-axis group); the single-axis
@@ -64,6 +69,8 @@ pub const TAG_GROUP_CYCLE: u8 = 6;
 pub const TAG_AXIS_TEMPERATURES: u8 = 7;
 /// Tag of [`Record::GroupReset`].
 pub const TAG_GROUP_RESET: u8 = 8;
+/// Tag of [`Record::Crc`].
+pub const TAG_CRC: u8 = 9;
 /// Tag of [`Record::End`].
 pub const TAG_END: u8 = 255;
 /// Length of an encoded [`OutputRecord`].
@@ -112,6 +119,10 @@ pub enum TraceError {
     },
     /// The output buffer is too small.
     BufferFull,
+    /// The trace does not end with an `End` record (truncated), or bytes follow it.
+    NoEnd,
+    /// The trace's `Crc` record does not match its bytes (or is not just before `End`).
+    BadChecksum,
 }
 
 impl fmt::Display for TraceError {
@@ -132,6 +143,10 @@ impl fmt::Display for TraceError {
                 write!(f, "malformed record (tag {tag}) at byte {offset}")
             }
             TraceError::BufferFull => f.write_str("output buffer full"),
+            TraceError::NoEnd => f.write_str(
+                "the trace does not end with an End record (truncated or trailing bytes)",
+            ),
+            TraceError::BadChecksum => f.write_str("trace CRC-32 mismatch (damaged trace)"),
         }
     }
 }
@@ -204,6 +219,8 @@ pub enum Record<'a> {
         /// Counter values by slot.
         scale_raw: [u32; crate::group::MAX_AXES],
     },
+    /// CRC-32 of every trace byte before this record.
+    Crc(u32),
     /// End of the trace.
     End,
 }
@@ -220,6 +237,7 @@ impl Record<'_> {
             Record::GroupCycle { .. } => TAG_GROUP_CYCLE,
             Record::AxisTemperatures { .. } => TAG_AXIS_TEMPERATURES,
             Record::GroupReset { .. } => TAG_GROUP_RESET,
+            Record::Crc(_) => TAG_CRC,
             Record::End => TAG_END,
         }
     }
@@ -234,6 +252,7 @@ impl Record<'_> {
             Record::GroupCycle { n, .. } => 4 + CYCLE_LEN * group_n(*n),
             Record::AxisTemperatures { t, .. } => 4 + 8 + 4 * t.readings().len(),
             Record::GroupReset { n, .. } => 4 + RESET_LEN * group_n(*n),
+            Record::Crc(_) => 4,
             Record::End => 0,
         }
     }
@@ -361,6 +380,7 @@ pub fn encode_record(rec: &Record, out: &mut [u8]) -> Result<usize, TraceError> 
         }
         Record::Image(b) => w.bytes(b),
         Record::Reset { scale_raw } => w.u32(*scale_raw),
+        Record::Crc(c) => w.u32(*c),
         Record::End => {}
     }
     Ok(len)
@@ -446,6 +466,12 @@ pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize),
                 scale_raw: u32_at(p, 0),
             }
         }
+        TAG_CRC => {
+            if p.len() != 4 {
+                return Err(bad);
+            }
+            Record::Crc(u32_at(p, 0))
+        }
         TAG_END => {
             if !p.is_empty() {
                 return Err(bad);
@@ -457,6 +483,60 @@ pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize),
         }
     };
     Ok((rec, total))
+}
+
+/// What [`verify`] found in a sound trace.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TraceCheck {
+    /// Records, `End` included.
+    pub records: u32,
+    /// True if the trace carries a (matching) `Crc` record.
+    pub has_crc: bool,
+    /// True if the trace has group records.
+    pub is_group: bool,
+}
+
+/// Check a whole trace: header, every record well formed, `End` last and nothing after it, and
+/// the `Crc` record (if any) just before `End` and matching. The first problem is the error.
+pub fn verify(bytes: &[u8]) -> Result<TraceCheck, TraceError> {
+    let mut at = check_header(bytes)?;
+    let mut check = TraceCheck {
+        records: 0,
+        has_crc: false,
+        is_group: false,
+    };
+    let mut crc_at = None;
+    loop {
+        let rest = bytes.get(at..).unwrap_or(&[]);
+        if rest.is_empty() {
+            return Err(TraceError::NoEnd);
+        }
+        let (rec, len) = decode_record(rest, at)?;
+        check.records += 1;
+        match rec {
+            Record::End => {
+                if at + len != bytes.len() {
+                    return Err(TraceError::NoEnd);
+                }
+                if let Some((off, value)) = crc_at {
+                    // The Crc record must be the one just before End.
+                    if off + RECORD_HEADER_LEN + 4 != at
+                        || crate::crc32(bytes.get(..off).unwrap_or(&[])) != value
+                    {
+                        return Err(TraceError::BadChecksum);
+                    }
+                    check.has_crc = true;
+                }
+                return Ok(check);
+            }
+            Record::Crc(v) => crc_at = Some((at, v)),
+            Record::GroupCycle { .. }
+            | Record::AxisTemperatures { .. }
+            | Record::GroupReset { .. } => check.is_group = true,
+            _ => {}
+        }
+        at += len;
+    }
 }
 
 /// Encoded length of the record at the start of `bytes`, if its header and payload are complete.
