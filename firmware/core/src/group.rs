@@ -692,8 +692,29 @@ pub struct GroupStats {
     pub images_accepted: u32,
     /// Group images rejected (the running one kept).
     pub images_rejected: u32,
-    /// Why the last rejected one was rejected.
-    pub last_error: Option<GroupError>,
+    /// Why the last rejected one was rejected (`Option<ImageError>`: `None` is a zero byte, so a
+    /// new engine is all zero bytes and a `static` lands in `.bss`).
+    pub last_error: Option<ImageError>,
+    /// The axis of the last rejection: its code + 1, 0 for none or the group as a whole.
+    pub last_error_axis: u8,
+}
+
+impl GroupStats {
+    /// The last rejection with its axis.
+    pub fn last_group_error(&self) -> Option<GroupError> {
+        self.last_error.map(|error| GroupError {
+            axis: self
+                .last_error_axis
+                .checked_sub(1)
+                .and_then(AxisName::from_code),
+            error,
+        })
+    }
+    fn record(&mut self, e: GroupError) {
+        self.images_rejected = self.images_rejected.wrapping_add(1);
+        self.last_error = Some(e.error);
+        self.last_error_axis = e.axis.map_or(0, |a| a.code() + 1);
+    }
 }
 
 /// Two [`Group`] slots (A/B) and the group state: a new group is loaded into the spare slot and
@@ -727,6 +748,7 @@ impl<const POOL: usize> GroupEngine<POOL> {
                 images_accepted: 0,
                 images_rejected: 0,
                 last_error: None,
+                last_error_axis: 0,
             },
             process: None,
             pending_status: 0,
@@ -765,8 +787,7 @@ impl<const POOL: usize> GroupEngine<POOL> {
                 Ok(())
             }
             Err(e) => {
-                self.stats.images_rejected = self.stats.images_rejected.wrapping_add(1);
-                self.stats.last_error = Some(e);
+                self.stats.record(e);
                 self.pending_status |= STATUS_IMAGE_REJECTED;
                 Err(e)
             }
@@ -782,8 +803,7 @@ impl<const POOL: usize> GroupEngine<POOL> {
             }
             Err(error) => {
                 let e = GroupError { axis: None, error };
-                self.stats.images_rejected = self.stats.images_rejected.wrapping_add(1);
-                self.stats.last_error = Some(e);
+                self.stats.record(e);
                 self.pending_status |= STATUS_IMAGE_REJECTED;
                 Err(e)
             }

@@ -15,7 +15,7 @@
 //! | 6 | `GroupCycle` | `n` u8 (1..=5), 3 reserved bytes (0), then per axis slot the `Cycle` payload (4 + 24n bytes) |
 //! | 7 | `AxisTemperatures` | `slot` u8 (< 5), 3 reserved bytes (0), then the `Temperatures` payload |
 //! | 8 | `GroupReset` | `n` u8 (1..=5), 3 reserved bytes (0), `scale_raw` u32 per slot (4 + 4n bytes) |
-//! | 9 | `Crc` | CRC-32 (u32) of every trace byte before this record; written just before `End` |
+//! | 254 | `Crc` | CRC-32 (u32) of every trace byte before this record; written just before `End` |
 //! | 255 | `End` | empty; the reader stops after it |
 //!
 //! [`verify`] checks a whole trace before use: every record well formed, `End` last with nothing
@@ -70,7 +70,7 @@ pub const TAG_AXIS_TEMPERATURES: u8 = 7;
 /// Tag of [`Record::GroupReset`].
 pub const TAG_GROUP_RESET: u8 = 8;
 /// Tag of [`Record::Crc`].
-pub const TAG_CRC: u8 = 9;
+pub const TAG_CRC: u8 = 254;
 /// Tag of [`Record::End`].
 pub const TAG_END: u8 = 255;
 /// Length of an encoded [`OutputRecord`].

@@ -132,7 +132,7 @@ fn replay_group(image: Option<&[u8]>, trace: &[u8]) -> anyhow::Result<Replay> {
             temperature_updates: 0,
             images_accepted: g.images_accepted,
             images_rejected: g.images_rejected,
-            last_image_error: g.last_error.map(|e| e.error),
+            last_image_error: g.last_error,
         },
         group_axes: Some(axes.max(1)),
     })
