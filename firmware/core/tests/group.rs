@@ -605,3 +605,67 @@ fn typed_refusals_of_a_group() {
     assert!(!small.is_loaded());
     assert_eq!(MAX_AXES, 5);
 }
+
+mod counter_extension {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+
+        /// Reference: the true position (i64 sum of the steps), exact. For any counter width
+        /// 16..=32, any start and any sequence of steps below half the counter's range, the
+        /// extended position equals the true one — single axis and group axis (linear and rotary:
+        /// the turn position is the true position modulo the counts per revolution).
+        #[test]
+        fn extended_position_follows_the_true_position(
+            bits in 16u8..=32,
+            start in any::<i64>().prop_map(|v| v % (1i64 << 40)),
+            steps in proptest::collection::vec(any::<i64>(), 1..300),
+        ) {
+            let half = 1i64 << (bits - 1);
+            let mask = if bits == 32 { u32::MAX } else { (1u32 << bits) - 1 };
+            let img = image(&ImageSpec {
+                axis_id: 1,
+                um_per_count: 0.1,
+                counter_bits: bits,
+                table: None,
+                thermo: None,
+                limits: LOOSE,
+            });
+            let mut comp = Box::new(Compensator::IDENTITY);
+            comp.load(&img).unwrap();
+            let mut group = boxed_group();
+            group
+                .load(
+                    &[
+                        GroupAxisImage { name: AxisName::X, counts_per_rev: 0, image: &img },
+                        GroupAxisImage { name: AxisName::C, counts_per_rev: CPR, image: &img },
+                    ],
+                    None,
+                )
+                .unwrap();
+            let mut st = State::new();
+            let mut gst = Box::new(GroupState::new());
+            let mut input = GroupInput::ZERO;
+            let mut out = GroupOutput::ZERO;
+            let mut truth = start;
+            st.home(truth as u32 & mask, truth);
+            gst.axes[0].home(truth as u32 & mask, truth);
+            gst.axes[1].home(truth as u32 & mask, truth);
+            for s in steps {
+                let step = s % half; // |step| < half the counter's range
+                truth += step;
+                let raw = truth as u32 & mask;
+                let o = comp.cycle(&mut st, &common::input(raw, 0));
+                prop_assert_eq!(o.position_counts, truth);
+                input.axes[0].scale_raw = raw;
+                input.axes[1].scale_raw = raw;
+                group.cycle(&mut gst, &input, &mut out);
+                prop_assert_eq!(out.axes[0].position_counts, truth);
+                prop_assert_eq!(out.axes[1].position_counts, truth);
+                prop_assert_eq!(gst.turn_position(1), Some(truth.rem_euclid(CPR as i64) as u32));
+            }
+        }
+    }
+}
