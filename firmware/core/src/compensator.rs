@@ -394,7 +394,7 @@ impl<S: TableStore> AxisCompensator<S> {
         // register is live across it.
         let mut flags = Flags(((st.backward as u16) << 7) | outside as u16);
         if self.has_thermo {
-            total += self.thermo_um(st, pos, forces_n, &mut flags);
+            total = self.thermo_um(st, pos, forces_n, &mut flags, total);
         }
         (total, flags)
     }

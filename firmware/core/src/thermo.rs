@@ -101,9 +101,10 @@ pub(crate) const ZERO_LAW: ForceLaw = ForceLaw {
 };
 
 impl<S: TableStore> AxisCompensator<S> {
-    /// The thermo-force term at `pos` for one cycle (µm): the cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j
-    /// (predicted), the expansion term (one multiply-add with the cached c·ΔT_s) and the
-    /// measured forces of this input; ORs the thermo flags into `flags`.
+    /// `total` (the table value) plus the thermo-force term at `pos` for one cycle (µm): the
+    /// cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j (predicted) with the expansion term (one multiply-add
+    /// with the cached c·ΔT_s), then the measured forces of this input — added to `total` in
+    /// that order (the order fixes the f32 rounding); ORs the thermo flags into `flags`.
     #[inline(always)]
     pub(crate) fn thermo_um(
         &self,
@@ -111,6 +112,7 @@ impl<S: TableStore> AxisCompensator<S> {
         pos: i64,
         forces_n: &[f32; MAX_FORCES],
         flags: &mut Flags,
+        mut total: f32,
     ) -> f32 {
         // x − x_ref as i32 (saturated) so that the conversion to f32 is one instruction.
         // Positions and x_ref within ±2^62 (x_ref is validated, positions are physical) never
@@ -124,7 +126,7 @@ impl<S: TableStore> AxisCompensator<S> {
             i32::MAX
         };
         // b0 + Σ b_i·ΔT_i + Σ χ_j·F_j (predicted) is cached at the sensor/process rate.
-        let mut total = st.cached_um + st.expansion_um_per_count * d32 as f32;
+        total += st.cached_um + st.expansion_um_per_count * d32 as f32;
         // Measured forces: one multiply-add each, one plausibility check of their sum
         // (catches NaN, ±inf and absurd readings; the whole measured term is then dropped).
         // One straight-line sum per set of measured terms (in index order), so inputs of
