@@ -361,7 +361,7 @@ impl<S: TableStore> AxisCompensator<S> {
                 flags: Flags(((st.backward as u16) << 7) | Flags::IDENTITY.0),
             };
         }
-        let (total, flags) = self.axis_error_um(pool, st, pos, &input.forces_n, true);
+        let (total, flags) = self.axis_error_um(pool, st, pos, &input.forces_n, true, None);
         self.finish(st, pos, total, input.command_counts, flags)
     }
 
@@ -376,9 +376,10 @@ impl<S: TableStore> AxisCompensator<S> {
         pos: i64,
         forces_n: &[f32; MAX_FORCES],
         may_be_rotary: bool,
+        thermo_known: Option<bool>,
     ) -> (f32, Flags) {
-        // `may_be_rotary` is a constant at each call: false where the caller knows the axis is
-        // linear, so that the check is compiled out.
+        // `may_be_rotary` and `thermo_known` are constants at each call: where the caller knows
+        // the axis is linear, or whether it has a thermo-force term, the check is compiled out.
         let table_pos = if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
             self.turn_position(st, pos) as i64
         } else {
@@ -393,7 +394,7 @@ impl<S: TableStore> AxisCompensator<S> {
         // BACKWARD is bit 7, TABLE_OUTSIDE bit 0: built here, after the lookup, so that no flag
         // register is live across it.
         let mut flags = Flags(((st.backward as u16) << 7) | outside as u16);
-        if self.has_thermo {
+        if thermo_known.unwrap_or(self.has_thermo) {
             total = self.thermo_um(st, pos, forces_n, &mut flags, total);
         }
         (total, flags)

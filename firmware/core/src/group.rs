@@ -270,6 +270,8 @@ pub struct Group<const POOL: usize> {
     n_axes: u8,
     names: [AxisName; MAX_AXES],
     counts_per_rev: [u32; MAX_AXES],
+    /// Per slot: bit 0 rotary, bit 1 has a thermo-force term (the cycle's dispatch).
+    kinds: [u8; MAX_AXES],
     has_stage: bool,
     stage: RotaryStage,
     axes: [AxisCompensator<PoolTable>; MAX_AXES],
@@ -290,6 +292,7 @@ impl<const POOL: usize> Group<POOL> {
             n_axes: 0,
             names: [AxisName::X; MAX_AXES],
             counts_per_rev: [0; MAX_AXES],
+            kinds: [0; MAX_AXES],
             has_stage: false,
             stage: RotaryStage::ZERO,
             axes: [const { AxisCompensator::identity_with(PoolTable { base: [0; 2] }) }; MAX_AXES],
@@ -340,6 +343,7 @@ impl<const POOL: usize> Group<POOL> {
             };
             next += halves * n;
             dst.counts_per_rev = a.counts_per_rev;
+            self.kinds[i] = (a.counts_per_rev != 0) as u8 | (dst.has_thermo as u8) << 1;
             self.names[i] = a.name;
             self.counts_per_rev[i] = a.counts_per_rev;
         }
@@ -438,29 +442,31 @@ impl<const POOL: usize> Group<POOL> {
     /// (every slot, as identity outputs, while no group is loaded); slots beyond the group's
     /// axes are left as they are.
     pub fn cycle(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
-        if !self.loaded {
-            self.identity_cycle(st, input, out);
-            return;
-        }
-        if self.has_stage {
-            self.cycle_with_stage(st, input, out);
+        // One test for the common case (loaded, no stage): `n_axes` is 0 without a group.
+        if self.has_stage || self.n_axes == 0 {
+            if !self.loaded {
+                self.identity_cycle(st, input, out);
+            } else {
+                self.cycle_with_stage(st, input, out);
+            }
             return;
         }
         // No cross-axis stage: each axis's whole pipeline in one call.
         let n = (self.n_axes as usize).min(MAX_AXES);
         for i in 0..n {
-            let call = if self.counts_per_rev[i] == 0 {
-                axis_cycle::<POOL, false>
-            } else {
-                axis_cycle::<POOL, true>
-            };
-            call(
+            let (ax, s, inp, o) = (
                 &self.axes[i],
-                &self.pool,
                 &mut st.axes[i],
                 &input.axes[i],
                 &mut out.axes[i],
             );
+            // Direct calls (no function pointer to materialise): a linear axis without a
+            // thermo-force term (the common case) gets a pipeline with both checks compiled out.
+            if self.kinds[i] == 0 {
+                axis_cycle::<POOL, false, false>(ax, &self.pool, s, inp, o);
+            } else {
+                axis_cycle::<POOL, true, true>(ax, &self.pool, s, inp, o);
+            }
         }
     }
 
@@ -544,7 +550,7 @@ impl<const POOL: usize> Group<POOL> {
 /// One axis's whole pipeline of a loaded group (not inlined: each axis gets the register
 /// allocation of the single-axis call).
 #[inline(never)]
-fn axis_cycle<const POOL: usize, const ROTARY: bool>(
+fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     ax: &AxisCompensator<PoolTable>,
     pool: &[[f32; 4]; POOL],
     st: &mut State,
@@ -552,7 +558,9 @@ fn axis_cycle<const POOL: usize, const ROTARY: bool>(
     out: &mut CycleOutput,
 ) {
     let pos = ax.track(st, input.scale_raw);
-    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY);
+    // THERMO false: known to have none; true: checked at run time.
+    let thermo = if THERMO { None } else { Some(false) };
+    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, thermo);
     *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
@@ -567,7 +575,7 @@ fn axis_error<const POOL: usize, const ROTARY: bool>(
     out: &mut CycleOutput,
 ) {
     let pos = ax.track(st, input.scale_raw);
-    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY);
+    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, None);
     out.position_counts = pos;
     out.correction_um = e;
     out.flags = f;
