@@ -275,6 +275,44 @@ where
     sum
 }
 
+/// Replays a group trace through a [`axcomp_core::group::GroupEngine`] (no control loop: the
+/// group is driven directly): each `GroupCycle` record gives one output record per axis, in slot
+/// order, passed to `emit`; every stream error to `on_error` (replay continues after skippable
+/// errors). The QEMU group firmware and the host replay both run this, so their outputs are
+/// bit-identical.
+pub fn replay_group<S, const POOL: usize>(
+    engine: &mut axcomp_core::group::GroupEngine<POOL>,
+    stream: &mut TraceStream<'_, S>,
+    mut emit: impl FnMut(&OutputRecord),
+    mut on_error: impl FnMut(&StreamError<S::Error>),
+) -> ReplaySummary
+where
+    S: ByteSource,
+{
+    let mut sum = ReplaySummary::default();
+    let mut out = [OutputRecord::ZERO; axcomp_core::group::MAX_AXES];
+    while let Some(item) = stream.next_record() {
+        sum.records += 1;
+        match item {
+            Ok(rec) => {
+                if matches!(rec, Record::GroupCycle { .. }) {
+                    sum.cycles += 1;
+                }
+                let n = engine.step(&rec, &mut out);
+                for o in out.iter().take(n) {
+                    sum.outputs += 1;
+                    emit(o);
+                }
+            }
+            Err(e) => {
+                sum.errors += 1;
+                on_error(&e);
+            }
+        }
+    }
+    sum
+}
+
 #[cfg(test)]
 mod tests {
     extern crate std;

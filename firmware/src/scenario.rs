@@ -12,6 +12,14 @@
 //! - **`reference`**: the core's benchmark workload (`axcomp_core::bench`): full 1024-segment bidirectional
 //!   table, 8 lagged sensors, 3 force terms.
 //!
+//! - **`group3`** / **`group5`**: axis groups (trace records `GroupCycle`, `AxisTemperatures`,
+//!   `GroupReset`): three linear axes X, Y, Z (bidirectional tables, clamp and slew, X with two
+//!   lagged sensors), and for `group5` also rotary A and C (tables over the turn, C turning through
+//!   360° several times, A swinging) with the rotary location-error stage; all axes move at once.
+//!   Both: a group image of schema 2 at the start, a corrupt one (a flipped bit in a section,
+//!   re-sealed whole-image CRC: the section CRC refuses it, nothing changes), a valid replacement
+//!   (A/B swap of every axis at once) and a group reset.
+//!
 //! Cycles run at 10 kHz; temperatures arrive every 100 ms (1000 cycles).
 
 use std::vec;
@@ -24,7 +32,7 @@ use axcomp_core::{
 };
 
 /// Scenario names accepted by [`generate`].
-pub const NAMES: &[&str] = &["equivalence", "reference"];
+pub const NAMES: &[&str] = &["equivalence", "reference", "group3", "group5"];
 /// Default cycle count of [`generate`].
 pub const DEFAULT_CYCLES: u32 = 20_000;
 /// Cycles per temperature update (100 ms at 10 kHz).
@@ -80,7 +88,10 @@ impl TraceBuilder {
         trace::encode_record(rec, &mut self.bytes[at..]).expect("record fits its encoded length");
     }
 
+    /// The trace with its `Crc` record (CRC-32 of every byte before it) and `End`.
     pub fn finish(mut self) -> Vec<u8> {
+        let crc = axcomp_core::crc32(&self.bytes);
+        self.push(&Record::Crc(crc));
         self.push(&Record::End);
         self.bytes
     }
@@ -355,6 +366,133 @@ pub fn reference(cycles: u32, first_image: Option<&[u8]>) -> Result<Vec<u8>, Sce
     Ok(t.finish())
 }
 
+/// The group image of the `group3`/`group5` scenarios: the core's group workload axes
+/// (`axcomp_core::bench::group_axis_spec`), X with two lagged sensors, and for five axes the
+/// workload's rotary stage; `second` scales the tables (the replacement image).
+pub fn group_image(n_axes: usize, second: bool) -> Result<Vec<u8>, ScenarioError> {
+    use axcomp_core::group_image::{AxisSectionSpec, group_image_len, write_group_image};
+    let sensors = [eq_sensor(20.0, 30.0), eq_sensor(21.0, 0.0)];
+    let b = [0.8f32, -0.3];
+    let scale = if second { 1.2f32 } else { 1.0 };
+    let scaled: Vec<Vec<[f32; 4]>> = (0..10)
+        .map(|k| {
+            let t: &[[f32; 4]] = match k {
+                0..=2 => &bench::GROUP_FORWARD[k],
+                3..=5 => &bench::GROUP_BACKWARD[k - 3],
+                _ => &bench::GROUP_ROTARY[(k - 6) % 2],
+            };
+            t.iter().map(|c| c.map(|v| v * scale)).collect()
+        })
+        .collect();
+    let mut images = Vec::new();
+    for k in 0..n_axes {
+        let mut spec = bench::group_axis_spec(k);
+        if let Some(t) = spec.table.as_mut() {
+            if k < 3 {
+                t.forward = &scaled[k];
+                t.backward = &scaled[3 + k];
+            } else {
+                t.forward = &scaled[6 + (k - 3)];
+            }
+        }
+        spec.counter_bits = EQUIVALENCE_COUNTER_BITS;
+        if k == 0 {
+            spec.thermo = Some(ThermoForceSpec {
+                sensor_period_ms: 100,
+                sensors: &sensors,
+                b0_um: 0.4,
+                b_um_per_k: &b,
+                expansion: None,
+                forces: &[],
+            });
+        }
+        images.push(build_image(&spec)?);
+    }
+    let names: [&str; 2] = ["spindle", "column"];
+    let axes: Vec<AxisSectionSpec> = images
+        .iter()
+        .enumerate()
+        .map(|(k, img)| {
+            let (name, counts_per_rev) = bench::group_axis(k);
+            AxisSectionSpec {
+                name,
+                counts_per_rev,
+                stroke_counts: None,
+                image: img,
+                sensor_names: if k == 0 { &names } else { &[] },
+            }
+        })
+        .collect();
+    let stage = (n_axes == 5).then_some(&bench::GROUP_ROTARY_STAGE);
+    let mut out = vec![0u8; group_image_len(&axes, stage)];
+    let n = write_group_image(&axes, stage, &mut out).map_err(ScenarioError::Image)?;
+    out.truncate(n);
+    Ok(out)
+}
+
+/// The `group3`/`group5` scenario with `n_axes` axes (3 or 5) and `cycles` group cycles.
+pub fn group(n_axes: usize, cycles: u32) -> Result<Vec<u8>, ScenarioError> {
+    const MIN: u32 = 6000;
+    if cycles < MIN {
+        return Err(ScenarioError::TooFewCycles {
+            scenario: if n_axes == 5 { "group5" } else { "group3" },
+            min: MIN,
+        });
+    }
+    let first = group_image(n_axes, false)?;
+    let second = group_image(n_axes, true)?;
+    // A flipped bit inside the first section, the whole-image CRC re-sealed: only the section
+    // CRC can refuse it.
+    let mut corrupt = second.clone();
+    let at = axcomp_core::group_image::GROUP_HEADER_LEN + 20 * 8 + 40;
+    let at = at.min(corrupt.len() - 5);
+    corrupt[at] ^= 0x04;
+    let body = corrupt.len() - 4;
+    let crc = axcomp_core::crc32(&corrupt[..body]);
+    corrupt[body..].copy_from_slice(&crc.to_le_bytes());
+    let n = n_axes as u8;
+    let mut t = TraceBuilder::new();
+    // A few cycles before any image: identity.
+    for i in 0..5 {
+        t.push(&Record::GroupCycle {
+            n,
+            input: bench::group_input(i),
+        });
+    }
+    t.push(&Record::Image(&first));
+    for i in 5..cycles {
+        if i % CYCLES_PER_TEMPERATURE == 0 {
+            let k = i / CYCLES_PER_TEMPERATURE;
+            let w = k as f32 * 0.05;
+            t.push(&Record::AxisTemperatures {
+                slot: 0,
+                t: Temperatures::new(k * 100, &[20.0 + w, 21.0 + 0.5 * w]),
+            });
+        }
+        if i == cycles / 3 {
+            t.push(&Record::Image(&corrupt));
+        }
+        if i == cycles / 2 {
+            t.push(&Record::Image(&second));
+        }
+        if i == 2 * cycles / 3 {
+            let input = bench::group_input(i);
+            let mut scale_raw = [0u32; axcomp_core::group::MAX_AXES];
+            for (r, a) in scale_raw.iter_mut().zip(input.axes.iter()) {
+                *r = a.scale_raw;
+            }
+            t.push(&Record::GroupReset { n, scale_raw });
+        }
+        let mut input = bench::group_input(i);
+        // 16-bit counters: the scale counters wrap as they move.
+        for a in input.axes.iter_mut() {
+            a.scale_raw &= 0xFFFF;
+        }
+        t.push(&Record::GroupCycle { n, input });
+    }
+    Ok(t.finish())
+}
+
 /// Generates scenario `name` with `cycles` cycle records.
 pub fn generate(
     name: &str,
@@ -364,6 +502,8 @@ pub fn generate(
     match name {
         "equivalence" => equivalence(cycles, first_image),
         "reference" => reference(cycles, first_image),
+        "group3" => group(3, cycles),
+        "group5" => group(5, cycles),
         other => Err(ScenarioError::UnknownScenario(other.into())),
     }
 }
@@ -426,6 +566,47 @@ mod tests {
                 seen & flag.bits() != 0,
                 "flag {name} never set by the scenario"
             );
+        }
+    }
+
+    #[test]
+    fn group_scenarios_exercise_their_paths() {
+        use axcomp_core::group::{GroupEngine, MAX_AXES};
+        use axcomp_core::trace::OutputRecord;
+        for n in [3usize, 5] {
+            let bytes = group(n, 30_000).unwrap();
+            let mut engine: Box<GroupEngine<512>> = Box::new(GroupEngine::new());
+            let mut out = [OutputRecord::decode(&[0; 32]).unwrap(); MAX_AXES];
+            let (mut cycles, mut seen, mut status, mut slots) = (0, 0u16, 0u8, [false; 2]);
+            for r in trace::Reader::new(&bytes).unwrap() {
+                let rec = r.expect("well-formed records");
+                let k = engine.step(&rec, &mut out);
+                if k > 0 {
+                    assert_eq!(k, n);
+                    cycles += 1;
+                    for o in &out[..k] {
+                        seen |= o.flags;
+                        status |= o.status;
+                        slots[o.slot as usize] = true;
+                    }
+                }
+            }
+            assert_eq!(cycles, 30_000);
+            let s = engine.stats();
+            assert_eq!((s.images_accepted, s.images_rejected), (2, 1), "{n} axes");
+            assert_eq!(status & 7, 7);
+            assert!(slots[0] && slots[1]);
+            for f in [
+                Flags::BACKWARD,
+                Flags::SLEWED,
+                Flags::IDENTITY,
+                Flags::TABLE_OUTSIDE,
+            ] {
+                assert!(seen & f.bits() != 0, "{n} axes: {f:?} never set");
+            }
+            if n == 5 {
+                assert!(engine.state().angle_refreshes() > 1000);
+            }
         }
     }
 

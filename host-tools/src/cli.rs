@@ -56,8 +56,10 @@ pub enum FitCommand {
 pub enum ImageCommand {
     /// Build a table image from fitted models.
     Build(commands::image::BuildArgs),
-    /// Validate an image and print its contents.
+    /// Validate an image (single-axis or group) and print its contents.
     Inspect(commands::image::InspectArgs),
+    /// Build a group image (schema 2) from axis images of `image build` (and a rotary model).
+    Group(commands::image::GroupArgs),
 }
 
 /// Options shared by every command that reads a measurement CSV (see the contract's "Common options").

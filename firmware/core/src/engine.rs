@@ -143,7 +143,12 @@ impl Engine {
                 }
                 None
             }
-            Record::End => None,
+            // Group records are for a `GroupEngine`.
+            Record::GroupCycle { .. }
+            | Record::AxisTemperatures { .. }
+            | Record::GroupReset { .. }
+            | Record::Crc(_)
+            | Record::End => None,
         }
     }
 

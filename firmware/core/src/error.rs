@@ -51,6 +51,15 @@ pub enum Field {
     MaxSlew,
     /// Limits: direction hysteresis.
     Hysteresis,
+    /// Group: counts per revolution of a rotary axis (index = group slot).
+    CountsPerRev,
+    /// Rotary stage: a location error (index 0..8 in the order of
+    /// [`crate::rotary::RotaryLocationSpec::constants`]).
+    RotaryLocation,
+    /// Rotary stage: pivot position (index = X, Y, Z).
+    Pivot,
+    /// Rotary stage: tool length.
+    ToolLength,
 }
 
 impl Field {
@@ -80,6 +89,10 @@ impl Field {
             Field::MaxCorrection => "limits.max_correction_um",
             Field::MaxSlew => "limits.max_slew_um_per_cycle",
             Field::Hysteresis => "limits.direction_hysteresis_counts",
+            Field::CountsPerRev => "axes.counts_per_rev",
+            Field::RotaryLocation => "rotary.location_errors",
+            Field::Pivot => "rotary.pivot_counts",
+            Field::ToolLength => "rotary.tool_length_um",
         }
     }
 }
@@ -132,6 +145,74 @@ pub enum ImageError {
         /// Element index (segment, sensor or force; 0 for scalars).
         index: u16,
     } = 13,
+    /// A group needs 1..=[`crate::group::MAX_AXES`] axes.
+    AxisCount = 14,
+    /// Two axes of a group have the same name.
+    DuplicateAxis {
+        /// The axis ([`crate::group::AxisName`] code).
+        axis: u8,
+    } = 15,
+    /// A section or stage refers to an axis the group lacks (or of the wrong kind).
+    AxisNotInGroup {
+        /// The axis ([`crate::group::AxisName`] code).
+        axis: u8,
+    } = 16,
+    /// An axis's knot grid does not match its stroke (a rotary axis: 0..counts per revolution).
+    GridMismatch {
+        /// The axis ([`crate::group::AxisName`] code).
+        axis: u8,
+    } = 17,
+    /// The group's coefficient pool is too small for the tables.
+    PoolTooSmall {
+        /// Segments needed.
+        needed: u32,
+    } = 18,
+    /// Bytes follow the image's declared end.
+    TrailingBytes = 19,
+    /// A mandatory section of a type this build does not know.
+    UnknownSection {
+        /// The section type.
+        kind: u16,
+    } = 20,
+    /// A mandatory section of a known type (or version) this build does not support yet.
+    UnsupportedSection {
+        /// The section type.
+        kind: u16,
+    } = 21,
+    /// A section's offset/length is out of the image, overflows, overlaps or is malformed.
+    SectionBounds {
+        /// Directory index.
+        index: u16,
+    } = 22,
+    /// A section's CRC-32 does not match.
+    SectionCrc {
+        /// Directory index.
+        index: u16,
+    } = 23,
+    /// The image was built for another counter width than the board's.
+    CounterWidthMismatch {
+        /// Counter bits in the image.
+        image: u8,
+        /// Counter bits of the board.
+        board: u8,
+    } = 24,
+    /// The image is for an axis id the board does not drive.
+    AxisIdMismatch {
+        /// Axis id in the image.
+        image: u16,
+    } = 25,
+    /// The image needs more temperature inputs than the board has wired.
+    TooFewSensorInputs {
+        /// Sensors the image needs.
+        needed: u8,
+        /// Inputs wired on the board.
+        wired: u8,
+    } = 26,
+    /// Sensor names missing, not one per sensor, empty or not UTF-8.
+    SensorNames {
+        /// The axis ([`crate::group::AxisName`] code).
+        axis: u8,
+    } = 27,
 }
 
 impl fmt::Display for ImageError {
@@ -164,8 +245,67 @@ impl fmt::Display for ImageError {
             ImageError::OutOfRange { field, index } => {
                 write!(f, "{}[{index}] is out of range", field.name())
             }
+            ImageError::AxisCount => f.write_str("a group needs 1..=5 axes"),
+            ImageError::DuplicateAxis { axis } => {
+                write!(f, "axis {} appears twice in the group", axis_letter(axis))
+            }
+            ImageError::AxisNotInGroup { axis } => write!(
+                f,
+                "axis {} is not in the group (or is not of the kind needed)",
+                axis_letter(axis)
+            ),
+            ImageError::GridMismatch { axis } => write!(
+                f,
+                "the knot grid of axis {} does not match its stroke",
+                axis_letter(axis)
+            ),
+            ImageError::PoolTooSmall { needed } => write!(
+                f,
+                "the tables need {needed} segments, more than this build's group pool holds"
+            ),
+            ImageError::TrailingBytes => f.write_str("bytes follow the end of the image"),
+            ImageError::UnknownSection { kind } => {
+                write!(f, "unknown mandatory section type {kind}")
+            }
+            ImageError::UnsupportedSection { kind } => {
+                write!(
+                    f,
+                    "mandatory section type {kind} is not supported by this build"
+                )
+            }
+            ImageError::SectionBounds { index } => {
+                write!(
+                    f,
+                    "section {index} is out of bounds, overlapping or malformed"
+                )
+            }
+            ImageError::SectionCrc { index } => write!(f, "section {index}: CRC-32 mismatch"),
+            ImageError::CounterWidthMismatch { image, board } => write!(
+                f,
+                "the image is for a {image}-bit counter, the board's counters have {board} bits"
+            ),
+            ImageError::AxisIdMismatch { image } => {
+                write!(
+                    f,
+                    "the image is for axis id {image}, which this board does not drive"
+                )
+            }
+            ImageError::TooFewSensorInputs { needed, wired } => write!(
+                f,
+                "the image needs {needed} temperature inputs, the board has {wired} wired"
+            ),
+            ImageError::SensorNames { axis } => write!(
+                f,
+                "axis {}: sensor names must be one non-empty UTF-8 name per sensor",
+                axis_letter(axis)
+            ),
         }
     }
 }
 
 impl core::error::Error for ImageError {}
+
+/// Letter of an axis code (`?` for an unknown code).
+fn axis_letter(code: u8) -> char {
+    crate::group::AxisName::from_code(code).map_or('?', |a| a.letter())
+}

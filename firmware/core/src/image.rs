@@ -45,9 +45,11 @@
 //! |x_ref| ≤ 2^62; |χ| ≤ 1e3 µm/N; |k| ≤ 1e9, |exponents| ≤ 10; max correction and max slew in
 //! (0, 1e5] µm; direction hysteresis ≤ 2^31 − 1 counts.
 
-use crate::compensator::{Compensator, MAX_LIMIT_UM, SensorRt};
+use crate::compensator::{AxisCompensator, Compensator, TableStore};
 use crate::error::{Field, ImageError};
+use crate::limits::MAX_LIMIT_UM;
 use crate::spec::{ForceLaw, ImageSpec, OutsideStroke};
+use crate::thermo::SensorRt;
 use crate::{MAX_FORCES, MAX_IMAGE_LEN, MAX_SEGMENTS, MAX_SENSORS};
 
 /// Image magic.
@@ -114,14 +116,14 @@ use crate::le::{Put, f32_at, i64_at, rd, u8_at, u16_at, u32_at};
 /// Section offsets and counts of a validated image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Layout {
-    len: usize,
-    table: Option<usize>,
-    n_segments: usize,
-    bidirectional: bool,
-    thermo: Option<usize>,
-    n_sensors: usize,
-    n_forces: usize,
-    limits: usize,
+    pub(crate) len: usize,
+    pub(crate) table: Option<usize>,
+    pub(crate) n_segments: usize,
+    pub(crate) bidirectional: bool,
+    pub(crate) thermo: Option<usize>,
+    pub(crate) n_sensors: usize,
+    pub(crate) n_forces: usize,
+    pub(crate) limits: usize,
 }
 
 /// Summary of a valid image (see [`inspect_image`]).
@@ -425,21 +427,64 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
     Ok(layout)
 }
 
+/// `(start_counts, segment_counts, n_segments)` of a validated image's table.
+pub(crate) fn table_grid(l: &Layout, b: &[u8]) -> Option<(i64, u32, usize)> {
+    let o = l.table?;
+    Some((i64_at(b, o), u32_at(b, o + 8), l.n_segments))
+}
+
+/// `(start_counts, segment_counts, n_segments)` of a valid image's table (None without a table
+/// or for an invalid image).
+pub(crate) fn table_grid_of(b: &[u8]) -> Option<(i64, u32, usize)> {
+    let l = validate(b).ok()?;
+    table_grid(&l, b)
+}
+
+/// Segment `s` (< n) of direction half `d` of a validated image's table (the forward segments
+/// for both halves of a unidirectional table).
+pub(crate) fn table_segment(l: &Layout, b: &[u8], d: usize, s: usize) -> [f32; 4] {
+    let Some(o) = l.table else {
+        return [0.0; 4];
+    };
+    let src = if l.bidirectional { d & 1 } else { 0 };
+    let at = o + TABLE_HEADER_LEN + 16 * (src * l.n_segments + s);
+    [
+        f32_at(b, at),
+        f32_at(b, at + 4),
+        f32_at(b, at + 8),
+        f32_at(b, at + 12),
+    ]
+}
+
 /// Copy a validated image into `c` (cannot fail).
 pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
+    // A unidirectional table is copied into both halves, so that the cycle selects the half by
+    // the direction alone.
+    for d in 0..2 {
+        for s in 0..l.n_segments.min(MAX_SEGMENTS) {
+            if let Some(dst) = c.table.0.get_mut(d * MAX_SEGMENTS + s) {
+                *dst = table_segment(l, b, d, s);
+            }
+        }
+    }
+    copy_params_into(l, b, c);
+}
+
+/// Copy everything but the table segments of a validated image into `c` (cannot fail).
+pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut AxisCompensator<S>) {
     let bits = u8_at(b, 14);
     let upc = f32_at(b, 16);
     c.axis_id = u16_at(b, 12);
     c.counter_bits = bits;
     c.sext_shift = 32u32.saturating_sub(bits as u32);
     c.um_per_count = upc;
+    c.counts_per_rev = 0;
 
-    c.has_table = l.table.is_some();
     c.bidirectional = false;
     c.taper = false;
     c.n_segments = 0;
     c.start_counts = 0;
-    c.segment_counts = 0;
+    c.segment = None;
     c.span_counts = 0;
     c.inv_segment = 0.0;
     c.taper_counts = 0;
@@ -451,8 +496,8 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
         c.bidirectional = l.bidirectional;
         c.n_segments = n as u32;
         c.start_counts = i64_at(b, o);
-        c.segment_counts = seg;
-        c.span_counts = seg as i64 * n as i64;
+        c.segment = core::num::NonZeroU32::new(seg);
+        c.span_counts = seg.wrapping_mul(n as u32);
         c.inv_segment = 1.0 / seg as f32;
         c.taper = u8_at(b, o + 15) == 1;
         c.taper_counts = u32_at(b, o + 16);
@@ -461,27 +506,9 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
         } else {
             0.0
         };
-        // A unidirectional table is copied into both halves, so that the cycle selects the half
-        // by the direction alone.
         for d in 0..2 {
-            let src = if l.bidirectional { d } else { 0 };
-            for s in 0..n {
-                let at = o + TABLE_HEADER_LEN + 16 * (src * n + s);
-                if let Some(dst) = c.coeffs.get_mut(d * MAX_SEGMENTS + s) {
-                    for (k, v) in dst.iter_mut().enumerate() {
-                        *v = f32_at(b, at + 4 * k);
-                    }
-                }
-            }
-        }
-        for d in 0..2 {
-            let base = if d == 1 && l.bidirectional {
-                MAX_SEGMENTS
-            } else {
-                0
-            };
-            let first = c.coeffs[base];
-            let last = c.coeffs[(base + n - 1) & (2 * MAX_SEGMENTS - 1)];
+            let first = table_segment(l, b, d, 0);
+            let last = table_segment(l, b, d, n - 1);
             c.edge[d] = [first[0], last[0] + last[1] + last[2] + last[3]];
         }
     }
@@ -500,9 +527,9 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
     c.force_predicted = [false; MAX_FORCES];
     c.measured_mask = 0;
     c.chi_measured = [0.0; MAX_FORCES];
-    c.measured = crate::compensator::MeasuredSet::None;
+    c.measured = crate::thermo::MeasuredSet::None;
     c.thermo_flags_xor = 0;
-    c.laws = [crate::compensator::ZERO_LAW; MAX_FORCES];
+    c.laws = [crate::thermo::ZERO_LAW; MAX_FORCES];
     c.sensors = [SensorRt::ZERO; MAX_SENSORS];
     if let Some(o) = l.thermo {
         let period = u32_at(b, o);
@@ -550,14 +577,19 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
         }
     }
 
-    c.measured = crate::compensator::MeasuredSet::from_mask(c.measured_mask);
+    c.measured = crate::thermo::MeasuredSet::from_mask(c.measured_mask);
 
     let o = l.limits;
     c.max_correction_um = f32_at(b, o);
     c.max_slew_um_per_cycle = f32_at(b, o + 4);
     c.hysteresis_counts = u32_at(b, o + 8);
     // 2^29 leaves a factor 2 of margin below the 2^30 that `round_half_away_bounded` needs.
-    c.counts_bounded = MAX_LIMIT_UM / upc < 536_870_912.0;
+    c.half_um_per_count = 0.5 * upc;
+    c.fast_max_um = if MAX_LIMIT_UM / upc < 536_870_912.0 {
+        c.max_correction_um
+    } else {
+        -1.0
+    };
     c.loaded = true;
 }
 

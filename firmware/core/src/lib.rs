@@ -15,10 +15,10 @@
 //! - **thermo-force term**: E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
 //! - **ΔT**: a (lagged) sensor temperature minus its reference temperature, kelvin.
 //! - **force source**: a force term is *predicted* (from the cutting-force law and the process
-//!   parameters given to [`Compensator::set_process`]) if its [`ForceSpec`] has a `law`, else
+//!   parameters given to [`AxisCompensator::set_process`]) if its [`ForceSpec`] has a `law`, else
 //!   *measured* (from [`CycleInput::forces_n`] at the same index).
 //! - **sensor rate / cycle rate**: lags, sensor health, b0 + Σ b_i·ΔT_i, c·ΔT_s and predicted
-//!   forces are computed at the sensor rate ([`Compensator::update_temperatures`]) and cached in
+//!   forces are computed at the sensor rate ([`AxisCompensator::update_temperatures`]) and cached in
 //!   the [`State`]; [`Compensator::cycle`] only adds them up.
 //! - **lag**: first-order filter y += α(u − y), α = 1 − exp(−period/τ), modelling the delay
 //!   between a sensor and the structure it stands for.
@@ -26,7 +26,8 @@
 //!   `max_slew_um_per_cycle` so that a new table or a temperature step never makes the axis jump.
 //! - **clamp**: the limit `max_correction_um` on the magnitude of the total correction.
 //! - **stale**: a sensor that has had no accepted reading for `stale_timeout_ms`; the thermal
-//!   contribution is then frozen at its last good value.
+//!   contribution is then frozen at its last good value for [`STALE_HOLD_MS`], then ramps out
+//!   over [`STALE_RAMP_MS`] to b0 + predicted forces (flag [`Flags::THERMAL_RAMP_OUT`]).
 //! - **image**: the versioned, CRC-protected binary form of an [`ImageSpec`] that the host writes
 //!   and the firmware loads ([`write_image`], [`Compensator::load`]); see [`image`] for the layout.
 //! - **slot**: one of the two [`Compensator`]s of the [`Engine`] (A/B); a new image is loaded into
@@ -63,24 +64,33 @@ extern crate std;
 
 pub mod bench;
 mod compensator;
+mod counter;
 mod engine;
 mod error;
+pub mod group;
+pub mod group_image;
 pub mod image;
 mod le;
+mod limits;
+pub mod rotary;
 mod spec;
+mod table;
+mod thermo;
 pub mod trace;
 
 pub use compensator::{
-    Compensator, CycleInput, CycleOutput, Direction, Flags, ForceSource, ProcessParams, State,
-    round_to_counts,
+    AxisCompensator, Compensator, CycleInput, CycleOutput, Flags, OwnTable, State, TableStore,
 };
+pub use counter::Direction;
 pub use engine::{Engine, EngineStats};
 pub use error::{Field, ImageError};
 pub use image::{ImageInfo, crc32, image_len, inspect_image, write_image};
+pub use limits::round_to_counts;
 pub use spec::{
     ExpansionSpec, ForceLaw, ForceSpec, ImageSpec, LimitSpec, OutsideStroke, SensorSpec, TableSpec,
     ThermoForceSpec,
 };
+pub use thermo::{ForceSource, ProcessParams};
 
 /// Segments per direction of the positioning table.
 pub const MAX_SEGMENTS: usize = 1024;
@@ -94,5 +104,11 @@ pub const RECOVERY_READINGS: u8 = 3;
 pub const MAX_FORCE_N: f32 = 1.0e7;
 /// A sum of measured force terms Σ χ_j·F_j beyond this (or NaN/inf) is dropped and flagged, µm.
 pub const MAX_FORCE_TERM_UM: f32 = 1.0e4;
+/// How long a frozen thermal term is held after a sensor went stale, ms (then it ramps out).
+pub const STALE_HOLD_MS: u32 = 60_000;
+/// How long the ramp-out of a frozen thermal term takes, ms: Σ b_i·ΔT_i and c·ΔT_s go linearly to
+/// 0, leaving b0 + predicted forces (the value that needs no sensor), flagged
+/// [`Flags::THERMAL_RAMP_OUT`].
+pub const STALE_RAMP_MS: u32 = 60_000;
 /// Largest image this build accepts (one flash slot).
 pub const MAX_IMAGE_LEN: usize = 64 * 1024;

@@ -12,7 +12,21 @@
 //! | 3 | `Process` | `ap_mm`, `fz_mm`, `n_rpm` f32 (12 bytes) |
 //! | 4 | `Image` | a table image (≤ 64 KiB), loaded into the spare slot |
 //! | 5 | `Reset` | `scale_raw` u32 (4 bytes): [`crate::State::reset`] |
+//! | 6 | `GroupCycle` | `n` u8 (1..=5), 3 reserved bytes (0), then per axis slot the `Cycle` payload (4 + 24n bytes) |
+//! | 7 | `AxisTemperatures` | `slot` u8 (< 5), 3 reserved bytes (0), then the `Temperatures` payload |
+//! | 8 | `GroupReset` | `n` u8 (1..=5), 3 reserved bytes (0), `scale_raw` u32 per slot (4 + 4n bytes) |
+//! | 254 | `Crc` | CRC-32 (u32) of every trace byte before this record; written just before `End` |
 //! | 255 | `End` | empty; the reader stops after it |
+//!
+//! [`verify`] checks a whole trace before use: every record well formed, `End` last with nothing
+//! after it, and, if the trace has a `Crc` record (every trace `axcomp trace` writes does), the
+//! CRC — so a truncated trace is always refused and a bit flip in a trace with a `Crc` record too.
+//!
+//! A group trace uses `GroupCycle`, `AxisTemperatures`, `GroupReset`, `Process` and `Image` (a
+//! group image of schema 2, or a schema-1 image as a single-axis group); the single-axis
+//! [`crate::Engine`] ignores the group records and [`crate::group::GroupEngine::step`] the
+//! single-axis `Cycle`, `Temperatures` and `Reset`. A group cycle has one output record per
+//! axis of the trace's cycle, in slot order.
 //!
 //! # Output record (32 bytes, little endian)
 //! | off | type | field |
@@ -49,6 +63,14 @@ pub const TAG_PROCESS: u8 = 3;
 pub const TAG_IMAGE: u8 = 4;
 /// Tag of [`Record::Reset`].
 pub const TAG_RESET: u8 = 5;
+/// Tag of [`Record::GroupCycle`].
+pub const TAG_GROUP_CYCLE: u8 = 6;
+/// Tag of [`Record::AxisTemperatures`].
+pub const TAG_AXIS_TEMPERATURES: u8 = 7;
+/// Tag of [`Record::GroupReset`].
+pub const TAG_GROUP_RESET: u8 = 8;
+/// Tag of [`Record::Crc`].
+pub const TAG_CRC: u8 = 254;
 /// Tag of [`Record::End`].
 pub const TAG_END: u8 = 255;
 /// Length of an encoded [`OutputRecord`].
@@ -97,6 +119,10 @@ pub enum TraceError {
     },
     /// The output buffer is too small.
     BufferFull,
+    /// The trace does not end with an `End` record (truncated), or bytes follow it.
+    NoEnd,
+    /// The trace's `Crc` record does not match its bytes (or is not just before `End`).
+    BadChecksum,
 }
 
 impl fmt::Display for TraceError {
@@ -117,6 +143,10 @@ impl fmt::Display for TraceError {
                 write!(f, "malformed record (tag {tag}) at byte {offset}")
             }
             TraceError::BufferFull => f.write_str("output buffer full"),
+            TraceError::NoEnd => f.write_str(
+                "the trace does not end with an End record (truncated or trailing bytes)",
+            ),
+            TraceError::BadChecksum => f.write_str("trace CRC-32 mismatch (damaged trace)"),
         }
     }
 }
@@ -168,6 +198,29 @@ pub enum Record<'a> {
         /// Counter value at reset.
         scale_raw: u32,
     },
+    /// A group cycle: the inputs of the first `n` axis slots.
+    GroupCycle {
+        /// Axes in the cycle (1..=5).
+        n: u8,
+        /// Inputs by slot (entries from `n` on are zero).
+        input: crate::group::GroupInput,
+    },
+    /// A sensor-rate update of one axis slot of a group.
+    AxisTemperatures {
+        /// The axis slot.
+        slot: u8,
+        /// The readings.
+        t: Temperatures,
+    },
+    /// Reset of a group's first `n` axes with their counter values at reset.
+    GroupReset {
+        /// Axes reset (1..=5).
+        n: u8,
+        /// Counter values by slot.
+        scale_raw: [u32; crate::group::MAX_AXES],
+    },
+    /// CRC-32 of every trace byte before this record.
+    Crc(u32),
     /// End of the trace.
     End,
 }
@@ -181,6 +234,10 @@ impl Record<'_> {
             Record::Process(_) => TAG_PROCESS,
             Record::Image(_) => TAG_IMAGE,
             Record::Reset { .. } => TAG_RESET,
+            Record::GroupCycle { .. } => TAG_GROUP_CYCLE,
+            Record::AxisTemperatures { .. } => TAG_AXIS_TEMPERATURES,
+            Record::GroupReset { .. } => TAG_GROUP_RESET,
+            Record::Crc(_) => TAG_CRC,
             Record::End => TAG_END,
         }
     }
@@ -192,6 +249,10 @@ impl Record<'_> {
             Record::Process(_) => PROCESS_LEN,
             Record::Image(b) => b.len(),
             Record::Reset { .. } => RESET_LEN,
+            Record::GroupCycle { n, .. } => 4 + CYCLE_LEN * group_n(*n),
+            Record::AxisTemperatures { t, .. } => 4 + 8 + 4 * t.readings().len(),
+            Record::GroupReset { n, .. } => 4 + RESET_LEN * group_n(*n),
+            Record::Crc(_) => 4,
             Record::End => 0,
         }
     }
@@ -199,6 +260,58 @@ impl Record<'_> {
     pub fn encoded_len(&self) -> usize {
         RECORD_HEADER_LEN + self.payload_len()
     }
+}
+
+/// `n` limited to 1..=5 (what an encoder writes for a group record).
+fn group_n(n: u8) -> usize {
+    (n as usize).clamp(1, crate::group::MAX_AXES)
+}
+
+fn put_cycle(w: &mut Put, c: &CycleInput) {
+    w.u32(c.scale_raw);
+    w.i64(c.command_counts);
+    for &f in &c.forces_n {
+        w.f32(f);
+    }
+}
+
+fn put_temperatures(w: &mut Put, t: &Temperatures) {
+    let r = t.readings();
+    w.u32(t.now_ms);
+    w.u8(r.len() as u8);
+    w.bytes(&[0; 3]);
+    for &v in r {
+        w.f32(v);
+    }
+}
+
+fn cycle_at(p: &[u8], at: usize) -> CycleInput {
+    let mut forces_n = [0.0f32; MAX_FORCES];
+    for (k, f) in forces_n.iter_mut().enumerate() {
+        *f = f32_at(p, at + 12 + 4 * k);
+    }
+    CycleInput {
+        scale_raw: u32_at(p, at),
+        command_counts: i64_at(p, at + 4),
+        forces_n,
+    }
+}
+
+/// The `Temperatures` payload `p`, if well formed.
+fn temperatures_of(p: &[u8]) -> Option<Temperatures> {
+    let n = p.get(4).copied().unwrap_or(0) as usize;
+    if n > MAX_SENSORS || p.len() != 8 + 4 * n || rd::<3>(p, 5) != [0; 3] {
+        return None;
+    }
+    let mut values = [f32::NAN; MAX_SENSORS];
+    for (k, v) in values.iter_mut().enumerate().take(n) {
+        *v = f32_at(p, 8 + 4 * k);
+    }
+    Some(Temperatures {
+        now_ms: u32_at(p, 0),
+        n: n as u8,
+        values,
+    })
 }
 
 /// Write the trace header into `out`; returns its length.
@@ -239,20 +352,25 @@ pub fn encode_record(rec: &Record, out: &mut [u8]) -> Result<usize, TraceError> 
     w.u8(rec.tag());
     w.u32(rec.payload_len() as u32);
     match rec {
-        Record::Cycle(c) => {
-            w.u32(c.scale_raw);
-            w.i64(c.command_counts);
-            for &f in &c.forces_n {
-                w.f32(f);
+        Record::Cycle(c) => put_cycle(&mut w, c),
+        Record::Temperatures(t) => put_temperatures(&mut w, t),
+        Record::GroupCycle { n, input } => {
+            w.u8(group_n(*n) as u8);
+            w.bytes(&[0; 3]);
+            for c in input.axes.iter().take(group_n(*n)) {
+                put_cycle(&mut w, c);
             }
         }
-        Record::Temperatures(t) => {
-            let r = t.readings();
-            w.u32(t.now_ms);
-            w.u8(r.len() as u8);
+        Record::AxisTemperatures { slot, t } => {
+            w.u8(*slot);
             w.bytes(&[0; 3]);
-            for &v in r {
-                w.f32(v);
+            put_temperatures(&mut w, t);
+        }
+        Record::GroupReset { n, scale_raw } => {
+            w.u8(group_n(*n) as u8);
+            w.bytes(&[0; 3]);
+            for &r in scale_raw.iter().take(group_n(*n)) {
+                w.u32(r);
             }
         }
         Record::Process(q) => {
@@ -262,6 +380,7 @@ pub fn encode_record(rec: &Record, out: &mut [u8]) -> Result<usize, TraceError> 
         }
         Record::Image(b) => w.bytes(b),
         Record::Reset { scale_raw } => w.u32(*scale_raw),
+        Record::Crc(c) => w.u32(*c),
         Record::End => {}
     }
     Ok(len)
@@ -282,30 +401,46 @@ pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize),
             if p.len() != CYCLE_LEN {
                 return Err(bad);
             }
-            let mut forces_n = [0.0f32; MAX_FORCES];
-            for (k, f) in forces_n.iter_mut().enumerate() {
-                *f = f32_at(p, 12 + 4 * k);
-            }
-            Record::Cycle(CycleInput {
-                scale_raw: u32_at(p, 0),
-                command_counts: i64_at(p, 4),
-                forces_n,
-            })
+            Record::Cycle(cycle_at(p, 0))
         }
-        TAG_TEMPERATURES => {
-            let n = p.get(4).copied().unwrap_or(0) as usize;
-            if n > MAX_SENSORS || p.len() != 8 + 4 * n || rd::<3>(p, 5) != [0; 3] {
+        TAG_TEMPERATURES => Record::Temperatures(temperatures_of(p).ok_or(bad)?),
+        TAG_GROUP_CYCLE | TAG_GROUP_RESET => {
+            let n = p.first().copied().unwrap_or(0) as usize;
+            let each = if tag == TAG_GROUP_CYCLE {
+                CYCLE_LEN
+            } else {
+                RESET_LEN
+            };
+            if !(1..=crate::group::MAX_AXES).contains(&n)
+                || p.len() != 4 + each * n
+                || rd::<3>(p, 1) != [0; 3]
+            {
                 return Err(bad);
             }
-            let mut values = [f32::NAN; MAX_SENSORS];
-            for (k, v) in values.iter_mut().enumerate().take(n) {
-                *v = f32_at(p, 8 + 4 * k);
+            if tag == TAG_GROUP_CYCLE {
+                let mut input = crate::group::GroupInput::ZERO;
+                for (k, c) in input.axes.iter_mut().enumerate().take(n) {
+                    *c = cycle_at(p, 4 + CYCLE_LEN * k);
+                }
+                Record::GroupCycle { n: n as u8, input }
+            } else {
+                let mut scale_raw = [0u32; crate::group::MAX_AXES];
+                for (k, r) in scale_raw.iter_mut().enumerate().take(n) {
+                    *r = u32_at(p, 4 + RESET_LEN * k);
+                }
+                Record::GroupReset {
+                    n: n as u8,
+                    scale_raw,
+                }
             }
-            Record::Temperatures(Temperatures {
-                now_ms: u32_at(p, 0),
-                n: n as u8,
-                values,
-            })
+        }
+        TAG_AXIS_TEMPERATURES => {
+            let slot = p.first().copied().unwrap_or(0);
+            if slot as usize >= crate::group::MAX_AXES || rd::<3>(p, 1) != [0; 3] {
+                return Err(bad);
+            }
+            let t = temperatures_of(p.get(4..).unwrap_or(&[])).ok_or(bad)?;
+            Record::AxisTemperatures { slot, t }
         }
         TAG_PROCESS => {
             if p.len() != PROCESS_LEN {
@@ -331,6 +466,12 @@ pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize),
                 scale_raw: u32_at(p, 0),
             }
         }
+        TAG_CRC => {
+            if p.len() != 4 {
+                return Err(bad);
+            }
+            Record::Crc(u32_at(p, 0))
+        }
         TAG_END => {
             if !p.is_empty() {
                 return Err(bad);
@@ -342,6 +483,60 @@ pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize),
         }
     };
     Ok((rec, total))
+}
+
+/// What [`verify`] found in a sound trace.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TraceCheck {
+    /// Records, `End` included.
+    pub records: u32,
+    /// True if the trace carries a (matching) `Crc` record.
+    pub has_crc: bool,
+    /// True if the trace has group records.
+    pub is_group: bool,
+}
+
+/// Check a whole trace: header, every record well formed, `End` last and nothing after it, and
+/// the `Crc` record (if any) just before `End` and matching. The first problem is the error.
+pub fn verify(bytes: &[u8]) -> Result<TraceCheck, TraceError> {
+    let mut at = check_header(bytes)?;
+    let mut check = TraceCheck {
+        records: 0,
+        has_crc: false,
+        is_group: false,
+    };
+    let mut crc_at = None;
+    loop {
+        let rest = bytes.get(at..).unwrap_or(&[]);
+        if rest.is_empty() {
+            return Err(TraceError::NoEnd);
+        }
+        let (rec, len) = decode_record(rest, at)?;
+        check.records += 1;
+        match rec {
+            Record::End => {
+                if at + len != bytes.len() {
+                    return Err(TraceError::NoEnd);
+                }
+                if let Some((off, value)) = crc_at {
+                    // The Crc record must be the one just before End.
+                    if off + RECORD_HEADER_LEN + 4 != at
+                        || crate::crc32(bytes.get(..off).unwrap_or(&[])) != value
+                    {
+                        return Err(TraceError::BadChecksum);
+                    }
+                    check.has_crc = true;
+                }
+                return Ok(check);
+            }
+            Record::Crc(v) => crc_at = Some((at, v)),
+            Record::GroupCycle { .. }
+            | Record::AxisTemperatures { .. }
+            | Record::GroupReset { .. } => check.is_group = true,
+            _ => {}
+        }
+        at += len;
+    }
 }
 
 /// Encoded length of the record at the start of `bytes`, if its header and payload are complete.
@@ -490,6 +685,18 @@ pub struct OutputRecord {
 }
 
 impl OutputRecord {
+    /// All fields zero.
+    pub const ZERO: OutputRecord = OutputRecord {
+        cycle: 0,
+        position_counts: 0,
+        corrected_command_counts: 0,
+        correction_counts: 0,
+        correction_um_bits: 0,
+        flags: 0,
+        slot: 0,
+        status: 0,
+    };
+
     /// Correction in µm.
     pub fn correction_um(&self) -> f32 {
         f32::from_bits(self.correction_um_bits)

@@ -13,6 +13,7 @@
 mod firmware {
     use core::hint::black_box;
 
+    use axcomp_core::group::{Group, GroupInput, GroupOutput, GroupState};
     use axcomp_core::trace::{OutputRecord, Record};
     use axcomp_core::{
         Compensator, CycleInput, CycleOutput, Engine, Flags, ImageSpec, State, bench,
@@ -31,6 +32,85 @@ mod firmware {
 
     static ENGINE: ConstStaticCell<Engine> = ConstStaticCell::new(Engine::new());
     static IMAGE: ConstStaticCell<[u8; IMAGE_BUF_LEN]> = ConstStaticCell::new([0; IMAGE_BUF_LEN]);
+    static GROUP: ConstStaticCell<Group<{ bench::GROUP_POOL }>> =
+        ConstStaticCell::new(Group::new());
+    static GROUP_STATE: ConstStaticCell<GroupState> = ConstStaticCell::new(GroupState::new());
+
+    type GroupCall =
+        fn(&Group<{ bench::GROUP_POOL }>, &mut GroupState, &GroupInput, &mut GroupOutput);
+
+    /// The measured group call.
+    #[inline(never)]
+    fn group_cycle(
+        g: &Group<{ bench::GROUP_POOL }>,
+        st: &mut GroupState,
+        input: &GroupInput,
+        out: &mut GroupOutput,
+    ) {
+        g.cycle(st, input, out)
+    }
+
+    /// Its stand-in for the overhead calibration.
+    #[inline(never)]
+    fn empty_group_cycle(
+        _g: &Group<{ bench::GROUP_POOL }>,
+        _st: &mut GroupState,
+        _input: &GroupInput,
+        _out: &mut GroupOutput,
+    ) {
+    }
+
+    /// Ticks for `BATCH` group cycles from input `first` on (inputs generated in the same loop
+    /// for the measured and the empty call, so their cost cancels).
+    #[inline(never)]
+    fn group_batch(
+        g: &Group<{ bench::GROUP_POOL }>,
+        st: &mut GroupState,
+        first: u32,
+        call: GroupCall,
+    ) -> u32 {
+        let call = black_box(call);
+        let mut out = GroupOutput::ZERO;
+        let t0 = now();
+        for k in 0..BATCH as u32 {
+            let input = bench::group_input(first + k);
+            call(
+                black_box(g),
+                black_box(&mut *st),
+                black_box(&input),
+                black_box(&mut out),
+            );
+        }
+        ticks_since(t0)
+    }
+
+    /// Mean instructions per group cycle of the first `n` workload axes (with the rotary stage
+    /// if `stage`).
+    fn measure_group(
+        g: &mut Group<{ bench::GROUP_POOL }>,
+        st: &mut GroupState,
+        image: &mut [u8],
+        n: usize,
+        stage: bool,
+        instr_per_tick: f32,
+    ) -> f32 {
+        let (axes, n) = match bench::write_group_images(n, image) {
+            Ok(v) => v,
+            Err(e) => panic!("writing the group images: {}", e),
+        };
+        let stage = stage.then_some(&bench::GROUP_ROTARY_STAGE);
+        if let Err(e) = g.load(&axes[..n], stage) {
+            panic!("loading the group: {}", e);
+        }
+        *st = GroupState::new();
+        let mut full: u64 = 0;
+        let mut empty: u64 = 0;
+        for b in 0..BATCHES {
+            full += u64::from(group_batch(g, st, b * BATCH as u32, group_cycle));
+            empty += u64::from(group_batch(g, st, b * BATCH as u32, empty_group_cycle));
+        }
+        full.saturating_sub(empty) as f32 / (BATCHES as f32 * BATCH as f32) * instr_per_tick
+    }
 
     fn now() -> u32 {
         SYST::get_current()
@@ -97,8 +177,10 @@ mod firmware {
         None
     }
 
-    /// Ticks for one batch of `call` over `inputs`.
-    #[inline(always)]
+    /// Ticks for one batch of `call` over `inputs`. Not inlined: the measured call and the empty
+    /// call run through the very same loop code (only the function pointer differs), so the
+    /// loop's own instructions cancel exactly in the difference.
+    #[inline(never)]
     fn batch(
         comp: &Compensator,
         st: &mut State,
@@ -209,6 +291,14 @@ mod firmware {
         let c =
             full.saturating_sub(empty) as f32 / (BATCHES as f32 * BATCH as f32) * instr_per_tick;
 
+        // (d), (e) axis groups: three linear axes (bidirectional tables, clamps), then the same plus A
+        // and C (tables over the turn) with the rotary location-error stage (8 constants).
+        let group = GROUP.take();
+        let gst = GROUP_STATE.take();
+        let g3 = measure_group(group, gst, image, 3, false, instr_per_tick);
+        let g5 = measure_group(group, gst, image, 5, true, instr_per_tick);
+        let refreshes = gst.angle_refreshes();
+
         hprintln!("calls per workload: {}", BATCHES * BATCH as u32);
         hprintln!(
             "bench qemu_instructions_per_call_table {:.1} instructions",
@@ -221,6 +311,19 @@ mod firmware {
         hprintln!(
             "bench qemu_instructions_per_loop_cycle {:.1} instructions",
             c
+        );
+        hprintln!(
+            "bench qemu_instructions_per_cycle_group3 {:.1} instructions",
+            g3
+        );
+        hprintln!(
+            "bench qemu_instructions_per_cycle_group5 {:.1} instructions",
+            g5
+        );
+        hprintln!(
+            "group5: sin/cos recomputed in {} of {} measured cycles",
+            refreshes,
+            BATCHES * BATCH as u32
         );
         semihosting::exit_success()
     }

@@ -5,10 +5,16 @@
 //! - *table file*: a fitted positioning table (`fit positioning --out`), JSON, physical units.
 //! - *thermal model file*: a fitted thermo-force model (`fit thermal --out`), JSON.
 //! - *counts*: scale counts; `um_per_count` is the scale resolution.
+//! - *group image*: schema 2, one section per axis (each holding that axis's schema-1 image), an
+//!   optional rotary location-error model and sensor names (`axcomp_core::group_image`), built by
+//!   `image group` from images of `image build`.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
+use axcomp_core::group::AxisName;
+use axcomp_core::group_image::{self, AxisSectionSpec};
+use axcomp_core::rotary::RotaryLocationSpec;
 use axcomp_core::{Compensator, ImageSpec, LimitSpec, image_len, inspect_image, write_image};
 use axcomp_positioning::TableFile;
 use axcomp_thermal::model_file::ThermalModelFile;
@@ -29,8 +35,10 @@ pub struct BuildArgs {
     /// Scale resolution, µm per count.
     #[arg(long, value_name = "U")]
     pub um_per_count: f64,
-    /// Width of the hardware position counter (16..=32).
-    #[arg(long, default_value_t = 32)]
+    /// Width of the hardware position counter (16..=32). Default 16: the STM32G474 board's encoder
+    /// timers are 16-bit, and an image for a wider counter would jump by 65 536 counts at each wrap
+    /// there; give 32 for a 32-bit counter (e.g. a scale interface with a 32-bit position).
+    #[arg(long, default_value_t = 16)]
     pub counter_bits: u8,
     /// Clamp of the total correction, µm.
     #[arg(long, default_value_t = 1000.0)]
@@ -228,7 +236,312 @@ pub fn inspect(args: InspectArgs) -> anyhow::Result<()> {
     let bytes = std::fs::read(&args.image)
         .with_context(|| format!("cannot read {}", args.image.display()))?;
     let text =
-        describe(&bytes).with_context(|| format!("{}: invalid image", args.image.display()))?;
+        describe_any(&bytes).with_context(|| format!("{}: invalid image", args.image.display()))?;
     print!("{text}");
     Ok(())
+}
+
+/// `image inspect` for any image: a group image (schema 2) per axis, a schema-1 image as before;
+/// bytes after an image's declared end are an error.
+pub fn describe_any(bytes: &[u8]) -> anyhow::Result<String> {
+    use std::fmt::Write;
+    let view = group_image::parse(bytes)?;
+    if view.version == 1 {
+        return describe(bytes);
+    }
+    let mut s = String::new();
+    writeln!(
+        s,
+        "group image: {} bytes, schema version 2, {} axes, CRC-32 {:08x} (ok, every section's too)",
+        bytes.len(),
+        view.axis_count(),
+        view.crc
+    )?;
+    for a in view.axes() {
+        writeln!(
+            s,
+            "--- axis {} ({}{}) ---",
+            a.axis.name.letter(),
+            if a.axis.name.is_rotary() {
+                format!("rotary, {} counts per revolution", a.axis.counts_per_rev)
+            } else {
+                "linear".to_string()
+            },
+            match a.stroke_counts {
+                Some((lo, hi)) => format!(", stroke {lo} .. {hi} counts"),
+                None => String::new(),
+            }
+        )?;
+        s.push_str(&describe(a.axis.image)?);
+        let n = inspect_image(a.axis.image)?.n_sensors;
+        for i in 0..n {
+            if let Some(name) = a.sensor_name(i) {
+                writeln!(s, "  sensor {i} name: {name}")?;
+            }
+        }
+    }
+    match view.rotary {
+        Some(r) => writeln!(
+            s,
+            "rotary location errors (AC trunnion): EX0C {} µm, EY0C {} µm, EA0C {} µrad, EB0C {} µrad, \
+             EY0A {} µm, EZ0A {} µm, EB0A {} µrad, EC0A {} µrad; pivot {:?} counts, tool length {} µm",
+            r.ex0c_um,
+            r.ey0c_um,
+            r.ea0c_urad,
+            r.eb0c_urad,
+            r.ey0a_um,
+            r.ez0a_um,
+            r.eb0a_urad,
+            r.ec0a_urad,
+            r.pivot_counts,
+            r.tool_length_um
+        )?,
+        None => writeln!(s, "rotary location errors: none")?,
+    }
+    Ok(s)
+}
+
+#[derive(Debug, clap::Args)]
+pub struct GroupArgs {
+    /// One axis, in slot order (1 to 5 times): `NAME=IMAGE` for a linear axis (X, Y, Z),
+    /// `NAME:COUNTS_PER_REV=IMAGE` for a rotary one (A, B, C); IMAGE from `image build`.
+    #[arg(long = "axis", value_name = "NAME[:CPR]=IMAGE", required = true)]
+    pub axes: Vec<String>,
+    /// Sensor names of an axis, one per sensor of its image: `NAME=first,second,...`.
+    #[arg(long = "sensor-names", value_name = "NAME=N1,N2,...")]
+    pub sensor_names: Vec<String>,
+    /// Rotary location-error model of an AC trunnion (JSON with `ex0c_um`, `ey0c_um`, `ea0c_urad`,
+    /// `eb0c_urad`, `ey0a_um`, `ez0a_um`, `eb0a_urad`, `ec0a_urad`, `pivot_counts` [x, y, z],
+    /// `tool_length_um`); the group needs X, Y, Z, A and C.
+    #[arg(long, value_name = "ROTARY.json")]
+    pub rotary: Option<PathBuf>,
+    /// Output group image file.
+    #[arg(long, value_name = "IMAGE")]
+    pub out: PathBuf,
+}
+
+fn parse_axis_arg(arg: &str) -> anyhow::Result<(AxisName, u32, PathBuf)> {
+    let (head, path) = arg
+        .split_once('=')
+        .with_context(|| format!("--axis {arg}: expected NAME[:CPR]=IMAGE"))?;
+    let (name, cpr) = match head.split_once(':') {
+        Some((n, c)) => (
+            n,
+            c.parse::<u32>()
+                .with_context(|| format!("--axis {arg}: counts per revolution `{c}`"))?,
+        ),
+        None => (head, 0),
+    };
+    let mut chars = name.chars();
+    let letter = match (chars.next(), chars.next()) {
+        (Some(c), None) => AxisName::from_letter(c),
+        _ => None,
+    }
+    .with_context(|| format!("--axis {arg}: axis name must be one of X, Y, Z, A, B, C"))?;
+    if letter.is_rotary() && cpr == 0 {
+        anyhow::bail!("--axis {arg}: a rotary axis needs NAME:COUNTS_PER_REV=IMAGE");
+    }
+    if !letter.is_rotary() && cpr != 0 {
+        anyhow::bail!("--axis {arg}: a linear axis has no counts per revolution");
+    }
+    Ok((letter, cpr, PathBuf::from(path)))
+}
+
+fn rotary_from_json(path: &std::path::Path) -> anyhow::Result<RotaryLocationSpec> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("--rotary {}: cannot read", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("--rotary {}: not JSON", path.display()))?;
+    let f = |k: &str| -> anyhow::Result<f32> {
+        v.get(k)
+            .and_then(|x| x.as_f64())
+            .map(|x| x as f32)
+            .with_context(|| format!("--rotary {}: missing number `{k}`", path.display()))
+    };
+    let pivot = v
+        .get("pivot_counts")
+        .and_then(|p| p.as_array())
+        .filter(|a| a.len() == 3)
+        .and_then(|a| {
+            let mut out = [0i64; 3];
+            for (o, x) in out.iter_mut().zip(a) {
+                *o = x.as_i64()?;
+            }
+            Some(out)
+        })
+        .with_context(|| {
+            format!(
+                "--rotary {}: `pivot_counts` must be three integers",
+                path.display()
+            )
+        })?;
+    Ok(RotaryLocationSpec {
+        ex0c_um: f("ex0c_um")?,
+        ey0c_um: f("ey0c_um")?,
+        ea0c_urad: f("ea0c_urad")?,
+        eb0c_urad: f("eb0c_urad")?,
+        ey0a_um: f("ey0a_um")?,
+        ez0a_um: f("ez0a_um")?,
+        eb0a_urad: f("eb0a_urad")?,
+        ec0a_urad: f("ec0a_urad")?,
+        pivot_counts: pivot,
+        tool_length_um: f("tool_length_um")?,
+    })
+}
+
+/// The group image bytes from the arguments (validated; nothing is written here).
+pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
+    let mut axes = Vec::new();
+    for a in &args.axes {
+        let (name, cpr, path) = parse_axis_arg(a)?;
+        let bytes = std::fs::read(&path)
+            .with_context(|| format!("--axis {a}: cannot read {}", path.display()))?;
+        axes.push((name, cpr, bytes));
+    }
+    let mut names: Vec<(AxisName, Vec<String>)> = Vec::new();
+    for arg in &args.sensor_names {
+        let (n, list) = arg
+            .split_once('=')
+            .with_context(|| format!("--sensor-names {arg}: expected NAME=N1,N2,..."))?;
+        let name = n
+            .chars()
+            .next()
+            .and_then(AxisName::from_letter)
+            .filter(|_| n.len() == 1)
+            .with_context(|| format!("--sensor-names {arg}: unknown axis `{n}`"))?;
+        names.push((name, list.split(',').map(str::to_string).collect()));
+    }
+    let rotary = args.rotary.as_deref().map(rotary_from_json).transpose()?;
+    let name_refs: Vec<Vec<&str>> = axes
+        .iter()
+        .map(|(name, _, _)| {
+            names
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, l)| l.iter().map(String::as_str).collect())
+                .unwrap_or_default()
+        })
+        .collect();
+    for (n, _) in &names {
+        anyhow::ensure!(
+            axes.iter().any(|(a, _, _)| a == n),
+            "--sensor-names: axis {} is not one of the --axis",
+            n.letter()
+        );
+    }
+    let specs: Vec<AxisSectionSpec> = axes
+        .iter()
+        .zip(&name_refs)
+        .map(|((name, cpr, bytes), names)| AxisSectionSpec {
+            name: *name,
+            counts_per_rev: *cpr,
+            stroke_counts: None,
+            image: bytes,
+            sensor_names: names,
+        })
+        .collect();
+    let mut buf = vec![0u8; group_image::group_image_len(&specs, rotary.as_ref())];
+    let n = group_image::write_group_image(&specs, rotary.as_ref(), &mut buf)
+        .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
+    buf.truncate(n);
+    Ok(buf)
+}
+
+pub fn group(args: GroupArgs) -> anyhow::Result<()> {
+    let bytes = group_bytes(&args)?;
+    write_atomic(&args.out, &bytes)?;
+    let view = group_image::parse(&bytes)?;
+    println!(
+        "wrote {} ({} bytes, group of {} axes: {}, rotary model: {}, CRC-32 {:08x})",
+        args.out.display(),
+        bytes.len(),
+        view.axis_count(),
+        view.axes()
+            .map(|a| a.axis.name.letter().to_string())
+            .collect::<Vec<_>>()
+            .join(""),
+        if view.rotary.is_some() { "yes" } else { "no" },
+        view.crc
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `image group` from per-axis images, then `inspect`: the view lists every axis, the sensor
+    /// names and the rotary model; bad axis specs are clear errors.
+    #[test]
+    fn group_image_build_and_inspect() {
+        let dir = std::env::temp_dir().join(format!("axcomp-image-group-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let g = axcomp_firmware::scenario::group_image(5, false).unwrap();
+        let view = group_image::parse(&g).unwrap();
+        let mut axis_args = Vec::new();
+        for a in view.axes() {
+            let p = dir.join(format!("{}.bin", a.axis.name.letter()));
+            std::fs::write(&p, a.axis.image).unwrap();
+            axis_args.push(if a.axis.name.is_rotary() {
+                format!(
+                    "{}:{}={}",
+                    a.axis.name.letter(),
+                    a.axis.counts_per_rev,
+                    p.display()
+                )
+            } else {
+                format!("{}={}", a.axis.name.letter(), p.display())
+            });
+        }
+        let rot = dir.join("rotary.json");
+        std::fs::write(
+            &rot,
+            r#"{"ex0c_um": 12, "ey0c_um": -7, "ea0c_urad": 25, "eb0c_urad": -15, "ey0a_um": 9,
+                "ez0a_um": -20, "eb0a_urad": 18, "ec0a_urad": -10,
+                "pivot_counts": [500000, 500000, 500000], "tool_length_um": 100000}"#,
+        )
+        .unwrap();
+        let args = GroupArgs {
+            axes: axis_args.clone(),
+            sensor_names: vec!["X=spindle,column".into()],
+            rotary: Some(rot.clone()),
+            out: dir.join("g.bin"),
+        };
+        // The same group the scenario builds, byte for byte.
+        assert_eq!(group_bytes(&args).unwrap(), g);
+        group(args).unwrap();
+        let text = describe_any(&std::fs::read(dir.join("g.bin")).unwrap()).unwrap();
+        assert!(
+            text.contains("5 axes")
+                && text.contains("--- axis C (rotary, 3600000 counts per revolution) ---"),
+            "{text}"
+        );
+        assert!(
+            text.contains("sensor 1 name: column") && text.contains("EB0A 18 µrad"),
+            "{text}"
+        );
+        // Errors name what is wrong.
+        for (bad, want) in [
+            ("Q=x.bin", "axis name must be one of"),
+            ("A=x.bin", "rotary axis needs"),
+            ("X:100=x.bin", "linear axis has no counts"),
+            ("X", "expected NAME[:CPR]=IMAGE"),
+        ] {
+            let e = group_bytes(&GroupArgs {
+                axes: vec![bad.into()],
+                sensor_names: vec![],
+                rotary: None,
+                out: dir.join("never.bin"),
+            })
+            .unwrap_err();
+            assert!(format!("{e:#}").contains(want), "{bad}: {e:#}");
+        }
+        // Trailing bytes after a schema-1 image are refused by inspect.
+        let mut long = std::fs::read(dir.join("X.bin")).unwrap();
+        long.extend_from_slice(&[0; 100]);
+        let e = describe_any(&long).unwrap_err();
+        assert!(format!("{e:#}").contains("bytes follow the end"), "{e:#}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -26,6 +26,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(FitCommand::Probe(a)) => fit_probe::run(a),
         Command::Image(ImageCommand::Build(a)) => image::build(a),
         Command::Image(ImageCommand::Inspect(a)) => image::inspect(a),
+        Command::Image(ImageCommand::Group(a)) => image::group(a),
         Command::Replay(a) => replay::run(a),
         Command::Trace(a) => trace::run(a),
         Command::Export(a) => export::run(a),

@@ -5,7 +5,8 @@
 //! - *trace*: the `axcomp_core::trace` format (header `AXTR`, tagged little-endian records).
 //! - *scenario*: a named deterministic generator; `equivalence` is the one the QEMU equivalence test replays
 //!   (reversals, counter wrap, temperature ramps, stale sensor, force steps, corrupt and replacement images),
-//!   `reference` the core's benchmark workload. Both run at 10 kHz with temperatures every 100 ms.
+//!   `reference` the core's benchmark workload, `group3`/`group5` axis groups (group records, a group image).
+//!   All run at 10 kHz with temperatures every 100 ms; every trace ends with a CRC-32 record.
 //!
 //! The trace is written to a temporary file next to `--out` and renamed, so a failed run leaves nothing.
 
@@ -23,7 +24,8 @@ pub struct Args {
     /// Write the trace here.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
-    /// Scenario: `equivalence` (every firmware path) or `reference` (the benchmark workload).
+    /// Scenario: `equivalence` (every firmware path), `reference` (the benchmark workload), `group3` or
+    /// `group5` (axis groups: three linear axes, or also rotary A and C with the rotary stage).
     #[arg(long, value_name = "NAME", default_value = "equivalence")]
     pub scenario: String,
     /// Number of cycle records (10 kHz).
@@ -93,7 +95,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let rec = r.context("generated trace record")?;
         records += 1;
         match rec {
-            Record::Cycle(_) => cycles += 1,
+            Record::Cycle(_) | Record::GroupCycle { .. } => cycles += 1,
             Record::Image(_) => images += 1,
             _ => {}
         }

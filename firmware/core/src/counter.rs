@@ -1,0 +1,108 @@
+//! Counter extension and approach direction: the scale's wrapping hardware counter becomes an
+//! extended i64 position, and a hysteresis decides which table direction applies.
+//!
+//! # Glossary
+//! - **counter width**: `counter_bits` (16..=32) of the hardware counter; it wraps at 2^bits.
+//! - **extension**: the extended position adds the sign-extended counter delta each cycle, so any
+//!   sequence of steps below half the counter range is followed exactly.
+//! - **turn position** (rotary axes of a group): the extended position modulo the counts per
+//!   revolution, in `[0, counts_per_rev)`, followed incrementally (one add and one compare per
+//!   cycle; the full modulo only on the first cycle or a step of a whole turn or more).
+//! - **reversal / hysteresis**: the direction flips only after moving more than
+//!   `direction_hysteresis_counts` against it (state: distance moved back since the extreme).
+
+/// Approach direction of the axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Direction {
+    /// Increasing scale position (also the initial direction).
+    #[default]
+    Forward,
+    /// Decreasing scale position.
+    Backward,
+}
+
+use crate::compensator::{AxisCompensator, State, TableStore};
+use crate::limits::cold_path;
+
+impl<S: TableStore> AxisCompensator<S> {
+    /// Counter extension (wrap-safe, sign-extended delta) and the direction hysteresis; returns
+    /// the extended position (also stored in `st`).
+    #[inline(always)]
+    pub(crate) fn track(&self, st: &mut State, raw: u32) -> i64 {
+        let shift = self.sext_shift;
+        if !st.primed {
+            cold_path();
+            let base = if st.raw_pending { st.last_raw } else { raw };
+            st.position = ((base.wrapping_shl(shift) as i32) >> shift) as i64;
+            st.last_raw = base;
+            st.back_counts = 0;
+            st.primed = true;
+            st.raw_pending = false;
+        }
+        let delta = ((raw.wrapping_sub(st.last_raw)).wrapping_shl(shift) as i32) >> shift;
+        st.last_raw = raw;
+        let pos = st.position.wrapping_add(delta as i64);
+        st.position = pos;
+
+        // back = distance moved against the current direction since its extreme
+        // (= extreme − position going forward), ≥ 0, saturating; hysteresis ≤ i32::MAX (validated).
+        // (A delta of exactly −2^31, a half turn of a 32-bit counter, is ambiguous anyway; its
+        // wrapping negation keeps it "forward".)
+        let against = if st.backward {
+            delta
+        } else {
+            delta.wrapping_neg()
+        };
+        let back = st.back_counts.saturating_add(against);
+        if back > self.hysteresis_counts as i32 {
+            st.backward = !st.backward;
+            st.back_counts = 0;
+        } else {
+            st.back_counts = if back < 0 { 0 } else { back };
+        }
+        pos
+    }
+}
+
+impl<S: TableStore> AxisCompensator<S> {
+    /// The position within the turn of a rotary axis (`counts_per_rev` > 0) at extended
+    /// position `pos`; kept in `st`.
+    #[inline(always)]
+    pub(crate) fn turn_position(&self, st: &mut State, pos: i64) -> u32 {
+        let cpr = self.counts_per_rev;
+        st.pos_in_turn = if st.turn_primed {
+            step_in_turn(st.pos_in_turn, pos.wrapping_sub(st.turn_last_pos), cpr, pos)
+        } else {
+            cold_path();
+            st.turn_primed = true;
+            wrap(pos, cpr)
+        };
+        st.turn_last_pos = pos;
+        st.pos_in_turn
+    }
+}
+
+/// `in_turn + delta` modulo `cpr` (> 0), for `in_turn < cpr` and `absolute` ≡ in_turn + delta:
+/// one add and one compare when the step is below a turn, the full (slow) modulo otherwise.
+#[inline(always)]
+pub(crate) fn step_in_turn(in_turn: u32, delta: i64, cpr: u32, absolute: i64) -> u32 {
+    let c = cpr as i64;
+    if delta > -c && delta < c {
+        let v = in_turn as i64 + delta;
+        if v < 0 {
+            (v + c) as u32
+        } else if v >= c {
+            (v - c) as u32
+        } else {
+            v as u32
+        }
+    } else {
+        cold_path();
+        wrap(absolute, cpr)
+    }
+}
+
+/// `x` modulo `cpr` in `[0, cpr)` (0 for `cpr` = 0).
+pub(crate) fn wrap(x: i64, cpr: u32) -> u32 {
+    x.rem_euclid((cpr as i64).max(1)) as u32
+}

@@ -1,0 +1,925 @@
+//! An axis group: 1–5 axes corrected together, each with today's single-axis pipeline, plus a
+//! cross-axis stage that corrects the linear axes from the whole group's commanded positions.
+//!
+//! # Glossary
+//! - **group**: up to [`MAX_AXES`] axes, each named once: linear X, Y, Z (µm per count, as a
+//!   single axis) and rotary A, B, C (counts per revolution; their "µm" are arc-seconds, i.e.
+//!   `um_per_count` = 1 296 000 / counts per revolution by convention of the host tools).
+//! - **slot**: an axis's index in the group (the order of [`Group::load`]'s list).
+//! - **turn position**: a rotary axis's position modulo its counts per revolution, in
+//!   `[0, counts_per_rev)`; kept incrementally (one add and one compare per cycle), the full
+//!   modulo only when an axis moves a whole turn or more in one cycle.
+//! - **pool**: the coefficient storage shared by the group's tables (`POOL` segments); an axis's
+//!   forward and backward halves are two ranges of it.
+//! - **cross-axis stage**: a deviation vector for X, Y, Z computed from all axes' commanded
+//!   positions, added to those axes' errors before their limits (today: [`crate::rotary`]).
+//!
+//! # Order of the stages in one group cycle
+//! 1. per axis, in slot order: counter extension → direction (hysteresis) → segment index of the
+//!    table grid (once per axis and cycle: the table position is the extended position, or the
+//!    turn position for a rotary axis; every error function of that axis uses this index) →
+//!    table value → thermo-force term;
+//! 2. the cross-axis stage (if the image has one): commanded angles of A and C within the turn,
+//!    sin/cos and the angle terms recomputed only when one of them changed, the tool tip from the
+//!    commanded X, Y, Z, the deviation added to X, Y, Z;
+//! 3. per axis: clamp → slew → rounding to counts → corrected command.
+//!
+//! A single-axis group with no stage therefore computes exactly what [`crate::Compensator::cycle`]
+//! computes (the same functions; tested bit for bit).
+
+use crate::MAX_FORCES;
+use crate::compensator::{AxisCompensator, CycleInput, CycleOutput, Flags, State, TableStore};
+use crate::counter::{step_in_turn, wrap};
+use crate::error::{Field, ImageError};
+use crate::image::{self, Layout};
+use crate::limits::cold_path;
+use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryStage};
+use crate::thermo::ProcessParams;
+use crate::trace::{
+    OutputRecord, Record, STATUS_IMAGE_ACCEPTED, STATUS_IMAGE_REJECTED, STATUS_NO_IMAGE,
+};
+
+/// Axes in a group.
+pub const MAX_AXES: usize = 5;
+
+/// Name (and kind) of a group axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+#[repr(u8)]
+pub enum AxisName {
+    /// Linear X.
+    #[default]
+    X = 0,
+    /// Linear Y.
+    Y = 1,
+    /// Linear Z.
+    Z = 2,
+    /// Rotary A (about X).
+    A = 3,
+    /// Rotary B (about Y).
+    B = 4,
+    /// Rotary C (about Z).
+    C = 5,
+}
+
+impl AxisName {
+    /// Every name, in code order.
+    pub const ALL: [AxisName; 6] = [
+        AxisName::X,
+        AxisName::Y,
+        AxisName::Z,
+        AxisName::A,
+        AxisName::B,
+        AxisName::C,
+    ];
+    /// From its code (0..=5).
+    pub const fn from_code(code: u8) -> Option<AxisName> {
+        match code {
+            0 => Some(AxisName::X),
+            1 => Some(AxisName::Y),
+            2 => Some(AxisName::Z),
+            3 => Some(AxisName::A),
+            4 => Some(AxisName::B),
+            5 => Some(AxisName::C),
+            _ => None,
+        }
+    }
+    /// Its code.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+    /// `'X'` … `'C'`.
+    pub const fn letter(self) -> char {
+        match self {
+            AxisName::X => 'X',
+            AxisName::Y => 'Y',
+            AxisName::Z => 'Z',
+            AxisName::A => 'A',
+            AxisName::B => 'B',
+            AxisName::C => 'C',
+        }
+    }
+    /// From `'X'` … `'C'` (either case).
+    pub const fn from_letter(c: char) -> Option<AxisName> {
+        match c {
+            'X' | 'x' => Some(AxisName::X),
+            'Y' | 'y' => Some(AxisName::Y),
+            'Z' | 'z' => Some(AxisName::Z),
+            'A' | 'a' => Some(AxisName::A),
+            'B' | 'b' => Some(AxisName::B),
+            'C' | 'c' => Some(AxisName::C),
+            _ => None,
+        }
+    }
+    /// True for A, B, C.
+    pub const fn is_rotary(self) -> bool {
+        matches!(self, AxisName::A | AxisName::B | AxisName::C)
+    }
+}
+
+/// One axis of a group as loaded: its name, its counts per revolution (rotary axes only, 0 for
+/// a linear one) and its single-axis image (schema 1: table, thermo-force term, limits).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupAxisImage<'a> {
+    /// Which axis.
+    pub name: AxisName,
+    /// Rotary: counts per revolution (2..=2^31); linear: 0.
+    pub counts_per_rev: u32,
+    /// The axis's image bytes.
+    pub image: &'a [u8],
+}
+
+/// A group axis's table in the group's pool: the first segment of each direction half.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PoolTable {
+    base: [u32; 2],
+}
+
+const ZERO_SEGMENT: [f32; 4] = [0.0; 4];
+
+impl TableStore for PoolTable {
+    const TURNS: bool = true;
+    #[inline(always)]
+    fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4] {
+        // In range for a loaded group (checked at load). The remainder is a no-op for valid
+        // indices; with the pool's length known at the call (a power of two), it is a mask and
+        // the bounds check folds away. The fallbacks keep the path panic-free.
+        let i = self.base[dir & 1] as usize + seg as usize;
+        i.checked_rem(pool.len())
+            .and_then(|j| pool.get(j))
+            .unwrap_or(&ZERO_SEGMENT)
+    }
+}
+
+/// Inputs of one group cycle, by slot (entries beyond the group's axes are ignored).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupInput {
+    /// Per slot.
+    pub axes: [CycleInput; MAX_AXES],
+}
+
+impl GroupInput {
+    /// Every axis at counter 0, command 0, no forces.
+    pub const ZERO: GroupInput = GroupInput {
+        axes: [CycleInput {
+            scale_raw: 0,
+            command_counts: 0,
+            forces_n: [0.0; MAX_FORCES],
+        }; MAX_AXES],
+    };
+}
+
+/// Outputs of one group cycle, by slot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupOutput {
+    /// Per slot (entries beyond the group's axes are identity outputs).
+    pub axes: [CycleOutput; MAX_AXES],
+}
+
+impl GroupOutput {
+    /// All zero.
+    pub const ZERO: GroupOutput = GroupOutput {
+        axes: [CycleOutput {
+            position_counts: 0,
+            corrected_command_counts: 0,
+            correction_counts: 0,
+            correction_um: 0.0,
+            flags: Flags::NONE,
+        }; MAX_AXES],
+    };
+}
+
+/// The commanded position within the turn of a rotary axis used by the cross-axis stage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Turn {
+    cmd_primed: bool,
+    last_cmd: i64,
+    cmd_in_turn: u32,
+}
+
+impl Turn {
+    const NEW: Turn = Turn {
+        cmd_primed: false,
+        last_cmd: 0,
+        cmd_in_turn: 0,
+    };
+}
+
+/// Everything that changes while a group runs: each axis's [`State`], the rotary axes' turn
+/// positions and the cross-axis stage's angle cache.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroupState {
+    /// Per slot.
+    pub axes: [State; MAX_AXES],
+    pub(crate) turns: [Turn; MAX_AXES],
+    pub(crate) rotary: RotaryCache,
+    /// Times the stage's angle terms were recomputed (sin/cos calls / 2).
+    pub(crate) angle_refreshes: u32,
+}
+
+impl Default for GroupState {
+    fn default() -> Self {
+        GroupState::new()
+    }
+}
+
+impl GroupState {
+    /// Fresh state for every axis.
+    pub const fn new() -> GroupState {
+        GroupState {
+            axes: [const { State::new() }; MAX_AXES],
+            turns: [Turn::NEW; MAX_AXES],
+            rotary: RotaryCache::NEW,
+            angle_refreshes: 0,
+        }
+    }
+    /// Reset every axis ([`State::reset`]) with its counter value at reset; turn positions and the
+    /// angle cache restart.
+    pub fn reset(&mut self, scale_raw: &[u32; MAX_AXES]) {
+        for (s, &r) in self.axes.iter_mut().zip(scale_raw.iter()) {
+            s.reset(r);
+        }
+        self.turns = [Turn::NEW; MAX_AXES];
+        self.rotary = RotaryCache::NEW;
+    }
+    /// A new group image became active ([`State::on_new_image`] for every axis, angle cache
+    /// dropped).
+    pub fn on_new_image(&mut self) {
+        for s in self.axes.iter_mut() {
+            s.on_new_image();
+        }
+        self.rotary = RotaryCache::NEW;
+    }
+    /// Position within the turn of rotary slot `i` (None before its first cycle or for a
+    /// linear slot).
+    pub fn turn_position(&self, i: usize) -> Option<u32> {
+        self.axes
+            .get(i)
+            .and_then(|s| s.turn_primed.then_some(s.pos_in_turn))
+    }
+    /// How often the stage recomputed sin/cos (once per change of a commanded angle).
+    pub fn angle_refreshes(&self) -> u32 {
+        self.angle_refreshes
+    }
+}
+
+/// One validated group (one A/B slot of a [`GroupEngine`]): up to five axis pipelines, the
+/// cross-axis stage and the coefficient pool of `POOL` segments. All zero bytes when new.
+#[derive(Debug, Clone)]
+pub struct Group<const POOL: usize> {
+    loaded: bool,
+    n_axes: u8,
+    names: [AxisName; MAX_AXES],
+    counts_per_rev: [u32; MAX_AXES],
+    /// Per slot: bit 0 rotary, bit 1 has a thermo-force term (the cycle's dispatch).
+    kinds: [u8; MAX_AXES],
+    has_stage: bool,
+    stage: RotaryStage,
+    axes: [AxisCompensator<PoolTable>; MAX_AXES],
+    pool: [[f32; 4]; POOL],
+}
+
+impl<const POOL: usize> Default for Group<POOL> {
+    fn default() -> Self {
+        Group::new()
+    }
+}
+
+impl<const POOL: usize> Group<POOL> {
+    /// Identity for every slot.
+    pub const fn new() -> Group<POOL> {
+        Group {
+            loaded: false,
+            n_axes: 0,
+            names: [AxisName::X; MAX_AXES],
+            counts_per_rev: [0; MAX_AXES],
+            kinds: [0; MAX_AXES],
+            has_stage: false,
+            stage: RotaryStage::ZERO,
+            axes: [const { AxisCompensator::identity_with(PoolTable { base: [0; 2] }) }; MAX_AXES],
+            pool: [[0.0; 4]; POOL],
+        }
+    }
+
+    /// Back to the identity (in place).
+    pub fn clear(&mut self) {
+        self.loaded = false;
+        self.n_axes = 0;
+        self.has_stage = false;
+        for a in self.axes.iter_mut() {
+            a.clear();
+        }
+    }
+
+    /// Validate every axis image, the axis set and the stage, then copy them in. On `Err`
+    /// `self` is untouched.
+    ///
+    /// Checks beyond each image's own: 1..=5 axes, each name once; a rotary axis has
+    /// 2..=2^31 counts per revolution and a table grid starting at 0 and spanning exactly one
+    /// turn; a linear axis has 0 counts per revolution; the tables fit the pool; the stage needs
+    /// X, Y, Z linear and A, C rotary in the group and in-range constants.
+    pub fn load(
+        &mut self,
+        axes: &[GroupAxisImage],
+        stage: Option<&RotaryLocationSpec>,
+    ) -> Result<(), GroupError> {
+        let layouts = validate_group::<POOL>(axes, stage)?;
+        self.clear();
+        let mut next = 0u32;
+        for (i, (a, l)) in axes.iter().zip(layouts.iter()).enumerate() {
+            let Some(l) = l else { continue };
+            let dst = &mut self.axes[i];
+            image::copy_params_into(l, a.image, dst);
+            let n = l.n_segments as u32;
+            let halves = if l.bidirectional { 2 } else { 1 };
+            for d in 0..halves {
+                for s in 0..l.n_segments {
+                    if let Some(seg) = self.pool.get_mut((next + d * n) as usize + s) {
+                        *seg = image::table_segment(l, a.image, d as usize, s);
+                    }
+                }
+            }
+            dst.table = PoolTable {
+                base: [next, next + (halves - 1) * n],
+            };
+            next += halves * n;
+            dst.counts_per_rev = a.counts_per_rev;
+            self.kinds[i] = (a.counts_per_rev != 0) as u8 | (dst.has_thermo as u8) << 1;
+            self.names[i] = a.name;
+            self.counts_per_rev[i] = a.counts_per_rev;
+        }
+        self.n_axes = axes.len() as u8;
+        if let Some(spec) = stage {
+            let slot = |name: AxisName| {
+                axes.iter()
+                    .position(|a| a.name == name)
+                    .map_or(0, |p| p as u8)
+            };
+            let slots = [
+                slot(AxisName::X),
+                slot(AxisName::Y),
+                slot(AxisName::Z),
+                slot(AxisName::A),
+                slot(AxisName::C),
+            ];
+            let upc = |k: usize| self.axes[slots[k] as usize].um_per_count;
+            let cpr = |k: usize| self.counts_per_rev[slots[k] as usize];
+            self.stage = RotaryStage::new(spec, [upc(0), upc(1), upc(2)], [cpr(3), cpr(4)], slots);
+            self.has_stage = true;
+        }
+        self.loaded = true;
+        Ok(())
+    }
+
+    /// Parse a group image (schema 2, or a schema-1 single-axis image as axis X) with
+    /// [`crate::group_image::parse`] and load it. On `Err` `self` is untouched.
+    pub fn load_image(&mut self, image: &[u8]) -> Result<(), GroupError> {
+        let view = crate::group_image::parse(image)?;
+        let (axes, n) = view.axis_images();
+        self.load(&axes[..n], view.rotary.as_ref())
+    }
+
+    /// True once a group image is loaded.
+    pub fn is_loaded(&self) -> bool {
+        self.loaded
+    }
+    /// Number of axes (0 for the identity).
+    pub fn axis_count(&self) -> usize {
+        self.n_axes as usize
+    }
+    /// Name of slot `i`.
+    pub fn axis_name(&self, i: usize) -> Option<AxisName> {
+        (i < self.n_axes as usize).then(|| self.names[i])
+    }
+    /// Slot of axis `name`.
+    pub fn slot_of(&self, name: AxisName) -> Option<usize> {
+        self.names[..(self.n_axes as usize).min(MAX_AXES)]
+            .iter()
+            .position(|&n| n == name)
+    }
+    /// Counts per revolution of slot `i` (0 for a linear axis).
+    pub fn counts_per_rev(&self, i: usize) -> u32 {
+        self.counts_per_rev.get(i).copied().unwrap_or(0)
+    }
+    /// True if the rotary location-error stage is loaded.
+    pub fn has_rotary_stage(&self) -> bool {
+        self.has_stage
+    }
+    /// The pipeline of slot `i` (its table lives in the pool: use [`Group::table_um`]).
+    pub fn axis(&self, i: usize) -> Option<&AxisCompensator<PoolTable>> {
+        self.axes.get(i)
+    }
+    /// Table value of slot `i` at `position_counts` (the turn position for a rotary axis).
+    pub fn table_um(
+        &self,
+        i: usize,
+        direction: crate::Direction,
+        position_counts: i64,
+    ) -> (f32, bool) {
+        self.axes.get(i).map_or((0.0, false), |a| {
+            a.table_um_in(&self.pool, direction, position_counts)
+        })
+    }
+    /// Sensor-rate update of slot `i` ([`AxisCompensator::update_temperatures`]).
+    pub fn update_temperatures(
+        &self,
+        st: &mut GroupState,
+        i: usize,
+        now_ms: u32,
+        readings: &[f32],
+    ) {
+        if let (Some(a), Some(s)) = (self.axes.get(i), st.axes.get_mut(i)) {
+            a.update_temperatures(s, now_ms, readings);
+        }
+    }
+    /// Process parameters for every axis ([`AxisCompensator::set_process`]).
+    pub fn set_process(&self, st: &mut GroupState, p: &ProcessParams) {
+        for (a, s) in self.axes.iter().zip(st.axes.iter_mut()) {
+            a.set_process(s, p);
+        }
+    }
+
+    /// One group cycle (see the module's order of stages). Writes the group's slots of `out`
+    /// (every slot, as identity outputs, while no group is loaded); slots beyond the group's
+    /// axes are left as they are.
+    pub fn cycle(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        // One test for the common case (loaded, no stage): `n_axes` is 0 without a group.
+        if self.has_stage || self.n_axes == 0 {
+            if !self.loaded {
+                self.identity_cycle(st, input, out);
+            } else {
+                self.cycle_with_stage(st, input, out);
+            }
+            return;
+        }
+        // No cross-axis stage: each axis's whole pipeline in one call.
+        let n = (self.n_axes as usize).min(MAX_AXES);
+        for i in 0..n {
+            let (ax, s, inp, o) = (
+                &self.axes[i],
+                &mut st.axes[i],
+                &input.axes[i],
+                &mut out.axes[i],
+            );
+            // Direct calls (no function pointer to materialise): a linear axis without a
+            // thermo-force term (the common case) gets a pipeline with both checks compiled out.
+            if self.kinds[i] == 0 {
+                axis_cycle::<POOL, false, false>(ax, &self.pool, s, inp, o);
+            } else {
+                axis_cycle::<POOL, true, true>(ax, &self.pool, s, inp, o);
+            }
+        }
+    }
+
+    /// [`Group::cycle`] without a group: every slot is an identity axis.
+    #[cold]
+    #[inline(never)]
+    fn identity_cycle(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        for i in 0..MAX_AXES {
+            out.axes[i] = self.axes[i].cycle_in(&self.pool, &mut st.axes[i], &input.axes[i]);
+        }
+    }
+
+    /// [`Group::cycle`] of a group with the cross-axis stage.
+    #[inline(never)]
+    fn cycle_with_stage(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        let n = (self.n_axes as usize).min(MAX_AXES);
+        // Stage 1 per axis; the output record holds the axis's error until stage 3.
+        for i in 0..n {
+            let call = if self.counts_per_rev[i] == 0 {
+                axis_error::<POOL, false>
+            } else {
+                axis_error::<POOL, true>
+            };
+            call(
+                &self.axes[i],
+                &self.pool,
+                &mut st.axes[i],
+                &input.axes[i],
+                &mut out.axes[i],
+            );
+        }
+        // Stage 2: the cross-axis stage adds its deviation to X, Y, Z.
+        self.rotary_stage(st, input, out);
+        // Stage 3 per axis.
+        for i in 0..n {
+            axis_finish(
+                &self.axes[i],
+                &mut st.axes[i],
+                input.axes[i].command_counts,
+                &mut out.axes[i],
+            );
+        }
+    }
+
+    /// The rotary location-error stage: commanded angles within the turn, cached angle terms,
+    /// deviation added to X, Y, Z.
+    #[inline(always)]
+    fn rotary_stage(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        let g = &self.stage;
+        let mut angle = [0u32; 2];
+        for (k, a) in angle.iter_mut().enumerate() {
+            let i = g.slot[3 + k] as usize % MAX_AXES;
+            let cpr = self.counts_per_rev[i];
+            let cmd = input.axes[i].command_counts;
+            let t = &mut st.turns[i];
+            t.cmd_in_turn = if t.cmd_primed {
+                step_in_turn(t.cmd_in_turn, cmd.wrapping_sub(t.last_cmd), cpr, cmd)
+            } else {
+                cold_path();
+                t.cmd_primed = true;
+                wrap(cmd, cpr)
+            };
+            t.last_cmd = cmd;
+            *a = t.cmd_in_turn;
+        }
+        let c = &mut st.rotary;
+        if !c.valid || c.a_counts != angle[0] || c.c_counts != angle[1] {
+            cold_path();
+            g.refresh(c, angle[0], angle[1]);
+            st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
+        }
+        let cmd = |k: usize| input.axes[g.slot[k] as usize % MAX_AXES].command_counts;
+        let q = g.tool_tip_um([cmd(0), cmd(1), cmd(2)]);
+        let d = RotaryStage::deviation_um(&st.rotary, q);
+        for (slot, dk) in g.slot.iter().zip(d) {
+            out.axes[*slot as usize % MAX_AXES].correction_um += dk;
+        }
+    }
+}
+
+/// One axis's whole pipeline of a loaded group (not inlined: each axis gets the register
+/// allocation of the single-axis call).
+#[inline(never)]
+fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
+    ax: &AxisCompensator<PoolTable>,
+    pool: &[[f32; 4]; POOL],
+    st: &mut State,
+    input: &CycleInput,
+    out: &mut CycleOutput,
+) {
+    let pos = ax.track(st, input.scale_raw);
+    // THERMO false: known to have none; true: checked at run time.
+    let thermo = if THERMO { None } else { Some(false) };
+    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, thermo);
+    *out = ax.finish(st, pos, e, input.command_counts, f);
+}
+
+/// Stage 1 of one axis: extended position, table, thermo-force term; the error and flags are
+/// kept in `out` until [`axis_finish`].
+#[inline(never)]
+fn axis_error<const POOL: usize, const ROTARY: bool>(
+    ax: &AxisCompensator<PoolTable>,
+    pool: &[[f32; 4]; POOL],
+    st: &mut State,
+    input: &CycleInput,
+    out: &mut CycleOutput,
+) {
+    let pos = ax.track(st, input.scale_raw);
+    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, None);
+    out.position_counts = pos;
+    out.correction_um = e;
+    out.flags = f;
+}
+
+/// Stage 3 of one axis: limits, counts and the corrected command from the error in `out`.
+#[inline(never)]
+fn axis_finish(
+    ax: &AxisCompensator<PoolTable>,
+    st: &mut State,
+    command: i64,
+    out: &mut CycleOutput,
+) {
+    *out = ax.finish(
+        st,
+        out.position_counts,
+        out.correction_um,
+        command,
+        out.flags,
+    );
+}
+
+/// Why a group was refused: the error and the axis it concerns (None: the group as a whole or
+/// its stage).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GroupError {
+    /// The axis whose image or settings were refused.
+    pub axis: Option<AxisName>,
+    /// Why.
+    pub error: ImageError,
+}
+
+impl core::fmt::Display for GroupError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self.axis {
+            Some(a) => write!(f, "axis {}: {}", a.letter(), self.error),
+            None => write!(f, "{}", self.error),
+        }
+    }
+}
+
+impl core::error::Error for GroupError {}
+
+impl From<ImageError> for GroupError {
+    fn from(error: ImageError) -> Self {
+        GroupError { axis: None, error }
+    }
+}
+
+/// Every check of [`Group::load`]; the layouts of the axis images by slot.
+pub(crate) fn validate_group<const POOL: usize>(
+    axes: &[GroupAxisImage],
+    stage: Option<&RotaryLocationSpec>,
+) -> Result<[Option<Layout>; MAX_AXES], GroupError> {
+    if axes.is_empty() || axes.len() > MAX_AXES {
+        return Err(ImageError::AxisCount.into());
+    }
+    let mut layouts = [None; MAX_AXES];
+    let mut needed = 0u32;
+    for (i, a) in axes.iter().enumerate() {
+        let at = |error| GroupError {
+            axis: Some(a.name),
+            error,
+        };
+        if axes[..i].iter().any(|b| b.name == a.name) {
+            return Err(at(ImageError::DuplicateAxis {
+                axis: a.name.code(),
+            }));
+        }
+        let l = image::validate(a.image).map_err(at)?;
+        let cpr = a.counts_per_rev;
+        let cpr_ok = if a.name.is_rotary() {
+            (2..=1u32 << 31).contains(&cpr)
+        } else {
+            cpr == 0
+        };
+        if !cpr_ok {
+            return Err(at(ImageError::OutOfRange {
+                field: Field::CountsPerRev,
+                index: i as u16,
+            }));
+        }
+        if a.name.is_rotary() {
+            if let Some((start, seg, n)) = image::table_grid(&l, a.image) {
+                if start != 0 || seg as u64 * n as u64 != cpr as u64 {
+                    return Err(at(ImageError::GridMismatch {
+                        axis: a.name.code(),
+                    }));
+                }
+            }
+        }
+        let halves = if l.bidirectional { 2 } else { 1 };
+        needed = needed.saturating_add(halves * l.n_segments as u32);
+        layouts[i] = Some(l);
+    }
+    if needed as usize > POOL {
+        return Err(ImageError::PoolTooSmall { needed }.into());
+    }
+    if let Some(spec) = stage {
+        spec.validate()?;
+        for name in [
+            AxisName::X,
+            AxisName::Y,
+            AxisName::Z,
+            AxisName::A,
+            AxisName::C,
+        ] {
+            if !axes.iter().any(|a| a.name == name) {
+                return Err(ImageError::AxisNotInGroup { axis: name.code() }.into());
+            }
+        }
+    }
+    Ok(layouts)
+}
+
+/// Counters of a [`GroupEngine`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GroupStats {
+    /// Group cycles run.
+    pub cycles: u32,
+    /// Group images accepted (A/B swaps).
+    pub images_accepted: u32,
+    /// Group images rejected (the running one kept).
+    pub images_rejected: u32,
+    /// Why the last rejected one was rejected (`Option<ImageError>`: `None` is a zero byte, so a
+    /// new engine is all zero bytes and a `static` lands in `.bss`).
+    pub last_error: Option<ImageError>,
+    /// The axis of the last rejection: its code + 1, 0 for none or the group as a whole.
+    pub last_error_axis: u8,
+}
+
+impl GroupStats {
+    /// The last rejection with its axis.
+    pub fn last_group_error(&self) -> Option<GroupError> {
+        self.last_error.map(|error| GroupError {
+            axis: self
+                .last_error_axis
+                .checked_sub(1)
+                .and_then(AxisName::from_code),
+            error,
+        })
+    }
+    fn record(&mut self, e: GroupError) {
+        self.images_rejected = self.images_rejected.wrapping_add(1);
+        self.last_error = Some(e.error);
+        self.last_error_axis = e.axis.map_or(0, |a| a.code() + 1);
+    }
+}
+
+/// Two [`Group`] slots (A/B) and the group state: a new group is loaded into the spare slot and
+/// becomes active for every axis at once, or not at all (never X new and Y old). All zero bytes
+/// when new, so a `static` lands in `.bss`.
+#[derive(Debug, Clone)]
+pub struct GroupEngine<const POOL: usize> {
+    slots: [Group<POOL>; 2],
+    active: u8,
+    state: GroupState,
+    stats: GroupStats,
+    process: Option<ProcessParams>,
+    pending_status: u8,
+}
+
+impl<const POOL: usize> Default for GroupEngine<POOL> {
+    fn default() -> Self {
+        GroupEngine::new()
+    }
+}
+
+impl<const POOL: usize> GroupEngine<POOL> {
+    /// Identity in both slots, fresh state.
+    pub const fn new() -> GroupEngine<POOL> {
+        GroupEngine {
+            slots: [Group::new(), Group::new()],
+            active: 0,
+            state: GroupState::new(),
+            stats: GroupStats {
+                cycles: 0,
+                images_accepted: 0,
+                images_rejected: 0,
+                last_error: None,
+                last_error_axis: 0,
+            },
+            process: None,
+            pending_status: 0,
+        }
+    }
+
+    /// Back to [`GroupEngine::new`] in place.
+    pub fn init(&mut self) {
+        for s in self.slots.iter_mut() {
+            s.clear();
+        }
+        self.active = 0;
+        self.state = GroupState::new();
+        self.stats = GroupStats::default();
+        self.process = None;
+        self.pending_status = 0;
+    }
+
+    /// Load a group into the spare slot; on success it becomes active for every axis at once and
+    /// the state is told ([`GroupState::on_new_image`]); on error the running group is untouched.
+    pub fn load(
+        &mut self,
+        axes: &[GroupAxisImage],
+        stage: Option<&RotaryLocationSpec>,
+    ) -> Result<(), GroupError> {
+        let spare = (self.active ^ 1) as usize & 1;
+        match self.slots[spare].load(axes, stage) {
+            Ok(()) => {
+                self.active = spare as u8;
+                self.state.on_new_image();
+                if let Some(p) = self.process {
+                    self.slots[spare].set_process(&mut self.state, &p);
+                }
+                self.stats.images_accepted = self.stats.images_accepted.wrapping_add(1);
+                self.pending_status |= STATUS_IMAGE_ACCEPTED;
+                Ok(())
+            }
+            Err(e) => {
+                self.stats.record(e);
+                self.pending_status |= STATUS_IMAGE_REJECTED;
+                Err(e)
+            }
+        }
+    }
+
+    /// [`GroupEngine::load`] from a group image (see [`Group::load_image`]).
+    pub fn load_image(&mut self, image: &[u8]) -> Result<(), GroupError> {
+        match crate::group_image::parse(image) {
+            Ok(view) => {
+                let (axes, n) = view.axis_images();
+                self.load(&axes[..n], view.rotary.as_ref())
+            }
+            Err(error) => {
+                let e = GroupError { axis: None, error };
+                self.stats.record(e);
+                self.pending_status |= STATUS_IMAGE_REJECTED;
+                Err(e)
+            }
+        }
+    }
+
+    /// Process one trace record (see [`crate::trace`]); for a `GroupCycle` of `n` axes, writes
+    /// `n` output records (one per slot, in slot order) into `out` and returns `n`, else 0.
+    /// Single-axis `Cycle`, `Temperatures` and `Reset` records are ignored (they are for an
+    /// [`crate::Engine`]); `Image` takes a group image or a schema-1 image.
+    pub fn step(&mut self, record: &Record, out: &mut [OutputRecord; MAX_AXES]) -> usize {
+        match record {
+            Record::GroupCycle { n, input } => {
+                let n = (*n as usize).clamp(1, MAX_AXES);
+                let mut o = GroupOutput::ZERO;
+                let a = (self.active as usize) & 1;
+                self.slots[a].cycle(&mut self.state, input, &mut o);
+                let mut status = self.pending_status;
+                if !self.slots[a].is_loaded() {
+                    status |= STATUS_NO_IMAGE;
+                }
+                self.pending_status = 0;
+                for (dst, c) in out.iter_mut().zip(o.axes.iter()).take(n) {
+                    *dst = OutputRecord {
+                        cycle: self.stats.cycles,
+                        position_counts: c.position_counts,
+                        corrected_command_counts: c.corrected_command_counts,
+                        correction_counts: c.correction_counts,
+                        correction_um_bits: c.correction_um.to_bits(),
+                        flags: c.flags.bits(),
+                        slot: a as u8,
+                        status,
+                    };
+                }
+                self.stats.cycles = self.stats.cycles.wrapping_add(1);
+                n
+            }
+            Record::AxisTemperatures { slot, t } => {
+                self.update_temperatures(*slot as usize, t.now_ms, t.readings());
+                0
+            }
+            Record::Process(p) => {
+                self.set_process(p);
+                0
+            }
+            Record::Image(bytes) => {
+                let _ = self.load_image(bytes);
+                0
+            }
+            Record::GroupReset { scale_raw, .. } => {
+                self.reset(scale_raw);
+                0
+            }
+            Record::Cycle(_)
+            | Record::Temperatures(_)
+            | Record::Reset { .. }
+            | Record::Crc(_)
+            | Record::End => 0,
+        }
+    }
+
+    /// One group cycle with the active group.
+    pub fn cycle(&mut self, input: &GroupInput, out: &mut GroupOutput) {
+        let a = (self.active as usize) & 1;
+        self.slots[a].cycle(&mut self.state, input, out);
+        self.stats.cycles = self.stats.cycles.wrapping_add(1);
+    }
+
+    /// Sensor-rate update of slot `i` of the active group.
+    pub fn update_temperatures(&mut self, i: usize, now_ms: u32, readings: &[f32]) {
+        let a = (self.active as usize) & 1;
+        self.slots[a].update_temperatures(&mut self.state, i, now_ms, readings);
+    }
+
+    /// Process parameters for every axis (kept for later groups).
+    pub fn set_process(&mut self, p: &ProcessParams) {
+        self.process = Some(*p);
+        let a = (self.active as usize) & 1;
+        self.slots[a].set_process(&mut self.state, p);
+    }
+
+    /// Reset every axis ([`GroupState::reset`]); the process parameters are applied again.
+    pub fn reset(&mut self, scale_raw: &[u32; MAX_AXES]) {
+        self.state.reset(scale_raw);
+        if let Some(p) = self.process {
+            let a = (self.active as usize) & 1;
+            self.slots[a].set_process(&mut self.state, &p);
+        }
+    }
+
+    /// The running group.
+    pub fn active(&self) -> &Group<POOL> {
+        &self.slots[(self.active as usize) & 1]
+    }
+    /// Index of the running slot (0 = A, 1 = B).
+    pub fn active_slot(&self) -> u8 {
+        self.active
+    }
+    /// The group state.
+    pub fn state(&self) -> &GroupState {
+        &self.state
+    }
+    /// Mutable group state (e.g. for homing).
+    pub fn state_mut(&mut self) -> &mut GroupState {
+        &mut self.state
+    }
+    /// Statistics.
+    pub fn stats(&self) -> &GroupStats {
+        &self.stats
+    }
+}

@@ -1,0 +1,641 @@
+//! The group image (schema version 2): a section directory, one CRC-32 per section and one over
+//! the whole image, parsed and validated in one place ([`parse`]) into a typed view
+//! ([`GroupImageView`]) that [`crate::group::Group::load`] takes. Schema-1 images (one axis) still
+//! load: [`parse`] presents one as a single-axis group (axis X).
+//!
+//! # Glossary
+//! - **section**: a typed, versioned, CRC-protected byte range; the directory lists them.
+//! - **mandatory**: a section flag; a reader that does not know (or does not support) a
+//!   mandatory section's type refuses the image ([`ImageError::UnknownSection`],
+//!   [`ImageError::UnsupportedSection`]); an optional one it does not know is skipped.
+//! - **requirements**: what the image needs from the board — counter width, axis ids and sensor
+//!   count (from the axis sections), sensor names — checked by [`GroupImageView::check_against`]
+//!   against a [`BoardCaps`].
+//!
+//! # Layout (schema version 2, little endian)
+//! | off | type | field |
+//! |---|---|---|
+//! | 0 | `[u8; 4]` | magic `AXCI` |
+//! | 4 | u16 | schema version (2) |
+//! | 6 | u16 | header length (24) |
+//! | 8 | u32 | total length, trailing CRC included |
+//! | 12 | u16 | number of sections (1..=[`MAX_SECTIONS`]) |
+//! | 14 | u16, u32, u32 | reserved, 0 |
+//! | 24 | 20 × n | directory: `kind` u16, `version` u16, `axis` u8 (axis code, 0xFF = none), `flags` u8 (bit 0 mandatory; others 0), reserved u16, `offset` u32, `length` u32, `crc` u32 (CRC-32 of the section's bytes) |
+//! | … | | sections, in directory order, after the directory, without overlap |
+//! | total − 4 | u32 | CRC-32 of every byte before it |
+//!
+//! Nothing may follow the trailer ([`ImageError::TrailingBytes`]); offsets and lengths are
+//! file-supplied u32 and added with checked arithmetic.
+//!
+//! Section kinds ([`SectionKind`]):
+//! - **axis** (1, version 1, mandatory, one per axis; `axis` = its code): `counts_per_rev` u32
+//!   (rotary; 0 linear), `stroke_start`, `stroke_end` i64 (linear: the table grid must span
+//!   exactly this stroke; both 0 = not stated), reserved u32 ×2 = 0, then the axis's pipeline as
+//!   a schema-1 image (table, thermo-force term, limits) filling the rest of the section.
+//! - **geometric model** (2) and **probe settings** (4): reserved, not supported yet.
+//! - **rotary model** (3, version 1, axis 0xFF, 64 bytes): the 8 location errors of
+//!   [`RotaryLocationSpec`] (f32, in its field order), `pivot_counts` 3 × i64, `tool_length_um`
+//!   f32, reserved u32 = 0.
+//! - **sensor names** (5, version 1, one per axis with sensors; `axis` = its code): one 16-byte
+//!   UTF-8 name per sensor of that axis, zero padded, non-empty.
+
+use crate::error::ImageError;
+use crate::group::{AxisName, GroupAxisImage, MAX_AXES};
+use crate::image::{self, CRC_LEN, crc32};
+use crate::le::{Put, f32_at, i64_at, rd, u8_at, u16_at, u32_at};
+use crate::rotary::RotaryLocationSpec;
+use crate::{MAX_IMAGE_LEN, MAX_SENSORS};
+
+/// Schema version of group images.
+pub const GROUP_SCHEMA_VERSION: u16 = 2;
+/// Header length.
+pub const GROUP_HEADER_LEN: usize = 24;
+/// Directory entry length.
+pub const DIR_ENTRY_LEN: usize = 20;
+/// Most sections in one image.
+pub const MAX_SECTIONS: usize = 16;
+/// Fixed part of an axis section (before the embedded schema-1 image).
+pub const AXIS_SECTION_HEADER_LEN: usize = 32;
+/// Length of a rotary-model section.
+pub const ROTARY_SECTION_LEN: usize = 64;
+/// Bytes per sensor name.
+pub const SENSOR_NAME_LEN: usize = 16;
+/// Directory `axis` value of a section that belongs to no axis.
+pub const NO_AXIS: u8 = 0xFF;
+/// Directory flag: the section must be understood.
+pub const FLAG_MANDATORY: u8 = 1;
+
+/// Section types.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u16)]
+pub enum SectionKind {
+    /// One axis's pipeline.
+    Axis = 1,
+    /// Volumetric (21-error) geometric model — reserved.
+    Geometric = 2,
+    /// Rotary location-error model.
+    Rotary = 3,
+    /// Touch-probe settings — reserved.
+    Probe = 4,
+    /// Sensor names of an axis.
+    SensorNames = 5,
+}
+
+impl SectionKind {
+    const fn from_u16(v: u16) -> Option<SectionKind> {
+        match v {
+            1 => Some(SectionKind::Axis),
+            2 => Some(SectionKind::Geometric),
+            3 => Some(SectionKind::Rotary),
+            4 => Some(SectionKind::Probe),
+            5 => Some(SectionKind::SensorNames),
+            _ => None,
+        }
+    }
+}
+
+/// One axis of a group image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisSection<'a> {
+    /// Name, counts per revolution and the schema-1 image of the pipeline.
+    pub axis: GroupAxisImage<'a>,
+    /// Linear: the stroke the table grid spans (start, end), if stated.
+    pub stroke_counts: Option<(i64, i64)>,
+    /// Sensor names (16 bytes each, zero padded), if the image has them.
+    pub sensor_names: &'a [u8],
+}
+
+impl AxisSection<'_> {
+    /// Name of sensor `i` (without padding).
+    pub fn sensor_name(&self, i: usize) -> Option<&str> {
+        let raw = self
+            .sensor_names
+            .get(i * SENSOR_NAME_LEN..(i + 1) * SENSOR_NAME_LEN)?;
+        let end = raw.iter().position(|&b| b == 0).unwrap_or(raw.len());
+        core::str::from_utf8(raw.get(..end)?).ok()
+    }
+}
+
+/// The validated, typed view of a group image (borrowing its bytes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupImageView<'a> {
+    /// Schema version (1 for a single-axis image, 2 for a group image).
+    pub version: u16,
+    axes: [Option<AxisSection<'a>>; MAX_AXES],
+    n_axes: usize,
+    /// The rotary location-error model, if any.
+    pub rotary: Option<RotaryLocationSpec>,
+    /// The stored whole-image CRC-32.
+    pub crc: u32,
+}
+
+impl<'a> GroupImageView<'a> {
+    /// The axes, in section order.
+    pub fn axes(&self) -> impl Iterator<Item = &AxisSection<'a>> {
+        self.axes.iter().take(self.n_axes).flatten()
+    }
+    /// Number of axes.
+    pub fn axis_count(&self) -> usize {
+        self.n_axes
+    }
+    /// The axes as [`GroupAxisImage`]s for [`crate::group::Group::load`] (first `n` entries).
+    pub fn axis_images(&self) -> ([GroupAxisImage<'a>; MAX_AXES], usize) {
+        let mut out = [GroupAxisImage {
+            name: AxisName::X,
+            counts_per_rev: 0,
+            image: &[],
+        }; MAX_AXES];
+        for (o, a) in out.iter_mut().zip(self.axes()) {
+            *o = a.axis;
+        }
+        (out, self.n_axes)
+    }
+
+    /// Refuse the image if the board cannot run it: every axis's counter width must be the
+    /// board's, every axis id one the board drives, and no axis may need more temperature inputs
+    /// than the board has wired.
+    pub fn check_against(&self, caps: &BoardCaps) -> Result<(), ImageError> {
+        for a in self.axes() {
+            let info = image::inspect_image(a.axis.image)?;
+            caps.check(info.counter_bits, info.axis_id, info.n_sensors)?;
+        }
+        Ok(())
+    }
+}
+
+/// What a board has: the counter width of its scale inputs, the axis ids it drives and the
+/// temperature inputs it has wired.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BoardCaps {
+    /// Width of the hardware counters (e.g. 16 for the STM32G474's encoder timers).
+    pub counter_bits: u8,
+    /// Axis ids the board drives (first `n_axes` entries).
+    pub axis_ids: [u16; MAX_AXES],
+    /// Number of valid entries in `axis_ids`.
+    pub n_axes: u8,
+    /// Temperature inputs wired.
+    pub sensor_inputs: u8,
+}
+
+impl BoardCaps {
+    /// One axis's needs against the board.
+    pub fn check(
+        &self,
+        counter_bits: u8,
+        axis_id: u16,
+        n_sensors: usize,
+    ) -> Result<(), ImageError> {
+        if counter_bits != self.counter_bits {
+            return Err(ImageError::CounterWidthMismatch {
+                image: counter_bits,
+                board: self.counter_bits,
+            });
+        }
+        let ids = self
+            .axis_ids
+            .get(..(self.n_axes as usize).min(MAX_AXES))
+            .unwrap_or(&[]);
+        if !ids.contains(&axis_id) {
+            return Err(ImageError::AxisIdMismatch { image: axis_id });
+        }
+        if n_sensors > self.sensor_inputs as usize {
+            return Err(ImageError::TooFewSensorInputs {
+                needed: n_sensors as u8,
+                wired: self.sensor_inputs,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A directory entry.
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    kind: u16,
+    version: u16,
+    axis: u8,
+    flags: u8,
+    offset: usize,
+    len: usize,
+}
+
+/// Validate `b` completely (a schema-2 group image, or a schema-1 single-axis image taken as
+/// axis X) and return its typed view. Exactly the image's bytes: trailing bytes are refused.
+pub fn parse(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
+    if b.len() < 6 {
+        return Err(ImageError::TooShort);
+    }
+    if rd::<4>(b, 0) != image::MAGIC {
+        return Err(ImageError::BadMagic);
+    }
+    match u16_at(b, 4) {
+        image::SCHEMA_VERSION => parse_v1(b),
+        GROUP_SCHEMA_VERSION => parse_v2(b),
+        found => Err(ImageError::UnsupportedVersion { found }),
+    }
+}
+
+fn parse_v1(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
+    let info = image::inspect_image(b)?;
+    if b.len() != info.len {
+        return Err(ImageError::TrailingBytes);
+    }
+    let mut axes = [None; MAX_AXES];
+    axes[0] = Some(AxisSection {
+        axis: GroupAxisImage {
+            name: AxisName::X,
+            counts_per_rev: 0,
+            image: b,
+        },
+        stroke_counts: None,
+        sensor_names: &[],
+    });
+    Ok(GroupImageView {
+        version: image::SCHEMA_VERSION,
+        axes,
+        n_axes: 1,
+        rotary: None,
+        crc: info.crc,
+    })
+}
+
+fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
+    // ---- header, whole-image CRC, exact length ----
+    if b.len() < GROUP_HEADER_LEN + CRC_LEN {
+        return Err(ImageError::TooShort);
+    }
+    let header_len = u16_at(b, 6) as usize;
+    let total = u32_at(b, 8) as usize;
+    let n_sections = u16_at(b, 12) as usize;
+    if header_len != GROUP_HEADER_LEN || total > MAX_IMAGE_LEN {
+        return Err(ImageError::BadLength);
+    }
+    if b.len() < total {
+        return Err(ImageError::TooShort);
+    }
+    if b.len() > total {
+        return Err(ImageError::TrailingBytes);
+    }
+    if u16_at(b, 14) != 0 || u32_at(b, 16) != 0 || u32_at(b, 20) != 0 {
+        return Err(reserved());
+    }
+    if n_sections == 0 || n_sections > MAX_SECTIONS {
+        return Err(ImageError::BadLength);
+    }
+    let dir_end = n_sections
+        .checked_mul(DIR_ENTRY_LEN)
+        .and_then(|d| d.checked_add(GROUP_HEADER_LEN))
+        .ok_or(ImageError::BadLength)?;
+    let body_end = total.checked_sub(CRC_LEN).ok_or(ImageError::BadLength)?;
+    if dir_end > body_end {
+        return Err(ImageError::BadLength);
+    }
+    if crc32(b.get(..body_end).unwrap_or(&[])) != u32_at(b, body_end) {
+        return Err(ImageError::BadCrc);
+    }
+
+    // ---- directory: bounds (checked), order, per-section CRC ----
+    let mut entries = [None::<Entry>; MAX_SECTIONS];
+    let mut cursor = dir_end;
+    for (i, slot) in entries.iter_mut().enumerate().take(n_sections) {
+        let at = GROUP_HEADER_LEN + DIR_ENTRY_LEN * i;
+        let e = Entry {
+            kind: u16_at(b, at),
+            version: u16_at(b, at + 2),
+            axis: u8_at(b, at + 4),
+            flags: u8_at(b, at + 5),
+            offset: u32_at(b, at + 8) as usize,
+            len: u32_at(b, at + 12) as usize,
+        };
+        if u16_at(b, at + 6) != 0 || e.flags & !FLAG_MANDATORY != 0 {
+            return Err(reserved());
+        }
+        let end = e
+            .offset
+            .checked_add(e.len)
+            .ok_or(ImageError::SectionBounds { index: i as u16 })?;
+        if e.offset < cursor || end > body_end {
+            return Err(ImageError::SectionBounds { index: i as u16 });
+        }
+        let bytes = b.get(e.offset..end).unwrap_or(&[]);
+        if crc32(bytes) != u32_at(b, at + 16) {
+            return Err(ImageError::SectionCrc { index: i as u16 });
+        }
+        cursor = end;
+        *slot = Some(e);
+    }
+
+    // ---- sections into typed views ----
+    let mut view = GroupImageView {
+        version: GROUP_SCHEMA_VERSION,
+        axes: [None; MAX_AXES],
+        n_axes: 0,
+        rotary: None,
+        crc: u32_at(b, body_end),
+    };
+    let mut names: [Option<(u8, &[u8])>; MAX_AXES] = [None; MAX_AXES];
+    let mut n_names = 0;
+    for (i, e) in entries.iter().take(n_sections).flatten().enumerate() {
+        let s = b.get(e.offset..e.offset + e.len).unwrap_or(&[]);
+        let mandatory = e.flags & FLAG_MANDATORY != 0;
+        let kind = match SectionKind::from_u16(e.kind) {
+            Some(k) => k,
+            None if mandatory => return Err(ImageError::UnknownSection { kind: e.kind }),
+            None => continue,
+        };
+        if e.version != 1 {
+            if mandatory {
+                return Err(ImageError::UnsupportedSection { kind: e.kind });
+            }
+            continue;
+        }
+        match kind {
+            SectionKind::Geometric | SectionKind::Probe => {
+                if mandatory {
+                    return Err(ImageError::UnsupportedSection { kind: e.kind });
+                }
+            }
+            SectionKind::Axis => {
+                if view.n_axes == MAX_AXES {
+                    return Err(ImageError::AxisCount);
+                }
+                view.axes[view.n_axes] = Some(parse_axis(e, s, i)?);
+                view.n_axes += 1;
+            }
+            SectionKind::Rotary => {
+                if e.axis != NO_AXIS || s.len() != ROTARY_SECTION_LEN || view.rotary.is_some() {
+                    return Err(ImageError::SectionBounds { index: i as u16 });
+                }
+                if u32_at(s, 60) != 0 {
+                    return Err(reserved());
+                }
+                let spec = RotaryLocationSpec {
+                    ex0c_um: f32_at(s, 0),
+                    ey0c_um: f32_at(s, 4),
+                    ea0c_urad: f32_at(s, 8),
+                    eb0c_urad: f32_at(s, 12),
+                    ey0a_um: f32_at(s, 16),
+                    ez0a_um: f32_at(s, 20),
+                    eb0a_urad: f32_at(s, 24),
+                    ec0a_urad: f32_at(s, 28),
+                    pivot_counts: [i64_at(s, 32), i64_at(s, 40), i64_at(s, 48)],
+                    tool_length_um: f32_at(s, 56),
+                };
+                spec.validate()?;
+                view.rotary = Some(spec);
+            }
+            SectionKind::SensorNames => {
+                if n_names == MAX_AXES
+                    || s.len() % SENSOR_NAME_LEN != 0
+                    || s.len() / SENSOR_NAME_LEN > MAX_SENSORS
+                {
+                    return Err(ImageError::SectionBounds { index: i as u16 });
+                }
+                names[n_names] = Some((e.axis, s));
+                n_names += 1;
+            }
+        }
+    }
+    if view.n_axes == 0 {
+        return Err(ImageError::AxisCount);
+    }
+    // Each axis once; sensor names only for an axis the group has, one per sensor.
+    let axes = view.axes;
+    for (i, a) in axes.iter().flatten().enumerate() {
+        if axes[..i]
+            .iter()
+            .flatten()
+            .any(|b| b.axis.name == a.axis.name)
+        {
+            return Err(ImageError::DuplicateAxis {
+                axis: a.axis.name.code(),
+            });
+        }
+    }
+    for (code, s) in names.iter().flatten() {
+        let Some(k) = axes
+            .iter()
+            .position(|a| a.is_some_and(|a| a.axis.name.code() == *code))
+        else {
+            return Err(ImageError::AxisNotInGroup { axis: *code });
+        };
+        let n_sensors = image::inspect_image(axes[k].map_or(&[][..], |a| a.axis.image))?.n_sensors;
+        if s.len() != n_sensors * SENSOR_NAME_LEN {
+            return Err(ImageError::SensorNames { axis: *code });
+        }
+        for name in s.chunks(SENSOR_NAME_LEN) {
+            let end = name.iter().position(|&c| c == 0).unwrap_or(name.len());
+            let (text, pad) = name.split_at(end);
+            if end == 0 || core::str::from_utf8(text).is_err() || pad.iter().any(|&c| c != 0) {
+                return Err(ImageError::SensorNames { axis: *code });
+            }
+        }
+        if let Some(a) = view.axes[k].as_mut() {
+            a.sensor_names = s;
+        }
+    }
+    // The group's own rules (counts per revolution, rotary grids, the stage's axes), as
+    // `Group::load` applies them (the pool size is the loading build's business).
+    let (images, n) = view.axis_images();
+    crate::group::validate_group::<{ usize::MAX }>(&images[..n], view.rotary.as_ref())
+        .map_err(|g| g.error)?;
+    Ok(view)
+}
+
+fn reserved() -> ImageError {
+    ImageError::OutOfRange {
+        field: crate::error::Field::Reserved,
+        index: 0,
+    }
+}
+
+fn parse_axis<'a>(e: &Entry, s: &'a [u8], index: usize) -> Result<AxisSection<'a>, ImageError> {
+    let Some(name) = AxisName::from_code(e.axis) else {
+        return Err(ImageError::SectionBounds {
+            index: index as u16,
+        });
+    };
+    if s.len() < AXIS_SECTION_HEADER_LEN {
+        return Err(ImageError::SectionBounds {
+            index: index as u16,
+        });
+    }
+    if u32_at(s, 24) != 0 || u32_at(s, 28) != 0 {
+        return Err(reserved());
+    }
+    let cpr = u32_at(s, 0);
+    let (start, end) = (i64_at(s, 8), i64_at(s, 16));
+    let img = s.get(AXIS_SECTION_HEADER_LEN..).unwrap_or(&[]);
+    let info = image::inspect_image(img)?;
+    if info.len != img.len() {
+        return Err(ImageError::TrailingBytes);
+    }
+    let stroke_counts = ((start, end) != (0, 0)).then_some((start, end));
+    if let Some((lo, hi)) = stroke_counts {
+        if name.is_rotary() || lo >= hi {
+            return Err(ImageError::GridMismatch { axis: e.axis });
+        }
+        if let Some((t0, seg, n)) = image::table_grid_of(img) {
+            let span = seg as i128 * n as i128;
+            if t0 != lo || t0 as i128 + span != hi as i128 {
+                return Err(ImageError::GridMismatch { axis: e.axis });
+            }
+        }
+    }
+    Ok(AxisSection {
+        axis: GroupAxisImage {
+            name,
+            counts_per_rev: cpr,
+            image: img,
+        },
+        stroke_counts,
+        sensor_names: &[],
+    })
+}
+
+/// One axis of a group image to write.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisSectionSpec<'a> {
+    /// Which axis.
+    pub name: AxisName,
+    /// Rotary: counts per revolution; linear: 0.
+    pub counts_per_rev: u32,
+    /// Linear: the stroke the table grid must span, if stated.
+    pub stroke_counts: Option<(i64, i64)>,
+    /// The axis's schema-1 image (from [`crate::write_image`]).
+    pub image: &'a [u8],
+    /// One name per sensor of the axis (≤ 15 bytes of UTF-8 each), or empty.
+    pub sensor_names: &'a [&'a str],
+}
+
+/// Length of the group image [`write_group_image`] writes.
+pub fn group_image_len(axes: &[AxisSectionSpec], rotary: Option<&RotaryLocationSpec>) -> usize {
+    let n = section_count(axes, rotary);
+    let mut len = GROUP_HEADER_LEN + DIR_ENTRY_LEN * n + CRC_LEN;
+    for a in axes {
+        len += AXIS_SECTION_HEADER_LEN + a.image.len() + SENSOR_NAME_LEN * a.sensor_names.len();
+    }
+    if rotary.is_some() {
+        len += ROTARY_SECTION_LEN;
+    }
+    len
+}
+
+fn section_count(axes: &[AxisSectionSpec], rotary: Option<&RotaryLocationSpec>) -> usize {
+    axes.len()
+        + axes.iter().filter(|a| !a.sensor_names.is_empty()).count()
+        + rotary.is_some() as usize
+}
+
+/// Write a group image into `out`; returns its length. The written image must pass [`parse`]
+/// (and [`crate::group::Group::load`]'s group checks); on `Err` the written bytes are zeroed.
+pub fn write_group_image(
+    axes: &[AxisSectionSpec],
+    rotary: Option<&RotaryLocationSpec>,
+    out: &mut [u8],
+) -> Result<usize, ImageError> {
+    if axes.is_empty() || axes.len() > MAX_AXES {
+        return Err(ImageError::AxisCount);
+    }
+    for a in axes {
+        for name in a.sensor_names {
+            if name.is_empty() || name.len() >= SENSOR_NAME_LEN || name.contains('\0') {
+                return Err(ImageError::SensorNames {
+                    axis: a.name.code(),
+                });
+            }
+        }
+    }
+    let len = group_image_len(axes, rotary);
+    let n = section_count(axes, rotary);
+    if len > MAX_IMAGE_LEN {
+        return Err(ImageError::BadLength);
+    }
+    let Some(out) = out.get_mut(..len) else {
+        return Err(ImageError::BufferTooSmall { needed: len as u32 });
+    };
+    out.fill(0);
+    // Sections first (after the directory), then the directory with their CRCs.
+    let mut at = GROUP_HEADER_LEN + DIR_ENTRY_LEN * n;
+    let mut dir = [(0u16, 0u8, 0usize, 0usize); MAX_SECTIONS];
+    let mut k = 0;
+    for a in axes {
+        let start = at;
+        let mut w = Put::new(out.get_mut(at..).unwrap_or(&mut []));
+        w.u32(a.counts_per_rev);
+        w.u32(0);
+        let (lo, hi) = a.stroke_counts.unwrap_or((0, 0));
+        w.i64(lo);
+        w.i64(hi);
+        w.u32(0);
+        w.u32(0);
+        w.bytes(a.image);
+        at += w.pos;
+        dir[k] = (SectionKind::Axis as u16, a.name.code(), start, at - start);
+        k += 1;
+        if !a.sensor_names.is_empty() {
+            let start = at;
+            let mut w = Put::new(out.get_mut(at..).unwrap_or(&mut []));
+            for name in a.sensor_names {
+                let mut field = [0u8; SENSOR_NAME_LEN];
+                field[..name.len()].copy_from_slice(name.as_bytes());
+                w.bytes(&field);
+            }
+            at += w.pos;
+            dir[k] = (
+                SectionKind::SensorNames as u16,
+                a.name.code(),
+                start,
+                at - start,
+            );
+            k += 1;
+        }
+    }
+    if let Some(r) = rotary {
+        let start = at;
+        let mut w = Put::new(out.get_mut(at..).unwrap_or(&mut []));
+        for v in r.constants() {
+            w.f32(v);
+        }
+        for p in r.pivot_counts {
+            w.i64(p);
+        }
+        w.f32(r.tool_length_um);
+        w.u32(0);
+        at += w.pos;
+        dir[k] = (SectionKind::Rotary as u16, NO_AXIS, start, at - start);
+        k += 1;
+    }
+    let mut w = Put::new(out);
+    w.bytes(&image::MAGIC);
+    w.u16(GROUP_SCHEMA_VERSION);
+    w.u16(GROUP_HEADER_LEN as u16);
+    w.u32(len as u32);
+    w.u16(n as u16);
+    w.u16(0);
+    w.u32(0);
+    w.u32(0);
+    for &(kind, axis, off, slen) in dir.iter().take(k) {
+        let crc = crc32(w.buf.get(off..off + slen).unwrap_or(&[]));
+        w.u16(kind);
+        w.u16(1);
+        w.u8(axis);
+        w.u8(FLAG_MANDATORY);
+        w.u16(0);
+        w.u32(off as u32);
+        w.u32(slen as u32);
+        w.u32(crc);
+    }
+    let body = len - CRC_LEN;
+    let crc = crc32(w.buf.get(..body).unwrap_or(&[]));
+    w.pos = body;
+    w.u32(crc);
+    match parse(out) {
+        Ok(_) => Ok(len),
+        Err(e) => {
+            out.fill(0);
+            Err(e)
+        }
+    }
+}

@@ -1,0 +1,191 @@
+//! Limits of the applied correction (magnitude clamp, slew) and the rounding to counts.
+//!
+//! # Glossary
+//! - **clamp**: |total correction| ≤ `max_correction_um`.
+//! - **slew**: the change of the applied correction per cycle ≤ `max_slew_um_per_cycle`.
+//! - **counts**: the applied correction in scale counts, rounded half away from zero.
+
+use crate::compensator::{AxisCompensator, CycleOutput, Flags, State, TableStore};
+
+impl<S: TableStore> AxisCompensator<S> {
+    /// Clamp, slew, rounding to counts and the corrected command: the last stage of an axis.
+    ///
+    /// Common case first: within the clamp and the slew limit (two compares, NaN fails the
+    /// first), rounded in five instructions from `applied · 2/um_per_count` (see
+    /// `round_half_away_bounded`); otherwise the full rules of `limit` and `round_to_counts`.
+    /// µm → counts divides by `um_per_count / 2` (exact halving at load), which is bit for bit
+    /// 2·(applied / um_per_count): the doubling of the bounded rounding costs nothing and the
+    /// counts equal `libm::roundf(applied / um_per_count)`. (A multiply by a reciprocal computed
+    /// at load would save the division's 13 extra cycles on a Cortex-M4F, but not an
+    /// instruction, and it rounds differently near half counts: 9000 µm at 0.001 µm/count would
+    /// give 8 999 999 counts instead of 9 000 000.)
+    #[inline(always)]
+    pub(crate) fn finish(
+        &self,
+        st: &mut State,
+        pos: i64,
+        total: f32,
+        command: i64,
+        mut flags: Flags,
+    ) -> CycleOutput {
+        let last = st.last_correction_um;
+        let slew = self.max_slew_um_per_cycle;
+        let (applied, counts) =
+            if libm::fabsf(total) <= self.fast_max_um && libm::fabsf(total - last) <= slew {
+                // |total| ≤ max ≤ MAX_LIMIT_UM and the image is bounded: |counts| < 2^29.
+                (
+                    total,
+                    round_half_away_bounded2(total / self.half_um_per_count),
+                )
+            } else {
+                cold_path();
+                let (applied, limit_flags) = limit(total, last, self.max_correction_um, slew);
+                flags |= limit_flags;
+                // |applied| ≤ MAX_LIMIT_UM always: every image's clamp is validated ≤
+                // MAX_LIMIT_UM, the slew only moves between the last applied value and the
+                // clamped one, and a NaN holds.
+                (applied, round_to_counts(applied / self.um_per_count))
+            };
+        st.last_correction_um = applied;
+        // command − counts, saturating. |counts| < 2^31, so a command in [−2^62, 2^62) (bits 63
+        // and 62 equal: one test of the high word) cannot overflow; the saturating form only
+        // beyond, out of the way.
+        let high = (command >> 32) as i32;
+        let corrected = if (high ^ (high << 1)) >= 0 {
+            command.wrapping_sub(counts as i64)
+        } else {
+            cold_path();
+            command.saturating_sub(counts as i64)
+        };
+        CycleOutput {
+            position_counts: pos,
+            corrected_command_counts: corrected,
+            correction_counts: counts,
+            correction_um: applied,
+            flags,
+        }
+    }
+}
+
+/// Marks the branch that calls it as rarely taken, so the per-cycle path is laid out as the
+/// fall-through (a stand-in for `core::hint::cold_path`, which needs Rust 1.95; MSRV is 1.85).
+#[cold]
+#[inline(never)]
+pub(crate) fn cold_path() {}
+
+/// Clamp `total` to ±`max` (a NaN holds `last`: NON_FINITE), then limit the change from `last` to
+/// `slew`. The per-cycle path takes this only when a limit acts (or the total is NaN).
+#[inline(always)]
+pub(crate) fn limit(total: f32, last: f32, max: f32, slew: f32) -> (f32, Flags) {
+    let mut flags = Flags::NONE;
+    let mut desired = total;
+    // False for NaN too.
+    let within = libm::fabsf(desired) <= max;
+    if !within {
+        if desired > max {
+            desired = max;
+            flags |= Flags::CLAMPED;
+        } else if desired < -max {
+            desired = -max;
+            flags |= Flags::CLAMPED;
+        } else {
+            // NaN: unreachable with a validated image and bounded inputs; hold.
+            desired = last;
+            flags |= Flags::NON_FINITE;
+        }
+    }
+    let step = desired - last;
+    let mut applied = desired;
+    if libm::fabsf(step) > slew {
+        flags |= Flags::SLEWED;
+        if step > 0.0 {
+            let a = last + slew;
+            applied = if a > desired { desired } else { a };
+        } else {
+            let a = last - slew;
+            applied = if a < desired { desired } else { a };
+        }
+    }
+    (applied, flags)
+}
+
+/// Largest `max_correction_um` / `max_slew_um_per_cycle` an image may have (validated), µm.
+pub(crate) const MAX_LIMIT_UM: f32 = 1.0e5;
+
+/// [`round_to_counts`] for |x| < 2^30 (NaN → 0), in five integer/convert instructions: with
+/// t = trunc(2x) (exact), round half away from zero is (t + 1) >> 1 for t ≥ 0 and t >> 1 for
+/// t < 0 (arithmetic shifts, i.e. floor). Equality with [`round_to_counts`] over |x| < 2^30 is
+/// tested.
+#[cfg(test)]
+pub(crate) fn round_half_away_bounded(x: f32) -> i32 {
+    round_half_away_bounded2(x + x)
+}
+
+/// [`round_half_away_bounded`] of x given `twice_x` = 2x (e.g. a quotient by a halved divisor,
+/// which is exactly twice the quotient), so that the doubling folds into a load-time constant.
+#[inline]
+pub(crate) fn round_half_away_bounded2(twice_x: f32) -> i32 {
+    let t = twice_x as i32;
+    t.wrapping_add(1).wrapping_add(t >> 31) >> 1
+}
+
+/// `libm::roundf(x) as i32` (round half away from zero, saturating, NaN → 0) without the
+/// library call: two conversions and a compare on a Cortex-M4F. Equality with `libm::roundf`
+/// is property-tested over all magnitudes.
+#[inline]
+pub fn round_to_counts(x: f32) -> i32 {
+    // For |x| < 2^23 the truncation and the fraction are exact; for larger |x| the value is
+    // already an integer (fraction 0). The cast saturates beyond the i32 range.
+    let i = x as i32;
+    let frac = x - i as f32;
+    if frac >= 0.5 {
+        i.saturating_add(1)
+    } else if frac <= -0.5 {
+        i.saturating_sub(1)
+    } else {
+        i
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{round_half_away_bounded, round_to_counts};
+
+    /// Reference: `round_to_counts` (itself property-tested equal to `libm::roundf` as i32);
+    /// tolerance: exact equality, over |x| < 2^30 as `round_half_away_bounded` requires.
+    #[test]
+    fn bounded_rounding_equals_round_to_counts() {
+        let limit = (1u32 << 30) as f32;
+        let mut checked = 0u32;
+        // A stride through every magnitude below 2^30 (bit patterns 0 .. 0x4E80_0000), both signs.
+        let mut bits = 0u32;
+        while bits < 0x4E80_0000 {
+            for x in [f32::from_bits(bits), -f32::from_bits(bits)] {
+                assert!(libm::fabsf(x) < limit);
+                assert_eq!(round_half_away_bounded(x), round_to_counts(x), "x = {x:e}");
+                checked += 1;
+            }
+            bits += 211;
+        }
+        // Every half-integer up to 2^22 (exact in f32) and its two neighbours, both signs.
+        for k in 0..(1i32 << 22) {
+            let h = k as f32 + 0.5;
+            for x in [
+                h,
+                f32::from_bits(h.to_bits() - 1),
+                f32::from_bits(h.to_bits() + 1),
+            ] {
+                assert_eq!(round_half_away_bounded(x), round_to_counts(x), "x = {x:e}");
+                assert_eq!(
+                    round_half_away_bounded(-x),
+                    round_to_counts(-x),
+                    "x = {:e}",
+                    -x
+                );
+                checked += 2;
+            }
+        }
+        assert_eq!(round_half_away_bounded(f32::NAN), 0);
+        assert!(checked > 30_000_000);
+    }
+}

@@ -1,0 +1,422 @@
+//! The thermo-force term: sensors (plausibility, staleness, lag), the cached thermal
+//! contribution, predicted and measured forces.
+//!
+//! # Glossary
+//! - **thermo-force term**: E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
+//! - **sensor rate**: [`AxisCompensator::update_temperatures`] and [`AxisCompensator::set_process`] run
+//!   at the sensor/process rate and cache b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted) and c·ΔT_s in
+//!   the [`State`]; the cycle only adds them (see [`Compensator::cycle`]).
+//! - **stale**: no accepted reading for `stale_timeout_ms`; the thermal contribution freezes.
+
+use crate::compensator::{AxisCompensator, Flags, State, TableStore};
+use crate::spec::{ExpansionSpec, ForceLaw, ForceSpec, SensorSpec};
+use crate::{MAX_FORCE_N, MAX_FORCE_TERM_UM, MAX_FORCES, MAX_SENSORS, RECOVERY_READINGS};
+
+/// Where the force F_j of a force term comes from.
+///
+/// Chosen by the image: a [`ForceSpec`] with a `law` is `Predicted` (from the process parameters
+/// given to [`AxisCompensator::set_process`]; 0 N until the first call), one without is `Measured`
+/// (from [`crate::CycleInput::forces_n`] at the same index).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ForceSource {
+    /// From the force sensor values in each [`crate::CycleInput`].
+    Measured,
+    /// From the force law and the current process parameters.
+    Predicted,
+}
+
+/// Process parameters for predicted forces.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ProcessParams {
+    /// Depth of cut, mm.
+    pub ap_mm: f32,
+    /// Feed per tooth, mm.
+    pub fz_mm: f32,
+    /// Spindle speed, rpm.
+    pub n_rpm: f32,
+}
+
+/// Which force terms are measured (bit j of the discriminant = term j), for the cycle's dispatch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub(crate) enum MeasuredSet {
+    None = 0,
+    F0 = 0b001,
+    F1 = 0b010,
+    F01 = 0b011,
+    F2 = 0b100,
+    F02 = 0b101,
+    F12 = 0b110,
+    F012 = 0b111,
+}
+
+impl MeasuredSet {
+    /// From the bit mask (bits above 2 are ignored).
+    pub(crate) const fn from_mask(mask: u8) -> MeasuredSet {
+        match mask & 0b111 {
+            0b001 => MeasuredSet::F0,
+            0b010 => MeasuredSet::F1,
+            0b011 => MeasuredSet::F01,
+            0b100 => MeasuredSet::F2,
+            0b101 => MeasuredSet::F02,
+            0b110 => MeasuredSet::F12,
+            0b111 => MeasuredSet::F012,
+            _ => MeasuredSet::None,
+        }
+    }
+}
+
+/// Validated sensor settings with the derived lag coefficient.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SensorRt {
+    pub(crate) reference_degc: f32,
+    pub(crate) min_degc: f32,
+    pub(crate) max_degc: f32,
+    pub(crate) max_rate_degc_per_s: f32,
+    pub(crate) lag_tau_s: f32,
+    pub(crate) stale_timeout_ms: u32,
+    pub(crate) b_um_per_k: f32,
+    /// α = 1 − exp(−period/τ), 1 without lag.
+    pub(crate) alpha: f32,
+}
+
+impl SensorRt {
+    pub(crate) const ZERO: SensorRt = SensorRt {
+        reference_degc: 0.0,
+        min_degc: 0.0,
+        max_degc: 0.0,
+        max_rate_degc_per_s: 0.0,
+        lag_tau_s: 0.0,
+        stale_timeout_ms: 0,
+        b_um_per_k: 0.0,
+        alpha: 0.0,
+    };
+}
+
+pub(crate) const ZERO_LAW: ForceLaw = ForceLaw {
+    k: 0.0,
+    x_ap: 0.0,
+    y_fz: 0.0,
+    z_n: 0.0,
+};
+
+impl<S: TableStore> AxisCompensator<S> {
+    /// `total` (the table value) plus the thermo-force term at `pos` for one cycle (µm): the
+    /// cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j (predicted) with the expansion term (one multiply-add
+    /// with the cached c·ΔT_s), then the measured forces of this input — added to `total` in
+    /// that order (the order fixes the f32 rounding); ORs the thermo flags into `flags`.
+    #[inline(always)]
+    pub(crate) fn thermo_um(
+        &self,
+        st: &State,
+        pos: i64,
+        forces_n: &[f32; MAX_FORCES],
+        flags: &mut Flags,
+        mut total: f32,
+    ) -> f32 {
+        // x − x_ref as i32 (saturated) so that the conversion to f32 is one instruction.
+        // Positions and x_ref within ±2^62 (x_ref is validated, positions are physical) never
+        // wrap; beyond, the term stays finite and the clamp holds.
+        let d = pos.wrapping_sub(self.x_ref_counts);
+        let d32 = if d as i32 as i64 == d {
+            d as i32
+        } else if d < 0 {
+            i32::MIN
+        } else {
+            i32::MAX
+        };
+        // b0 + Σ b_i·ΔT_i + Σ χ_j·F_j (predicted) is cached at the sensor/process rate.
+        total += st.cached_um + st.expansion_um_per_count * d32 as f32;
+        // Measured forces: one multiply-add each, one plausibility check of their sum
+        // (catches NaN, ±inf and absurd readings; the whole measured term is then dropped).
+        // One straight-line sum per set of measured terms (in index order), so inputs of
+        // unmeasured terms (NaN = no reading) are never read and no per-term select is paid.
+        if self.measured != MeasuredSet::None {
+            let c = &self.chi_measured;
+            let f = forces_n;
+            let force_um = match self.measured {
+                MeasuredSet::None | MeasuredSet::F0 => c[0] * f[0],
+                MeasuredSet::F1 => c[1] * f[1],
+                MeasuredSet::F01 => c[0] * f[0] + c[1] * f[1],
+                MeasuredSet::F2 => c[2] * f[2],
+                MeasuredSet::F02 => c[0] * f[0] + c[2] * f[2],
+                MeasuredSet::F12 => c[1] * f[1] + c[2] * f[2],
+                MeasuredSet::F012 => c[0] * f[0] + c[1] * f[1] + c[2] * f[2],
+            };
+            if libm::fabsf(force_um) <= MAX_FORCE_TERM_UM {
+                total += force_um;
+            } else {
+                *flags |= Flags::FORCE_INVALID;
+            }
+        }
+        *flags |= Flags(st.thermo_bits ^ self.thermo_flags_xor);
+        total
+    }
+
+    /// True if a thermo-force term is loaded.
+    pub fn has_thermo(&self) -> bool {
+        self.has_thermo
+    }
+    /// Sensor period of the thermo-force term, ms.
+    pub fn sensor_period_ms(&self) -> u32 {
+        self.sensor_period_ms
+    }
+    /// Number of sensors.
+    pub fn sensor_count(&self) -> usize {
+        self.n_sensors as usize
+    }
+    /// Settings of sensor `i`.
+    pub fn sensor(&self, i: usize) -> Option<SensorSpec> {
+        if i >= self.n_sensors as usize {
+            return None;
+        }
+        self.sensors.get(i).map(|s| SensorSpec {
+            reference_degc: s.reference_degc,
+            min_degc: s.min_degc,
+            max_degc: s.max_degc,
+            max_rate_degc_per_s: s.max_rate_degc_per_s,
+            lag_tau_s: s.lag_tau_s,
+            stale_timeout_ms: s.stale_timeout_ms,
+        })
+    }
+    /// b_i of sensor `i`, µm/K.
+    pub fn b_um_per_k(&self, i: usize) -> Option<f32> {
+        if i >= self.n_sensors as usize {
+            return None;
+        }
+        self.sensors.get(i).map(|s| s.b_um_per_k)
+    }
+    /// Lag coefficient α of sensor `i` (1 = no lag).
+    pub fn lag_alpha(&self, i: usize) -> Option<f32> {
+        if i >= self.n_sensors as usize {
+            return None;
+        }
+        self.sensors.get(i).map(|s| s.alpha)
+    }
+    /// Constant term b0, µm.
+    pub fn b0_um(&self) -> f32 {
+        self.b0_um
+    }
+    /// The expansion term, if any.
+    pub fn expansion(&self) -> Option<ExpansionSpec> {
+        self.has_expansion.then_some(ExpansionSpec {
+            sensor: self.expansion_sensor,
+            x_ref_counts: self.x_ref_counts,
+            c_um_per_mm_k: self.c_um_per_mm_k,
+        })
+    }
+    /// Number of force terms.
+    pub fn force_count(&self) -> usize {
+        self.n_forces as usize
+    }
+    /// Force term `j`.
+    pub fn force(&self, j: usize) -> Option<ForceSpec> {
+        if j >= self.n_forces as usize || j >= MAX_FORCES {
+            return None;
+        }
+        Some(ForceSpec {
+            chi_um_per_n: self.chi_um_per_n[j],
+            law: if self.force_predicted[j] {
+                Some(self.laws[j])
+            } else {
+                None
+            },
+        })
+    }
+    /// Where force `j` comes from.
+    pub fn force_source(&self, j: usize) -> Option<ForceSource> {
+        self.force(j).map(|f| match f.law {
+            Some(_) => ForceSource::Predicted,
+            None => ForceSource::Measured,
+        })
+    }
+
+    /// Sensor-rate update: health checks, lags, and the cached thermal contribution.
+    ///
+    /// `readings[i]` is sensor i in °C; NaN (or a missing entry) = no reading. Call it every
+    /// `sensor_period_ms` (the lag coefficients assume that period), also when the image has no
+    /// sensors: the cycle adds a cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted), refreshed here
+    /// and in [`AxisCompensator::set_process`] (a fresh [`State`] contributes 0 until then). Rules:
+    /// - a reading is accepted if finite, within `[min_degc, max_degc]` and, after the first
+    ///   accepted one, within `max_rate_degc_per_s · (now − time of the last accepted reading)` of
+    ///   the last accepted value; otherwise it is rejected (counted) and the last good value held;
+    /// - each lag advances once per call with the last accepted value as input; it starts at the
+    ///   first accepted reading (no transient from 0);
+    /// - a sensor without an accepted reading for more than `stale_timeout_ms` (counted from the
+    ///   first call for a sensor that never reported) is stale; it recovers after
+    ///   [`RECOVERY_READINGS`] consecutive accepted readings;
+    /// - the thermal contribution (Σ b_i·ΔT_i and the expansion coefficient) is recomputed only
+    ///   while every sensor has reported and none is stale; otherwise it stays frozen at the last
+    ///   good value (THERMAL_FROZEN); SENSOR_FAULT while any sensor is stale or its last reading
+    ///   was rejected.
+    pub fn update_temperatures(&self, st: &mut State, now_ms: u32, readings: &[f32]) {
+        if !self.loaded || !self.has_thermo {
+            return;
+        }
+        let n = (self.n_sensors as usize).min(MAX_SENSORS);
+        if !st.clock_started {
+            st.clock_started = true;
+            for s in st.sensors.iter_mut() {
+                s.last_good_ms = now_ms;
+            }
+        }
+        let mut all_healthy = true;
+        let mut any_stale = false;
+        let mut fault = false;
+        for (i, (cfg, s)) in self.sensors.iter().zip(st.sensors.iter_mut()).enumerate() {
+            if i >= n {
+                break;
+            }
+            let r = readings.get(i).copied().unwrap_or(f32::NAN);
+            let since_good_ms = now_ms.wrapping_sub(s.last_good_ms);
+            let plausible = r.is_finite()
+                && r >= cfg.min_degc
+                && r <= cfg.max_degc
+                && (!s.seen
+                    || libm::fabsf(r - s.last_good_degc)
+                        <= cfg.max_rate_degc_per_s * (since_good_ms as f32 * 0.001));
+            if plausible {
+                if !s.seen {
+                    s.seen = true;
+                    s.filtered_dt = r - cfg.reference_degc;
+                }
+                s.last_good_degc = r;
+                s.last_good_ms = now_ms;
+                s.streak = s.streak.saturating_add(1);
+                s.last_rejected = false;
+            } else {
+                s.streak = 0;
+                s.last_rejected = !r.is_nan();
+                if s.last_rejected {
+                    s.rejected = s.rejected.saturating_add(1);
+                }
+            }
+            if s.seen {
+                let u = s.last_good_degc - cfg.reference_degc;
+                s.filtered_dt += cfg.alpha * (u - s.filtered_dt);
+            }
+            if now_ms.wrapping_sub(s.last_good_ms) > cfg.stale_timeout_ms {
+                s.stale = true;
+            }
+            if s.stale && s.streak >= RECOVERY_READINGS {
+                s.stale = false;
+            }
+            if !s.seen || s.stale {
+                all_healthy = false;
+            }
+            any_stale |= s.stale;
+            if s.stale || s.last_rejected {
+                fault = true;
+            }
+        }
+        st.sensor_fault = fault;
+        st.thermal_live = all_healthy;
+        let mut bits = st.thermo_bits ^ self.thermo_flags_xor;
+        bits &= !(Flags::SENSOR_FAULT.0 | Flags::THERMAL_FROZEN.0 | Flags::THERMAL_RAMP_OUT.0);
+        if fault {
+            bits |= Flags::SENSOR_FAULT.0;
+        }
+        if !all_healthy {
+            bits |= Flags::THERMAL_FROZEN.0;
+        }
+        // Stale ramp-out: a frozen term is held for STALE_HOLD_MS after a sensor went stale, then
+        // Σ b_i·ΔT_i and c·ΔT_s ramp linearly to 0 over STALE_RAMP_MS, leaving the safe value
+        // b0 + predicted forces (which need no sensor).
+        if any_stale {
+            if !st.stale_ramp {
+                st.stale_ramp = true;
+                st.stale_since_ms = now_ms;
+                st.frozen_sensor_um = st.sensor_um;
+                st.frozen_expansion_um_per_count = st.expansion_um_per_count;
+            }
+            let since = now_ms.wrapping_sub(st.stale_since_ms);
+            if since > crate::STALE_HOLD_MS {
+                let into = since - crate::STALE_HOLD_MS;
+                let k = if into >= crate::STALE_RAMP_MS {
+                    0.0
+                } else {
+                    1.0 - into as f32 / crate::STALE_RAMP_MS as f32
+                };
+                st.sensor_um = st.frozen_sensor_um * k;
+                st.expansion_um_per_count = st.frozen_expansion_um_per_count * k;
+                st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
+                bits |= Flags::THERMAL_RAMP_OUT.0;
+            }
+        } else {
+            st.stale_ramp = false;
+        }
+        st.thermo_bits = bits ^ self.thermo_flags_xor;
+        if all_healthy {
+            let mut sum = 0.0f32;
+            for (cfg, s) in self.sensors.iter().zip(st.sensors.iter()).take(n) {
+                sum += cfg.b_um_per_k * s.filtered_dt;
+            }
+            st.sensor_um = sum;
+            st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
+            st.expansion_um_per_count = if self.has_expansion {
+                let dt = st
+                    .sensors
+                    .get(self.expansion_sensor as usize)
+                    .map_or(0.0, |s| s.filtered_dt);
+                self.expansion_um_per_count_k * dt
+            } else {
+                0.0
+            };
+        }
+    }
+
+    /// Predicted forces from the process parameters (F = k·ap^x·fz^y·n^z via `libm::powf`),
+    /// computed here only. A non-finite or implausible prediction is replaced by 0 N and flagged
+    /// (FORCE_INVALID) until the next call.
+    pub fn set_process(&self, st: &mut State, p: &ProcessParams) {
+        let mut invalid = false;
+        let mut sum = 0.0f32;
+        for j in 0..MAX_FORCES {
+            let mut f = 0.0;
+            if self.loaded && j < self.n_forces as usize && self.force_predicted[j] {
+                let law = self.laws[j];
+                let v = law.k
+                    * libm::powf(p.ap_mm, law.x_ap)
+                    * libm::powf(p.fz_mm, law.y_fz)
+                    * libm::powf(p.n_rpm, law.z_n);
+                if libm::fabsf(v) <= MAX_FORCE_N {
+                    f = v;
+                    sum += self.chi_um_per_n[j] * v;
+                } else {
+                    invalid = true;
+                }
+            }
+            st.predicted_forces_n[j] = f;
+        }
+        st.predicted_um = sum;
+        st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
+        st.set_thermo_flag(Flags::FORCE_INVALID, invalid);
+    }
+}
+
+/// Per-sensor health and lag state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SensorState {
+    pub(crate) seen: bool,
+    pub(crate) stale: bool,
+    pub(crate) last_rejected: bool,
+    pub(crate) streak: u8,
+    pub(crate) last_good_degc: f32,
+    pub(crate) last_good_ms: u32,
+    /// Lagged ΔT, kelvin.
+    pub(crate) filtered_dt: f32,
+    pub(crate) rejected: u32,
+}
+
+impl SensorState {
+    pub(crate) const NEW: SensorState = SensorState {
+        seen: false,
+        stale: false,
+        last_rejected: false,
+        streak: 0,
+        last_good_degc: 0.0,
+        last_good_ms: 0,
+        filtered_dt: 0.0,
+        rejected: 0,
+    };
+}
