@@ -2,7 +2,8 @@
 //! at several SNRs, diagnosed blind; prints detection, top-1 attribution, false alarms, localisation,
 //! parameter recovery, shrink relative to the oracle and the confusion matrix (progress on stderr).
 //!
-//! Terms: *SNR* = peak of the withheld effect on held-out runs / noise σ; *oracle* = the model refitted
+//! Terms: *SNR* = held-out peak of the withheld effect, or of its part the told model cannot absorb when
+//! that is smaller, / noise σ; *oracle* = the model refitted
 //! with the true withheld contribution. Every case is measured with the same plan, the twin's survey
 //! (`axcomp_twin::SurveyPlan`: a campaign on which any single effect could show), so the plan never
 //! tells which effect was withheld.
@@ -26,7 +27,8 @@ pub struct Args {
     /// Seed of the case generator.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// SNRs to cycle through (peak of the withheld effect on held-out runs / noise σ) [default: 3,4,6,8;
+    /// SNRs to cycle through (held-out peak of the withheld effect, or of its part the model cannot absorb
+    /// when smaller, / noise σ) [default: 3,4,6,8;
     /// hard: 2,4,6,8].
     #[arg(long, value_delimiter = ',')]
     pub snr: Option<Vec<f64>>,

@@ -6,7 +6,9 @@
 //! nested-model F-test of the refit against the base model, Bonferroni-corrected over every searched
 //! variant of every candidate; **σ** = the noise level, the refit's training residual standard deviation
 //! (dof-corrected); **gap** = the base model's held-out RMS; **material** = the refit lowers the held-out
-//! RMS by at least [`MIN_SHRINK_PCT`] % of the gap *and* by at least [`MIN_NOISE_FRACTION`]·σ;
+//! RMS by at least [`MIN_SHRINK_PCT`] % of the gap *and* by at least [`MIN_NOISE_FRACTION`]·σ, or — for a
+//! localised candidate — by at least [`LOCAL_MIN_SHRINK_PCT`] % and [`LOCAL_MIN_NOISE_FRACTION`]·σ on the
+//! held-out rows where it acts ([`LocalGain`]);
 //! **score** = held-out ΔBIC, `n_ho·ln(RSS_before/RSS_after) − k·ln(n_ho)` with `k` = added columns +
 //! searched parameters (reported and used to order, not to decide).
 //!
@@ -44,6 +46,17 @@ use crate::stats;
 pub const MIN_SHRINK_PCT: f64 = 5.0;
 /// Smallest held-out RMS reduction, as a fraction of the noise σ, that counts as material.
 pub const MIN_NOISE_FRACTION: f64 = 0.05;
+/// Where a candidate acts: the held-out rows on which its fitted contribution reaches this fraction of its
+/// held-out peak (chosen from the covariates and the training fit only, never from the held-out target).
+pub const LOCAL_SUPPORT_FRACTION: f64 = 0.25;
+/// A candidate that acts on at most [`LOCAL_MAX_SHARE`] of the held-out rows (a localised effect such as an
+/// end decay) is also material when, on those rows, its refit lowers the held-out RMS by at least
+/// [`LOCAL_MIN_SHRINK_PCT`] % and by at least [`LOCAL_MIN_NOISE_FRACTION`]·σ, with at least
+/// [`LOCAL_MIN_ROWS`] rows — a few % of the stroke cannot move the RMS of the whole campaign by 5 %.
+pub const LOCAL_MAX_SHARE: f64 = 0.5;
+pub const LOCAL_MIN_ROWS: usize = 20;
+pub const LOCAL_MIN_SHRINK_PCT: f64 = 20.0;
+pub const LOCAL_MIN_NOISE_FRACTION: f64 = 0.25;
 /// Share of the leader's held-out gain (reduction of the held-out squared residuals) that a simpler
 /// candidate must reach to be tied with it (when the leader is also significantly better, paired t ≥ 2).
 pub const TIE_GAIN_FRACTION: f64 = 0.9;
@@ -51,10 +64,10 @@ pub const TIE_GAIN_FRACTION: f64 = 0.9;
 /// [`TIE_GAIN_FRACTION`] of its own (Kass & Raftery 1995: < 2 is "not worth more than a bare mention").
 pub const TIE_EVIDENCE: f64 = 2.0;
 /// The verdict rule in words (also in the JSON as `verdict_rule`).
-pub const VERDICT_RULE: &str = "a candidate explains the gap when (1) the refit of the whole model with it passes the training F-test at alpha, Bonferroni-corrected over every searched variant, and (2) its held-out improvement is material: the held-out RMS falls by at least 5 % of the gap and by at least 0.05 σ (σ: the refit's training residual standard deviation); neither threshold depends on the number of held-out rows. Ties between explaining candidates are resolved by held-out evidence: the one with the lowest held-out RMS leads, and a simpler candidate (a physical input before the sensor-free time_drift, then fewer parameters, then thermal_drift before thermal_lag) is preferred unless the leader beats it on the held-out rows significantly (paired t of the squared residuals ≥ 2) and either by a margin (the simpler one removes < 90 % of the held-out squared gap the leader removes) or with positive evidence (held-out ΔBIC ≥ 2); otherwise the two are ties. Shares of `where` are fractions in 0..1.";
+pub const VERDICT_RULE: &str = "a candidate explains the gap when (1) the refit of the whole model with it passes the training F-test at alpha, Bonferroni-corrected over every searched variant, and (2) its held-out improvement is material: the held-out RMS falls by at least 5 % of the gap and by at least 0.05 σ (σ: the refit's training residual standard deviation); neither threshold depends on the number of held-out rows. A candidate acting on at most half of the held-out rows (where its fitted contribution reaches 25 % of its peak; at least 20 rows) is also material when, on those rows, the held-out RMS falls by at least 20 % and by at least 0.25 σ (a localised effect such as an end decay cannot move the RMS of the whole campaign by 5 %). Ties between explaining candidates are resolved by held-out evidence: the one with the lowest held-out RMS leads, and a simpler candidate (a physical input before the sensor-free time_drift, then fewer parameters, then thermal_drift before thermal_lag) is preferred unless the leader beats it on the held-out rows significantly (paired t of the squared residuals ≥ 2) and either by a margin (the simpler one removes < 90 % of the held-out squared gap the leader removes) or with positive evidence (held-out ΔBIC ≥ 2); otherwise the two are ties. Shares of `where` are fractions in 0..1.";
 
 /// The verdict rule as `axcomp diagnose --help` prints it.
-pub const VERDICT_HELP: &str = "Verdict rule (also in the JSON as `verdict_rule`, with per candidate `material`, `holdout_gain_um`, `noise_um`): a candidate explains the gap when (1) the refit of the whole model with it passes the training F-test at alpha = 0.01, Bonferroni-corrected over every searched variant, and (2) its held-out improvement is material: the held-out RMS falls by at least 5 % of the gap and by at least 0.05 σ (σ: the refit's training residual standard deviation). Neither threshold depends on the number of held-out rows. Ties are resolved by held-out evidence: the lowest held-out RMS leads; a simpler candidate (a physical input before the sensor-free time_drift, then fewer parameters, then thermal_drift before thermal_lag) is preferred unless the leader beats it on the held-out rows significantly (paired t ≥ 2) and either by a margin (the simpler one removes < 90 % of the held-out squared gap the leader removes) or with positive evidence (held-out ΔBIC ≥ 2). `where` shares are in 0..100 %.";
+pub const VERDICT_HELP: &str = "Verdict rule (also in the JSON as `verdict_rule`, with per candidate `material`, `holdout_gain_um`, `noise_um`): a candidate explains the gap when (1) the refit of the whole model with it passes the training F-test at alpha = 0.01, Bonferroni-corrected over every searched variant, and (2) its held-out improvement is material: the held-out RMS falls by at least 5 % of the gap and by at least 0.05 σ (σ: the refit's training residual standard deviation). Neither threshold depends on the number of held-out rows. A candidate acting on at most half of the held-out rows (where its fitted contribution reaches 25 % of its peak; at least 20 rows) is also material when, on those rows, the held-out RMS falls by at least 20 % and by at least 0.25 σ (a localised effect such as an end decay cannot move the RMS of the whole campaign by 5 %). Ties are resolved by held-out evidence: the lowest held-out RMS leads; a simpler candidate (a physical input before the sensor-free time_drift, then fewer parameters, then thermal_drift before thermal_lag) is preferred unless the leader beats it on the held-out rows significantly (paired t ≥ 2) and either by a margin (the simpler one removes < 90 % of the held-out squared gap the leader removes) or with positive evidence (held-out ΔBIC ≥ 2). `where` shares are in 0..100 %.";
 
 /// Whether a held-out RMS reduction `gain_um` is material next to the gap `gap_um` and the noise `sigma_um`.
 pub fn is_material(gain_um: f64, gap_um: f64, sigma_um: f64) -> bool {
@@ -137,6 +150,9 @@ pub struct Candidate {
     pub noise_um: f64,
     /// The held-out gain is material: ≥ [`MIN_SHRINK_PCT`] % of the gap and ≥ [`MIN_NOISE_FRACTION`]·σ.
     pub material: bool,
+    /// The held-out gain where the candidate acts (None when it acts on more than [`LOCAL_MAX_SHARE`] of
+    /// the held-out rows or on fewer than [`LOCAL_MIN_ROWS`]).
+    pub local: Option<LocalGain>,
     /// The train test passes at `alpha` and the held-out gain is material (the verdict rule).
     pub explains: bool,
     /// Largest |correlation| between the base model's training residual and one of the candidate's
@@ -161,6 +177,61 @@ pub struct Candidate {
     /// Residual of the refit over all rows.
     #[serde(skip)]
     pub residual_after: Vec<f64>,
+}
+
+/// The held-out gain of a localised candidate on the rows where it acts (see [`LOCAL_SUPPORT_FRACTION`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct LocalGain {
+    /// Held-out rows where the candidate's contribution is ≥ [`LOCAL_SUPPORT_FRACTION`] of its peak.
+    pub rows: usize,
+    /// The base model's held-out RMS on those rows, µm.
+    pub rms_before_um: f64,
+    /// The refit's held-out RMS on those rows, µm.
+    pub rms_after_um: f64,
+    pub shrink_pct: f64,
+    /// ≥ [`LOCAL_MIN_SHRINK_PCT`] % and ≥ [`LOCAL_MIN_NOISE_FRACTION`]·σ.
+    pub material: bool,
+}
+
+/// The held-out gain where a candidate acts, if it is localised (see [`LocalGain`]).
+fn local_gain(
+    contribution: &[f64],
+    base_resid: &[f64],
+    refit_resid: &[f64],
+    hold: &[usize],
+    sigma_um: f64,
+) -> Option<LocalGain> {
+    let peak = hold
+        .iter()
+        .map(|&i| contribution[i].abs())
+        .fold(0.0, f64::max);
+    if !(peak > 0.0) {
+        return None;
+    }
+    let rows: Vec<usize> = hold
+        .iter()
+        .cloned()
+        .filter(|&i| contribution[i].abs() >= LOCAL_SUPPORT_FRACTION * peak)
+        .collect();
+    if rows.len() < LOCAL_MIN_ROWS || rows.len() as f64 > LOCAL_MAX_SHARE * hold.len() as f64 {
+        return None;
+    }
+    let n = rows.len() as f64;
+    let before = (ss(base_resid, &rows) / n).sqrt();
+    let after = (ss(refit_resid, &rows) / n).sqrt();
+    let shrink = if before > 0.0 {
+        100.0 * (1.0 - after / before)
+    } else {
+        0.0
+    };
+    Some(LocalGain {
+        rows: rows.len(),
+        rms_before_um: before,
+        rms_after_um: after,
+        shrink_pct: shrink,
+        material: shrink >= LOCAL_MIN_SHRINK_PCT
+            && before - after >= LOCAL_MIN_NOISE_FRACTION * sigma_um,
+    })
 }
 
 /// Whiteness of the training residual.
@@ -412,6 +483,51 @@ fn bootstrap_rows(blocks: &[Vec<usize>], b: usize, n_tr: usize) -> Vec<usize> {
     rows
 }
 
+/// The residual of the named model fitted (on the training rows, with its variants chosen as
+/// [`diagnose`] chooses them) to `obs.target` over all rows — what the model cannot represent of a signal.
+/// The validation harness fits it to a withheld effect's true contribution alone, to size the effect by
+/// the part the model cannot absorb.
+pub fn model_residual(
+    obs: &Observations,
+    model: &[EffectKind],
+    pitch_segments_max: usize,
+) -> Result<Vec<f64>, String> {
+    obs.validate()?;
+    let ctx = Context::new(obs, pitch_segments_max);
+    let y = &obs.target;
+    let mut fams: Vec<Family> = Vec::new();
+    for &k in model {
+        match basis::family(k, obs, &ctx) {
+            Some(f) => fams.push(f),
+            None => {
+                return Err(format!(
+                    "model effect `{k}` cannot be built from this data: {}",
+                    needs(k)
+                ));
+            }
+        }
+    }
+    let mut choice = vec![0usize; fams.len()];
+    let assemble = |choice: &[usize], skip: Option<usize>| -> Vec<Vec<f64>> {
+        let mut cols = vec![vec![1.0; ctx.n]];
+        for (j, f) in fams.iter().enumerate() {
+            if Some(j) != skip {
+                cols.extend(f.variants[choice[j]].columns(&ctx, obs));
+            }
+        }
+        cols
+    };
+    for _pass in 0..2 {
+        for j in 0..fams.len() {
+            if fams[j].variants.len() > 1 {
+                let others = assemble(&choice, Some(j));
+                choice[j] = best_variant(&fams[j], &others, y, &ctx, obs).0;
+            }
+        }
+    }
+    Ok(fit_all(&assemble(&choice, None), y, &ctx.train).resid)
+}
+
 /// Runs the diagnosis.
 pub fn diagnose(
     obs: &Observations,
@@ -570,12 +686,14 @@ pub fn diagnose(
         };
         let sigma = (rss1 / dof1).sqrt();
         let gain = gap.holdout_rms_um - rms_after;
-        let material = is_material(gain, gap.holdout_rms_um, sigma);
         let mut params = v.params.clone();
         let coefs: Vec<f64> = refit.fit.coef[base_cols.len()..].to_vec();
         let contribution: Vec<f64> = (0..ctx.n)
             .map(|i| v_cols.iter().zip(&coefs).map(|(c, b)| c[i] * b).sum())
             .collect();
+        let local = local_gain(&contribution, &base.resid, &refit.resid, &hold, sigma);
+        let material = is_material(gain, gap.holdout_rms_um, sigma)
+            || local.as_ref().is_some_and(|l| l.material);
         decorate(f.kind, &mut params, &coefs, &contribution, &hold);
         effects.push(Candidate {
             kind: f.kind.name().into(),
@@ -591,6 +709,7 @@ pub fn diagnose(
             holdout_gain_um: gain,
             noise_um: sigma,
             material,
+            local,
             explains: p_train < opts.alpha && material,
             residual_correlation: max_corr(&r_tr, &restrict(&v_cols, &train)),
             cv_rms_before_um: None,
@@ -676,7 +795,7 @@ pub fn diagnose(
     // ---- verdict, ties ----
     let mut verdict = "none".to_string();
     let mut ties = Vec::new();
-    let note;
+    let mut note;
     let n_explain = effects.iter().take_while(|c| c.explains).count();
     if n_explain > 0 {
         // The leader (lowest held-out RMS) and every explaining candidate it does not beat materially.
@@ -713,6 +832,48 @@ pub fn diagnose(
                     .then(a.cmp(&b))
             })
             .unwrap();
+        // Encompassing test on the training rows: a tied candidate replaces the simpler pick when its columns
+        // add significantly to the pick's refit (F-test, Bonferroni over its searched variants) while the
+        // pick's columns add nothing significant to its own refit, and it is not worse on the held-out rows
+        // (e.g. a time constant the drift cannot mimic, or a trend in time the temperatures do not carry).
+        let mut pick = pick;
+        let mut encompassed = None;
+        for &j in &group {
+            if j == pick || effects[j].holdout_rms_after_um > effects[pick].holdout_rms_after_um {
+                continue;
+            }
+            let n_var = |k: usize| {
+                cand_fams
+                    .iter()
+                    .find(|f| Some(f.kind) == effects[k].kind_enum)
+                    .map_or(1, |f| f.variants.len())
+            };
+            let (Some(vp), Some(vj)) = (&effects[pick].variant, &effects[j].variant) else {
+                continue;
+            };
+            let (cp, cj) = (vp.columns(&ctx, obs), vj.columns(&ctx, obs));
+            let both: Vec<Vec<f64>> = cp.iter().chain(&cj).cloned().collect();
+            let joint = fit_all(&with_extra(&base_cols, &both), y, &train);
+            let rss_pj = ss(&joint.resid, &train);
+            let dof = n_tr.saturating_sub(joint.fit.rank).max(1) as f64;
+            let adds = |k: usize, q: usize| {
+                let rss_k = ss(&effects[k].residual_after, &train);
+                if q == 0 || rss_pj <= 0.0 || rss_k <= rss_pj {
+                    return 1.0;
+                }
+                let f = ((rss_k - rss_pj) / q as f64) / (rss_pj / dof);
+                (stats::f_sf(f, q as f64, dof) * n_var(if k == pick { j } else { pick }) as f64)
+                    .min(1.0)
+            };
+            // p of j's columns added to the pick's refit, and of the pick's added to j's.
+            let p_j_over_pick = adds(pick, cj.len());
+            let p_pick_over_j = adds(j, cp.len());
+            if p_j_over_pick < opts.alpha && p_pick_over_j >= opts.alpha {
+                encompassed = Some((effects[pick].kind.clone(), p_j_over_pick, p_pick_over_j));
+                pick = j;
+                break;
+            }
+        }
         if group.len() > 1 {
             ties = group
                 .iter()
@@ -750,6 +911,13 @@ pub fn diagnose(
                 effects[pick].holdout_gain_um,
                 MIN_NOISE_FRACTION,
                 MIN_NOISE_FRACTION * effects[pick].noise_um
+            );
+        }
+        if let Some((simpler, p_in, p_out)) = &encompassed {
+            note = note.replace("; the simpler is preferred", "");
+            note = format!(
+                "{note}; {} is chosen over the simpler {simpler}: on the training rows its columns add significantly to {simpler}'s refit (p = {p_in:.2e} after Bonferroni) while {simpler}'s add nothing to its own (p = {p_out:.2e}), and it is not worse on the held-out rows",
+                effects[pick].kind
             );
         }
         if pick != 0 {

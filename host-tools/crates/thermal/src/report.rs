@@ -9,7 +9,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use axcomp_plot::{Figure, markdown_table, write_atomic};
+use axcomp_plot::{BarChart, Figure, markdown_table, panels_svg, write_atomic};
 
 use crate::thermal::{ThermalFit, ThermalInput};
 
@@ -27,53 +27,133 @@ pub fn write_thermal_report(
     let held = input.holdout.clone().unwrap_or_else(|| vec![false; n]);
     let spans = spans(&hours, &held);
 
+    let used = fit.model.terms.len();
+    let all = input.sensors.len();
+    // One line naming the data, the model and its figures, shared by the titles.
+    let figures = match fit.holdout_rms_um {
+        Some(h) => format!(
+            "held-out RMS {:.2} µm raw → {h:.2} µm after the model",
+            fit.raw_rms_um
+        ),
+        None => format!("raw RMS {:.2} µm (no held-out rows)", fit.raw_rms_um),
+    };
+    // Measured and predicted after the same zeroing as the raw figures (target − its reference value), and
+    // the residual in a panel of its own (its scale is much smaller).
+    let zero = fit.raw_reference_um;
+    let measured: Vec<f64> = input.target.iter().map(|v| v - zero).collect();
+    let predicted: Vec<f64> = fit.prediction.iter().map(|v| v - zero).collect();
     let mut f = Figure::new(
-        &format!("{target}: measured vs predicted"),
+        &format!(
+            "{target}: measured vs predicted by model `{}` ({used} of {all} sensors) — {figures}",
+            fit.chosen_method
+        ),
         "time / h",
-        "error / µm",
+        "error − reference value / µm",
     );
-    f.line("measured", &hours, &input.target);
-    f.line("predicted", &hours, &fit.prediction);
+    f.line("measured", &hours, &measured);
+    f.line("predicted", &hours, &predicted);
+    for (a, b) in &spans {
+        f.vspan(*a, *b, "held out");
+    }
     let resid: Vec<f64> = input
         .target
         .iter()
         .zip(&fit.prediction)
         .map(|(a, b)| a - b)
         .collect();
-    f.dashed("residual", &hours, &resid);
-    for (a, b) in &spans {
-        f.vspan(*a, *b, "held out");
-    }
-    f.save_svg(dir.join("prediction.svg"))?;
-
-    let mut f = Figure::new(
-        "RMS per condition",
-        "condition (index, see report.md)",
-        "RMS / µm",
+    let mut r = Figure::new(
+        &format!("{target}: residual (measured − predicted, what compensation leaves)"),
+        "time / h",
+        "residual / µm",
     );
-    let xs: Vec<f64> = (0..fit.per_condition.len()).map(|i| i as f64).collect();
-    f.points(
+    r.line("residual", &hours, &resid).with_colour("#009E73");
+    r.hline(0.0, "");
+    for (a, b) in &spans {
+        r.vspan(*a, *b, "held out");
+    }
+    f.size(900.0, 420.0);
+    r.size(900.0, 320.0);
+    write_atomic(
+        &dir.join("prediction.svg"),
+        panels_svg(&[&f, &r], 1).as_bytes(),
+    )?;
+
+    // One bar pair per condition (raw, after the model); held-out conditions are marked in the name.
+    let names: Vec<String> = fit
+        .per_condition
+        .iter()
+        .map(|c| {
+            format!(
+                "{}{}",
+                c.condition,
+                if c.held_out && !c.condition.contains("held") {
+                    " (held out)"
+                } else {
+                    ""
+                }
+            )
+        })
+        .collect();
+    let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    let mut bars = BarChart::new(
+        &format!(
+            "{target}: RMS per condition, raw vs after model `{}` — {figures}",
+            fit.chosen_method
+        ),
+        "RMS / µm",
+        &name_refs,
+    );
+    bars.series(
         "raw",
-        &xs,
         &fit.per_condition
             .iter()
             .map(|c| c.raw_rms_um)
             .collect::<Vec<_>>(),
     );
-    f.points(
+    bars.series(
         "after model",
-        &xs,
         &fit.per_condition
             .iter()
             .map(|c| c.rms_um)
             .collect::<Vec<_>>(),
     );
-    f.save_svg(dir.join("residual_per_condition.svg"))?;
+    write_atomic(
+        &dir.join("residual_per_condition.svg"),
+        bars.to_svg().as_bytes(),
+    )?;
 
-    let mut f = Figure::new("Selected sensors", "time / h", "temperature / °C");
-    for t in &fit.model.terms {
+    // The sensors the model uses (only those), each named with its coefficient and lag.
+    let title = if used == all {
+        format!(
+            "Temperatures: all {all} sensors, every one used by model `{}`",
+            fit.chosen_method
+        )
+    } else {
+        format!(
+            "Temperatures: the {used} of {all} sensors used by model `{}` (the others are not shown)",
+            fit.chosen_method
+        )
+    };
+    let labels: Vec<String> = fit
+        .model
+        .terms
+        .iter()
+        .map(|t| {
+            format!(
+                "{} ({:+.3} µm/K, τ {:.0} s)",
+                t.sensor, t.coef_um_per_k, t.tau_s
+            )
+        })
+        .collect();
+    // Wide enough that the legend holds the longest name uncut (the legend takes up to 45 % of the width
+    // at ~7.5 px a character plus 50 px).
+    let longest = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0);
+    let width = ((50.0 + 7.5 * longest as f64) / 0.45 + 10.0).max(900.0);
+    let mut f = Figure::new(&title, "time / h", "temperature / °C");
+    f.size(width, 500.0);
+    for (t, label) in fit.model.terms.iter().zip(&labels) {
         if let Some(s) = input.sensors.iter().find(|s| s.name == t.sensor) {
-            f.line(&t.sensor, &hours, &s.values);
+            f.line(label, &hours, &s.values);
         }
     }
     for (a, b) in &spans {
