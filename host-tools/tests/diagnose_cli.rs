@@ -242,8 +242,10 @@ fn bad_input_is_named() {
 
 #[test]
 fn validate_diagnosis_reduced_run_meets_sane_minima() {
-    // 24 cases (18 with one effect withheld at SNR 4 or 6, 6 nulls), 3000 rows each. Minima are looser
-    // than the full run's acceptance (see README) because 24 cases give coarse rates.
+    // 24 cases (18 with one effect withheld at SNR 4 or 6, 6 nulls), 3000 rows each, deterministic in the
+    // seed. The targets at SNR ≥ 4 as far as 24 cases can show them: top-1 ≥ 90 % (at most 1 of 18
+    // missed; measured 18 of 18), no false alarm on the 6 nulls (the target ≤ 5 % needs more nulls; the full
+    // run in the README has 120), no share outside 0..1.
     let dir = tmp("validate");
     let json = dir.join("v.json");
     let (ok, stdout, stderr) = axcomp(&[
@@ -267,8 +269,8 @@ fn validate_diagnosis_reduced_run_meets_sane_minima() {
     let ratio = v["median_shrink_ratio_to_oracle"].as_f64().unwrap();
     println!("{stdout}");
     assert_eq!(v["shares_out_of_range"], 0);
-    assert!(fa <= 1.0 / 6.0 + 1e-9, "false alarms {fa}");
-    assert!(top1 >= 0.7, "top-1 attribution {top1}");
+    assert_eq!(fa, 0.0, "false alarms {fa}");
+    assert!(top1 >= 0.9, "top-1 attribution {top1}");
     assert!(ratio >= 0.8, "median shrink / oracle {ratio}");
     assert!(stderr.contains("[24/24]"), "progress on stderr");
     let _ = std::fs::remove_dir_all(&dir);
@@ -277,9 +279,10 @@ fn validate_diagnosis_reduced_run_meets_sane_minima() {
 #[test]
 fn validate_diagnosis_hard_harness_reduced_run() {
     // The hard harness (1,500 rows, 3 ISO cycles, held out outside the training regime) on 24 cases: 18
-    // withheld at SNR 4 or 6, 6 nulls. The full run (README: 240 cases, `--harness hard --cases 240 --seed
-    // 3`) is the acceptance figure; 24 cases give coarse rates, so the minima here are looser: no false
-    // alarm allowed beyond 1 of 6 nulls, top-1 ≥ 70 %, no share outside 0..1.
+    // withheld at SNR 4 or 6, 6 nulls, deterministic in the seed. The full run (README: `--harness hard
+    // --cases 480 --seed 1`) is the acceptance figure; here the targets as far as 24 cases show
+    // them: top-1 ≥ 90 % (at most 1 of 18 missed; measured 17 of 18), no false alarm on the 6 nulls, no
+    // share outside 0..1.
     let dir = tmp("validate-hard");
     let json = dir.join("v.json");
     let (ok, stdout, stderr) = axcomp(&[
@@ -302,8 +305,8 @@ fn validate_diagnosis_hard_harness_reduced_run() {
     let fa = v["false_alarm_rate"].as_f64().unwrap();
     let top1 = v["top1_attribution"].as_f64().unwrap();
     println!("{stdout}");
-    assert!(fa <= 1.0 / 6.0 + 1e-9, "false alarms {fa}");
-    assert!(top1 >= 0.7, "top-1 attribution {top1}");
+    assert_eq!(fa, 0.0, "false alarms {fa}");
+    assert!(top1 >= 0.9, "top-1 attribution {top1}");
     assert_eq!(v["shares_out_of_range"], 0);
     let (ok, _, err) = axcomp(&["validate-diagnosis", "--harness", "nope", "--cases", "1"]);
     assert!(
