@@ -4,7 +4,7 @@
 //!
 //! Glossary (conventions of `axcomp-kinematics`):
 //! - **truth**: each of the 18 component functions is a smooth curve `g(u) = c1·u + c2·u² + c3·u³ +
-//!   c4·sin(2πku + φ)`, `u = q / stroke`, made zero at the axis's zero (straightness also with zero
+//!   c4·sin(2πku + φ)`, `u = q / stroke`, k ∈ [0.5, 1), made zero at the axis's zero (straightness also with zero
 //!   least-squares slope over the stroke, the squareness convention) and scaled to a drawn peak: positioning
 //!   5–20 µm, straightness 2–10 µm, angular 5–30 µrad; squareness 10–50 µrad, random signs.
 //! - **reading**: `(exact HTM error at the reading) · beam + drift · beam + noise`, µm; the reflector is at
@@ -52,7 +52,7 @@ impl TruthCurve {
                 rng.gen_range(-1.0..1.0),
                 rng.gen_range(0.0..0.5),
             ],
-            k: rng.gen_range(0.5..1.5),
+            k: rng.gen_range(0.5..1.0),
             phase: rng.gen_range(0.0..std::f64::consts::TAU),
             slope: 0.0,
             scale: 1.0,
@@ -246,8 +246,8 @@ impl LineCampaign {
 
 /// Named line plans over `stroke` with `targets` per line: `seven-line` (seed 000), `step-diagonal` (the
 /// four body diagonals read step-wise), `axis-lines` (each axis at the four corner offsets of the other
-/// two), `face-diagonals` (XY, XZ, YZ at the lower faces), `tool-offsets` (the body diagonals with a
-/// 100 mm reflector offset along each axis), `complete` (axis lines at offsets + step-wise body diagonals +
+/// two), `face-diagonals` (XY, XZ, YZ at the lower faces), `tool-offsets` (each axis line with the
+/// reflector 100 mm off along each other direction, and a body diagonal with (100, 100, 100) mm), `complete` (axis lines at offsets + step-wise body diagonals +
 /// two tool-offset diagonals: every component separable). `None` for an unknown name.
 pub fn plan_by_name(name: &str, stroke: [f64; 3], targets: usize) -> Option<Vec<LineSpec>> {
     let [x, y, z] = stroke;
@@ -268,20 +268,18 @@ pub fn plan_by_name(name: &str, stroke: [f64; 3], targets: usize) -> Option<Vec<
         v
     };
     let tool_lines = || {
+        // each axis line with the reflector 100 mm off along each of the other two directions
         let off = 100.0;
         let mut v = Vec::new();
-        for (i, t) in [[off, 0.0, 0.0], [0.0, off, 0.0], [0.0, 0.0, off]]
-            .iter()
-            .enumerate()
-        {
-            let mut l = lines::LineSpec::new(&format!("T{}", i + 1), [0.0; 3], [x, y, z], targets);
-            l.tool = *t;
-            v.push(l);
-            let mut l2 =
-                lines::LineSpec::new(&format!("T{}b", i + 1), [x, 0.0, 0.0], [0.0, y, z], targets);
-            l2.tool = *t;
-            v.push(l2);
+        for a in 0..3 {
+            for b in (0..3).filter(|b| *b != a) {
+                let mut t = [0.0; 3];
+                t[b] = off;
+                let n = format!("T{}{}", ['X', 'Y', 'Z'][a], ['x', 'y', 'z'][b]);
+                v.push(lines::axis_line(&n, a, stroke, [0.0; 3], targets).with_tool(t));
+            }
         }
+        v.push(LineSpec::new("TD", [0.0; 3], [x, y, z], targets).with_tool([off, off, off]));
         v
     };
     Some(match name {
