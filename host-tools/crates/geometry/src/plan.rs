@@ -91,7 +91,7 @@ pub fn candidates(opts: &PlanOptions) -> Vec<LineSpec> {
         for l in &base {
             let mut l = l.clone().with_tool(*t);
             if *t != [0.0; 3] {
-                l.name = format!("{}+t({},{},{})", l.name, t[0], t[1], t[2]);
+                l.name = format!("{}+t{}_{}_{}", l.name, t[0], t[1], t[2]);
             }
             out.push(l);
         }
