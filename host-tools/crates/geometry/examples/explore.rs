@@ -5,7 +5,11 @@ use axcomp_twin::geometry::{GeometryTwin, plan_by_name};
 
 fn main() {
     let plan = std::env::args().nth(1).unwrap_or("complete".into());
-    let twin = GeometryTwin::random([800.0, 600.0, 500.0], Topology::default(), 1);
+    let seed: u64 = std::env::args()
+        .nth(2)
+        .map(|s| s.parse().unwrap())
+        .unwrap_or(1);
+    let twin = GeometryTwin::random([800.0, 600.0, 500.0], Topology::default(), seed);
     let lines = plan_by_name(&plan, twin.stroke_mm, 21).unwrap();
     let camp = twin.measure(&lines, 2, 5);
     let ds = Dataset::from_csv_str("twin", &camp.to_csv_string(), &LoadOptions::default()).unwrap();
@@ -35,7 +39,7 @@ fn main() {
         for c in Component::ALL {
             let mc = &a.fit.model.components[c.index()];
             let (mut se, mut z2, mut k) = (0.0, 0.0, 0);
-            for [q, u] in &mc.uncertainty {
+            for [q, u] in mc.uncertainty.iter().filter(|x| x[1] > 1e-6) {
                 let e = a.fit.model.component_value(c, *q) - twin.component(c, *q);
                 se += e * e;
                 z2 += if *u > 0.0 { (e / u).powi(2) } else { 0.0 };
