@@ -43,7 +43,7 @@ pub struct Args {
     /// auto (smoothing by CV over lines), plain (no smoothing), seven-line (seed 000's 17 parameters).
     #[arg(long, default_value = "auto", value_name = "METHOD")]
     pub method: String,
-    /// Knot intervals per axis (default: distinct positions − 3, at most 16).
+    /// Knot intervals per axis (default: distinct positions − 3, at most 12).
     #[arg(long, value_name = "N")]
     pub intervals: Option<usize>,
     /// Write the model file (input of `axcomp predict`).

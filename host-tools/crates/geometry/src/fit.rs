@@ -57,7 +57,7 @@ pub const SEVEN_LINE_FIXED: [Component; 4] = [
 pub struct FitOptions {
     pub topology: Topology,
     pub method: Method,
-    /// Knot intervals per axis; `None`: the distinct positions along the axis less 3, 1..=16 (so that
+    /// Knot intervals per axis; `None`: the distinct positions along the axis less 3, 1..=12 (so that
     /// plain least squares is still determined where each target is read).
     pub intervals: Option<usize>,
     /// Smoothing λ candidates for [`Method::Auto`].
@@ -70,7 +70,7 @@ impl Default for FitOptions {
             topology: Topology::default(),
             method: Method::Auto,
             intervals: None,
-            lambdas: vec![0.0, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0],
+            lambdas: vec![0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0],
         }
     }
 }
@@ -107,7 +107,7 @@ impl Layout {
             let lo = (*v.first().unwrap_or(&0) as f64 / 1e3).min(0.0);
             let hi = (*v.last().unwrap_or(&0) as f64 / 1e3).max(0.0);
             moved[k] = hi - lo > 1e-3 && v.len() >= 2;
-            let n = intervals.unwrap_or(v.len().saturating_sub(3).clamp(1, 16));
+            let n = intervals.unwrap_or(v.len().saturating_sub(3).clamp(1, 12));
             grids[k] = if moved[k] {
                 AxisGrid {
                     lo,
@@ -365,11 +365,29 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         }
         v
     };
+    // normal equations per line (the folds of the cross-validation) and in total, computed once
+    let mut line_rows: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for (i, &ri) in train.iter().enumerate() {
+        line_rows.entry(data.readings[ri].line).or_default().push(i);
+    }
+    let fold_full: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)> = line_rows
+        .values()
+        .map(|rows| {
+            let (g, r) = normal(&a, &d, rows);
+            (rows.clone(), g, r)
+        })
+        .collect();
+    let mut g_full = DMatrix::<f64>::zeros(p, p);
+    let mut r_full = DVector::<f64>::zeros(p);
+    for (_, g, r) in &fold_full {
+        g_full += g;
+        r_full += r;
+    }
+    let _ = &all_rows;
     // rank of the full stacked design (column-normalised)
     let nz: Vec<usize> = (0..p).filter(|&j| col_norm[j] > 1e-9 * max_norm).collect();
     let normalised = |cols: &[usize]| -> DMatrix<f64> {
-        let sub = a.select_columns(cols.iter());
-        let mut g = sub.transpose() * &sub;
+        let mut g = g_full.select_rows(cols.iter()).select_columns(cols.iter());
         for i in 0..cols.len() {
             for j in 0..cols.len() {
                 g[(i, j)] /= col_norm[cols[i]] * col_norm[cols[j]];
@@ -524,22 +542,18 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         }
     }
     let aa = a.select_columns(active.iter());
-    let (g_all, r_all) = normal(&aa, &d, &all_rows);
+    let sel = |g: &DMatrix<f64>| g.select_rows(active.iter()).select_columns(active.iter());
+    let selv = |r: &DVector<f64>| DVector::from_iterator(active.len(), active.iter().map(|&j| r[j]));
+    let g_all = sel(&g_full);
+    let r_all = selv(&r_full);
 
     // --- λ by leave-one-line-out cross-validation -----------------------------------------------
-    let mut line_rows: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
-    for (i, &ri) in train.iter().enumerate() {
-        line_rows.entry(data.readings[ri].line).or_default().push(i);
-    }
     let mut lambda_cv = Vec::new();
     let lambda = match opts.method {
         Method::Auto if line_rows.len() >= 3 && opts.lambdas.len() > 1 => {
-            let folds: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)> = line_rows
-                .values()
-                .map(|rows| {
-                    let (g, r) = normal(&aa, &d, rows);
-                    (rows.clone(), g, r)
-                })
+            let folds: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)> = fold_full
+                .iter()
+                .map(|(rows, g, r)| (rows.clone(), sel(g), selv(r)))
                 .collect();
             // A fold whose removal leaves some parameter undetermined (an essential line) cannot be
             // predicted by any λ; it is left out of the score (pivot of the fold's Cholesky factor below
