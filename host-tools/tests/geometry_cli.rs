@@ -36,8 +36,20 @@ fn plan_simulate_fit_export_report() {
     let d = tmp("e2e");
     let out = ok(&axcomp(
         &[
-            "plan", "geometry", "--stroke", "800,600,500", "--lines", "20", "--sigma-um", "0.5",
-            "--twin-plan", "seven-line+plan", "--simulate", "lines.csv", "--json", "plan.json",
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--lines",
+            "20",
+            "--sigma-um",
+            "0.5",
+            "--twin-plan",
+            "seven-line+plan",
+            "--simulate",
+            "lines.csv",
+            "--json",
+            "plan.json",
         ],
         &d,
     ));
@@ -45,8 +57,20 @@ fn plan_simulate_fit_export_report() {
     assert!(out.contains("EA0Z"), "{out}");
     let out = ok(&axcomp(
         &[
-            "fit", "geometry", "--data", "lines.csv", "--holdout", "line=L1,L2,L3,L4,L5,L6,L7",
-            "--json", "fit.json", "--out", "model.json", "--report", "rep", "--export", "tables",
+            "fit",
+            "geometry",
+            "--data",
+            "lines.csv",
+            "--holdout",
+            "line=L1,L2,L3,L4,L5,L6,L7",
+            "--json",
+            "fit.json",
+            "--out",
+            "model.json",
+            "--report",
+            "rep",
+            "--export",
+            "tables",
         ],
         &d,
     ));
@@ -80,12 +104,20 @@ fn plan_simulate_fit_export_report() {
     assert!(l7["after_um"].as_f64().unwrap() < l7["before_um"].as_f64().unwrap());
     // exports and report
     let exx = std::fs::read_to_string(d.join("tables/EXX.csv")).unwrap();
-    assert!(exx.starts_with("component,position_mm,value,unit\nEXX,0.0000,"), "{exx}");
+    assert!(
+        exx.starts_with("component,position_mm,value,unit\nEXX,0.0000,"),
+        "{exx}"
+    );
     let ax = std::fs::read_to_string(d.join("tables/axis_X.csv")).unwrap();
-    assert!(ax.starts_with("position_mm,EXX,EYX,EZX,EAX,EBX,ECX\n"), "{ax}");
+    assert!(
+        ax.starts_with("position_mm,EXX,EYX,EZX,EAX,EBX,ECX\n"),
+        "{ax}"
+    );
     assert!(d.join("tables/squareness.csv").exists());
     let md = std::fs::read_to_string(d.join("rep/report.md")).unwrap();
-    assert!(md.contains("EXX.svg") && md.contains("volumetric_z1.svg") && md.contains("line_L4.svg"));
+    assert!(
+        md.contains("EXX.svg") && md.contains("volumetric_z1.svg") && md.contains("line_L4.svg")
+    );
     // the model file is readable as a geometry model
     let m = std::fs::read_to_string(d.join("model.json")).unwrap();
     axcomp_geometry::GeometryModel::from_json(&m, "model.json").unwrap();
@@ -99,14 +131,35 @@ fn seven_line_set_reports_the_four_it_cannot_identify() {
     let d = tmp("seven");
     ok(&axcomp(
         &[
-            "plan", "geometry", "--stroke", "600,500,400", "--twin-plan", "seven-line",
-            "--simulate", "seven.csv", "--targets", "15", "--sigma-um", "0.5",
+            "plan",
+            "geometry",
+            "--stroke",
+            "600,500,400",
+            "--twin-plan",
+            "seven-line",
+            "--simulate",
+            "seven.csv",
+            "--targets",
+            "15",
+            "--sigma-um",
+            "0.5",
         ],
         &d,
     ));
     for method in ["seven-line", "auto"] {
         ok(&axcomp(
-            &["fit", "geometry", "--data", "seven.csv", "--method", method, "--cv", "line", "--json", "fit.json"],
+            &[
+                "fit",
+                "geometry",
+                "--data",
+                "seven.csv",
+                "--method",
+                method,
+                "--cv",
+                "line",
+                "--json",
+                "fit.json",
+            ],
             &d,
         ));
         let j: serde_json::Value =
@@ -114,7 +167,11 @@ fn seven_line_set_reports_the_four_it_cannot_identify() {
         assert!(j["cv_rms_um"].as_f64().unwrap().is_finite());
         for (name, e) in j["errors"].as_object().unwrap() {
             let fixed = ["ECY", "EAZ", "EBZ", "ECZ"].contains(&name.as_str());
-            assert_eq!(e["identified"].as_bool().unwrap(), !fixed, "{method} {name}: {e}");
+            assert_eq!(
+                e["identified"].as_bool().unwrap(),
+                !fixed,
+                "{method} {name}: {e}"
+            );
             if fixed {
                 assert!(e["reason"].as_str().unwrap().contains("lever arm"), "{e}");
             }
@@ -132,14 +189,29 @@ fn bad_input_writes_nothing() {
     )
     .unwrap();
     let o = axcomp(
-        &["fit", "geometry", "--data", "bad.csv", "--json", "fit.json", "--out", "m.json", "--report", "rep"],
+        &[
+            "fit", "geometry", "--data", "bad.csv", "--json", "fit.json", "--out", "m.json",
+            "--report", "rep",
+        ],
         &d,
     );
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("line A") && err.contains("bad.csv:4"), "{err}");
     assert!(!d.join("fit.json").exists() && !d.join("m.json").exists() && !d.join("rep").exists());
-    let o = axcomp(&["fit", "geometry", "--data", "bad.csv", "--work-axes", "YX", "--tool-axes", "X"], &d);
+    let o = axcomp(
+        &[
+            "fit",
+            "geometry",
+            "--data",
+            "bad.csv",
+            "--work-axes",
+            "YX",
+            "--tool-axes",
+            "X",
+        ],
+        &d,
+    );
     assert!(String::from_utf8_lossy(&o.stderr).contains("axis X appears 2 times"));
     let o = axcomp(&["plan", "geometry", "--stroke", "800,600"], &d);
     assert!(String::from_utf8_lossy(&o.stderr).contains("--stroke 800,600"));

@@ -12,7 +12,12 @@ fn main() {
     let p = plan(&PlanOptions {
         stroke_mm: stroke,
         max_lines: Some(22),
-        tool_offsets: vec![[0.0; 3], [150.0, 0.0, 0.0], [0.0, 150.0, 0.0], [0.0, 0.0, 150.0]],
+        tool_offsets: vec![
+            [0.0; 3],
+            [150.0, 0.0, 0.0],
+            [0.0, 150.0, 0.0],
+            [0.0, 0.0, 150.0],
+        ],
         sigma_um: 0.5,
         targets: 40,
         topology: Topology::default(),
@@ -20,7 +25,8 @@ fn main() {
     .expect("plan");
     let twin = GeometryTwin::random(stroke, Topology::default(), 1);
     let camp = twin.measure(&p.lines, 3, 2);
-    let ds = Dataset::from_csv_str("bench", &camp.to_csv_string(), &LoadOptions::default()).unwrap();
+    let ds =
+        Dataset::from_csv_str("bench", &camp.to_csv_string(), &LoadOptions::default()).unwrap();
     let mut best = f64::INFINITY;
     let mut rows = 0;
     let mut params = 0;

@@ -543,7 +543,8 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
     }
     let aa = a.select_columns(active.iter());
     let sel = |g: &DMatrix<f64>| g.select_rows(active.iter()).select_columns(active.iter());
-    let selv = |r: &DVector<f64>| DVector::from_iterator(active.len(), active.iter().map(|&j| r[j]));
+    let selv =
+        |r: &DVector<f64>| DVector::from_iterator(active.len(), active.iter().map(|&j| r[j]));
     let g_all = sel(&g_full);
     let r_all = selv(&r_full);
 

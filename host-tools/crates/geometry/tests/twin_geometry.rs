@@ -230,3 +230,111 @@ fn predict_rows_matches_model() {
             .is_none()
     );
 }
+
+/// The held-back evaluation: fit the seven-line set plus the Y and Z axis lines, predict lines never
+/// fitted — axis lines at other offsets, XZ and YZ diagonals, a diagonal with a 150 mm tool offset, random
+/// beams — through `predict_rows` (what `axcomp predict` calls). Compared in the same run: plain least
+/// squares, and the best these lines can identify at all (the same fit on the noise-free truth readings).
+/// Reference: the twin's noise-free readings of the held-back lines. Tolerance: the default is never worse
+/// than plain least squares by more than 2 % (summed over 5 seeds).
+#[test]
+fn held_back_lines_predicted_from_seven_lines_plus_axis_lines() {
+    use axcomp_kinematics::lines::{LineSpec, axis_line, face_diagonals};
+    let n = 15;
+    let mut train = plan_by_name("seven-line", STROKE, n).unwrap();
+    train.push(axis_line("Y0", 1, STROKE, [0.0; 3], n));
+    train.push(axis_line("Z0", 2, STROKE, [0.0; 3], n));
+    let mut held: Vec<LineSpec> = vec![
+        axis_line("Xo", 0, STROKE, [0.0, 600.0, 500.0], n),
+        axis_line("Yo", 1, STROKE, [800.0, 0.0, 500.0], n),
+        axis_line("Zo", 2, STROKE, [800.0, 600.0, 0.0], n),
+        LineSpec::new("DT", [0.0; 3], STROKE, n).with_tool([0.0, 0.0, 150.0]),
+    ];
+    held.extend(face_diagonals(STROKE, 0, 2, 300.0, n, false));
+    held.extend(face_diagonals(STROKE, 1, 2, 400.0, n, false));
+    // random beams: fixed pseudo-random end points inside the box
+    for (i, (a, b)) in [
+        ([100.0, 50.0, 20.0], [700.0, 560.0, 330.0]),
+        ([760.0, 80.0, 450.0], [40.0, 500.0, 60.0]),
+        ([300.0, 590.0, 10.0], [650.0, 20.0, 480.0]),
+    ]
+    .iter()
+    .enumerate()
+    {
+        held.push(LineSpec::new(&format!("R{i}"), *a, *b, n));
+    }
+    let n_train = train.len();
+    let mut lines = train;
+    lines.extend(held);
+    let (mut sum_auto, mut sum_plain, mut sum_best, mut sum_noise) = (0.0, 0.0, 0.0, 0.0);
+    for seed in 0..5u64 {
+        let mut twin = GeometryTwin::random(STROKE, Topology::default(), 50 + seed);
+        twin.noise_um = 0.5;
+        let camp = twin.measure(&lines, 2, seed);
+        let (ds, data) = load(&camp);
+        let held_mask: Vec<bool> = data.readings.iter().map(|r| r.line >= n_train).collect();
+        let judge = Judge::Holdout(held_mask.clone());
+        let truth: Vec<f64> = camp.rows.iter().map(|r| r.truth_um).collect();
+        let score = |model: &GeometryModel| -> f64 {
+            let pred = axcomp_geometry::predict_rows(model, &ds).unwrap();
+            let e: Vec<f64> = (0..truth.len())
+                .filter(|&i| held_mask[i])
+                .map(|i| pred[i].deviation_um.unwrap() - truth[i])
+                .collect();
+            rms(&e)
+        };
+        let auto = analyse(&data, &judge, &FitOptions::default()).unwrap();
+        let plain = analyse(
+            &data,
+            &judge,
+            &FitOptions {
+                method: Method::Plain,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap();
+        // the best these lines can identify: the same fit on noise-free readings
+        let mut clean = camp.clone();
+        for r in &mut clean.rows {
+            r.deviation_um = r.truth_um;
+        }
+        let (_, cdata) = load(&clean);
+        let best = analyse(
+            &cdata,
+            &judge,
+            &FitOptions {
+                method: Method::Plain,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap();
+        let (a, p, b) = (
+            score(&auto.fit.model),
+            score(&plain.fit.model),
+            score(&best.fit.model),
+        );
+        let raw = rms(&(0..truth.len())
+            .filter(|&i| held_mask[i])
+            .map(|i| truth[i])
+            .collect::<Vec<_>>());
+        println!(
+            "seed {seed}: held-back lines, error of the predicted reading vs truth: raw {raw:.2} µm, default {a:.3} µm, plain {p:.3} µm, best identifiable {b:.3} µm"
+        );
+        sum_auto += a;
+        sum_plain += p;
+        sum_best += b;
+        sum_noise += raw;
+    }
+    println!(
+        "mean over 5 seeds: raw {:.2}, default {:.3}, plain {:.3}, best identifiable {:.3} µm",
+        sum_noise / 5.0,
+        sum_auto / 5.0,
+        sum_plain / 5.0,
+        sum_best / 5.0
+    );
+    assert!(
+        sum_auto <= 1.02 * sum_plain,
+        "default {sum_auto} vs plain {sum_plain}"
+    );
+    assert!(sum_auto < 0.5 * sum_noise);
+}
