@@ -124,12 +124,13 @@ impl LineData {
             tool[k] = col_or_zero(ds, c)?;
             finite(ds, c, &tool[k])?;
         }
-        let dev = if need_deviation || ds.has("deviation_um") {
+        let dev = if need_deviation {
             let d = ds.numeric("deviation_um")?.to_vec();
-            if need_deviation {
-                finite(ds, "deviation_um", &d)?;
-            }
+            finite(ds, "deviation_um", &d)?;
             d
+        } else if ds.has("deviation_um") {
+            // prediction: the measured column is not needed; blanks are fine
+            ds.numeric_or_nan("deviation_um")?
         } else {
             vec![f64::NAN; n]
         };

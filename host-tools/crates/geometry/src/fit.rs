@@ -306,7 +306,6 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         }
     }
     let d = DVector::from_iterator(n, train.iter().map(|&ri| data.readings[ri].deviation_um));
-    let all_rows: Vec<usize> = (0..n).collect();
 
     // --- identifiability -------------------------------------------------------------------------
     let mut status: Vec<ComponentStatus> = Component::ALL
@@ -383,7 +382,6 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         g_full += g;
         r_full += r;
     }
-    let _ = &all_rows;
     // rank of the full stacked design (column-normalised)
     let nz: Vec<usize> = (0..p).filter(|&j| col_norm[j] > 1e-9 * max_norm).collect();
     let normalised = |cols: &[usize]| -> DMatrix<f64> {
