@@ -83,7 +83,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             [0.0, 0.0, 150.0],
         ];
     }
-    if !(a.sigma_um > 0.0) {
+    if !a.sigma_um.is_finite() || a.sigma_um <= 0.0 {
         bail!("--sigma-um {}: must be positive", a.sigma_um);
     }
     let p = plan(&PlanOptions {

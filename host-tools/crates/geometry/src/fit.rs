@@ -523,8 +523,8 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
     // --- smoothing penalty on the active parameters ---------------------------------------------
     let pa = active.len();
     let mut pen = DMatrix::zeros(pa, pa);
-    for i in 0..18 {
-        if status[i].fixed {
+    for (i, st) in status.iter().enumerate().take(18) {
+        if st.fixed {
             continue;
         }
         let (s, k) = layout.cols[i];
