@@ -32,6 +32,9 @@ pub enum Command {
     Sim(commands::sim::Args),
     /// Diagnose the gap between a model and measurements: where it lies, which unmodelled effect explains it.
     Diagnose(commands::diagnose::Args),
+    /// Plan measurements (which laser lines make the geometric errors identifiable).
+    #[command(subcommand)]
+    Plan(PlanCommand),
     /// Check the diagnosis on many twin campaigns with one effect withheld (detection, attribution, false alarms).
     ValidateDiagnosis(commands::validate_diagnosis::Args),
     /// Apply a fitted model file (positioning table, thermal model, probe calibration) to the rows of a CSV and write them with the predictions added.
@@ -50,6 +53,14 @@ pub enum FitCommand {
     Force(commands::fit_force::Args),
     /// Calibrate a touch-trigger probe on a reference sphere: effective stylus radius and pretravel by direction and speed.
     Probe(commands::fit_probe::Args),
+    /// Identify the 21 ISO 230-1 geometric errors of a three-axis machine from laser line measurements.
+    Geometry(commands::fit_geometry::Args),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum PlanCommand {
+    /// Propose laser lines that make all 21 geometric errors identifiable, with predicted uncertainties.
+    Geometry(commands::plan_geometry::Args),
 }
 
 #[derive(Debug, Subcommand)]

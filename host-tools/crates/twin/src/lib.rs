@@ -128,3 +128,4 @@ impl<'a> TruthReport<'a> {
         serde_json::to_string_pretty(self).expect("truth report serialises")
     }
 }
+pub mod geometry;
