@@ -19,6 +19,9 @@ pub enum Command {
     /// Fit a compensation model from measurements.
     #[command(subcommand)]
     Fit(FitCommand),
+    /// Plan a measurement campaign.
+    #[command(subcommand)]
+    Plan(PlanCommand),
     /// Build or inspect the firmware's binary table image.
     #[command(subcommand)]
     Image(ImageCommand),
@@ -44,6 +47,14 @@ pub enum FitCommand {
     Thermal(commands::fit_thermal::Args),
     /// Fit cutting-force laws F = K·ap^x·fz^y·n^z and milling force coefficients.
     Force(commands::fit_force::Args),
+    /// Fit a five-axis machine's rotary-axis location errors (ISO 230-7) from R-test readings or probed sphere centres.
+    Rtest(commands::fit_rtest::Args),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum PlanCommand {
+    /// Which R-test paths (added to K4) make the 11 location errors identifiable, and with what uncertainty.
+    Rtest(commands::plan_rtest::Args),
 }
 
 #[derive(Debug, Subcommand)]

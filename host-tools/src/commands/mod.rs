@@ -6,14 +6,16 @@ pub mod diagnose;
 pub mod export;
 pub mod fit_force;
 pub mod fit_positioning;
+pub mod fit_rtest;
 pub mod fit_thermal;
 pub mod image;
+pub mod plan_rtest;
 pub mod replay;
 pub mod sim;
 pub mod trace;
 pub mod validate_diagnosis;
 
-use crate::cli::{Cli, Command, FitCommand, ImageCommand};
+use crate::cli::{Cli, Command, FitCommand, ImageCommand, PlanCommand};
 
 pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
@@ -21,6 +23,8 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(FitCommand::Positioning(a)) => fit_positioning::run(a),
         Command::Fit(FitCommand::Thermal(a)) => fit_thermal::run(a),
         Command::Fit(FitCommand::Force(a)) => fit_force::run(a),
+        Command::Fit(FitCommand::Rtest(a)) => fit_rtest::run(a),
+        Command::Plan(PlanCommand::Rtest(a)) => plan_rtest::run(a),
         Command::Image(ImageCommand::Build(a)) => image::build(a),
         Command::Image(ImageCommand::Inspect(a)) => image::inspect(a),
         Command::Replay(a) => replay::run(a),

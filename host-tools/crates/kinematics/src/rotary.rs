@@ -18,8 +18,10 @@
 //!   A rotary axis turns points about its actual line: `v ↦ p + R_w(θ)(v − p)`, so it moves nothing at
 //!   θ = 0 and an offset along the axis's own direction has no effect at all (it is not a parameter).
 //!   Linear squareness as in the crate root: Y along `Rz(EC0Y)·ey`, Z along `Ry(EB0Z)·Rx(EA0Z)·ez`.
-//! - **set-up offsets** (nuisance, µm): where the sphere actually sits relative to its nominal position, in
-//!   the table frame (trunnions) or the machine frame (head).
+//! - **set-up offsets** (nuisance, µm, [`SetupOffsets`]): where the sphere actually sits relative to its
+//!   nominal position, in the table frame (trunnions) or the machine frame (head); and where the R-test head's
+//!   zero (or the probe's calibrated tip) sits relative to the commanded tool point (tool length and radial
+//!   offset errors, R-test zeroing): machine frame for trunnions, spindle frame for the head.
 //! - **displacement** `d` (µm): the sphere centre relative to the R-test head (tool point), along machine X,
 //!   Y, Z: `d = S_actual − T_actual`. A probe route gives the same: fitted centre − commanded tool point.
 //! - **exact model** ([`FiveAxis::displacement`]): f64 homogeneous transforms
@@ -38,7 +40,12 @@ pub const C_LIMIT_DEG: f64 = 720.0;
 /// Number of location-error parameters (the seed's 11).
 pub const N_LOCATION: usize = 11;
 /// Number of sphere set-up offsets per set-up.
-pub const N_SETUP: usize = 3;
+pub const N_SETUP: usize = 6;
+
+/// Set-up offsets (µm): the sphere's `[dx, dy, dz]` (table frame for trunnions, machine frame for the head),
+/// then the R-test head's (or probe's) `[dx, dy, dz]` relative to the tool point (machine frame for trunnions,
+/// the spindle frame that turns with C and B for the head).
+pub type SetupOffsets = [f64; N_SETUP];
 
 /// The kinematic structure of a five-axis machine.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -87,7 +94,8 @@ impl MachineKind {
             _ => ["EX0B", "EZ0B", "EA0B", "EC0B"],
         };
         [
-            "EX0C", "EY0C", "EA0C", "EB0C", tilt[0], tilt[1], tilt[2], tilt[3], "EA0Z", "EB0Z", "EC0Y",
+            "EX0C", "EY0C", "EA0C", "EB0C", tilt[0], tilt[1], tilt[2], tilt[3], "EA0Z", "EB0Z",
+            "EC0Y",
         ]
     }
 }
@@ -252,7 +260,7 @@ impl FiveAxis {
         pose: &Pose,
         sphere_mm: [f64; 3],
         le: &LocationErrors,
-        setup_um: [f64; 3],
+        setup_um: SetupOffsets,
     ) -> [f64; 3] {
         let t = pose.tilt_deg.to_radians();
         let c = pose.c_deg.to_radians();
@@ -260,28 +268,35 @@ impl FiveAxis {
         let (pc, qc) = self.c_geometry(le);
         let m_tilt = rotary_htm(pt, qt, self.tilt_axis(), t);
         let m_c = rotary_htm(pc, qc, 2, c);
-        let s = v3(sphere_mm) + v3(setup_um) * 1e-3;
+        let s = v3(sphere_mm) + Vector3::new(setup_um[0], setup_um[1], setup_um[2]) * 1e-3;
+        let head = Vector3::new(setup_um[3], setup_um[4], setup_um[5]) * 1e-3;
         let d = match self.kind {
             MachineKind::BcHead => {
                 let q = self.linear_positions(pose);
-                let tool = self.linear_actual(q, le) + apply(&(m_c * m_tilt), self.tool_vector());
+                let m = m_c * m_tilt;
+                let tool = self.linear_actual(q, le) + apply(&m, self.tool_vector() + head);
                 s - tool
             }
             _ => {
                 let sphere = apply(&(m_tilt * m_c), s);
-                sphere - self.linear_actual(pose.p_mm, le)
+                sphere - self.linear_actual(pose.p_mm, le) - head
             }
         };
         arr(d * 1e3)
     }
 
     /// Exact displacement (µm) with the nominal sphere taken from the pose itself.
-    pub fn displacement(&self, pose: &Pose, le: &LocationErrors, setup_um: [f64; 3]) -> [f64; 3] {
+    pub fn displacement(
+        &self,
+        pose: &Pose,
+        le: &LocationErrors,
+        setup_um: SetupOffsets,
+    ) -> [f64; 3] {
         self.displacement_at(pose, self.nominal_sphere(pose), le, setup_um)
     }
 
     /// Sensitivity (first-order, at zero errors) of `d` (µm) to the 11 location errors (per µm / µrad) and
-    /// then to the 3 set-up offsets (per µm): `J[k]` is the column of parameter `k`.
+    /// then to the 6 set-up offsets (per µm): `J[k]` is the column of parameter `k`.
     pub fn sensitivity(&self, pose: &Pose) -> [[f64; 3]; N_LOCATION + N_SETUP] {
         let (rt, rc) = self.nominal_rotations(pose);
         let s = v3(self.nominal_sphere(pose));
@@ -338,6 +353,7 @@ impl FiveAxis {
                 }
                 for i in 0..3 {
                     put(N_LOCATION + i, e(i) * um);
+                    put(N_LOCATION + 3 + i, -(rc * rt * e(i)) * um);
                 }
             }
             _ => {
@@ -352,6 +368,7 @@ impl FiveAxis {
                 }
                 for i in 0..3 {
                     put(N_LOCATION + i, rt * rc * e(i) * um);
+                    put(N_LOCATION + 3 + i, -e(i) * um);
                 }
             }
         }
@@ -363,7 +380,7 @@ impl FiveAxis {
         &self,
         pose: &Pose,
         le: &LocationErrors,
-        setup_um: [f64; 3],
+        setup_um: SetupOffsets,
     ) -> [f64; 3] {
         let j = self.sensitivity(pose);
         let mut d = [0.0; 3];
@@ -379,6 +396,47 @@ impl FiveAxis {
         }
         d
     }
+}
+
+/// The commanded pose that puts the tool point on a sphere at `sphere_mm` (table frame for trunnions,
+/// machine frame for the head) at angles `tilt_deg`, `c_deg`.
+pub fn pose_on_sphere(machine: &FiveAxis, sphere_mm: [f64; 3], tilt_deg: f64, c_deg: f64) -> Pose {
+    let p = match machine.kind {
+        MachineKind::BcHead => sphere_mm,
+        _ => {
+            let (rt, rc) = machine.nominal_rotations(&Pose {
+                p_mm: [0.0; 3],
+                tilt_deg,
+                c_deg,
+            });
+            arr(rt * rc * v3(sphere_mm))
+        }
+    };
+    Pose {
+        p_mm: p,
+        tilt_deg,
+        c_deg,
+    }
+}
+
+/// A K4-type simultaneous five-axis path (ISO 10791-6): C makes a full turn in `n` equal steps
+/// (`c = 360°·k/n`) while the tilt axis swings `0 → tilt_max_deg → 0` as `tilt_max·(1 − cos c)/2`, and X, Y,
+/// Z follow the sphere.
+pub fn k4_path(machine: &FiveAxis, sphere_mm: [f64; 3], tilt_max_deg: f64, n: usize) -> Vec<Pose> {
+    (0..n)
+        .map(|k| {
+            let c = 360.0 * k as f64 / n as f64;
+            let t = tilt_max_deg * (1.0 - c.to_radians().cos()) / 2.0;
+            pose_on_sphere(machine, sphere_mm, t, c)
+        })
+        .collect()
+}
+
+/// A C circle at a fixed tilt: `n` equal steps of C over a full turn, X, Y, Z following the sphere.
+pub fn c_circle(machine: &FiveAxis, sphere_mm: [f64; 3], tilt_deg: f64, n: usize) -> Vec<Pose> {
+    (0..n)
+        .map(|k| pose_on_sphere(machine, sphere_mm, tilt_deg, 360.0 * k as f64 / n as f64))
+        .collect()
 }
 
 #[cfg(test)]
@@ -405,7 +463,11 @@ mod tests {
         let p = match m.kind {
             MachineKind::BcHead => s,
             _ => {
-                let ax = if m.kind == MachineKind::AcTrunnion { 0 } else { 1 };
+                let ax = if m.kind == MachineKind::AcTrunnion {
+                    0
+                } else {
+                    1
+                };
                 arr(rot(ax, t) * rot(2, c) * v3(s))
             }
         };
@@ -429,8 +491,8 @@ mod tests {
                     let h = 1e-3;
                     let mut lp = [0.0; N_LOCATION];
                     let mut lm = [0.0; N_LOCATION];
-                    let mut sp = [0.0; 3];
-                    let mut sm = [0.0; 3];
+                    let mut sp = [0.0; N_SETUP];
+                    let mut sm = [0.0; N_SETUP];
                     if k < N_LOCATION {
                         lp[k] = h;
                         lm[k] = -h;
@@ -458,7 +520,9 @@ mod tests {
     /// second order: (Σ|θ_angles|)²·lever ≈ (4e-4)²·300 mm ≈ 5e-5 mm → tolerance 0.05 µm.
     #[test]
     fn linearised_matches_exact_for_realistic_errors() {
-        let le = [30.0, -20.0, 80.0, -60.0, 40.0, -25.0, 90.0, -70.0, 50.0, -40.0, 30.0];
+        let le = [
+            30.0, -20.0, 80.0, -60.0, 40.0, -25.0, 90.0, -70.0, 50.0, -40.0, 30.0,
+        ];
         for kind in [
             MachineKind::AcTrunnion,
             MachineKind::BcTrunnion,
@@ -467,8 +531,8 @@ mod tests {
             let m = FiveAxis::new(kind, 250.0);
             for pose in poses() {
                 let pose = with_sphere(&m, pose, [150.0, 0.0, 100.0]);
-                let a = m.displacement(&pose, &le, [10.0, -5.0, 8.0]);
-                let b = m.displacement_linear(&pose, &le, [10.0, -5.0, 8.0]);
+                let a = m.displacement(&pose, &le, [10.0, -5.0, 8.0, 3.0, -4.0, 6.0]);
+                let b = m.displacement_linear(&pose, &le, [10.0, -5.0, 8.0, 3.0, -4.0, 6.0]);
                 for i in 0..3 {
                     assert!((a[i] - b[i]).abs() < 0.05, "{kind:?}: {a:?} vs {b:?}");
                 }
@@ -487,7 +551,7 @@ mod tests {
             let m = FiveAxis::new(kind, 250.0);
             for pose in poses() {
                 let pose = with_sphere(&m, pose, [150.0, 20.0, 100.0]);
-                let d = m.displacement(&pose, &[0.0; N_LOCATION], [0.0; 3]);
+                let d = m.displacement(&pose, &[0.0; N_LOCATION], [0.0; N_SETUP]);
                 assert!(d.iter().all(|x| x.abs() < 1e-9), "{kind:?}: {d:?}");
             }
         }
