@@ -117,9 +117,10 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
     for s in 0..data.setup_names.len() {
         let b = N_LOCATION + N_SETUP * s;
         for (o, what) in [(0, "sphere"), (3, "R-test head")] {
-            let cell = |k: usize| match a.fit.std[b + o + k] {
-                Some(sd) => format!("{:.3} ± {sd:.3}", a.fit.theta[b + o + k]),
-                None => "not identified".into(),
+            let cell = |k: usize| match (a.fit.std[b + o + k], &a.fit.ident.reasons[b + o + k]) {
+                (Some(sd), _) => format!("{:.3} ± {sd:.3}", a.fit.theta[b + o + k]),
+                (None, Some(r)) if r.starts_with("taken as known") => "0 (known)".into(),
+                (None, _) => "not identified".into(),
             };
             setup_rows.push(vec![
                 data.setup_names[s].clone(),
