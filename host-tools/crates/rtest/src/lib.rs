@@ -6,11 +6,16 @@
 //!   [`axcomp_kinematics::rotary`]. `d` is the sphere centre relative to the R-test head (tool point) along
 //!   machine X, Y, Z.
 //! - **set-up**: one placement of the sphere and the R-test head; rows with a `setup` column value share
-//!   their 6 nuisance offsets (sphere dx, dy, dz and head dx, dy, dz) (a second sphere height is a second set-up). Without the column every row is set-up `1`.
-//! - **identifiable**: a parameter is estimated only when its column of the column-scaled sensitivity matrix
-//!   has a part of at least [`CONFOUND_TOL`] (relative) outside the span of the parameters taken before it
-//!   (set-up offsets first, then the location errors in [`PRIORITY`] order). Otherwise it is fixed to zero
-//!   and reported `identified: false` with the parameters it cannot be told apart from.
+//!   their 6 nuisance offsets (sphere dx, dy, dz and head dx, dy, dz; a second sphere height is a second
+//!   set-up). Without the column every row is set-up `1`. The head's zero is taken as known unless
+//!   `free_head_zero`.
+//! - **identifiable** ([`identifiability`]): a parameter is estimated only when its column of the
+//!   column-scaled sensitivity matrix has a part of at least [`CONFOUND_TOL`] (relative) outside the span of
+//!   the parameters taken before it (set-up offsets first, then the location errors in [`PRIORITY`] order);
+//!   otherwise it is fixed to zero and reported `identified: false` with the parameters it cannot be told
+//!   apart from, and the location errors that absorb it are not identified either. An estimated parameter
+//!   whose variance is inflated more than [`VIF_LIMIT`] by correlation is reported `identified: false`
+//!   (weakly determined) with its (large) standard uncertainty.
 //! - **standard uncertainty**: `σ̂·sqrt(diag((JᵀJ)⁻¹))`, `σ̂² = RSS/(3n − p)`, J at the solution.
 
 pub mod analysis;
@@ -29,7 +34,8 @@ use serde::{Deserialize, Serialize};
 /// parameters before it is not identifiable.
 pub const CONFOUND_TOL: f64 = 1e-3;
 /// Largest variance inflation factor (column-scaled `(JᵀJ)⁻¹` diagonal) of an identified location error: its
-/// uncertainty at most √1000 ≈ 32× what it would be if its signature were its own alone.
+/// uncertainty at most √1000 ≈ 32× what it would be if its signature were its own alone. Above it the
+/// parameter is still estimated (its std says how poorly) but reported `identified: false`.
 pub const VIF_LIMIT: f64 = 1000.0;
 /// Order in which location errors are taken (indices into the 11): axis offsets, axis tilts, squareness.
 pub const PRIORITY: [usize; N_LOCATION] = [0, 1, 4, 5, 2, 3, 6, 7, 8, 9, 10];
@@ -371,10 +377,13 @@ pub fn sensitivity_matrix(
 /// Which parameters the poses determine (see the glossary).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Identifiability {
-    /// Rank of the full sensitivity matrix (column-scaled, relative tolerance [`CONFOUND_TOL`]).
+    /// Number of parameters estimated (structurally separable on these poses).
     pub rank: usize,
-    /// Condition number of the column-scaled sensitivity matrix of the identified parameters.
+    /// Condition number of the column-scaled sensitivity matrix of the estimated parameters.
     pub condition_number: f64,
+    /// Estimated in the fit (not fixed to 0).
+    pub estimated: Vec<bool>,
+    /// Estimated, separable and not weakly determined: a value to rely on.
     pub identified: Vec<bool>,
     /// Why a parameter is not identified (`None` when it is).
     pub reasons: Vec<Option<String>>,
@@ -382,6 +391,11 @@ pub struct Identifiability {
 
 /// Identifiability of `j`'s columns (`names` for messages). Set-up offsets (index ≥ 11) are taken first.
 /// Parameters with `fixed[k] = Some(reason)` are held at zero by assumption.
+///
+/// - *not separable* (own signature < [`CONFOUND_TOL`]): fixed to 0, not identified; the location errors it
+///   is confounded with then absorb its effect, so they are not identified either ("only in combination").
+/// - *weakly determined* (variance inflation > [`VIF_LIMIT`]): still estimated (its standard uncertainty
+///   says how poorly), but not identified.
 pub fn identifiability(
     j: &DMatrix<f64>,
     names: &[String],
@@ -398,21 +412,23 @@ pub fn identifiability(
     };
     let order: Vec<usize> = (N_LOCATION..p).chain(PRIORITY.iter().copied()).collect();
     let mut chosen: Vec<usize> = Vec::new();
-    let mut identified = vec![false; p];
+    let mut estimated = vec![false; p];
     let mut reasons: Vec<Option<String>> = vec![None; p];
+    // Location errors whose value absorbs a fixed one: (k, names of the fixed ones).
+    let mut absorbs: Vec<Vec<String>> = vec![Vec::new(); p];
     for &k in &order {
         if let Some(r) = &fixed[k] {
             reasons[k] = Some(r.clone());
             continue;
         }
         if norms[k] < 1e-12 {
-            reasons[k] = Some("no effect on any measured pose".into());
+            reasons[k] = Some("no effect on any measured pose; fixed to 0".into());
             continue;
         }
         let col = j.column(k) / norms[k];
         if chosen.is_empty() {
             chosen.push(k);
-            identified[k] = true;
+            estimated[k] = true;
             continue;
         }
         let a = scaled(&chosen);
@@ -423,17 +439,22 @@ pub fn identifiability(
         let resid = (&col - &a * &beta).norm();
         if resid >= CONFOUND_TOL {
             chosen.push(k);
-            identified[k] = true;
+            estimated[k] = true;
         } else {
             let bmax = beta.iter().fold(0.0f64, |m, b| m.max(b.abs()));
-            let mut partners: Vec<(f64, &str)> = chosen
+            let mut partners: Vec<(f64, usize)> = chosen
                 .iter()
                 .zip(beta.iter())
                 .filter(|(_, b)| b.abs() > 0.05 * bmax)
-                .map(|(&c, b)| (b.abs(), names[c].as_str()))
+                .map(|(&c, b)| (b.abs(), c))
                 .collect();
             partners.sort_by(|a, b| b.0.total_cmp(&a.0));
-            let list: Vec<&str> = partners.iter().map(|p| p.1).collect();
+            let list: Vec<&str> = partners.iter().map(|p| names[p.1].as_str()).collect();
+            for &(_, c) in &partners {
+                if c < N_LOCATION {
+                    absorbs[c].push(names[k].clone());
+                }
+            }
             reasons[k] = Some(format!(
                 "not separable from {} on these poses (only {:.1e} of its signature is its own); fixed to 0",
                 list.join(", "),
@@ -441,62 +462,62 @@ pub fn identifiability(
             ));
         }
     }
-    // Weakly determined: drop the location error whose variance is inflated most, while any exceeds the limit.
-    loop {
-        let mut idx = chosen.clone();
-        idx.sort_unstable();
-        let a = scaled(&idx);
-        let Some(inv) = (a.transpose() * &a).try_inverse() else {
-            break;
-        };
-        let worst = idx
-            .iter()
-            .enumerate()
-            .filter(|(_, k)| **k < N_LOCATION)
-            .map(|(c, &k)| (inv[(c, c)], c, k))
-            .max_by(|a, b| a.0.total_cmp(&b.0));
-        let Some((vif, c, k)) = worst else { break };
-        if vif <= VIF_LIMIT {
-            break;
+    let mut identified = estimated.clone();
+    for k in 0..p {
+        if estimated[k] && !absorbs[k].is_empty() {
+            identified[k] = false;
+            reasons[k] = Some(format!(
+                "determined only in combination with {} (fixed to 0): its value absorbs their effect",
+                absorbs[k].join(", ")
+            ));
         }
-        let mut partners: Vec<(f64, &str)> = idx
-            .iter()
-            .enumerate()
-            .filter(|(d, _)| *d != c)
-            .map(|(d, &kk)| {
-                (
-                    (inv[(c, d)] / (inv[(c, c)] * inv[(d, d)]).sqrt()).abs(),
-                    names[kk].as_str(),
-                )
-            })
-            .filter(|(r, _)| *r > 0.5)
-            .collect();
-        partners.sort_by(|a, b| b.0.total_cmp(&a.0));
-        let list: Vec<String> = partners
-            .iter()
-            .take(4)
-            .map(|(r, n)| format!("{n} (|r| {r:.2})"))
-            .collect();
-        reasons[k] = Some(format!(
-            "weakly determined on these poses: its uncertainty would be inflated {:.0}× by correlation with {}; fixed to 0",
-            vif.sqrt(),
-            if list.is_empty() {
-                "several parameters".to_string()
-            } else {
-                list.join(", ")
-            }
-        ));
-        identified[k] = false;
-        chosen.retain(|&x| x != k);
     }
     let mut idx = chosen.clone();
     idx.sort_unstable();
-    let sv = scaled(&idx).singular_values();
+    let a = scaled(&idx);
+    if let Some(inv) = (a.transpose() * &a).try_inverse() {
+        for (c, &k) in idx.iter().enumerate() {
+            let vif = inv[(c, c)];
+            if k >= N_LOCATION || vif <= VIF_LIMIT || !identified[k] {
+                continue;
+            }
+            let mut partners: Vec<(f64, &str)> = idx
+                .iter()
+                .enumerate()
+                .filter(|(d, _)| *d != c)
+                .map(|(d, &kk)| {
+                    (
+                        (inv[(c, d)] / (inv[(c, c)] * inv[(d, d)]).sqrt()).abs(),
+                        names[kk].as_str(),
+                    )
+                })
+                .filter(|(r, _)| *r > 0.9)
+                .collect();
+            partners.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let list: Vec<String> = partners
+                .iter()
+                .take(4)
+                .map(|(r, n)| format!("{n} (|r| {r:.2})"))
+                .collect();
+            identified[k] = false;
+            reasons[k] = Some(format!(
+                "weakly determined on these poses: its uncertainty is inflated {:.0}× by correlation with {}; estimated, see std",
+                vif.sqrt(),
+                if list.is_empty() {
+                    "several parameters".to_string()
+                } else {
+                    list.join(", ")
+                }
+            ));
+        }
+    }
+    let sv = a.singular_values();
     let smax = sv.iter().fold(0.0f64, |m, s| m.max(*s));
     let smin = sv.iter().fold(f64::INFINITY, |m, s| m.min(*s));
     Identifiability {
         rank: chosen.len(),
         condition_number: smax / smin,
+        estimated,
         identified,
         reasons,
     }
@@ -507,10 +528,10 @@ pub fn identifiability(
 pub struct Fit {
     /// All parameters (unidentified ones 0): 11 location errors then set-up offsets.
     pub theta: Vec<f64>,
-    /// Standard uncertainty of identified parameters.
+    /// Standard uncertainty of estimated parameters (`None` for those fixed to 0).
     pub std: Vec<Option<f64>>,
     pub ident: Identifiability,
-    /// Correlations of identified parameters with |r| > 0.9: (i, j, r).
+    /// Correlations of estimated parameters with |r| > 0.9: (i, j, r).
     pub correlations: Vec<(usize, usize, f64)>,
     /// RMS over the three components on the fitted rows, µm.
     pub fit_rms_um: f64,
@@ -540,7 +561,7 @@ pub fn fit(data: &RtestData, rows: &[usize]) -> Result<Fit, RtestError> {
     let j0 = sensitivity_matrix(m, &poses, &setup, ns);
     let fixed = head_fixed(p, data.free_head_zero);
     let ident = identifiability(&j0, &names, &fixed);
-    let free: Vec<usize> = (0..p).filter(|&k| ident.identified[k]).collect();
+    let free: Vec<usize> = (0..p).filter(|&k| ident.estimated[k]).collect();
     let nobs = 3 * poses.len();
     if nobs <= free.len() {
         return Err(RtestError::Fit(format!(

@@ -72,7 +72,8 @@ pub struct Candidate {
     pub rank: usize,
     pub condition_number: f64,
     pub all_identified: bool,
-    /// Location errors: name, predicted standard uncertainty (µm or µrad) or `None` when not identifiable.
+    /// Location errors: name, predicted standard uncertainty (µm or µrad), `None` when fixed to 0 (not
+    /// separable); weakly determined ones have a std but are listed in `not_identified`.
     pub std: Vec<(String, Option<f64>)>,
     pub not_identified: Vec<String>,
 }
@@ -91,18 +92,20 @@ pub fn evaluate(g: &PlanGeometry, paths: &[String], sigma_um: f64) -> Option<Can
     let names = param_names(g.machine.kind, &setups);
     let j = sensitivity_matrix(&g.machine, &poses, &setup, n_setups);
     let id = identifiability(&j, &names, &head_fixed(names.len(), g.free_head_zero));
-    let free: Vec<usize> = (0..names.len()).filter(|&k| id.identified[k]).collect();
+    let free: Vec<usize> = (0..names.len()).filter(|&k| id.estimated[k]).collect();
     let jf = j.select_columns(free.iter());
     let inv = (jf.transpose() * &jf).try_inverse()?;
     let mut std = Vec::new();
     let mut not_identified = Vec::new();
     for (k, name) in names.iter().enumerate().take(N_LOCATION) {
-        match free.iter().position(|&f| f == k) {
-            Some(c) => std.push((name.clone(), Some(sigma_um * inv[(c, c)].sqrt()))),
-            None => {
-                std.push((name.clone(), None));
-                not_identified.push(name.clone());
-            }
+        std.push((
+            name.clone(),
+            free.iter()
+                .position(|&f| f == k)
+                .map(|c| sigma_um * inv[(c, c)].sqrt()),
+        ));
+        if !id.identified[k] {
+            not_identified.push(name.clone());
         }
     }
     Some(Candidate {

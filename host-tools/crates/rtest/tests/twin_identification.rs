@@ -179,18 +179,17 @@ fn coverage_over_two_hundred_seeds() {
     seeds(MachineKind::BcHead, 200, 0.94);
 }
 
-/// K4 alone (two runs, run 2 held out). Reference: the plan's structural analysis. Default (head zero known):
-/// EB0C is only weakly determined on an AC trunnion's K4 (uncertainty inflated > 32×) and must be reported,
-/// fixed to 0, with a reason, not invented. With an unknown head zero the rotary axes' absolute position
-/// (EX0C, EY0A, EZ0A) is not separable from the set-up offsets, and on K4 alone EY0C neither. The held-out
-/// K4 run is still predicted within 1.2 σ (the confounded combinations are absorbed by what is estimated).
+/// K4 alone (two runs, run 2 held out), AC trunnion, seed 7. Reference: the twin's truth and the plan's
+/// structural analysis. K4 alone is ill-conditioned on this geometry (condition ≈ 1000): parameters whose
+/// uncertainty is inflated > 32× are reported `identified: false` but still estimated, and their stated
+/// standard uncertainty must cover the truth (|error| ≤ 3 std, every estimated parameter). With an unknown
+/// head zero, EX0C, EY0A, EZ0A are not separable from the set-up offsets: fixed to 0 (value 0, std null)
+/// with a reason, and EY0C, which absorbs EY0A, is reported "only in combination". Nothing is invented: the
+/// held-out K4 run is still predicted within 1.2 σ.
 #[test]
 fn k4_alone_reports_what_it_cannot_determine() {
     let m = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
-    for (free_head, expect) in [
-        (false, vec!["EB0C"]),
-        (true, vec!["EX0C", "EY0C", "EY0A", "EZ0A"]),
-    ] {
+    for free_head in [false, true] {
         let mut twin = FiveAxisTwin::random(m, 7);
         if free_head {
             twin = twin.unknown_head_zero(7);
@@ -209,17 +208,42 @@ fn k4_alone_reports_what_it_cannot_determine() {
             .map(|k| names[k])
             .collect();
         println!(
-            "K4 alone, free head zero {free_head}: not identified {flagged:?}, held-out RMS {:.3} µm",
-            a.judged_rms_um
+            "K4 alone, free head zero {free_head}: not identified {flagged:?}, condition {:.0}, held-out RMS {:.3} µm",
+            a.fit.ident.condition_number, a.judged_rms_um
         );
-        assert_eq!(flagged, expect);
+        assert!(flagged.contains(&"EB0C"), "{flagged:?}");
         let json = a.to_json(&data);
-        for n in &expect {
-            let e = &json["location_errors"][*n];
-            assert_eq!(e["identified"], false);
-            assert_eq!(e["value"], 0.0);
-            assert!(e["std"].is_null());
-            assert!(e["reason"].as_str().unwrap().len() > 10);
+        for k in 0..N_LOCATION {
+            let e = &json["location_errors"][names[k]];
+            if !a.fit.ident.identified[k] {
+                assert!(e["reason"].as_str().unwrap().len() > 10);
+            }
+            let combination = e["reason"]
+                .as_str()
+                .is_some_and(|r| r.contains("combination"));
+            match a.fit.std[k] {
+                None => {
+                    assert_eq!(e["identified"], false);
+                    assert_eq!(e["value"], 0.0);
+                    assert!(e["std"].is_null());
+                }
+                Some(sd) if !combination => {
+                    let err = (a.fit.theta[k] - twin.location[k]).abs();
+                    assert!(err <= 3.0 * sd, "{}: error {err} std {sd}", names[k]);
+                }
+                Some(_) => assert_eq!(e["identified"], false),
+            }
+        }
+        if free_head {
+            for n in ["EX0C", "EY0A", "EZ0A"] {
+                assert!(json["location_errors"][n]["std"].is_null(), "{n}");
+            }
+            assert!(
+                json["location_errors"]["EY0C"]["reason"]
+                    .as_str()
+                    .unwrap()
+                    .contains("EY0A")
+            );
         }
         assert!(
             a.judged_rms_um <= 1.2 * NOISE_UM,
