@@ -82,16 +82,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let json = a.to_json(&data);
     let model = RtestModel::from_fit(&data, &a.fit);
     let files = args.report.as_ref().map(|_| report_files(&a, &data));
-    // Everything computed: now write.
+    // Everything computed: now write (the report directory first, the likeliest to fail; each file atomically).
+    if let (Some(dir), Some(files)) = (&args.report, &files) {
+        write_report(dir, files)
+            .with_context(|| format!("cannot write the report into {}", dir.display()))?;
+    }
     if let Some(p) = &args.json {
         write_json(p, &json)?;
     }
     if let Some(p) = &args.out {
         write_json(p, &model)?;
-    }
-    if let (Some(dir), Some(files)) = (&args.report, &files) {
-        write_report(dir, files)
-            .with_context(|| format!("cannot write the report into {}", dir.display()))?;
     }
     print_summary(&a, &data, &json);
     Ok(())
