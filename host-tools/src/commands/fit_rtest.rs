@@ -94,6 +94,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_json(p, &model)?;
     }
     print_summary(&a, &data, &json);
+    if a.judged_rms_um >= a.raw_rms_um {
+        eprintln!(
+            "axcomp: warning: the model predicts the {} rows no better than the nominal kinematics ({:.3} µm vs {:.3} µm): do not use it for compensation",
+            a.judged_by, a.judged_rms_um, a.raw_rms_um
+        );
+    }
     Ok(())
 }
 

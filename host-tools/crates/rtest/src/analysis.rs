@@ -230,6 +230,8 @@ impl Analysis {
         if data.machine.kind == axcomp_kinematics::rotary::MachineKind::BcHead {
             out["pivot_mm"] = json!(data.machine.pivot_mm);
         }
+        // Do-no-harm check against the nominal kinematics (no correction) on the judged rows.
+        out["beats_nominal"] = json!(self.judged_rms_um < self.raw_rms_um);
         match self.judged_by {
             "holdout" => out["holdout_rms_um"] = json!(self.judged_rms_um),
             "cv" => out["cv_rms_um"] = json!(self.judged_rms_um),

@@ -55,7 +55,7 @@ pub enum RtestError {
     #[error("{at}: {what}")]
     BadValue { at: String, what: String },
     #[error(
-        "{file}: pose repeated with conflicting readings at lines {first} and {second} (same commanded position and angles in {group})"
+        "{file}: pose repeated with conflicting readings at lines {first} and {second} (same commanded position and angles in {group}; mark genuine repeats with distinct `run` values)"
     )]
     ConflictingPose {
         file: String,
