@@ -19,6 +19,9 @@ pub enum Command {
     /// Fit a compensation model from measurements.
     #[command(subcommand)]
     Fit(FitCommand),
+    /// Plan a measurement campaign.
+    #[command(subcommand)]
+    Plan(PlanCommand),
     /// Build or inspect the firmware's binary table image.
     #[command(subcommand)]
     Image(ImageCommand),
@@ -32,9 +35,6 @@ pub enum Command {
     Sim(commands::sim::Args),
     /// Diagnose the gap between a model and measurements: where it lies, which unmodelled effect explains it.
     Diagnose(commands::diagnose::Args),
-    /// Plan measurements (which laser lines make the geometric errors identifiable).
-    #[command(subcommand)]
-    Plan(PlanCommand),
     /// Check the diagnosis on many twin campaigns with one effect withheld (detection, attribution, false alarms).
     ValidateDiagnosis(commands::validate_diagnosis::Args),
     /// Apply a fitted model file (positioning table, thermal model, probe calibration) to the rows of a CSV and write them with the predictions added.
@@ -55,12 +55,16 @@ pub enum FitCommand {
     Probe(commands::fit_probe::Args),
     /// Identify the 21 ISO 230-1 geometric errors of a three-axis machine from laser line measurements.
     Geometry(commands::fit_geometry::Args),
+    /// Fit a five-axis machine's rotary-axis location errors (ISO 230-7) from R-test readings or probed sphere centres.
+    Rtest(commands::fit_rtest::Args),
 }
 
 #[derive(Debug, Subcommand)]
 pub enum PlanCommand {
     /// Propose laser lines that make all 21 geometric errors identifiable, with predicted uncertainties.
     Geometry(commands::plan_geometry::Args),
+    /// Which R-test paths (added to K4) make the 11 location errors identifiable, and with what uncertainty.
+    Rtest(commands::plan_rtest::Args),
 }
 
 #[derive(Debug, Subcommand)]

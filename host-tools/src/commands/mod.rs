@@ -8,10 +8,12 @@ pub mod fit_force;
 pub mod fit_geometry;
 pub mod fit_positioning;
 pub mod fit_probe;
+pub mod fit_rtest;
 pub mod fit_thermal;
 pub mod image;
-pub mod predict;
 pub mod plan_geometry;
+pub mod plan_rtest;
+pub mod predict;
 pub mod replay;
 pub mod sim;
 pub mod trace;
@@ -28,6 +30,8 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(FitCommand::Probe(a)) => fit_probe::run(a),
         Command::Fit(FitCommand::Geometry(a)) => fit_geometry::run(a),
         Command::Plan(PlanCommand::Geometry(a)) => plan_geometry::run(a),
+        Command::Fit(FitCommand::Rtest(a)) => fit_rtest::run(a),
+        Command::Plan(PlanCommand::Rtest(a)) => plan_rtest::run(a),
         Command::Image(ImageCommand::Build(a)) => image::build(a),
         Command::Image(ImageCommand::Inspect(a)) => image::inspect(a),
         Command::Image(ImageCommand::Group(a)) => image::group(a),

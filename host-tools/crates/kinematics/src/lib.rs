@@ -39,8 +39,10 @@
 //! Designed so a rotary-axis (five-axis) model can add links of another kind to the same chain.
 
 pub mod lines;
+pub mod rotary;
 
 pub use lines::{LineSpec, Reading};
+pub use rotary::{FiveAxis, LocationErrors, MachineKind, Pose};
 
 use nalgebra::{Matrix4, Vector3, Vector4};
 use serde::{Deserialize, Serialize};

@@ -128,4 +128,5 @@ impl<'a> TruthReport<'a> {
         serde_json::to_string_pretty(self).expect("truth report serialises")
     }
 }
+pub mod five_axis;
 pub mod geometry;
