@@ -121,6 +121,39 @@ fn plan_simulate_fit_export_report() {
     // the model file is readable as a geometry model
     let m = std::fs::read_to_string(d.join("model.json")).unwrap();
     axcomp_geometry::GeometryModel::from_json(&m, "model.json").unwrap();
+    // `axcomp predict` with the model file reproduces the fit's held-out RMS on the held-out lines
+    // (reference: holdout_rms_um of fit.json; tolerance 1e-5 µm for the CSV's decimal rounding).
+    ok(&axcomp(
+        &[
+            "predict",
+            "--model",
+            "model.json",
+            "--data",
+            "lines.csv",
+            "--out",
+            "pred.csv",
+        ],
+        &d,
+    ));
+    let out = std::fs::read_to_string(d.join("pred.csv")).unwrap();
+    let header: Vec<&str> = out.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|x| *x == name).unwrap();
+    for c in ["pred_ex_um", "pred_ey_um", "pred_ez_um"] {
+        col(c);
+    }
+    let (line, dev, pred) = (col("line"), col("deviation_um"), col("pred_deviation_um"));
+    let held = ["L1", "L2", "L3", "L4", "L5", "L6", "L7"];
+    let (mut ss, mut n) = (0.0, 0usize);
+    for l in out.lines().skip(1) {
+        let c: Vec<&str> = l.split(',').collect();
+        if held.contains(&c[line]) {
+            let r: f64 = c[dev].parse::<f64>().unwrap() - c[pred].parse::<f64>().unwrap();
+            ss += r * r;
+            n += 1;
+        }
+    }
+    let rms = (ss / n as f64).sqrt();
+    assert!((rms - h).abs() < 1e-5, "predict {rms} vs fit {h}");
     let _ = std::fs::remove_dir_all(&d);
 }
 

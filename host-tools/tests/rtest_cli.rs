@@ -140,6 +140,64 @@ fn fit_rtest_json_report_and_model() {
         }
     }
     assert!(((ss / n as f64).sqrt() - hold).abs() < 1e-9);
+    // The same through `axcomp predict` (contract: pred_dx_um, pred_dy_um, pred_dz_um), on rows without
+    // their readings; tolerance 1e-6 µm (the CSV writes the predictions in decimal).
+    let text = std::fs::read_to_string(dir.join("rtest.csv")).unwrap();
+    let header: Vec<&str> = text
+        .lines()
+        .find(|l| !l.starts_with('#'))
+        .unwrap()
+        .split(',')
+        .collect();
+    let keep: Vec<bool> = header
+        .iter()
+        .map(|h| !matches!(*h, "dx_um" | "dy_um" | "dz_um"))
+        .collect();
+    let inputs: String = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| {
+            let cells: Vec<&str> = l
+                .split(',')
+                .zip(&keep)
+                .filter(|(_, k)| **k)
+                .map(|(c, _)| c)
+                .collect();
+            cells.join(",") + "\n"
+        })
+        .collect();
+    std::fs::write(dir.join("poses.csv"), inputs).unwrap();
+    let o = axcomp(
+        &[
+            "predict",
+            "--model",
+            "model.json",
+            "--data",
+            "poses.csv",
+            "--out",
+            "pred.csv",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = std::fs::read_to_string(dir.join("pred.csv")).unwrap();
+    let header: Vec<&str> = out.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (px, py, pz) = (col("pred_dx_um"), col("pred_dy_um"), col("pred_dz_um"));
+    for (i, line) in out.lines().skip(1).enumerate() {
+        let c: Vec<f64> = line
+            .split(',')
+            .map(|v| v.parse().unwrap_or(f64::NAN))
+            .collect();
+        for (k, j) in [px, py, pz].into_iter().enumerate() {
+            assert!(
+                (c[j] - pred[i][k]).abs() < 1e-6,
+                "row {i}: {} vs {}",
+                c[j],
+                pred[i][k]
+            );
+        }
+    }
 }
 
 #[test]
