@@ -407,3 +407,80 @@ fn drive_fault_matrix_on_host_and_in_qemu() {
         }
     }
 }
+
+/// Each group axis runs on the board input of its axis id, takes its command from that frame entry and
+/// answers in that reply entry; the corrections are the group engine's for the same inputs in slot order.
+/// Board inputs wired to axes 3, 1, 2 (Z, X, Y).
+#[test]
+fn group_axes_map_to_board_inputs_by_axis_id() {
+    use axcomp_core::group::{GroupInput, GroupOutput};
+    use axcomp_firmware::control::LoopSettings;
+    use axcomp_firmware::control::fake::SteppingClock;
+    use axcomp_firmware::drive::fake::FakeDriveIo;
+    use axcomp_firmware::drive::group::GroupDrive;
+    use axcomp_firmware::drive::{BoardCaps, LinkSettings, NoWatchdog, ResetCause};
+    use axcomp_firmware::setpoint::{MAX_SETPOINT_FRAME_LEN, ReplyDecoder, SetpointFrame};
+
+    const CAPS: BoardCaps = BoardCaps {
+        counter_bits: 16,
+        axis_ids: &[3, 1, 2],
+        sensors: 2,
+    };
+    let image = scenario::group_image(3, false).unwrap();
+    assert_eq!(check_group_image(&CAPS, &image), Ok(([1, 2, 0, 0, 0], 3)));
+    let cfg = LoopSettings::new(170_000_000).build().unwrap();
+    let mut drive = GroupDrive::new(
+        CAPS,
+        &cfg,
+        LinkSettings::defaults(cfg.rate_hz),
+        ResetCause::default(),
+    );
+    let mut engine: Box<GroupEngine<POOL>> = Box::new(GroupEngine::new());
+    let mut reference: Box<GroupEngine<POOL>> = Box::new(GroupEngine::new());
+    drive.offer_image(&mut engine, &image).unwrap();
+    reference.load_image(&image).unwrap();
+    assert_eq!(drive.inputs(), &[1, 2, 0]);
+    let mut io = FakeDriveIo::default();
+    let clock = SteppingClock::default();
+    let mut replies = ReplyDecoder::new();
+    let mut changed = 0;
+    for i in 0..2_000u32 {
+        let g = axcomp_core::bench::group_input(i * 7);
+        // Board input order: Z, X, Y.
+        let by_input = [2, 0, 1];
+        let cmds = by_input.map(|slot| g.axes[slot].command_counts as i32);
+        for (input, &slot) in by_input.iter().enumerate() {
+            io.scales[input] = g.axes[slot].scale_raw & 0xFFFF;
+        }
+        let mut b = [0u8; MAX_SETPOINT_FRAME_LEN];
+        let n = SetpointFrame::new(i as u8, &cmds)
+            .unwrap()
+            .encode_into(&mut b);
+        io.rx.extend(&b[..n]);
+        let c = drive.cycle(&mut engine, &mut io, &clock, &mut NoWatchdog);
+        let mut input = GroupInput::ZERO;
+        for slot in 0..3 {
+            input.axes[slot].scale_raw = g.axes[slot].scale_raw & 0xFFFF;
+            input.axes[slot].command_counts = i64::from(g.axes[slot].command_counts as i32);
+        }
+        let mut want = GroupOutput::ZERO;
+        reference.cycle(&input, &mut want);
+        assert_eq!(c.engine, want, "cycle {i}");
+        let reply = replies
+            .push_bytes(io.tx.last().unwrap())
+            .expect("a valid reply");
+        for (input, &slot) in by_input.iter().enumerate() {
+            assert_eq!(
+                i64::from(reply.corrected()[input]),
+                want.axes[slot].corrected_command_counts,
+                "cycle {i} input {input}"
+            );
+        }
+        assert_eq!(reply.status, c.status.bits());
+        changed += usize::from(want.axes.iter().any(|a| a.correction_counts != 0));
+    }
+    assert!(
+        changed > 1_000,
+        "the corrections are not all zero ({changed} cycles)"
+    );
+}
