@@ -595,7 +595,7 @@ impl LinkRig {
 }
 
 /// The setpoint-link equivalence trace of a 3-axis group (`cycles` ≥ 3000 cycles): cycles before any
-/// image (identity, no frames), the `group3` image, every axis moving, temperatures every 100 cycles;
+/// image (identity, no frames), the `group3` image, every axis moving, temperatures every 100 ms;
 /// one late cycle, 100 cycles without frames (hold, ramp-out, ramp-in), a corrupt frame, a repeated
 /// frame, three lost frames, a frame with too few axes, garbage before a frame, two frames in one cycle,
 /// a late cycle start, an overrun, a corrupt group image (refused), a 32-bit image (refused), the
@@ -620,8 +620,8 @@ pub fn group_link(cycles: u32) -> Result<Vec<u8>, ScenarioError> {
     }
     r.t.image(&first);
     for i in 5..cycles {
-        if i % 100 == 0 {
-            let w = (i / 100) as f32 * 0.05;
+        if i % CYCLES_PER_TEMPERATURE == 0 {
+            let w = (i / CYCLES_PER_TEMPERATURE) as f32 * 0.05;
             r.t.temperatures(i / 10, &[20.0 + w, 21.0 + 0.5 * w]);
         }
         let k = i % 1500;

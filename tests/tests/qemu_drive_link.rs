@@ -150,6 +150,10 @@ fn group_link_trace_matches_host_byte_for_byte() {
     );
     assert!(has(&o[1300], Status::CYCLE_LATE) && !has(&o[1299], Status::CYCLE_LATE));
     assert!(has(&o[1401], Status::OVERRUN) && !has(&o[1400], Status::OVERRUN));
+    for (bit, name) in Status::NAMES {
+        let n = o.iter().filter(|c| has(c, bit)).count();
+        println!("link trace: {name} in {n} cycles");
+    }
     let refused_from = (LINK_CYCLES / 3) as usize;
     let accepted_at = (LINK_CYCLES / 2) as usize;
     assert!(!has(&o[refused_from - 1], Status::IMAGE_REFUSED));
