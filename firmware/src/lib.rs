@@ -31,5 +31,6 @@ pub mod status;
 #[cfg(target_os = "none")]
 pub mod board;
 
+/// The trace scenario generator, now in the host crate `axcomp-scenario` (re-exported for tests/).
 #[cfg(feature = "std")]
-pub mod scenario;
+pub use axcomp_scenario as scenario;

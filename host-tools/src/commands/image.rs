@@ -477,7 +477,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("axcomp-image-group-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
-        let g = axcomp_firmware::scenario::group_image(5, false).unwrap();
+        let g = axcomp_scenario::group_image(5, false).unwrap();
         let view = group_image::parse(&g).unwrap();
         let mut axis_args = Vec::new();
         for a in view.axes() {

@@ -17,7 +17,7 @@ use anyhow::{Context, bail};
 use axcomp_core::trace::{self, Record};
 
 // The scenario generator lives with the firmware (feature `std`), where the QEMU equivalence test uses it too.
-use axcomp_firmware::scenario;
+use axcomp_scenario as scenario;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
