@@ -4,6 +4,8 @@
 //! Glossary: an **effect kind** is one of the contract's named error sources (`interfaces.md`, "Effect
 //! kinds"); its physical parameters and simulation live in the twin (`axcomp_twin::Effect`).
 
+pub mod thermal_model;
+
 use core::fmt;
 use core::str::FromStr;
 
