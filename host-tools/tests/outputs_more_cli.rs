@@ -229,3 +229,84 @@ fn validate_diagnosis_report_and_json_together_or_not_at_all() {
         "missing-dir/v.json",
     );
 }
+
+#[test]
+fn fit_thermal_bad_last_output_touches_nothing() {
+    let dir = scratch("thermal");
+    let d = axcomp_thermal::synth::generate(&axcomp_thermal::synth::SynthConfig {
+        seed: 5,
+        ..Default::default()
+    });
+    d.write_csv(&dir.join("twin.csv")).unwrap();
+    std::fs::write(dir.join("model.json"), "old model").unwrap();
+    std::fs::create_dir(dir.join("rep")).unwrap();
+    std::fs::write(dir.join("rep/report.md"), "old report").unwrap();
+    let base = [
+        "fit",
+        "thermal",
+        "--data",
+        "twin.csv",
+        "--target",
+        "error_um",
+        "--report",
+        "rep",
+        "--out",
+        "model.json",
+    ];
+    fails_untouched(
+        &[&base[..], &["--json", "missing-dir/fit.json"]].concat(),
+        &dir,
+        "missing-dir/fit.json",
+    );
+    // Control: with a writable JSON path every output is written.
+    ok(&[&base[..], &["--json", "fit.json"]].concat(), &dir);
+    assert_ne!(std::fs::read(dir.join("model.json")).unwrap(), b"old model");
+    assert_ne!(
+        std::fs::read(dir.join("rep/report.md")).unwrap(),
+        b"old report"
+    );
+    assert!(dir.join("fit.json").is_file() && dir.join("rep/prediction.svg").is_file());
+}
+
+#[test]
+fn diagnose_bad_last_output_touches_nothing() {
+    let dir = scratch("diagnose");
+    ok(
+        &[
+            "sim",
+            "--plan",
+            "survey",
+            "--rows",
+            "400",
+            "--effects",
+            "pitch_error,reversal",
+            "--out",
+            "s.csv",
+        ],
+        &dir,
+    );
+    std::fs::create_dir(dir.join("rep")).unwrap();
+    std::fs::write(dir.join("rep/diagnosis.md"), "old report").unwrap();
+    let base = [
+        "diagnose",
+        "--data",
+        "s.csv",
+        "--model",
+        "pitch_error",
+        "--holdout",
+        "offset_mm=100",
+        "--report",
+        "rep",
+    ];
+    fails_untouched(
+        &[&base[..], &["--json", "missing-dir/d.json"]].concat(),
+        &dir,
+        "missing-dir/d.json",
+    );
+    ok(&[&base[..], &["--json", "d.json"]].concat(), &dir);
+    assert_ne!(
+        std::fs::read(dir.join("rep/diagnosis.md")).unwrap(),
+        b"old report"
+    );
+    assert!(dir.join("d.json").is_file());
+}
