@@ -134,12 +134,7 @@ fn robust_flags(r: &[f64], k: f64) -> Vec<bool> {
     r.iter().map(|e| (e - med).abs() > k * s).collect()
 }
 
-fn rms(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
-}
+use axcomp_numeric::stats::rms;
 
 /// A calibration with one fixed effective radius (the uncorrected method with a nominal ball).
 fn nominal(cal: &Calibration, radius_mm: f64) -> Calibration {
