@@ -194,27 +194,23 @@ mod tests {
 
 /// Root mean square of any sequence of values (NaN when there are none, like [`rms`]).
 pub fn rms_of(v: impl IntoIterator<Item = f64>) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for x in v {
-        s += x * x;
-        n += 1;
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        (s / n as f64).sqrt()
-    }
+    rms_or(v, f64::NAN)
 }
 
 /// Root mean square of any sequence of values, 0 when there are none (the convention of the twin's and
 /// the diagnosis's summaries, where "no rows" means "no error").
 pub fn rms_or_zero(v: impl IntoIterator<Item = f64>) -> f64 {
+    rms_or(v, 0.0)
+}
+
+/// RMS with `empty` for no values (sum of squares in order, one division, one root).
+fn rms_or(v: impl IntoIterator<Item = f64>, empty: f64) -> f64 {
     let (mut s, mut n) = (0.0, 0usize);
     for x in v {
         s += x * x;
         n += 1;
     }
-    if n == 0 { 0.0 } else { (s / n as f64).sqrt() }
+    if n == 0 { empty } else { (s / n as f64).sqrt() }
 }
 
 /// Median of `v` (sorted in place with `total_cmp`; mean of the two middle values for an even count; NaN
