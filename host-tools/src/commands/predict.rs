@@ -31,7 +31,8 @@ use axcomp_probe::{Calibration, Touch};
 use axcomp_thermal::model_file::ThermalModelFile;
 
 use crate::cli::DataArgs;
-use crate::commands::common::{load_dataset, write_atomic};
+use crate::commands::common::load_dataset;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -83,6 +84,9 @@ pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let kind = model_kind(&args.model)?;
+    let mut outputs = OutputSet::new();
+    outputs.planned(&args.out);
+    outputs.check()?;
     let mut ds = load_dataset(&args.data)?;
     let added = match kind {
         ModelKind::Positioning => {
@@ -117,7 +121,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             predict_rtest(&model, &mut ds)?
         }
     };
-    write_atomic(&args.out, ds.to_csv_string().as_bytes())?;
+    outputs.file(&args.out, ds.to_csv_string());
+    outputs.commit()?;
     println!(
         "predict: {} rows, added {} → {}",
         ds.n_rows(),

@@ -53,6 +53,7 @@ pub mod plan;
 pub mod probe;
 pub mod sim;
 pub mod spindle;
+pub mod synth;
 pub mod thermal;
 
 pub use axis::{Axis, AxisError, Noise, Sensor};
