@@ -118,6 +118,9 @@ fn largest_five_axis_image_fits_one_slot() {
     let written_len = group_image_len(&axes, Some(&stage));
     let geometric = DIR_ENTRY_LEN + GEOMETRIC_FUNCTIONS * GEOMETRIC_SEGMENTS * SEGMENT_BYTES;
     let largest = written_len + geometric;
+    eprintln!(
+        "largest five-axis image: {largest} B ({written_len} B written + {geometric} B geometric)"
+    );
     // The slot size comes from the same constant as the memory map's (`memory.x`: 128K slots).
     assert_eq!(IMAGE_SLOT_LEN, 128 * 1024);
     assert!(
