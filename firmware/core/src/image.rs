@@ -179,9 +179,14 @@ pub fn declared_image_len(b: &[u8]) -> Result<usize, ImageError> {
     Ok(total)
 }
 
-/// Validate `image` fully (structure, CRC, every value) and summarise it.
+/// Validate `image` fully (structure, CRC, every value) and summarise it. Like
+/// [`crate::Compensator::load`], it refuses bytes after the declared length
+/// ([`ImageError::TrailingBytes`]).
 pub fn inspect_image(image: &[u8]) -> Result<ImageInfo, ImageError> {
     let l = validate(image)?;
+    if image.len() > l.len {
+        return Err(ImageError::TrailingBytes);
+    }
     Ok(ImageInfo {
         len: l.len,
         version: u16_at(image, 4),
