@@ -197,8 +197,8 @@ mod firmware {
             LinkSettings::defaults(cfg.rate_hz),
             board.reset_cause,
         );
-        // Each slot is offered whole (64 KiB: the image, then erased flash); the core reads the image's
-        // own length from its header.
+        // Each slot (128 KiB of flash) is offered cut to the length its image header declares
+        // (`image_slots`); trailing bytes would be refused by the loader.
         for (name, slot) in ["A", "B"].iter().zip(stm32g474::image_slots()) {
             match drive.offer_image(engine, slot) {
                 Ok(()) => {
