@@ -61,6 +61,10 @@ pub enum ImageRefusal {
     AxisNotWired { axis_id: u16 },
     /// The image needs more temperature sensors than the board has (its thermal term would stay frozen).
     SensorsNotWired { image: u16, board: u16 },
+    /// Two axes of a group image have the same axis id (one scale input cannot feed both).
+    AxisIdTwice { axis_id: u16 },
+    /// The group image is valid, but the core refused to load it (e.g. its tables exceed the pool).
+    Group(axcomp_core::group::GroupError),
 }
 
 impl core::fmt::Display for ImageRefusal {
@@ -81,6 +85,10 @@ impl core::fmt::Display for ImageRefusal {
                 f,
                 "image needs {image} temperature sensors, the board wires {board}"
             ),
+            ImageRefusal::AxisIdTwice { axis_id } => {
+                write!(f, "group image has axis id {axis_id} on two axes")
+            }
+            ImageRefusal::Group(e) => write!(f, "group refused: {e}"),
         }
     }
 }
@@ -396,6 +404,27 @@ pub struct ResetCause {
 // The drive
 // ------------------------------------------------------------------------------------------------
 
+/// The status bits of a core cycle's flags, except `SENSOR_FAULT` (stale or implausible: the drive
+/// asks the state which).
+pub fn core_status(flags: Flags) -> Status {
+    let mut status = Status::NONE;
+    for (core_flag, bit) in [
+        (Flags::THERMAL_FROZEN, Status::THERMAL_FROZEN),
+        (Flags::THERMAL_RAMP_OUT, Status::THERMAL_RAMPING),
+        (Flags::CLAMPED, Status::CLAMP_ACTIVE),
+        (Flags::SLEWED, Status::SLEWED),
+        (Flags::TABLE_OUTSIDE, Status::TABLE_OUTSIDE),
+        (Flags::FORCE_INVALID, Status::FORCE_INVALID),
+        (Flags::NON_FINITE, Status::NON_FINITE),
+        (Flags::IDENTITY, Status::NO_IMAGE),
+    ] {
+        if flags.contains(core_flag) {
+            status.insert(bit);
+        }
+    }
+    status
+}
+
 /// Board I/O of the drive: scale inputs and the setpoint link, never blocking.
 pub trait DriveIo {
     /// Raw counter of scale input `input` (board wiring order, see [`BoardCaps::axis_ids`]).
@@ -643,19 +672,7 @@ impl Drive {
                 Status::SENSOR_IMPLAUSIBLE
             });
         }
-        for (core_flag, bit) in [
-            (Flags::THERMAL_FROZEN, Status::THERMAL_FROZEN),
-            (Flags::CLAMPED, Status::CLAMP_ACTIVE),
-            (Flags::SLEWED, Status::SLEWED),
-            (Flags::TABLE_OUTSIDE, Status::TABLE_OUTSIDE),
-            (Flags::FORCE_INVALID, Status::FORCE_INVALID),
-            (Flags::NON_FINITE, Status::NON_FINITE),
-            (Flags::IDENTITY, Status::NO_IMAGE),
-        ] {
-            if flags.contains(core_flag) {
-                status.insert(bit);
-            }
-        }
+        status.insert(core_status(flags));
         status.set(Status::CYCLE_LATE, late_start);
         status.set(Status::OVERRUN, self.prev_overrun);
         status.set(Status::REPLY_DROPPED, self.prev_reply_dropped);
@@ -835,6 +852,9 @@ pub mod fake {
         }
     }
 }
+
+pub mod group;
+pub mod link_trace;
 
 #[cfg(test)]
 mod tests;

@@ -32,4 +32,12 @@ pub mod status;
 pub mod board;
 
 #[cfg(feature = "std")]
-pub mod scenario;
+mod drive_scenario;
+
+/// The trace scenario generator: the host crate `axcomp-scenario` plus the drive-trace scenarios that need
+/// the firmware's link and drive types (re-exported for tests/).
+#[cfg(feature = "std")]
+pub mod scenario {
+    pub use crate::drive_scenario::*;
+    pub use axcomp_scenario::*;
+}

@@ -19,6 +19,9 @@ pub enum Command {
     /// Fit a compensation model from measurements.
     #[command(subcommand)]
     Fit(FitCommand),
+    /// Plan a measurement campaign.
+    #[command(subcommand)]
+    Plan(PlanCommand),
     /// Build or inspect the firmware's binary table image.
     #[command(subcommand)]
     Image(ImageCommand),
@@ -50,6 +53,18 @@ pub enum FitCommand {
     Force(commands::fit_force::Args),
     /// Calibrate a touch-trigger probe on a reference sphere: effective stylus radius and pretravel by direction and speed.
     Probe(commands::fit_probe::Args),
+    /// Identify the 21 ISO 230-1 geometric errors of a three-axis machine from laser line measurements.
+    Geometry(commands::fit_geometry::Args),
+    /// Fit a five-axis machine's rotary-axis location errors (ISO 230-7) from R-test readings or probed sphere centres.
+    Rtest(commands::fit_rtest::Args),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum PlanCommand {
+    /// Propose laser lines that make all 21 geometric errors identifiable, with predicted uncertainties.
+    Geometry(commands::plan_geometry::Args),
+    /// Which R-test paths (added to K4) make the 11 location errors identifiable, and with what uncertainty.
+    Rtest(commands::plan_rtest::Args),
 }
 
 #[derive(Debug, Subcommand)]

@@ -481,20 +481,7 @@ fn force_writes_a_refused_table_and_says_so() {
 // Synthetic data with known truth.
 
 /// Deterministic uniform (64-bit LCG) and normal (Box–Muller) numbers.
-struct Rng(u64);
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
+use axcomp_numeric::noise::TestNoise as Rng;
 
 /// Truth: smooth pitch error (µm) along 0…400 mm plus a reversal growing from 6 to 8 µm.
 fn truth(x: f64, d: i8) -> f64 {

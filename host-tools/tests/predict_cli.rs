@@ -52,6 +52,7 @@ fn table() -> TableFile {
         cv_rms_um: 0.0,
         raw_rms_um: 0.0,
         cv_method: String::new(),
+        provenance: None,
     }
 }
 

@@ -267,9 +267,14 @@ impl Compensator {
 
     /// Parse and validate `image`, then copy it into `self`. On `Err`, `self` is untouched.
     ///
-    /// Works in place: no copy of the table on the stack.
+    /// Works in place: no copy of the table on the stack. `image` must be exactly the image:
+    /// bytes after its declared length are refused ([`ImageError::TrailingBytes`]; cut an image
+    /// out of a flash slot with [`crate::declared_image_len`]).
     pub fn load(&mut self, image: &[u8]) -> Result<(), ImageError> {
         let layout = crate::image::validate(image)?;
+        if image.len() > layout.len {
+            return Err(ImageError::TrailingBytes);
+        }
         crate::image::copy_into(&layout, image, self);
         Ok(())
     }

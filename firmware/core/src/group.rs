@@ -15,14 +15,17 @@
 //!   positions, added to those axes' errors before their limits (today: [`crate::rotary`]).
 //!
 //! # Order of the stages in one group cycle
-//! 1. per axis, in slot order: counter extension → direction (hysteresis) → segment index of the
-//!    table grid (once per axis and cycle: the table position is the extended position, or the
-//!    turn position for a rotary axis; every error function of that axis uses this index) →
-//!    table value → thermo-force term;
-//! 2. the cross-axis stage (if the image has one): commanded angles of A and C within the turn,
-//!    sin/cos and the angle terms recomputed only when one of them changed, the tool tip from the
-//!    commanded X, Y, Z, the deviation added to X, Y, Z;
-//! 3. per axis: clamp → slew → rounding to counts → corrected command.
+//! 1. the cross-axis stage (if the image has one; it reads only the commanded positions):
+//!    commanded angles of A and C within the turn, sin/cos and the angle terms recomputed only
+//!    when one of them changed, the tool tip from the commanded X, Y, Z → a deviation for X, Y, Z;
+//! 2. per axis, in slot order, its whole pipeline in one call: counter extension → direction
+//!    (hysteresis) → segment index of the table grid (once per axis and cycle: the table
+//!    position is the extended position, or the turn position for a rotary axis; every error
+//!    function of that axis uses this index) → table value → thermo-force term → + the stage's
+//!    deviation (X, Y, Z) → clamp → slew → rounding to counts → corrected command.
+//!
+//! The stage's deviation is added to the same error, in the same order, as when it ran between
+//! the error and the limits (one pass over the axes instead of two; the outputs are the same).
 //!
 //! A single-axis group with no stage therefore computes exactly what [`crate::Compensator::cycle`]
 //! computes (the same functions; tested bit for bit).
@@ -41,6 +44,15 @@ use crate::trace::{
 
 /// Axes in a group.
 pub const MAX_AXES: usize = 5;
+
+/// [`Group`]'s cycle dispatch: no group loaded (identity).
+const MODE_NONE: u8 = 0;
+/// Every axis linear without a thermo-force term, no cross-axis stage.
+const MODE_PLAIN: u8 = 1;
+/// No cross-axis stage, some axis rotary or with a thermo-force term.
+const MODE_MIXED: u8 = 2;
+/// With the cross-axis stage.
+const MODE_STAGE: u8 = 3;
 
 /// Name (and kind) of a group axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
@@ -273,6 +285,9 @@ pub struct Group<const POOL: usize> {
     /// Per slot: bit 0 rotary, bit 1 has a thermo-force term (the cycle's dispatch).
     kinds: [u8; MAX_AXES],
     has_stage: bool,
+    /// The cycle's dispatch, set at load: [`MODE_NONE`] (no group: all zero bytes when new),
+    /// [`MODE_PLAIN`], [`MODE_MIXED`] or [`MODE_STAGE`].
+    mode: u8,
     stage: RotaryStage,
     axes: [AxisCompensator<PoolTable>; MAX_AXES],
     pool: [[f32; 4]; POOL],
@@ -294,6 +309,7 @@ impl<const POOL: usize> Group<POOL> {
             counts_per_rev: [0; MAX_AXES],
             kinds: [0; MAX_AXES],
             has_stage: false,
+            mode: MODE_NONE,
             stage: RotaryStage::ZERO,
             axes: [const { AxisCompensator::identity_with(PoolTable { base: [0; 2] }) }; MAX_AXES],
             pool: [[0.0; 4]; POOL],
@@ -305,6 +321,7 @@ impl<const POOL: usize> Group<POOL> {
         self.loaded = false;
         self.n_axes = 0;
         self.has_stage = false;
+        self.mode = MODE_NONE;
         for a in self.axes.iter_mut() {
             a.clear();
         }
@@ -367,6 +384,14 @@ impl<const POOL: usize> Group<POOL> {
             self.has_stage = true;
         }
         self.loaded = true;
+        let n = axes.len().min(MAX_AXES);
+        self.mode = if self.has_stage {
+            MODE_STAGE
+        } else if self.kinds[..n].iter().all(|&k| k == 0) {
+            MODE_PLAIN
+        } else {
+            MODE_MIXED
+        };
         Ok(())
     }
 
@@ -442,31 +467,38 @@ impl<const POOL: usize> Group<POOL> {
     /// (every slot, as identity outputs, while no group is loaded); slots beyond the group's
     /// axes are left as they are.
     pub fn cycle(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
-        // One test for the common case (loaded, no stage): `n_axes` is 0 without a group.
-        if self.has_stage || self.n_axes == 0 {
-            if !self.loaded {
-                self.identity_cycle(st, input, out);
-            } else {
-                self.cycle_with_stage(st, input, out);
-            }
-            return;
-        }
-        // No cross-axis stage: each axis's whole pipeline in one call.
         let n = (self.n_axes as usize).min(MAX_AXES);
-        for i in 0..n {
-            let (ax, s, inp, o) = (
-                &self.axes[i],
-                &mut st.axes[i],
-                &input.axes[i],
-                &mut out.axes[i],
-            );
-            // Direct calls (no function pointer to materialise): a linear axis without a
-            // thermo-force term (the common case) gets a pipeline with both checks compiled out.
-            if self.kinds[i] == 0 {
-                axis_cycle::<POOL, false, false>(ax, &self.pool, s, inp, o);
-            } else {
-                axis_cycle::<POOL, true, true>(ax, &self.pool, s, inp, o);
+        match self.mode {
+            // Every axis linear without a thermo-force term (the common case): each axis's
+            // whole pipeline with both checks compiled out, no per-axis dispatch.
+            MODE_PLAIN => {
+                for i in 0..n {
+                    axis_cycle::<POOL, false, false>(
+                        &self.axes[i],
+                        &self.pool,
+                        &mut st.axes[i],
+                        &input.axes[i],
+                        &mut out.axes[i],
+                    );
+                }
             }
+            MODE_MIXED => {
+                for i in 0..n {
+                    let (ax, s, inp, o) = (
+                        &self.axes[i],
+                        &mut st.axes[i],
+                        &input.axes[i],
+                        &mut out.axes[i],
+                    );
+                    match self.kinds[i] {
+                        0 => axis_cycle::<POOL, false, false>(ax, &self.pool, s, inp, o),
+                        1 => axis_cycle::<POOL, true, false>(ax, &self.pool, s, inp, o),
+                        _ => axis_cycle::<POOL, true, true>(ax, &self.pool, s, inp, o),
+                    }
+                }
+            }
+            MODE_STAGE => self.cycle_with_stage(st, input, out),
+            _ => self.identity_cycle(st, input, out),
         }
     }
 
@@ -479,46 +511,42 @@ impl<const POOL: usize> Group<POOL> {
         }
     }
 
-    /// [`Group::cycle`] of a group with the cross-axis stage.
+    /// [`Group::cycle`] of a group with the cross-axis stage: the stage first (it reads only the
+    /// commanded positions), then each axis's whole pipeline in one call, the stage's deviation
+    /// added to the axis's error before its limits (the same sum, in the same order, as adding
+    /// it between the error and the limits).
     #[inline(never)]
     fn cycle_with_stage(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        let d = self.rotary_stage(st, input);
         let n = (self.n_axes as usize).min(MAX_AXES);
-        // Stage 1 per axis; the output record holds the axis's error until stage 3.
         for i in 0..n {
-            let call = if self.counts_per_rev[i] == 0 {
-                axis_error::<POOL, false>
-            } else {
-                axis_error::<POOL, true>
-            };
-            call(
+            let (ax, s, inp, o) = (
                 &self.axes[i],
-                &self.pool,
                 &mut st.axes[i],
                 &input.axes[i],
                 &mut out.axes[i],
             );
-        }
-        // Stage 2: the cross-axis stage adds its deviation to X, Y, Z.
-        self.rotary_stage(st, input, out);
-        // Stage 3 per axis.
-        for i in 0..n {
-            axis_finish(
-                &self.axes[i],
-                &mut st.axes[i],
-                input.axes[i].command_counts,
-                &mut out.axes[i],
-            );
+            // A linear axis (X, Y or Z: every linear axis is one of the stage's) adds its
+            // deviation; a rotary one has none.
+            match self.kinds[i] {
+                0 => axis_cycle_with::<POOL, false, false>(ax, &self.pool, s, inp, o, d[i]),
+                1 => axis_cycle::<POOL, true, false>(ax, &self.pool, s, inp, o),
+                2 => axis_cycle_with::<POOL, false, true>(ax, &self.pool, s, inp, o, d[i]),
+                _ => axis_cycle::<POOL, true, true>(ax, &self.pool, s, inp, o),
+            }
         }
     }
 
-    /// The rotary location-error stage: commanded angles within the turn, cached angle terms,
-    /// deviation added to X, Y, Z.
+    /// The rotary location-error stage: commanded angles within the turn, cached angle terms;
+    /// returns the deviation of each slot (X, Y, Z: the stage's; others 0).
     #[inline(always)]
-    fn rotary_stage(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+    fn rotary_stage(&self, st: &mut GroupState, input: &GroupInput) -> [f32; MAX_AXES] {
         let g = &self.stage;
+        // Slots are < MAX_AXES (set at load); `min` keeps the indexing check-free.
+        let slot = |k: usize| (g.slot[k] as usize).min(MAX_AXES - 1);
         let mut angle = [0u32; 2];
         for (k, a) in angle.iter_mut().enumerate() {
-            let i = g.slot[3 + k] as usize % MAX_AXES;
+            let i = slot(3 + k);
             let cpr = self.counts_per_rev[i];
             let cmd = input.axes[i].command_counts;
             let t = &mut st.turns[i];
@@ -534,16 +562,17 @@ impl<const POOL: usize> Group<POOL> {
         }
         let c = &mut st.rotary;
         if !c.valid || c.a_counts != angle[0] || c.c_counts != angle[1] {
-            cold_path();
             g.refresh(c, angle[0], angle[1]);
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
         }
-        let cmd = |k: usize| input.axes[g.slot[k] as usize % MAX_AXES].command_counts;
+        let cmd = |k: usize| input.axes[slot(k)].command_counts;
         let q = g.tool_tip_um([cmd(0), cmd(1), cmd(2)]);
         let d = RotaryStage::deviation_um(&st.rotary, q);
-        for (slot, dk) in g.slot.iter().zip(d) {
-            out.axes[*slot as usize % MAX_AXES].correction_um += dk;
+        let mut by_slot = [0.0f32; MAX_AXES];
+        for (k, dk) in d.into_iter().enumerate() {
+            by_slot[slot(k)] = dk;
         }
+        by_slot
     }
 }
 
@@ -564,38 +593,22 @@ fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
-/// Stage 1 of one axis: extended position, table, thermo-force term; the error and flags are
-/// kept in `out` until [`axis_finish`].
+/// One axis's whole pipeline of a group with the cross-axis stage: `stage_um` (the stage's
+/// deviation, linear axes only) is added to the axis's error before its limits.
 #[inline(never)]
-fn axis_error<const POOL: usize, const ROTARY: bool>(
+fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     ax: &AxisCompensator<PoolTable>,
     pool: &[[f32; 4]; POOL],
     st: &mut State,
     input: &CycleInput,
     out: &mut CycleOutput,
+    stage_um: f32,
 ) {
     let pos = ax.track(st, input.scale_raw);
-    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, None);
-    out.position_counts = pos;
-    out.correction_um = e;
-    out.flags = f;
-}
-
-/// Stage 3 of one axis: limits, counts and the corrected command from the error in `out`.
-#[inline(never)]
-fn axis_finish(
-    ax: &AxisCompensator<PoolTable>,
-    st: &mut State,
-    command: i64,
-    out: &mut CycleOutput,
-) {
-    *out = ax.finish(
-        st,
-        out.position_counts,
-        out.correction_um,
-        command,
-        out.flags,
-    );
+    let thermo = if THERMO { None } else { Some(false) };
+    let (mut e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, thermo);
+    e += stage_um;
+    *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
 /// Why a group was refused: the error and the axis it concerns (None: the group as a whole or

@@ -151,9 +151,42 @@ pub struct ImageInfo {
     pub crc: u32,
 }
 
-/// Validate `image` fully (structure, CRC, every value) and summarise it.
+/// The length an image (schema 1 or 2) declares in its header (bytes 8..12: the total length,
+/// trailing CRC included), for cutting an image out of a flash slot (the image, then erased
+/// flash) before loading it. Reads the header only (magic, schema version, length): the CRC and
+/// the content are checked by the loader. Errors: fewer than 12 bytes or fewer than declared
+/// ([`ImageError::TooShort`]), [`ImageError::BadMagic`], [`ImageError::UnsupportedVersion`], a
+/// declared length below a header and a CRC or above [`MAX_IMAGE_LEN`]
+/// ([`ImageError::BadLength`]).
+pub fn declared_image_len(b: &[u8]) -> Result<usize, ImageError> {
+    if b.len() < 12 {
+        return Err(ImageError::TooShort);
+    }
+    if rd::<4>(b, 0) != MAGIC {
+        return Err(ImageError::BadMagic);
+    }
+    let version = u16_at(b, 4);
+    if version != SCHEMA_VERSION && version != crate::group_image::GROUP_SCHEMA_VERSION {
+        return Err(ImageError::UnsupportedVersion { found: version });
+    }
+    let total = u32_at(b, 8) as usize;
+    if !(12 + CRC_LEN..=MAX_IMAGE_LEN).contains(&total) {
+        return Err(ImageError::BadLength);
+    }
+    if b.len() < total {
+        return Err(ImageError::TooShort);
+    }
+    Ok(total)
+}
+
+/// Validate `image` fully (structure, CRC, every value) and summarise it. Like
+/// [`crate::Compensator::load`], it refuses bytes after the declared length
+/// ([`ImageError::TrailingBytes`]).
 pub fn inspect_image(image: &[u8]) -> Result<ImageInfo, ImageError> {
     let l = validate(image)?;
+    if image.len() > l.len {
+        return Err(ImageError::TrailingBytes);
+    }
     Ok(ImageInfo {
         len: l.len,
         version: u16_at(image, 4),

@@ -84,7 +84,7 @@ pub use compensator::{
 pub use counter::Direction;
 pub use engine::{Engine, EngineStats};
 pub use error::{Field, ImageError};
-pub use image::{ImageInfo, crc32, image_len, inspect_image, write_image};
+pub use image::{ImageInfo, crc32, declared_image_len, image_len, inspect_image, write_image};
 pub use limits::round_to_counts;
 pub use spec::{
     ExpansionSpec, ForceLaw, ForceSpec, ImageSpec, LimitSpec, OutsideStroke, SensorSpec, TableSpec,
@@ -110,5 +110,8 @@ pub const STALE_HOLD_MS: u32 = 60_000;
 /// 0, leaving b0 + predicted forces (the value that needs no sensor), flagged
 /// [`Flags::THERMAL_RAMP_OUT`].
 pub const STALE_RAMP_MS: u32 = 60_000;
+/// Size of one table-image flash slot (A or B), bytes: `memory.x` reserves two of them (the
+/// STM32G474RE's 512 KiB flash: 256 KiB of code, then slots A and B of 128 KiB each).
+pub const IMAGE_SLOT_LEN: usize = 128 * 1024;
 /// Largest image this build accepts (one flash slot).
-pub const MAX_IMAGE_LEN: usize = 64 * 1024;
+pub const MAX_IMAGE_LEN: usize = IMAGE_SLOT_LEN;

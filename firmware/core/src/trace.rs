@@ -10,7 +10,7 @@
 //! | 1 | `Cycle` | `scale_raw` u32, `command_counts` i64, `forces_n` 3×f32 (24 bytes) |
 //! | 2 | `Temperatures` | `now_ms` u32, `n` u8 (≤ 16), 3 reserved bytes (0), n×f32 (8 + 4n bytes) |
 //! | 3 | `Process` | `ap_mm`, `fz_mm`, `n_rpm` f32 (12 bytes) |
-//! | 4 | `Image` | a table image (≤ 64 KiB), loaded into the spare slot |
+//! | 4 | `Image` | a table image (≤ 128 KiB, `MAX_IMAGE_LEN`), loaded into the spare slot |
 //! | 5 | `Reset` | `scale_raw` u32 (4 bytes): [`crate::State::reset`] |
 //! | 6 | `GroupCycle` | `n` u8 (1..=5), 3 reserved bytes (0), then per axis slot the `Cycle` payload (4 + 24n bytes) |
 //! | 7 | `AxisTemperatures` | `slot` u8 (< 5), 3 reserved bytes (0), then the `Temperatures` payload |

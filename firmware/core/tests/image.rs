@@ -405,10 +405,13 @@ fn parse_errors_and_load_leaves_running_object_untouched() {
     assert_eq!(format!("{c:?}"), format!("{before:?}"));
     let mut st = State::new();
     assert_eq!(c.cycle(&mut st, &input(50, 0)).correction_um, 3.0);
-    // Trailing bytes after the declared length are ignored (a flash slot is larger than the image).
+    // Trailing bytes after the declared length are refused (issue 14: they were accepted without
+    // comment); a flash slot is cut to the image with `declared_image_len` first.
     let mut padded = good.clone();
     padded.extend_from_slice(&[0xFF; 100]);
-    assert_eq!(c.load(&padded), Ok(()));
+    assert_eq!(c.load(&padded), Err(ImageError::TrailingBytes));
+    let n = declared_image_len(&padded).unwrap();
+    assert_eq!(c.load(&padded[..n]), Ok(()));
 }
 
 #[test]

@@ -7,6 +7,10 @@
 //! Run: `qemu-system-arm -machine netduinoplus2 -nographic -icount shift=0 \
 //!   -semihosting-config enable=on,target=native,arg=axcomp-qemu-group,arg=TRACE,arg=OUT -kernel axcomp-qemu-group`
 //!
+//! A drive trace (`axcomp_firmware::drive::link_trace`, magic `AXLT`) is replayed instead through the
+//! group drive (`GroupDrive`: setpoint link, supervisors, status word, reply frame), one 128-byte drive
+//! output record per cycle.
+//!
 //! Exit status: 0 when every record replayed cleanly, 1 on a panic, 2 when the files cannot be
 //! opened or written, 3 when the trace had malformed records (the readable ones are still
 //! replayed and written).
@@ -17,6 +21,7 @@ mod firmware {
     use axcomp_core::group::GroupEngine;
     use axcomp_core::trace::OUTPUT_RECORD_LEN;
     use axcomp_firmware::board::semihosting::{self, HostError, HostFile};
+    use axcomp_firmware::drive::link_trace::{self, DRIVE_OUTPUT_LEN, LinkStream};
     use axcomp_firmware::replay::{self, TraceStream};
     use cortex_m_rt::entry;
     use cortex_m_semihosting::hprintln;
@@ -53,10 +58,18 @@ mod firmware {
         let trace_path = args.next().unwrap_or("axcomp-trace.bin");
         let out_path = args.next().unwrap_or("axcomp-out.bin");
 
+        let mut head = [0u8; 4];
+        let mut input =
+            HostFile::open_read(trace_path).unwrap_or_else(|e| fail("cannot open", trace_path, e));
+        let got = input.read_full(&mut head).unwrap_or(0);
+        drop(input);
         let input =
             HostFile::open_read(trace_path).unwrap_or_else(|e| fail("cannot open", trace_path, e));
         let mut output =
             HostFile::create(out_path).unwrap_or_else(|e| fail("cannot create", out_path, e));
+        if link_trace::is_link_trace(&head[..got]) {
+            replay_drive_trace(input, output, trace_path, out_path)
+        }
         let mut stream = match TraceStream::new(input, TRACE_BUF.take()) {
             Ok(s) => s,
             Err(e) => {
@@ -101,6 +114,64 @@ mod firmware {
             sum.errors,
             s.images_accepted,
             s.images_rejected
+        );
+        if sum.errors > 0 {
+            semihosting::exit_code(3)
+        }
+        semihosting::exit_success()
+    }
+
+    /// A drive trace (`axcomp_firmware::drive::link_trace`): setpoint-link bytes, scale counters and
+    /// cycle times through the group drive; one 128-byte drive output record per cycle.
+    fn replay_drive_trace(
+        input: HostFile,
+        mut output: HostFile,
+        trace_path: &str,
+        out_path: &str,
+    ) -> ! {
+        let mut stream = match LinkStream::new(input, TRACE_BUF.take()) {
+            Ok(s) => s,
+            Err(e) => {
+                hprintln!("axcomp-qemu-group: {}: {}", trace_path, e);
+                semihosting::exit_code(2)
+            }
+        };
+        let engine = ENGINE.take();
+        let mut drive = link_trace::replay_drive();
+        let buf = OUT_BUF.take();
+        let mut len = 0;
+        let mut write_error = None;
+        let sum = link_trace::replay_link(
+            &mut drive,
+            engine,
+            &mut stream,
+            |o| {
+                buf[len..len + DRIVE_OUTPUT_LEN].copy_from_slice(&o.encode());
+                len += DRIVE_OUTPUT_LEN;
+                if len + DRIVE_OUTPUT_LEN > buf.len() {
+                    if write_error.is_none() {
+                        write_error = output.write_all(&buf[..len]).err();
+                    }
+                    len = 0;
+                }
+            },
+            |e| hprintln!("axcomp-qemu-group: {}: {}", trace_path, e),
+        );
+        if len > 0 && write_error.is_none() {
+            write_error = output.write_all(&buf[..len]).err();
+        }
+        if let Some(e) = write_error {
+            fail("writing", out_path, e)
+        }
+        if let Err(e) = output.close() {
+            fail("closing", out_path, e)
+        }
+        hprintln!(
+            "axcomp-qemu-group: drive trace records={} cycles={} images_refused={} errors={}",
+            sum.records,
+            sum.cycles,
+            sum.images_refused,
+            sum.errors
         );
         if sum.errors > 0 {
             semihosting::exit_code(3)

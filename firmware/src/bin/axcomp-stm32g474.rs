@@ -15,13 +15,15 @@ mod firmware {
     use core::cell::Cell;
     use core::sync::atomic::{AtomicU32, Ordering};
 
-    use axcomp_core::trace::{Record, Temperatures};
-    use axcomp_core::{Engine, MAX_SENSORS};
+    use axcomp_core::MAX_SENSORS;
+    use axcomp_core::group::GroupEngine;
+    use axcomp_core::trace::Temperatures;
     use axcomp_firmware::board::stm32g474::{
         self, BoardIo, CORE_CLOCK_HZ, DwtClock, Iwdg, LOOP_PRIORITY, RTD_COUNT, Rtd,
     };
-    use axcomp_firmware::control::{ControlLoop, CycleTimer, LoopSettings};
-    use axcomp_firmware::drive::{Drive, DriveCounters, LinkSettings};
+    use axcomp_firmware::control::{CycleTimer, LoopConfig, LoopSettings};
+    use axcomp_firmware::drive::group::GroupDrive;
+    use axcomp_firmware::drive::{DriveCounters, LinkSettings};
     use axcomp_firmware::max31865;
     use axcomp_firmware::status::Status;
     use defmt_rtt as _;
@@ -36,7 +38,10 @@ mod firmware {
     use static_cell::ConstStaticCell;
 
     /// The engine (two compensator slots with their tables) is built by the const constructor in the static.
-    static ENGINE: ConstStaticCell<Engine> = ConstStaticCell::new(Engine::new());
+    /// Table segments of the group (per A/B slot, shared by its axes): 2 × 2048 × 16 B = 64 KiB, as the
+    /// single-axis engine's two 1024-segment bidirectional slots were.
+    const POOL: usize = 2048;
+    static ENGINE: ConstStaticCell<GroupEngine<POOL>> = ConstStaticCell::new(GroupEngine::new());
     /// Temperature readings from the sensor task to the control loop (applied between two cycles).
     static READINGS: Channel<CriticalSectionRawMutex, Temperatures, 2> = Channel::new();
     /// The loop's executor, pended through the (otherwise unused) UART4 interrupt.
@@ -142,13 +147,13 @@ mod firmware {
 
     #[embassy_executor::task]
     async fn drive_task(
-        mut ctl: ControlLoop<'static>,
-        mut drive: Drive,
+        engine: &'static mut GroupEngine<POOL>,
+        cfg: LoopConfig,
+        mut drive: GroupDrive,
         mut io: BoardIo,
         clock: DwtClock,
         mut watchdog: Iwdg,
     ) {
-        let cfg = *ctl.config();
         let mut timer = TickerTimer(Ticker::every(Duration::from_hz(u64::from(cfg.rate_hz))));
         watchdog.start();
         defmt::info!(
@@ -158,14 +163,14 @@ mod firmware {
         );
         drive
             .run(
-                &mut ctl,
+                engine,
                 &mut io,
                 &clock,
                 &mut timer,
                 &mut watchdog,
-                |inbox, drive| {
+                |engine, drive| {
                     while let Ok(t) = READINGS.try_receive() {
-                        inbox.apply(&Record::Temperatures(t));
+                        drive.update_temperatures(engine, t.now_ms, t.readings());
                     }
                     STATUS_SEEN.fetch_or(drive.status().bits(), Ordering::Relaxed);
                     if drive.cycles() % PUBLISH_EVERY_CYCLES == 0 {
@@ -185,23 +190,23 @@ mod firmware {
         let cfg = LoopSettings::new(CORE_CLOCK_HZ)
             .build()
             .expect("10 kHz at 170 MHz is valid");
-        let mut ctl = ControlLoop::new(ENGINE.take(), cfg);
-        let mut drive = Drive::new(
+        let engine = ENGINE.take();
+        let mut drive = GroupDrive::new(
             stm32g474::CAPS,
             &cfg,
             LinkSettings::defaults(cfg.rate_hz),
             board.reset_cause,
         );
-        // Each slot is offered whole (64 KiB: the image, then erased flash); the core reads the image's
-        // own length from its header.
+        // Each slot (128 KiB of flash) is offered cut to the length its image header declares
+        // (`image_slots`); trailing bytes would be refused by the loader.
         for (name, slot) in ["A", "B"].iter().zip(stm32g474::image_slots()) {
-            match drive.offer_image(&mut ctl, slot) {
+            match drive.offer_image(engine, slot) {
                 Ok(()) => {
                     defmt::info!(
-                        "image slot {} loaded (axis {}, scale input {})",
+                        "image slot {} loaded ({} axes, scale inputs {})",
                         name,
-                        ctl.engine().active().axis_id(),
-                        drive.input()
+                        drive.axis_count(),
+                        drive.inputs()
                     );
                     break;
                 }
@@ -210,9 +215,14 @@ mod firmware {
                 }
             }
         }
-        let period_ms = match ctl.engine().active().sensor_period_ms() {
-            0 => DEFAULT_SENSOR_PERIOD_MS,
-            p => p,
+        let g = engine.active();
+        let period_ms = match (0..g.axis_count())
+            .filter_map(|i| g.axis(i).map(|a| a.sensor_period_ms()))
+            .filter(|&p| p > 0)
+            .min()
+        {
+            None => DEFAULT_SENSOR_PERIOD_MS,
+            Some(p) => p,
         };
         spawner
             .spawn(temperature_task(board.rtds, period_ms).expect("temperature task spawns once"));
@@ -221,7 +231,7 @@ mod firmware {
         interrupt::UART4.set_priority(LOOP_PRIORITY);
         let loop_spawner = LOOP_EXECUTOR.start(interrupt::UART4);
         loop_spawner.spawn(
-            drive_task(ctl, drive, board.io, board.clock, board.watchdog)
+            drive_task(engine, cfg, drive, board.io, board.clock, board.watchdog)
                 .expect("drive task spawns once"),
         );
     }

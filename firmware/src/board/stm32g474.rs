@@ -15,7 +15,7 @@
 //! - **Loop priority**: the control loop runs on an interrupt-mode executor (pended through the unused
 //!   UART4 interrupt at [`LOOP_PRIORITY`]); the RTD task's blocking SPI reads stay in thread mode, so the
 //!   loop preempts them.
-//! - **Image slots**: the two 64 KiB flash regions `__slot_a_start` / `__slot_b_start` from `memory.x`.
+//! - **Image slots**: the two 128 KiB flash regions `__slot_a_start` / `__slot_b_start` from `memory.x`.
 
 use core::cell::RefCell;
 
@@ -244,19 +244,25 @@ pub fn init() -> Board {
     }
 }
 
-/// The image slots from `memory.x`.
+/// The image slots from `memory.x`, each cut to the image it holds: the length declared in the
+/// image's header ([`axcomp_core::declared_image_len`]), or the whole slot when the header is not
+/// an image's (erased flash, a corrupt header), so that the loader reports why.
 pub fn image_slots() -> [&'static [u8]; 2] {
     unsafe extern "C" {
         static __slot_a_start: u8;
         static __slot_b_start: u8;
     }
-    const SLOT_LEN: usize = 64 * 1024;
-    // SAFETY: the linker script reserves 64 KiB of read-only flash at each symbol; nothing writes it while
-    // the firmware runs (the host programs the slots).
-    unsafe {
+    const SLOT_LEN: usize = axcomp_core::IMAGE_SLOT_LEN;
+    // SAFETY: the linker script reserves `IMAGE_SLOT_LEN` (128 KiB) of read-only flash at each
+    // symbol; nothing writes it while the firmware runs (the host programs the slots).
+    let slots = unsafe {
         [
             core::slice::from_raw_parts(&raw const __slot_a_start, SLOT_LEN),
             core::slice::from_raw_parts(&raw const __slot_b_start, SLOT_LEN),
         ]
-    }
+    };
+    slots.map(|s| match axcomp_core::declared_image_len(s) {
+        Ok(n) => s.get(..n).unwrap_or(s),
+        Err(_) => s,
+    })
 }

@@ -11,6 +11,7 @@ use axcomp_diagnose::{DiagnoseOptions, EffectKind, dataset, report};
 
 use crate::cli::DataArgs;
 use crate::commands::common;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 #[command(after_help = axcomp_diagnose::engine::VERDICT_HELP)]
@@ -36,6 +37,15 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let model = EffectKind::parse_list(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
+    // The outputs are planned and checked before the search; written together at the end.
+    let mut outputs = OutputSet::new();
+    if let Some(dir) = &args.report {
+        outputs.dir(dir).planned(dir.join("diagnosis.md"));
+    }
+    if let Some(path) = &args.json {
+        outputs.planned(path);
+    }
+    outputs.check()?;
     let ds = common::load_dataset(&args.data)?;
     let obs = dataset::observations(&ds, &args.target, &args.holdout)?;
     // The observations hold every column the diagnosis uses: free the table before the search.
@@ -99,12 +109,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     println!("verdict: {} — {}", d.verdict, d.note);
+    let mut report_files = 0;
     if let Some(dir) = &args.report {
-        let files = report::write_report(dir, &obs, &d)?;
-        println!("report: {} files in {}", files.len(), dir.display());
+        for (path, bytes) in report::report_files(dir, &obs, &d)? {
+            outputs.file(path, bytes);
+            report_files += 1;
+        }
     }
     if let Some(path) = &args.json {
-        common::write_json(path, &d)?;
+        outputs.json(path, &d)?;
+    }
+    outputs.commit()?;
+    if let Some(dir) = &args.report {
+        println!("report: {report_files} files in {}", dir.display());
     }
     Ok(())
 }

@@ -28,8 +28,9 @@ use axcomp_probe::{
 use serde_json::json;
 
 use crate::cli::DataArgs;
-use crate::commands::common::{load_dataset, write_atomic, write_json};
+use crate::commands::common::load_dataset;
 use crate::commands::predict::read_touches;
+use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
 Touch CSV: x_mm, y_mm, z_mm (latched stylus-tip centre), approach_x/y/z (unit vector of the probing move, toward the surface), optional feed_mm_min, artefact, run.
@@ -133,12 +134,7 @@ fn robust_flags(r: &[f64], k: f64) -> Vec<bool> {
     r.iter().map(|e| (e - med).abs() > k * s).collect()
 }
 
-fn rms(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
-}
+use axcomp_numeric::stats::rms;
 
 /// A calibration with one fixed effective radius (the uncorrected method with a nominal ball).
 fn nominal(cal: &Calibration, radius_mm: f64) -> Calibration {
@@ -199,6 +195,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .as_deref()
         .map(HoldoutSpec::parse)
         .transpose()?;
+    // Every output is planned and checked before the fit; written together at the end.
+    let mut outputs = OutputSet::new();
+    if let Some(dir) = &args.report {
+        outputs.dir(dir);
+        for name in [
+            "residual_map.svg",
+            "residual_map_plain.svg",
+            "pretravel_speed.svg",
+            "diameter_error.svg",
+            "report.md",
+        ] {
+            outputs.planned(dir.join(name));
+        }
+    }
+    for p in [&args.centres_out, &args.out, &args.json]
+        .into_iter()
+        .flatten()
+    {
+        outputs.planned(p);
+    }
+    outputs.check()?;
 
     // ---- data ----
     let ds = load_dataset(&args.data)?;
@@ -473,6 +490,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     if let Some(dir) = &args.report {
         write_report(
+            &mut outputs,
             dir,
             &res,
             &tr_touches,
@@ -483,14 +501,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )?;
     }
     if let (Some(p), Some(text)) = (&args.centres_out, &centres_csv) {
-        write_atomic(p, text.as_bytes())?;
+        outputs.file(p, text.as_bytes());
     }
     if let Some(p) = &args.out {
-        write_atomic(p, cal.to_json().as_bytes())?;
+        outputs.file(p, cal.to_json());
     }
     if let Some(p) = &args.json {
-        write_json(p, &report)?;
+        outputs.json(p, &report)?;
     }
+    // Everything together or nothing (the report folder included).
+    outputs.commit()?;
     let f = |v: Option<f64>| v.map_or("–".to_string(), |x| format!("{x:+.3}"));
     println!(
         "fit probe: {} touches ({} outliers), model {}; centre [{:.4}, {:.4}, {:.4}] mm, stylus radius {:.4} mm",
@@ -515,6 +535,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn write_report(
+    outputs: &mut OutputSet,
     dir: &std::path::Path,
     res: &CalibrationResult,
     touches: &[Touch],
@@ -523,7 +544,6 @@ fn write_report(
     before_cal: &Calibration,
     report: &serde_json::Value,
 ) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let cal = &res.calibration;
     // Radial residual over the sphere: azimuth on x, one series per elevation ring.
     // Per elevation ring (0.1°): azimuths, residuals after, residuals with one radius.
@@ -565,8 +585,8 @@ fn write_report(
     }
     after.hline(0.0, "");
     before.hline(0.0, "");
-    after.save_svg(dir.join("residual_map.svg"))?;
-    before.save_svg(dir.join("residual_map_plain.svg"))?;
+    outputs.file(dir.join("residual_map.svg"), after.to_svg());
+    outputs.file(dir.join("residual_map_plain.svg"), before.to_svg());
 
     // Pretravel versus speed: measured (stylus radius − |p − C| + R) per touch, model at a few directions.
     let mut pv = Figure::new(
@@ -606,7 +626,7 @@ fn write_report(
             .collect();
         pv.dashed(&format!("model az {az}° el {el}°"), &feeds, &ys);
     }
-    pv.save_svg(dir.join("pretravel_speed.svg"))?;
+    outputs.file(dir.join("pretravel_speed.svg"), pv.to_svg());
 
     // Diameter error by speed on the evaluation rows: before, reference, after.
     let mut speeds: Vec<f64> = eval_touches.iter().map(|t| t.feed_mm_min).collect();
@@ -657,7 +677,7 @@ fn write_report(
         dfig.line(name, &xs, ys);
     }
     dfig.hline(0.0, "");
-    dfig.save_svg(dir.join("diameter_error.svg"))?;
+    outputs.file(dir.join("diameter_error.svg"), dfig.to_svg());
 
     let de = &report["diameter_error_um"];
     let num = |v: &serde_json::Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:+.3}"));
@@ -746,7 +766,7 @@ fn write_report(
          the azimuth of its surface normal, one series per elevation ring.\n\n![after](residual_map.svg)\n\n\
          ![plain](residual_map_plain.svg)\n\n## Pretravel versus speed\n\n![pretravel](pretravel_speed.svg)"
     );
-    write_atomic(&dir.join("report.md"), md.as_bytes())?;
+    outputs.file(dir.join("report.md"), md);
     Ok(())
 }
 
@@ -836,10 +856,12 @@ pub fn sim_probe(args: SimArgs) -> anyhow::Result<()> {
         }
         s
     });
+    let mut outputs = OutputSet::new();
     if let (Some(p), Some(text)) = (&args.truth, &truth) {
-        write_atomic(p, text.as_bytes())?;
+        outputs.file(p, text.as_bytes());
     }
-    write_atomic(&args.out, csv.as_bytes())?;
+    outputs.file(&args.out, csv);
+    outputs.commit()?;
     println!(
         "sim-probe: {} touches ({} bounce / false-trigger rows) → {}",
         t.len(),

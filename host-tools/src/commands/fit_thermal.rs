@@ -14,10 +14,11 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use axcomp_data::{Dataset, HoldoutSpec, LoadOptions, groups};
 use axcomp_thermal::model_file::{ModelForceLaw, ThermalModelFile};
-use axcomp_thermal::report::write_thermal_report;
+use axcomp_thermal::report::thermal_report_files;
 use axcomp_thermal::{Ridge, Selection, Series, ThermalInput, ThermalOptions, fit_thermal};
 
 use crate::cli::DataArgs;
+use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
 How it works: sensors are the `*_degC` columns (or the --sensors subset), forces the `*_N` columns (fitted jointly as χ·F terms unless --no-forces), the target a `*_um` column.
@@ -173,6 +174,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Ok((col.trim().to_string(), law))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
+    // Every output is planned and checked before the fit; written together at the end (the model is
+    // dropped from the set when the guard refuses it).
+    let mut outputs = OutputSet::new();
+    if let Some(dir) = &args.report {
+        outputs.dir(dir);
+        for name in [
+            "prediction.svg",
+            "residual_per_condition.svg",
+            "sensors.svg",
+            "report.md",
+        ] {
+            outputs.planned(dir.join(name));
+        }
+    }
+    for p in [&args.json, &args.out].into_iter().flatten() {
+        outputs.planned(p);
+    }
+    outputs.check()?;
 
     // ---- read ----
     let ds = Dataset::load(&args.data.data, &load)?;
@@ -335,14 +354,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         o.insert("target_offset_um".into(), target_offset.into());
         o.insert("model_written".into(), write_model.into());
         let text = serde_json::to_string_pretty(&v)?;
-        axcomp_plot::write_atomic(path, text.as_bytes())
-            .with_context(|| format!("writing {}", path.display()))?;
+        outputs.file(path, text);
     }
     if let Some(dir) = &args.report {
-        write_thermal_report(dir, &fit, &input, &args.target)
-            .with_context(|| format!("writing the report into {}", dir.display()))?;
+        for (path, bytes) in thermal_report_files(dir, &fit, &input, &args.target) {
+            outputs.file(path, bytes);
+        }
     }
     if !fit.guard.passed && !args.force {
+        // The JSON and the report are written; the refused model is not.
+        if let Some(out) = &args.out {
+            outputs.remove(out);
+        }
+        outputs.commit()?;
         return Err(crate::Refused {
             code: crate::EXIT_GUARD_REFUSED,
             reason: match &args.out {
@@ -369,7 +393,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         file.validate()
             .map_err(|e| anyhow::anyhow!("model not written: {e}"))?;
-        file.save(out)?;
+        outputs.file(out, serde_json::to_string_pretty(&file)?);
+    }
+    outputs.commit()?;
+    if let Some(out) = &args.out {
         println!("model written to {}", out.display());
     }
     Ok(())

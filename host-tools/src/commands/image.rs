@@ -19,7 +19,7 @@ use axcomp_core::{Compensator, ImageSpec, LimitSpec, image_len, inspect_image, w
 use axcomp_positioning::TableFile;
 use axcomp_thermal::model_file::ThermalModelFile;
 
-use super::common::write_atomic;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct BuildArgs {
@@ -109,12 +109,16 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
 }
 
 pub fn build(args: BuildArgs) -> anyhow::Result<()> {
+    let mut outputs = OutputSet::new();
+    outputs.planned(&args.out);
+    outputs.check()?;
     let bytes = build_bytes(&args)?;
     // Check what was built loads, before writing it.
     let mut comp = Compensator::IDENTITY;
     comp.load(&bytes)
         .context("the built image does not load (internal error)")?;
-    write_atomic(&args.out, &bytes)?;
+    outputs.file(&args.out, bytes.as_slice());
+    outputs.commit()?;
     let info = inspect_image(&bytes)?;
     println!(
         "wrote {} ({} bytes, axis {}, {} segments{}, thermo: {}, CRC-32 {:08x})",
@@ -448,8 +452,12 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
 }
 
 pub fn group(args: GroupArgs) -> anyhow::Result<()> {
+    let mut outputs = OutputSet::new();
+    outputs.planned(&args.out);
+    outputs.check()?;
     let bytes = group_bytes(&args)?;
-    write_atomic(&args.out, &bytes)?;
+    outputs.file(&args.out, bytes.as_slice());
+    outputs.commit()?;
     let view = group_image::parse(&bytes)?;
     println!(
         "wrote {} ({} bytes, group of {} axes: {}, rotary model: {}, CRC-32 {:08x})",
@@ -477,7 +485,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("axcomp-image-group-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
-        let g = axcomp_firmware::scenario::group_image(5, false).unwrap();
+        let g = axcomp_scenario::group_image(5, false).unwrap();
         let view = group_image::parse(&g).unwrap();
         let mut axis_args = Vec::new();
         for a in view.axes() {

@@ -5,17 +5,21 @@ pub mod demo;
 pub mod diagnose;
 pub mod export;
 pub mod fit_force;
+pub mod fit_geometry;
 pub mod fit_positioning;
 pub mod fit_probe;
+pub mod fit_rtest;
 pub mod fit_thermal;
 pub mod image;
+pub mod plan_geometry;
+pub mod plan_rtest;
 pub mod predict;
 pub mod replay;
 pub mod sim;
 pub mod trace;
 pub mod validate_diagnosis;
 
-use crate::cli::{Cli, Command, FitCommand, ImageCommand};
+use crate::cli::{Cli, Command, FitCommand, ImageCommand, PlanCommand};
 
 pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
@@ -24,6 +28,10 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(FitCommand::Thermal(a)) => fit_thermal::run(a),
         Command::Fit(FitCommand::Force(a)) => fit_force::run(a),
         Command::Fit(FitCommand::Probe(a)) => fit_probe::run(a),
+        Command::Fit(FitCommand::Geometry(a)) => fit_geometry::run(a),
+        Command::Plan(PlanCommand::Geometry(a)) => plan_geometry::run(a),
+        Command::Fit(FitCommand::Rtest(a)) => fit_rtest::run(a),
+        Command::Plan(PlanCommand::Rtest(a)) => plan_rtest::run(a),
         Command::Image(ImageCommand::Build(a)) => image::build(a),
         Command::Image(ImageCommand::Inspect(a)) => image::inspect(a),
         Command::Image(ImageCommand::Group(a)) => image::group(a),

@@ -14,6 +14,12 @@
 //!   approach_x, approach_y, approach_z` and `feed_mm_min` when the calibration depends on the speed →
 //!   `contact_x_mm, contact_y_mm, contact_z_mm`, the touch corrected to the surface point.
 //!
+//! - geometry model (`axcomp-geometry-model`, `axcomp fit geometry --out`): inputs `x_mm, y_mm, z_mm` (and
+//!   `tool_*_mm`, `beam_*` or `line`) → `pred_ex_um, pred_ey_um, pred_ez_um`, plus `pred_deviation_um` when
+//!   the rows' beams are known; a position outside the model's grid is an error naming the row.
+//! - rotary-axis location-error model (`"kind": "rtest"`, `axcomp fit rtest --out`): inputs `x_mm, y_mm,
+//!   z_mm`, `a_deg`|`b_deg`, `c_deg` (and `setup`) → `pred_dx_um, pred_dy_um, pred_dz_um`.
+//!
 //! Nothing is half-written: the output goes to a temporary file beside the target and is renamed.
 
 use std::path::PathBuf;
@@ -25,7 +31,8 @@ use axcomp_probe::{Calibration, Touch};
 use axcomp_thermal::model_file::ThermalModelFile;
 
 use crate::cli::DataArgs;
-use crate::commands::common::{load_dataset, write_atomic};
+use crate::commands::common::load_dataset;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -45,6 +52,8 @@ pub enum ModelKind {
     Positioning,
     Thermal,
     Probe,
+    Geometry,
+    Rtest,
 }
 
 /// Reads the `format` field of a model file.
@@ -54,22 +63,30 @@ pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
     let v: serde_json::Value = serde_json::from_str(&text)
         .with_context(|| format!("{}: not a JSON model file", path.display()))?;
     let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
+    if format.is_empty() && v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
+        return Ok(ModelKind::Rtest);
+    }
     Ok(match format {
         axcomp_positioning::table_file::FORMAT => ModelKind::Positioning,
         axcomp_thermal::model_file::FORMAT => ModelKind::Thermal,
         axcomp_probe::FORMAT => ModelKind::Probe,
+        axcomp_geometry::model::MODEL_FORMAT => ModelKind::Geometry,
         other => bail!(
-            "{}: unknown model format `{other}` (expected {}, {} or {})",
+            "{}: unknown model format `{other}` (expected {}, {}, {}, {} or an R-test model with \"kind\": \"rtest\")",
             path.display(),
             axcomp_positioning::table_file::FORMAT,
             axcomp_thermal::model_file::FORMAT,
-            axcomp_probe::FORMAT
+            axcomp_probe::FORMAT,
+            axcomp_geometry::model::MODEL_FORMAT
         ),
     })
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let kind = model_kind(&args.model)?;
+    let mut outputs = OutputSet::new();
+    outputs.planned(&args.out);
+    outputs.check()?;
     let mut ds = load_dataset(&args.data)?;
     let added = match kind {
         ModelKind::Positioning => {
@@ -88,8 +105,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let cal = Calibration::from_json(&p, &text)?;
             predict_probe(&cal, &mut ds)?
         }
+        ModelKind::Geometry => {
+            let p = args.model.display().to_string();
+            let text = std::fs::read_to_string(&args.model)
+                .with_context(|| format!("{p}: cannot read"))?;
+            let model = axcomp_geometry::GeometryModel::from_json(&text, &p)?;
+            predict_geometry(&model, &mut ds)?
+        }
+        ModelKind::Rtest => {
+            let p = args.model.display().to_string();
+            let text = std::fs::read_to_string(&args.model)
+                .with_context(|| format!("{p}: cannot read"))?;
+            let model: axcomp_rtest::RtestModel = serde_json::from_str(&text)
+                .with_context(|| format!("{p}: not an R-test model file"))?;
+            predict_rtest(&model, &mut ds)?
+        }
     };
-    write_atomic(&args.out, ds.to_csv_string().as_bytes())?;
+    outputs.file(&args.out, ds.to_csv_string());
+    outputs.commit()?;
     println!(
         "predict: {} rows, added {} → {}",
         ds.n_rows(),
@@ -287,4 +320,54 @@ pub fn predict_probe(cal: &Calibration, ds: &mut Dataset) -> anyhow::Result<Vec<
         ds.add_numeric_column(name, v)?;
     }
     Ok(names.iter().map(|s| s.to_string()).collect())
+}
+
+/// Adds `pred_ex_um`, `pred_ey_um`, `pred_ez_um` (and `pred_deviation_um` when the beams are known).
+pub fn predict_geometry(
+    model: &axcomp_geometry::GeometryModel,
+    ds: &mut Dataset,
+) -> anyhow::Result<Vec<String>> {
+    let rows = axcomp_geometry::predict_rows(model, ds)?;
+    if rows.len() != ds.n_rows() {
+        bail!(
+            "{}: {} rows but {} predictions",
+            ds.source(),
+            ds.n_rows(),
+            rows.len()
+        );
+    }
+    let mut names = Vec::new();
+    for (k, name) in ["pred_ex_um", "pred_ey_um", "pred_ez_um"]
+        .iter()
+        .enumerate()
+    {
+        ds.add_numeric_column(name, rows.iter().map(|r| r.e_um[k]).collect())?;
+        names.push(name.to_string());
+    }
+    if rows.iter().all(|r| r.deviation_um.is_some()) {
+        let dev = rows
+            .iter()
+            .map(|r| r.deviation_um.unwrap_or(f64::NAN))
+            .collect();
+        ds.add_numeric_column("pred_deviation_um", dev)?;
+        names.push("pred_deviation_um".into());
+    }
+    Ok(names)
+}
+
+/// Adds `pred_dx_um`, `pred_dy_um`, `pred_dz_um`.
+pub fn predict_rtest(
+    model: &axcomp_rtest::RtestModel,
+    ds: &mut Dataset,
+) -> anyhow::Result<Vec<String>> {
+    let rows = axcomp_rtest::predict_rows(model, ds)?;
+    let mut names = Vec::new();
+    for (k, name) in ["pred_dx_um", "pred_dy_um", "pred_dz_um"]
+        .iter()
+        .enumerate()
+    {
+        ds.add_numeric_column(name, rows.iter().map(|r| r[k]).collect())?;
+        names.push(name.to_string());
+    }
+    Ok(names)
 }

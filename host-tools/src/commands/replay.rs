@@ -303,7 +303,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use axcomp_firmware::scenario;
+    use axcomp_scenario as scenario;
 
     fn scratch(tag: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("axcomp-replay-{tag}-{}", std::process::id()));

@@ -12,7 +12,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use axcomp_core::Compensator;
-use axcomp_twin::{Axis, EffectKind, Plan, TruthReport, simulate, write_atomically};
+use axcomp_twin::{Axis, EffectKind, Plan, TruthReport, simulate};
+
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -220,6 +222,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         t0: std::time::Instant::now(),
     };
     let cfg = Config::from_args(args)?;
+    // Every output is planned and checked before the simulation; written together at the end.
+    let mut outputs = OutputSet::new();
+    outputs.planned(&cfg.out);
+    if let Some(path) = &cfg.truth {
+        outputs.planned(path);
+    }
+    outputs.check()?;
     progress.step(&format!(
         "simulating the {} campaign",
         match &cfg.plan {
@@ -258,13 +267,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cfg.out.display()
     ));
     let csv = campaign.to_csv_string();
-    write_atomically(&cfg.out, csv.as_bytes())
-        .with_context(|| format!("writing {}", cfg.out.display()))?;
+    outputs.file(&cfg.out, csv);
     if let Some(path) = &cfg.truth {
-        let json = truth_json;
-        write_atomically(path, json.as_bytes())
-            .with_context(|| format!("writing {}", path.display()))?;
+        outputs.file(path, truth_json);
     }
+    outputs.commit()?;
     progress.step("done");
     let kinds: Vec<&str> = cfg.axis.kinds().iter().map(|k| k.name()).collect();
     println!(

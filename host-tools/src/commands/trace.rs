@@ -8,16 +8,18 @@
 //!   `reference` the core's benchmark workload, `group3`/`group5` axis groups (group records, a group image).
 //!   All run at 10 kHz with temperatures every 100 ms; every trace ends with a CRC-32 record.
 //!
-//! The trace is written to a temporary file next to `--out` and renamed, so a failed run leaves nothing.
+//! The trace is written through [`crate::output::OutputSet`] (checked before the work, all or nothing), so a
+//! failed run leaves nothing.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use axcomp_core::trace::{self, Record};
 
 // The scenario generator lives with the firmware (feature `std`), where the QEMU equivalence test uses it too.
-use axcomp_firmware::scenario;
+use axcomp_scenario as scenario;
+
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -84,6 +86,9 @@ fn validate(args: Args) -> anyhow::Result<Config> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let cfg = validate(args)?;
+    let mut outputs = OutputSet::new();
+    outputs.planned(&cfg.out);
+    outputs.check()?;
     let bytes = scenario::generate(&cfg.scenario, cfg.cycles, cfg.image.as_deref())
         .map_err(|e| anyhow::anyhow!("--scenario {}: {e}", cfg.scenario))?;
 
@@ -101,29 +106,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
 
-    let dir = match cfg.out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = cfg
-        .out
-        .file_name()
-        .with_context(|| format!("--out {}: not a file path", cfg.out.display()))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let write = || -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(&bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, &cfg.out)
-    };
-    if let Err(e) = write() {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e).with_context(|| format!("--out {}: cannot write", cfg.out.display()));
-    }
+    outputs.file(&cfg.out, bytes.as_slice());
+    outputs.commit()?;
     println!(
         "wrote {}: scenario {}, {} records ({} cycles, {} images), {} bytes",
         cfg.out.display(),

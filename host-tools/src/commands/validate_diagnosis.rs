@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 use axcomp_diagnose::validate::{self, Profile, ValidateOptions};
 
-use crate::commands::common;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -59,6 +59,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     .build()
     .map_err(anyhow::Error::msg)?;
+    // Both outputs are planned and checked before the (long) validation run.
+    let mut outputs = OutputSet::new();
+    if let Some(p) = &args.markdown {
+        outputs.planned(p);
+    }
+    if let Some(p) = &args.json {
+        outputs.planned(p);
+    }
+    outputs.check()?;
     let total = opts.cases;
     let summary = validate::validate(&opts, |c| {
         eprintln!(
@@ -79,11 +88,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .map_err(anyhow::Error::msg)?;
     let md = summary.to_markdown();
     print!("{md}");
+    // The report and the JSON are committed together (both or neither).
     if let Some(p) = &args.markdown {
-        common::write_atomic(p, md.as_bytes())?;
+        outputs.file(p, md.as_bytes());
     }
     if let Some(p) = &args.json {
-        common::write_json(p, &summary)?;
+        outputs.json(p, &summary)?;
     }
+    outputs.commit()?;
     Ok(())
 }

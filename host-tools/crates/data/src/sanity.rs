@@ -70,15 +70,7 @@ pub fn single_campaign(ds: &Dataset, cols: &[&str]) -> Result<(), DataError> {
     Ok(())
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
+use axcomp_numeric::stats::median;
 
 /// Per-target outliers of `values` (see the module docs); `target` and `direction` give the groups.
 /// `ds` is only used to name file lines. `None` when nothing is flagged.

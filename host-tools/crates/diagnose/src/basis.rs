@@ -193,40 +193,16 @@ pub fn regular_spacing(x: &[f64], rows: &[usize]) -> Option<f64> {
     (gaps.iter().all(|g| (g - med).abs() <= 0.01 * med)).then_some(med)
 }
 
-/// Uniform cubic B-spline basis (`k` segments → `k + 3` functions) over [lo, hi].
+/// Uniform cubic B-spline basis (`k` segments → `k + 3` functions) over [lo, hi]
+/// ([`axcomp_numeric::bspline::uniform_cubic_basis`]).
 pub fn bspline_basis(x: &[f64], lo: f64, hi: f64, k: usize) -> Vec<Vec<f64>> {
-    let mut cols = vec![vec![0.0; x.len()]; k + 3];
-    let h = (hi - lo) / k as f64;
-    for (i, &xi) in x.iter().enumerate() {
-        let u = ((xi - lo) / h).clamp(0.0, k as f64);
-        let j = (u.floor() as usize).min(k - 1);
-        let t = u - j as f64;
-        let b = [
-            (1.0 - t).powi(3) / 6.0,
-            (3.0 * t.powi(3) - 6.0 * t * t + 4.0) / 6.0,
-            (-3.0 * t.powi(3) + 3.0 * t * t + 3.0 * t + 1.0) / 6.0,
-            t.powi(3) / 6.0,
-        ];
-        for (m, bm) in b.iter().enumerate() {
-            cols[j + m][i] = *bm;
-        }
-    }
-    cols
+    axcomp_numeric::bspline::uniform_cubic_basis(x, lo, hi, k)
 }
 
-/// First-order lag of `u` with time constant `tau_s`, rows visited in `order` (time order).
+/// First-order lag of `u` with time constant `tau_s`, rows visited in `order` (time order)
+/// ([`axcomp_numeric::lag::lag_ordered`]; why it differs from the firmware-form lag is said there).
 pub fn first_order_lag(u: &[f64], t: &[f64], order: &[usize], tau_s: f64) -> Vec<f64> {
-    let mut out = vec![0.0; u.len()];
-    let mut state = u[order[0]];
-    let mut t_prev = t[order[0]];
-    for &i in order {
-        let dt = (t[i] - t_prev).max(0.0);
-        let a = 1.0 - (-dt / tau_s).exp();
-        state += a * (u[i] - state);
-        out[i] = state;
-        t_prev = t[i];
-    }
-    out
+    axcomp_numeric::lag::lag_ordered(u, t, order, tau_s)
 }
 
 fn sincos(x: &[f64], period: f64) -> Vec<Vec<f64>> {

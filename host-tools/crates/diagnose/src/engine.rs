@@ -1062,20 +1062,7 @@ mod tests {
     use crate::obs::Named;
 
     /// Deterministic normal noise (64-bit LCG + Box–Muller).
-    struct Noise(u64);
-    impl Noise {
-        fn uniform(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        }
-        fn normal(&mut self) -> f64 {
-            let (u, v) = (self.uniform(), self.uniform());
-            (-2.0 * u.ln()).sqrt() * (core::f64::consts::TAU * v).cos()
-        }
-    }
+    use axcomp_numeric::noise::TestNoise as Noise;
 
     /// 2000 rows, 10 runs (run 4 and 9 held out), positions uniform on 0–200 mm, both directions,
     /// a smooth pitch error, an optional reversal of ±`rev` µm, noise σ 0.5 µm.

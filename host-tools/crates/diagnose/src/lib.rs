@@ -41,7 +41,7 @@ pub mod stats;
 pub mod validate;
 
 /// The effect vocabulary is the twin's (one definition for the twin and the diagnosis).
-pub use axcomp_twin::EffectKind;
+pub use axcomp_effects::EffectKind;
 pub use engine::{Candidate, DiagnoseOptions, Diagnosis, Gap, diagnose};
 pub use locate::Region;
 pub use obs::Observations;

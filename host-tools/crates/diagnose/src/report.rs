@@ -44,19 +44,37 @@ fn thin(rows: &[usize]) -> (Vec<usize>, usize) {
 }
 
 /// Writes `diagnosis.md` and the figures into `dir` (created if needed). Returns the files written.
+/// The files are those of [`report_files`], each written atomically.
+pub fn write_report(
+    dir: &Path,
+    obs: &Observations,
+    d: &Diagnosis,
+) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    let files = report_files(dir, obs, d)?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+    let mut written = Vec::new();
+    for (path, bytes) in files {
+        axcomp_plot::write_atomic(&path, &bytes)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+/// The report's files (`diagnosis.md` last, the figures before it) as paths under `dir` and their bytes,
+/// nothing written (for an all-or-nothing output set).
 ///
 /// Figures: one per variable (`target_mm`, `time_s`, `velocity_mm_s`) of the held-out gap of the model as
 /// given, and, when there is a verdict, a second panel with the gap after refitting with it
 /// (`gap_<var>_after.svg`, same colours). When the verdict is `reversal` or the gap lies in one direction,
 /// the points are coloured by approach direction (forward blue, reverse orange in both panels). Time is in
 /// s, min or h by the span; units are written `quantity (unit)` throughout.
-pub fn write_report(
+pub fn report_files(
     dir: &Path,
     obs: &Observations,
     d: &Diagnosis,
-) -> anyhow::Result<Vec<std::path::PathBuf>> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+) -> anyhow::Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
     let hold = obs.holdout_rows();
     let (shown, stride) = thin(&hold);
     let after = d.verdict_candidate().map(|c| &c.residual_after);
@@ -152,10 +170,8 @@ pub fn write_report(
             f.hline(0.0, "");
             let name = format!("gap_{var}{suffix}.svg");
             let path = dir.join(&name);
-            f.save_svg(&path)
-                .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
             figs.push(name);
-            written.push(path);
+            written.push((path, f.to_svg().into_bytes()));
         }
     }
 
@@ -304,8 +320,6 @@ pub fn write_report(
             .map_or(String::new(), |r| format!(", position order {r:.3}"))
     ));
     let path = dir.join("diagnosis.md");
-    axcomp_plot::write_atomic(&path, md.as_bytes())
-        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
-    written.push(path);
+    written.push((path, md.into_bytes()));
     Ok(written)
 }

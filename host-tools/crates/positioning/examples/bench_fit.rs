@@ -11,20 +11,7 @@ use std::time::Instant;
 use axcomp_positioning::{FitOptions, Observation, fit};
 
 /// Deterministic uniform numbers (64-bit LCG) and normal numbers (Box–Muller).
-struct Rng(u64);
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
+use axcomp_numeric::noise::TestNoise as Rng;
 
 /// CPU time of this thread (Linux `/proc/thread-self/schedstat`, nanoseconds on CPU), if available.
 fn cpu_seconds() -> Option<f64> {

@@ -278,16 +278,7 @@ pub struct FitResult {
 
 /// Root mean square of the values; NaN when there are none.
 pub fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for x in v {
-        s += x * x;
-        n += 1;
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        (s / n as f64).sqrt()
-    }
+    axcomp_numeric::stats::rms_of(v)
 }
 
 /// Key of a target position (grid detection): rounded to 1 nm.

@@ -335,18 +335,7 @@ pub struct CalibrationResult {
     pub repeat_groups: usize,
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
+use axcomp_numeric::stats::median;
 
 /// Robust outlier flags on residuals (µm): |e − median| > k·max(1.4826·MAD, 0.05 µm).
 fn flag_outliers(res_um: &[f64], k: f64) -> Vec<bool> {
@@ -520,18 +509,7 @@ fn residuals_um(
         .collect()
 }
 
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for x in v {
-        s += x * x;
-        n += 1;
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        (s / n as f64).sqrt()
-    }
-}
+use axcomp_numeric::stats::rms_of as rms;
 
 /// Cross-validated RMS (µm) of a structure with the centre fixed, folds by direction group.
 fn cv_rms(

@@ -10,7 +10,7 @@
 //! - **thermal model**: `e = b0 + Σ b ΔT + Σ χ F`, fitted by QR least squares ([`linalg`], [`thermal`]).
 //! - **force law**: `F = K·ap^x·fz^y·n^z` ([`force`]); **cutting coefficients** Ktc, Krc, Kac (cutting) and
 //!   Kte, Kre, Kae (edge) of a milling cutter from mean forces ([`milling`]).
-//! - **twin data**: synthetic temperatures, forces and errors with known truth ([`synth`]).
+//! - **twin data**: synthetic temperatures, forces and errors with known truth ([`synth`], the twin's).
 
 pub mod blocks;
 pub mod fcm;
@@ -23,7 +23,8 @@ pub mod model_file;
 pub mod report;
 pub mod select;
 pub mod stats;
-pub mod synth;
+/// The synthetic campaign generator now lives in the twin ([`axcomp_twin::synth`]); re-exported here.
+pub use axcomp_twin::synth;
 pub mod thermal;
 
 pub use thermal::{

@@ -22,6 +22,21 @@ pub fn write_thermal_report(
     target: &str,
 ) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
+    for (path, bytes) in thermal_report_files(dir, fit, input, target) {
+        write_atomic(&path, &bytes)?;
+    }
+    Ok(())
+}
+
+/// The report's files (`prediction.svg`, `residual_per_condition.svg`, `sensors.svg`, `report.md`) as
+/// paths under `dir` and their bytes, nothing written (for an all-or-nothing output set).
+pub fn thermal_report_files(
+    dir: &Path,
+    fit: &ThermalFit,
+    input: &ThermalInput,
+    target: &str,
+) -> Vec<(std::path::PathBuf, Vec<u8>)> {
+    let mut files = Vec::new();
     let n = input.time_s.len();
     let hours: Vec<f64> = input.time_s.iter().map(|t| t / 3600.0).collect();
     let held = input.holdout.clone().unwrap_or_else(|| vec![false; n]);
@@ -73,10 +88,10 @@ pub fn write_thermal_report(
     }
     f.size(900.0, 420.0);
     r.size(900.0, 320.0);
-    write_atomic(
-        &dir.join("prediction.svg"),
-        panels_svg(&[&f, &r], 1).as_bytes(),
-    )?;
+    files.push((
+        dir.join("prediction.svg"),
+        panels_svg(&[&f, &r], 1).into_bytes(),
+    ));
 
     // One bar pair per condition (raw, after the model); held-out conditions are marked in the name.
     let names: Vec<String> = fit
@@ -117,10 +132,10 @@ pub fn write_thermal_report(
             .map(|c| c.rms_um)
             .collect::<Vec<_>>(),
     );
-    write_atomic(
-        &dir.join("residual_per_condition.svg"),
-        bars.to_svg().as_bytes(),
-    )?;
+    files.push((
+        dir.join("residual_per_condition.svg"),
+        bars.to_svg().into_bytes(),
+    ));
 
     // The sensors the model uses (only those), each named with its coefficient and lag.
     let title = if used == all {
@@ -159,7 +174,7 @@ pub fn write_thermal_report(
     for (a, b) in &spans {
         f.vspan(*a, *b, "held out");
     }
-    f.save_svg(dir.join("sensors.svg"))?;
+    files.push((dir.join("sensors.svg"), f.to_svg().into_bytes()));
 
     let mut md = String::new();
     let _ = writeln!(md, "# Thermal model of `{target}`\n");
@@ -297,7 +312,8 @@ pub fn write_thermal_report(
         &rows,
     );
     md += "\n![prediction](prediction.svg)\n\n![residual per condition](residual_per_condition.svg)\n\n![sensors](sensors.svg)\n";
-    write_atomic(&dir.join("report.md"), md.as_bytes())
+    files.push((dir.join("report.md"), md.into_bytes()));
+    files
 }
 
 /// Consecutive runs of `true` in `mask` as (x_from, x_to).

@@ -178,10 +178,7 @@ impl Campaign {
 
 /// Root mean square (0 for no values).
 pub fn rms(values: impl IntoIterator<Item = f64>) -> f64 {
-    let (n, ss) = values
-        .into_iter()
-        .fold((0usize, 0.0), |(n, ss), v| (n + 1, ss + v * v));
-    if n == 0 { 0.0 } else { (ss / n as f64).sqrt() }
+    axcomp_numeric::stats::rms_or_zero(values)
 }
 
 /// Writes `bytes` to a temporary sibling of `path`, then renames it over `path`.

@@ -53,6 +53,7 @@ pub mod plan;
 pub mod probe;
 pub mod sim;
 pub mod spindle;
+pub mod synth;
 pub mod thermal;
 
 pub use axis::{Axis, AxisError, Noise, Sensor};
@@ -128,3 +129,5 @@ impl<'a> TruthReport<'a> {
         serde_json::to_string_pretty(self).expect("truth report serialises")
     }
 }
+pub mod five_axis;
+pub mod geometry;

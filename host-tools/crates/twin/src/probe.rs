@@ -29,7 +29,6 @@
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use rand_distr::{Distribution, StandardNormal};
 
 /// The probe's behaviour (truth of the twin).
 #[derive(Debug, Clone, PartialEq)]
@@ -288,14 +287,7 @@ pub struct SimTouch {
     pub kind: TouchKind,
 }
 
-fn gauss(rng: &mut StdRng, sigma: f64) -> f64 {
-    if sigma > 0.0 {
-        let z: f64 = StandardNormal.sample(rng);
-        sigma * z
-    } else {
-        0.0
-    }
-}
+use axcomp_numeric::noise::gauss;
 
 fn dir(az_deg: f64, el_deg: f64) -> [f64; 3] {
     let (a, e) = (az_deg.to_radians(), el_deg.to_radians());

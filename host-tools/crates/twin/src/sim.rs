@@ -11,7 +11,6 @@
 
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use rand_distr::{Distribution, StandardNormal};
 
 use crate::axis::{Axis, AxisError};
 use crate::campaign::{Campaign, Row, Truth};
@@ -56,14 +55,7 @@ impl Drive for OpenLoop {
     }
 }
 
-fn gauss(rng: &mut StdRng, sigma: f64) -> f64 {
-    if sigma > 0.0 {
-        let z: f64 = StandardNormal.sample(rng);
-        sigma * z
-    } else {
-        0.0
-    }
-}
+use axcomp_numeric::noise::gauss;
 
 /// Runs `plan` on `axis` with `drive`. The measurement noise is drawn from a generator seeded by
 /// `seed` in row order (so the same seed gives the same noise whatever the effects' amplitudes);

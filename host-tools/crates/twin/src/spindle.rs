@@ -1,5 +1,5 @@
 //! Thermo-force campaigns under machining load, from `axcomp-thermal`'s synthetic generator
-//! (`axcomp_thermal::synth`): the twin holds the axis at one target while a spindle runs through
+//! (`crate::synth`): the twin holds the axis at one target while a spindle runs through
 //! heating/cooling phases at several speeds, cuts with a force from the power law
 //! `F = K·ap^x·fz^y·n^z`, and 16 strongly collinear temperature sensors (`s01` … `s16`) follow hidden
 //! heat sources.
@@ -8,7 +8,7 @@
 //! - *condition*: one spindle speed with its depth of cut `ap` and feed per tooth `fz`; each runs a
 //!   heating phase (cutting) then a cooling phase. The CSV's `run` is the condition number (from 1).
 //! - *synth truth*: the generator's error model `b0 + Σ b_k·(lag(T_k, τ_k) − T_k(0)) + χ·F` over a few
-//!   true sensors ([`axcomp_thermal::ThermalModel`]).
+//!   true sensors ([`axcomp_effects::thermal_model::ThermalModel`]).
 //! - *positional part*: the axis' `pitch_error`, `reversal`, `cogging`, `interpolation_error` and
 //!   `end_effect` at the held target (constant over the campaign).
 //!
@@ -17,9 +17,9 @@
 //! (terms with τ > 0), `thermal_drift` (b0 and terms with τ = 0) and `force_deflection` (χ·F), and
 //! `conditions.temps_degc` holds the 16 noise-free sensor temperatures (not the axis' three).
 
-use axcomp_thermal::ThermalModel;
-use axcomp_thermal::lag::lag;
-use axcomp_thermal::synth::{SynthConfig, generate};
+use crate::synth::{SynthConfig, generate};
+use axcomp_effects::thermal_model::ThermalModel;
+use axcomp_numeric::lag::lag;
 
 use crate::axis::Axis;
 use crate::campaign::{Campaign, ExtraColumn, Row, Truth};

@@ -17,8 +17,8 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal, Uniform};
 
-use crate::lag::lag;
-use crate::thermal::{ForceTerm, SensorTerm, Series, ThermalModel};
+use axcomp_effects::thermal_model::{ForceTerm, SensorTerm, Series, ThermalModel};
+use axcomp_numeric::lag::lag;
 
 /// Generator settings.
 #[derive(Debug, Clone)]
@@ -551,12 +551,15 @@ mod tests {
             .zip(&d.error_true_um)
             .map(|(a, b)| a - b)
             .collect();
-        let r = crate::stats::rms(&diff);
+        let r = axcomp_numeric::stats::rms(&diff);
         assert!((r - 0.3).abs() < 0.015, "noise rms {r}");
         // Sensors are collinear: the first two sensors sharing a main source correlate > 0.9.
         let a = &d.sensors_degc[0];
         let b = &d.sensors_degc[3];
-        let (ma, mb) = (crate::stats::mean(a), crate::stats::mean(b));
+        let (ma, mb) = (
+            axcomp_numeric::stats::mean(a),
+            axcomp_numeric::stats::mean(b),
+        );
         let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
         let va: f64 = a.iter().map(|x| (x - ma).powi(2)).sum();
         let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();

@@ -370,9 +370,43 @@ pub fn reference(cycles: u32, first_image: Option<&[u8]>) -> Result<Vec<u8>, Sce
 /// (`axcomp_core::bench::group_axis_spec`), X with two lagged sensors, and for five axes the
 /// workload's rotary stage; `second` scales the tables (the replacement image).
 pub fn group_image(n_axes: usize, second: bool) -> Result<Vec<u8>, ScenarioError> {
+    group_image_variant(n_axes, second, GroupImageVariant::Board)
+}
+
+/// How a group image of [`group_image_variant`] differs from the `group3`/`group5` one (the drive
+/// fault matrix's images that do not fit the board).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GroupImageVariant {
+    /// As [`group_image`]: 16-bit counters, axis ids 1…n, X with two sensors.
+    Board,
+    /// Every axis with this counter width.
+    CounterBits(u8),
+    /// Axis `slot` with axis id `id`.
+    AxisId { slot: usize, id: u16 },
+    /// X with this many sensors (1–4).
+    Sensors(usize),
+}
+
+/// [`group_image`] with a [`GroupImageVariant`].
+pub fn group_image_variant(
+    n_axes: usize,
+    second: bool,
+    variant: GroupImageVariant,
+) -> Result<Vec<u8>, ScenarioError> {
     use axcomp_core::group_image::{AxisSectionSpec, group_image_len, write_group_image};
-    let sensors = [eq_sensor(20.0, 30.0), eq_sensor(21.0, 0.0)];
-    let b = [0.8f32, -0.3];
+    let all_sensors = [
+        eq_sensor(20.0, 30.0),
+        eq_sensor(21.0, 0.0),
+        eq_sensor(22.0, 0.0),
+        eq_sensor(23.0, 0.0),
+    ];
+    let all_b = [0.8f32, -0.3, 0.2, 0.1];
+    let n_sensors = match variant {
+        GroupImageVariant::Sensors(k) => k.clamp(1, 4),
+        _ => 2,
+    };
+    let sensors = &all_sensors[..n_sensors];
+    let b = &all_b[..n_sensors];
     let scale = if second { 1.2f32 } else { 1.0 };
     let scaled: Vec<Vec<[f32; 4]>> = (0..10)
         .map(|k| {
@@ -395,20 +429,29 @@ pub fn group_image(n_axes: usize, second: bool) -> Result<Vec<u8>, ScenarioError
                 t.forward = &scaled[6 + (k - 3)];
             }
         }
-        spec.counter_bits = EQUIVALENCE_COUNTER_BITS;
+        spec.counter_bits = match variant {
+            GroupImageVariant::CounterBits(bits) => bits,
+            _ => EQUIVALENCE_COUNTER_BITS,
+        };
+        if let GroupImageVariant::AxisId { slot, id } = variant {
+            if slot == k {
+                spec.axis_id = id;
+            }
+        }
         if k == 0 {
             spec.thermo = Some(ThermoForceSpec {
                 sensor_period_ms: 100,
-                sensors: &sensors,
+                sensors,
                 b0_um: 0.4,
-                b_um_per_k: &b,
+                b_um_per_k: b,
                 expansion: None,
                 forces: &[],
             });
         }
         images.push(build_image(&spec)?);
     }
-    let names: [&str; 2] = ["spindle", "column"];
+    let all_names: [&str; 4] = ["spindle", "column", "bed", "table"];
+    let names = &all_names[..n_sensors];
     let axes: Vec<AxisSectionSpec> = images
         .iter()
         .enumerate()
@@ -419,7 +462,7 @@ pub fn group_image(n_axes: usize, second: bool) -> Result<Vec<u8>, ScenarioError
                 counts_per_rev,
                 stroke_counts: None,
                 image: img,
-                sensor_names: if k == 0 { &names } else { &[] },
+                sensor_names: if k == 0 { names } else { &[] },
             }
         })
         .collect();

@@ -1,0 +1,433 @@
+//! The drive of an axis group: one setpoint frame per cycle carries every axis's command, one
+//! [`GroupEngine`] cycle corrects them all, one reply frame carries every axis's corrected command and
+//! the status word (the flags of every axis merged).
+//!
+//! - **Axis ↔ board input**: group axis `i` (its slot in the image) runs on the board's scale input at
+//!   the position of its image's axis id in [`BoardCaps::axis_ids`]; its command is the setpoint frame's
+//!   entry at that same position (frame order = board input order). The reply frame carries the
+//!   corrected commands in the same order, one per board input the frame addressed (`n_inputs`).
+//! - **Without an image** (identity): every board input is an axis and is passed through uncorrected.
+//! - **Link faults**: each axis has its own [`LinkSupervisor`] fed by the same frames, so a late,
+//!   corrupt or repeated frame holds every axis's correction, then ramps every one out at the same
+//!   rate (each in its own units), then back in.
+//! - **Image check**: every axis of a group image is checked against the board (counter width, axis id
+//!   wired, sensors wired; an axis id on two axes is refused) before the engine sees it; the engine then
+//!   swaps A/B for the whole group at once, or keeps the running group.
+//! - **Temperatures**: image sensor `j` of every axis is board sensor `j`; a reading set goes to every
+//!   axis ([`GroupDrive::update_temperatures`]).
+
+use axcomp_core::group::{GroupEngine, GroupInput, GroupOutput, MAX_AXES};
+use axcomp_core::{Flags, group_image, inspect_image};
+
+use super::{
+    Applied, BoardCaps, DriveCounters, DriveIo, ImageRefusal, LatenessMeter, LinkPhase,
+    LinkSettings, LinkSupervisor, ResetCause, Watchdog, core_status,
+};
+use crate::control::{CycleClock, CycleTimer, LoopConfig};
+use crate::setpoint::{CounterId, MAX_REPLY_FRAME_LEN, ReplyFrame, SetpointDecoder};
+use crate::status::Status;
+
+/// Board inputs of a group image's axes (by group slot) and how many axes it has.
+pub type AxisInputs = ([u8; MAX_AXES], usize);
+
+/// Validates a group image (schema 2, or schema 1 as one axis) and checks every axis against the
+/// board; returns the board input of each axis. The image is never loaded here.
+pub fn check_group_image(caps: &BoardCaps, image: &[u8]) -> Result<AxisInputs, ImageRefusal> {
+    let view = group_image::parse(image).map_err(ImageRefusal::Invalid)?;
+    let mut inputs = [0u8; MAX_AXES];
+    let mut n = 0;
+    for a in view.axes() {
+        let info = inspect_image(a.axis.image).map_err(ImageRefusal::Invalid)?;
+        let input = caps.check(info.axis_id, info.counter_bits, info.n_sensors)?;
+        if inputs[..n].contains(&(input as u8)) {
+            return Err(ImageRefusal::AxisIdTwice {
+                axis_id: info.axis_id,
+            });
+        }
+        if n >= MAX_AXES {
+            return Err(ImageRefusal::Invalid(axcomp_core::ImageError::AxisCount));
+        }
+        inputs[n] = input as u8;
+        n += 1;
+    }
+    Ok((inputs, n))
+}
+
+/// One group cycle's result, by group slot (entries `n_axes..` are zero).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroupDriveCycle {
+    /// Axes corrected this cycle.
+    pub n_axes: usize,
+    /// Board inputs addressed by the frame and the reply (the largest input used + 1).
+    pub n_inputs: usize,
+    /// The command each axis followed (the last fresh one while frames are late).
+    pub command_counts: [i64; MAX_AXES],
+    /// What went to each axis: command − applied correction.
+    pub corrected_command_counts: [i64; MAX_AXES],
+    pub applied: [Applied; MAX_AXES],
+    /// The merged status word.
+    pub status: Status,
+    /// The engine's outputs (before the link supervisor).
+    pub engine: GroupOutput,
+}
+
+const APPLIED_ZERO: Applied = Applied {
+    correction_counts: 0,
+    correction_um: 0.0,
+    phase: LinkPhase::Following,
+};
+
+/// The drive of a group: link decoding, one supervisor per axis, the group engine's cycle, the merged
+/// status word and the reply frame.
+pub struct GroupDrive {
+    caps: BoardCaps,
+    inputs: [u8; MAX_AXES],
+    n_axes: usize,
+    decoder: SetpointDecoder,
+    links: [LinkSupervisor; MAX_AXES],
+    meter: LatenessMeter,
+    latched: Status,
+    last_seq: u8,
+    reply_seq: u8,
+    prev_overrun: bool,
+    prev_reply_dropped: bool,
+    next_counter: u8,
+    counters: DriveCounters,
+    last_status: Status,
+}
+
+impl GroupDrive {
+    pub fn new(
+        caps: BoardCaps,
+        config: &LoopConfig,
+        link: LinkSettings,
+        reset: ResetCause,
+    ) -> Self {
+        let mut latched = Status::NONE;
+        latched.set(Status::WATCHDOG_RESET, reset.watchdog);
+        let (inputs, n_axes) = Self::identity_inputs(&caps);
+        GroupDrive {
+            caps,
+            inputs,
+            n_axes,
+            decoder: SetpointDecoder::new(),
+            links: [LinkSupervisor::new(link); MAX_AXES],
+            meter: LatenessMeter::new(config.period_ticks),
+            latched,
+            last_seq: 0,
+            reply_seq: 0,
+            prev_overrun: false,
+            prev_reply_dropped: false,
+            next_counter: 0,
+            counters: DriveCounters::default(),
+            last_status: Status::NONE,
+        }
+    }
+
+    fn identity_inputs(caps: &BoardCaps) -> AxisInputs {
+        let n = caps.axis_ids.len().clamp(1, MAX_AXES);
+        let mut inputs = [0u8; MAX_AXES];
+        for (i, v) in inputs.iter_mut().enumerate() {
+            *v = i as u8;
+        }
+        (inputs, n)
+    }
+
+    /// Replaces the lateness meter (e.g. another tolerance).
+    pub fn set_lateness_meter(&mut self, meter: LatenessMeter) {
+        self.meter = meter;
+    }
+
+    pub fn caps(&self) -> &BoardCaps {
+        &self.caps
+    }
+
+    /// Board input of each group slot (first [`GroupDrive::axis_count`]).
+    pub fn inputs(&self) -> &[u8] {
+        &self.inputs[..self.n_axes]
+    }
+
+    /// Axes the drive corrects (the board's inputs while no image runs).
+    pub fn axis_count(&self) -> usize {
+        self.n_axes
+    }
+
+    pub fn cycles(&self) -> u32 {
+        self.counters.cycles
+    }
+
+    pub fn counters(&self) -> DriveCounters {
+        let mut c = self.counters;
+        c.link = *self.decoder.counters();
+        c.lateness = *self.meter.stats();
+        c
+    }
+
+    /// Status word of the last cycle.
+    pub fn status(&self) -> Status {
+        self.last_status
+    }
+
+    /// The link supervisor of group slot `i`.
+    pub fn supervisor(&self, i: usize) -> Option<&LinkSupervisor> {
+        self.links.get(i)
+    }
+
+    /// Checks `image` against the board for every axis, then offers it to the engine (A/B swap of the
+    /// whole group). A refused image is never loaded (the running group is kept) and latches
+    /// [`Status::IMAGE_REFUSED`] until an image is accepted.
+    pub fn offer_image<const POOL: usize>(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        image: &[u8],
+    ) -> Result<(), ImageRefusal> {
+        let result = check_group_image(&self.caps, image).and_then(|ins| {
+            engine
+                .load_image(image)
+                .map(|()| ins)
+                .map_err(ImageRefusal::Group)
+        });
+        match result {
+            Ok((inputs, n)) => {
+                // Each axis's supervisor keeps following its own command: slots are re-mapped only
+                // when the group's wiring changes.
+                if (inputs, n) != (self.inputs, self.n_axes) {
+                    let settings = *self.links[0].settings();
+                    let old = self.links;
+                    for (i, l) in self.links.iter_mut().enumerate() {
+                        *l = self.inputs[..self.n_axes]
+                            .iter()
+                            .position(|&x| i < n && x == inputs[i])
+                            .map_or(LinkSupervisor::new(settings), |j| old[j]);
+                    }
+                }
+                self.inputs = inputs;
+                self.n_axes = n;
+                self.latched.set(Status::IMAGE_REFUSED, false);
+                Ok(())
+            }
+            Err(e) => {
+                self.latched.insert(Status::IMAGE_REFUSED);
+                self.counters.images_refused = self.counters.images_refused.saturating_add(1);
+                Err(e)
+            }
+        }
+    }
+
+    /// A set of board temperature readings (board sensor j = every axis's image sensor j).
+    pub fn update_temperatures<const POOL: usize>(
+        &self,
+        engine: &mut GroupEngine<POOL>,
+        now_ms: u32,
+        readings: &[f32],
+    ) {
+        for i in 0..engine.active().axis_count() {
+            engine.update_temperatures(i, now_ms, readings);
+        }
+    }
+
+    /// One cycle: lateness, link bytes → fresh frame, a supervised command per axis, the group
+    /// engine's cycle, the applied corrections, the status word and the reply frame; feeds the
+    /// watchdog at the end.
+    pub fn cycle<const POOL: usize, Io: DriveIo, C: CycleClock, W: Watchdog>(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        clock: &C,
+        watchdog: &mut W,
+    ) -> GroupDriveCycle {
+        let (_, late_start) = self.meter.start(clock.now());
+        self.counters.cycles = self.counters.cycles.wrapping_add(1);
+        let n = self.n_axes;
+        let n_inputs = self.inputs[..n]
+            .iter()
+            .map(|&i| usize::from(i) + 1)
+            .max()
+            .unwrap_or(1);
+
+        // ---- link: every byte received since the last cycle; the newest fresh frame wins ----
+        let mut fresh = None;
+        let mut buf = [0u8; 32];
+        for _ in 0..8 {
+            let got = io.read_link(&mut buf);
+            if got == 0 {
+                break;
+            }
+            if let Some(f) = self.decoder.push_bytes(&buf[..got.min(buf.len())]) {
+                fresh = Some(f);
+            }
+        }
+        let events = self.decoder.take_events();
+        let mut status = self.latched;
+        let mut commands: Option<[i32; MAX_AXES]> = None;
+        if let Some(f) = fresh {
+            self.last_seq = f.seq;
+            let c = f.commands();
+            if c.len() >= n_inputs {
+                let mut own = [0i32; MAX_AXES];
+                for (o, &input) in own.iter_mut().zip(self.inputs[..n].iter()) {
+                    *o = c[usize::from(input)];
+                }
+                commands = Some(own);
+            } else {
+                self.counters.short_frames = self.counters.short_frames.wrapping_add(1);
+                status.insert(Status::FRAME_CORRUPT);
+            }
+        }
+        if commands.is_none() {
+            self.counters.cycles_without_frame = self.counters.cycles_without_frame.wrapping_add(1);
+            status.insert(Status::FRAME_LATE);
+        }
+        if events.corrupt {
+            status.insert(Status::FRAME_CORRUPT);
+        }
+        status.set(Status::FRAME_REPEATED, events.repeated);
+        status.set(Status::FRAME_MISSING, events.lost);
+
+        // ---- the engine: one cycle for every axis ----
+        let forces = io.read_forces();
+        let mut input = GroupInput::ZERO;
+        let mut command_counts = [0i64; MAX_AXES];
+        for i in 0..n {
+            let cmd = self.links[i].begin(commands.map(|c| c[i]));
+            command_counts[i] = cmd;
+            input.axes[i].command_counts = cmd;
+            input.axes[i].scale_raw = io.read_scale(usize::from(self.inputs[i]));
+            input.axes[i].forces_n = forces;
+        }
+        let mut out = GroupOutput::ZERO;
+        engine.cycle(&input, &mut out);
+
+        // ---- supervisors, status word ----
+        let group = engine.active();
+        let mut applied = [APPLIED_ZERO; MAX_AXES];
+        let mut corrected = [0i64; MAX_AXES];
+        let mut flags = Flags::NONE;
+        for i in 0..n {
+            let o = &out.axes[i];
+            let um_per_count = group.axis(i).map_or(0.0, |a| a.um_per_count());
+            let a = self.links[i].finish(o.correction_um, o.correction_counts, um_per_count);
+            match a.phase {
+                LinkPhase::Following => {}
+                LinkPhase::Holding => status.insert(Status::LINK_HOLD),
+                LinkPhase::RampingOut | LinkPhase::RampingIn => status.insert(Status::LINK_RAMP),
+            }
+            applied[i] = a;
+            corrected[i] = command_counts[i].saturating_sub(i64::from(a.correction_counts));
+            flags.insert(o.flags);
+            if o.flags.contains(Flags::SENSOR_FAULT) {
+                let st = &engine.state().axes[i];
+                let sensors = group.axis(i).map_or(0, |a| a.sensor_count());
+                let stale = (0..sensors).any(|j| st.sensor_stale(j));
+                status.insert(if stale {
+                    Status::SENSOR_STALE
+                } else {
+                    Status::SENSOR_IMPLAUSIBLE
+                });
+            }
+        }
+        if !group.is_loaded() {
+            flags.insert(Flags::IDENTITY);
+        }
+        status.insert(core_status(flags));
+        status.set(Status::CYCLE_LATE, late_start);
+        status.set(Status::OVERRUN, self.prev_overrun);
+        status.set(Status::REPLY_DROPPED, self.prev_reply_dropped);
+        self.last_status = status;
+
+        // ---- reply frame: corrected commands by board input, status, one counter ----
+        let mut reply = [0i32; MAX_AXES];
+        for (i, &input) in self.inputs[..n].iter().enumerate() {
+            reply[usize::from(input)] = corrected[i] as i32;
+        }
+        let (id, value) = self.next_counter_value(engine);
+        let mut frame = [0u8; MAX_REPLY_FRAME_LEN];
+        let len = ReplyFrame::new(
+            self.reply_seq,
+            self.last_seq,
+            &reply[..n_inputs],
+            status.bits(),
+            id,
+            value,
+        )
+        .map(|r| r.encode_into(&mut frame))
+        .unwrap_or(0);
+        self.reply_seq = self.reply_seq.wrapping_add(1);
+        self.prev_reply_dropped = !io.write_link(&frame[..len]);
+        if self.prev_reply_dropped {
+            self.counters.replies_dropped = self.counters.replies_dropped.wrapping_add(1);
+        }
+
+        watchdog.feed();
+        self.prev_overrun = self.meter.finish(clock.now());
+        GroupDriveCycle {
+            n_axes: n,
+            n_inputs,
+            command_counts,
+            corrected_command_counts: corrected,
+            applied,
+            status,
+            engine: out,
+        }
+    }
+
+    fn next_counter_value<const POOL: usize>(
+        &mut self,
+        engine: &GroupEngine<POOL>,
+    ) -> (CounterId, u16) {
+        let id = CounterId::ALL[usize::from(self.next_counter) % CounterId::ALL.len()];
+        self.next_counter = ((usize::from(self.next_counter) + 1) % CounterId::ALL.len()) as u8;
+        let c = &self.counters;
+        let link = self.decoder.counters();
+        let late = self.meter.stats();
+        let v = match id {
+            CounterId::Cycles => c.cycles,
+            CounterId::FramesApplied => link.frames_ok,
+            CounterId::FramesCorrupt => link.corrupt.wrapping_add(c.short_frames),
+            CounterId::FramesLost => link.lost,
+            CounterId::FramesRepeated => link.repeated,
+            CounterId::CyclesWithoutFrame => c.cycles_without_frame,
+            CounterId::LateCycles => late.late_cycles,
+            CounterId::Overruns => late.overruns,
+            CounterId::ImagesRefused => c
+                .images_refused
+                .wrapping_add(engine.stats().images_rejected),
+            CounterId::SensorRejected => {
+                let g = engine.active();
+                let st = engine.state();
+                (0..g.axis_count()).fold(0u32, |acc, i| {
+                    let sensors = g.axis(i).map_or(0, |a| a.sensor_count());
+                    (0..sensors).fold(acc, |a, j| a.wrapping_add(st.axes[i].rejected_readings(j)))
+                })
+            }
+            CounterId::MaxLatenessTicks => late.max_lateness_ticks,
+            CounterId::SkippedBytes => link.skipped_bytes,
+        };
+        (id, v as u16)
+    }
+
+    /// Runs forever at the timer's pace; `between` runs before each cycle with the engine (to hand it
+    /// temperatures) and the drive (the previous cycle's status, the counters).
+    pub async fn run<const POOL: usize, Io, C, T, W, F>(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        clock: &C,
+        timer: &mut T,
+        watchdog: &mut W,
+        mut between: F,
+    ) -> !
+    where
+        Io: DriveIo,
+        C: CycleClock,
+        T: CycleTimer,
+        W: Watchdog,
+        F: FnMut(&mut GroupEngine<POOL>, &GroupDrive),
+    {
+        loop {
+            timer.next_cycle().await;
+            between(engine, self);
+            self.cycle(engine, io, clock, watchdog);
+        }
+    }
+}

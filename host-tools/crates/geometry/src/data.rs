@@ -1,0 +1,251 @@
+//! Laser line measurements read from the contract's CSV, checked line by line.
+
+use axcomp_data::Dataset;
+
+use crate::GeometryError;
+
+/// One reading.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LineReading {
+    /// Axis positions (mm): reflector position minus tool offset.
+    pub q: [f64; 3],
+    pub tool: [f64; 3],
+    /// Unit beam vector.
+    pub beam: [f64; 3],
+    pub deviation_um: f64,
+    /// Index into [`LineData::lines`].
+    pub line: usize,
+    /// Row in the dataset.
+    pub row: usize,
+}
+
+/// All readings of a campaign.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LineData {
+    pub readings: Vec<LineReading>,
+    /// Line labels, in order of first appearance.
+    pub lines: Vec<String>,
+}
+
+/// Largest allowed |‖beam‖ − 1|.
+pub const BEAM_NORM_TOL: f64 = 1e-3;
+/// Largest allowed angle (rad) between a line's direction (its two farthest-apart targets) and its beam.
+pub const BEAM_ANGLE_TOL: f64 = 0.01;
+
+fn col_or_zero(ds: &Dataset, name: &str) -> Result<Vec<f64>, GeometryError> {
+    if ds.has(name) {
+        Ok(ds.numeric(name)?.to_vec())
+    } else {
+        Ok(vec![0.0; ds.n_rows()])
+    }
+}
+
+fn finite(ds: &Dataset, name: &str, v: &[f64]) -> Result<(), GeometryError> {
+    if let Some(row) = v.iter().position(|x| !x.is_finite()) {
+        return Err(GeometryError::NonFinite {
+            at: ds.locate(name, row),
+            column: name.to_string(),
+        });
+    }
+    Ok(())
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// The two farthest-apart points of a set (first point → farthest → farthest from that).
+fn extent(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let far = |from: [f64; 3]| {
+        *points
+            .iter()
+            .max_by(|a, b| norm(sub(**a, from)).total_cmp(&norm(sub(**b, from))))
+            .unwrap()
+    };
+    let a = far(points[0]);
+    let b = far(a);
+    (a, b)
+}
+
+/// Distinct target positions (1 µm resolution).
+fn distinct(points: &[[f64; 3]]) -> usize {
+    let mut keys: Vec<[i64; 3]> = points
+        .iter()
+        .map(|p| {
+            [
+                (p[0] * 1e3).round() as i64,
+                (p[1] * 1e3).round() as i64,
+                (p[2] * 1e3).round() as i64,
+            ]
+        })
+        .collect();
+    keys.sort();
+    keys.dedup();
+    keys.len()
+}
+
+impl LineData {
+    /// Readings (deviation 0) of planned lines, for design and planning.
+    pub fn from_specs(specs: &[axcomp_kinematics::LineSpec]) -> LineData {
+        let mut readings = Vec::new();
+        for (li, l) in specs.iter().enumerate() {
+            for r in l.readings() {
+                readings.push(LineReading {
+                    q: r.q,
+                    tool: l.tool,
+                    beam: r.beam,
+                    deviation_um: 0.0,
+                    line: li,
+                    row: readings.len(),
+                });
+            }
+        }
+        LineData {
+            readings,
+            lines: specs.iter().map(|l| l.name.clone()).collect(),
+        }
+    }
+
+    /// Reads the readings of `ds`; `need_deviation` is false for prediction (inputs only). Checks: finite
+    /// cells, ≥ 3 distinct targets per line, unit beams, beams along their line's direction.
+    pub fn from_dataset(ds: &Dataset, need_deviation: bool) -> Result<LineData, GeometryError> {
+        let n = ds.n_rows();
+        let mut pos = [Vec::new(), Vec::new(), Vec::new()];
+        for (k, c) in ["x_mm", "y_mm", "z_mm"].iter().enumerate() {
+            pos[k] = ds.numeric(c)?.to_vec();
+            finite(ds, c, &pos[k])?;
+        }
+        let mut tool = [Vec::new(), Vec::new(), Vec::new()];
+        for (k, c) in ["tool_x_mm", "tool_y_mm", "tool_z_mm"].iter().enumerate() {
+            tool[k] = col_or_zero(ds, c)?;
+            finite(ds, c, &tool[k])?;
+        }
+        let dev = if need_deviation {
+            let d = ds.numeric("deviation_um")?.to_vec();
+            finite(ds, "deviation_um", &d)?;
+            d
+        } else if ds.has("deviation_um") {
+            // prediction: the measured column is not needed; blanks are fine
+            ds.numeric_or_nan("deviation_um")?
+        } else {
+            vec![f64::NAN; n]
+        };
+        let line_text: Vec<String> = if ds.has("line") {
+            ds.text("line")?
+                .iter()
+                .map(|s| s.trim().to_string())
+                .collect()
+        } else if need_deviation {
+            return Err(ds.numeric("line").unwrap_err().into());
+        } else {
+            vec![String::new(); n]
+        };
+        let mut lines: Vec<String> = Vec::new();
+        let mut line_of = Vec::with_capacity(n);
+        for t in &line_text {
+            let i = lines.iter().position(|l| l == t).unwrap_or_else(|| {
+                lines.push(t.clone());
+                lines.len() - 1
+            });
+            line_of.push(i);
+        }
+        let has_beam = ["beam_x", "beam_y", "beam_z"].iter().all(|c| ds.has(c));
+        let mut beams = vec![[0.0; 3]; n];
+        if has_beam {
+            let b: Vec<Vec<f64>> = ["beam_x", "beam_y", "beam_z"]
+                .iter()
+                .map(|c| -> Result<Vec<f64>, GeometryError> {
+                    let v = ds.numeric(c)?.to_vec();
+                    finite(ds, c, &v)?;
+                    Ok(v)
+                })
+                .collect::<Result<_, _>>()?;
+            for (r, beam) in beams.iter_mut().enumerate() {
+                *beam = [b[0][r], b[1][r], b[2][r]];
+                let nb = norm(*beam);
+                if (nb - 1.0).abs() > BEAM_NORM_TOL {
+                    return Err(GeometryError::BeamNotUnit {
+                        line: lines[line_of[r]].clone(),
+                        at: ds.locate("beam_x", r),
+                        norm: nb,
+                    });
+                }
+            }
+        }
+        let q_of = |r: usize| {
+            [
+                pos[0][r] - tool[0][r],
+                pos[1][r] - tool[1][r],
+                pos[2][r] - tool[2][r],
+            ]
+        };
+        // per-line checks (and the beam from the line's extent when there is no beam column); rows to be
+        // predicted without a line or beam have no beam to check
+        let check_lines = need_deviation || has_beam || ds.has("line");
+        for (li, name) in lines.iter().enumerate().filter(|_| check_lines) {
+            let rows: Vec<usize> = (0..n).filter(|&r| line_of[r] == li).collect();
+            let pts: Vec<[f64; 3]> = rows
+                .iter()
+                .map(|&r| [pos[0][r], pos[1][r], pos[2][r]])
+                .collect();
+            let targets = distinct(&pts);
+            if need_deviation && targets < 3 {
+                return Err(GeometryError::TooFewTargets {
+                    line: name.clone(),
+                    targets,
+                });
+            }
+            if pts.len() < 2 || targets < 2 {
+                if !has_beam {
+                    return Err(GeometryError::NoBeam { line: name.clone() });
+                }
+                continue;
+            }
+            let (a, b) = extent(&pts);
+            let d = sub(b, a);
+            let dn = norm(d);
+            let dir = [d[0] / dn, d[1] / dn, d[2] / dn];
+            for &r in &rows {
+                if has_beam {
+                    let c = (dir[0] * beams[r][0] + dir[1] * beams[r][1] + dir[2] * beams[r][2])
+                        .abs()
+                        .min(1.0);
+                    let angle = c.acos();
+                    if angle > BEAM_ANGLE_TOL {
+                        return Err(GeometryError::BeamOffLine {
+                            line: name.clone(),
+                            at: ds.locate("beam_x", r),
+                            angle_deg: angle.to_degrees(),
+                        });
+                    }
+                } else {
+                    // direction from the line's first to its last target (file order)
+                    let first = pts[0];
+                    let last = *pts.last().unwrap();
+                    let fl = sub(last, first);
+                    let fln = norm(fl);
+                    beams[r] = if fln > 0.0 {
+                        [fl[0] / fln, fl[1] / fln, fl[2] / fln]
+                    } else {
+                        dir
+                    };
+                }
+            }
+        }
+        let readings = (0..n)
+            .map(|r| LineReading {
+                q: q_of(r),
+                tool: [tool[0][r], tool[1][r], tool[2][r]],
+                beam: beams[r],
+                deviation_um: dev[r],
+                line: line_of[r],
+                row: r,
+            })
+            .collect();
+        Ok(LineData { readings, lines })
+    }
+}

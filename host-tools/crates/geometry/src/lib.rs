@@ -1,0 +1,84 @@
+//! `axcomp-geometry`: the 21 ISO 230-1 geometric errors of a three-axis machine from laser line
+//! measurements.
+//!
+//! # Glossary
+//! - **components, topology, lever arm, signs**: as in `axcomp-kinematics` (ISO 230-1 names `EXX` … `EA0Z`;
+//!   errors are the tool point relative to the workpiece, reached − commanded, µm; angles µrad, right-handed;
+//!   each function zero at its axis's zero; straightness with zero least-squares slope, the slope between axes
+//!   being the squareness).
+//! - **reading**: one row of the laser line CSV, the error projected on the beam (`deviation_um`).
+//! - **design matrix**: one row per reading, one column per parameter (cubic B-spline coefficients of the 18
+//!   functions on each axis's knot grid, constrained to the conventions above, and the 3 squareness values);
+//!   the model is linear in them ([`fit::Layout`]).
+//! - **identifiability**: the rank and singular values of the column-normalised stacked design; its null
+//!   space names the components (or combinations) the lines cannot separate ([`fit::Identifiability`]).
+//!   Those are fixed at the prior 0 and reported `identified: false` with the reason.
+//! - **seven-line method** (seed 000): line 1 along X, lines 2–3 the XY face diagonals read step-wise, lines
+//!   4–7 the body diagonals read step-wise; it yields 17 parameters — EXX, EYY, EZZ; EYX, EZX, EXY, EZY, EXZ,
+//!   EYZ; EAX, EBX, ECX, EAY, EBY; EC0Y, EB0Z, EA0Z — and fixes ECY, EAZ, EBZ, ECZ, which have no lever arm
+//!   when the reflector is on the tool reference point (eq. 9), so no reading depends on them.
+//! - **smoothing**: a second-difference (P-spline) penalty λ on each function's coefficients, λ chosen by
+//!   leave-one-line-out cross-validation from a grid that includes 0 (plain least squares).
+//! - **standard uncertainty**: from the parameter covariance σ̂²·M⁻¹AᵀA·M⁻¹ (M = AᵀA + λP), σ̂ the residual
+//!   standard deviation with the fit's effective degrees of freedom.
+//! - **volumetric**: the model's error magnitude |e| over an 11×11×11 grid of the measured axis-position box
+//!   (tool offset 0).
+//! - **ISO 230-6 figure** of a body diagonal: the range (max − min) of the readings along it, before (raw) and
+//!   after (residual) the model.
+
+pub mod analysis;
+pub mod data;
+pub mod export;
+pub mod fit;
+pub mod model;
+pub mod plan;
+pub mod report;
+pub mod spline;
+
+pub use analysis::{FitReport, Judge, analyse};
+pub use data::LineData;
+pub use fit::{Fit, FitOptions, Method, fit};
+pub use model::{GeometryModel, RowPrediction, predict_rows};
+
+/// Errors of geometry identification.
+#[derive(Debug, thiserror::Error)]
+pub enum GeometryError {
+    #[error(transparent)]
+    Data(#[from] axcomp_data::DataError),
+    #[error("{at}: column {column}: the value is not a finite number")]
+    NonFinite { at: String, column: String },
+    #[error("line {line}: only {targets} distinct targets; a line needs at least 3")]
+    TooFewTargets { line: String, targets: usize },
+    #[error(
+        "line {line} ({at}): the beam (beam_x, beam_y, beam_z) has length {norm:.6}, not a unit vector"
+    )]
+    BeamNotUnit { line: String, at: String, norm: f64 },
+    #[error(
+        "line {line} ({at}): the beam is {angle_deg:.2}° off the line's direction (its two farthest-apart targets)"
+    )]
+    BeamOffLine {
+        line: String,
+        at: String,
+        angle_deg: f64,
+    },
+    #[error("line {line}: a single target and no beam columns: its direction is unknown")]
+    NoBeam { line: String },
+    #[error("no rows to fit (after --where/--holdout)")]
+    NoRows,
+    #[error("no component can be identified from these lines")]
+    NothingIdentifiable,
+    #[error("{at}: axis position {q:?} mm lies outside the model's measured range")]
+    OutsideModel { at: String, q: [f64; 3] },
+    #[error("{source_name}: not a geometry model: {reason}")]
+    BadModel { source_name: String, reason: String },
+    #[error("{0}")]
+    Kinematics(#[from] axcomp_kinematics::KinematicsError),
+    #[error("{what}: {cause}")]
+    Io {
+        what: String,
+        #[source]
+        cause: std::io::Error,
+    },
+    #[error("{0}")]
+    Plan(String),
+}

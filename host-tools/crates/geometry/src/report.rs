@@ -1,0 +1,246 @@
+//! Markdown + SVG report of a geometry fit: each component with its uncertainty band, the volumetric error
+//! map (|e| along X on five Y lines, at three Z heights), held-out (or cross-validated) lines measured vs
+//! predicted.
+
+use std::path::Path;
+
+use axcomp_kinematics::Component;
+use axcomp_plot::{Figure, markdown_table};
+
+use crate::GeometryError;
+use crate::analysis::Analysis;
+use crate::data::LineData;
+
+fn io(what: &Path) -> impl FnOnce(std::io::Error) -> GeometryError + '_ {
+    move |cause| GeometryError::Io {
+        what: what.display().to_string(),
+        cause,
+    }
+}
+
+/// Writes `report.md` and the SVGs into `dir` (created if missing); the report is written last.
+pub fn write_report(dir: &Path, data: &LineData, an: &Analysis) -> Result<(), GeometryError> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let model = &an.fit.model;
+    let rep = &an.report;
+    let mut md = String::from("# Geometric errors (21 ISO 230-1 components)\n\n");
+    md.push_str(&format!(
+        "Method: {}. Topology (work/tool axes, bed outward): {}. Lines: {}, readings: {} ({} fitted).\n\n",
+        model.method,
+        model.topology.label(),
+        rep.lines,
+        rep.rows,
+        rep.train_rows
+    ));
+    md.push_str("Conventions (ISO 230-1 names): errors are the tool point relative to the workpiece, reached − commanded, in µm; angular errors and squareness in µrad, right-handed about +X/+Y/+Z; every function is zero at its axis's zero; straightness has zero least-squares slope (the slope between axes is the squareness: Y along (−EC0Y, 1, 0), Z along (EB0Z, −EA0Z, 1)); angular errors act through the lever arm from their carriage to the tool point (reflector offset included). Bands: ± one standard uncertainty.\n\n");
+    let mut figures = vec![
+        ("raw RMS (µm)", format!("{:.3}", rep.raw_rms_um)),
+        ("fit RMS (µm)", format!("{:.3}", rep.fit_rms_um)),
+    ];
+    if let Some(h) = rep.holdout_rms_um {
+        figures.push(("held-out RMS (µm)", format!("{h:.3}")));
+    }
+    if let Some(c) = rep.cv_rms_um {
+        figures.push(("cross-validated RMS (µm)", format!("{c:.3}")));
+    }
+    figures.push((
+        "volumetric max |e| (µm)",
+        format!("{:.2}", rep.volumetric.max_um),
+    ));
+    figures.push((
+        "volumetric RMS |e| (µm)",
+        format!("{:.2}", rep.volumetric.rms_um),
+    ));
+    figures.push((
+        "rank / parameters",
+        format!(
+            "{} / {}",
+            rep.identifiability.rank, rep.identifiability.parameters
+        ),
+    ));
+    figures.push((
+        "condition number",
+        format!("{:.1}", rep.identifiability.condition_number),
+    ));
+    let rows: Vec<Vec<String>> = figures
+        .iter()
+        .map(|(a, b)| vec![a.to_string(), b.clone()])
+        .collect();
+    md.push_str(&markdown_table(&["figure", "value"], &rows));
+    md.push('\n');
+    if !rep.identifiability.not_separable.is_empty() {
+        md.push_str("Not separable by these lines (fixed at 0): ");
+        let g: Vec<String> = rep
+            .identifiability
+            .not_separable
+            .iter()
+            .map(|g| format!("[{}]", g.join(", ")))
+            .collect();
+        md.push_str(&g.join(", "));
+        md.push_str("\n\n");
+    }
+    if !rep.iso230_6_body_diagonals.is_empty() {
+        md.push_str("## ISO 230-6 body diagonals (range of the readings along the diagonal)\n\n");
+        let rows: Vec<Vec<String>> = rep
+            .iso230_6_body_diagonals
+            .iter()
+            .map(|d| {
+                vec![
+                    d.line.clone(),
+                    format!("{:.2}", d.before_um),
+                    format!("{:.2}", d.after_um),
+                    d.basis.clone(),
+                ]
+            })
+            .collect();
+        md.push_str(&markdown_table(
+            &["line", "before µm", "after µm", "after from"],
+            &rows,
+        ));
+        md.push('\n');
+    }
+    md.push_str("## Components\n\n");
+    let mut rows = Vec::new();
+    for c in Component::ALL {
+        let m = &model.components[c.index()];
+        let umax = m.uncertainty.iter().map(|x| x[1]).fold(0.0, f64::max);
+        let peak = match c.axis() {
+            Some(_) => m
+                .uncertainty
+                .iter()
+                .map(|[q, _]| model.component_value(c, *q).abs())
+                .fold(0.0, f64::max),
+            None => m.value.abs(),
+        };
+        rows.push(vec![
+            c.name().to_string(),
+            m.unit.clone(),
+            format!("{peak:.2}"),
+            format!("{umax:.2}"),
+            if m.identified {
+                "yes".into()
+            } else {
+                "no".into()
+            },
+            m.reason.clone(),
+        ]);
+        if let Some(ax) = c.axis() {
+            let xs: Vec<f64> = m.uncertainty.iter().map(|x| x[0]).collect();
+            let ys: Vec<f64> = xs.iter().map(|q| model.component_value(c, *q)).collect();
+            let lo: Vec<f64> = ys
+                .iter()
+                .zip(&m.uncertainty)
+                .map(|(y, u)| y - u[1])
+                .collect();
+            let hi: Vec<f64> = ys
+                .iter()
+                .zip(&m.uncertainty)
+                .map(|(y, u)| y + u[1])
+                .collect();
+            let mut f = Figure::new(
+                &format!(
+                    "{} ({})",
+                    c.name(),
+                    if m.identified {
+                        "identified"
+                    } else {
+                        "not identified"
+                    }
+                ),
+                &format!("{} position (mm)", ax.letter()),
+                &format!(
+                    "{} ({})",
+                    c.name(),
+                    if m.unit == "um" { "µm" } else { "µrad" }
+                ),
+            );
+            f.band("± standard uncertainty", &xs, &lo, &hi);
+            f.line(c.name(), &xs, &ys);
+            let file = format!("{}.svg", c.name());
+            f.save_svg(dir.join(&file)).map_err(io(&dir.join(&file)))?;
+            md.push_str(&format!("![{}]({file})\n", c.name()));
+        }
+    }
+    md.push('\n');
+    md.push_str(&markdown_table(
+        &[
+            "component",
+            "unit",
+            "peak |value|",
+            "max u",
+            "identified",
+            "reason",
+        ],
+        &rows,
+    ));
+    md.push('\n');
+    // volumetric map
+    md.push_str("## Volumetric error map (|e| at the tool reference point)\n\n");
+    let (lo, hi) = (model.volume_min_mm, model.volume_max_mm);
+    for (k, zf) in [0.0, 0.5, 1.0].iter().enumerate() {
+        let z = lo[2] + zf * (hi[2] - lo[2]);
+        let mut f = Figure::new(&format!("|e| at z = {z:.0} mm"), "x (mm)", "|e| (µm)");
+        for yf in [0.0, 0.25, 0.5, 0.75, 1.0] {
+            let y = lo[1] + yf * (hi[1] - lo[1]);
+            let xs: Vec<f64> = (0..=40)
+                .map(|i| lo[0] + (hi[0] - lo[0]) * i as f64 / 40.0)
+                .collect();
+            let ys: Vec<f64> = xs
+                .iter()
+                .map(|x| {
+                    model
+                        .error_at([*x, y, z], [0.0; 3])
+                        .map(|e| (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
+                        .unwrap_or(f64::NAN)
+                })
+                .collect();
+            f.line(&format!("y = {y:.0}"), &xs, &ys);
+        }
+        let file = format!("volumetric_z{}.svg", k + 1);
+        f.save_svg(dir.join(&file)).map_err(io(&dir.join(&file)))?;
+        md.push_str(&format!("![volumetric z{}]({file})\n", k + 1));
+    }
+    md.push('\n');
+    // judged lines
+    let judged: Vec<usize> = (0..data.lines.len())
+        .filter(|&li| {
+            data.readings
+                .iter()
+                .any(|r| r.line == li && an.judged_pred[r.row].is_some())
+        })
+        .collect();
+    if !judged.is_empty() {
+        md.push_str("## Lines the model never saw: measured vs predicted\n\n");
+        for li in judged.iter().take(12) {
+            let rs: Vec<_> = data.readings.iter().filter(|r| r.line == *li).collect();
+            let q0 = rs[0].q;
+            let dist = |q: [f64; 3]| {
+                ((q[0] - q0[0]).powi(2) + (q[1] - q0[1]).powi(2) + (q[2] - q0[2]).powi(2)).sqrt()
+            };
+            let xs: Vec<f64> = rs.iter().map(|r| dist(r.q)).collect();
+            let meas: Vec<f64> = rs.iter().map(|r| r.deviation_um).collect();
+            let pred: Vec<f64> = rs
+                .iter()
+                .map(|r| an.judged_pred[r.row].unwrap_or(f64::NAN))
+                .collect();
+            let name = &data.lines[*li];
+            let mut f = Figure::new(
+                &format!("line {name}: measured vs predicted"),
+                "distance along the line (mm)",
+                "deviation along the beam (µm)",
+            );
+            f.points("measured", &xs, &meas);
+            f.dashed("predicted (not fitted on this line)", &xs, &pred);
+            let safe: String = name
+                .chars()
+                .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+                .collect();
+            let file = format!("line_{safe}.svg");
+            f.save_svg(dir.join(&file)).map_err(io(&dir.join(&file)))?;
+            md.push_str(&format!("![line {name}]({file})\n"));
+        }
+    }
+    axcomp_plot::write_atomic(&dir.join("report.md"), md.as_bytes())
+        .map_err(io(&dir.join("report.md")))?;
+    Ok(())
+}

@@ -1,0 +1,131 @@
+//! Uniform cubic B-splines on a knot grid over an axis's range, and the constrained bases of the
+//! component functions (zero at the axis's zero; straightness also with zero least-squares slope).
+
+use nalgebra::{DMatrix, SymmetricEigen};
+use serde::{Deserialize, Serialize};
+
+/// Knot grid of one axis: `intervals` equal spans over `[lo, hi]` (mm), `intervals + 3` basis functions.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct AxisGrid {
+    pub lo: f64,
+    pub hi: f64,
+    pub intervals: usize,
+}
+
+impl AxisGrid {
+    pub fn n_basis(&self) -> usize {
+        self.intervals + 3
+    }
+
+    /// Whether `q` lies on the grid (with 1 µm of slack).
+    pub fn contains(&self, q: f64) -> bool {
+        q >= self.lo - 1e-3 && q <= self.hi + 1e-3
+    }
+
+    /// First basis index and the four non-zero basis values at `q` (clamped to the range).
+    pub fn local(&self, q: f64) -> (usize, [f64; 4]) {
+        let h = (self.hi - self.lo) / self.intervals as f64;
+        let s = ((q - self.lo) / h).clamp(0.0, self.intervals as f64);
+        let i = (s.floor() as usize).min(self.intervals - 1);
+        let t = s - i as f64;
+        let t2 = t * t;
+        let t3 = t2 * t;
+        (
+            i,
+            [
+                (1.0 - t) * (1.0 - t) * (1.0 - t) / 6.0,
+                (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0,
+                (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0,
+                t3 / 6.0,
+            ],
+        )
+    }
+
+    /// All basis values at `q`.
+    pub fn basis(&self, q: f64) -> Vec<f64> {
+        let mut b = vec![0.0; self.n_basis()];
+        let (i, v) = self.local(q);
+        b[i..i + 4].copy_from_slice(&v);
+        b
+    }
+
+    /// Evaluates the spline with coefficients `c`.
+    pub fn eval(&self, c: &[f64], q: f64) -> f64 {
+        let (i, v) = self.local(q);
+        (0..4).map(|k| c[i + k] * v[k]).sum()
+    }
+
+    /// `n` evenly spaced positions over the range.
+    pub fn positions(&self, n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|i| self.lo + (self.hi - self.lo) * i as f64 / (n - 1).max(1) as f64)
+            .collect()
+    }
+
+    /// Null-space basis `N` (n_basis × k) of the constraints: value 0 at q = 0, and with `zero_slope` a
+    /// zero least-squares slope over the range. Coefficients are `N·β`.
+    pub fn constrained_basis(&self, zero_slope: bool) -> DMatrix<f64> {
+        let nb = self.n_basis();
+        let mut rows = vec![self.basis(0.0)];
+        if zero_slope {
+            let qs = self.positions(401);
+            let mean = 0.5 * (self.lo + self.hi);
+            let mut r = vec![0.0; nb];
+            for q in &qs {
+                for (k, b) in self.basis(*q).iter().enumerate() {
+                    r[k] += (q - mean) * b;
+                }
+            }
+            rows.push(r);
+        }
+        let c = DMatrix::from_fn(rows.len(), nb, |i, j| rows[i][j]);
+        // projector onto the null space of C: I − Cᵀ(CCᵀ)⁻¹C; its unit eigenvectors span the null space
+        let cct = &c * c.transpose();
+        let inv = cct.try_inverse().expect("independent constraints");
+        let proj = DMatrix::identity(nb, nb) - c.transpose() * inv * &c;
+        let eig = SymmetricEigen::new(proj);
+        let keep: Vec<usize> = (0..nb).filter(|&i| eig.eigenvalues[i] > 0.5).collect();
+        DMatrix::from_fn(nb, keep.len(), |i, j| eig.eigenvectors[(i, keep[j])])
+    }
+
+    /// Second-difference matrix (n_basis − 2 × n_basis), the roughness penalty of P-splines.
+    pub fn second_difference(&self) -> DMatrix<f64> {
+        let nb = self.n_basis();
+        let mut d = DMatrix::zeros(nb - 2, nb);
+        for i in 0..nb - 2 {
+            d[(i, i)] = 1.0;
+            d[(i, i + 1)] = -2.0;
+            d[(i, i + 2)] = 1.0;
+        }
+        d
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn partition_of_unity_and_constraints() {
+        let g = AxisGrid {
+            lo: -100.0,
+            hi: 500.0,
+            intervals: 6,
+        };
+        for q in g.positions(37) {
+            let s: f64 = g.basis(q).iter().sum();
+            assert!((s - 1.0).abs() < 1e-12);
+        }
+        let n = g.constrained_basis(true);
+        assert_eq!(n.ncols(), g.n_basis() - 2);
+        // every basis column is zero at 0 and has zero LS slope (reference: exact 0, tolerance 1e-9)
+        let qs = g.positions(401);
+        for j in 0..n.ncols() {
+            let c: Vec<f64> = n.column(j).iter().copied().collect();
+            assert!(g.eval(&c, 0.0).abs() < 1e-12);
+            let mean = 200.0;
+            let slope: f64 = qs.iter().map(|q| (q - mean) * g.eval(&c, *q)).sum();
+            assert!(slope.abs() < 1e-9, "{slope}");
+        }
+    }
+}

@@ -1,0 +1,799 @@
+//! `axcomp-rtest`: a five-axis machine's rotary-axis location errors (ISO 230-7) identified from R-test
+//! readings (or probed sphere centres in the same form) by Levenberg–Marquardt on the exact HTM model.
+//!
+//! # Glossary
+//! - **pose**, **displacement** `d = S − T` (µm), **location errors**, **set-up offsets**: see
+//!   [`axcomp_kinematics::rotary`]. `d` is the sphere centre relative to the R-test head (tool point) along
+//!   machine X, Y, Z.
+//! - **set-up**: one placement of the sphere and the R-test head; rows with a `setup` column value share
+//!   their 6 nuisance offsets (sphere dx, dy, dz and head dx, dy, dz; a second sphere height is a second
+//!   set-up). Without the column every row is set-up `1`. The head's zero is taken as known unless
+//!   `free_head_zero`.
+//! - **identifiable** ([`identifiability`]): a parameter is estimated only when its column of the
+//!   column-scaled sensitivity matrix has a part of at least [`CONFOUND_TOL`] (relative) outside the span of
+//!   the parameters taken before it (set-up offsets first, then the location errors in [`PRIORITY`] order);
+//!   otherwise it is fixed to zero and reported `identified: false` with the parameters it cannot be told
+//!   apart from, and the location errors that absorb it are not identified either. An estimated parameter
+//!   whose variance is inflated more than [`VIF_LIMIT`] by correlation is reported `identified: false`
+//!   (weakly determined) with its (large) standard uncertainty.
+//! - **standard uncertainty**: `σ̂·sqrt(diag((JᵀJ)⁻¹))`, `σ̂² = RSS/(3n − p)`, J at the solution.
+
+pub mod analysis;
+pub mod plan;
+pub mod report;
+
+use axcomp_data::Dataset;
+use axcomp_kinematics::rotary::{
+    C_LIMIT_DEG, FiveAxis, LocationErrors, MachineKind, N_LOCATION, N_SETUP, Pose, SetupOffsets,
+    TILT_LIMIT_DEG, location_unit,
+};
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+/// A parameter whose column keeps less than this fraction of its (scaled) norm outside the span of the
+/// parameters before it is not identifiable.
+pub const CONFOUND_TOL: f64 = 1e-3;
+/// Largest variance inflation factor (column-scaled `(JᵀJ)⁻¹` diagonal) of an identified location error: its
+/// uncertainty at most √1000 ≈ 32× what it would be if its signature were its own alone. Above it the
+/// parameter is still estimated (its std says how poorly) but reported `identified: false`.
+pub const VIF_LIMIT: f64 = 1000.0;
+/// Order in which location errors are taken (indices into the 11): axis offsets, axis tilts, squareness.
+pub const PRIORITY: [usize; N_LOCATION] = [0, 1, 4, 5, 2, 3, 6, 7, 8, 9, 10];
+
+/// Errors of this crate (each names what and where).
+#[derive(Debug, thiserror::Error)]
+pub enum RtestError {
+    #[error(transparent)]
+    Data(#[from] axcomp_data::DataError),
+    #[error("{file}: machine {machine} needs column `{need}` {why}")]
+    MachineColumns {
+        file: String,
+        machine: &'static str,
+        need: String,
+        why: String,
+    },
+    #[error("{at}: {what}")]
+    BadValue { at: String, what: String },
+    #[error(
+        "{file}: pose repeated with conflicting readings at lines {first} and {second} (same commanded position and angles in {group}; mark genuine repeats with distinct `run` values)"
+    )]
+    ConflictingPose {
+        file: String,
+        first: usize,
+        second: usize,
+        group: String,
+    },
+    #[error("{file}: path `{path}` has a single pose (line {line}); a path needs at least two")]
+    SinglePosePath {
+        file: String,
+        path: String,
+        line: usize,
+    },
+    #[error("{0}")]
+    Fit(String),
+}
+
+/// R-test rows, validated.
+#[derive(Debug, Clone)]
+pub struct RtestData {
+    pub machine: FiveAxis,
+    pub source: String,
+    pub poses: Vec<Pose>,
+    /// Measured displacements (µm); empty when read without readings (prediction).
+    pub d_um: Vec<[f64; 3]>,
+    /// Path id per row (`""` without a `path` column).
+    pub path: Vec<String>,
+    /// Set-up index per row, into `setup_names`.
+    pub setup: Vec<usize>,
+    pub setup_names: Vec<String>,
+    /// File line of each row.
+    pub lines: Vec<usize>,
+    /// Estimate the R-test head's zero (tool length, radial offset) per set-up as well; otherwise it is taken
+    /// as known (zero), as in the seed.
+    pub free_head_zero: bool,
+}
+
+fn finite_column(ds: &Dataset, col: &str) -> Result<Vec<f64>, RtestError> {
+    let v = ds.numeric(col)?.to_vec();
+    if let Some(r) = v.iter().position(|x| !x.is_finite()) {
+        return Err(RtestError::BadValue {
+            at: ds.locate(col, r),
+            what: format!("`{col}` is {} (need a finite number)", v[r]),
+        });
+    }
+    Ok(v)
+}
+
+impl RtestData {
+    /// Reads the contract's R-test columns from `ds` for `machine`. With `need_readings`, `dx_um`, `dy_um`,
+    /// `dz_um` are required and checked (conflicting repeats, single-pose paths).
+    pub fn from_dataset(
+        ds: &Dataset,
+        machine: FiveAxis,
+        need_readings: bool,
+    ) -> Result<RtestData, RtestError> {
+        let file = ds.source().to_string();
+        let tilt_col = format!("{}_deg", machine.kind.tilt_letter());
+        let other = if tilt_col == "a_deg" {
+            "b_deg"
+        } else {
+            "a_deg"
+        };
+        if !ds.has(&tilt_col) {
+            let why = if ds.has(other) {
+                format!(
+                    "but the file has `{other}`: a {} machine? (--machine {})",
+                    if other == "a_deg" { "AC" } else { "BC" },
+                    if other == "a_deg" {
+                        "ac-trunnion"
+                    } else {
+                        "bc-trunnion or bc-head"
+                    }
+                )
+            } else {
+                "(the tilt axis's commanded angle)".to_string()
+            };
+            return Err(RtestError::MachineColumns {
+                file,
+                machine: machine.kind.name(),
+                need: tilt_col,
+                why,
+            });
+        }
+        if ds.has(other) {
+            return Err(RtestError::MachineColumns {
+                file,
+                machine: machine.kind.name(),
+                need: tilt_col.clone(),
+                why: format!("only, but the file has both `{tilt_col}` and `{other}`"),
+            });
+        }
+        if machine.kind == MachineKind::BcHead
+            && (!machine.pivot_mm.is_finite() || machine.pivot_mm <= 0.0)
+        {
+            return Err(RtestError::BadValue {
+                at: "--pivot-mm".into(),
+                what: format!(
+                    "bc-head needs the pivot length > 0 mm, got {}",
+                    machine.pivot_mm
+                ),
+            });
+        }
+        let n = ds.n_rows();
+        if n == 0 {
+            return Err(RtestError::BadValue {
+                at: file,
+                what: "no data rows".into(),
+            });
+        }
+        let x = finite_column(ds, "x_mm")?;
+        let y = finite_column(ds, "y_mm")?;
+        let z = finite_column(ds, "z_mm")?;
+        let t = finite_column(ds, &tilt_col)?;
+        let c = finite_column(ds, "c_deg")?;
+        for (col, v, lim) in [
+            (&tilt_col, &t, TILT_LIMIT_DEG),
+            (&"c_deg".to_string(), &c, C_LIMIT_DEG),
+        ] {
+            if let Some(r) = v.iter().position(|a| a.abs() > lim) {
+                return Err(RtestError::BadValue {
+                    at: ds.locate(col, r),
+                    what: format!("`{col}` = {} is out of range (|angle| ≤ {lim}°)", v[r]),
+                });
+            }
+        }
+        let d_um = if need_readings {
+            let dx = finite_column(ds, "dx_um")?;
+            let dy = finite_column(ds, "dy_um")?;
+            let dz = finite_column(ds, "dz_um")?;
+            (0..n).map(|i| [dx[i], dy[i], dz[i]]).collect()
+        } else {
+            Vec::new()
+        };
+        let path: Vec<String> = if ds.has("path") {
+            ds.text("path")?
+                .iter()
+                .map(|s| s.trim().to_string())
+                .collect()
+        } else {
+            vec![String::new(); n]
+        };
+        let run: Vec<String> = match ds.run() {
+            Some(r) => r,
+            None => vec![String::new(); n],
+        };
+        let (setup, setup_names) = if ds.has("setup") {
+            let (ids, names) = axcomp_data::groups(ds, "setup")?;
+            (ids, names)
+        } else {
+            (vec![0; n], vec!["1".to_string()])
+        };
+        let lines: Vec<usize> = (0..n).map(|r| ds.line_of_row(r)).collect();
+        let poses: Vec<Pose> = (0..n)
+            .map(|i| Pose {
+                p_mm: [x[i], y[i], z[i]],
+                tilt_deg: t[i],
+                c_deg: c[i],
+            })
+            .collect();
+        let data = RtestData {
+            machine,
+            source: file,
+            poses,
+            d_um,
+            path,
+            setup,
+            setup_names,
+            lines,
+            free_head_zero: false,
+        };
+        if need_readings {
+            data.check_repeats(&run)?;
+        }
+        Ok(data)
+    }
+
+    fn check_repeats(&self, run: &[String]) -> Result<(), RtestError> {
+        use std::collections::HashMap;
+        let n = self.poses.len();
+        // Repeats within one (path, run, set-up) group must agree.
+        let mut seen: HashMap<(String, String, usize, [u64; 5]), usize> = HashMap::new();
+        let mut path_count: HashMap<(String, String), (usize, usize)> = HashMap::new();
+        for i in 0..n {
+            let p = &self.poses[i];
+            let key = [
+                p.p_mm[0].to_bits(),
+                p.p_mm[1].to_bits(),
+                p.p_mm[2].to_bits(),
+                p.tilt_deg.to_bits(),
+                p.c_deg.to_bits(),
+            ];
+            let k = (self.path[i].clone(), run[i].clone(), self.setup[i], key);
+            if let Some(&j) = seen.get(&k) {
+                if self.d_um[j] != self.d_um[i] {
+                    return Err(RtestError::ConflictingPose {
+                        file: self.source.clone(),
+                        first: self.lines[j],
+                        second: self.lines[i],
+                        group: format!(
+                            "path `{}`, run `{}`, set-up `{}`",
+                            self.path[i], run[i], self.setup_names[self.setup[i]]
+                        ),
+                    });
+                }
+            } else {
+                seen.insert(k, i);
+            }
+            let e = path_count
+                .entry((self.path[i].clone(), run[i].clone()))
+                .or_insert((0, i));
+            e.0 += 1;
+        }
+        let mut singles: Vec<_> = path_count.into_iter().filter(|(_, v)| v.0 == 1).collect();
+        singles.sort_by_key(|(_, v)| v.1);
+        if let Some(((path, _), (_, i))) = singles.into_iter().next() {
+            return Err(RtestError::SinglePosePath {
+                file: self.source.clone(),
+                path: if path.is_empty() {
+                    "(the whole file)".into()
+                } else {
+                    path
+                },
+                line: self.lines[i],
+            });
+        }
+        Ok(())
+    }
+
+    /// Number of parameters: 11 location errors + 6 per set-up.
+    pub fn n_params(&self) -> usize {
+        N_LOCATION + N_SETUP * self.setup_names.len()
+    }
+
+    /// Parameter names: the 11 ISO names, then `sphere_dx_um`… (suffixed `@setup` with several set-ups).
+    pub fn param_names(&self) -> Vec<String> {
+        param_names(self.machine.kind, &self.setup_names)
+    }
+}
+
+/// Parameter names for `kind` and set-ups.
+pub fn param_names(kind: MachineKind, setups: &[String]) -> Vec<String> {
+    let mut v: Vec<String> = kind
+        .location_names()
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    for s in setups {
+        for c in [
+            "sphere_dx",
+            "sphere_dy",
+            "sphere_dz",
+            "head_dx",
+            "head_dy",
+            "head_dz",
+        ] {
+            if setups.len() == 1 {
+                v.push(format!("{c}_um"));
+            } else {
+                v.push(format!("{c}_um@{s}"));
+            }
+        }
+    }
+    v
+}
+
+/// Split a full parameter vector into location errors and the set-up offsets of set-up `s`.
+pub fn split_params(theta: &[f64], s: usize) -> (LocationErrors, SetupOffsets) {
+    let mut le = [0.0; N_LOCATION];
+    le.copy_from_slice(&theta[..N_LOCATION]);
+    let b = N_LOCATION + N_SETUP * s;
+    let mut so = [0.0; N_SETUP];
+    so.copy_from_slice(&theta[b..b + N_SETUP]);
+    (le, so)
+}
+
+/// Exact model displacement (µm) of row `pose` in set-up `s` with parameters `theta`.
+pub fn model_displacement(machine: &FiveAxis, pose: &Pose, s: usize, theta: &[f64]) -> [f64; 3] {
+    let (le, setup) = split_params(theta, s);
+    machine.displacement(pose, &le, setup)
+}
+
+/// Which parameters are held at zero by assumption: the head offsets unless `free_head_zero`.
+pub fn head_fixed(p: usize, free_head_zero: bool) -> Vec<Option<String>> {
+    (0..p)
+        .map(|k| {
+            (!free_head_zero && k >= N_LOCATION && (k - N_LOCATION) % N_SETUP >= 3).then(|| {
+                "taken as known (0): the R-test head's zero / tool length is calibrated; --free-head-zero estimates it".to_string()
+            })
+        })
+        .collect()
+}
+
+/// Linearised sensitivity matrix (3 rows per pose) over all parameters.
+pub fn sensitivity_matrix(
+    machine: &FiveAxis,
+    poses: &[Pose],
+    setup: &[usize],
+    n_setups: usize,
+) -> DMatrix<f64> {
+    let p = N_LOCATION + N_SETUP * n_setups;
+    let mut j = DMatrix::zeros(3 * poses.len(), p);
+    for (r, pose) in poses.iter().enumerate() {
+        let cols = machine.sensitivity(pose);
+        for (k, col) in cols.iter().enumerate() {
+            let kk = if k < N_LOCATION {
+                k
+            } else {
+                N_LOCATION + N_SETUP * setup[r] + (k - N_LOCATION)
+            };
+            for i in 0..3 {
+                j[(3 * r + i, kk)] = col[i];
+            }
+        }
+    }
+    j
+}
+
+/// Which parameters the poses determine (see the glossary).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Identifiability {
+    /// Number of parameters estimated (structurally separable on these poses).
+    pub rank: usize,
+    /// Condition number of the column-scaled sensitivity matrix of the estimated parameters.
+    pub condition_number: f64,
+    /// Estimated in the fit (not fixed to 0).
+    pub estimated: Vec<bool>,
+    /// Estimated, separable and not weakly determined: a value to rely on.
+    pub identified: Vec<bool>,
+    /// Why a parameter is not identified (`None` when it is).
+    pub reasons: Vec<Option<String>>,
+}
+
+/// Identifiability of `j`'s columns (`names` for messages). Set-up offsets (index ≥ 11) are taken first.
+/// Parameters with `fixed[k] = Some(reason)` are held at zero by assumption.
+///
+/// - *not separable* (own signature < [`CONFOUND_TOL`]): fixed to 0, not identified; the location errors it
+///   is confounded with then absorb its effect, so they are not identified either ("only in combination").
+/// - *weakly determined* (variance inflation > [`VIF_LIMIT`]): still estimated (its standard uncertainty
+///   says how poorly), but not identified.
+pub fn identifiability(
+    j: &DMatrix<f64>,
+    names: &[String],
+    fixed: &[Option<String>],
+) -> Identifiability {
+    let p = j.ncols();
+    let norms: Vec<f64> = (0..p).map(|k| j.column(k).norm()).collect();
+    let scaled = |cols: &[usize]| -> DMatrix<f64> {
+        let mut m = DMatrix::zeros(j.nrows(), cols.len());
+        for (c, &k) in cols.iter().enumerate() {
+            m.set_column(c, &(j.column(k) / norms[k]));
+        }
+        m
+    };
+    let order: Vec<usize> = (N_LOCATION..p).chain(PRIORITY.iter().copied()).collect();
+    let mut chosen: Vec<usize> = Vec::new();
+    let mut estimated = vec![false; p];
+    let mut reasons: Vec<Option<String>> = vec![None; p];
+    // Location errors whose value absorbs a fixed one: (k, names of the fixed ones).
+    let mut absorbs: Vec<Vec<String>> = vec![Vec::new(); p];
+    for &k in &order {
+        if let Some(r) = &fixed[k] {
+            reasons[k] = Some(r.clone());
+            continue;
+        }
+        if norms[k] < 1e-12 {
+            reasons[k] = Some("no effect on any measured pose; fixed to 0".into());
+            continue;
+        }
+        let col = j.column(k) / norms[k];
+        if chosen.is_empty() {
+            chosen.push(k);
+            estimated[k] = true;
+            continue;
+        }
+        let a = scaled(&chosen);
+        let svd = a.clone().svd(true, true);
+        let beta = svd
+            .solve(&col, 1e-12)
+            .unwrap_or_else(|_| DVector::zeros(chosen.len()));
+        let resid = (&col - &a * &beta).norm();
+        if resid >= CONFOUND_TOL {
+            chosen.push(k);
+            estimated[k] = true;
+        } else {
+            let bmax = beta.iter().fold(0.0f64, |m, b| m.max(b.abs()));
+            let mut partners: Vec<(f64, usize)> = chosen
+                .iter()
+                .zip(beta.iter())
+                .filter(|(_, b)| b.abs() > 0.05 * bmax)
+                .map(|(&c, b)| (b.abs(), c))
+                .collect();
+            partners.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let list: Vec<&str> = partners.iter().map(|p| names[p.1].as_str()).collect();
+            for &(_, c) in &partners {
+                if c < N_LOCATION {
+                    absorbs[c].push(names[k].clone());
+                }
+            }
+            reasons[k] = Some(format!(
+                "not separable from {} on these poses (only {:.1e} of its signature is its own); fixed to 0",
+                list.join(", "),
+                resid
+            ));
+        }
+    }
+    let mut identified = estimated.clone();
+    for k in 0..p {
+        if estimated[k] && !absorbs[k].is_empty() {
+            identified[k] = false;
+            reasons[k] = Some(format!(
+                "determined only in combination with {} (fixed to 0): its value absorbs their effect",
+                absorbs[k].join(", ")
+            ));
+        }
+    }
+    let mut idx = chosen.clone();
+    idx.sort_unstable();
+    let a = scaled(&idx);
+    if let Some(inv) = (a.transpose() * &a).try_inverse() {
+        for (c, &k) in idx.iter().enumerate() {
+            let vif = inv[(c, c)];
+            if k >= N_LOCATION || vif <= VIF_LIMIT || !identified[k] {
+                continue;
+            }
+            let mut partners: Vec<(f64, &str)> = idx
+                .iter()
+                .enumerate()
+                .filter(|(d, _)| *d != c)
+                .map(|(d, &kk)| {
+                    (
+                        (inv[(c, d)] / (inv[(c, c)] * inv[(d, d)]).sqrt()).abs(),
+                        names[kk].as_str(),
+                    )
+                })
+                .filter(|(r, _)| *r > 0.9)
+                .collect();
+            partners.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let list: Vec<String> = partners
+                .iter()
+                .take(4)
+                .map(|(r, n)| format!("{n} (|r| {r:.2})"))
+                .collect();
+            identified[k] = false;
+            reasons[k] = Some(format!(
+                "weakly determined on these poses: its uncertainty is inflated {:.0}× by correlation with {}; estimated, see std",
+                vif.sqrt(),
+                if list.is_empty() {
+                    "several parameters".to_string()
+                } else {
+                    list.join(", ")
+                }
+            ));
+        }
+    }
+    let sv = a.singular_values();
+    let smax = sv.iter().fold(0.0f64, |m, s| m.max(*s));
+    let smin = sv.iter().fold(f64::INFINITY, |m, s| m.min(*s));
+    Identifiability {
+        rank: chosen.len(),
+        condition_number: smax / smin,
+        estimated,
+        identified,
+        reasons,
+    }
+}
+
+/// The result of one fit.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// All parameters (unidentified ones 0): 11 location errors then set-up offsets.
+    pub theta: Vec<f64>,
+    /// Standard uncertainty of estimated parameters (`None` for those fixed to 0).
+    pub std: Vec<Option<f64>>,
+    pub ident: Identifiability,
+    /// Correlations of estimated parameters with |r| > 0.9: (i, j, r).
+    pub correlations: Vec<(usize, usize, f64)>,
+    /// RMS over the three components on the fitted rows, µm.
+    pub fit_rms_um: f64,
+    /// Residual standard deviation σ̂, µm.
+    pub sigma_um: f64,
+    pub iterations: usize,
+}
+
+/// RMS of all components.
+pub fn rms3(v: &[[f64; 3]]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    (v.iter().flat_map(|d| d.iter().map(|x| x * x)).sum::<f64>() / (3 * v.len()) as f64).sqrt()
+}
+
+/// Fits the model on `rows` of `data` by Levenberg–Marquardt (Jacobian: central differences of the exact
+/// model at the current estimate).
+pub fn fit(data: &RtestData, rows: &[usize]) -> Result<Fit, RtestError> {
+    let m = &data.machine;
+    let ns = data.setup_names.len();
+    let p = data.n_params();
+    let names = data.param_names();
+    let poses: Vec<Pose> = rows.iter().map(|&r| data.poses[r]).collect();
+    let setup: Vec<usize> = rows.iter().map(|&r| data.setup[r]).collect();
+    let meas: Vec<[f64; 3]> = rows.iter().map(|&r| data.d_um[r]).collect();
+    let j0 = sensitivity_matrix(m, &poses, &setup, ns);
+    let fixed = head_fixed(p, data.free_head_zero);
+    let ident = identifiability(&j0, &names, &fixed);
+    let free: Vec<usize> = (0..p).filter(|&k| ident.estimated[k]).collect();
+    let nobs = 3 * poses.len();
+    if nobs <= free.len() {
+        return Err(RtestError::Fit(format!(
+            "{} readings for {} free parameters: too few poses to fit",
+            nobs,
+            free.len()
+        )));
+    }
+    let residual = |theta: &[f64]| -> DVector<f64> {
+        let mut r = DVector::zeros(nobs);
+        for (i, pose) in poses.iter().enumerate() {
+            let d = model_displacement(m, pose, setup[i], theta);
+            for c in 0..3 {
+                r[3 * i + c] = meas[i][c] - d[c];
+            }
+        }
+        r
+    };
+    let jacobian = |theta: &[f64]| -> DMatrix<f64> {
+        let mut j = DMatrix::zeros(nobs, free.len());
+        let h = 1.0; // 1 µm / 1 µrad: the model is nearly linear, central differences are exact to O(h²θ)
+        for (c, &k) in free.iter().enumerate() {
+            let mut tp = theta.to_vec();
+            let mut tm = theta.to_vec();
+            tp[k] += h;
+            tm[k] -= h;
+            for (i, pose) in poses.iter().enumerate() {
+                if k >= N_LOCATION && (k - N_LOCATION) / N_SETUP != setup[i] {
+                    continue;
+                }
+                let a = model_displacement(m, pose, setup[i], &tp);
+                let b = model_displacement(m, pose, setup[i], &tm);
+                for cc in 0..3 {
+                    j[(3 * i + cc, c)] = (a[cc] - b[cc]) / (2.0 * h);
+                }
+            }
+        }
+        j
+    };
+    let mut theta = vec![0.0; p];
+    let mut r = residual(&theta);
+    let mut cost = r.norm_squared();
+    let mut lambda = 1e-6;
+    let mut iterations = 0;
+    let mut j = jacobian(&theta);
+    for _ in 0..30 {
+        iterations += 1;
+        let jtj = j.transpose() * &j;
+        let jtr = j.transpose() * &r;
+        let mut a = jtj.clone();
+        for d in 0..free.len() {
+            a[(d, d)] += lambda * jtj[(d, d)];
+        }
+        let step = match a.clone().cholesky() {
+            Some(ch) => ch.solve(&jtr),
+            None => a
+                .svd(true, true)
+                .solve(&jtr, 1e-12)
+                .map_err(|e| RtestError::Fit(e.to_string()))?,
+        };
+        let mut trial = theta.clone();
+        for (c, &k) in free.iter().enumerate() {
+            trial[k] += step[c];
+        }
+        let rt = residual(&trial);
+        let ct = rt.norm_squared();
+        if ct <= cost {
+            let done = cost - ct <= 1e-12 * cost.max(1e-30) || step.norm() < 1e-9;
+            theta = trial;
+            r = rt;
+            cost = ct;
+            lambda = (lambda / 10.0).max(1e-12);
+            if done {
+                break;
+            }
+            j = jacobian(&theta);
+        } else {
+            lambda *= 10.0;
+            if lambda > 1e8 {
+                break;
+            }
+        }
+    }
+    let dof = (nobs - free.len()) as f64;
+    let sigma = (cost / dof).sqrt();
+    let jtj = j.transpose() * &j;
+    let inv = jtj
+        .clone()
+        .try_inverse()
+        .or_else(|| jtj.pseudo_inverse(1e-12).ok())
+        .ok_or_else(|| RtestError::Fit("singular normal matrix".into()))?;
+    let mut std = vec![None; p];
+    for (c, &k) in free.iter().enumerate() {
+        std[k] = Some(sigma * inv[(c, c)].max(0.0).sqrt());
+    }
+    let mut correlations = Vec::new();
+    for a in 0..free.len() {
+        for b in a + 1..free.len() {
+            let rr = inv[(a, b)] / (inv[(a, a)] * inv[(b, b)]).sqrt();
+            if rr.abs() > 0.9 {
+                correlations.push((free[a], free[b], rr));
+            }
+        }
+    }
+    let pred_rms = (cost / nobs as f64).sqrt();
+    Ok(Fit {
+        theta,
+        std,
+        ident,
+        correlations,
+        fit_rms_um: pred_rms,
+        sigma_um: sigma,
+        iterations,
+    })
+}
+
+/// One location error in the JSON / model file.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct ParamValue {
+    pub value: f64,
+    pub unit: String,
+    pub std: Option<f64>,
+    pub identified: bool,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub reason: Option<String>,
+}
+
+/// The model file written by `axcomp fit rtest --out` (read by `axcomp predict` through [`predict_rows`]).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct RtestModel {
+    /// Always `"rtest"`.
+    pub kind: String,
+    pub machine: MachineKind,
+    pub pivot_mm: f64,
+    /// Keyed by ISO 230-7 name, in parameter order.
+    pub location_errors: Vec<(String, ParamValue)>,
+    /// Set-up offsets (µm) by set-up name: sphere dx, dy, dz, then R-test head dx, dy, dz.
+    pub setup_offsets_um: Vec<(String, SetupOffsets)>,
+    pub sign_convention: String,
+}
+
+/// The sign convention, stated in the JSON, the model file and the report.
+pub const SIGN_CONVENTION: &str = "d = sphere centre − R-test head (tool point), µm along machine X, Y, Z (probe route: fitted centre − commanded tool point). Location errors give the actual average line of each rotary axis: C through (EX0C, EY0C, 0) with direction ≈ (EB0C, −EA0C, 1) in the frame the tilt axis carries; A through (0, EY0A, EZ0A) with direction ≈ (1, EC0A, −EB0A); B through (EX0B, 0, EZ0B) with direction ≈ (−EC0B, 1, EA0B); origin at the nominal intersection of the rotary axes. Squareness: Y along ≈ (−EC0Y, 1, 0), Z along ≈ (EB0Z, −EA0Z, 1). Angles positive right-handed, µrad; offsets µm.";
+
+impl RtestModel {
+    /// From a fit.
+    pub fn from_fit(data: &RtestData, f: &Fit) -> RtestModel {
+        let names = data.param_names();
+        let location_errors = (0..N_LOCATION)
+            .map(|k| {
+                (
+                    names[k].clone(),
+                    ParamValue {
+                        value: f.theta[k],
+                        unit: location_unit(k).into(),
+                        std: f.std[k],
+                        identified: f.ident.identified[k],
+                        reason: f.ident.reasons[k].clone(),
+                    },
+                )
+            })
+            .collect();
+        let setup_offsets_um = data
+            .setup_names
+            .iter()
+            .enumerate()
+            .map(|(s, n)| (n.clone(), split_params(&f.theta, s).1))
+            .collect();
+        RtestModel {
+            kind: "rtest".into(),
+            machine: data.machine.kind,
+            pivot_mm: data.machine.pivot_mm,
+            location_errors,
+            setup_offsets_um,
+            sign_convention: SIGN_CONVENTION.into(),
+        }
+    }
+
+    /// The machine.
+    pub fn five_axis(&self) -> FiveAxis {
+        FiveAxis::new(self.machine, self.pivot_mm)
+    }
+
+    /// The 11 location errors.
+    pub fn location(&self) -> LocationErrors {
+        let mut le = [0.0; N_LOCATION];
+        for (k, (_, v)) in self.location_errors.iter().enumerate().take(N_LOCATION) {
+            le[k] = v.value;
+        }
+        le
+    }
+
+    /// Predicted displacement (µm) at `pose` with the set-up offsets `setup_um`.
+    pub fn predict(&self, pose: &Pose, setup_um: SetupOffsets) -> [f64; 3] {
+        self.five_axis()
+            .displacement(pose, &self.location(), setup_um)
+    }
+}
+
+/// Predictions `pred_dx_um`, `pred_dy_um`, `pred_dz_um` for every row of `ds` (the columns `x_mm`, `y_mm`,
+/// `z_mm`, `a_deg`|`b_deg`, `c_deg`; a `setup` column when the model has several set-ups, each value one
+/// the model knows). Readings are not needed. For `axcomp predict`.
+pub fn predict_rows(model: &RtestModel, ds: &Dataset) -> Result<Vec<[f64; 3]>, RtestError> {
+    let data = RtestData::from_dataset(ds, model.five_axis(), false)?;
+    let mut out = Vec::with_capacity(data.poses.len());
+    for (i, pose) in data.poses.iter().enumerate() {
+        let setup = if model.setup_offsets_um.len() == 1 && !ds.has("setup") {
+            model.setup_offsets_um[0].1
+        } else {
+            let name = &data.setup_names[data.setup[i]];
+            model
+                .setup_offsets_um
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, v)| *v)
+                .ok_or_else(|| RtestError::BadValue {
+                    at: ds.locate("setup", i),
+                    what: format!("set-up `{name}` is not one the model was fitted on"),
+                })?
+        };
+        out.push(model.predict(pose, setup));
+    }
+    Ok(out)
+}
+
+/// ISO 10791-6 figures: range (max − min) of each displacement component, µm.
+pub fn ranges(v: &[[f64; 3]]) -> [f64; 3] {
+    let mut r = [0.0; 3];
+    for (c, rc) in r.iter_mut().enumerate() {
+        let lo = v.iter().map(|d| d[c]).fold(f64::INFINITY, f64::min);
+        let hi = v.iter().map(|d| d[c]).fold(f64::NEG_INFINITY, f64::max);
+        *rc = if v.is_empty() { f64::NAN } else { hi - lo };
+    }
+    r
+}

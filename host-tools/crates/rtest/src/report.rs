@@ -1,0 +1,185 @@
+//! `fit rtest --report DIR`: report.md and SVG figures (measured vs predicted along the judged path, the
+//! identified location errors' displacement over the rotary range).
+
+use std::path::Path;
+
+use axcomp_kinematics::rotary::{N_LOCATION, N_SETUP};
+use axcomp_plot::{Figure, markdown_table};
+
+use crate::analysis::Analysis;
+use crate::{RtestData, SIGN_CONVENTION};
+
+/// Report files: name and contents. Nothing is written here; the caller writes them all or none.
+pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
+    let mut files = Vec::new();
+    let names = data.param_names();
+    let idx: Vec<f64> = (0..a.judged_rows.len()).map(|i| i as f64).collect();
+    let judged = match a.judged_by {
+        "holdout" => "held-out rows (prediction from the fit on the other rows)",
+        "cv" => "every row (cross-validated prediction)",
+        _ => "the fitted rows (in-sample)",
+    };
+    for (c, comp) in ["dx", "dy", "dz"].iter().enumerate() {
+        let meas: Vec<f64> = a.judged_rows.iter().map(|&r| data.d_um[r][c]).collect();
+        let pred: Vec<f64> = a.judged_pred.iter().map(|p| p[c]).collect();
+        let resid: Vec<f64> = meas.iter().zip(&pred).map(|(m, p)| m - p).collect();
+        let mut f = Figure::new(
+            &format!(
+                "{comp}: measured vs predicted over the path ({})",
+                a.judged_by
+            ),
+            "pose (judged rows, file order)",
+            &format!("{comp}_um"),
+        );
+        f.points("measured", &idx, &meas)
+            .dashed("predicted", &idx, &pred)
+            .line("measured − predicted", &idx, &resid);
+        files.push((format!("path_{comp}.svg"), f.to_svg()));
+    }
+    // The location errors alone (no set-up offsets) over the rotary range, for the campaign's first sphere.
+    let sphere = data.machine.nominal_sphere(&data.poses[0]);
+    let le = a.model.location();
+    let tilts: Vec<f64> = {
+        let lo = data
+            .poses
+            .iter()
+            .map(|p| p.tilt_deg)
+            .fold(f64::INFINITY, f64::min);
+        let hi = data
+            .poses
+            .iter()
+            .map(|p| p.tilt_deg)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let mut v = vec![lo, (lo + hi) / 2.0, hi];
+        v.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+        v
+    };
+    let cs: Vec<f64> = (0..=72).map(|k| k as f64 * 5.0).collect();
+    let mut f = Figure::new(
+        "Error over the rotary range: |d| from the identified location errors",
+        "C angle (deg)",
+        "|d| (um)",
+    );
+    for t in &tilts {
+        let mag: Vec<f64> = cs
+            .iter()
+            .map(|&c| {
+                let pose = axcomp_kinematics::rotary::pose_on_sphere(&data.machine, sphere, *t, c);
+                let d = data.machine.displacement(&pose, &le, [0.0; N_SETUP]);
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+            })
+            .collect();
+        f.line(
+            &format!(
+                "{} = {t:.1}°",
+                data.machine.kind.tilt_letter().to_ascii_uppercase()
+            ),
+            &cs,
+            &mag,
+        );
+    }
+    files.push(("rotary_range.svg".into(), f.to_svg()));
+
+    let mut md = String::new();
+    md.push_str(&format!(
+        "# R-test location errors ({})\n\nData: `{}`; {} rows fitted; judged on {}.\n\n",
+        data.machine.kind.name(),
+        data.source,
+        a.fit_rows.len(),
+        judged
+    ));
+    md.push_str(&format!("**Sign convention.** {SIGN_CONVENTION}\n\n"));
+    let rows: Vec<Vec<String>> = a
+        .model
+        .location_errors
+        .iter()
+        .map(|(n, v)| {
+            vec![
+                n.clone(),
+                format!("{:.3}", v.value),
+                v.unit.clone(),
+                v.std.map_or("–".into(), |s| format!("{s:.3}")),
+                if v.identified {
+                    "yes".into()
+                } else {
+                    "**no**".into()
+                },
+                v.reason.clone().unwrap_or_default(),
+            ]
+        })
+        .collect();
+    md.push_str(&markdown_table(
+        &["name", "value", "unit", "std", "identified", "reason"],
+        &rows,
+    ));
+    md.push('\n');
+    let mut setup_rows = Vec::new();
+    for s in 0..data.setup_names.len() {
+        let b = N_LOCATION + N_SETUP * s;
+        for (o, what) in [(0, "sphere"), (3, "R-test head")] {
+            let cell = |k: usize| match (a.fit.std[b + o + k], &a.fit.ident.reasons[b + o + k]) {
+                (Some(sd), _) => format!("{:.3} ± {sd:.3}", a.fit.theta[b + o + k]),
+                (None, Some(r)) if r.starts_with("taken as known") => "0 (known)".into(),
+                (None, _) => "not identified".into(),
+            };
+            setup_rows.push(vec![
+                data.setup_names[s].clone(),
+                what.to_string(),
+                cell(0),
+                cell(1),
+                cell(2),
+            ]);
+        }
+    }
+    md.push_str("\nSet-up offsets (nuisance), µm:\n\n");
+    md.push_str(&markdown_table(
+        &["set-up", "of", "dx", "dy", "dz"],
+        &setup_rows,
+    ));
+    md.push_str(&format!(
+        "\nIdentifiability: rank {} of {} parameters, condition number {:.3e} (column-scaled).\n",
+        a.fit.ident.rank,
+        names.len(),
+        a.fit.ident.condition_number
+    ));
+    for &(i, j, r) in &a.fit.correlations {
+        md.push_str(&format!(
+            "- correlation {} / {}: {r:.3}\n",
+            names[i], names[j]
+        ));
+    }
+    md.push_str(&format!(
+        "\nRMS over dx, dy, dz: raw {:.3} µm, fit {:.3} µm, {} {:.3} µm (σ̂ = {:.3} µm).\n",
+        a.raw_rms_um, a.fit.fit_rms_um, a.judged_by, a.judged_rms_um, a.fit.sigma_um
+    ));
+    if let Some(k) = &a.k4 {
+        md.push_str(&format!(
+            "\nISO 10791-6 K4 figures (range of each component over {} K4 poses, {}):\n\n",
+            k.rows, a.judged_by
+        ));
+        let r = |i: usize| {
+            vec![
+                ["dx", "dy", "dz"][i].to_string(),
+                format!("{:.3}", k.before_um[i]),
+                format!("{:.3}", k.after_um[i]),
+                format!("{:.1}", 100.0 * (1.0 - k.after_um[i] / k.before_um[i])),
+            ]
+        };
+        md.push_str(&markdown_table(
+            &["component", "before µm", "after µm", "reduction %"],
+            &[r(0), r(1), r(2)],
+        ));
+    }
+    md.push_str("\n![dx](path_dx.svg)\n![dy](path_dy.svg)\n![dz](path_dz.svg)\n![rotary range](rotary_range.svg)\n");
+    files.push(("report.md".into(), md));
+    files
+}
+
+/// Writes the report files into `dir` (each atomically; the directory is created).
+pub fn write_report(dir: &Path, files: &[(String, String)]) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    for (name, text) in files {
+        axcomp_plot::write_atomic(&dir.join(name), text.as_bytes())?;
+    }
+    Ok(())
+}

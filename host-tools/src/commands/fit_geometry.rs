@@ -1,0 +1,160 @@
+//! `axcomp fit geometry`: the 21 ISO 230-1 geometric errors of a three-axis machine from laser lines.
+//!
+//! Glossary: see `axcomp-geometry` (components, topology, identifiability, seven-line method, smoothing).
+//! Outputs are computed completely before anything is written; each file is written atomically.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use axcomp_data::{Split, groups};
+use axcomp_geometry::analysis::Analysis;
+use axcomp_geometry::{FitOptions, Judge, LineData, Method, analyse};
+use axcomp_kinematics::Topology;
+
+use crate::cli::DataArgs;
+use crate::commands::common::{load_dataset, split_from, write_atomic, write_json};
+
+const LONG_HELP: &str = "\
+Model: rigid-body small-angle chain of the axes (--work-axes from the bed outward carry the workpiece, --tool-axes the tool; default YX / Z), the reflector offset (tool_*_mm) as the Abbe arm. The 18 error functions are cubic B-splines on a knot grid over each axis's measured range, zero at the axis's zero (straightness also with zero least-squares slope: the slope between axes is the squareness), plus EC0Y, EB0Z, EA0Z.
+
+Identifiability: rank and singular values of the stacked design; components or combinations in its null space are fixed at 0 and reported identified: false with the reason (never invented). Smoothing λ by leave-one-line-out cross-validation (λ = 0, plain least squares, is a candidate). --method plain: no smoothing; --method seven-line: seed 000's 17 parameters (ECY, EAZ, EBZ, ECZ fixed: no lever arm at zero reflector offset).
+
+Example:
+  axcomp plan geometry --stroke 800,600,500 --lines 20 --simulate lines.csv
+  axcomp fit geometry --data lines.csv --cv line --json fit.json --out model.json --report rep --export tables";
+
+#[derive(Debug, clap::Args)]
+#[command(after_long_help = LONG_HELP)]
+pub struct Args {
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// Rows held out from fitting and used only to judge: COL=V1,V2 | COL>=X | COL<X (e.g. line=L4,L5).
+    #[arg(long, value_name = "SPEC")]
+    pub holdout: Option<String>,
+    /// Leave-one-group-out over the values of COL (e.g. `line`): `cv_rms_um`.
+    #[arg(long, value_name = "COL")]
+    pub cv: Option<String>,
+    /// Axes carrying the workpiece, from the bed outward.
+    #[arg(long, default_value = "YX", value_name = "AXES")]
+    pub work_axes: String,
+    /// Axes carrying the tool, from the bed outward.
+    #[arg(long, default_value = "Z", value_name = "AXES")]
+    pub tool_axes: String,
+    /// auto (smoothing by CV over lines), plain (no smoothing), seven-line (seed 000's 17 parameters).
+    #[arg(long, default_value = "auto", value_name = "METHOD")]
+    pub method: String,
+    /// Knot intervals per axis (default: distinct positions − 3, at most 12).
+    #[arg(long, value_name = "N")]
+    pub intervals: Option<usize>,
+    /// Write the model file (input of `axcomp predict`).
+    #[arg(long, value_name = "MODEL.json")]
+    pub out: Option<PathBuf>,
+    /// Machine-readable result.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Write report.md and SVG plots into DIR.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+    /// Write controller tables into DIR: TF5280-style per component, Heidenhain-style per axis.
+    #[arg(long, value_name = "DIR")]
+    pub export: Option<PathBuf>,
+    /// Position step of the exported tables (mm; default 40 steps per axis).
+    #[arg(long, default_value_t = 0.0, value_name = "MM")]
+    pub export_step: f64,
+}
+
+/// Runs the fit and returns the analysis (used by the command and the tests).
+pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
+    let method = Method::parse(&a.method)
+        .with_context(|| format!("--method {}: use auto, plain or seven-line", a.method))?;
+    let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
+    let ds = load_dataset(&a.data)?;
+    let data = LineData::from_dataset(&ds, true)?;
+    let judge = match split_from(a.holdout.as_deref(), a.cv.as_deref())? {
+        None => Judge::None,
+        Some(Split::Holdout(spec)) => {
+            let mask = spec.mask(&ds)?;
+            if mask.iter().all(|m| *m) {
+                bail!(
+                    "--holdout {}: holds out every row; nothing left to fit",
+                    spec.as_str()
+                );
+            }
+            Judge::Holdout(mask)
+        }
+        Some(Split::Cv(col)) => Judge::Cv(groups(&ds, &col)?.0),
+    };
+    let opts = FitOptions {
+        topology,
+        method,
+        intervals: a.intervals,
+        ..FitOptions::default()
+    };
+    let an = analyse(&data, &judge, &opts)?;
+    Ok((data, an))
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let (data, an) = analyse_args(&a)?;
+    let rep = &an.report;
+    // everything is computed; now write
+    if let Some(p) = &a.json {
+        write_json(p, rep)?;
+    }
+    if let Some(p) = &a.out {
+        write_atomic(p, an.fit.model.to_json().as_bytes())?;
+    }
+    if let Some(dir) = &a.export {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        for (name, text) in axcomp_geometry::export::export_files(&an.fit.model, a.export_step) {
+            write_atomic(&dir.join(name), text.as_bytes())?;
+        }
+    }
+    if let Some(dir) = &a.report {
+        axcomp_geometry::report::write_report(dir, &data, &an)?;
+    }
+    println!("{}", an.fit.model.method);
+    println!(
+        "lines {}, readings {} ({} fitted); raw RMS {:.3} µm, fit RMS {:.3} µm{}{}",
+        rep.lines,
+        rep.rows,
+        rep.train_rows,
+        rep.raw_rms_um,
+        rep.fit_rms_um,
+        rep.holdout_rms_um
+            .map(|h| format!(", held-out RMS {h:.3} µm"))
+            .unwrap_or_default(),
+        rep.cv_rms_um
+            .map(|h| format!(", cross-validated RMS {h:.3} µm"))
+            .unwrap_or_default()
+    );
+    println!(
+        "identifiability: rank {} of {} parameters, condition number {:.1}",
+        rep.identifiability.rank,
+        rep.identifiability.parameters,
+        rep.identifiability.condition_number
+    );
+    for g in &rep.identifiability.not_separable {
+        println!("  not separable (fixed at 0): {}", g.join(", "));
+    }
+    println!(
+        "volumetric |e| over the measured volume: max {:.2} µm, RMS {:.2} µm",
+        rep.volumetric.max_um, rep.volumetric.rms_um
+    );
+    for d in &rep.iso230_6_body_diagonals {
+        println!(
+            "ISO 230-6 {}: {:.2} µm before, {:.2} µm after ({})",
+            d.line, d.before_um, d.after_um, d.basis
+        );
+    }
+    let unidentified: Vec<&str> = rep
+        .errors
+        .iter()
+        .filter(|(_, e)| !e.identified)
+        .map(|(k, _)| k.as_str())
+        .collect();
+    if !unidentified.is_empty() {
+        println!("not identified: {}", unidentified.join(", "));
+    }
+    Ok(())
+}

@@ -1,0 +1,129 @@
+//! `axcomp fit rtest`: rotary-axis location errors of a five-axis machine (ISO 230-7 names) from R-test
+//! readings or probed sphere centres in the R-test form (contract: "Location errors of a five-axis machine's
+//! rotary axes"). The work is in `axcomp_rtest`; this module parses, runs, and writes every output only after
+//! the whole analysis succeeded.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
+use axcomp_rtest::analysis::analyse;
+use axcomp_rtest::report::{report_files, write_report};
+use axcomp_rtest::{RtestData, RtestModel};
+
+use crate::cli::DataArgs;
+use crate::commands::common::{load_dataset, split_from, write_json};
+
+const LONG_HELP: &str = "\
+Columns: x_mm, y_mm, z_mm (commanded tool point, tool length included, origin at the nominal intersection of the rotary axes), a_deg (ac-trunnion) or b_deg (bc-trunnion, bc-head), c_deg, dx_um, dy_um, dz_um (sphere centre relative to the R-test head along machine X, Y, Z); optional path (K4, C-circle, ...), run, setup (one sphere placement per value: its own set-up offsets), time_s. A probed-sphere campaign gives the same rows: each pose's fitted sphere centre minus the commanded tool point.
+
+Model: the exact homogeneous-transform chain with the 11 location errors (C: EX0C EY0C EA0C EB0C; A: EY0A EZ0A EB0A EC0A or B: EX0B EZ0B EA0B EC0B; squareness EA0Z EB0Z EC0Y) and the sphere's set-up offsets (nuisance). Levenberg–Marquardt; standard uncertainties from the residual variance and (JᵀJ)⁻¹. Parameters the poses cannot separate are fixed to 0 and reported identified: false with the reason (and those that absorb them too); parameters whose uncertainty is inflated more than 32× by correlation stay estimated but are reported identified: false; `axcomp plan rtest` says which paths to add.
+
+With --free-head-zero the R-test head's zero (tool length, radial offset) is estimated per set-up too; then the rotary axes' absolute position relative to the spindle (e.g. EX0C, EY0A, EZ0A on an AC trunnion) cannot be determined and is reported so.
+
+Example: axcomp fit rtest --data rtest.csv --holdout run=2 --json fit.json --report rtest-report --out rtest-model.json";
+
+#[derive(Debug, clap::Args)]
+#[command(after_long_help = LONG_HELP)]
+pub struct Args {
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// Machine kind: ac-trunnion, bc-trunnion, bc-head.
+    #[arg(long, default_value = "ac-trunnion", value_name = "KIND")]
+    pub machine: String,
+    /// bc-head: nominal distance from the B axis to the tool point, mm.
+    #[arg(long, value_name = "L")]
+    pub pivot_mm: Option<f64>,
+    /// Rows held out from fitting and used only to judge: COL=V1,V2 | COL>=X | COL<X.
+    #[arg(long, value_name = "SPEC")]
+    pub holdout: Option<String>,
+    /// Leave-one-group-out cross-validation over the values of COL (e.g. path).
+    #[arg(long, value_name = "COL")]
+    pub cv: Option<String>,
+    /// Estimate the R-test head's zero (tool length, radial offset) per set-up as a nuisance too.
+    #[arg(long)]
+    pub free_head_zero: bool,
+    /// Write the model file (for `axcomp predict`).
+    #[arg(long, value_name = "MODEL.json")]
+    pub out: Option<PathBuf>,
+    /// Machine-readable result.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Write report.md and SVG figures into DIR.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+}
+
+/// `--machine` and `--pivot-mm` into the nominal kinematics.
+pub fn machine_from(kind: &str, pivot_mm: Option<f64>) -> anyhow::Result<FiveAxis> {
+    let Some(k) = MachineKind::parse(kind) else {
+        bail!("--machine `{kind}`: expected ac-trunnion, bc-trunnion or bc-head");
+    };
+    match (k, pivot_mm) {
+        (MachineKind::BcHead, None) => {
+            bail!("--machine bc-head needs --pivot-mm L (B axis to tool point, mm)")
+        }
+        (MachineKind::BcHead, Some(l)) if !(l.is_finite() && l > 0.0) => {
+            bail!("--pivot-mm {l}: need a length > 0 mm")
+        }
+        (MachineKind::BcHead, Some(l)) => Ok(FiveAxis::new(k, l)),
+        (_, Some(_)) => bail!("--pivot-mm is for --machine bc-head only"),
+        (_, None) => Ok(FiveAxis::new(k, 0.0)),
+    }
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let machine = machine_from(&args.machine, args.pivot_mm)?;
+    let split = split_from(args.holdout.as_deref(), args.cv.as_deref())?;
+    let ds = load_dataset(&args.data)?;
+    let mut data = RtestData::from_dataset(&ds, machine, true)?;
+    data.free_head_zero = args.free_head_zero;
+    let a = analyse(&ds, &data, split.as_ref())?;
+    let json = a.to_json(&data);
+    let model = RtestModel::from_fit(&data, &a.fit);
+    let files = args.report.as_ref().map(|_| report_files(&a, &data));
+    // Everything computed: now write (the report directory first, the likeliest to fail; each file atomically).
+    if let (Some(dir), Some(files)) = (&args.report, &files) {
+        write_report(dir, files)
+            .with_context(|| format!("cannot write the report into {}", dir.display()))?;
+    }
+    if let Some(p) = &args.json {
+        write_json(p, &json)?;
+    }
+    if let Some(p) = &args.out {
+        write_json(p, &model)?;
+    }
+    print_summary(&a, &data, &json);
+    if a.judged_rms_um >= a.raw_rms_um {
+        eprintln!(
+            "axcomp: warning: the model predicts the {} rows no better than the nominal kinematics ({:.3} µm vs {:.3} µm): do not use it for compensation",
+            a.judged_by, a.judged_rms_um, a.raw_rms_um
+        );
+    }
+    Ok(())
+}
+
+fn print_summary(a: &axcomp_rtest::analysis::Analysis, data: &RtestData, json: &serde_json::Value) {
+    println!(
+        "fit rtest ({}): {} rows fitted, judged by {}",
+        data.machine.kind.name(),
+        a.fit_rows.len(),
+        a.judged_by
+    );
+    for (name, v) in &a.model.location_errors {
+        match (v.identified, v.std) {
+            (true, Some(s)) => println!("  {name:5} {:10.3} ± {:7.3} {}", v.value, s, v.unit),
+            _ => println!(
+                "  {name:5} not identified: {}",
+                v.reason.as_deref().unwrap_or("")
+            ),
+        }
+    }
+    println!(
+        "  condition number {:.1}; RMS raw {:.3} µm, fit {:.3} µm, {} {:.3} µm",
+        a.fit.ident.condition_number, a.raw_rms_um, a.fit.fit_rms_um, a.judged_by, a.judged_rms_um
+    );
+    if let Some(k) = json.get("k4").filter(|k| !k.is_null()) {
+        println!("  K4 ranges before {} after {}", k["before"], k["after"]);
+    }
+}

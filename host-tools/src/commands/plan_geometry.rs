@@ -1,0 +1,166 @@
+//! `axcomp plan geometry`: the laser lines (and reflector offsets) that make all 21 components
+//! identifiable with the fewest lines (greedy D-optimal, see `axcomp_geometry::plan`), with the predicted
+//! standard uncertainty of each component for noise σ. `--simulate F.csv` measures the plan (or a named
+//! twin plan) on the three-axis twin and writes the contract's laser line CSV.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use axcomp_geometry::plan::{PlanOptions, plan};
+use axcomp_kinematics::Topology;
+use axcomp_twin::geometry::{GeometryTwin, plan_by_name};
+
+use crate::commands::common::{write_atomic, write_json};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Strokes of X, Y, Z (mm).
+    #[arg(long, value_name = "X,Y,Z")]
+    pub stroke: String,
+    /// Choose exactly N lines (default: as few as make all 21 identifiable).
+    #[arg(long, value_name = "N")]
+    pub lines: Option<usize>,
+    /// Reflector offsets to consider, `X,Y,Z` mm (repeatable, or `;`-separated). Default: 0 and 150 mm along each axis.
+    #[arg(long = "tool-offsets", value_name = "X,Y,Z")]
+    pub tool_offsets: Vec<String>,
+    /// Reading noise σ (µm) for the predicted uncertainties.
+    #[arg(long, default_value_t = 1.0, value_name = "S")]
+    pub sigma_um: f64,
+    /// Targets per line.
+    #[arg(long, default_value_t = 11, value_name = "N")]
+    pub targets: usize,
+    #[arg(long, default_value = "YX", value_name = "AXES")]
+    pub work_axes: String,
+    #[arg(long, default_value = "Z", value_name = "AXES")]
+    pub tool_axes: String,
+    /// Machine-readable plan.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Measure the lines on the three-axis twin and write the laser line CSV.
+    #[arg(long, value_name = "F.csv")]
+    pub simulate: Option<PathBuf>,
+    /// With --simulate: measure a named twin plan instead (seven-line, step-diagonal, axis-lines,
+    /// face-diagonals, tool-offsets, complete), plus the planned lines when both are wanted (`+plan`).
+    #[arg(long, value_name = "NAME")]
+    pub twin_plan: Option<String>,
+    /// Twin seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Twin measurement runs.
+    #[arg(long, default_value_t = 2)]
+    pub runs: usize,
+    /// Twin drift (µm/h along X, Y, Z).
+    #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z")]
+    pub drift_um_per_h: String,
+}
+
+fn triple(s: &str, what: &str) -> anyhow::Result<[f64; 3]> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("{what} {s}: expected three numbers X,Y,Z"))?;
+    if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
+        bail!("{what} {s}: expected three finite numbers X,Y,Z");
+    }
+    Ok([v[0], v[1], v[2]])
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let stroke = triple(&a.stroke, "--stroke")?;
+    let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
+    let mut offsets = Vec::new();
+    for s in &a.tool_offsets {
+        for part in s.split(';').filter(|p| !p.trim().is_empty()) {
+            offsets.push(triple(part, "--tool-offsets")?);
+        }
+    }
+    if offsets.is_empty() {
+        offsets = vec![
+            [0.0; 3],
+            [150.0, 0.0, 0.0],
+            [0.0, 150.0, 0.0],
+            [0.0, 0.0, 150.0],
+        ];
+    }
+    if !a.sigma_um.is_finite() || a.sigma_um <= 0.0 {
+        bail!("--sigma-um {}: must be positive", a.sigma_um);
+    }
+    let p = plan(&PlanOptions {
+        stroke_mm: stroke,
+        max_lines: a.lines,
+        tool_offsets: offsets,
+        sigma_um: a.sigma_um,
+        targets: a.targets,
+        topology: topology.clone(),
+    })?;
+    println!(
+        "{} lines chosen from {} candidates; all 21 identifiable: {}",
+        p.lines.len(),
+        p.candidates,
+        if p.complete { "yes" } else { "no" }
+    );
+    if !p.complete {
+        println!(
+            "not identifiable with these lines: {}",
+            p.not_identifiable.join(", ")
+        );
+    }
+    println!("line, from (mm), to (mm), step-wise, reflector offset (mm)");
+    for l in &p.lines {
+        println!(
+            "{}, {:?}, {:?}, {}, {:?}",
+            l.name, l.start, l.end, l.stepwise, l.tool
+        );
+    }
+    println!(
+        "predicted standard uncertainty (largest over the axis) for σ = {} µm:",
+        a.sigma_um
+    );
+    for (name, unit, u) in &p.uncertainty {
+        println!("  {name:5} {u:8.3} {unit}");
+    }
+    if let Some(path) = &a.json {
+        let v = serde_json::json!({
+            "complete": p.complete,
+            "not_identifiable": p.not_identifiable,
+            "candidates": p.candidates,
+            "sigma_um": a.sigma_um,
+            "lines": p.lines.iter().map(|l| serde_json::json!({
+                "name": l.name, "start_mm": l.start, "end_mm": l.end, "targets": l.targets,
+                "stepwise": l.stepwise, "tool_mm": l.tool })).collect::<Vec<_>>(),
+            "uncertainty": p.uncertainty.iter().map(|(n, u, v)| serde_json::json!({
+                "component": n, "unit": u, "max_u": if v.is_finite() { serde_json::json!(v) } else { serde_json::Value::Null } })).collect::<Vec<_>>(),
+        });
+        write_json(path, &v)?;
+    }
+    if let Some(path) = &a.simulate {
+        let mut twin = GeometryTwin::random(stroke, topology, a.seed);
+        twin.noise_um = a.sigma_um;
+        twin.drift_um_per_h = triple(&a.drift_um_per_h, "--drift-um-per-h")?;
+        let lines = match a.twin_plan.as_deref() {
+            None => p.lines.clone(),
+            Some(name) => {
+                let (name, with_plan) = match name.strip_suffix("+plan") {
+                    Some(n) => (n, true),
+                    None => (name, false),
+                };
+                let mut v = plan_by_name(name, stroke, a.targets)
+                    .with_context(|| format!("--twin-plan {name}: unknown plan"))?;
+                if with_plan {
+                    v.extend(p.lines.iter().cloned());
+                }
+                v
+            }
+        };
+        let camp = twin.measure(&lines, a.runs, a.seed.wrapping_add(1000));
+        write_atomic(path, camp.to_csv_string().as_bytes())?;
+        println!(
+            "simulated {} readings of {} lines into {}",
+            camp.rows.len(),
+            lines.len(),
+            path.display()
+        );
+    }
+    Ok(())
+}
