@@ -216,6 +216,9 @@ fn replay_bad_csv_touches_nothing() {
     };
     // --csv (the last output) cannot be written: the records file keeps its old bytes.
     fails_untouched(&replay("missing-dir/out.csv"), &dir, "missing-dir/out.csv");
+    // --csv names an existing folder, not a file (its parent exists): still nothing written.
+    std::fs::create_dir(dir.join("csv-folder")).unwrap();
+    fails_untouched(&replay("csv-folder"), &dir, "csv-folder");
     // Control: both written.
     ok(&replay("out.csv"), &dir);
     assert_ne!(std::fs::read(dir.join("out.bin")).unwrap(), b"old records");
