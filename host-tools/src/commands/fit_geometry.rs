@@ -1,7 +1,7 @@
 //! `axcomp fit geometry`: the 21 ISO 230-1 geometric errors of a three-axis machine from laser lines.
 //!
 //! Glossary: see `axcomp-geometry` (components, topology, identifiability, seven-line method, smoothing).
-//! Outputs are computed completely before anything is written; each file is written atomically.
+//! Every output path is checked before the fit; all outputs are written together (or none) at the end.
 
 use std::path::PathBuf;
 
@@ -12,7 +12,8 @@ use axcomp_geometry::{FitOptions, Judge, LineData, Method, analyse};
 use axcomp_kinematics::Topology;
 
 use crate::cli::DataArgs;
-use crate::commands::common::{load_dataset, split_from, write_atomic, write_json};
+use crate::commands::common::{load_dataset, split_from};
+use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
 Model: rigid-body small-angle chain of the axes (--work-axes from the bed outward carry the workpiece, --tool-axes the tool; default YX / Z), the reflector offset (tool_*_mm) as the Abbe arm. The 18 error functions are cubic B-splines on a knot grid over each axis's measured range, zero at the axis's zero (straightness also with zero least-squares slope: the slope between axes is the squareness), plus EC0Y, EB0Z, EA0Z.
@@ -95,24 +96,35 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    // Every output path is checked before the fit; all files are written together at the end.
+    let mut outputs = OutputSet::new();
+    for p in [&a.json, &a.out].into_iter().flatten() {
+        outputs.planned(p);
+    }
+    for d in [&a.export, &a.report].into_iter().flatten() {
+        outputs.dir(d);
+    }
+    outputs.check()?;
     let (data, an) = analyse_args(&a)?;
     let rep = &an.report;
     // everything is computed; now write
     if let Some(p) = &a.json {
-        write_json(p, rep)?;
+        outputs.json(p, rep)?;
     }
     if let Some(p) = &a.out {
-        write_atomic(p, an.fit.model.to_json().as_bytes())?;
+        outputs.file(p, an.fit.model.to_json());
     }
     if let Some(dir) = &a.export {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         for (name, text) in axcomp_geometry::export::export_files(&an.fit.model, a.export_step) {
-            write_atomic(&dir.join(name), text.as_bytes())?;
+            outputs.file(dir.join(name), text);
         }
     }
     if let Some(dir) = &a.report {
-        axcomp_geometry::report::write_report(dir, &data, &an)?;
+        for (name, text) in axcomp_geometry::report::report_files(&data, &an) {
+            outputs.file(dir.join(name), text);
+        }
     }
+    outputs.commit()?;
     println!("{}", an.fit.model.method);
     println!(
         "lines {}, readings {} ({} fitted); raw RMS {:.3} µm, fit RMS {:.3} µm{}{}",

@@ -5,14 +5,15 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
 use axcomp_rtest::analysis::analyse;
-use axcomp_rtest::report::{report_files, write_report};
+use axcomp_rtest::report::report_files;
 use axcomp_rtest::{RtestData, RtestModel};
 
 use crate::cli::DataArgs;
-use crate::commands::common::{load_dataset, split_from, write_json};
+use crate::commands::common::{load_dataset, split_from};
+use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
 Columns: x_mm, y_mm, z_mm (commanded tool point, tool length included, origin at the nominal intersection of the rotary axes), a_deg (ac-trunnion) or b_deg (bc-trunnion, bc-head), c_deg, dx_um, dy_um, dz_um (sphere centre relative to the R-test head along machine X, Y, Z); optional path (K4, C-circle, ...), run, setup (one sphere placement per value: its own set-up offsets), time_s. A probed-sphere campaign gives the same rows: each pose's fitted sphere centre minus the commanded tool point.
@@ -75,24 +76,33 @@ pub fn machine_from(kind: &str, pivot_mm: Option<f64>) -> anyhow::Result<FiveAxi
 pub fn run(args: Args) -> anyhow::Result<()> {
     let machine = machine_from(&args.machine, args.pivot_mm)?;
     let split = split_from(args.holdout.as_deref(), args.cv.as_deref())?;
+    // Every output path is checked before the fit; all files are written together at the end.
+    let mut outputs = OutputSet::new();
+    if let Some(dir) = &args.report {
+        outputs.dir(dir);
+    }
+    for p in [&args.json, &args.out].into_iter().flatten() {
+        outputs.planned(p);
+    }
+    outputs.check()?;
     let ds = load_dataset(&args.data)?;
     let mut data = RtestData::from_dataset(&ds, machine, true)?;
     data.free_head_zero = args.free_head_zero;
     let a = analyse(&ds, &data, split.as_ref())?;
     let json = a.to_json(&data);
     let model = RtestModel::from_fit(&data, &a.fit);
-    let files = args.report.as_ref().map(|_| report_files(&a, &data));
-    // Everything computed: now write (the report directory first, the likeliest to fail; each file atomically).
-    if let (Some(dir), Some(files)) = (&args.report, &files) {
-        write_report(dir, files)
-            .with_context(|| format!("cannot write the report into {}", dir.display()))?;
+    if let Some(dir) = &args.report {
+        for (name, text) in report_files(&a, &data) {
+            outputs.file(dir.join(name), text);
+        }
     }
     if let Some(p) = &args.json {
-        write_json(p, &json)?;
+        outputs.json(p, &json)?;
     }
     if let Some(p) = &args.out {
-        write_json(p, &model)?;
+        outputs.json(p, &model)?;
     }
+    outputs.commit()?;
     print_summary(&a, &data, &json);
     if a.judged_rms_um >= a.raw_rms_um {
         eprintln!(

@@ -10,7 +10,7 @@ use axcomp_geometry::plan::{PlanOptions, plan};
 use axcomp_kinematics::Topology;
 use axcomp_twin::geometry::{GeometryTwin, plan_by_name};
 
-use crate::commands::common::{write_atomic, write_json};
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -67,6 +67,12 @@ fn triple(s: &str, what: &str) -> anyhow::Result<[f64; 3]> {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    // Every output path is checked before the plan; both files are written together at the end.
+    let mut outputs = OutputSet::new();
+    for p in [&a.json, &a.simulate].into_iter().flatten() {
+        outputs.planned(p);
+    }
+    outputs.check()?;
     let stroke = triple(&a.stroke, "--stroke")?;
     let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
     let mut offsets = Vec::new();
@@ -132,8 +138,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             "uncertainty": p.uncertainty.iter().map(|(n, u, v)| serde_json::json!({
                 "component": n, "unit": u, "max_u": if v.is_finite() { serde_json::json!(v) } else { serde_json::Value::Null } })).collect::<Vec<_>>(),
         });
-        write_json(path, &v)?;
+        outputs.json(path, &v)?;
     }
+    let mut simulated = None;
     if let Some(path) = &a.simulate {
         let mut twin = GeometryTwin::random(stroke, topology, a.seed);
         twin.noise_um = a.sigma_um;
@@ -154,13 +161,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
         };
         let camp = twin.measure(&lines, a.runs, a.seed.wrapping_add(1000));
-        write_atomic(path, camp.to_csv_string().as_bytes())?;
-        println!(
+        outputs.file(path, camp.to_csv_string());
+        simulated = Some(format!(
             "simulated {} readings of {} lines into {}",
             camp.rows.len(),
             lines.len(),
             path.display()
-        );
+        ));
+    }
+    outputs.commit()?;
+    if let Some(line) = simulated {
+        println!("{line}");
     }
     Ok(())
 }

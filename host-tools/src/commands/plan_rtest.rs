@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use axcomp_rtest::plan::{PlanGeometry, plan};
 
-use crate::commands::common::write_json;
 use crate::commands::fit_rtest::machine_from;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -46,6 +46,12 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // The output path is checked before the plan is computed.
+    let mut outputs = OutputSet::new();
+    if let Some(j) = &args.json {
+        outputs.planned(j);
+    }
+    outputs.check()?;
     let machine = machine_from(&args.machine, args.pivot_mm)?;
     if !(args.sigma_um.is_finite() && args.sigma_um > 0.0) {
         anyhow::bail!("--sigma-um {}: need a noise > 0 µm", args.sigma_um);
@@ -67,8 +73,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     g.free_head_zero = args.free_head_zero;
     let p = plan(&g, args.sigma_um);
     if let Some(j) = &args.json {
-        write_json(j, &p)?;
+        outputs.json(j, &p)?;
     }
+    outputs.commit()?;
     println!(
         "plan rtest ({}), σ = {} µm per component; predicted standard uncertainties (µm | µrad):",
         p.machine, p.sigma_um

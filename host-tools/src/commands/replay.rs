@@ -27,7 +27,7 @@ use axcomp_core::{Engine, EngineStats, Flags};
 /// Coefficient pool of the host's group engine (segments): room for 5 axes × 2 × 1024.
 const HOST_GROUP_POOL: usize = 10 * 1024;
 
-use super::common::write_atomic;
+use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -258,6 +258,13 @@ pub fn summary(r: &Replay) -> String {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Both output paths are checked before the replay; both files are written together at the end.
+    let mut outputs = OutputSet::new();
+    outputs.planned(&args.out);
+    if let Some(p) = &args.csv {
+        outputs.planned(p);
+    }
+    outputs.check()?;
     let image = match &args.image {
         Some(p) => {
             Some(std::fs::read(p).with_context(|| format!("cannot read image {}", p.display()))?)
@@ -281,16 +288,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         (p, text)
     });
-    // Both outputs checked before either is written: the CSV's folder must exist.
-    if let Some((p, _)) = &csv {
-        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            anyhow::ensure!(dir.is_dir(), "--csv {}: folder does not exist", p.display());
-        }
-    }
-    write_atomic(&args.out, &bytes)?;
+    outputs.file(&args.out, bytes);
     if let Some((p, text)) = csv {
-        write_atomic(p, text.as_bytes())?;
+        outputs.file(p, text);
     }
+    outputs.commit()?;
     print!("{}", summary(&r));
     println!(
         "wrote {} ({} records × 32 bytes)",

@@ -19,8 +19,20 @@ fn io(what: &Path) -> impl FnOnce(std::io::Error) -> GeometryError + '_ {
 }
 
 /// Writes `report.md` and the SVGs into `dir` (created if missing); the report is written last.
+/// A thin wrapper over [`report_files`].
 pub fn write_report(dir: &Path, data: &LineData, an: &Analysis) -> Result<(), GeometryError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
+    for (name, text) in report_files(data, an) {
+        let path = dir.join(&name);
+        axcomp_plot::write_atomic(&path, text.as_bytes()).map_err(io(&path))?;
+    }
+    Ok(())
+}
+
+/// The report's files, `(file name, content)`, computed without writing anything: the SVGs first,
+/// `report.md` last (so a writer that goes in order writes the report last).
+pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
+    let mut files: Vec<(String, String)> = Vec::new();
     let model = &an.fit.model;
     let rep = &an.report;
     let mut md = String::from("# Geometric errors (21 ISO 230-1 components)\n\n");
@@ -157,7 +169,7 @@ pub fn write_report(dir: &Path, data: &LineData, an: &Analysis) -> Result<(), Ge
             f.band("± standard uncertainty", &xs, &lo, &hi);
             f.line(c.name(), &xs, &ys);
             let file = format!("{}.svg", c.name());
-            f.save_svg(dir.join(&file)).map_err(io(&dir.join(&file)))?;
+            files.push((file.clone(), f.to_svg()));
             md.push_str(&format!("![{}]({file})\n", c.name()));
         }
     }
@@ -197,7 +209,7 @@ pub fn write_report(dir: &Path, data: &LineData, an: &Analysis) -> Result<(), Ge
             f.line(&format!("y = {y:.0}"), &xs, &ys);
         }
         let file = format!("volumetric_z{}.svg", k + 1);
-        f.save_svg(dir.join(&file)).map_err(io(&dir.join(&file)))?;
+        files.push((file.clone(), f.to_svg()));
         md.push_str(&format!("![volumetric z{}]({file})\n", k + 1));
     }
     md.push('\n');
@@ -236,11 +248,10 @@ pub fn write_report(dir: &Path, data: &LineData, an: &Analysis) -> Result<(), Ge
                 .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
                 .collect();
             let file = format!("line_{safe}.svg");
-            f.save_svg(dir.join(&file)).map_err(io(&dir.join(&file)))?;
+            files.push((file.clone(), f.to_svg()));
             md.push_str(&format!("![line {name}]({file})\n"));
         }
     }
-    axcomp_plot::write_atomic(&dir.join("report.md"), md.as_bytes())
-        .map_err(io(&dir.join("report.md")))?;
-    Ok(())
+    files.push(("report.md".to_string(), md));
+    files
 }
