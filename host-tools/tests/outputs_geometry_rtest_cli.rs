@@ -6,68 +6,9 @@
 
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
 use axcomp_twin::five_axis::{FiveAxisTwin, standard_paths};
-use std::path::Path;
-use std::process::{Command, Output};
 
 mod common;
-use common::scratch;
-
-fn axcomp(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_axcomp"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run axcomp")
-}
-
-/// Every file under `dir` (relative path → bytes), sorted.
-fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            let rel = p.strip_prefix(dir).unwrap().display().to_string();
-            if p.is_dir() {
-                out.push((rel + "/", vec![]));
-                stack.push(p);
-            } else {
-                out.push((rel, std::fs::read(&p).unwrap()));
-            }
-        }
-    }
-    out.sort();
-    out
-}
-
-/// Runs `args` in `dir`: exit 2, `needle` named, no temporary named, the directory exactly as before.
-fn fails_untouched(args: &[&str], dir: &Path, needle: &str) {
-    let before = snapshot(dir);
-    let o = axcomp(args, dir);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
-    assert!(err.contains(needle), "{args:?}: must name {needle}: {err}");
-    assert!(
-        !err.contains("axcomp-tmp"),
-        "{args:?}: names a temporary: {err}"
-    );
-    let after = snapshot(dir);
-    assert_eq!(
-        before.iter().map(|f| &f.0).collect::<Vec<_>>(),
-        after.iter().map(|f| &f.0).collect::<Vec<_>>(),
-        "{args:?}: files appeared or vanished"
-    );
-    assert!(before == after, "{args:?}: an existing output was changed");
-}
-
-fn ok(args: &[&str], dir: &Path) {
-    let o = axcomp(args, dir);
-    assert!(
-        o.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
+use common::{fails_untouched, ok_in as ok, scratch};
 
 /// K4 run 1, C circles at 0° and −60°, K4 run 2 on an AC trunnion twin (seed 3, σ = 0.3 µm), as in
 /// `rtest_cli.rs`.

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 /// The shared data directory (`AXCOMP_SHARED`, else `../shared` next to the workspace). When it is absent
 /// the test prints `skipped: ../shared not found` and gets `None`, except under `CI`, where it fails.
@@ -34,4 +35,63 @@ pub fn read_json(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path)
         .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{} is not JSON: {e}", path.display()))
+}
+
+/// Runs the CLI binary with `args` in `dir`.
+pub fn axcomp_in(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_axcomp"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run axcomp")
+}
+
+/// Every file under `dir` (relative path → bytes), sorted.
+pub fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            let rel = p.strip_prefix(dir).unwrap().display().to_string();
+            if p.is_dir() {
+                out.push((rel + "/", vec![]));
+                stack.push(p);
+            } else {
+                out.push((rel, std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Runs `args` in `dir`: exit 2, `needle` named, no temporary named, the directory exactly as before.
+pub fn fails_untouched(args: &[&str], dir: &Path, needle: &str) {
+    let before = snapshot(dir);
+    let o = axcomp_in(args, dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains(needle), "{args:?}: must name {needle}: {err}");
+    assert!(
+        !err.contains("axcomp-tmp"),
+        "{args:?}: names a temporary: {err}"
+    );
+    let after = snapshot(dir);
+    assert_eq!(
+        before.iter().map(|f| &f.0).collect::<Vec<_>>(),
+        after.iter().map(|f| &f.0).collect::<Vec<_>>(),
+        "{args:?}: files appeared or vanished"
+    );
+    assert!(before == after, "{args:?}: an existing output was changed");
+}
+
+/// Runs `args` in `dir` and requires success.
+pub fn ok_in(args: &[&str], dir: &Path) {
+    let o = axcomp_in(args, dir);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
