@@ -10,7 +10,7 @@
 
 use std::path::PathBuf;
 
-use axcomp_diagnose::validate::{self, Profile, ValidateOptions};
+use axcomp_validation::axis::{self as validate, Profile, ValidateOptions};
 
 use crate::output::OutputSet;
 

@@ -20,8 +20,9 @@
 //!
 //! Modules: [`obs`] (plain columns), [`dataset`] (from an `axcomp-data` CSV), [`basis`] (regressor
 //! families), [`lsq`] (rank-robust least squares and exact refit RSS drops), [`engine`] (the diagnosis),
-//! [`locate`] (where the gap lies), [`report`] (Markdown + SVG), [`validate`] (the withheld-effect
-//! validation harness on `axcomp-twin` campaigns), [`stats`] (F / t tails).
+//! [`locate`] (where the gap lies), [`report`] (Markdown + SVG), [`stats`] (F / t tails). The
+//! withheld-effect validation harness lives in `axcomp-validation`, so that this crate depends on no
+//! simulator.
 //!
 //! ```no_run
 //! use axcomp_diagnose::{diagnose, DiagnoseOptions, EffectKind, Observations};
@@ -38,7 +39,6 @@ pub mod lsq;
 pub mod obs;
 pub mod report;
 pub mod stats;
-pub mod validate;
 
 /// The effect vocabulary is the twin's (one definition for the twin and the diagnosis).
 pub use axcomp_effects::EffectKind;

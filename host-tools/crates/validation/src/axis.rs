@@ -43,11 +43,11 @@ use serde::Serialize;
 
 use axcomp_twin as twin;
 
-use crate::EffectKind;
-use crate::engine::{self, DiagnoseOptions};
-use crate::lsq;
-use crate::obs::{Named, Observations};
-use crate::stats;
+use axcomp_diagnose::EffectKind;
+use axcomp_diagnose::engine::{self, DiagnoseOptions};
+use axcomp_diagnose::lsq;
+use axcomp_diagnose::obs::{Named, Observations};
+use axcomp_diagnose::stats;
 
 /// Which case generator (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

@@ -1,7 +1,7 @@
-//! Runs the withheld-effect validation without the CLI: `cargo run --release -p axcomp-diagnose --example
+//! Runs the withheld-effect validation without the CLI: `cargo run --release -p axcomp-validation --example
 //! validate -- [cases] [seed] [rows]`.
 
-use axcomp_diagnose::validate::{self, ValidateOptions};
+use axcomp_validation::axis::{self as validate, ValidateOptions};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

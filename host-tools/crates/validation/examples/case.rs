@@ -1,8 +1,8 @@
-//! Prints the diagnosis JSON of one validation case: `cargo run --release -p axcomp-diagnose --example
+//! Prints the diagnosis JSON of one validation case: `cargo run --release -p axcomp-validation --example
 //! case -- <index> [seed] [rows]`.
 
-use axcomp_diagnose::validate::{self, ValidateOptions};
 use axcomp_diagnose::{DiagnoseOptions, diagnose};
+use axcomp_validation::axis::{self as validate, ValidateOptions};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
