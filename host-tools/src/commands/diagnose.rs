@@ -8,6 +8,7 @@
 use std::path::PathBuf;
 
 use axcomp_diagnose::{DiagnoseOptions, EffectKind, dataset, report};
+use axcomp_effects::DataKind;
 
 use crate::cli::DataArgs;
 use crate::commands::common;
@@ -36,6 +37,19 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let ds = common::load_dataset(&args.data)?;
+    // The file's columns say which kind of data it is (contract: "Effect kinds for geometry, rotary-axis
+    // and probe data"); each machine-level kind has its own diagnosis module.
+    match DataKind::detect(&ds.column_names()) {
+        Some(DataKind::LaserLines) => super::diagnose_lines::run(&args, ds),
+        Some(DataKind::RTest) => super::diagnose_rtest::run(&args, ds),
+        Some(DataKind::ProbeTouches) => super::diagnose_probe::run(&args, ds),
+        Some(DataKind::Axis) | None => run_axis(args, ds),
+    }
+}
+
+/// Single-axis data (`target_mm`, `deviation_um`, ...): the effect kinds of the axis vocabulary.
+fn run_axis(args: Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
     let model = EffectKind::parse_list(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
     // The outputs are planned and checked before the search; written together at the end.
     let mut outputs = OutputSet::new();
@@ -46,7 +60,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outputs.planned(path);
     }
     outputs.check()?;
-    let ds = common::load_dataset(&args.data)?;
     let obs = dataset::observations(&ds, &args.target, &args.holdout)?;
     // The observations hold every column the diagnosis uses: free the table before the search.
     drop(ds);

@@ -3,6 +3,9 @@
 pub mod common;
 pub mod demo;
 pub mod diagnose;
+pub mod diagnose_lines;
+pub mod diagnose_probe;
+pub mod diagnose_rtest;
 pub mod export;
 pub mod fit_force;
 pub mod fit_geometry;

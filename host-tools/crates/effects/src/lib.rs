@@ -2,9 +2,14 @@
 //! them) and the diagnosis (which names them), so that neither depends on the other for it.
 //!
 //! Glossary: an **effect kind** is one of the contract's named error sources (`interfaces.md`, "Effect
-//! kinds"); its physical parameters and simulation live in the twin (`axcomp_twin::Effect`).
+//! kinds"); its physical parameters and simulation live in the twin (`axcomp_twin::Effect`). The
+//! machine-level campaigns (laser lines, R-test, probe touches) have their own vocabularies in
+//! [`campaign_kinds`].
 
+pub mod campaign_kinds;
 pub mod thermal_model;
+
+pub use campaign_kinds::{DataKind, LineEffect, ProbeEffect, RotaryEffect, UnknownKind};
 
 use core::fmt;
 use core::str::FromStr;
