@@ -457,6 +457,33 @@ impl GroupDrive {
         (id, v as u16)
     }
 
+    /// [`GroupDrive::run`] with the board's probe input ([`GroupDrive::cycle_with_probe`]).
+    #[allow(clippy::too_many_arguments)]
+    pub async fn run_with_probe<const POOL: usize, Io, P, C, T, W, F>(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        probe: &mut P,
+        clock: &C,
+        timer: &mut T,
+        watchdog: &mut W,
+        mut between: F,
+    ) -> !
+    where
+        Io: DriveIo,
+        P: ProbeIo,
+        C: CycleClock,
+        T: CycleTimer,
+        W: Watchdog,
+        F: FnMut(&mut GroupEngine<POOL>, &GroupDrive),
+    {
+        loop {
+            timer.next_cycle().await;
+            between(engine, self);
+            self.cycle_with_probe(engine, io, probe, clock, watchdog);
+        }
+    }
+
     /// Runs forever at the timer's pace; `between` runs before each cycle with the engine (to hand it
     /// temperatures) and the drive (the previous cycle's status, the counters).
     pub async fn run<const POOL: usize, Io, C, T, W, F>(
