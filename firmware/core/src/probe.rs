@@ -154,7 +154,7 @@ pub struct ProbeConfig {
     pub enabled: bool,
     min_pulse_ticks: u32,
     lockout_ticks: u32,
-    latency_s: f64,
+    latency_s: f32,
     moving_um_per_s: f32,
     tick_hz: u32,
 }
@@ -187,7 +187,7 @@ impl ProbeConfig {
             enabled: true,
             min_pulse_ticks: ticks(settings.min_pulse_us),
             lockout_ticks: ticks(settings.lockout_us),
-            latency_s: settings.latency_ns as f64 * 1e-9,
+            latency_s: (settings.latency_ns as f64 * 1e-9) as f32,
             moving_um_per_s: settings.moving_um_per_s,
             tick_hz,
         })
@@ -471,11 +471,14 @@ impl VelocityWindow {
         if dt == 0 || dt > i32::MAX as u32 {
             return None;
         }
-        let seconds = dt as f64 / tick_hz as f64;
+        // f32 (one hardware division; relative error ~1e-7, far below the counter's quantisation
+        // over the window).
+        let per_second = tick_hz as f32 / dt as f32;
         let mut v = [0.0f32; MAX_AXES];
         for (k, vk) in v.iter_mut().enumerate() {
             let d = self.positions[newest][k].wrapping_sub(self.positions[oldest][k]);
-            *vk = (d as f64 / seconds) as f32;
+            let d = d.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+            *vk = d as f32 * per_second;
         }
         Some(v)
     }
@@ -708,7 +711,8 @@ impl Probe {
     }
 
     /// The latched point of a trigger: captured counts − v·latency, in µm, + the loop's error at
-    /// the captured counts, rounded to nanometres (f64: exact for any count below 2^53).
+    /// the captured counts, rounded to nanometres (v·latency in f32, the sum in f64: the counts are
+    /// exact below 2^53).
     fn latch_point<C: LatchCorrection>(&self, p: &Pending, correction: &C, n: usize) -> Latch {
         let (error_um, limited) = correction.error_um(&p.counts);
         let mut quality = ProbeFlags::NONE;
@@ -722,7 +726,7 @@ impl Probe {
         let mut point_nm = [0i64; MAX_AXES];
         for k in 0..n {
             let upc = correction.um_per_count(k) as f64;
-            let counts = p.counts[k] as f64 - v[k] as f64 * self.config.latency_s;
+            let counts = p.counts[k] as f64 - (v[k] * self.config.latency_s) as f64;
             let um = counts * upc + error_um[k] as f64;
             point_nm[k] = libm::round(um * 1000.0) as i64;
         }

@@ -335,9 +335,14 @@ impl GroupDrive {
         }
         let mut out = GroupOutput::ZERO;
         engine.cycle(&input, &mut out);
-        let probe_flags = self
-            .probe
-            .cycle(engine, probe_io, start_tick, &self.inputs[..n]);
+        // Without probe settings (the common case) nothing of the probe runs.
+        let probe_on = self.probe.enabled();
+        let probe_flags = if probe_on {
+            self.probe
+                .cycle(engine, probe_io, start_tick, &self.inputs[..n])
+        } else {
+            axcomp_core::probe::ProbeFlags::NONE
+        };
 
         // ---- supervisors, status word ----
         let group = engine.active();
@@ -374,7 +379,9 @@ impl GroupDrive {
         status.set(Status::CYCLE_LATE, late_start);
         status.set(Status::OVERRUN, self.prev_overrun);
         status.set(Status::REPLY_DROPPED, self.prev_reply_dropped);
-        status.insert(ProbeDrive::status(probe_flags));
+        if probe_on {
+            status.insert(ProbeDrive::status(probe_flags));
+        }
         self.last_status = status;
 
         // ---- reply frame: corrected commands by board input, status, one counter ----
@@ -383,10 +390,8 @@ impl GroupDrive {
             reply[usize::from(input)] = corrected[i] as i32;
         }
         let (id, value) = self.next_counter_value(engine);
-        let probe_block = self
-            .probe
-            .enabled()
-            .then(|| self.probe.reply(probe_flags, &self.inputs[..n], n_inputs));
+        let probe_block =
+            probe_on.then(|| self.probe.reply(probe_flags, &self.inputs[..n], n_inputs));
         let mut frame = [0u8; MAX_REPLY_FRAME_LEN];
         let len = ReplyFrame::new(
             self.reply_seq,

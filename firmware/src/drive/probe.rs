@@ -169,6 +169,7 @@ impl ProbeDrive {
     /// One cycle after the engine's: the edges since the last cycle with their counters extended
     /// against each axis's state of this cycle, the arm command, the latch with the engine's
     /// correction. `now` = the cycle's start tick; `inputs` = the board input of each group slot.
+    #[inline(never)]
     pub fn cycle<const POOL: usize, P: ProbeIo>(
         &mut self,
         engine: &GroupEngine<POOL>,
@@ -217,6 +218,7 @@ impl ProbeDrive {
     }
 
     /// The status-word bits of a cycle's probe flags.
+    #[inline(never)]
     pub fn status(flags: ProbeFlags) -> Status {
         let mut s = Status::NONE;
         s.set(Status::PROBE_LATCHED, flags.has(ProbeEvent::Latched));
@@ -234,6 +236,7 @@ impl ProbeDrive {
     /// The v3 reply block of this cycle: the flags, the latch sequence and the next item round robin
     /// (the latched point of each of the `n_inputs` board inputs, then the event counters).
     /// `inputs` = the board input of each group slot.
+    #[inline(never)]
     pub fn reply(&mut self, flags: ProbeFlags, inputs: &[u8], n_inputs: usize) -> ProbeReply {
         let n_items = n_inputs + ProbeEvent::ALL.len();
         let k = usize::from(self.next_item) % n_items.max(1);
