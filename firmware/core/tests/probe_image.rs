@@ -251,3 +251,20 @@ fn error_at_is_the_loops_correction() {
         );
     }
 }
+
+proptest::proptest! {
+    /// Any 20 bytes in the probe section (resealed, so only the values are wrong): the parser never
+    /// panics and accepts exactly the settings `ProbeSettings::from_bytes` accepts, unchanged.
+    #[test]
+    fn any_probe_section_is_parsed_or_refused_never_half(payload in proptest::collection::vec(proptest::num::u8::ANY, PROBE_SECTION_LEN)) {
+        let mut b = group_image(Some(&SETTINGS));
+        let (_, off) = probe_section(&b);
+        b[off..off + PROBE_SECTION_LEN].copy_from_slice(&payload);
+        reseal(&mut b);
+        match (group_image::parse(&b), ProbeSettings::from_bytes(&payload)) {
+            (Ok(view), Ok(s)) => proptest::prop_assert_eq!(view.probe, Some(s)),
+            (Err(e), Err(f)) => proptest::prop_assert_eq!(e, f),
+            (got, want) => proptest::prop_assert!(false, "parse {:?} vs settings {:?}", got.map(|v| v.probe), want),
+        }
+    }
+}
