@@ -424,7 +424,9 @@ pub fn extend_captured_in_group<const POOL: usize>(
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct VelocityWindow {
     times: [u32; VELOCITY_SAMPLES],
-    positions: [[i64; MAX_AXES]; VELOCITY_SAMPLES],
+    /// Low 32 bits of the extended positions (differences over the window are exact while an axis
+    /// moves less than 2^31 counts in 4.8 ms).
+    positions: [[i32; MAX_AXES]; VELOCITY_SAMPLES],
     /// Samples held (≤ VELOCITY_SAMPLES).
     held: u8,
     /// Index of the newest.
@@ -454,7 +456,7 @@ impl VelocityWindow {
             (self.newest as usize + 1) % VELOCITY_SAMPLES
         };
         self.times[next] = now;
-        self.positions[next] = *positions;
+        self.positions[next] = positions.map(|p| p as i32);
         self.newest = next as u8;
         self.held = (self.held + 1).min(VELOCITY_SAMPLES as u8);
     }
@@ -477,7 +479,6 @@ impl VelocityWindow {
         let mut v = [0.0f32; MAX_AXES];
         for (k, vk) in v.iter_mut().enumerate() {
             let d = self.positions[newest][k].wrapping_sub(self.positions[oldest][k]);
-            let d = d.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
             *vk = d as f32 * per_second;
         }
         Some(v)

@@ -241,13 +241,12 @@ fn error_at_is_the_loops_correction() {
     let (err, limited) = g.error_at(&st, &ext);
     assert!(!limited);
     assert!(out.axes[0].correction_um.abs() > 1.0, "a real correction");
-    for i in 0..5 {
+    for (i, (e, o)) in err.iter().zip(out.axes.iter()).enumerate() {
         assert_eq!(
-            err[i].to_bits(),
-            out.axes[i].correction_um.to_bits(),
-            "slot {i}: {} vs {}",
-            err[i],
-            out.axes[i].correction_um
+            e.to_bits(),
+            o.correction_um.to_bits(),
+            "slot {i}: {e} vs {}",
+            o.correction_um
         );
     }
 }
