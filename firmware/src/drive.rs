@@ -855,6 +855,7 @@ pub mod fake {
 
 pub mod group;
 pub mod link_trace;
+pub mod probe;
 
 #[cfg(test)]
 mod tests;

@@ -33,11 +33,14 @@ pub mod board;
 
 #[cfg(feature = "std")]
 mod drive_scenario;
+#[cfg(feature = "std")]
+mod probe_scenario;
 
 /// The trace scenario generator: the host crate `axcomp-scenario` plus the drive-trace scenarios that need
 /// the firmware's link and drive types (re-exported for tests/).
 #[cfg(feature = "std")]
 pub mod scenario {
     pub use crate::drive_scenario::*;
+    pub use crate::probe_scenario::*;
     pub use axcomp_scenario::*;
 }

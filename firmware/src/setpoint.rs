@@ -27,6 +27,26 @@
 //! | setpoint (CNC → drive) | `0xA5`, `0x20 \| n`, `seq`, n × `i32` command, `u16` CRC | version 2 in the high nibble, axis count 1–5 in the low nibble | 5 + 4n: 9 (n = 1), 17 (n = 3), 25 (n = 5) |
 //! | reply (drive → CNC) | `0x5A`, `0x20 \| n`, `seq`, n × `i32` corrected command, `u32` status, `u8` echo, `u8` counter id, `u16` counter value, `u16` CRC | `seq` = the drive's own reply counter (checked like the setpoints'), `echo` = sequence of the setpoint frame the corrected commands answer; one [`CounterId`] per frame, round robin, low 16 bits (the receiver extends them) | 13 + 4n: 17 (n = 1), 25 (n = 3) |
 //!
+//! **Version 3: the touch probe** (issue 12). Versioned and backwards compatible: the high nibble of
+//! the second byte is 3 instead of 2, the CRC still covers every byte after the sync byte, and one block
+//! is appended before the CRC. A drive decodes setpoint frames of both versions (a v2 frame is a frame
+//! whose probe byte is 0: not armed), and sends v3 replies only while its image has probe settings
+//! (section kind 4), so a CNC that speaks only v2 keeps working with every image without a probe. The
+//! reply decoder takes both versions.
+//!
+//! | frame | v3 block (before the CRC) | length (n axes) |
+//! |---|---|---|
+//! | setpoint | `u8` probe command: bit 0 = a probing move is armed (G31 / SKIP); other bits 0 | 6 + 4n: 18 (n = 3) |
+//! | reply | `u16` probe flags ([`axcomp_core::probe::ProbeFlags`]: phase, this cycle's events, latch quality), `u8` latch sequence (+1 per latch), `u8` item, `i32` item value | 21 + 4n: 33 (n = 3) |
+//!
+//! Items, round robin like the counters: `0..n` = the latched point of board input k (nanometres in the
+//! corrected coordinates, `i32` saturated: ±2.1 m; a rotary axis's in milli-arc-seconds), `0x10 + e` = the
+//! counter of probe event `e` ([`axcomp_core::probe::ProbeEvent`] code: latched, glitch, bounce, unarmed
+//! trigger, trigger during a move, edges lost; low 32 bits). With n inputs a full report takes n + 6
+//! cycles (0.9 ms for three axes at 10 kHz); the latch sequence tells the CNC which latch the points
+//! belong to. A probing three-axis group needs ≥ 3.3 Mbaud at 10 kHz (33 reply bytes per cycle), or a
+//! 6 kHz cycle at 2 Mbaud.
+//!
 //! **Link budget.** At 2 Mbaud, 8N1, a byte takes 5 µs, so a 100 µs cycle carries 20 bytes in each
 //! direction: a setpoint frame for up to 3 axes (17 bytes, 85 µs) and a one-axis reply (17 bytes, 85 µs)
 //! fit at 10 kHz. A five-axis setpoint frame (25 bytes, 125 µs) or a three-axis reply (25 bytes, 125 µs)
@@ -48,6 +68,16 @@ pub const SETPOINT_SYNC: u8 = 0xA5;
 pub const REPLY_SYNC: u8 = 0x5A;
 /// Frame format version (high nibble of the second byte).
 pub const VERSION: u8 = 2;
+/// Frame format version with the touch-probe block (see the module doc).
+pub const VERSION_PROBE: u8 = 3;
+/// Probe block of a v3 setpoint frame: the probe command byte.
+pub const SETPOINT_PROBE_LEN: usize = 1;
+/// Probe block of a v3 reply frame: flags, latch sequence, item, value.
+pub const REPLY_PROBE_LEN: usize = 2 + 1 + 1 + 4;
+/// Probe command bit: a probing move is armed.
+pub const PROBE_ARM: u8 = 1;
+/// First reply probe item carrying a counter (item `PROBE_ITEM_COUNTER + event code`).
+pub const PROBE_ITEM_COUNTER: u8 = 0x10;
 /// Most axes a frame carries.
 pub const MAX_AXES: usize = 5;
 /// Sync, version/axis count, sequence.
@@ -67,10 +97,22 @@ pub const fn reply_frame_len(n_axes: usize) -> usize {
     HEADER_LEN + 4 * n_axes + REPLY_TAIL_LEN + CRC_LEN
 }
 
-/// Longest setpoint frame (5 axes).
-pub const MAX_SETPOINT_FRAME_LEN: usize = setpoint_frame_len(MAX_AXES);
-/// Longest reply frame (5 axes).
-pub const MAX_REPLY_FRAME_LEN: usize = reply_frame_len(MAX_AXES);
+/// Bytes of a v3 (probe) setpoint frame for `n_axes` axes.
+pub const fn setpoint_probe_frame_len(n_axes: usize) -> usize {
+    setpoint_frame_len(n_axes) + SETPOINT_PROBE_LEN
+}
+
+/// Bytes of a v3 (probe) reply frame for `n_axes` axes.
+pub const fn reply_probe_frame_len(n_axes: usize) -> usize {
+    reply_frame_len(n_axes) + REPLY_PROBE_LEN
+}
+
+/// Longest setpoint frame (5 axes, v3).
+pub const MAX_SETPOINT_FRAME_LEN: usize = setpoint_probe_frame_len(MAX_AXES);
+/// Longest reply frame (5 axes, v3).
+pub const MAX_REPLY_FRAME_LEN: usize = reply_probe_frame_len(MAX_AXES);
+/// Longest v2 reply frame (5 axes, no probe block).
+pub const MAX_REPLY_V2_FRAME_LEN: usize = reply_frame_len(MAX_AXES);
 
 const CRC_TABLE: [u16; 256] = {
     let mut t = [0u16; 256];
@@ -129,6 +171,8 @@ pub struct SetpointFrame {
     pub seq: u8,
     n_axes: u8,
     commands: [i32; MAX_AXES],
+    /// The probe command byte of a v3 frame (`None`: a v2 frame).
+    pub probe: Option<u8>,
 }
 
 impl SetpointFrame {
@@ -143,7 +187,19 @@ impl SetpointFrame {
             seq,
             n_axes: commands.len() as u8,
             commands: c,
+            probe: None,
         })
+    }
+
+    /// The same frame as v3 with the probe command byte `probe` (bit 0 [`PROBE_ARM`]).
+    pub fn with_probe(mut self, probe: u8) -> Self {
+        self.probe = Some(probe);
+        self
+    }
+
+    /// True if the frame arms a probing move.
+    pub fn probe_armed(&self) -> bool {
+        self.probe.is_some_and(|p| p & PROBE_ARM != 0)
     }
 
     /// Commands (low 32 bits), one per axis in group order.
@@ -159,12 +215,21 @@ impl SetpointFrame {
     pub fn encode_into(&self, out: &mut [u8; MAX_SETPOINT_FRAME_LEN]) -> usize {
         let n = self.n_axes();
         out[0] = SETPOINT_SYNC;
-        out[1] = (VERSION << 4) | self.n_axes;
+        let version = if self.probe.is_some() {
+            VERSION_PROBE
+        } else {
+            VERSION
+        };
+        out[1] = (version << 4) | self.n_axes;
         out[2] = self.seq;
         for (i, c) in self.commands().iter().enumerate() {
             out[HEADER_LEN + 4 * i..HEADER_LEN + 4 * i + 4].copy_from_slice(&c.to_le_bytes());
         }
-        let body = HEADER_LEN + 4 * n;
+        let mut body = HEADER_LEN + 4 * n;
+        if let Some(p) = self.probe {
+            out[body] = p;
+            body += SETPOINT_PROBE_LEN;
+        }
         let crc = crc16(&out[1..body]);
         out[body..body + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
         body + CRC_LEN
@@ -176,10 +241,12 @@ impl SetpointFrame {
         for (i, c) in commands.iter_mut().enumerate().take(n) {
             *c = i32_at(bytes, HEADER_LEN + 4 * i);
         }
+        let probe = (bytes[1] >> 4 == VERSION_PROBE).then(|| bytes[HEADER_LEN + 4 * n]);
         SetpointFrame {
             seq: bytes[2],
             n_axes: n as u8,
             commands,
+            probe,
         }
     }
 }
@@ -225,6 +292,21 @@ impl CounterId {
     }
 }
 
+/// The probe block of a v3 reply frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ProbeReply {
+    /// [`axcomp_core::probe::ProbeFlags`] bits of this cycle.
+    pub flags: u16,
+    /// Latches since start (wrapping).
+    pub latch_seq: u8,
+    /// What `value` is: `0..n` the latched point of board input k (nm), `0x10 + e` the counter of
+    /// probe event `e`.
+    pub item: u8,
+    /// The item's value.
+    pub value: i32,
+}
+
 /// One reply frame: the corrected commands (low 32 bits), the status word and one counter.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -241,6 +323,8 @@ pub struct ReplyFrame {
     pub counter_id: Option<CounterId>,
     /// Low 16 bits of that counter.
     pub counter_value: u16,
+    /// The probe block (a v3 frame), `None` for a v2 frame.
+    pub probe: Option<ProbeReply>,
 }
 
 impl ReplyFrame {
@@ -265,7 +349,14 @@ impl ReplyFrame {
             status,
             counter_id: Some(counter_id),
             counter_value,
+            probe: None,
         })
+    }
+
+    /// The same frame as v3 with the probe block `probe`.
+    pub fn with_probe(mut self, probe: ProbeReply) -> Self {
+        self.probe = Some(probe);
+        self
     }
 
     pub fn corrected(&self) -> &[i32] {
@@ -280,7 +371,12 @@ impl ReplyFrame {
     pub fn encode_into(&self, out: &mut [u8; MAX_REPLY_FRAME_LEN]) -> usize {
         let n = self.n_axes();
         out[0] = REPLY_SYNC;
-        out[1] = (VERSION << 4) | self.n_axes;
+        let version = if self.probe.is_some() {
+            VERSION_PROBE
+        } else {
+            VERSION
+        };
+        out[1] = (version << 4) | self.n_axes;
         out[2] = self.seq;
         for (i, c) in self.corrected().iter().enumerate() {
             out[HEADER_LEN + 4 * i..HEADER_LEN + 4 * i + 4].copy_from_slice(&c.to_le_bytes());
@@ -290,7 +386,14 @@ impl ReplyFrame {
         out[t + 4] = self.echo;
         out[t + 5] = self.counter_id.map_or(0xFF, |c| c as u8);
         out[t + 6..t + 8].copy_from_slice(&self.counter_value.to_le_bytes());
-        let body = t + REPLY_TAIL_LEN;
+        let mut body = t + REPLY_TAIL_LEN;
+        if let Some(p) = self.probe {
+            out[body..body + 2].copy_from_slice(&p.flags.to_le_bytes());
+            out[body + 2] = p.latch_seq;
+            out[body + 3] = p.item;
+            out[body + 4..body + 8].copy_from_slice(&p.value.to_le_bytes());
+            body += REPLY_PROBE_LEN;
+        }
         let crc = crc16(&out[1..body]);
         out[body..body + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
         body + CRC_LEN
@@ -303,6 +406,13 @@ impl ReplyFrame {
             *c = i32_at(bytes, HEADER_LEN + 4 * i);
         }
         let t = HEADER_LEN + 4 * n;
+        let p = t + REPLY_TAIL_LEN;
+        let probe = (bytes[1] >> 4 == VERSION_PROBE).then(|| ProbeReply {
+            flags: u16::from_le_bytes([bytes[p], bytes[p + 1]]),
+            latch_seq: bytes[p + 2],
+            item: bytes[p + 3],
+            value: i32_at(bytes, p + 4),
+        });
         ReplyFrame {
             seq: bytes[2],
             n_axes: n as u8,
@@ -311,6 +421,7 @@ impl ReplyFrame {
             echo: bytes[t + 4],
             counter_id: CounterId::from_u8(bytes[t + 5]),
             counter_value: u16::from_le_bytes([bytes[t + 6], bytes[t + 7]]),
+            probe,
         }
     }
 }
@@ -348,8 +459,8 @@ pub struct LinkEvents {
 pub trait FrameKind {
     type Frame: Copy;
     const SYNC: u8;
-    /// Bytes after the commands and before the CRC.
-    const TAIL_LEN: usize;
+    /// Bytes after the commands and before the CRC of a frame of `version` (2 or 3).
+    fn tail_len(version: u8) -> usize;
     fn seq(frame: &Self::Frame) -> u8;
     fn decode(bytes: &[u8]) -> Self::Frame;
 }
@@ -364,7 +475,13 @@ pub struct Replies;
 impl FrameKind for Setpoints {
     type Frame = SetpointFrame;
     const SYNC: u8 = SETPOINT_SYNC;
-    const TAIL_LEN: usize = 0;
+    fn tail_len(version: u8) -> usize {
+        if version == VERSION_PROBE {
+            SETPOINT_PROBE_LEN
+        } else {
+            0
+        }
+    }
     fn seq(f: &SetpointFrame) -> u8 {
         f.seq
     }
@@ -376,7 +493,13 @@ impl FrameKind for Setpoints {
 impl FrameKind for Replies {
     type Frame = ReplyFrame;
     const SYNC: u8 = REPLY_SYNC;
-    const TAIL_LEN: usize = REPLY_TAIL_LEN;
+    fn tail_len(version: u8) -> usize {
+        if version == VERSION_PROBE {
+            REPLY_TAIL_LEN + REPLY_PROBE_LEN
+        } else {
+            REPLY_TAIL_LEN
+        }
+    }
     fn seq(f: &ReplyFrame) -> u8 {
         f.seq
     }
@@ -466,10 +589,11 @@ impl<K: FrameKind> FrameDecoder<K> {
             return Parse::NeedMore;
         }
         let n = usize::from(self.buf[1] & 0x0F);
-        if self.buf[1] >> 4 != VERSION || n == 0 || n > MAX_AXES {
+        let version = self.buf[1] >> 4;
+        if (version != VERSION && version != VERSION_PROBE) || n == 0 || n > MAX_AXES {
             return Parse::Drop { corrupt: false };
         }
-        let body = HEADER_LEN + 4 * n + K::TAIL_LEN;
+        let body = HEADER_LEN + 4 * n + K::tail_len(version);
         let flen = body + CRC_LEN;
         if self.len < flen {
             return Parse::NeedMore;
@@ -519,7 +643,7 @@ impl<K: FrameKind> FrameDecoder<K> {
                     if self.len >= 2 {
                         self.need = HEADER_LEN
                             + 4 * usize::from(self.buf[1] & 0x0F)
-                            + K::TAIL_LEN
+                            + K::tail_len(self.buf[1] >> 4)
                             + CRC_LEN;
                     }
                     return None;
@@ -657,6 +781,50 @@ mod tests {
         let mut s = SetpointDecoder::new();
         assert!(feed(&mut s, &b[..n]).is_empty());
         assert_eq!(s.counters().frames_ok, 0);
+    }
+
+    /// Version 3 (probe block): both decoders take v2 and v3 frames; a v2 frame's probe command is
+    /// absent (not armed); every single-bit flip of a v3 frame is detected like a v2 frame's.
+    #[test]
+    fn probe_frames_v3_roundtrip_beside_v2() {
+        let mut d = SetpointDecoder::new();
+        let mut b = [0u8; MAX_SETPOINT_FRAME_LEN];
+        let v3 = SetpointFrame::new(1, &[10, -20, 30])
+            .unwrap()
+            .with_probe(PROBE_ARM);
+        let n = v3.encode_into(&mut b);
+        assert_eq!(n, setpoint_probe_frame_len(3));
+        assert_eq!(n, 18);
+        let mut stream = b[..n].to_vec();
+        stream.extend_from_slice(&setpoint_bytes(2, &[11, -21, 31]));
+        let got = feed(&mut d, &stream);
+        assert_eq!(got.len(), 2);
+        assert!(got[0].probe_armed() && got[0].probe == Some(PROBE_ARM));
+        assert_eq!(got[0].commands(), &[10, -20, 30]);
+        assert!(!got[1].probe_armed() && got[1].probe.is_none());
+        let r = ReplyFrame::new(3, 1, &[1, 2, 3], 0x0020_0000, CounterId::Cycles, 9)
+            .unwrap()
+            .with_probe(ProbeReply {
+                flags: 0x0012,
+                latch_seq: 4,
+                item: 1,
+                value: -123_456_789,
+            });
+        let mut rb = [0u8; MAX_REPLY_FRAME_LEN];
+        let rn = r.encode_into(&mut rb);
+        assert_eq!(rn, reply_probe_frame_len(3));
+        assert_eq!(rn, 33);
+        let mut rd = ReplyDecoder::new();
+        let got: Vec<_> = rb[..rn].iter().filter_map(|&x| rd.push(x)).collect();
+        assert_eq!(got, [r]);
+        let good = b[..n].to_vec();
+        for bit in 0..good.len() * 8 {
+            let mut bad = good.clone();
+            bad[bit / 8] ^= 1 << (bit % 8);
+            let mut d = SetpointDecoder::new();
+            let got = feed(&mut d, &bad);
+            assert!(got.is_empty(), "bit {bit} accepted");
+        }
     }
 
     #[test]

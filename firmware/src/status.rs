@@ -68,12 +68,25 @@ impl Status {
     pub const NON_FINITE: Status = Status(1 << 19);
     /// The reply frame of the previous cycle did not fit the transmit buffer and was dropped.
     pub const REPLY_DROPPED: Status = Status(1 << 20);
+    /// A probe trigger of an armed probing move was latched this cycle (the point is in the v3 reply).
+    pub const PROBE_LATCHED: Status = Status(1 << 21);
+    /// A probe pulse shorter than the filter's minimum width was rejected this cycle.
+    pub const PROBE_GLITCH: Status = Status(1 << 22);
+    /// A probe leading edge inside a contact's lockout (bounce) was ignored this cycle.
+    pub const PROBE_BOUNCE: Status = Status(1 << 23);
+    /// A probe trigger while no probing move was armed (axes at rest) was ignored this cycle.
+    pub const PROBE_UNARMED: Status = Status(1 << 24);
+    /// A probe trigger during a non-probing move (a rapid: a possible collision) was ignored this cycle.
+    pub const PROBE_DURING_MOVE: Status = Status(1 << 25);
+    /// Probe edges were lost (capture queue overflow, or a level contradicting the edges); a pending
+    /// trigger was dropped.
+    pub const PROBE_EDGES_LOST: Status = Status(1 << 26);
 
     /// Bits that stay set across cycles until their condition ends (see the module doc).
     pub const LATCHED: Status = Status(Self::IMAGE_REFUSED.0 | Self::WATCHDOG_RESET.0);
 
     /// Every flag with its name, in bit order (for logs and reports).
-    pub const NAMES: [(Status, &'static str); 21] = [
+    pub const NAMES: [(Status, &'static str); 27] = [
         (Self::SENSOR_STALE, "SENSOR_STALE"),
         (Self::SENSOR_IMPLAUSIBLE, "SENSOR_IMPLAUSIBLE"),
         (Self::THERMAL_FROZEN, "THERMAL_FROZEN"),
@@ -95,6 +108,12 @@ impl Status {
         (Self::FORCE_INVALID, "FORCE_INVALID"),
         (Self::NON_FINITE, "NON_FINITE"),
         (Self::REPLY_DROPPED, "REPLY_DROPPED"),
+        (Self::PROBE_LATCHED, "PROBE_LATCHED"),
+        (Self::PROBE_GLITCH, "PROBE_GLITCH"),
+        (Self::PROBE_BOUNCE, "PROBE_BOUNCE"),
+        (Self::PROBE_UNARMED, "PROBE_UNARMED"),
+        (Self::PROBE_DURING_MOVE, "PROBE_DURING_MOVE"),
+        (Self::PROBE_EDGES_LOST, "PROBE_EDGES_LOST"),
     ];
 
     pub const fn bits(self) -> u32 {

@@ -60,6 +60,14 @@ pub enum Field {
     Pivot,
     /// Rotary stage: tool length.
     ToolLength,
+    /// Probe settings: minimum pulse width of the trigger filter.
+    ProbeMinPulse,
+    /// Probe settings: latency of the trigger signal.
+    ProbeLatency,
+    /// Probe settings: lockout window after a trigger.
+    ProbeLockout,
+    /// Probe settings: speed above which an unarmed trigger counts as one during a move.
+    ProbeMovingSpeed,
 }
 
 impl Field {
@@ -93,6 +101,10 @@ impl Field {
             Field::RotaryLocation => "rotary.location_errors",
             Field::Pivot => "rotary.pivot_counts",
             Field::ToolLength => "rotary.tool_length_um",
+            Field::ProbeMinPulse => "probe.min_pulse_us",
+            Field::ProbeLatency => "probe.latency_ns",
+            Field::ProbeLockout => "probe.lockout_us",
+            Field::ProbeMovingSpeed => "probe.moving_um_per_s",
         }
     }
 }

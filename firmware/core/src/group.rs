@@ -576,6 +576,82 @@ impl<const POOL: usize> Group<POOL> {
     }
 }
 
+/// The loop's correction at given positions (for a probe latch, [`crate::probe`]).
+impl<const POOL: usize> Group<POOL> {
+    /// The error (µm) the loop corrects for every slot if the axes stood at `positions_counts`
+    /// (extended counts, by slot), with each axis's present direction and cached thermal state:
+    /// table (a rotary axis at its position within the turn) + thermo-force term (cached
+    /// b0 + Σ b_i·ΔT_i + predicted forces + expansion at this position; no measured force) +
+    /// the cross-axis stage's deviation with these positions taken as the commanded ones, in the
+    /// cycle's order, then clamped to ±`max_correction_um` as the loop clamps (no slew: that
+    /// limits a change over time, not a position). The second value is true if a slot was
+    /// clamped or not finite (a non-finite error is reported as 0). All zero for the identity.
+    pub fn error_at(
+        &self,
+        st: &GroupState,
+        positions_counts: &[i64; MAX_AXES],
+    ) -> ([f32; MAX_AXES], bool) {
+        let mut e = [0.0f32; MAX_AXES];
+        if !self.loaded {
+            return (e, false);
+        }
+        let d = if self.has_stage {
+            self.stage_deviation_at(positions_counts)
+        } else {
+            [0.0; MAX_AXES]
+        };
+        let mut limited = false;
+        let n = (self.n_axes as usize).min(MAX_AXES);
+        for i in 0..n {
+            let (ax, s, pos) = (&self.axes[i], &st.axes[i], positions_counts[i]);
+            let cpr = self.counts_per_rev[i];
+            let table_pos = if cpr != 0 { wrap(pos, cpr) as i64 } else { pos };
+            let dir = s.direction();
+            let (mut total, _) = ax.table_um_in(&self.pool, dir, table_pos);
+            if ax.has_thermo {
+                let mut flags = Flags::NONE;
+                total = ax.thermo_um(s, pos, &[0.0; MAX_FORCES], &mut flags, total);
+            }
+            total += d[i];
+            let max = ax.max_correction_um;
+            e[i] = if !total.is_finite() {
+                limited = true;
+                0.0
+            } else if total > max {
+                limited = true;
+                max
+            } else if total < -max {
+                limited = true;
+                -max
+            } else {
+                total
+            };
+        }
+        (e, limited)
+    }
+
+    /// The rotary stage's deviation by slot with `positions_counts` as the commanded positions
+    /// (a fresh angle cache: nothing of the cycle's cache is changed).
+    fn stage_deviation_at(&self, positions_counts: &[i64; MAX_AXES]) -> [f32; MAX_AXES] {
+        let g = &self.stage;
+        let slot = |k: usize| (g.slot[k] as usize).min(MAX_AXES - 1);
+        let angle = |k: usize| wrap(positions_counts[slot(k)], self.counts_per_rev[slot(k)]);
+        let mut cache = RotaryCache::NEW;
+        g.refresh(&mut cache, angle(3), angle(4));
+        let q = g.tool_tip_um([
+            positions_counts[slot(0)],
+            positions_counts[slot(1)],
+            positions_counts[slot(2)],
+        ]);
+        let d = RotaryStage::deviation_um(&cache, q);
+        let mut by_slot = [0.0f32; MAX_AXES];
+        for (k, dk) in d.into_iter().enumerate() {
+            by_slot[slot(k)] = dk;
+        }
+        by_slot
+    }
+}
+
 /// One axis's whole pipeline of a loaded group (not inlined: each axis gets the register
 /// allocation of the single-axis call).
 #[inline(never)]

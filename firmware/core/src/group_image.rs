@@ -33,7 +33,13 @@
 //!   (rotary; 0 linear), `stroke_start`, `stroke_end` i64 (linear: the table grid must span
 //!   exactly this stroke; both 0 = not stated), reserved u32 ×2 = 0, then the axis's pipeline as
 //!   a schema-1 image (table, thermo-force term, limits) filling the rest of the section.
-//! - **geometric model** (2) and **probe settings** (4): reserved, not supported yet.
+//! - **geometric model** (2): reserved, not supported yet.
+//! - **probe settings** (4, version 1, axis 0xFF, 20 bytes, at most one; [`crate::probe`]):
+//!   `min_pulse_us` u32, `latency_ns` u32, `lockout_us` u32, `moving_um_per_s` f32, reserved
+//!   u32 = 0 (ranges: [`ProbeSettings::validate`]). Image data rather than drive configuration:
+//!   the latency and the filter belong to the probe and its receiver, calibrated with the
+//!   machine (`axcomp fit probe`) like the tables, and the latched point is corrected with this
+//!   image's tables, so they are swapped together (A/B) or not at all.
 //! - **rotary model** (3, version 1, axis 0xFF, 64 bytes): the 8 location errors of
 //!   [`RotaryLocationSpec`] (f32, in its field order), `pivot_counts` 3 × i64, `tool_length_um`
 //!   f32, reserved u32 = 0.
@@ -44,6 +50,7 @@ use crate::error::ImageError;
 use crate::group::{AxisName, GroupAxisImage, MAX_AXES};
 use crate::image::{self, CRC_LEN, crc32};
 use crate::le::{Put, f32_at, i64_at, rd, u8_at, u16_at, u32_at};
+use crate::probe::{PROBE_SECTION_LEN, ProbeSettings};
 use crate::rotary::RotaryLocationSpec;
 use crate::{MAX_IMAGE_LEN, MAX_SENSORS};
 
@@ -76,7 +83,7 @@ pub enum SectionKind {
     Geometric = 2,
     /// Rotary location-error model.
     Rotary = 3,
-    /// Touch-probe settings — reserved.
+    /// Touch-probe settings ([`ProbeSettings`]).
     Probe = 4,
     /// Sensor names of an axis.
     SensorNames = 5,
@@ -126,6 +133,8 @@ pub struct GroupImageView<'a> {
     n_axes: usize,
     /// The rotary location-error model, if any.
     pub rotary: Option<RotaryLocationSpec>,
+    /// The touch-probe settings, if any (section kind 4).
+    pub probe: Option<ProbeSettings>,
     /// The stored whole-image CRC-32.
     pub crc: u32,
 }
@@ -256,6 +265,7 @@ fn parse_v1(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
         axes,
         n_axes: 1,
         rotary: None,
+        probe: None,
         crc: info.crc,
     })
 }
@@ -332,6 +342,7 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
         axes: [None; MAX_AXES],
         n_axes: 0,
         rotary: None,
+        probe: None,
         crc: u32_at(b, body_end),
     };
     let mut names: [Option<(u8, &[u8])>; MAX_AXES] = [None; MAX_AXES];
@@ -351,7 +362,13 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
             continue;
         }
         match kind {
-            SectionKind::Geometric | SectionKind::Probe => {
+            SectionKind::Probe => {
+                if e.axis != NO_AXIS || s.len() != PROBE_SECTION_LEN || view.probe.is_some() {
+                    return Err(ImageError::SectionBounds { index: i as u16 });
+                }
+                view.probe = Some(ProbeSettings::from_bytes(s)?);
+            }
+            SectionKind::Geometric => {
                 if mandatory {
                     return Err(ImageError::UnsupportedSection { kind: e.kind });
                 }
@@ -511,13 +528,25 @@ pub struct AxisSectionSpec<'a> {
 
 /// Length of the group image [`write_group_image`] writes.
 pub fn group_image_len(axes: &[AxisSectionSpec], rotary: Option<&RotaryLocationSpec>) -> usize {
-    let n = section_count(axes, rotary);
+    group_image_len_with_probe(axes, rotary, None)
+}
+
+/// Length of the group image [`write_group_image_with_probe`] writes.
+pub fn group_image_len_with_probe(
+    axes: &[AxisSectionSpec],
+    rotary: Option<&RotaryLocationSpec>,
+    probe: Option<&ProbeSettings>,
+) -> usize {
+    let n = section_count(axes, rotary) + probe.is_some() as usize;
     let mut len = GROUP_HEADER_LEN + DIR_ENTRY_LEN * n + CRC_LEN;
     for a in axes {
         len += AXIS_SECTION_HEADER_LEN + a.image.len() + SENSOR_NAME_LEN * a.sensor_names.len();
     }
     if rotary.is_some() {
         len += ROTARY_SECTION_LEN;
+    }
+    if probe.is_some() {
+        len += PROBE_SECTION_LEN;
     }
     len
 }
@@ -535,6 +564,19 @@ pub fn write_group_image(
     rotary: Option<&RotaryLocationSpec>,
     out: &mut [u8],
 ) -> Result<usize, ImageError> {
+    write_group_image_with_probe(axes, rotary, None, out)
+}
+
+/// [`write_group_image`] with a touch-probe settings section (kind 4) after the others.
+pub fn write_group_image_with_probe(
+    axes: &[AxisSectionSpec],
+    rotary: Option<&RotaryLocationSpec>,
+    probe: Option<&ProbeSettings>,
+    out: &mut [u8],
+) -> Result<usize, ImageError> {
+    if let Some(p) = probe {
+        p.validate()?;
+    }
     if axes.is_empty() || axes.len() > MAX_AXES {
         return Err(ImageError::AxisCount);
     }
@@ -547,8 +589,8 @@ pub fn write_group_image(
             }
         }
     }
-    let len = group_image_len(axes, rotary);
-    let n = section_count(axes, rotary);
+    let len = group_image_len_with_probe(axes, rotary, probe);
+    let n = section_count(axes, rotary) + probe.is_some() as usize;
     if len > MAX_IMAGE_LEN {
         return Err(ImageError::BadLength);
     }
@@ -605,6 +647,14 @@ pub fn write_group_image(
         w.u32(0);
         at += w.pos;
         dir[k] = (SectionKind::Rotary as u16, NO_AXIS, start, at - start);
+        k += 1;
+    }
+    if let Some(p) = probe {
+        let start = at;
+        let mut w = Put::new(out.get_mut(at..).unwrap_or(&mut []));
+        w.bytes(&p.to_bytes());
+        at += w.pos;
+        dir[k] = (SectionKind::Probe as u16, NO_AXIS, start, at - start);
         k += 1;
     }
     let mut w = Put::new(out);

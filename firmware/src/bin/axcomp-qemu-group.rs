@@ -9,7 +9,8 @@
 //!
 //! A drive trace (`axcomp_firmware::drive::link_trace`, magic `AXLT`) is replayed instead through the
 //! group drive (`GroupDrive`: setpoint link, supervisors, status word, reply frame), one 128-byte drive
-//! output record per cycle.
+//! output record per cycle; a probe trace (`AXLT` version 2) also a 128-byte probe output record after
+//! each (`ProbeOutputRecord`: probe flags, latch, counters, the whole reply frame).
 //!
 //! Exit status: 0 when every record replayed cleanly, 1 on a panic, 2 when the files cannot be
 //! opened or written, 3 when the trace had malformed records (the readable ones are still
@@ -21,7 +22,9 @@ mod firmware {
     use axcomp_core::group::GroupEngine;
     use axcomp_core::trace::OUTPUT_RECORD_LEN;
     use axcomp_firmware::board::semihosting::{self, HostError, HostFile};
-    use axcomp_firmware::drive::link_trace::{self, DRIVE_OUTPUT_LEN, LinkStream};
+    use axcomp_firmware::drive::link_trace::{
+        self, DRIVE_OUTPUT_LEN, LinkStream, PROBE_OUTPUT_LEN, ProbeOutputRecord,
+    };
     use axcomp_firmware::replay::{self, TraceStream};
     use cortex_m_rt::entry;
     use cortex_m_semihosting::hprintln;
@@ -141,6 +144,8 @@ mod firmware {
         let buf = OUT_BUF.take();
         let mut len = 0;
         let mut write_error = None;
+        let probe = stream.is_probe_trace();
+        let record_len = DRIVE_OUTPUT_LEN + if probe { PROBE_OUTPUT_LEN } else { 0 };
         let sum = link_trace::replay_link(
             &mut drive,
             engine,
@@ -148,7 +153,11 @@ mod firmware {
             |o| {
                 buf[len..len + DRIVE_OUTPUT_LEN].copy_from_slice(&o.encode());
                 len += DRIVE_OUTPUT_LEN;
-                if len + DRIVE_OUTPUT_LEN > buf.len() {
+                if probe {
+                    buf[len..len + PROBE_OUTPUT_LEN].copy_from_slice(&ProbeOutputRecord::encode(o));
+                    len += PROBE_OUTPUT_LEN;
+                }
+                if len + record_len > buf.len() {
                     if write_error.is_none() {
                         write_error = output.write_all(&buf[..len]).err();
                     }

@@ -151,6 +151,7 @@ mod firmware {
         cfg: LoopConfig,
         mut drive: GroupDrive,
         mut io: BoardIo,
+        mut probe: stm32g474::BoardProbe,
         clock: DwtClock,
         mut watchdog: Iwdg,
     ) {
@@ -162,9 +163,10 @@ mod firmware {
             stm32g474::WATCHDOG_TIMEOUT_US
         );
         drive
-            .run(
+            .run_with_probe(
                 engine,
                 &mut io,
+                &mut probe,
                 &clock,
                 &mut timer,
                 &mut watchdog,
@@ -231,8 +233,16 @@ mod firmware {
         interrupt::UART4.set_priority(LOOP_PRIORITY);
         let loop_spawner = LOOP_EXECUTOR.start(interrupt::UART4);
         loop_spawner.spawn(
-            drive_task(engine, cfg, drive, board.io, board.clock, board.watchdog)
-                .expect("drive task spawns once"),
+            drive_task(
+                engine,
+                cfg,
+                drive,
+                board.io,
+                board.probe,
+                board.clock,
+                board.watchdog,
+            )
+            .expect("drive task spawns once"),
         );
     }
 }

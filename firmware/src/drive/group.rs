@@ -15,10 +15,15 @@
 //!   swaps A/B for the whole group at once, or keeps the running group.
 //! - **Temperatures**: image sensor `j` of every axis is board sensor `j`; a reading set goes to every
 //!   axis ([`GroupDrive::update_temperatures`]).
+//! - **Touch probe** ([`super::probe`]): with probe settings in the image, [`GroupDrive::cycle_with_probe`]
+//!   reads the board's [`ProbeIo`] after the engine's cycle, latches the corrected point, sets the
+//!   `PROBE_*` status flags and answers with v3 reply frames; [`GroupDrive::cycle`] is the same with
+//!   no probe input.
 
 use axcomp_core::group::{GroupEngine, GroupInput, GroupOutput, MAX_AXES};
 use axcomp_core::{Flags, group_image, inspect_image};
 
+use super::probe::{NoProbe, ProbeDrive, ProbeIo};
 use super::{
     Applied, BoardCaps, DriveCounters, DriveIo, ImageRefusal, LatenessMeter, LinkPhase,
     LinkSettings, LinkSupervisor, ResetCause, Watchdog, core_status,
@@ -69,6 +74,8 @@ pub struct GroupDriveCycle {
     pub status: Status,
     /// The engine's outputs (before the link supervisor).
     pub engine: GroupOutput,
+    /// This cycle's probe flags (none without probe settings).
+    pub probe: axcomp_core::probe::ProbeFlags,
 }
 
 const APPLIED_ZERO: Applied = Applied {
@@ -94,6 +101,7 @@ pub struct GroupDrive {
     next_counter: u8,
     counters: DriveCounters,
     last_status: Status,
+    probe: ProbeDrive,
 }
 
 impl GroupDrive {
@@ -121,7 +129,13 @@ impl GroupDrive {
             next_counter: 0,
             counters: DriveCounters::default(),
             last_status: Status::NONE,
+            probe: ProbeDrive::new(config.period_ticks.saturating_mul(config.rate_hz)),
         }
+    }
+
+    /// The probe latch (phase, latched point, counters).
+    pub fn probe(&self) -> &ProbeDrive {
+        &self.probe
     }
 
     fn identity_inputs(caps: &BoardCaps) -> AxisInputs {
@@ -204,6 +218,8 @@ impl GroupDrive {
                 self.inputs = inputs;
                 self.n_axes = n;
                 self.latched.set(Status::IMAGE_REFUSED, false);
+                self.probe
+                    .configure(group_image::parse(image).ok().and_then(|v| v.probe));
                 Ok(())
             }
             Err(e) => {
@@ -236,7 +252,28 @@ impl GroupDrive {
         clock: &C,
         watchdog: &mut W,
     ) -> GroupDriveCycle {
-        let (_, late_start) = self.meter.start(clock.now());
+        self.cycle_with_probe(engine, io, &mut NoProbe, clock, watchdog)
+    }
+
+    /// [`GroupDrive::cycle`] with the board's probe input: after the engine's cycle, the probe's edges
+    /// since the last cycle go through the latch ([`ProbeDrive::cycle`]), its events into the status
+    /// word, and (with probe settings) the reply is a v3 frame with the probe block.
+    pub fn cycle_with_probe<
+        const POOL: usize,
+        Io: DriveIo,
+        P: ProbeIo,
+        C: CycleClock,
+        W: Watchdog,
+    >(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        probe_io: &mut P,
+        clock: &C,
+        watchdog: &mut W,
+    ) -> GroupDriveCycle {
+        let start_tick = clock.now();
+        let (_, late_start) = self.meter.start(start_tick);
         self.counters.cycles = self.counters.cycles.wrapping_add(1);
         let n = self.n_axes;
         let n_inputs = self.inputs[..n]
@@ -262,6 +299,7 @@ impl GroupDrive {
         let mut commands: Option<[i32; MAX_AXES]> = None;
         if let Some(f) = fresh {
             self.last_seq = f.seq;
+            self.probe.take_frame(&f);
             let c = f.commands();
             if c.len() >= n_inputs {
                 let mut own = [0i32; MAX_AXES];
@@ -297,6 +335,14 @@ impl GroupDrive {
         }
         let mut out = GroupOutput::ZERO;
         engine.cycle(&input, &mut out);
+        // Without probe settings (the common case) nothing of the probe runs.
+        let probe_on = self.probe.enabled();
+        let probe_flags = if probe_on {
+            self.probe
+                .cycle(engine, probe_io, start_tick, &self.inputs[..n])
+        } else {
+            axcomp_core::probe::ProbeFlags::NONE
+        };
 
         // ---- supervisors, status word ----
         let group = engine.active();
@@ -333,6 +379,9 @@ impl GroupDrive {
         status.set(Status::CYCLE_LATE, late_start);
         status.set(Status::OVERRUN, self.prev_overrun);
         status.set(Status::REPLY_DROPPED, self.prev_reply_dropped);
+        if probe_on {
+            status.insert(ProbeDrive::status(probe_flags));
+        }
         self.last_status = status;
 
         // ---- reply frame: corrected commands by board input, status, one counter ----
@@ -341,6 +390,8 @@ impl GroupDrive {
             reply[usize::from(input)] = corrected[i] as i32;
         }
         let (id, value) = self.next_counter_value(engine);
+        let probe_block =
+            probe_on.then(|| self.probe.reply(probe_flags, &self.inputs[..n], n_inputs));
         let mut frame = [0u8; MAX_REPLY_FRAME_LEN];
         let len = ReplyFrame::new(
             self.reply_seq,
@@ -350,6 +401,10 @@ impl GroupDrive {
             id,
             value,
         )
+        .map(|r| match probe_block {
+            Some(p) => r.with_probe(p),
+            None => r,
+        })
         .map(|r| r.encode_into(&mut frame))
         .unwrap_or(0);
         self.reply_seq = self.reply_seq.wrapping_add(1);
@@ -368,6 +423,7 @@ impl GroupDrive {
             applied,
             status,
             engine: out,
+            probe: probe_flags,
         }
     }
 
@@ -404,6 +460,33 @@ impl GroupDrive {
             CounterId::SkippedBytes => link.skipped_bytes,
         };
         (id, v as u16)
+    }
+
+    /// [`GroupDrive::run`] with the board's probe input ([`GroupDrive::cycle_with_probe`]).
+    #[allow(clippy::too_many_arguments)]
+    pub async fn run_with_probe<const POOL: usize, Io, P, C, T, W, F>(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        probe: &mut P,
+        clock: &C,
+        timer: &mut T,
+        watchdog: &mut W,
+        mut between: F,
+    ) -> !
+    where
+        Io: DriveIo,
+        P: ProbeIo,
+        C: CycleClock,
+        T: CycleTimer,
+        W: Watchdog,
+        F: FnMut(&mut GroupEngine<POOL>, &GroupDrive),
+    {
+        loop {
+            timer.next_cycle().await;
+            between(engine, self);
+            self.cycle_with_probe(engine, io, probe, clock, watchdog);
+        }
     }
 
     /// Runs forever at the timer's pace; `between` runs before each cycle with the engine (to hand it

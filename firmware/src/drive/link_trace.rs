@@ -2,8 +2,8 @@
 //! times, images, temperature readings), replayed through [`GroupDrive::cycle`] on the host and in QEMU
 //! (`axcomp-qemu-group`) alike, one [`DriveOutputRecord`] per cycle.
 //!
-//! Format (little-endian): the 8-byte header `AXLT`, version `u16` = 1, `u16` 0; then records `tag: u8,
-//! len: u32, payload[len]`:
+//! Format (little-endian): the 8-byte header `AXLT`, version `u16` = 1 (or 2: a probe trace), `u16` 0;
+//! then records `tag: u8, len: u32, payload[len]`:
 //!
 //! | tag | record | payload |
 //! |---|---|---|
@@ -12,6 +12,11 @@
 //! | 2 | `Cycle` | `start_tick: u32`, `end_tick: u32` (the cycle clock at the cycle's start and end, so that lateness and overruns replay exactly), `scale_raw: [u32; 5]` by board input |
 //! | 3 | `Image` | an image offered to the drive ([`GroupDrive::offer_image`]) |
 //! | 4 | `Temperatures` | `now_ms: u32`, then `f32` readings by board sensor |
+//! | 5 | `ProbeEdge` (version 2) | `time: u32` (cycle-clock ticks), `level: u8`, 3 × `u8` 0, `scale_raw: [u32; 5]` by board input (the counters captured at the edge); read by the next `Cycle` ([`super::probe::ProbeIo`]) |
+//!
+//! A version-2 (probe) trace's replay writes after each cycle's [`DriveOutputRecord`] a
+//! [`ProbeOutputRecord`] (128 bytes: the probe flags, phase, latch sequence, counters, latched point
+//! and the whole reply frame).
 //!
 //! A record that does not fit the replay buffer, a truncated record, an unknown tag or a malformed
 //! payload ends the replay with an error (counted in [`LinkReplaySummary::errors`]).
@@ -22,15 +27,23 @@ use axcomp_core::MAX_SENSORS;
 use axcomp_core::group::{GroupEngine, MAX_AXES};
 
 use super::group::{GroupDrive, GroupDriveCycle};
+use super::probe::{CapturedEdge, FakeProbe};
 use super::{DriveIo, NoWatchdog};
 use crate::control::CycleClock;
 use crate::replay::ByteSource;
 use crate::setpoint::MAX_REPLY_FRAME_LEN;
+use axcomp_core::probe::{Latch, ProbeCounters, ProbePhase};
 
 /// Header magic.
 pub const MAGIC: [u8; 4] = *b"AXLT";
 /// Format version.
 pub const VERSION: u16 = 1;
+/// Format version of a probe trace (adds `ProbeEdge` records and [`ProbeOutputRecord`]s).
+pub const VERSION_PROBE: u16 = 2;
+/// Payload of a `ProbeEdge` record.
+pub const PROBE_EDGE_PAYLOAD_LEN: usize = 8 + 4 * MAX_AXES;
+/// Bytes of one [`ProbeOutputRecord`].
+pub const PROBE_OUTPUT_LEN: usize = 128;
 /// Header length.
 pub const HEADER_LEN: usize = 8;
 /// Record header (tag + length).
@@ -47,6 +60,7 @@ const TAG_LINK: u8 = 1;
 const TAG_CYCLE: u8 = 2;
 const TAG_IMAGE: u8 = 3;
 const TAG_TEMPERATURES: u8 = 4;
+const TAG_PROBE_EDGE: u8 = 5;
 
 /// One record of a drive trace.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -64,6 +78,7 @@ pub enum LinkRecord<'a> {
         readings: [f32; MAX_SENSORS],
         n: usize,
     },
+    ProbeEdge(CapturedEdge),
 }
 
 /// Why a drive trace could not be read.
@@ -116,6 +131,7 @@ pub fn is_link_trace(head: &[u8]) -> bool {
 
 /// Reads drive-trace records through a fixed buffer.
 pub struct LinkStream<'b, S> {
+    version: u16,
     src: S,
     buf: &'b mut [u8],
     start: usize,
@@ -127,6 +143,7 @@ pub struct LinkStream<'b, S> {
 impl<'b, S: ByteSource> LinkStream<'b, S> {
     pub fn new(src: S, buf: &'b mut [u8]) -> Result<Self, LinkTraceError<S::Error>> {
         let mut s = LinkStream {
+            version: VERSION,
             src,
             buf,
             start: 0,
@@ -136,10 +153,18 @@ impl<'b, S: ByteSource> LinkStream<'b, S> {
         };
         s.fill_to(HEADER_LEN)?;
         let h = &s.buf[..s.end];
-        if h.len() < HEADER_LEN || !is_link_trace(h) || u16::from_le_bytes([h[4], h[5]]) != VERSION
+        let version = if h.len() >= HEADER_LEN {
+            u16::from_le_bytes([h[4], h[5]])
+        } else {
+            0
+        };
+        if h.len() < HEADER_LEN
+            || !is_link_trace(h)
+            || !(version == VERSION || version == VERSION_PROBE)
         {
             return Err(LinkTraceError::BadHeader);
         }
+        s.version = version;
         s.start = HEADER_LEN;
         s.offset = HEADER_LEN;
         Ok(s)
@@ -165,6 +190,16 @@ impl<'b, S: ByteSource> LinkStream<'b, S> {
             self.end += got;
         }
         Ok(())
+    }
+
+    /// The trace's format version ([`VERSION`], or [`VERSION_PROBE`]: a probe trace).
+    pub fn version(&self) -> u16 {
+        self.version
+    }
+
+    /// True for a probe trace (its replay writes a [`ProbeOutputRecord`] after each cycle's record).
+    pub fn is_probe_trace(&self) -> bool {
+        self.version == VERSION_PROBE
     }
 
     /// The next record; `Ok(None)` at the end of input.
@@ -227,6 +262,22 @@ impl<'b, S: ByteSource> LinkStream<'b, S> {
                     n,
                 }
             }
+            TAG_PROBE_EDGE
+                if self.version == VERSION_PROBE && p.len() == PROBE_EDGE_PAYLOAD_LEN =>
+            {
+                if p[4] > 1 || p[5..8] != [0, 0, 0] {
+                    return Err(malformed);
+                }
+                let mut scale_raw = [0u32; MAX_AXES];
+                for (k, s) in scale_raw.iter_mut().enumerate() {
+                    *s = u32_at(p, 8 + 4 * k);
+                }
+                LinkRecord::ProbeEdge(CapturedEdge {
+                    time: u32_at(p, 0),
+                    level: p[4] == 1,
+                    scale_raw,
+                })
+            }
             _ => return Err(malformed),
         };
         Ok(Some(rec))
@@ -243,10 +294,122 @@ pub struct DriveOutputRecord {
     pub cycle_result: GroupDriveCycle,
     pub reply: [u8; MAX_REPLY_FRAME_LEN],
     pub reply_len: usize,
+    /// The probe latch after the cycle.
+    pub probe: ProbeSnapshot,
 }
 
+/// The probe latch's state after a cycle (what a [`ProbeOutputRecord`] holds).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProbeSnapshot {
+    pub phase: ProbePhase,
+    pub latch_seq: u8,
+    pub counters: ProbeCounters,
+    pub latch: Option<Latch>,
+}
+
+impl ProbeSnapshot {
+    /// Of a drive after a cycle.
+    pub fn of(drive: &GroupDrive) -> Self {
+        let st = drive.probe().state();
+        ProbeSnapshot {
+            phase: st.phase(),
+            latch_seq: st.latch_seq(),
+            counters: *st.counters(),
+            latch: st.latch().copied(),
+        }
+    }
+}
+
+/// One probe trace cycle's probe record (128 bytes, little-endian): `cycle: u32`, probe flags `u16`,
+/// phase `u8`, latch sequence `u8`, reply length `u8`, 3 × 0, the reply frame as sent (zero-padded to
+/// 44 bytes), the 6 event counters `u32` (by [`axcomp_core::probe::ProbeEvent`] code), the latched
+/// point by group slot 5 × `i64` nm, the latch's leading-edge time `u32` (ticks), its quality `u16`
+/// ([`axcomp_core::probe::ProbeFlags`]), `u16` 0. No latch yet: point, time and quality zero.
+pub struct ProbeOutputRecord;
+
+impl ProbeOutputRecord {
+    /// Encodes the probe part of `r`.
+    pub fn encode(r: &DriveOutputRecord) -> [u8; PROBE_OUTPUT_LEN] {
+        let mut o = [0u8; PROBE_OUTPUT_LEN];
+        let p = &r.probe;
+        o[0..4].copy_from_slice(&r.cycle.to_le_bytes());
+        o[4..6].copy_from_slice(&r.cycle_result.probe.bits().to_le_bytes());
+        o[6] = p.phase as u8;
+        o[7] = p.latch_seq;
+        o[8] = r.reply_len as u8;
+        let n = r.reply_len.min(PROBE_REPLY_FIELD_LEN);
+        o[12..12 + n].copy_from_slice(&r.reply[..n]);
+        let mut at = 12 + PROBE_REPLY_FIELD_LEN;
+        for c in p.counters.events {
+            o[at..at + 4].copy_from_slice(&c.to_le_bytes());
+            at += 4;
+        }
+        if let Some(l) = &p.latch {
+            for v in l.point_nm {
+                o[at..at + 8].copy_from_slice(&v.to_le_bytes());
+                at += 8;
+            }
+            o[at..at + 4].copy_from_slice(&l.time.to_le_bytes());
+            o[at + 4..at + 6].copy_from_slice(&l.quality.bits().to_le_bytes());
+        }
+        o
+    }
+}
+
+/// The fields of an encoded [`ProbeOutputRecord`] a test reads back.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DecodedProbeOutput {
+    pub cycle: u32,
+    pub flags: u16,
+    pub phase: u8,
+    pub latch_seq: u8,
+    pub reply_len: usize,
+    pub reply: [u8; PROBE_REPLY_FIELD_LEN],
+    pub counters: [u32; 6],
+    pub point_nm: [i64; MAX_AXES],
+    pub latch_time: u32,
+    pub latch_quality: u16,
+}
+
+impl DecodedProbeOutput {
+    pub fn decode(o: &[u8; PROBE_OUTPUT_LEN]) -> Self {
+        let u32_at = |i: usize| u32::from_le_bytes([o[i], o[i + 1], o[i + 2], o[i + 3]]);
+        let mut d = DecodedProbeOutput {
+            cycle: u32_at(0),
+            flags: u16::from_le_bytes([o[4], o[5]]),
+            phase: o[6],
+            latch_seq: o[7],
+            reply_len: usize::from(o[8]),
+            reply: [0; PROBE_REPLY_FIELD_LEN],
+            counters: [0; 6],
+            point_nm: [0; MAX_AXES],
+            latch_time: 0,
+            latch_quality: 0,
+        };
+        d.reply.copy_from_slice(&o[12..12 + PROBE_REPLY_FIELD_LEN]);
+        let mut at = 12 + PROBE_REPLY_FIELD_LEN;
+        for c in d.counters.iter_mut() {
+            *c = u32_at(at);
+            at += 4;
+        }
+        for v in d.point_nm.iter_mut() {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&o[at..at + 8]);
+            *v = i64::from_le_bytes(b);
+            at += 8;
+        }
+        d.latch_time = u32_at(at);
+        d.latch_quality = u16::from_le_bytes([o[at + 4], o[at + 5]]);
+        d
+    }
+}
+
+const PROBE_REPLY_FIELD_LEN: usize = 44;
+const _: () = assert!(MAX_REPLY_FRAME_LEN <= PROBE_REPLY_FIELD_LEN);
+const _: () = assert!(12 + PROBE_REPLY_FIELD_LEN + 4 * 6 + 8 * MAX_AXES + 8 == PROBE_OUTPUT_LEN);
+
 const REPLY_FIELD_LEN: usize = 36;
-const _: () = assert!(MAX_REPLY_FRAME_LEN <= REPLY_FIELD_LEN);
+const _: () = assert!(crate::setpoint::MAX_REPLY_V2_FRAME_LEN <= REPLY_FIELD_LEN);
 const _: () = assert!(12 + REPLY_FIELD_LEN + 16 * MAX_AXES == DRIVE_OUTPUT_LEN);
 
 impl DriveOutputRecord {
@@ -258,7 +421,9 @@ impl DriveOutputRecord {
         o[8] = c.n_axes as u8;
         o[9] = c.n_inputs as u8;
         o[10] = self.reply_len as u8;
-        o[12..12 + self.reply_len].copy_from_slice(&self.reply[..self.reply_len]);
+        // A v3 (probe) reply longer than the field is cut here; the probe record has all of it.
+        let shown = self.reply_len.min(REPLY_FIELD_LEN);
+        o[12..12 + shown].copy_from_slice(&self.reply[..shown]);
         let mut at = 12 + REPLY_FIELD_LEN;
         for i in 0..MAX_AXES {
             if i < c.n_axes {
@@ -383,6 +548,7 @@ pub fn replay_link<const POOL: usize, S: ByteSource>(
         ticks: Cell::new([0, 0]),
         reads: Cell::new(0),
     };
+    let mut probe = FakeProbe::new();
     loop {
         let rec = match stream.next_record() {
             Ok(Some(r)) => r,
@@ -418,12 +584,14 @@ pub fn replay_link<const POOL: usize, S: ByteSource>(
                 clock.ticks.set([start_tick, end_tick]);
                 clock.reads.set(0);
                 io.reply_len = 0;
-                let c = drive.cycle(engine, &mut io, &clock, &mut NoWatchdog);
+                let c =
+                    drive.cycle_with_probe(engine, &mut io, &mut probe, &clock, &mut NoWatchdog);
                 on_output(&DriveOutputRecord {
                     cycle: sum.cycles,
                     cycle_result: c,
                     reply: io.reply,
                     reply_len: io.reply_len,
+                    probe: ProbeSnapshot::of(drive),
                 });
                 sum.cycles += 1;
             }
@@ -437,6 +605,7 @@ pub fn replay_link<const POOL: usize, S: ByteSource>(
                 readings,
                 n,
             } => drive.update_temperatures(engine, now_ms, &readings[..n]),
+            LinkRecord::ProbeEdge(e) => probe.push(e),
         }
     }
     sum
@@ -462,9 +631,16 @@ pub mod write {
 
     impl LinkTraceBuilder {
         pub fn new() -> Self {
+            Self::with_version(VERSION)
+        }
+        /// A probe trace (version 2: `ProbeEdge` records allowed, probe output records replayed).
+        pub fn new_probe() -> Self {
+            Self::with_version(VERSION_PROBE)
+        }
+        fn with_version(version: u16) -> Self {
             let mut bytes = Vec::new();
             bytes.extend_from_slice(&MAGIC);
-            bytes.extend_from_slice(&VERSION.to_le_bytes());
+            bytes.extend_from_slice(&version.to_le_bytes());
             bytes.extend_from_slice(&0u16.to_le_bytes());
             LinkTraceBuilder { bytes }
         }
@@ -496,6 +672,16 @@ pub mod write {
                 p.extend_from_slice(&r.to_bits().to_le_bytes());
             }
             self.record(TAG_TEMPERATURES, &p);
+        }
+        /// An edge of the probe input (read by the next cycle).
+        pub fn probe_edge(&mut self, time: u32, level: bool, scale_raw: &[u32; MAX_AXES]) {
+            let mut p = Vec::with_capacity(PROBE_EDGE_PAYLOAD_LEN);
+            p.extend_from_slice(&time.to_le_bytes());
+            p.extend_from_slice(&[u8::from(level), 0, 0, 0]);
+            for s in scale_raw {
+                p.extend_from_slice(&s.to_le_bytes());
+            }
+            self.record(TAG_PROBE_EDGE, &p);
         }
         pub fn finish(mut self) -> Vec<u8> {
             self.record(TAG_END, &[]);
