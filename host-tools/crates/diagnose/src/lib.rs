@@ -40,6 +40,7 @@ pub mod locate;
 pub mod lsq;
 pub mod obs;
 pub mod report;
+pub mod rtest;
 pub mod stats;
 
 /// The effect vocabulary is the twin's (one definition for the twin and the diagnosis).
