@@ -34,6 +34,13 @@ pub struct Args {
     /// Write a Markdown report with SVG figures into this directory.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// R-test data: machine kind, as for `axcomp fit rtest` (ac-trunnion, bc-trunnion, bc-head)
+    /// [default: ac-trunnion].
+    #[arg(long, value_name = "KIND")]
+    pub machine: Option<String>,
+    /// R-test data, bc-head: nominal distance from the B axis to the tool point, mm.
+    #[arg(long, value_name = "L")]
+    pub pivot_mm: Option<f64>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {

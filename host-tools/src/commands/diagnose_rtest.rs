@@ -1,11 +1,94 @@
-//! `axcomp diagnose` on R-test / sphere-centre data (`dx_um`, `dy_um`, `dz_um` at rotary poses): the base model fitted on the
-//! training rows, the held-out gap, and which unmodelled effect of the contract's vocabulary explains it.
+//! `axcomp diagnose` on R-test / sphere-centre data (`dx_um`, `dy_um`, `dz_um` at rotary poses): the
+//! location-error model fitted on the training poses, the held-out gap, and which unmodelled effect of the
+//! contract's R-test vocabulary explains it (`axcomp_diagnose::rtest`; the verdict rule is
+//! `axcomp_diagnose::judge`'s). `--machine` / `--pivot-mm` as for `axcomp fit rtest`.
+
+use axcomp_diagnose::judge::DiagnoseOptions;
+use axcomp_diagnose::rtest::{self, RtestObservations};
 
 use super::diagnose::Args;
+use crate::output::OutputSet;
 
-pub fn run(_args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
-    anyhow::bail!(
-        "{}: diagnosis of R-test / sphere-centre data (`dx_um`, `dy_um`, `dz_um` at rotary poses) is not available in this build (issue 11)",
-        ds.source()
-    )
+pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
+    if args.target != "deviation_um" {
+        anyhow::bail!(
+            "--target {}: R-test data are judged on the three displacement components dx_um, dy_um, dz_um together; drop --target",
+            args.target
+        );
+    }
+    let machine = super::fit_rtest::machine_from(
+        args.machine.as_deref().unwrap_or("ac-trunnion"),
+        args.pivot_mm,
+    )?;
+    let model = rtest::parse_model(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
+    // The outputs are planned and checked before the fit; written together at the end.
+    let mut outputs = OutputSet::new();
+    if let Some(dir) = &args.report {
+        outputs.dir(dir).planned(dir.join("diagnosis.md"));
+    }
+    if let Some(path) = &args.json {
+        outputs.planned(path);
+    }
+    outputs.check()?;
+    let obs = RtestObservations::from_dataset(&ds, machine, &args.holdout)?;
+    let opts = DiagnoseOptions::default()
+        .build()
+        .map_err(anyhow::Error::msg)?;
+    let (d, camp) = rtest::diagnose(&obs, &model, &opts)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
+    let dg = &d.diagnosis;
+    println!(
+        "gap of dx/dy/dz (model: {}; machine {}): train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out poses)",
+        args.model.trim(),
+        machine.kind.name(),
+        dg.gap.train_rms_um,
+        dg.gap.holdout_rms_um,
+        dg.gap.holdout_max_um,
+        dg.n_train / 3,
+        dg.n_holdout / 3
+    );
+    for r in dg.where_.iter().take(4) {
+        println!(
+            "  where: {} {:.4} … {:.4} holds {:.1} % of the held-out gap",
+            r.variable,
+            r.from,
+            r.to,
+            100.0 * r.share
+        );
+    }
+    for c in dg.effects.iter() {
+        println!(
+            "  candidate {:<20} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",
+            c.kind,
+            c.score,
+            c.holdout_rms_after_um,
+            c.shrink_pct,
+            if c.explains {
+                ""
+            } else if c.train_p_value < opts.alpha {
+                "  (significant, not material)"
+            } else {
+                "  (not beyond noise)"
+            }
+        );
+    }
+    for [a, b] in &d.same_signature {
+        println!("  {a} and {b}: same signature on these poses (the data cannot tell them apart)");
+    }
+    println!("verdict: {} — {}", dg.verdict, dg.note);
+    let mut n_files = 0;
+    if let Some(dir) = &args.report {
+        for (name, bytes) in rtest::report_files(&d, &camp) {
+            outputs.file(dir.join(name), bytes);
+            n_files += 1;
+        }
+    }
+    if let Some(path) = &args.json {
+        outputs.json(path, &d)?;
+    }
+    outputs.commit()?;
+    if let Some(dir) = &args.report {
+        println!("report: {n_files} files in {}", dir.display());
+    }
+    Ok(())
 }

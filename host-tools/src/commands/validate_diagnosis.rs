@@ -16,7 +16,8 @@ use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Case generator: `standard` (5,000 rows, SNR 3–8, held out: every third run) or `hard` (1,500 rows,
+    /// Case generator: `rtest` (five-axis twin, R-test data; see `axcomp_validation::rtest`),
+    /// `standard` (5,000 rows, SNR 3–8, held out: every third run) or `hard` (1,500 rows,
     /// 3 ISO cycles, SNR 2–8, held out outside the training regime: last cycles, fastest scan, largest
     /// loads, the re-heat's thermal rounds).
     #[arg(long, value_name = "NAME", default_value = "standard")]
@@ -47,6 +48,9 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.harness == "rtest" {
+        return run_rtest(&args);
+    }
     let profile = Profile::parse(&args.harness).map_err(|e| anyhow::anyhow!("--harness: {e}"))?;
     let opts = ValidateOptions {
         profile,
@@ -89,6 +93,65 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let md = summary.to_markdown();
     print!("{md}");
     // The report and the JSON are committed together (both or neither).
+    if let Some(p) = &args.markdown {
+        outputs.file(p, md.as_bytes());
+    }
+    if let Some(p) = &args.json {
+        outputs.json(p, &summary)?;
+    }
+    outputs.commit()?;
+    Ok(())
+}
+
+/// `--harness rtest`: the five-axis twin's R-test campaigns (`axcomp_validation::rtest`); `--rows` does not
+/// apply (the plan is fixed: 324 poses).
+fn run_rtest(args: &Args) -> anyhow::Result<()> {
+    use axcomp_validation::rtest::{RtestValidateOptions, validate};
+    if args.rows.is_some() {
+        anyhow::bail!("--rows does not apply to --harness rtest (its plan is fixed: 324 poses)");
+    }
+    let opts = RtestValidateOptions {
+        cases: args.cases,
+        seed: args.seed,
+        snrs: args
+            .snr
+            .clone()
+            .unwrap_or_else(|| RtestValidateOptions::default().snrs),
+        noise_um: args.noise_um,
+        ..RtestValidateOptions::default()
+    }
+    .build()
+    .map_err(anyhow::Error::msg)?;
+    let mut outputs = OutputSet::new();
+    for p in [&args.markdown, &args.json].into_iter().flatten() {
+        outputs.planned(p);
+    }
+    outputs.check()?;
+    let total = opts.cases;
+    let summary = validate(&opts, |c| {
+        eprintln!(
+            "[{}/{}] {} withheld {} snr {} → verdict {} ({}{}), shrink {:.1} % (oracle {}), {:.2} s",
+            c.index + 1,
+            total,
+            c.machine,
+            c.withheld,
+            c.snr.map_or("–".to_string(), |s| s.to_string()),
+            c.verdict,
+            if c.correct { "right" } else { "wrong" },
+            if c.ties.is_empty() {
+                String::new()
+            } else {
+                format!("; ties {}", c.ties.join(", "))
+            },
+            c.shrink_pct,
+            c.oracle_shrink_pct
+                .map_or("–".to_string(), |o| format!("{o:.1} %")),
+            c.seconds
+        );
+    })
+    .map_err(anyhow::Error::msg)?;
+    let md = summary.to_markdown();
+    print!("{md}");
     if let Some(p) = &args.markdown {
         outputs.file(p, md.as_bytes());
     }

@@ -11,7 +11,12 @@
 //!   `rotary_wobble` (tilt of C turning twice per turn, 3–10 µrad), `radial_runout` (radial motion of C twice
 //!   per turn, 0.5–2 µm), `linear_geometry` (X positioning 5–15 µm/m, straightness EYX and EZY 1–3 µm
 //!   half-sines over ±300 mm), `thermal_drift` (tool point drifting 1–4 µm/h in Z, ±1 µm/h in X),
-//!   `setup_drift` (sphere drifting 1–3 µm/h per axis in the table frame).
+//!   `setup_drift` (sphere drifting 1–3 µm/h per axis in the table frame), `time_drift` (tool point
+//!   creeping 1–3 µm/h per axis in the machine frame with no temperature behind it).
+//! - **temperature sensor** ([`FiveAxisTwin::temperature_sensor`], off by default): the campaign carries a
+//!   `spindle_degC` reading, `20 + ΔT(t)` with a warm-up `ΔT_rise·(1 − e^(−t/τ))` (0.5–1.5 K, τ 10–20 min)
+//!   and the shop's air-conditioning cycle (0.2–0.5 K, period 12–20 min); `thermal_drift` then follows ΔT
+//!   (its µm/h figures read as µm/K) instead of time, so a temperature column can explain it.
 //! - **reading**: `d = S − T` (µm), the sphere centre relative to the R-test head along machine X, Y, Z, plus
 //!   Gaussian noise σ per component.
 //! - **campaign order**: paths are measured one after the other, `dwell_s` per pose; `time_s` counts from
@@ -33,18 +38,20 @@ pub struct FiveAxisEffects {
     pub linear_geometry: bool,
     pub thermal_drift: bool,
     pub setup_drift: bool,
+    pub time_drift: bool,
 }
 
 impl FiveAxisEffects {
     /// Effect names (the contract's candidate kinds for R-test data; `radial_runout` belongs to
     /// `rotary_wobble` there).
-    pub const NAMES: [&'static str; 6] = [
+    pub const NAMES: [&'static str; 7] = [
         "rotary_positioning",
         "rotary_wobble",
         "radial_runout",
         "linear_geometry",
         "thermal_drift",
         "setup_drift",
+        "time_drift",
     ];
 
     /// Switches one effect on by name; `false` for an unknown name.
@@ -56,6 +63,7 @@ impl FiveAxisEffects {
             "linear_geometry" => self.linear_geometry = true,
             "thermal_drift" => self.thermal_drift = true,
             "setup_drift" => self.setup_drift = true,
+            "time_drift" => self.time_drift = true,
             _ => return false,
         }
         true
@@ -78,6 +86,10 @@ pub struct EffectParams {
     pub thermal_um_h: [f64; 2],
     /// Sphere drift µm/h along table X, Y, Z.
     pub setup_um_h: [f64; 3],
+    /// Tool-point creep µm/h along machine X, Y, Z (`time_drift`).
+    pub time_um_h: [f64; 3],
+    /// Temperature: warm-up rise K, its time constant s, air-conditioning amplitude K, period s, phase rad.
+    pub temperature: [f64; 5],
 }
 
 /// One planned path.
@@ -106,6 +118,8 @@ pub struct FiveAxisTwin {
     pub noise_um: f64,
     /// Seconds per pose.
     pub dwell_s: f64,
+    /// The campaign carries a spindle temperature (`spindle_degC`) and `thermal_drift` follows it.
+    pub temperature_sensor: bool,
 }
 
 fn signed(rng: &mut impl Rng, lo: f64, hi: f64) -> f64 {
@@ -155,7 +169,20 @@ impl FiveAxisTwin {
                 signed(&mut rng, 1.0, 3.0),
                 signed(&mut rng, 1.0, 3.0),
             ],
+            time_um_h: [0.0; 3],
+            temperature: [0.0; 5],
         };
+        // Drawn from a second stream so that the first stream's values stay those of earlier versions.
+        let mut rng2 = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0074_696d_6564);
+        let mut effect_params = effect_params;
+        effect_params.time_um_h = [0; 3].map(|_| signed(&mut rng2, 1.0, 3.0));
+        effect_params.temperature = [
+            rng2.gen_range(0.5..1.5),
+            rng2.gen_range(600.0..1200.0),
+            rng2.gen_range(0.2..0.5),
+            rng2.gen_range(720.0..1200.0),
+            rng2.gen_range(0.0..tau),
+        ];
         FiveAxisTwin {
             machine,
             location,
@@ -164,6 +191,7 @@ impl FiveAxisTwin {
             effect_params,
             noise_um: 0.3,
             dwell_s: 2.0,
+            temperature_sensor: false,
         }
     }
 
@@ -177,6 +205,14 @@ impl FiveAxisTwin {
             }
         }
         self
+    }
+
+    /// The temperature rise ΔT (K) of the spindle at `time_s` (see the glossary).
+    pub fn temperature_rise(&self, time_s: f64) -> f64 {
+        let [rise, tau, ac, period, phase] = self.effect_params.temperature;
+        let t = time_s.max(0.0);
+        rise * (1.0 - (-t / tau.max(1e-9)).exp())
+            + ac * ((std::f64::consts::TAU * t / period.max(1e-9) + phase).sin() - phase.sin())
     }
 
     /// The noise-free reading (µm) at `pose` (commanded so that the tool point meets the nominal sphere
@@ -293,8 +329,19 @@ impl FiveAxisTwin {
             d[2] -= q.linear[2] * half(lin_q[1]);
         }
         if e.thermal_drift {
-            d[0] -= q.thermal_um_h[0] * time_s / 3600.0;
-            d[2] -= q.thermal_um_h[1] * time_s / 3600.0;
+            // Per hour without a sensor; per kelvin of the spindle's rise with one.
+            let x = if self.temperature_sensor {
+                self.temperature_rise(time_s)
+            } else {
+                time_s / 3600.0
+            };
+            d[0] -= q.thermal_um_h[0] * x;
+            d[2] -= q.thermal_um_h[1] * x;
+        }
+        if e.time_drift {
+            for (i, v) in q.time_um_h.iter().enumerate() {
+                d[i] -= v * time_s / 3600.0;
+            }
         }
         d
     }
@@ -328,6 +375,7 @@ impl FiveAxisTwin {
                     setup_index: s,
                     sphere_mm: p.sphere_mm,
                     time_s: time,
+                    spindle_degc: 20.0 + self.temperature_rise(time),
                 });
                 time += self.dwell_s;
             }
@@ -335,6 +383,7 @@ impl FiveAxisTwin {
         RtestCampaign {
             machine: self.machine,
             rows,
+            temperature_sensor: self.temperature_sensor,
         }
     }
 }
@@ -350,6 +399,8 @@ pub struct RtestRow {
     pub setup_index: usize,
     pub sphere_mm: [f64; 3],
     pub time_s: f64,
+    /// Spindle temperature, °C (written only when the twin has its sensor).
+    pub spindle_degc: f64,
 }
 
 /// A measured R-test campaign.
@@ -357,19 +408,27 @@ pub struct RtestRow {
 pub struct RtestCampaign {
     pub machine: FiveAxis,
     pub rows: Vec<RtestRow>,
+    /// The rows carry a spindle temperature (`spindle_degC` column).
+    pub temperature_sensor: bool,
 }
 
 impl RtestCampaign {
-    /// The contract's R-test CSV: `x_mm,y_mm,z_mm,a_deg|b_deg,c_deg,dx_um,dy_um,dz_um,path,run,setup,time_s`.
+    /// The contract's R-test CSV: `x_mm,y_mm,z_mm,a_deg|b_deg,c_deg,dx_um,dy_um,dz_um,path,run,setup,time_s`
+    /// (then `spindle_degC` when the twin has its temperature sensor).
     pub fn to_csv_string(&self) -> String {
         let t = self.machine.kind.tilt_letter();
         let mut s = format!(
-            "# axcomp five-axis twin, machine {}\nx_mm,y_mm,z_mm,{t}_deg,c_deg,dx_um,dy_um,dz_um,path,run,setup,time_s\n",
-            self.machine.kind.name()
+            "# axcomp five-axis twin, machine {}\nx_mm,y_mm,z_mm,{t}_deg,c_deg,dx_um,dy_um,dz_um,path,run,setup,time_s{}\n",
+            self.machine.kind.name(),
+            if self.temperature_sensor {
+                ",spindle_degC"
+            } else {
+                ""
+            }
         );
         for r in &self.rows {
             s.push_str(&format!(
-                "{},{},{},{},{},{:.4},{:.4},{:.4},{},{},{},{}\n",
+                "{},{},{},{},{},{:.4},{:.4},{:.4},{},{},{},{}",
                 r.pose.p_mm[0],
                 r.pose.p_mm[1],
                 r.pose.p_mm[2],
@@ -383,6 +442,10 @@ impl RtestCampaign {
                 r.setup,
                 r.time_s
             ));
+            if self.temperature_sensor {
+                s.push_str(&format!(",{:.4}", r.spindle_degc));
+            }
+            s.push('\n');
         }
         s
     }
@@ -518,5 +581,43 @@ mod tests {
             "x_mm,y_mm,z_mm,b_deg,c_deg,dx_um,dy_um,dz_um,path,run,setup,time_s"
         );
         assert_eq!(csv.lines().count(), 2 + 216);
+    }
+
+    /// With the temperature sensor the CSV carries `spindle_degC` = 20 + ΔT(t) and `thermal_drift` follows
+    /// ΔT: the Z change of the reading is −(µm/K)·ΔT exactly (reference: the glossary's definition,
+    /// tolerance 1e-9 µm; noise off). `time_drift` is −(µm/h)·t along each machine axis.
+    #[test]
+    fn temperature_sensor_and_time_drift() {
+        let (mut base, paths) = setup(MachineKind::AcTrunnion);
+        base.noise_um = 0.0;
+        base.temperature_sensor = true;
+        let clean = base.measure(&paths, 1);
+        let csv = clean.to_csv_string();
+        assert!(
+            csv.lines()
+                .nth(1)
+                .unwrap()
+                .ends_with(",time_s,spindle_degC")
+        );
+        let mut th = base.clone();
+        th.effects.thermal_drift = true;
+        let mut td = base.clone();
+        td.effects.time_drift = true;
+        let (ct, cd) = (th.measure(&paths, 1), td.measure(&paths, 1));
+        let q = base.effect_params;
+        let mut spread = (f64::INFINITY, f64::NEG_INFINITY);
+        for k in 0..clean.rows.len() {
+            let r = &clean.rows[k];
+            let dt = r.spindle_degc - 20.0;
+            assert!((dt - base.temperature_rise(r.time_s)).abs() < 1e-12);
+            spread = (spread.0.min(dt), spread.1.max(dt));
+            let dz = ct.rows[k].d_um[2] - r.d_um[2];
+            assert!((dz + q.thermal_um_h[1] * dt).abs() < 1e-9, "{dz}");
+            for i in 0..3 {
+                let d = cd.rows[k].d_um[i] - r.d_um[i];
+                assert!((d + q.time_um_h[i] * r.time_s / 3600.0).abs() < 1e-9);
+            }
+        }
+        assert!(spread.1 - spread.0 > 0.05, "{spread:?}");
     }
 }

@@ -17,3 +17,4 @@
 //! Modules: [`axis`] (single-axis campaigns: ISO 230-2 runs, scans, load steps, thermal rounds).
 
 pub mod axis;
+pub mod rtest;
