@@ -72,6 +72,7 @@ pub mod group_image;
 pub mod image;
 mod le;
 mod limits;
+pub mod provenance;
 pub mod rotary;
 mod spec;
 mod table;
