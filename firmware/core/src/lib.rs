@@ -78,6 +78,7 @@ mod spec;
 mod table;
 mod thermo;
 pub mod trace;
+pub mod wiring;
 
 pub use compensator::{
     AxisCompensator, Compensator, CycleInput, CycleOutput, Flags, OwnTable, State, TableStore,

@@ -512,6 +512,18 @@ pub const REPLAY_CAPS: super::BoardCaps = super::BoardCaps {
     sensors: 2,
 };
 
+/// The sensor inputs of the board a replay models (the STM32G474 board's: two RTDs, °C), by name.
+pub const REPLAY_SENSOR_INPUTS: [axcomp_core::wiring::BoardInput<'static>; 2] = [
+    axcomp_core::wiring::BoardInput {
+        name: "rtd0",
+        unit: axcomp_core::wiring::InputUnit::DegC,
+    },
+    axcomp_core::wiring::BoardInput {
+        name: "rtd1",
+        unit: axcomp_core::wiring::InputUnit::DegC,
+    },
+];
+
 /// Cycle-clock rate of a replay (the STM32G474's core clock): 17 000 ticks per 10 kHz cycle.
 pub const REPLAY_CLOCK_HZ: u32 = 170_000_000;
 
@@ -527,4 +539,5 @@ pub fn replay_drive() -> GroupDrive {
         super::LinkSettings::defaults(cfg.rate_hz),
         super::ResetCause::default(),
     )
+    .with_sensor_inputs(&REPLAY_SENSOR_INPUTS)
 }
