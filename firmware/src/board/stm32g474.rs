@@ -53,8 +53,9 @@ pub const CAPS: BoardCaps = BoardCaps {
 /// The board's sensor inputs by name and unit, in reading order (RTD on chip select PB0, PB1): an
 /// image's sensors are wired to them by name at load, and a sensor none of them can feed (e.g. a
 /// `warmup` input: this board has no drive-enable input wired) is refused
-/// ([`crate::drive::ImageRefusal::SensorNotOnBoard`]). Same as the replays' board
-/// ([`crate::drive::link_trace::REPLAY_SENSOR_INPUTS`]).
+/// ([`crate::drive::ImageRefusal::SensorNotOnBoard`]). Like [`AXIS_IDS`], name them after what is
+/// wired on the machine (the replays name them `spindle`, `column`:
+/// [`crate::drive::link_trace::REPLAY_SENSOR_INPUTS`]).
 pub const SENSOR_INPUTS: [axcomp_core::wiring::BoardInput<'static>; RTD_COUNT] = [
     axcomp_core::wiring::BoardInput {
         name: "rtd0",

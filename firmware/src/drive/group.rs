@@ -54,16 +54,8 @@ pub fn check_group_image_wired(
     let mut n = 0;
     for a in view.axes() {
         let info = inspect_image(a.axis.image).map_err(ImageRefusal::Invalid)?;
-        let input = caps.check(
-            info.axis_id,
-            info.counter_bits,
-            // Named sensors are checked by name below; unnamed ones by count, as before names.
-            if sensor_inputs.is_some() && !a.sensor_names.is_empty() {
-                0
-            } else {
-                info.n_sensors
-            },
-        )?;
+        // The count first (more sensors than the board has inputs), then each sensor by name.
+        let input = caps.check(info.axis_id, info.counter_bits, info.n_sensors)?;
         let w = match sensor_inputs {
             Some(board) => wiring::wire_axis(a, info.n_sensors, board).map_err(|why| {
                 ImageRefusal::SensorNotOnBoard {

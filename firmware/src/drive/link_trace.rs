@@ -512,14 +512,16 @@ pub const REPLAY_CAPS: super::BoardCaps = super::BoardCaps {
     sensors: 2,
 };
 
-/// The sensor inputs of the board a replay models (the STM32G474 board's: two RTDs, °C), by name.
+/// The sensor inputs of the board a replay models: the STM32G474 board's two RTDs (°C), named after the
+/// sensors of the scenarios' group image (`spindle`, `column`), as a machine's board names them
+/// (`board::stm32g474::SENSOR_INPUTS`, `rtd0`, `rtd1` until set).
 pub const REPLAY_SENSOR_INPUTS: [axcomp_core::wiring::BoardInput<'static>; 2] = [
     axcomp_core::wiring::BoardInput {
-        name: "rtd0",
+        name: "spindle",
         unit: axcomp_core::wiring::InputUnit::DegC,
     },
     axcomp_core::wiring::BoardInput {
-        name: "rtd1",
+        name: "column",
         unit: axcomp_core::wiring::InputUnit::DegC,
     },
 ];

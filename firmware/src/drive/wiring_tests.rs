@@ -1,15 +1,16 @@
-//! Sensor wiring by name on the board a replay models (the STM32G474's two RTDs, °C): issue 14's
+//! Sensor wiring by name on the STM32G474 board (two RTDs, °C, named `rtd0`, `rtd1`): issue 14's
 //! "warm-up fed 22 °C" case, a named image refused at load, an old unnamed image flagged at run time,
 //! and named sensors routed to their inputs in any order.
 
 use axcomp_core::group::GroupEngine;
 use axcomp_core::provenance::{self, SENSOR_NAMES_TAG};
-use axcomp_core::wiring::WiringError;
+use axcomp_core::wiring::{BoardInput, InputUnit, WiringError};
 use axcomp_core::{
     ImageSpec, LimitSpec, OutsideStroke, SensorSpec, TableSpec, ThermoForceSpec, write_image,
 };
 
 use super::fake::FakeDriveIo;
+use super::group::GroupDrive;
 use super::link_trace::{REPLAY_CLOCK_HZ, replay_drive};
 use super::{ImageRefusal, NoWatchdog};
 use crate::control::fake::SteppingClock;
@@ -17,6 +18,23 @@ use crate::setpoint::{MAX_SETPOINT_FRAME_LEN, SetpointFrame};
 use crate::status::Status;
 
 const POOL: usize = 64;
+
+/// The STM32G474 board's sensor inputs as shipped (`board::stm32g474::SENSOR_INPUTS`).
+const BOARD: [BoardInput<'static>; 2] = [
+    BoardInput {
+        name: "rtd0",
+        unit: InputUnit::DegC,
+    },
+    BoardInput {
+        name: "rtd1",
+        unit: InputUnit::DegC,
+    },
+];
+
+/// The replays' drive (16-bit counters, axes 1, 2, 3, 170 MHz, default link settings) on [`BOARD`].
+fn board_drive() -> GroupDrive {
+    replay_drive().with_sensor_inputs(&BOARD)
+}
 
 /// A schema-1 image of axis 1: a 2 µm table and a thermo-force term over `sensors` with
 /// coefficients `b` (µm per unit) and constant `b0`.
@@ -89,7 +107,7 @@ fn frame(io: &mut FakeDriveIo, seq: u8) {
 #[test]
 fn a_warmup_image_is_refused_on_a_board_with_only_rtds() {
     let img = named(&image(&[WARMUP], &[-10.3], 4.43), &["warmup"]);
-    let mut drive = replay_drive();
+    let mut drive = board_drive();
     let mut engine: Box<GroupEngine<POOL>> = Box::new(GroupEngine::new());
     assert_eq!(
         drive.offer_image(&mut engine, &img),
@@ -122,7 +140,7 @@ fn a_warmup_image_is_refused_on_a_board_with_only_rtds() {
 #[test]
 fn an_unnamed_warmup_image_fed_22_degc_is_flagged_every_cycle() {
     let img = image(&[WARMUP], &[-10.3], 4.43);
-    let mut drive = replay_drive();
+    let mut drive = board_drive();
     let mut engine: Box<GroupEngine<POOL>> = Box::new(GroupEngine::new());
     drive.offer_image(&mut engine, &img).unwrap();
     let mut io = FakeDriveIo::default();
@@ -174,7 +192,7 @@ fn named_sensors_read_their_own_inputs_in_any_order() {
         stale_timeout_ms: 10_000,
     };
     let img = named(&image(&[t, t], &[1.0, 0.0], 0.0), &["rtd1", "rtd0"]);
-    let mut drive = replay_drive();
+    let mut drive = board_drive();
     let mut engine: Box<GroupEngine<POOL>> = Box::new(GroupEngine::new());
     drive.offer_image(&mut engine, &img).unwrap();
     assert_eq!(&drive.sensor_wiring(0).unwrap()[..2], &[1, 0]);
