@@ -835,4 +835,37 @@ mod tests {
         assert!(format!("{e:#}").contains("bytes follow the end"), "{e:#}");
         let _ = std::fs::remove_dir_all(&dir);
     }
+
+    /// An image written before provenance and without names on a board's inputs: `inspect` says it has no
+    /// provenance and wires by position; the scenario's named group (spindle, column) is refused by the
+    /// STM32G474 board's default inputs and wired on a board that names its inputs so; a bad
+    /// `--board-inputs` is an error naming it.
+    #[test]
+    fn inspect_reports_missing_provenance_and_the_wiring() {
+        let g = axcomp_scenario::group_image(3, false).unwrap();
+        let board = parse_board_inputs(BOARD_INPUTS_STM32G474).unwrap();
+        let text = describe_trust(&g, &board).unwrap();
+        assert!(
+            text.contains("provenance: none")
+                && text.contains("axis X (id 1) sensors (wired by name): REFUSED by this board")
+                && text.contains("sensor 0 spindle -> no board input"),
+            "{text}"
+        );
+        let named = parse_board_inputs("spindle:degC,column:degC").unwrap();
+        let text = describe_trust(&g, &named).unwrap();
+        assert!(
+            text.contains("sensor 1 column -> board input 1 column (°C)"),
+            "{text}"
+        );
+        // A schema-1 image without names: by position.
+        let (x, _) = group_image::parse(&g).unwrap().axis_images();
+        let text = describe_trust(x[0].image, &board).unwrap();
+        assert!(
+            text.contains("no names: wired by position")
+                && text.contains("sensor 0 (unnamed) -> board input 0 rtd0 (°C)"),
+            "{text}"
+        );
+        let e = parse_board_inputs("rtd0:kelvin").unwrap_err();
+        assert!(e.to_string().contains("`kelvin`"), "{e}");
+    }
 }
