@@ -63,6 +63,12 @@ pub enum ImageRefusal {
     SensorsNotWired { image: u16, board: u16 },
     /// Two axes of a group image have the same axis id (one scale input cannot feed both).
     AxisIdTwice { axis_id: u16 },
+    /// A sensor of the image cannot be fed by the board's inputs (by name, see
+    /// `axcomp_core::wiring`): e.g. a `warmup` input on a board that only has RTDs (°C).
+    SensorNotOnBoard {
+        axis_id: u16,
+        why: axcomp_core::wiring::WiringError,
+    },
     /// The group image is valid, but the core refused to load it (e.g. its tables exceed the pool).
     Group(axcomp_core::group::GroupError),
 }
@@ -87,6 +93,9 @@ impl core::fmt::Display for ImageRefusal {
             ),
             ImageRefusal::AxisIdTwice { axis_id } => {
                 write!(f, "group image has axis id {axis_id} on two axes")
+            }
+            ImageRefusal::SensorNotOnBoard { axis_id, why } => {
+                write!(f, "image for axis {axis_id}: {why}")
             }
             ImageRefusal::Group(e) => write!(f, "group refused: {e}"),
         }
@@ -859,3 +868,5 @@ pub mod probe;
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod wiring_tests;

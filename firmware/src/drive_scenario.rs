@@ -162,10 +162,12 @@ pub enum DriveFault {
     Overrun,
     ImageWithTrailingBytes,
     CorruptImage,
+    /// X's sensor 0 named `warmup`: not one of the board's inputs (issue 14's warm-up case).
+    SensorNotOnBoard,
 }
 
 impl DriveFault {
-    pub const ALL: [DriveFault; 11] = [
+    pub const ALL: [DriveFault; 12] = [
         DriveFault::CounterWidthMismatch,
         DriveFault::AxisIdMismatch,
         DriveFault::SensorCountMismatch,
@@ -177,6 +179,7 @@ impl DriveFault {
         DriveFault::Overrun,
         DriveFault::ImageWithTrailingBytes,
         DriveFault::CorruptImage,
+        DriveFault::SensorNotOnBoard,
     ];
     /// The cycle at which the fault starts.
     pub const AT: u32 = 200;
@@ -213,6 +216,11 @@ pub fn drive_fault_trace(fault: DriveFault, with_fault: bool) -> Result<Vec<u8>,
         DriveFault::SensorCountMismatch => {
             Some(group_image_variant(3, true, GroupImageVariant::Sensors(3))?)
         }
+        DriveFault::SensorNotOnBoard => Some(group_image_variant(
+            3,
+            true,
+            GroupImageVariant::WarmupSensor,
+        )?),
         DriveFault::ImageWithTrailingBytes => {
             let mut b = group_image(3, true)?;
             b.extend_from_slice(&[0u8; 100]);

@@ -4,6 +4,7 @@
 pub mod cli;
 pub mod commands;
 pub mod output;
+pub mod provenance;
 
 use clap::Parser;
 

@@ -17,10 +17,12 @@ use std::process::{ExitStatus, Stdio};
 use std::time::Duration;
 
 use axcomp_core::group::GroupEngine;
+use axcomp_core::wiring::WiringError;
 use axcomp_firmware::drive::ImageRefusal;
-use axcomp_firmware::drive::group::check_group_image;
+use axcomp_firmware::drive::group::{check_group_image, check_group_image_wired};
 use axcomp_firmware::drive::link_trace::{
     self, DRIVE_OUTPUT_LEN, DecodedDriveOutput, LinkReplaySummary, LinkStream, REPLAY_CAPS,
+    REPLAY_SENSOR_INPUTS,
 };
 use axcomp_firmware::scenario::{self, DriveFault, GroupImageVariant};
 use axcomp_firmware::status::Status;
@@ -217,7 +219,8 @@ fn drive_fault_matrix_on_host_and_in_qemu() {
             | DriveFault::AxisIdMismatch
             | DriveFault::SensorCountMismatch
             | DriveFault::ImageWithTrailingBytes
-            | DriveFault::CorruptImage => {
+            | DriveFault::CorruptImage
+            | DriveFault::SensorNotOnBoard => {
                 // Documented: never loaded, the running group keeps running, IMAGE_REFUSED latched.
                 assert_eq!(sum.images_refused, 1, "{fault:?}");
                 assert!(all(Status::IMAGE_REFUSED), "{fault:?}");
@@ -241,6 +244,9 @@ fn drive_fault_matrix_on_host_and_in_qemu() {
                     DriveFault::SensorCountMismatch => {
                         scenario::group_image_variant(3, true, GroupImageVariant::Sensors(3))
                     }
+                    DriveFault::SensorNotOnBoard => {
+                        scenario::group_image_variant(3, true, GroupImageVariant::WarmupSensor)
+                    }
                     _ => scenario::group_image(3, true),
                 }
                 .unwrap();
@@ -255,6 +261,11 @@ fn drive_fault_matrix_on_host_and_in_qemu() {
                         let m = b.len() / 2;
                         b[m] ^= 0x10;
                         check_group_image(&REPLAY_CAPS, &b)
+                    }
+                    // The replay's board declares its sensor inputs by name (as the STM32G474 does).
+                    DriveFault::SensorNotOnBoard => {
+                        check_group_image_wired(&REPLAY_CAPS, Some(&REPLAY_SENSOR_INPUTS), &bad)
+                            .map(|(inputs, _)| inputs)
                     }
                     _ => check_group_image(&REPLAY_CAPS, &bad),
                 };
@@ -273,6 +284,13 @@ fn drive_fault_matrix_on_host_and_in_qemu() {
                     | (
                         DriveFault::SensorCountMismatch,
                         Err(ImageRefusal::SensorsNotWired { image: 3, board: 2 }),
+                    )
+                    | (
+                        DriveFault::SensorNotOnBoard,
+                        Err(ImageRefusal::SensorNotOnBoard {
+                            axis_id: 1,
+                            why: WiringError::NotOnBoard { sensor: 0 },
+                        }),
                     )
                     | (DriveFault::ImageWithTrailingBytes, Err(ImageRefusal::Invalid(_)))
                     | (DriveFault::CorruptImage, Err(ImageRefusal::Invalid(_))) => {}

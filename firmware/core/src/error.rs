@@ -225,6 +225,9 @@ pub enum ImageError {
         /// The axis ([`crate::group::AxisName`] code).
         axis: u8,
     } = 27,
+    /// A provenance block (group section kind 6, or the `PROV`/`SNAM` header extension of a
+    /// schema-1 image) is malformed ([`crate::provenance`]).
+    Provenance = 40,
 }
 
 impl fmt::Display for ImageError {
@@ -311,6 +314,9 @@ impl fmt::Display for ImageError {
                 "axis {}: sensor names must be one non-empty UTF-8 name per sensor",
                 axis_letter(axis)
             ),
+            ImageError::Provenance => {
+                f.write_str("the provenance block or header extension is malformed")
+            }
         }
     }
 }

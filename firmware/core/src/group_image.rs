@@ -45,6 +45,14 @@
 //!   f32, reserved u32 = 0.
 //! - **sensor names** (5, version 1, one per axis with sensors; `axis` = its code): one 16-byte
 //!   UTF-8 name per sensor of that axis, zero padded, non-empty.
+//! - **provenance** (6, version 1, axis 0xFF, optional: written without the mandatory flag, so
+//!   readers that do not know it skip it; at most one): the provenance block of
+//!   [`crate::provenance`] (tool, build date, per model file its axis, role, SHA-256 and the
+//!   SHA-256 of its measurement data). Its framing (length, version, reserved bytes, text fields)
+//!   and CRC are validated; its content is never acted on.
+//!
+//! A schema-1 image presented as a group takes its sensor names and provenance from its header
+//! extension (`SNAM`, `PROV` blocks, [`crate::provenance`]) when it has one.
 
 use crate::error::ImageError;
 use crate::group::{AxisName, GroupAxisImage, MAX_AXES};
@@ -87,6 +95,8 @@ pub enum SectionKind {
     Probe = 4,
     /// Sensor names of an axis.
     SensorNames = 5,
+    /// Provenance of the image (optional).
+    Provenance = 6,
 }
 
 impl SectionKind {
@@ -97,6 +107,7 @@ impl SectionKind {
             3 => Some(SectionKind::Rotary),
             4 => Some(SectionKind::Probe),
             5 => Some(SectionKind::SensorNames),
+            6 => Some(SectionKind::Provenance),
             _ => None,
         }
     }
@@ -135,6 +146,8 @@ pub struct GroupImageView<'a> {
     pub rotary: Option<RotaryLocationSpec>,
     /// The touch-probe settings, if any (section kind 4).
     pub probe: Option<ProbeSettings>,
+    /// The provenance block, if the image has one (validated, never acted on).
+    pub provenance: Option<crate::provenance::ProvenanceView<'a>>,
     /// The stored whole-image CRC-32.
     pub crc: u32,
 }
@@ -250,6 +263,19 @@ fn parse_v1(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
     if b.len() != info.len {
         return Err(ImageError::TrailingBytes);
     }
+    // The header extension (older writers have none): sensor names and provenance.
+    let ext = crate::provenance::header_extension(b);
+    let sensor_names =
+        match crate::provenance::find_block(ext, crate::provenance::SENSOR_NAMES_TAG)? {
+            Some(s) => {
+                check_sensor_names(s, info.n_sensors, AxisName::X.code())?;
+                s
+            }
+            None => &[],
+        };
+    let provenance = crate::provenance::find_block(ext, crate::provenance::PROVENANCE_TAG)?
+        .map(crate::provenance::ProvenanceView::parse)
+        .transpose()?;
     let mut axes = [None; MAX_AXES];
     axes[0] = Some(AxisSection {
         axis: GroupAxisImage {
@@ -258,7 +284,7 @@ fn parse_v1(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
             image: b,
         },
         stroke_counts: None,
-        sensor_names: &[],
+        sensor_names,
     });
     Ok(GroupImageView {
         version: image::SCHEMA_VERSION,
@@ -266,6 +292,7 @@ fn parse_v1(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
         n_axes: 1,
         rotary: None,
         probe: None,
+        provenance,
         crc: info.crc,
     })
 }
@@ -343,6 +370,7 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
         n_axes: 0,
         rotary: None,
         probe: None,
+        provenance: None,
         crc: u32_at(b, body_end),
     };
     let mut names: [Option<(u8, &[u8])>; MAX_AXES] = [None; MAX_AXES];
@@ -412,6 +440,12 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
                 names[n_names] = Some((e.axis, s));
                 n_names += 1;
             }
+            SectionKind::Provenance => {
+                if e.axis != NO_AXIS || view.provenance.is_some() {
+                    return Err(ImageError::SectionBounds { index: i as u16 });
+                }
+                view.provenance = Some(crate::provenance::ProvenanceView::parse(s)?);
+            }
         }
     }
     if view.n_axes == 0 {
@@ -438,16 +472,7 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
             return Err(ImageError::AxisNotInGroup { axis: *code });
         };
         let n_sensors = image::inspect_image(axes[k].map_or(&[][..], |a| a.axis.image))?.n_sensors;
-        if s.len() != n_sensors * SENSOR_NAME_LEN {
-            return Err(ImageError::SensorNames { axis: *code });
-        }
-        for name in s.chunks(SENSOR_NAME_LEN) {
-            let end = name.iter().position(|&c| c == 0).unwrap_or(name.len());
-            let (text, pad) = name.split_at(end);
-            if end == 0 || core::str::from_utf8(text).is_err() || pad.iter().any(|&c| c != 0) {
-                return Err(ImageError::SensorNames { axis: *code });
-            }
-        }
+        check_sensor_names(s, n_sensors, *code)?;
         if let Some(a) = view.axes[k].as_mut() {
             a.sensor_names = s;
         }
@@ -458,6 +483,21 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
     crate::group::validate_group::<{ usize::MAX }>(&images[..n], view.rotary.as_ref())
         .map_err(|g| g.error)?;
     Ok(view)
+}
+
+/// One non-empty, zero-padded UTF-8 name per sensor.
+fn check_sensor_names(s: &[u8], n_sensors: usize, code: u8) -> Result<(), ImageError> {
+    if s.len() != n_sensors * SENSOR_NAME_LEN {
+        return Err(ImageError::SensorNames { axis: code });
+    }
+    for name in s.chunks(SENSOR_NAME_LEN) {
+        let end = name.iter().position(|&c| c == 0).unwrap_or(name.len());
+        let (text, pad) = name.split_at(end);
+        if end == 0 || core::str::from_utf8(text).is_err() || pad.iter().any(|&c| c != 0) {
+            return Err(ImageError::SensorNames { axis: code });
+        }
+    }
+    Ok(())
 }
 
 fn reserved() -> ImageError {
@@ -487,6 +527,15 @@ fn parse_axis<'a>(e: &Entry, s: &'a [u8], index: usize) -> Result<AxisSection<'a
     let info = image::inspect_image(img)?;
     if info.len != img.len() {
         return Err(ImageError::TrailingBytes);
+    }
+    // An embedded image's header extension (from `image build`) is validated like a schema-1
+    // image's; the group's own sensor-names and provenance sections are what it uses.
+    let ext = crate::provenance::header_extension(img);
+    if let Some(p) = crate::provenance::find_block(ext, crate::provenance::PROVENANCE_TAG)? {
+        crate::provenance::ProvenanceView::parse(p)?;
+    }
+    if let Some(n) = crate::provenance::find_block(ext, crate::provenance::SENSOR_NAMES_TAG)? {
+        check_sensor_names(n, info.n_sensors, e.axis)?;
     }
     let stroke_counts = ((start, end) != (0, 0)).then_some((start, end));
     if let Some((lo, hi)) = stroke_counts {

@@ -73,11 +73,13 @@ pub mod image;
 mod le;
 mod limits;
 pub mod probe;
+pub mod provenance;
 pub mod rotary;
 mod spec;
 mod table;
 mod thermo;
 pub mod trace;
+pub mod wiring;
 
 pub use compensator::{
     AxisCompensator, Compensator, CycleInput, CycleOutput, Flags, OwnTable, State, TableStore,

@@ -198,7 +198,8 @@ mod firmware {
             &cfg,
             LinkSettings::defaults(cfg.rate_hz),
             board.reset_cause,
-        );
+        )
+        .with_sensor_inputs(&stm32g474::SENSOR_INPUTS);
         // Each slot (128 KiB of flash) is offered cut to the length its image header declares
         // (`image_slots`); trailing bytes would be refused by the loader.
         for (name, slot) in ["A", "B"].iter().zip(stm32g474::image_slots()) {

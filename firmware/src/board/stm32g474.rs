@@ -60,6 +60,22 @@ pub const CAPS: BoardCaps = BoardCaps {
     axis_ids: &AXIS_IDS,
     sensors: RTD_COUNT as u16,
 };
+/// The board's sensor inputs by name and unit, in reading order (RTD on chip select PB0, PB1): an
+/// image's sensors are wired to them by name at load, and a sensor none of them can feed (e.g. a
+/// `warmup` input: this board has no drive-enable input wired) is refused
+/// ([`crate::drive::ImageRefusal::SensorNotOnBoard`]). Like [`AXIS_IDS`], name them after what is
+/// wired on the machine (the replays name them `spindle`, `column`:
+/// [`crate::drive::link_trace::REPLAY_SENSOR_INPUTS`]).
+pub const SENSOR_INPUTS: [axcomp_core::wiring::BoardInput<'static>; RTD_COUNT] = [
+    axcomp_core::wiring::BoardInput {
+        name: "rtd0",
+        unit: axcomp_core::wiring::InputUnit::DegC,
+    },
+    axcomp_core::wiring::BoardInput {
+        name: "rtd1",
+        unit: axcomp_core::wiring::InputUnit::DegC,
+    },
+];
 /// Setpoint link rate (see the link budget in [`crate::setpoint`]).
 pub const LINK_BAUD: u32 = 2_000_000;
 /// Watchdog timeout: 100 cycles at 10 kHz.

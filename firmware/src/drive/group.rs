@@ -13,15 +13,20 @@
 //! - **Image check**: every axis of a group image is checked against the board (counter width, axis id
 //!   wired, sensors wired; an axis id on two axes is refused) before the engine sees it; the engine then
 //!   swaps A/B for the whole group at once, or keeps the running group.
-//! - **Temperatures**: image sensor `j` of every axis is board sensor `j`; a reading set goes to every
-//!   axis ([`GroupDrive::update_temperatures`]).
+//! - **Temperatures**: the board declares its inputs by name and unit ([`GroupDrive::with_sensor_inputs`],
+//!   `axcomp_core::wiring`); at load every sensor of every axis is wired to the input of its name (an
+//!   image without names: sensor `j` = input `j`, temperatures only), and a sensor no input can feed is
+//!   a refusal ([`ImageRefusal::SensorNotOnBoard`]). A reading set goes to every axis through its
+//!   wiring ([`GroupDrive::update_temperatures`]). A drive without declared inputs wires by position
+//!   and checks only the count ([`BoardCaps::sensors`]).
 //! - **Touch probe** ([`super::probe`]): with probe settings in the image, [`GroupDrive::cycle_with_probe`]
 //!   reads the board's [`ProbeIo`] after the engine's cycle, latches the corrected point, sets the
 //!   `PROBE_*` status flags and answers with v3 reply frames; [`GroupDrive::cycle`] is the same with
 //!   no probe input.
 
 use axcomp_core::group::{GroupEngine, GroupInput, GroupOutput, MAX_AXES};
-use axcomp_core::{Flags, group_image, inspect_image};
+use axcomp_core::wiring::{self, BoardInput, SensorWiring};
+use axcomp_core::{Flags, MAX_SENSORS, group_image, inspect_image};
 
 use super::probe::{NoProbe, ProbeDrive, ProbeIo};
 use super::{
@@ -38,12 +43,33 @@ pub type AxisInputs = ([u8; MAX_AXES], usize);
 /// Validates a group image (schema 2, or schema 1 as one axis) and checks every axis against the
 /// board; returns the board input of each axis. The image is never loaded here.
 pub fn check_group_image(caps: &BoardCaps, image: &[u8]) -> Result<AxisInputs, ImageRefusal> {
+    check_group_image_wired(caps, None, image).map(|(inputs, _)| inputs)
+}
+
+/// [`check_group_image`] with the board's named sensor inputs (`None`: by position, count only);
+/// also returns each axis's sensor wiring (by group slot).
+pub fn check_group_image_wired(
+    caps: &BoardCaps,
+    sensor_inputs: Option<&[BoardInput]>,
+    image: &[u8],
+) -> Result<(AxisInputs, [SensorWiring; MAX_AXES]), ImageRefusal> {
     let view = group_image::parse(image).map_err(ImageRefusal::Invalid)?;
     let mut inputs = [0u8; MAX_AXES];
+    let mut wirings = [wiring::POSITIONAL; MAX_AXES];
     let mut n = 0;
     for a in view.axes() {
         let info = inspect_image(a.axis.image).map_err(ImageRefusal::Invalid)?;
+        // The count first (more sensors than the board has inputs), then each sensor by name.
         let input = caps.check(info.axis_id, info.counter_bits, info.n_sensors)?;
+        let w = match sensor_inputs {
+            Some(board) => wiring::wire_axis(a, info.n_sensors, board).map_err(|why| {
+                ImageRefusal::SensorNotOnBoard {
+                    axis_id: info.axis_id,
+                    why,
+                }
+            })?,
+            None => wiring::POSITIONAL,
+        };
         if inputs[..n].contains(&(input as u8)) {
             return Err(ImageRefusal::AxisIdTwice {
                 axis_id: info.axis_id,
@@ -53,9 +79,10 @@ pub fn check_group_image(caps: &BoardCaps, image: &[u8]) -> Result<AxisInputs, I
             return Err(ImageRefusal::Invalid(axcomp_core::ImageError::AxisCount));
         }
         inputs[n] = input as u8;
+        wirings[n] = w;
         n += 1;
     }
-    Ok((inputs, n))
+    Ok(((inputs, n), wirings))
 }
 
 /// One group cycle's result, by group slot (entries `n_axes..` are zero).
@@ -90,6 +117,8 @@ pub struct GroupDrive {
     caps: BoardCaps,
     inputs: [u8; MAX_AXES],
     n_axes: usize,
+    sensor_inputs: Option<&'static [BoardInput<'static>]>,
+    wiring: [SensorWiring; MAX_AXES],
     decoder: SetpointDecoder,
     links: [LinkSupervisor; MAX_AXES],
     meter: LatenessMeter,
@@ -118,6 +147,8 @@ impl GroupDrive {
             caps,
             inputs,
             n_axes,
+            sensor_inputs: None,
+            wiring: [wiring::POSITIONAL; MAX_AXES],
             decoder: SetpointDecoder::new(),
             links: [LinkSupervisor::new(link); MAX_AXES],
             meter: LatenessMeter::new(config.period_ticks),
@@ -145,6 +176,24 @@ impl GroupDrive {
             *v = i as u8;
         }
         (inputs, n)
+    }
+
+    /// Declares the board's sensor inputs by name and unit (reading `k` of a set = input `k`): images
+    /// are then wired by sensor name and a sensor no input can feed is refused at load. Set it before
+    /// the first image is offered.
+    pub fn with_sensor_inputs(mut self, inputs: &'static [BoardInput<'static>]) -> Self {
+        self.sensor_inputs = Some(inputs);
+        self
+    }
+
+    /// The declared sensor inputs, if any.
+    pub fn sensor_inputs(&self) -> Option<&'static [BoardInput<'static>]> {
+        self.sensor_inputs
+    }
+
+    /// The board input each sensor of group slot `i` reads (first `n_sensors` entries apply).
+    pub fn sensor_wiring(&self, i: usize) -> Option<&SensorWiring> {
+        self.wiring.get(i).filter(|_| i < self.n_axes)
     }
 
     /// Replaces the lateness meter (e.g. another tolerance).
@@ -195,14 +244,16 @@ impl GroupDrive {
         engine: &mut GroupEngine<POOL>,
         image: &[u8],
     ) -> Result<(), ImageRefusal> {
-        let result = check_group_image(&self.caps, image).and_then(|ins| {
-            engine
-                .load_image(image)
-                .map(|()| ins)
-                .map_err(ImageRefusal::Group)
-        });
+        let result =
+            check_group_image_wired(&self.caps, self.sensor_inputs, image).and_then(|ins| {
+                engine
+                    .load_image(image)
+                    .map(|()| ins)
+                    .map_err(ImageRefusal::Group)
+            });
         match result {
-            Ok((inputs, n)) => {
+            Ok(((inputs, n), wiring)) => {
+                self.wiring = wiring;
                 // Each axis's supervisor keeps following its own command: slots are re-mapped only
                 // when the group's wiring changes.
                 if (inputs, n) != (self.inputs, self.n_axes) {
@@ -230,7 +281,8 @@ impl GroupDrive {
         }
     }
 
-    /// A set of board temperature readings (board sensor j = every axis's image sensor j).
+    /// A set of board readings (reading `k` = board input `k`), to every axis through its wiring
+    /// (a sensor whose input is missing from the set reads NaN, as the core treats a missing reading).
     pub fn update_temperatures<const POOL: usize>(
         &self,
         engine: &mut GroupEngine<POOL>,
@@ -238,7 +290,12 @@ impl GroupDrive {
         readings: &[f32],
     ) {
         for i in 0..engine.active().axis_count() {
-            engine.update_temperatures(i, now_ms, readings);
+            let w = self.wiring.get(i).unwrap_or(&wiring::POSITIONAL);
+            let mut axis = [f32::NAN; MAX_SENSORS];
+            for (r, &k) in axis.iter_mut().zip(w.iter()) {
+                *r = readings.get(usize::from(k)).copied().unwrap_or(f32::NAN);
+            }
+            engine.update_temperatures(i, now_ms, &axis);
         }
     }
 

@@ -698,6 +698,20 @@ pub const REPLAY_CAPS: super::BoardCaps = super::BoardCaps {
     sensors: 2,
 };
 
+/// The sensor inputs of the board a replay models: the STM32G474 board's two RTDs (°C), named after the
+/// sensors of the scenarios' group image (`spindle`, `column`), as a machine's board names them
+/// (`board::stm32g474::SENSOR_INPUTS`, `rtd0`, `rtd1` until set).
+pub const REPLAY_SENSOR_INPUTS: [axcomp_core::wiring::BoardInput<'static>; 2] = [
+    axcomp_core::wiring::BoardInput {
+        name: "spindle",
+        unit: axcomp_core::wiring::InputUnit::DegC,
+    },
+    axcomp_core::wiring::BoardInput {
+        name: "column",
+        unit: axcomp_core::wiring::InputUnit::DegC,
+    },
+];
+
 /// Cycle-clock rate of a replay (the STM32G474's core clock): 17 000 ticks per 10 kHz cycle.
 pub const REPLAY_CLOCK_HZ: u32 = 170_000_000;
 
@@ -713,4 +727,5 @@ pub fn replay_drive() -> GroupDrive {
         super::LinkSettings::defaults(cfg.rate_hz),
         super::ResetCause::default(),
     )
+    .with_sensor_inputs(&REPLAY_SENSOR_INPUTS)
 }

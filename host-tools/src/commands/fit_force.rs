@@ -335,7 +335,17 @@ fn run_power(args: &Args, outputs: &mut OutputSet) -> anyhow::Result<()> {
             y_fz: fit.y_fz.value,
             z_n: fit.z_n.value,
         };
-        outputs.file(p, serde_json::to_string_pretty(&law)?);
+        let provenance = crate::provenance::of_file(
+            data,
+            &args.where_,
+            &args.rename,
+            &args.scale,
+            None,
+            None,
+            &cols.force_col,
+            "fit force",
+        )?;
+        outputs.file(p, crate::provenance::stamp(&law, &provenance)?);
     }
     if let Some(j) = &args.json {
         outputs.file(j, serde_json::to_string_pretty(&out)?);

@@ -112,7 +112,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         outputs.json(p, rep)?;
     }
     if let Some(p) = &a.out {
-        outputs.file(p, an.fit.model.to_json());
+        let provenance = crate::provenance::of_data(
+            &a.data,
+            a.holdout.as_deref(),
+            a.cv.as_deref(),
+            "",
+            "fit geometry",
+        )?;
+        outputs.file(
+            p,
+            crate::provenance::stamp_text(&an.fit.model.to_json(), &provenance)?,
+        );
     }
     if let Some(dir) = &a.export {
         for (name, text) in axcomp_geometry::export::export_files(&an.fit.model, a.export_step) {

@@ -166,7 +166,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         model
             .validate()
             .map_err(|e| anyhow::anyhow!("the warm-up drift model for {}: {e}", path.display()))?;
-        outputs.json(path, model)?;
+        match &outcome.fit.table.provenance {
+            Some(p) => outputs.file(path, crate::provenance::stamp(model, p)?),
+            None => outputs.json(path, model)?,
+        };
     }
     if let Some(dir) = &args.report {
         let big = outcome.judged.x.len() >= PROGRESS_ROWS;
@@ -389,15 +392,11 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
             warnings.len()
         );
     }
-    let provenance = axcomp_data::Provenance::of_file(
-        &args.data.data,
-        &args.data.where_,
-        &args.data.rename,
-        &args.data.scale,
+    let provenance = crate::provenance::of_data(
+        &args.data,
         args.holdout.as_deref(),
         args.cv.as_deref(),
         &args.target,
-        concat!("axcomp ", env!("CARGO_PKG_VERSION")),
         "fit positioning",
     )?;
     let axis = match &args.axis {

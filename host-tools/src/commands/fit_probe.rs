@@ -504,7 +504,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outputs.file(p, text.as_bytes());
     }
     if let Some(p) = &args.out {
-        outputs.file(p, cal.to_json());
+        let provenance =
+            crate::provenance::of_data(&args.data, args.holdout.as_deref(), None, "", "fit probe")?;
+        outputs.file(
+            p,
+            crate::provenance::stamp_text(&cal.to_json(), &provenance)?,
+        );
     }
     if let Some(p) = &args.json {
         outputs.json(p, &report)?;

@@ -100,7 +100,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outputs.json(p, &json)?;
     }
     if let Some(p) = &args.out {
-        outputs.json(p, &model)?;
+        let provenance = crate::provenance::of_data(
+            &args.data,
+            args.holdout.as_deref(),
+            args.cv.as_deref(),
+            "",
+            "fit rtest",
+        )?;
+        outputs.file(p, crate::provenance::stamp(&model, &provenance)?);
     }
     outputs.commit()?;
     print_summary(&a, &data, &json);

@@ -393,7 +393,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         file.validate()
             .map_err(|e| anyhow::anyhow!("model not written: {e}"))?;
-        outputs.file(out, serde_json::to_string_pretty(&file)?);
+        let provenance = crate::provenance::of_data(
+            &args.data,
+            args.holdout.as_deref(),
+            args.cv.as_deref(),
+            &args.target,
+            "fit thermal",
+        )?;
+        outputs.file(out, crate::provenance::stamp(&file, &provenance)?);
     }
     outputs.commit()?;
     if let Some(out) = &args.out {

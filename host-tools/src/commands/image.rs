@@ -14,7 +14,9 @@ use std::path::PathBuf;
 use anyhow::Context;
 use axcomp_core::group::AxisName;
 use axcomp_core::group_image::{self, AxisSectionSpec};
+use axcomp_core::provenance;
 use axcomp_core::rotary::RotaryLocationSpec;
+use axcomp_core::wiring::{BoardInput, InputUnit};
 use axcomp_core::{Compensator, ImageSpec, LimitSpec, image_len, inspect_image, write_image};
 use axcomp_positioning::TableFile;
 use axcomp_thermal::model_file::ThermalModelFile;
@@ -52,6 +54,12 @@ pub struct BuildArgs {
     /// Output image file.
     #[arg(long, value_name = "IMAGE")]
     pub out: PathBuf,
+    /// Name a model sensor after the board input that feeds it (repeatable), e.g. `frame=rtd0`. The image
+    /// keeps one name per sensor (the model's, or this one); the firmware wires each sensor to the board
+    /// input of that name and refuses the image when the board has no such input (the STM32G474 board:
+    /// `rtd0`, `rtd1`, °C).
+    #[arg(long = "sensor-input", value_name = "SENSOR=INPUT")]
+    pub sensor_input: Vec<String>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -59,7 +67,14 @@ pub struct InspectArgs {
     /// The image file.
     #[arg(value_name = "IMAGE")]
     pub image: PathBuf,
+    /// The board's sensor inputs in reading order, `NAME:UNIT,...` (UNIT `degC` or `warmup`), to show
+    /// which input feeds each sensor. Default: the STM32G474 board's.
+    #[arg(long, value_name = "LIST", default_value = BOARD_INPUTS_STM32G474)]
+    pub board_inputs: String,
 }
+
+/// The STM32G474 board's sensor inputs (`firmware/src/board/stm32g474.rs`, `SENSOR_INPUTS`).
+pub const BOARD_INPUTS_STM32G474: &str = "rtd0:degC,rtd1:degC";
 
 /// Builds the image bytes from the table/model files (validated; nothing is written here).
 pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
@@ -105,7 +120,80 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
     let mut buf = vec![0u8; image_len(&spec)];
     let n = write_image(&spec, &mut buf).context("the image spec is not valid")?;
     buf.truncate(n);
-    Ok(buf)
+    // The header extension: sensor names (the thermal model's, or --sensor-input) and provenance.
+    let names = match &args.thermal {
+        Some(p) => sensor_names(
+            p,
+            &ThermalModelFile::load(p)
+                .with_context(|| format!("reading thermal model {}", p.display()))?,
+            &args.sensor_input,
+        )?,
+        None if !args.sensor_input.is_empty() => {
+            anyhow::bail!("--sensor-input needs --thermal (the image has no sensors without it)")
+        }
+        None => vec![],
+    };
+    let mut records = Vec::new();
+    for (p, role) in [
+        (&args.table, provenance::role::POSITIONING_TABLE),
+        (&args.thermal, provenance::role::THERMAL_MODEL),
+    ] {
+        if let Some(p) = p {
+            records.push(crate::provenance::model_record(
+                p,
+                provenance::ANY_AXIS,
+                role,
+            )?);
+        }
+    }
+    let block = crate::provenance::image_block(&records)?;
+    let mut field = vec![0u8; group_image::SENSOR_NAME_LEN * names.len()];
+    for (i, n) in names.iter().enumerate() {
+        let at = group_image::SENSOR_NAME_LEN * i;
+        field[at..at + n.len()].copy_from_slice(n.as_bytes());
+    }
+    let mut blocks = vec![(provenance::PROVENANCE_TAG, block.as_slice())];
+    if !names.is_empty() {
+        blocks.push((provenance::SENSOR_NAMES_TAG, field.as_slice()));
+    }
+    let mut out = vec![0u8; buf.len() + provenance::extension_len(&blocks)];
+    let n = provenance::with_header_extension(&buf, &blocks, &mut out)
+        .map_err(|e| anyhow::anyhow!("the image's sensor names or provenance: {e}"))?;
+    out.truncate(n);
+    Ok(out)
+}
+
+/// One name per sensor of the thermal model (its order is the firmware's): the model's name, or the board
+/// input `--sensor-input SENSOR=INPUT` gives it; each 1..=15 bytes.
+fn sensor_names(
+    path: &std::path::Path,
+    model: &ThermalModelFile,
+    renames: &[String],
+) -> anyhow::Result<Vec<String>> {
+    let mut names: Vec<String> = model.sensors.iter().map(|s| s.name.clone()).collect();
+    for r in renames {
+        let (from, to) = r
+            .split_once('=')
+            .with_context(|| format!("--sensor-input `{r}`: expected SENSOR=INPUT"))?;
+        let Some(k) = model.sensors.iter().position(|s| s.name == from) else {
+            anyhow::bail!(
+                "--sensor-input `{r}`: `{from}` is not a sensor of {} (have: {})",
+                path.display(),
+                names.join(", ")
+            );
+        };
+        names[k] = to.to_string();
+    }
+    for n in &names {
+        anyhow::ensure!(
+            !n.is_empty() && n.len() < group_image::SENSOR_NAME_LEN && !n.contains('\0'),
+            "sensor `{n}` of {}: an image keeps sensor names of 1 to {} bytes; name it after its board \
+             input with --sensor-input {n}=INPUT",
+            path.display(),
+            group_image::SENSOR_NAME_LEN - 1
+        );
+    }
+    Ok(names)
 }
 
 pub fn build(args: BuildArgs) -> anyhow::Result<()> {
@@ -239,10 +327,118 @@ pub fn describe(bytes: &[u8]) -> anyhow::Result<String> {
 pub fn inspect(args: InspectArgs) -> anyhow::Result<()> {
     let bytes = std::fs::read(&args.image)
         .with_context(|| format!("cannot read {}", args.image.display()))?;
+    let board = parse_board_inputs(&args.board_inputs)?;
     let text =
         describe_any(&bytes).with_context(|| format!("{}: invalid image", args.image.display()))?;
     print!("{text}");
+    print!("{}", describe_trust(&bytes, &board)?);
     Ok(())
+}
+
+/// `--board-inputs NAME:UNIT,...` (UNIT `degC` or `warmup`).
+pub fn parse_board_inputs(list: &str) -> anyhow::Result<Vec<(String, InputUnit)>> {
+    list.split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(|s| {
+            let (name, unit) = s
+                .trim()
+                .split_once(':')
+                .with_context(|| format!("--board-inputs `{s}`: expected NAME:UNIT"))?;
+            let unit = match unit {
+                "degC" | "°C" => InputUnit::DegC,
+                "warmup" => InputUnit::WarmupState,
+                u => anyhow::bail!("--board-inputs `{s}`: unit `{u}` is not degC or warmup"),
+            };
+            Ok((name.to_string(), unit))
+        })
+        .collect()
+}
+
+/// Provenance, sensor names and their wiring onto `board` (the part of `image inspect` after the axes).
+pub fn describe_trust(bytes: &[u8], board: &[(String, InputUnit)]) -> anyhow::Result<String> {
+    use std::fmt::Write;
+    let view = group_image::parse(bytes)?;
+    let inputs: Vec<BoardInput> = board
+        .iter()
+        .map(|(name, unit)| BoardInput { name, unit: *unit })
+        .collect();
+    let mut s = String::new();
+    match view.provenance {
+        Some(p) => {
+            writeln!(s, "provenance: built {} by {}", p.built_utc(), p.tool())?;
+            for r in p.records() {
+                let axis = AxisName::from_code(r.axis)
+                    .map_or(String::new(), |a| format!("axis {}: ", a.letter()));
+                writeln!(
+                    s,
+                    "  {axis}{} sha256 {}; data sha256 {}",
+                    provenance::role::name(r.role),
+                    crate::provenance::to_hex(&r.model_sha256),
+                    if r.data_sha256 == [0; 32] {
+                        "not recorded".to_string()
+                    } else {
+                        crate::provenance::to_hex(&r.data_sha256)
+                    }
+                )?;
+            }
+        }
+        None => writeln!(s, "provenance: none (built before images carried it)")?,
+    }
+    writeln!(
+        s,
+        "board inputs: {}",
+        board
+            .iter()
+            .enumerate()
+            .map(|(k, (n, u))| format!("{k} {n} ({})", u.name()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )?;
+    for a in view.axes() {
+        let n = inspect_image(a.axis.image)?.n_sensors;
+        if n == 0 {
+            continue;
+        }
+        let named = !a.sensor_names.is_empty();
+        let wiring = axcomp_core::wiring::wire_axis(a, n, &inputs);
+        writeln!(
+            s,
+            "axis {} (id {}) sensors ({}): {}",
+            a.axis.name.letter(),
+            inspect_image(a.axis.image)?.axis_id,
+            if named {
+                "wired by name"
+            } else {
+                "no names: wired by position"
+            },
+            match &wiring {
+                Ok(_) => "every sensor has its input".to_string(),
+                Err(e) => format!("REFUSED by this board: {e}"),
+            }
+        )?;
+        for j in 0..n {
+            let name = a.sensor_name(j).unwrap_or("(unnamed)");
+            let to = match &wiring {
+                Ok(w) => {
+                    let k = usize::from(w[j]);
+                    format!(
+                        "board input {k} {} ({})",
+                        inputs[k].name,
+                        inputs[k].unit.name()
+                    )
+                }
+                Err(_) => match inputs.iter().position(|i| i.name == name) {
+                    Some(k) if named => format!("board input {k} {}", inputs[k].name),
+                    _ if !named && j < inputs.len() => {
+                        format!("board input {j} {} (by position)", inputs[j].name)
+                    }
+                    _ => "no board input".to_string(),
+                },
+            };
+            writeln!(s, "  sensor {j} {name} -> {to}")?;
+        }
+    }
+    Ok(s)
 }
 
 /// `image inspect` for any image: a group image (schema 2) per axis, a schema-1 image as before;
@@ -416,14 +612,20 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
         names.push((name, list.split(',').map(str::to_string).collect()));
     }
     let rotary = args.rotary.as_deref().map(rotary_from_json).transpose()?;
+    // An axis without --sensor-names keeps the names its image carries (from `image build`).
+    let carried: Vec<Vec<String>> = axes
+        .iter()
+        .map(|(_, _, bytes)| carried_sensor_names(bytes))
+        .collect();
     let name_refs: Vec<Vec<&str>> = axes
         .iter()
-        .map(|(name, _, _)| {
+        .zip(&carried)
+        .map(|((name, _, _), own)| {
             names
                 .iter()
                 .find(|(n, _)| n == name)
                 .map(|(_, l)| l.iter().map(String::as_str).collect())
-                .unwrap_or_default()
+                .unwrap_or_else(|| own.iter().map(String::as_str).collect())
         })
         .collect();
     for (n, _) in &names {
@@ -451,11 +653,92 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
     Ok(buf)
 }
 
+/// What `image group` writes: [`group_bytes`] with the provenance section (every axis image's model
+/// records, the rotary model file's, the tool, the date).
+pub fn group_bytes_with_provenance(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
+    let body = group_bytes(args)?;
+    let mut axes = Vec::new();
+    for a in &args.axes {
+        let (name, cpr, path) = parse_axis_arg(a)?;
+        let bytes = std::fs::read(&path)
+            .with_context(|| format!("--axis {a}: cannot read {}", path.display()))?;
+        axes.push((name, cpr, bytes));
+    }
+    let records = group_provenance_records(&axes, args.rotary.as_deref())?;
+    with_provenance_section(&body, &records)
+}
+
+/// The sensor names in a schema-1 image's header extension (empty without them).
+fn carried_sensor_names(image: &[u8]) -> Vec<String> {
+    let Ok(view) = group_image::parse(image) else {
+        return vec![];
+    };
+    let Some(a) = view.axes().next() else {
+        return vec![];
+    };
+    let n = inspect_image(a.axis.image).map_or(0, |i| i.n_sensors);
+    (0..n)
+        .map_while(|j| a.sensor_name(j).map(str::to_string))
+        .collect()
+}
+
+/// Every axis image's provenance records (re-labelled with the group axis) and the rotary model file's.
+fn group_provenance_records(
+    axes: &[(AxisName, u32, Vec<u8>)],
+    rotary: Option<&std::path::Path>,
+) -> anyhow::Result<Vec<provenance::ProvenanceRecord>> {
+    let mut records = Vec::new();
+    for (name, _, bytes) in axes {
+        if let Ok(view) = group_image::parse(bytes) {
+            for p in view.provenance.iter() {
+                for mut r in p.records() {
+                    r.axis = name.code();
+                    records.push(r);
+                }
+            }
+        }
+    }
+    if let Some(p) = rotary {
+        records.push(crate::provenance::model_record(
+            p,
+            provenance::ANY_AXIS,
+            provenance::role::ROTARY_MODEL,
+        )?);
+    }
+    anyhow::ensure!(
+        records.len() <= provenance::MAX_RECORDS,
+        "{} model files: an image records at most {}",
+        records.len(),
+        provenance::MAX_RECORDS
+    );
+    Ok(records)
+}
+
+/// `image` (a group image) with the provenance section (kind 6, optional) appended.
+pub fn with_provenance_section(
+    image: &[u8],
+    records: &[provenance::ProvenanceRecord],
+) -> anyhow::Result<Vec<u8>> {
+    let block = crate::provenance::image_block(records)?;
+    let mut out = vec![0u8; image.len() + group_image::DIR_ENTRY_LEN + block.len()];
+    let n = provenance::with_group_section(
+        image,
+        group_image::SectionKind::Provenance as u16,
+        group_image::NO_AXIS,
+        0,
+        &block,
+        &mut out,
+    )
+    .map_err(|e| anyhow::anyhow!("the image's provenance section: {e}"))?;
+    out.truncate(n);
+    Ok(out)
+}
+
 pub fn group(args: GroupArgs) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.planned(&args.out);
     outputs.check()?;
-    let bytes = group_bytes(&args)?;
+    let bytes = group_bytes_with_provenance(&args)?;
     outputs.file(&args.out, bytes.as_slice());
     outputs.commit()?;
     let view = group_image::parse(&bytes)?;
@@ -551,5 +834,38 @@ mod tests {
         let e = describe_any(&long).unwrap_err();
         assert!(format!("{e:#}").contains("bytes follow the end"), "{e:#}");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// An image written before provenance and without names on a board's inputs: `inspect` says it has no
+    /// provenance and wires by position; the scenario's named group (spindle, column) is refused by the
+    /// STM32G474 board's default inputs and wired on a board that names its inputs so; a bad
+    /// `--board-inputs` is an error naming it.
+    #[test]
+    fn inspect_reports_missing_provenance_and_the_wiring() {
+        let g = axcomp_scenario::group_image(3, false).unwrap();
+        let board = parse_board_inputs(BOARD_INPUTS_STM32G474).unwrap();
+        let text = describe_trust(&g, &board).unwrap();
+        assert!(
+            text.contains("provenance: none")
+                && text.contains("axis X (id 1) sensors (wired by name): REFUSED by this board")
+                && text.contains("sensor 0 spindle -> no board input"),
+            "{text}"
+        );
+        let named = parse_board_inputs("spindle:degC,column:degC").unwrap();
+        let text = describe_trust(&g, &named).unwrap();
+        assert!(
+            text.contains("sensor 1 column -> board input 1 column (°C)"),
+            "{text}"
+        );
+        // A schema-1 image without names: by position.
+        let (x, _) = group_image::parse(&g).unwrap().axis_images();
+        let text = describe_trust(x[0].image, &board).unwrap();
+        assert!(
+            text.contains("no names: wired by position")
+                && text.contains("sensor 0 (unnamed) -> board input 0 rtd0 (°C)"),
+            "{text}"
+        );
+        let e = parse_board_inputs("rtd0:kelvin").unwrap_err();
+        assert!(e.to_string().contains("`kelvin`"), "{e}");
     }
 }

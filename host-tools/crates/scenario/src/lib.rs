@@ -385,6 +385,8 @@ pub enum GroupImageVariant {
     AxisId { slot: usize, id: u16 },
     /// X with this many sensors (1–4).
     Sensors(usize),
+    /// X's first sensor named `warmup` (a warm-up drift input; the board has only RTDs).
+    WarmupSensor,
 }
 
 /// [`group_image`] with a [`GroupImageVariant`].
@@ -450,7 +452,11 @@ pub fn group_image_variant(
         }
         images.push(build_image(&spec)?);
     }
-    let all_names: [&str; 4] = ["spindle", "column", "bed", "table"];
+    // The replays' board names its two inputs `spindle`, `column` (the firmware wires sensors by name).
+    let mut all_names: [&str; 4] = ["spindle", "column", "bed", "table"];
+    if variant == GroupImageVariant::WarmupSensor {
+        all_names[0] = "warmup";
+    }
     let names = &all_names[..n_sensors];
     let axes: Vec<AxisSectionSpec> = images
         .iter()
