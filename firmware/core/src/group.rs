@@ -524,9 +524,11 @@ impl<const POOL: usize> Group<POOL> {
     /// commanded positions), then each axis's whole pipeline, the stage's deviation added to the
     /// axis's error before its limits (the same sum, in the same order, as adding it between the
     /// error and the limits). A group with the stage is exactly X, Y, Z (linear) and A, C
-    /// (rotary), in any slot order: the pipelines run in that name order (each reads and writes
-    /// only its own slot, so the order does not change any output), inlined here with the
-    /// kind of each known (no per-axis call or dispatch).
+    /// (rotary). In the order X, Y, Z, A, C (`XYZAC`) the five pipelines are inlined here with
+    /// constant slots and the kind of each known (no per-axis call or dispatch); any other slot
+    /// order runs them in slot order through the per-axis calls that [`MODE_MIXED`] uses (one
+    /// inlined copy only, for code size). Each pipeline reads and writes only its own slot, so
+    /// the order changes no output.
     #[inline(never)]
     fn cycle_with_stage<const XYZAC: bool>(
         &self,
@@ -535,14 +537,31 @@ impl<const POOL: usize> Group<POOL> {
         out: &mut GroupOutput,
     ) {
         let d = self.rotary_stage::<XYZAC>(st, input);
-        let [x, y, z, a, c] = core::array::from_fn(|k| self.stage_slot::<XYZAC>(k));
         let (pool, inp) = (&self.pool, &input.axes);
         let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
-        axis_pipeline::<POOL, false, true>(&ax[x], pool, &mut s[x], &inp[x], &mut o[x], d[0]);
-        axis_pipeline::<POOL, false, true>(&ax[y], pool, &mut s[y], &inp[y], &mut o[y], d[1]);
-        axis_pipeline::<POOL, false, true>(&ax[z], pool, &mut s[z], &inp[z], &mut o[z], d[2]);
-        axis_pipeline::<POOL, true, false>(&ax[a], pool, &mut s[a], &inp[a], &mut o[a], 0.0);
-        axis_pipeline::<POOL, true, false>(&ax[c], pool, &mut s[c], &inp[c], &mut o[c], 0.0);
+        if XYZAC {
+            axis_pipeline::<POOL, false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
+            axis_pipeline::<POOL, false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
+            axis_pipeline::<POOL, false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
+            axis_pipeline::<POOL, true, false>(&ax[3], pool, &mut s[3], &inp[3], &mut o[3], 0.0);
+            axis_pipeline::<POOL, true, false>(&ax[4], pool, &mut s[4], &inp[4], &mut o[4], 0.0);
+            return;
+        }
+        // The deviation by slot (X, Y, Z: the stage's; A, C: none).
+        let mut by_slot = [0.0f32; MAX_AXES];
+        for (k, &dk) in d.iter().enumerate() {
+            by_slot[self.stage_slot::<false>(k)] = dk;
+        }
+        let n = (self.n_axes as usize).min(MAX_AXES);
+        for i in 0..n {
+            let (a, st_i, in_i, out_i) = (&ax[i], &mut s[i], &inp[i], &mut o[i]);
+            match self.kinds[i] {
+                0 => axis_cycle_with::<POOL, false, false>(a, pool, st_i, in_i, out_i, by_slot[i]),
+                1 => axis_cycle::<POOL, true, false>(a, pool, st_i, in_i, out_i),
+                2 => axis_cycle_with::<POOL, false, true>(a, pool, st_i, in_i, out_i, by_slot[i]),
+                _ => axis_cycle::<POOL, true, true>(a, pool, st_i, in_i, out_i),
+            }
+        }
     }
 
     /// Slot of the stage's axis `k` (0..5: X, Y, Z, A, C): `k` itself when the slots are in that
@@ -603,6 +622,25 @@ fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     // THERMO false: known to have none; true: checked at run time.
     let thermo = if THERMO { None } else { Some(false) };
     let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, thermo);
+    *out = ax.finish(st, pos, e, input.command_counts, f);
+}
+
+/// One axis's whole pipeline of a group with the cross-axis stage in another slot order:
+/// `stage_um` (the stage's deviation, linear axes only) is added to the axis's error before its
+/// limits.
+#[inline(never)]
+fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
+    ax: &AxisCompensator<PoolTable>,
+    pool: &[[f32; 4]; POOL],
+    st: &mut State,
+    input: &CycleInput,
+    out: &mut CycleOutput,
+    stage_um: f32,
+) {
+    let pos = ax.track(st, input.scale_raw);
+    let thermo = if THERMO { None } else { Some(false) };
+    let (mut e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, thermo);
+    e += stage_um;
     *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
