@@ -20,10 +20,10 @@
 //!    when one of them changed, the tool tip from the commanded X, Y, Z → a deviation for X, Y, Z;
 //! 2. per axis, its whole pipeline in one call (in slot order; with the stage, in the order X, Y,
 //!    Z, A, C — each pipeline reads and writes only its own slot, so the order changes nothing):
-//!    counter extension → direction (hysteresis) → segment index of the table grid (once per axis and cycle: the table
-//!    position is the extended position, or the turn position for a rotary axis; every error
-//!    function of that axis uses this index) → table value → thermo-force term → + the stage's
-//!    deviation (X, Y, Z) → clamp → slew → rounding to counts → corrected command.
+//!    counter extension → direction (hysteresis) → segment index of the table grid (once per axis
+//!    and cycle: the table position is the extended position, or the turn position for a rotary
+//!    axis; every error function of that axis uses this index) → table value → thermo-force term →
+//!    + the stage's deviation (X, Y, Z) → clamp → slew → rounding to counts → corrected command.
 //!
 //! The stage's deviation is added to the same error, in the same order, as when it ran between
 //! the error and the limits (one pass over the axes instead of two; the outputs are the same).
