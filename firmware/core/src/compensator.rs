@@ -385,17 +385,12 @@ impl<S: TableStore> AxisCompensator<S> {
     ) -> (f32, Flags) {
         // `may_be_rotary` and `thermo_known` are constants at each call: where the caller knows
         // the axis is linear, or whether it has a thermo-force term, the check is compiled out.
-        let table_pos = if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
-            self.turn_position(st, pos) as i64
+        let (mut total, outside) = if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
+            let turn = self.turn_position(st, pos);
+            self.table_um_turn(pool, st.direction(), turn)
         } else {
-            pos
+            self.table_um_in(pool, st.direction(), pos)
         };
-        let direction = if st.backward {
-            Direction::Backward
-        } else {
-            Direction::Forward
-        };
-        let (mut total, outside) = self.table_um_in(pool, direction, table_pos);
         // BACKWARD is bit 7, TABLE_OUTSIDE bit 0: built here, after the lookup, so that no flag
         // register is live across it.
         let mut flags = Flags(((st.backward as u16) << 7) | outside as u16);

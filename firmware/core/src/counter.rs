@@ -84,8 +84,32 @@ impl<S: TableStore> AxisCompensator<S> {
 
 /// `in_turn + delta` modulo `cpr` (> 0), for `in_turn < cpr` and `absolute` ≡ in_turn + delta:
 /// one add and one compare when the step is below a turn, the full (slow) modulo otherwise.
+///
+/// The common case (|delta| < cpr, `in_turn` < cpr) runs on 32 bits: a delta that does not fit an
+/// i32 is ≥ 2^31 ≥ cpr in magnitude (cpr ≤ 2^31), and in_turn + delta then lies in (−cpr, 2·cpr),
+/// so one correction by ±cpr, in wrapping u32 arithmetic, gives the exact value. Anything else
+/// takes [`step_in_turn_wide`], the same rule on 64 bits.
 #[inline(always)]
 pub(crate) fn step_in_turn(in_turn: u32, delta: i64, cpr: u32, absolute: i64) -> u32 {
+    let d = delta as i32;
+    if d as i64 == delta && d.unsigned_abs() < cpr && in_turn < cpr {
+        let v = in_turn.wrapping_add(d as u32);
+        if v < cpr {
+            v
+        } else if d < 0 {
+            v.wrapping_add(cpr)
+        } else {
+            v - cpr
+        }
+    } else {
+        cold_path();
+        step_in_turn_wide(in_turn, delta, cpr, absolute)
+    }
+}
+
+/// [`step_in_turn`] in 64-bit arithmetic (any `in_turn`).
+#[inline(never)]
+fn step_in_turn_wide(in_turn: u32, delta: i64, cpr: u32, absolute: i64) -> u32 {
     let c = cpr as i64;
     if delta > -c && delta < c {
         let v = in_turn as i64 + delta;
@@ -97,7 +121,6 @@ pub(crate) fn step_in_turn(in_turn: u32, delta: i64, cpr: u32, absolute: i64) ->
             v as u32
         }
     } else {
-        cold_path();
         wrap(absolute, cpr)
     }
 }
@@ -105,4 +128,64 @@ pub(crate) fn step_in_turn(in_turn: u32, delta: i64, cpr: u32, absolute: i64) ->
 /// `x` modulo `cpr` in `[0, cpr)` (0 for `cpr` = 0).
 pub(crate) fn wrap(x: i64, cpr: u32) -> u32 {
     x.rem_euclid((cpr as i64).max(1)) as u32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{step_in_turn, step_in_turn_wide};
+
+    /// Reference: `step_in_turn_wide`, the 64-bit rule (the code before the 32-bit fast path);
+    /// tolerance: exact equality, for turn lengths 2 … 2^31, positions within and beyond the turn
+    /// and steps of every size (below a turn, exactly a turn, beyond 2^31, ±2^63).
+    #[test]
+    fn fast_step_equals_the_64_bit_rule() {
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let mut checked = 0u32;
+        for cpr in [2u32, 3, 1000, 3_600_000, (1 << 31) - 1, 1 << 31] {
+            let c = cpr as i64;
+            let specials = [
+                0,
+                1,
+                -1,
+                c - 1,
+                -(c - 1),
+                c,
+                -c,
+                c + 1,
+                i32::MIN as i64,
+                i32::MAX as i64,
+                1 << 31,
+                i64::MIN,
+                i64::MAX,
+            ];
+            for k in 0..20_000 {
+                let r = next();
+                let in_turn = if k % 10 == 0 {
+                    r as u32
+                } else {
+                    (r % cpr as u64) as u32
+                };
+                let delta = match k % 4 {
+                    0 => specials[(r >> 40) as usize % specials.len()],
+                    1 => ((r >> 20) as i64) % c,
+                    2 => (r >> 8) as i32 as i64,
+                    _ => r as i64,
+                };
+                let absolute = (in_turn as i64).wrapping_add(delta);
+                assert_eq!(
+                    step_in_turn(in_turn, delta, cpr, absolute),
+                    step_in_turn_wide(in_turn, delta, cpr, absolute),
+                    "cpr {cpr}, in_turn {in_turn}, delta {delta}"
+                );
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 120_000);
+    }
 }

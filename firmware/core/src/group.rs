@@ -18,11 +18,12 @@
 //! 1. the cross-axis stage (if the image has one; it reads only the commanded positions):
 //!    commanded angles of A and C within the turn, sin/cos and the angle terms recomputed only
 //!    when one of them changed, the tool tip from the commanded X, Y, Z → a deviation for X, Y, Z;
-//! 2. per axis, in slot order, its whole pipeline in one call: counter extension → direction
-//!    (hysteresis) → segment index of the table grid (once per axis and cycle: the table
-//!    position is the extended position, or the turn position for a rotary axis; every error
-//!    function of that axis uses this index) → table value → thermo-force term → + the stage's
-//!    deviation (X, Y, Z) → clamp → slew → rounding to counts → corrected command.
+//! 2. per axis, its whole pipeline in one call (in slot order; with the stage, in the order X, Y,
+//!    Z, A, C — each pipeline reads and writes only its own slot, so the order changes nothing):
+//!    counter extension → direction (hysteresis) → segment index of the table grid (once per axis
+//!    and cycle: the table position is the extended position, or the turn position for a rotary
+//!    axis; every error function of that axis uses this index) → table value → thermo-force term →
+//!    + the stage's deviation (X, Y, Z) → clamp → slew → rounding to counts → corrected command.
 //!
 //! The stage's deviation is added to the same error, in the same order, as when it ran between
 //! the error and the limits (one pass over the axes instead of two; the outputs are the same).
@@ -53,6 +54,9 @@ const MODE_PLAIN: u8 = 1;
 const MODE_MIXED: u8 = 2;
 /// With the cross-axis stage.
 const MODE_STAGE: u8 = 3;
+/// With the cross-axis stage, the slots in the order X, Y, Z, A, C (every slot index a constant
+/// of the cycle's code).
+const MODE_STAGE_XYZAC: u8 = 4;
 
 /// Name (and kind) of a group axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
@@ -386,7 +390,11 @@ impl<const POOL: usize> Group<POOL> {
         self.loaded = true;
         let n = axes.len().min(MAX_AXES);
         self.mode = if self.has_stage {
-            MODE_STAGE
+            if self.stage.slot == [0, 1, 2, 3, 4] {
+                MODE_STAGE_XYZAC
+            } else {
+                MODE_STAGE
+            }
         } else if self.kinds[..n].iter().all(|&k| k == 0) {
             MODE_PLAIN
         } else {
@@ -497,7 +505,8 @@ impl<const POOL: usize> Group<POOL> {
                     }
                 }
             }
-            MODE_STAGE => self.cycle_with_stage(st, input, out),
+            MODE_STAGE_XYZAC => self.cycle_with_stage::<true>(st, input, out),
+            MODE_STAGE => self.cycle_with_stage::<false>(st, input, out),
             _ => self.identity_cycle(st, input, out),
         }
     }
@@ -512,38 +521,66 @@ impl<const POOL: usize> Group<POOL> {
     }
 
     /// [`Group::cycle`] of a group with the cross-axis stage: the stage first (it reads only the
-    /// commanded positions), then each axis's whole pipeline in one call, the stage's deviation
-    /// added to the axis's error before its limits (the same sum, in the same order, as adding
-    /// it between the error and the limits).
+    /// commanded positions), then each axis's whole pipeline, the stage's deviation added to the
+    /// axis's error before its limits (the same sum, in the same order, as adding it between the
+    /// error and the limits). A group with the stage is exactly X, Y, Z (linear) and A, C
+    /// (rotary). In the order X, Y, Z, A, C (`XYZAC`) the five pipelines are inlined here with
+    /// constant slots and the kind of each known (no per-axis call or dispatch); any other slot
+    /// order runs them in slot order through the per-axis calls that [`MODE_MIXED`] uses (one
+    /// inlined copy only, for code size). Each pipeline reads and writes only its own slot, so
+    /// the order changes no output.
     #[inline(never)]
-    fn cycle_with_stage(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
-        let d = self.rotary_stage(st, input);
+    fn cycle_with_stage<const XYZAC: bool>(
+        &self,
+        st: &mut GroupState,
+        input: &GroupInput,
+        out: &mut GroupOutput,
+    ) {
+        let d = self.rotary_stage::<XYZAC>(st, input);
+        let (pool, inp) = (&self.pool, &input.axes);
+        let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
+        if XYZAC {
+            axis_pipeline::<POOL, false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
+            axis_pipeline::<POOL, false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
+            axis_pipeline::<POOL, false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
+            axis_pipeline::<POOL, true, false>(&ax[3], pool, &mut s[3], &inp[3], &mut o[3], 0.0);
+            axis_pipeline::<POOL, true, false>(&ax[4], pool, &mut s[4], &inp[4], &mut o[4], 0.0);
+            return;
+        }
+        // The deviation by slot (X, Y, Z: the stage's; A, C: none).
+        let mut by_slot = [0.0f32; MAX_AXES];
+        for (k, &dk) in d.iter().enumerate() {
+            by_slot[self.stage_slot::<false>(k)] = dk;
+        }
         let n = (self.n_axes as usize).min(MAX_AXES);
         for i in 0..n {
-            let (ax, s, inp, o) = (
-                &self.axes[i],
-                &mut st.axes[i],
-                &input.axes[i],
-                &mut out.axes[i],
-            );
-            // A linear axis (X, Y or Z: every linear axis is one of the stage's) adds its
-            // deviation; a rotary one has none.
+            let (a, st_i, in_i, out_i) = (&ax[i], &mut s[i], &inp[i], &mut o[i]);
             match self.kinds[i] {
-                0 => axis_cycle_with::<POOL, false, false>(ax, &self.pool, s, inp, o, d[i]),
-                1 => axis_cycle::<POOL, true, false>(ax, &self.pool, s, inp, o),
-                2 => axis_cycle_with::<POOL, false, true>(ax, &self.pool, s, inp, o, d[i]),
-                _ => axis_cycle::<POOL, true, true>(ax, &self.pool, s, inp, o),
+                0 => axis_cycle_with::<POOL, false, false>(a, pool, st_i, in_i, out_i, by_slot[i]),
+                1 => axis_cycle::<POOL, true, false>(a, pool, st_i, in_i, out_i),
+                2 => axis_cycle_with::<POOL, false, true>(a, pool, st_i, in_i, out_i, by_slot[i]),
+                _ => axis_cycle::<POOL, true, true>(a, pool, st_i, in_i, out_i),
             }
         }
     }
 
-    /// The rotary location-error stage: commanded angles within the turn, cached angle terms;
-    /// returns the deviation of each slot (X, Y, Z: the stage's; others 0).
+    /// Slot of the stage's axis `k` (0..5: X, Y, Z, A, C): `k` itself when the slots are in that
+    /// order, else the slot set at load (< MAX_AXES; `min` keeps the indexing check-free).
     #[inline(always)]
-    fn rotary_stage(&self, st: &mut GroupState, input: &GroupInput) -> [f32; MAX_AXES] {
+    fn stage_slot<const XYZAC: bool>(&self, k: usize) -> usize {
+        if XYZAC {
+            k
+        } else {
+            (self.stage.slot[k % 5] as usize).min(MAX_AXES - 1)
+        }
+    }
+
+    /// The rotary location-error stage: commanded angles within the turn, cached angle terms;
+    /// returns the deviation of X, Y, Z.
+    #[inline(always)]
+    fn rotary_stage<const XYZAC: bool>(&self, st: &mut GroupState, input: &GroupInput) -> [f32; 3] {
         let g = &self.stage;
-        // Slots are < MAX_AXES (set at load); `min` keeps the indexing check-free.
-        let slot = |k: usize| (g.slot[k] as usize).min(MAX_AXES - 1);
+        let slot = |k: usize| self.stage_slot::<XYZAC>(k);
         let mut angle = [0u32; 2];
         for (k, a) in angle.iter_mut().enumerate() {
             let i = slot(3 + k);
@@ -567,12 +604,7 @@ impl<const POOL: usize> Group<POOL> {
         }
         let cmd = |k: usize| input.axes[slot(k)].command_counts;
         let q = g.tool_tip_um([cmd(0), cmd(1), cmd(2)]);
-        let d = RotaryStage::deviation_um(&st.rotary, q);
-        let mut by_slot = [0.0f32; MAX_AXES];
-        for (k, dk) in d.into_iter().enumerate() {
-            by_slot[slot(k)] = dk;
-        }
-        by_slot
+        RotaryStage::deviation_um(&st.rotary, q)
     }
 }
 
@@ -669,8 +701,9 @@ fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
-/// One axis's whole pipeline of a group with the cross-axis stage: `stage_um` (the stage's
-/// deviation, linear axes only) is added to the axis's error before its limits.
+/// One axis's whole pipeline of a group with the cross-axis stage in another slot order:
+/// `stage_um` (the stage's deviation, linear axes only) is added to the axis's error before its
+/// limits.
 #[inline(never)]
 fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     ax: &AxisCompensator<PoolTable>,
@@ -684,6 +717,27 @@ fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     let thermo = if THERMO { None } else { Some(false) };
     let (mut e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, thermo);
     e += stage_um;
+    *out = ax.finish(st, pos, e, input.command_counts, f);
+}
+
+/// One axis's whole pipeline in a group with the cross-axis stage (inlined into the group's
+/// cycle): `ROTARY` known, the thermo-force term checked at run time; with `STAGE`, `stage_um`
+/// (the stage's deviation, linear axes) is added to the axis's error before its limits (without
+/// it nothing is added: `e + 0.0` would turn a −0.0 error into +0.0).
+#[inline(always)]
+fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool>(
+    ax: &AxisCompensator<PoolTable>,
+    pool: &[[f32; 4]; POOL],
+    st: &mut State,
+    input: &CycleInput,
+    out: &mut CycleOutput,
+    stage_um: f32,
+) {
+    let pos = ax.track(st, input.scale_raw);
+    let (mut e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, None);
+    if STAGE {
+        e += stage_um;
+    }
     *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 

@@ -67,6 +67,33 @@ impl<S: TableStore> AxisCompensator<S> {
         self.outside_um(dir, position_counts)
     }
 
+    /// [`AxisCompensator::table_um_in`] at the position within the turn `turn` of a rotary group
+    /// axis. Its table grid starts at 0 (validated at load: a rotary axis's knot 0 is at 0 and its
+    /// stroke is one turn), so the 64-bit difference to the start and the test of its high word
+    /// are not needed: the same segment, the same arithmetic, the same value.
+    #[inline(always)]
+    pub(crate) fn table_um_turn(
+        &self,
+        pool: &[[f32; 4]],
+        direction: Direction,
+        turn: u32,
+    ) -> (f32, bool) {
+        let Some(seg_counts) = self.segment else {
+            return (0.0, false);
+        };
+        let dir = (direction == Direction::Backward) as usize;
+        if turn < self.span_counts {
+            let seg = turn / seg_counts;
+            let rem = turn - seg.wrapping_mul(seg_counts.get());
+            let t = rem as f32 * self.inv_segment;
+            let c = self.table.segment(pool, dir, seg);
+            return (c[0] + t * (c[1] + t * (c[2] + t * c[3])), false);
+        }
+        // Only after a misuse (a turn position of another turn length); the general rules.
+        cold_path();
+        self.table_um_in(pool, direction, turn as i64)
+    }
+
     /// Table value beyond the stroke (hold or taper), for direction half `dir`.
     #[inline(always)]
     fn outside_um(&self, dir: usize, position_counts: i64) -> (f32, bool) {

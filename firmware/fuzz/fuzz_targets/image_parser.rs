@@ -4,7 +4,7 @@
 //! so that the fuzzer also reaches the section and value checks behind the CRC.
 #![no_main]
 
-use axcomp_core::{Compensator, CycleInput, State, crc32, inspect_image};
+use axcomp_core::{Compensator, CycleInput, MAX_IMAGE_LEN, State, crc32, inspect_image};
 use libfuzzer_sys::fuzz_target;
 
 fn check(data: &[u8]) {
@@ -39,7 +39,9 @@ fn check(data: &[u8]) {
 
 fuzz_target!(|data: &[u8]| {
     check(data);
-    if data.len() >= 48 + 16 + 4 && data.len() <= 65536 {
+    // Repaired up to the longest image the parser accepts (a whole flash slot), so that the
+    // largest tables are reached too.
+    if data.len() >= 48 + 16 + 4 && data.len() <= MAX_IMAGE_LEN {
         let mut b = data.to_vec();
         b[..4].copy_from_slice(b"AXCI");
         b[4..6].copy_from_slice(&1u16.to_le_bytes());

@@ -382,7 +382,25 @@ impl GroupDrive {
         // ---- the engine: one cycle for every axis ----
         let forces = io.read_forces();
         let mut input = GroupInput::ZERO;
-        let mut command_counts = [0i64; MAX_AXES];
+        // The cycle's record is built in place (the caller's return slot): no copy of the engine's
+        // outputs and the per-axis arrays on return.
+        let mut r = GroupDriveCycle {
+            n_axes: n,
+            n_inputs,
+            command_counts: [0; MAX_AXES],
+            corrected_command_counts: [0; MAX_AXES],
+            applied: [APPLIED_ZERO; MAX_AXES],
+            status,
+            engine: GroupOutput::ZERO,
+            probe: axcomp_core::probe::ProbeFlags::NONE,
+        };
+        let GroupDriveCycle {
+            command_counts,
+            corrected_command_counts: corrected,
+            applied,
+            engine: out,
+            ..
+        } = &mut r;
         for i in 0..n {
             let cmd = self.links[i].begin(commands.map(|c| c[i]));
             command_counts[i] = cmd;
@@ -390,8 +408,7 @@ impl GroupDrive {
             input.axes[i].scale_raw = io.read_scale(usize::from(self.inputs[i]));
             input.axes[i].forces_n = forces;
         }
-        let mut out = GroupOutput::ZERO;
-        engine.cycle(&input, &mut out);
+        engine.cycle(&input, out);
         // Without probe settings (the common case) nothing of the probe runs.
         let probe_on = self.probe.enabled();
         let probe_flags = if probe_on {
@@ -403,8 +420,6 @@ impl GroupDrive {
 
         // ---- supervisors, status word ----
         let group = engine.active();
-        let mut applied = [APPLIED_ZERO; MAX_AXES];
-        let mut corrected = [0i64; MAX_AXES];
         let mut flags = Flags::NONE;
         for i in 0..n {
             let o = &out.axes[i];
@@ -472,16 +487,9 @@ impl GroupDrive {
 
         watchdog.feed();
         self.prev_overrun = self.meter.finish(clock.now());
-        GroupDriveCycle {
-            n_axes: n,
-            n_inputs,
-            command_counts,
-            corrected_command_counts: corrected,
-            applied,
-            status,
-            engine: out,
-            probe: probe_flags,
-        }
+        r.status = status;
+        r.probe = probe_flags;
+        r
     }
 
     fn next_counter_value<const POOL: usize>(

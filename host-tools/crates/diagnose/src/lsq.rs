@@ -1,16 +1,20 @@
-//! Least squares on column lists, robust to rank deficiency.
+//! Least squares on column lists, robust to rank deficiency, through the host numeric layer
+//! (`axcomp_numeric::lsq`: minimum-norm least squares and column-space bases by SVD).
 //!
 //! Glossary: **design** = the regressor columns over *all* rows (training and held-out); **rows** = the
 //! indices a fit uses; **projector** = an orthonormal basis of the design's column space over the training
 //! rows, used to score candidate columns by the exact drop of the residual sum of squares a full refit
 //! would give (`‖P_{Z̃} r‖²` with `Z̃` the candidate columns made orthogonal to the model).
 //!
-//! Method: columns are scaled to unit RMS, the Gram matrix is eigen-decomposed and eigenvalues below
-//! `1e-9·λ_max` are treated as zero (minimum-norm pseudo-inverse solution).
+//! Method: columns are scaled to unit RMS and decomposed by a thin SVD; singular values below
+//! `√1e-9·σ_max` (the eigenvalues of the scaled Gram matrix below `1e-9·λ_max`, this module's
+//! former threshold) are treated as zero (minimum-norm pseudo-inverse solution).
 
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use axcomp_numeric::lsq::{DMatrix, column_space, column_space_scaled, lstsq_min_norm};
 
-const REL_EIG_TOL: f64 = 1e-9;
+/// Singular values of the unit-RMS design at or below this fraction of the largest count as zero
+/// (= eigenvalues of its Gram matrix below 1e-9 of the largest).
+const REL_SV_TOL: f64 = 3.162_277_660_168_379_5e-5;
 
 /// Coefficients of one least-squares fit.
 #[derive(Debug, Clone)]
@@ -31,76 +35,25 @@ impl LsFit {
     }
 }
 
-fn scales<C: AsRef<[f64]>>(cols: &[C], rows: &[usize]) -> Vec<f64> {
-    cols.iter()
-        .map(|c| {
-            let c = c.as_ref();
-            let ss: f64 = rows.iter().map(|&i| c[i] * c[i]).sum();
-            let rms = (ss / rows.len().max(1) as f64).sqrt();
-            if rms.is_finite() && rms > 1e-300 {
-                rms
-            } else {
-                0.0
-            }
-        })
-        .collect()
-}
-
-fn gram<C: AsRef<[f64]>>(cols: &[C], s: &[f64], rows: &[usize]) -> DMatrix<f64> {
-    let p = cols.len();
-    let mut g = DMatrix::<f64>::zeros(p, p);
-    for a in 0..p {
-        if s[a] == 0.0 {
-            continue;
-        }
-        for b in a..p {
-            if s[b] == 0.0 {
-                continue;
-            }
-            let (ca, cb) = (cols[a].as_ref(), cols[b].as_ref());
-            let v: f64 = rows.iter().map(|&i| ca[i] * cb[i]).sum::<f64>() / (s[a] * s[b]);
-            g[(a, b)] = v;
-            g[(b, a)] = v;
-        }
-    }
-    g
+/// The design restricted to `rows` (one matrix row per entry of `rows`).
+fn design<C: AsRef<[f64]>>(cols: &[C], rows: &[usize]) -> DMatrix<f64> {
+    DMatrix::from_fn(rows.len(), cols.len(), |r, c| cols[c].as_ref()[rows[r]])
 }
 
 /// Least-squares fit of `y` on `cols` using `rows`.
 pub fn fit<C: AsRef<[f64]>>(cols: &[C], y: &[f64], rows: &[usize]) -> LsFit {
-    let p = cols.len();
-    if p == 0 {
+    if cols.is_empty() {
         return LsFit {
             coef: vec![],
             rank: 0,
         };
     }
-    let s = scales(cols, rows);
-    let g = gram(cols, &s, rows);
-    let mut xty = DVector::<f64>::zeros(p);
-    for a in 0..p {
-        if s[a] != 0.0 {
-            let c = cols[a].as_ref();
-            xty[a] = rows.iter().map(|&i| c[i] * y[i]).sum::<f64>() / s[a];
-        }
+    let yr: Vec<f64> = rows.iter().map(|&i| y[i]).collect();
+    let f = lstsq_min_norm(&design(cols, rows), &yr, REL_SV_TOL);
+    LsFit {
+        coef: f.coef,
+        rank: f.rank,
     }
-    let eig = SymmetricEigen::new(g);
-    let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
-    let mut beta = DVector::<f64>::zeros(p);
-    let mut rank = 0;
-    for k in 0..p {
-        let l = eig.eigenvalues[k];
-        if l > REL_EIG_TOL * lmax && l > 0.0 {
-            rank += 1;
-            let v = eig.eigenvectors.column(k);
-            let w = v.dot(&xty) / l;
-            beta += v * w;
-        }
-    }
-    let coef = (0..p)
-        .map(|a| if s[a] != 0.0 { beta[a] / s[a] } else { 0.0 })
-        .collect();
-    LsFit { coef, rank }
 }
 
 /// Orthonormal basis of the column space of `cols` restricted to `rows` (vectors indexed by position in
@@ -112,43 +65,15 @@ pub struct Projector {
 
 impl Projector {
     pub fn new<C: AsRef<[f64]>>(cols: &[C], rows: &[usize]) -> Projector {
-        let p = cols.len();
-        if p == 0 {
+        if cols.is_empty() {
             return Projector { q: vec![] };
         }
-        let s = scales(cols, rows);
-        let g = gram(cols, &s, rows);
-        let eig = SymmetricEigen::new(g);
-        let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
-        let mut q: Vec<Vec<f64>> = Vec::new();
-        for k in 0..p {
-            let l = eig.eigenvalues[k];
-            if !(l > REL_EIG_TOL * lmax && l > 0.0) {
-                continue;
-            }
-            let v = eig.eigenvectors.column(k);
-            let mut col = vec![0.0; rows.len()];
-            for a in 0..p {
-                if s[a] == 0.0 || v[a] == 0.0 {
-                    continue;
-                }
-                let w = v[a] / s[a];
-                let ca = cols[a].as_ref();
-                for (j, &i) in rows.iter().enumerate() {
-                    col[j] += ca[i] * w;
-                }
-            }
-            // Re-orthonormalise against earlier vectors (guards against the squared condition).
-            for prev in &q {
-                let d = dot(prev, &col);
-                axpy(-d, prev, &mut col);
-            }
-            let nrm = dot(&col, &col).sqrt();
-            if nrm > 1e-6 {
-                col.iter_mut().for_each(|c| *c /= nrm);
-                q.push(col);
-            }
-        }
+        let cs = column_space_scaled(&design(cols, rows), REL_SV_TOL);
+        let q = cs
+            .basis
+            .column_iter()
+            .map(|c| c.iter().copied().collect())
+            .collect();
         Projector { q }
     }
 
@@ -167,32 +92,28 @@ impl Projector {
     pub fn rss_drop(&self, r: &[f64], zs: &[Vec<f64>]) -> f64 {
         let zt: Vec<Vec<f64>> = zs.iter().map(|z| self.residualize(z)).collect();
         let m = zt.len();
-        let mut g = DMatrix::<f64>::zeros(m, m);
-        let mut b = DVector::<f64>::zeros(m);
-        for a in 0..m {
-            b[a] = dot(&zt[a], r);
-            for c in a..m {
-                let v = dot(&zt[a], &zt[c]);
-                g[(a, c)] = v;
-                g[(c, a)] = v;
-            }
+        let n = r.len();
+        if m == 0 {
+            return 0.0;
         }
-        let tr: f64 = (0..m).map(|a| g[(a, a)]).sum();
+        // Trace of the candidates' Gram matrix = squared Frobenius norm.
+        let tr: f64 = zt.iter().map(|z| dot(z, z)).sum();
         if tr <= 0.0 {
             return 0.0;
         }
-        let eig = SymmetricEigen::new(g);
-        let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
-        let mut drop = 0.0;
-        for k in 0..m {
-            let l = eig.eigenvalues[k];
-            // Columns (nearly) inside the model's span carry no new information.
-            if l > 1e-9 * lmax && l > 1e-12 * tr {
-                let w = eig.eigenvectors.column(k).dot(&b);
-                drop += w * w / l;
-            }
-        }
-        drop
+        let z = DMatrix::from_fn(n, m, |i, c| zt[c][i]);
+        let cs = column_space(&z, REL_SV_TOL);
+        // Columns (nearly) inside the model's span carry no new information: besides the relative
+        // threshold, a direction must carry more than 1e-12 of the candidates' total energy.
+        cs.basis
+            .column_iter()
+            .zip(&cs.singular_values)
+            .filter(|(_, s)| *s * *s > 1e-12 * tr)
+            .map(|(u, _)| {
+                let w: f64 = u.iter().zip(r).map(|(a, b)| a * b).sum();
+                w * w
+            })
+            .sum()
     }
 }
 

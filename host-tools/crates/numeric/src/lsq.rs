@@ -190,6 +190,145 @@ pub fn lstsq_with_report(
     (lstsq(x, y, ridge, intercept_col), rank_report(x))
 }
 
+/// Result of [`lstsq_min_norm`].
+#[derive(Debug, Clone)]
+pub struct MinNormFit {
+    /// Coefficients, one per design column (0 for a column without support on the rows).
+    pub coef: Vec<f64>,
+    /// Numerical rank: singular values of the column-scaled design above `rel_tol ×` the largest.
+    pub rank: usize,
+    /// Largest over smallest retained singular value of the column-scaled design (1 for rank ≤ 1,
+    /// infinite for rank 0).
+    pub condition: f64,
+}
+
+/// Unit-RMS scale of each column of `x` (0 for a zero or non-finite column).
+fn rms_scales(x: &DMatrix<f64>) -> Vec<f64> {
+    let n = x.nrows().max(1) as f64;
+    x.column_iter()
+        .map(|c| {
+            let rms = (c.norm_squared() / n).sqrt();
+            if rms.is_finite() && rms > 1e-300 {
+                rms
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// `x` with every column divided by its scale (a zero scale gives a zero column).
+fn scaled(x: &DMatrix<f64>, s: &[f64]) -> DMatrix<f64> {
+    let mut a = x.clone();
+    for (mut col, &sj) in a.column_iter_mut().zip(s) {
+        if sj == 0.0 {
+            col.fill(0.0);
+        } else {
+            col /= sj;
+        }
+    }
+    a
+}
+
+/// An orthonormal basis of the column space of a matrix (see [`column_space`]).
+#[derive(Debug, Clone)]
+pub struct ColumnSpace {
+    /// `n × rank`, orthonormal columns: the left singular vectors kept.
+    pub basis: DMatrix<f64>,
+    /// Their singular values, in the order of `basis`'s columns.
+    pub singular_values: Vec<f64>,
+}
+
+impl ColumnSpace {
+    /// Numerical rank (columns of `basis`).
+    pub fn rank(&self) -> usize {
+        self.basis.ncols()
+    }
+}
+
+/// Orthonormal basis of the column space of `x` by a thin SVD: the left singular vectors whose
+/// singular value exceeds `rel_tol ×` the largest (and 0). `x` is taken as given (scale its
+/// columns first if their units differ).
+pub fn column_space(x: &DMatrix<f64>, rel_tol: f64) -> ColumnSpace {
+    let (n, p) = x.shape();
+    if n == 0 || p == 0 {
+        return ColumnSpace {
+            basis: DMatrix::zeros(n, 0),
+            singular_values: vec![],
+        };
+    }
+    let svd = x.clone().svd(true, false);
+    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| {
+            let s = svd.singular_values[k];
+            s > rel_tol * smax && s > 0.0
+        })
+        .collect();
+    let u = svd.u.as_ref().expect("SVD computed with U");
+    let mut basis = DMatrix::zeros(n, keep.len());
+    for (j, &k) in keep.iter().enumerate() {
+        basis.set_column(j, &u.column(k));
+    }
+    ColumnSpace {
+        basis,
+        singular_values: keep.iter().map(|&k| svd.singular_values[k]).collect(),
+    }
+}
+
+/// Minimum-norm least squares `min ‖X β − y‖²` of a possibly rank-deficient design, by a thin SVD
+/// of `X` with its columns scaled to unit RMS: singular values at or below `rel_tol ×` the largest
+/// count as zero (pseudo-inverse), so duplicated or collinear columns share their coefficient
+/// instead of failing the solve. Never fails: a zero column gets coefficient 0, an empty design
+/// an empty fit. (`rel_tol` on singular values; `1e-9` on the eigenvalues of the Gram matrix, as
+/// the diagnose crate used, is `rel_tol` = √1e-9.)
+pub fn lstsq_min_norm(x: &DMatrix<f64>, y: &[f64], rel_tol: f64) -> MinNormFit {
+    let (n, p) = x.shape();
+    if p == 0 || n == 0 {
+        return MinNormFit {
+            coef: vec![0.0; p],
+            rank: 0,
+            condition: f64::INFINITY,
+        };
+    }
+    let s = rms_scales(x);
+    let a = scaled(x, &s);
+    let svd = a.svd(true, true);
+    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+    let u = svd.u.as_ref().expect("SVD computed with U");
+    let vt = svd.v_t.as_ref().expect("SVD computed with Vᵀ");
+    let yv = DVector::from_column_slice(&y[..n.min(y.len())]);
+    let mut beta = DVector::<f64>::zeros(p);
+    let (mut rank, mut smin) = (0, f64::INFINITY);
+    for k in 0..svd.singular_values.len() {
+        let sk = svd.singular_values[k];
+        if sk > rel_tol * smax && sk > 0.0 {
+            rank += 1;
+            smin = smin.min(sk);
+            let w = u.column(k).dot(&yv) / sk;
+            beta += vt.row(k).transpose() * w;
+        }
+    }
+    let coef = (0..p)
+        .map(|j| if s[j] != 0.0 { beta[j] / s[j] } else { 0.0 })
+        .collect();
+    MinNormFit {
+        coef,
+        rank,
+        condition: if rank == 0 {
+            f64::INFINITY
+        } else {
+            smax / smin
+        },
+    }
+}
+
+/// [`column_space`] of `x` with its columns scaled to unit RMS first (the basis spans the same
+/// space as `x`'s columns; the scaling only decides which directions count as numerically zero).
+pub fn column_space_scaled(x: &DMatrix<f64>, rel_tol: f64) -> ColumnSpace {
+    column_space(&scaled(x, &rms_scales(x)), rel_tol)
+}
+
 /// Variance inflation factor of each column of `cols` (the non-intercept terms), computed as the diagonal of
 /// the inverse of their correlation matrix. One column → `[1.0]`. Singular → infinite.
 pub fn vif(cols: &[Vec<f64>]) -> Vec<f64> {
@@ -291,5 +430,44 @@ mod tests {
         let c: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + 0.1 * y).collect();
         let v = vif(&[a, c]);
         assert!((v[0] - 101.0).abs() < 1e-6, "{v:?}");
+    }
+
+    /// Reference: exact algebra — y = 2 + 3x on a design with the x column duplicated; the
+    /// minimum-norm solution splits 3 evenly between the twins (tolerance 1e-9), rank 2.
+    #[test]
+    fn min_norm_fit_of_a_rank_deficient_design() {
+        let n = 20;
+        let x = DMatrix::from_fn(n, 3, |i, j| if j == 0 { 1.0 } else { i as f64 * 0.5 });
+        let y: Vec<f64> = (0..n).map(|i| 2.0 + 3.0 * (i as f64 * 0.5)).collect();
+        let f = lstsq_min_norm(&x, &y, 1e-9f64.sqrt());
+        assert_eq!(f.rank, 2);
+        assert!((f.coef[0] - 2.0).abs() < 1e-9, "{:?}", f.coef);
+        assert!((f.coef[1] - 1.5).abs() < 1e-9 && (f.coef[2] - 1.5).abs() < 1e-9);
+        assert!(f.condition.is_finite() && f.condition >= 1.0);
+        // A zero column gets 0 and lowers the rank.
+        let x0 = DMatrix::from_fn(n, 2, |i, j| if j == 0 { i as f64 } else { 0.0 });
+        let f0 = lstsq_min_norm(&x0, &y, 1e-6);
+        assert_eq!((f0.rank, f0.coef[1]), (1, 0.0));
+    }
+
+    /// Reference: the QR solve of [`lstsq`] on a full-rank design (tolerance 1e-10 relative), and
+    /// the column space's basis is orthonormal and reproduces the projection (tolerance 1e-12).
+    #[test]
+    fn min_norm_fit_equals_qr_on_full_rank_and_basis_is_orthonormal() {
+        let n = 40;
+        let x = DMatrix::from_fn(n, 3, |i, j| {
+            (i as f64 * 0.37 * (1 + j) as f64).sin() * (1 + j) as f64
+        });
+        let y: Vec<f64> = (0..n).map(|i| (i as f64 * 0.11).cos()).collect();
+        let qr = lstsq(&x, &y, 0.0, None).unwrap();
+        let mn = lstsq_min_norm(&x, &y, 1e-12);
+        assert_eq!(mn.rank, 3);
+        for (a, b) in qr.coef.iter().zip(&mn.coef) {
+            assert!((a - b).abs() <= 1e-10 * a.abs().max(1.0), "{a} vs {b}");
+        }
+        let cs = column_space_scaled(&x, 1e-9);
+        assert_eq!(cs.rank(), 3);
+        let g = cs.basis.transpose() * &cs.basis;
+        assert!((g - DMatrix::<f64>::identity(3, 3)).abs().max() < 1e-12);
     }
 }

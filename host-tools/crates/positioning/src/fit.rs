@@ -770,40 +770,18 @@ mod linear {
     }
 }
 
-/// Least squares on a few dense columns (normal equations, Gaussian elimination with pivoting).
+/// Least squares on a few dense columns: the host numeric layer's QR solve
+/// (`axcomp_numeric::lsq::lstsq`, no ridge, no column treated as intercept); a rank-deficient
+/// design (e.g. every reversal at one target) is [`SplineError::Singular`] as before.
 fn dense_lstsq(
     rows: impl Iterator<Item = (Vec<f64>, f64)>,
     k: usize,
 ) -> Result<Vec<f64>, FitError> {
-    let mut a = vec![vec![0.0; k + 1]; k];
-    for (x, y) in rows {
-        for i in 0..k {
-            for j in 0..k {
-                a[i][j] += x[i] * x[j];
-            }
-            a[i][k] += x[i] * y;
-        }
-    }
-    let scale = (0..k).map(|i| a[i][i].abs()).fold(0.0, f64::max);
-    for c in 0..k {
-        let piv = (c..k)
-            .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
-            .unwrap();
-        if !(a[piv][c].abs() > 1e-12 * scale) {
-            return Err(FitError::Spline(SplineError::Singular));
-        }
-        a.swap(c, piv);
-        let pivot_row = a[c].clone();
-        for (r, row) in a.iter_mut().enumerate() {
-            if r != c {
-                let f = row[c] / pivot_row[c];
-                for (x, p) in row[c..=k].iter_mut().zip(&pivot_row[c..=k]) {
-                    *x -= f * p;
-                }
-            }
-        }
-    }
-    Ok((0..k).map(|i| a[i][k] / a[i][i]).collect())
+    let (xs, ys): (Vec<Vec<f64>>, Vec<f64>) = rows.unzip();
+    let x = axcomp_numeric::lsq::DMatrix::from_fn(xs.len(), k, |i, j| xs[i][j]);
+    axcomp_numeric::lsq::lstsq(&x, &ys, 0.0, None)
+        .map(|f| f.coef)
+        .map_err(|_| FitError::Spline(SplineError::Singular))
 }
 
 /// Per-target mean of the given rows, sorted by target.
