@@ -53,13 +53,15 @@ pub enum Field {
     Hysteresis,
     /// Group: counts per revolution of a rotary axis (index = group slot).
     CountsPerRev,
-    /// Rotary stage: a location error (index 0..8 in the order of
-    /// [`crate::rotary::RotaryLocationSpec::constants`]).
+    /// Rotary stage: a location error or squareness term (index 0..11 in the order of
+    /// [`crate::rotary::RotaryLocationSpec::all_constants`]).
     RotaryLocation,
     /// Rotary stage: pivot position (index = X, Y, Z).
     Pivot,
     /// Rotary stage: tool length.
     ToolLength,
+    /// Rotary stage: machine kind code (1 ac-trunnion, 2 bc-trunnion, 3 bc-head).
+    RotaryMachine,
 }
 
 impl Field {
@@ -93,6 +95,7 @@ impl Field {
             Field::RotaryLocation => "rotary.location_errors",
             Field::Pivot => "rotary.pivot_counts",
             Field::ToolLength => "rotary.tool_length_um",
+            Field::RotaryMachine => "rotary.machine",
         }
     }
 }

@@ -333,7 +333,8 @@ impl<const POOL: usize> Group<POOL> {
     /// Checks beyond each image's own: 1..=5 axes, each name once; a rotary axis has
     /// 2..=2^31 counts per revolution and a table grid starting at 0 and spanning exactly one
     /// turn; a linear axis has 0 counts per revolution; the tables fit the pool; the stage needs
-    /// X, Y, Z linear and A, C rotary in the group and in-range constants.
+    /// X, Y, Z linear and the stage's tilt axis (A or B) and C rotary in the group and in-range
+    /// constants.
     pub fn load(
         &mut self,
         axes: &[GroupAxisImage],
@@ -375,7 +376,7 @@ impl<const POOL: usize> Group<POOL> {
                 slot(AxisName::X),
                 slot(AxisName::Y),
                 slot(AxisName::Z),
-                slot(AxisName::A),
+                slot(spec.machine.tilt_axis()),
                 slot(AxisName::C),
             ];
             let upc = |k: usize| self.axes[slots[k] as usize].um_per_count;
@@ -693,7 +694,7 @@ pub(crate) fn validate_group<const POOL: usize>(
             AxisName::X,
             AxisName::Y,
             AxisName::Z,
-            AxisName::A,
+            spec.machine.tilt_axis(),
             AxisName::C,
         ] {
             if !axes.iter().any(|a| a.name == name) {
