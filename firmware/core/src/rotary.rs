@@ -317,22 +317,6 @@ impl SinCosTable {
     }
 }
 
-/// `R v` for the rotation by the angle with sine `s`, cosine `c` about coordinate axis `axis`
-/// (0 X, 1 Y, 2 Z).
-#[inline(always)]
-fn rotate(axis: u8, s: f32, c: f32, v: [f32; 3]) -> [f32; 3] {
-    match axis {
-        0 => [v[0], c * v[1] - s * v[2], s * v[1] + c * v[2]],
-        1 => [c * v[0] + s * v[2], v[1], c * v[2] - s * v[0]],
-        _ => [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]],
-    }
-}
-
-#[inline(always)]
-fn sub3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
 #[inline(always)]
 fn add3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
@@ -348,21 +332,25 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 }
 
 /// The validated stage: constants in µm and radians, the pivot, the axes' scales.
+///
+/// The tilt axis's **plane** is (p, Z), p = Y for A and X for B; in it the tilt rotation is
+/// (v_p, v_z) ↦ (c·v_p − s'·v_z, s'·v_p + c·v_z) with s' = sin θ for A and −sin θ for B (a
+/// positive turn about Y takes Z towards X). The remaining coordinate ("other": X for A, Y for B)
+/// is unchanged.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct RotaryStage {
     pub(crate) machine: RotaryMachine,
-    /// o_C = (EX0C, EY0C, 0), µm.
-    pub(crate) o_c: [f32; 3],
-    /// ε_C = (EA0C, EB0C, 0), rad.
-    pub(crate) e_c: [f32; 3],
-    /// o_T: A (0, EY0A, EZ0A) or B (EX0B, 0, EZ0B), µm.
-    pub(crate) o_t: [f32; 3],
-    /// ε_T: A (0, EB0A, EC0A) or B (EA0B, 0, EC0B), rad.
-    pub(crate) e_t: [f32; 3],
-    /// Coordinate axis of the tilt rotation (0 for A, 1 for B).
-    pub(crate) tilt_axis: u8,
-    /// Squareness EA0Z, EB0Z, EC0Y, rad.
-    pub(crate) square: [f32; 3],
+    /// (EX0C, EY0C), µm.
+    pub(crate) o_c: [f32; 2],
+    /// (EA0C, EB0C), rad.
+    pub(crate) e_c: [f32; 2],
+    /// Tilt axis offsets in its plane (p, Z): A (EY0A, EZ0A), B (EX0B, EZ0B), µm.
+    pub(crate) o_t: [f32; 2],
+    /// Tilt axis turns in its plane: A (EB0A, EC0A), B (EA0B, EC0B), rad.
+    pub(crate) e_t: [f32; 2],
+    /// Squareness terms of the deviation: (−EC0Y, EB0Z, −EA0Z), rad: the deviation of the tool
+    /// tip gains (sq[0]·q_y + sq[1]·q_z, sq[2]·q_z, 0).
+    pub(crate) sq: [f32; 3],
     pub(crate) pivot_counts: [i64; 3],
     /// Subtracted from the tool tip's Z: the tool length (trunnion) or 0 (head).
     pub(crate) tool_offset_um: f32,
@@ -379,12 +367,11 @@ pub(crate) struct RotaryStage {
 impl RotaryStage {
     pub(crate) const ZERO: RotaryStage = RotaryStage {
         machine: RotaryMachine::AcTrunnion,
-        o_c: [0.0; 3],
-        e_c: [0.0; 3],
-        o_t: [0.0; 3],
-        e_t: [0.0; 3],
-        tilt_axis: 0,
-        square: [0.0; 3],
+        o_c: [0.0; 2],
+        e_c: [0.0; 2],
+        o_t: [0.0; 2],
+        e_t: [0.0; 2],
+        sq: [0.0; 3],
         pivot_counts: [0; 3],
         tool_offset_um: 0.0,
         head_length_um: 0.0,
@@ -402,26 +389,14 @@ impl RotaryStage {
     ) -> RotaryStage {
         const URAD: f32 = 1.0e-6;
         let head = spec.machine == RotaryMachine::BcHead;
-        let (o_t, e_t, tilt_axis) = match spec.machine {
-            RotaryMachine::AcTrunnion => (
-                [0.0, spec.ey0a_um, spec.ez0a_um],
-                [0.0, spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
-                0,
-            ),
-            _ => (
-                [spec.ey0a_um, 0.0, spec.ez0a_um],
-                [spec.eb0a_urad * URAD, 0.0, spec.ec0a_urad * URAD],
-                1,
-            ),
-        };
+        let [ea0z, eb0z, ec0y] = spec.squareness_urad;
         RotaryStage {
             machine: spec.machine,
-            o_c: [spec.ex0c_um, spec.ey0c_um, 0.0],
-            e_c: [spec.ea0c_urad * URAD, spec.eb0c_urad * URAD, 0.0],
-            o_t,
-            e_t,
-            tilt_axis,
-            square: spec.squareness_urad.map(|v| v * URAD),
+            o_c: [spec.ex0c_um, spec.ey0c_um],
+            e_c: [spec.ea0c_urad * URAD, spec.eb0c_urad * URAD],
+            o_t: [spec.ey0a_um, spec.ez0a_um],
+            e_t: [spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
+            sq: [-ec0y * URAD, eb0z * URAD, -ea0z * URAD],
             pivot_counts: spec.pivot_counts,
             tool_offset_um: if head { 0.0 } else { spec.tool_length_um },
             head_length_um: if head { spec.tool_length_um } else { 0.0 },
@@ -436,50 +411,83 @@ impl RotaryStage {
     pub(crate) fn refresh(&self, cache: &mut RotaryCache, a_counts: u32, c_counts: u32) {
         let (st, ct) = self.sincos[0].sincos(a_counts);
         let (sc, cc) = self.sincos[1].sincos(c_counts);
-        let tilt = |v| rotate(self.tilt_axis, st, ct, v);
-        let turn = |v| rotate(2, sc, cc, v);
-        // (I − R) o and g = ε − R ε of each axis.
-        let oc = sub3(self.o_c, turn(self.o_c));
-        let gc = sub3(self.e_c, turn(self.e_c));
-        let ot = sub3(self.o_t, tilt(self.o_t));
-        let gt = sub3(self.e_t, tilt(self.e_t));
-        // Squareness: deviation s(q) = S q, S = [[0, −EC0Y, EB0Z], [0, 0, −EA0Z], [0, 0, 0]].
-        let [ea0z, eb0z, ec0y] = self.square;
-        let mut m = [[0.0, -ec0y, eb0z], [0.0, 0.0, -ea0z], [0.0; 3]];
-        let k = if self.machine == RotaryMachine::BcHead {
-            // δ = (I − R_C) o_C + g_C × (R_C R_B v) + R_C [(I − R_B) o_B + g_B × (R_B v)].
-            let vb = tilt([0.0, 0.0, -self.head_length_um]);
-            let b = add3(ot, cross(gt, vb));
-            add3(add3(oc, cross(gc, turn(vb))), turn(b))
+        // u = (I − R_C) o_C and g = ε_C − R_C ε_C (z components 0).
+        let [ox, oy] = self.o_c;
+        let u = [ox - (cc * ox - sc * oy), oy - (sc * ox + cc * oy)];
+        let [ex, ey] = self.e_c;
+        let g = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey)];
+        let b = self.machine != RotaryMachine::AcTrunnion;
+        let s = if b { -st } else { st };
+        // (I − R_T) o_T and h = ε_T − R_T ε_T in the tilt plane (p, Z).
+        let [p1, p3] = self.o_t;
+        let ot = [p1 - (ct * p1 - s * p3), p3 - (s * p1 + ct * p3)];
+        let [e1, e3] = self.e_t;
+        let h = [e1 - (ct * e1 - s * e3), e3 - (s * e1 + ct * e3)];
+        // Split a C-frame vector (z = 0) into its tilt-plane component and the other one.
+        let (u_p, u_o, g_p, g_o) = if b {
+            (u[0], u[1], g[0], g[1])
         } else {
-            // e = R_T (I − R_C) o_C + (I − R_T) o_T + ω × q, ω = R_T g_C + g_T; deviation −e.
-            let w = add3(tilt(gc), gt);
-            // −[ω]×.
-            m[0][1] += w[2];
-            m[0][2] -= w[1];
-            m[1][0] -= w[2];
-            m[1][2] += w[0];
-            m[2][0] += w[1];
-            m[2][1] -= w[0];
-            let e0 = add3(tilt(oc), ot);
-            [-e0[0], -e0[1], -e0[2]]
+            (u[1], u[0], g[1], g[0])
         };
-        cache.k = k;
-        cache.m = m;
+        let [sq_y, sq_z, sq_yz] = self.sq;
+        if self.machine == RotaryMachine::BcHead {
+            cache.k = self.head_deviation(st, ct, sc, cc, [u[0], u[1], 0.0], [g[0], g[1], 0.0]);
+            cache.m = [sq_y, sq_z, 0.0, sq_yz, 0.0, 0.0];
+        } else {
+            // e = R_T u + (I − R_T) o_T + ω × q, ω = R_T g + h; the deviation is s(q) − e.
+            let e_p = ct * u_p + ot[0];
+            let e_z = s * u_p + ot[1];
+            let w_p = ct * g_p + h[0];
+            let w_z = s * g_p + h[1];
+            let (e, w) = if b {
+                ([e_p, u_o, e_z], [w_p, g_o, w_z])
+            } else {
+                ([u_o, e_p, e_z], [g_o, w_p, w_z])
+            };
+            cache.k = [-e[0], -e[1], -e[2]];
+            // s(q) − ω × q, off-diagonal entries (the diagonal is 0).
+            cache.m = [sq_y + w[2], sq_z - w[1], -w[2], sq_yz + w[0], w[1], -w[0]];
+        }
         cache.a_counts = a_counts;
         cache.c_counts = c_counts;
         cache.valid = true;
     }
 
+    /// BC head: the tool tip's displacement δ = u + g × (R_C R_B v) + R_C [(I − R_B) o_B +
+    /// (ε_B − R_B ε_B) × (R_B v)], v = (0, 0, −L).
+    #[cold]
+    fn head_deviation(
+        &self,
+        st: f32,
+        ct: f32,
+        sc: f32,
+        cc: f32,
+        u: [f32; 3],
+        g: [f32; 3],
+    ) -> [f32; 3] {
+        let l = self.head_length_um;
+        let turn = |v: [f32; 3]| [cc * v[0] - sc * v[1], sc * v[0] + cc * v[1], v[2]];
+        let tilt = |v: [f32; 3]| [ct * v[0] + st * v[2], v[1], ct * v[2] - st * v[0]];
+        let vb = [-st * l, 0.0, -ct * l];
+        let o_b = [self.o_t[0], 0.0, self.o_t[1]];
+        let e_b = [self.e_t[0], 0.0, self.e_t[1]];
+        let r_o = tilt(o_b);
+        let r_e = tilt(e_b);
+        let ob = [o_b[0] - r_o[0], 0.0, o_b[2] - r_o[2]];
+        let h = [e_b[0] - r_e[0], 0.0, e_b[2] - r_e[2]];
+        let inner = add3(ob, cross(h, vb));
+        add3(add3(u, cross(g, turn(vb))), turn(inner))
+    }
+
     /// Deviation (reached − target, µm) along X, Y, Z for the tool tip q (µm from the pivot) with
-    /// the cached angle terms: k + M q.
+    /// the cached angle terms: k + M q (M without its zero diagonal).
     #[inline(always)]
     pub(crate) fn deviation_um(cache: &RotaryCache, q: [f32; 3]) -> [f32; 3] {
         let (k, m) = (&cache.k, &cache.m);
         [
-            k[0] + (m[0][0] * q[0] + m[0][1] * q[1] + m[0][2] * q[2]),
-            k[1] + (m[1][0] * q[0] + m[1][1] * q[1] + m[1][2] * q[2]),
-            k[2] + (m[2][0] * q[0] + m[2][1] * q[1] + m[2][2] * q[2]),
+            k[0] + (m[0] * q[1] + m[1] * q[2]),
+            k[1] + (m[2] * q[0] + m[3] * q[2]),
+            k[2] + (m[4] * q[0] + m[5] * q[1]),
         ]
     }
 
@@ -517,7 +525,8 @@ pub struct RotaryCache {
     pub(crate) a_counts: u32,
     pub(crate) c_counts: u32,
     pub(crate) k: [f32; 3],
-    pub(crate) m: [[f32; 3]; 3],
+    /// M's off-diagonal entries M01, M02, M10, M12, M20, M21 (its diagonal is 0).
+    pub(crate) m: [f32; 6],
 }
 
 impl RotaryCache {
@@ -527,7 +536,7 @@ impl RotaryCache {
         a_counts: 0,
         c_counts: 0,
         k: [0.0; 3],
-        m: [[0.0; 3]; 3],
+        m: [0.0; 6],
     };
 }
 
