@@ -49,8 +49,8 @@
 //! ≤ 50 µrad / 50 µm and |q| ≤ 840 mm they stay below 0.03 µm (checked against exact homogeneous
 //! transforms in `tests/group.rs` and `tests/rotary_kinds.rs`).
 //!
-//! k and M (12 numbers) are cached in [`RotaryCache`] and recomputed only when a commanded angle
-//! changes; each cycle then costs the tool tip and 9 multiply-adds.
+//! k and M (9 numbers: M's diagonal is 0) are cached in [`RotaryCache`] and recomputed only when a commanded angle
+//! changes; each cycle then costs the tool tip and 6 multiply-adds.
 //!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
@@ -340,11 +340,12 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct RotaryStage {
     pub(crate) machine: RotaryMachine,
-    /// (EX0C, EY0C), µm.
+    /// (EX0C, EY0C), µm; negated for a trunnion.
     pub(crate) o_c: [f32; 2],
     /// (EA0C, EB0C), rad.
     pub(crate) e_c: [f32; 2],
-    /// Tilt axis offsets in its plane (p, Z): A (EY0A, EZ0A), B (EX0B, EZ0B), µm.
+    /// Tilt axis offsets in its plane (p, Z): A (EY0A, EZ0A), B (EX0B, EZ0B), µm; negated for a
+    /// trunnion.
     pub(crate) o_t: [f32; 2],
     /// Tilt axis turns in its plane: A (EB0A, EC0A), B (EA0B, EC0B), rad.
     pub(crate) e_t: [f32; 2],
@@ -390,11 +391,13 @@ impl RotaryStage {
         const URAD: f32 = 1.0e-6;
         let head = spec.machine == RotaryMachine::BcHead;
         let [ea0z, eb0z, ec0y] = spec.squareness_urad;
+        // Trunnions keep the offsets negated (see `refresh_trunnion`).
+        let o = if head { 1.0 } else { -1.0 };
         RotaryStage {
             machine: spec.machine,
-            o_c: [spec.ex0c_um, spec.ey0c_um],
+            o_c: [o * spec.ex0c_um, o * spec.ey0c_um],
             e_c: [spec.ea0c_urad * URAD, spec.eb0c_urad * URAD],
-            o_t: [spec.ey0a_um, spec.ez0a_um],
+            o_t: [o * spec.ey0a_um, o * spec.ez0a_um],
             e_t: [spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
             sq: [-ec0y * URAD, eb0z * URAD, -ea0z * URAD],
             pivot_counts: spec.pivot_counts,
@@ -407,50 +410,76 @@ impl RotaryStage {
     }
 
     /// Recompute the angle-dependent terms k and M for the commanded angles (counts within the
-    /// turn) of the tilt axis and C.
+    /// turn) of the tilt axis and C. Not inlined: the cycles without an angle change keep the
+    /// caller's registers free.
+    #[inline(never)]
     pub(crate) fn refresh(&self, cache: &mut RotaryCache, a_counts: u32, c_counts: u32) {
         let (st, ct) = self.sincos[0].sincos(a_counts);
         let (sc, cc) = self.sincos[1].sincos(c_counts);
-        // u = (I − R_C) o_C and g = ε_C − R_C ε_C (z components 0).
-        let [ox, oy] = self.o_c;
-        let u = [ox - (cc * ox - sc * oy), oy - (sc * ox + cc * oy)];
-        let [ex, ey] = self.e_c;
-        let g = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey)];
-        let b = self.machine != RotaryMachine::AcTrunnion;
-        let s = if b { -st } else { st };
-        // (I − R_T) o_T and h = ε_T − R_T ε_T in the tilt plane (p, Z).
-        let [p1, p3] = self.o_t;
-        let ot = [p1 - (ct * p1 - s * p3), p3 - (s * p1 + ct * p3)];
-        let [e1, e3] = self.e_t;
-        let h = [e1 - (ct * e1 - s * e3), e3 - (s * e1 + ct * e3)];
-        // Split a C-frame vector (z = 0) into its tilt-plane component and the other one.
-        let (u_p, u_o, g_p, g_o) = if b {
-            (u[0], u[1], g[0], g[1])
-        } else {
-            (u[1], u[0], g[1], g[0])
-        };
-        let [sq_y, sq_z, sq_yz] = self.sq;
-        if self.machine == RotaryMachine::BcHead {
-            cache.k = self.head_deviation(st, ct, sc, cc, [u[0], u[1], 0.0], [g[0], g[1], 0.0]);
-            cache.m = [sq_y, sq_z, 0.0, sq_yz, 0.0, 0.0];
-        } else {
-            // e = R_T u + (I − R_T) o_T + ω × q, ω = R_T g + h; the deviation is s(q) − e.
-            let e_p = ct * u_p + ot[0];
-            let e_z = s * u_p + ot[1];
-            let w_p = ct * g_p + h[0];
-            let w_z = s * g_p + h[1];
-            let (e, w) = if b {
-                ([e_p, u_o, e_z], [w_p, g_o, w_z])
-            } else {
-                ([u_o, e_p, e_z], [g_o, w_p, w_z])
-            };
-            cache.k = [-e[0], -e[1], -e[2]];
-            // s(q) − ω × q, off-diagonal entries (the diagonal is 0).
-            cache.m = [sq_y + w[2], sq_z - w[1], -w[2], sq_yz + w[0], w[1], -w[0]];
+        match self.machine {
+            RotaryMachine::AcTrunnion => self.refresh_trunnion::<false>(cache, st, ct, sc, cc),
+            RotaryMachine::BcTrunnion => self.refresh_trunnion::<true>(cache, st, ct, sc, cc),
+            RotaryMachine::BcHead => self.refresh_head(cache, st, ct, sc, cc),
         }
         cache.a_counts = a_counts;
         cache.c_counts = c_counts;
         cache.valid = true;
+    }
+
+    /// Trunnion (tilt axis B if `B`, else A): e = R_T u + (I − R_T) o_T + ω × q with
+    /// u = (I − R_C) o_C, ω = R_T g + h, g = ε_C − R_C ε_C, h = ε_T − R_T ε_T; the deviation is
+    /// s(q) − e. The offsets are stored negated, so k = −(R_T u + (I − R_T) o_T) is a plain sum.
+    #[inline(always)]
+    fn refresh_trunnion<const B: bool>(
+        &self,
+        cache: &mut RotaryCache,
+        st: f32,
+        ct: f32,
+        sc: f32,
+        cc: f32,
+    ) {
+        // In the tilt plane (p, Z) the tilt turns by +θ for A and −θ for B.
+        let s = if B { -st } else { st };
+        // −u and g (z components 0).
+        let [ox, oy] = self.o_c;
+        let u = [ox - (cc * ox - sc * oy), oy - (sc * ox + cc * oy)];
+        let [ex, ey] = self.e_c;
+        let g = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey)];
+        // −(I − R_T) o_T and h in the tilt plane.
+        let [p1, p3] = self.o_t;
+        let [e1, e3] = self.e_t;
+        let (u_p, u_o, g_p, g_o) = if B {
+            (u[0], u[1], g[0], g[1])
+        } else {
+            (u[1], u[0], g[1], g[0])
+        };
+        let k_p = ct * u_p + (p1 - (ct * p1 - s * p3));
+        let k_z = s * u_p + (p3 - (s * p1 + ct * p3));
+        let w_p = ct * g_p + (e1 - (ct * e1 - s * e3));
+        let w_z = s * g_p + (e3 - (s * e1 + ct * e3));
+        let (k, w) = if B {
+            ([k_p, u_o, k_z], [w_p, g_o, w_z])
+        } else {
+            ([u_o, k_p, k_z], [g_o, w_p, w_z])
+        };
+        let [sq_y, sq_z, sq_yz] = self.sq;
+        cache.k = k;
+        // s(q) − ω × q, off-diagonal entries (the diagonal is 0).
+        cache.m = [sq_y + w[2], sq_z - w[1], -w[2], sq_yz + w[0], w[1], -w[0]];
+    }
+
+    /// BC head: the deviation is the tool tip's displacement δ + s(q) (see
+    /// [`RotaryStage::head_deviation`]).
+    #[cold]
+    #[inline(never)]
+    fn refresh_head(&self, cache: &mut RotaryCache, st: f32, ct: f32, sc: f32, cc: f32) {
+        let [ox, oy] = self.o_c;
+        let u = [ox - (cc * ox - sc * oy), oy - (sc * ox + cc * oy), 0.0];
+        let [ex, ey] = self.e_c;
+        let g = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey), 0.0];
+        let [sq_y, sq_z, sq_yz] = self.sq;
+        cache.k = self.head_deviation(st, ct, sc, cc, u, g);
+        cache.m = [sq_y, sq_z, 0.0, sq_yz, 0.0, 0.0];
     }
 
     /// BC head: the tool tip's displacement δ = u + g × (R_C R_B v) + R_C [(I − R_B) o_B +
