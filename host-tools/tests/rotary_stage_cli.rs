@@ -391,3 +391,198 @@ fn fitted_model_in_the_image_cancels_the_k4_errors() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+fn stderr_of(args: &[&str], dir: &Path) -> String {
+    let o = axcomp_in(args, dir);
+    assert_eq!(o.status.code(), Some(2), "{args:?} must fail with exit 2");
+    assert!(!dir.join("bad.bin").exists(), "{args:?} wrote an image");
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// `axcomp sim --machine` → `fit rtest` on K4 alone (which cannot determine every parameter) →
+/// `image group --rotary MODEL` → `image inspect`: the identified values go in (to f32), the ones marked
+/// `identified: false` go in as 0 and inspect names them; a model the stage cannot represent, or a missing
+/// placement, is refused with a clear error and nothing written.
+#[test]
+fn image_group_takes_the_fit_rtest_model_and_inspect_names_the_unidentified() {
+    let dir = scratch("model");
+    run_cli(
+        &[
+            "sim",
+            "--machine",
+            "ac-trunnion",
+            "--plan",
+            "k4",
+            "--seed",
+            "7",
+            "--out",
+            "k4.csv",
+            "--truth",
+            "truth.json",
+        ],
+        &dir,
+    );
+    // The sim entry writes the library's campaign, and its truth is the library's truth.
+    let machine = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
+    let twin = FiveAxisTwin::random(machine, 7);
+    let paths = standard_paths(&machine, [150.0, 0.0, 100.0], -60.0, 72, &[], 0, None);
+    assert_eq!(
+        std::fs::read_to_string(dir.join("k4.csv")).unwrap(),
+        twin.measure(&paths, 7).to_csv_string()
+    );
+    let truth = read_json(&dir.join("truth.json"));
+    // Tolerance 1e-12 µm: serde_json's default float parsing may differ from the written value in the
+    // last bit.
+    for (k, name) in MachineKind::AcTrunnion.location_names().iter().enumerate() {
+        let v = truth["location_errors"][name]["value"].as_f64().unwrap();
+        assert!((v - twin.location[k]).abs() < 1e-12, "{name}");
+    }
+    run_cli(
+        &["fit", "rtest", "--data", "k4.csv", "--out", "model.json"],
+        &dir,
+    );
+    let model = read_json(&dir.join("model.json"));
+    let errors = model["location_errors"].as_array().unwrap();
+    let unidentified: Vec<&str> = errors
+        .iter()
+        .filter(|e| e[1]["identified"] == false)
+        .map(|e| e[0].as_str().unwrap())
+        .collect();
+    assert!(
+        !unidentified.is_empty(),
+        "K4 alone leaves some parameter undetermined"
+    );
+    let axes = write_axis_images(&dir, MachineKind::AcTrunnion);
+    let mut args: Vec<&str> = vec!["image", "group"];
+    for a in &axes {
+        args.extend(["--axis", a]);
+    }
+    let base = args.clone();
+    args.extend([
+        "--rotary",
+        "model.json",
+        "--pivot-counts",
+        "1000000,-2000000,3000000",
+        "--tool-length-mm",
+        "100",
+        "--out",
+        "g.bin",
+    ]);
+    run_cli(&args, &dir);
+    let img = std::fs::read(dir.join("g.bin")).unwrap();
+    let spec = group_image::parse(&img).unwrap().rotary.unwrap();
+    assert_eq!(spec.machine, RotaryMachine::AcTrunnion);
+    assert_eq!(spec.pivot_counts, PIVOT);
+    assert_eq!(spec.tool_length_um, 100_000.0);
+    for (k, e) in errors.iter().enumerate() {
+        let (name, p) = (e[0].as_str().unwrap(), &e[1]);
+        let want = if p["identified"] == true {
+            p["value"].as_f64().unwrap() as f32
+        } else {
+            0.0
+        };
+        assert_eq!(spec.all_constants()[k], want, "{name}");
+        assert_eq!(
+            spec.not_identified >> k & 1 == 1,
+            unidentified.contains(&name)
+        );
+    }
+    let o = axcomp_in(&["image", "inspect", "g.bin"], &dir);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("rotary location errors (ac-trunnion)"),
+        "{text}"
+    );
+    let listed = format!(
+        "not identified (fixed at their prior 0): {}",
+        unidentified.join(", ")
+    );
+    assert!(text.contains(&listed), "{text}");
+    for name in &unidentified {
+        assert!(
+            text.contains(&format!("{name} 0 µ")) && text.contains("(not identified: fixed at 0)"),
+            "{name}: {text}"
+        );
+    }
+
+    // Refusals: clear error, exit 2, nothing written.
+    let with = |extra: &[&str]| -> Vec<String> {
+        base.iter()
+            .map(|s| s.to_string())
+            .chain(extra.iter().map(|s| s.to_string()))
+            .chain(["--out".to_string(), "bad.bin".to_string()])
+            .collect()
+    };
+    let check = |extra: &[&str], want: &str| {
+        let a = with(extra);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        let err = stderr_of(&a, &dir);
+        assert!(err.contains(want), "{extra:?}: {err}");
+    };
+    check(
+        &["--rotary", "model.json", "--tool-length-mm", "100"],
+        "--pivot-counts",
+    );
+    check(
+        &["--rotary", "model.json", "--pivot-counts", "1,2,3"],
+        "--tool-length-mm",
+    );
+    check(
+        &[
+            "--rotary",
+            "model.json",
+            "--pivot-counts",
+            "1,2",
+            "--tool-length-mm",
+            "100",
+        ],
+        "three integers",
+    );
+    // A parameter the stage does not have (renamed): refused, not dropped.
+    let renamed = std::fs::read_to_string(dir.join("model.json"))
+        .unwrap()
+        .replace("\"EC0Y\"", "\"EC0X\"");
+    std::fs::write(dir.join("renamed.json"), renamed).unwrap();
+    check(
+        &[
+            "--rotary",
+            "renamed.json",
+            "--pivot-counts",
+            "1,2,3",
+            "--tool-length-mm",
+            "100",
+        ],
+        "refusing rather than dropping",
+    );
+    // A B-axis model for a group with an A axis: the stage's axes are named.
+    let bc = std::fs::read_to_string(dir.join("model.json"))
+        .unwrap()
+        .replace("ac-trunnion", "bc-trunnion")
+        .replace("EY0A", "EX0B")
+        .replace("EZ0A", "EZ0B")
+        .replace("EB0A", "EA0B")
+        .replace("EC0A", "EC0B");
+    std::fs::write(dir.join("bc.json"), bc).unwrap();
+    check(
+        &[
+            "--rotary",
+            "bc.json",
+            "--pivot-counts",
+            "1,2,3",
+            "--tool-length-mm",
+            "100",
+        ],
+        "axis B",
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn run_cli(args: &[&str], dir: &Path) {
+    let o = axcomp_in(args, dir);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
