@@ -16,8 +16,9 @@
 //!
 //! # Order of the stages in one group cycle
 //! 1. the cross-axis stage (if the image has one; it reads only the commanded positions):
-//!    commanded angles of the tilt axis (A or B) and C within the turn, sin/cos and the angle terms recomputed only
-//!    when one of them changed, the tool tip from the commanded X, Y, Z → a deviation for X, Y, Z;
+//!    commanded angles of the tilt axis (A or B) and C within the turn, sin/cos and the angle
+//!    terms recomputed only when one of them changed, the tool tip from the commanded X, Y, Z →
+//!    a deviation for X, Y, Z;
 //! 2. per axis, in slot order, its whole pipeline in one call: counter extension → direction
 //!    (hysteresis) → segment index of the table grid (once per axis and cycle: the table
 //!    position is the extended position, or the turn position for a rotary axis; every error
