@@ -263,7 +263,7 @@ fn write_axis_images(dir: &Path, kind: MachineKind) -> Vec<String> {
         .collect()
 }
 
-/// End to end on the twin (AC and BC trunnion, seeds 1–3; σ = 0.3 µm; K4 run 1 and C circles at 0° and
+/// End to end on the twin (AC trunnion, BC trunnion, BC head, seeds 1–3; σ = 0.3 µm; K4 run 1 and C circles at 0° and
 /// −60° fitted, K4 run 2 held out): `fit rtest --out` → `image group --rotary MODEL` → the core stage
 /// corrects the held-out K4 commands → the twin's exact kinematics (its truth, sphere where it is meant to
 /// be) gives the remaining displacement. Reference: the uncorrected machine (plain) and the truth's own
@@ -273,31 +273,43 @@ fn write_axis_images(dir: &Path, kind: MachineKind) -> Vec<String> {
 #[test]
 fn fitted_model_in_the_image_cancels_the_k4_errors() {
     let dir = scratch("k4");
-    let tool_mm = 100.0;
-    let sphere = [150.0, 0.0, 100.0];
-    for kind in [MachineKind::AcTrunnion, MachineKind::BcTrunnion] {
+    for kind in [
+        MachineKind::AcTrunnion,
+        MachineKind::BcTrunnion,
+        MachineKind::BcHead,
+    ] {
+        // Trunnion: a 100 mm tool, the sphere 150 mm off the C axis; head: 250 mm from the B axis
+        // to the tool point (the fit's --pivot-mm and the stage's tool length), the sphere at the origin.
+        let head = kind == MachineKind::BcHead;
+        let (tool_mm, sphere) = if head {
+            (250.0, [0.0; 3])
+        } else {
+            (100.0, [150.0, 0.0, 100.0])
+        };
         for seed in 1..=3u64 {
-            let machine = FiveAxis::new(kind, 0.0);
+            let machine = FiveAxis::new(kind, if head { tool_mm } else { 0.0 });
             let twin = FiveAxisTwin::random(machine, seed);
             let paths = standard_paths(&machine, sphere, -60.0, 72, &[0.0, -60.0], 36, None);
             let csv = twin.measure(&paths, seed).to_csv_string();
             std::fs::write(dir.join("rtest.csv"), csv).unwrap();
             let _ = std::fs::remove_file(dir.join("model.json"));
-            let o = axcomp_in(
-                &[
-                    "fit",
-                    "rtest",
-                    "--data",
-                    "rtest.csv",
-                    "--machine",
-                    kind.name(),
-                    "--holdout",
-                    "run=2",
-                    "--out",
-                    "model.json",
-                ],
-                &dir,
-            );
+            let pivot_mm = tool_mm.to_string();
+            let mut fit = vec![
+                "fit",
+                "rtest",
+                "--data",
+                "rtest.csv",
+                "--machine",
+                kind.name(),
+                "--holdout",
+                "run=2",
+                "--out",
+                "model.json",
+            ];
+            if head {
+                fit.extend(["--pivot-mm", &pivot_mm]);
+            }
+            let o = axcomp_in(&fit, &dir);
             assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
             let pivot = format!("{},{},{}", PIVOT[0], PIVOT[1], PIVOT[2]);
             let tool = tool_mm.to_string();
