@@ -568,8 +568,8 @@ impl<const POOL: usize> Group<POOL> {
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
         }
         let cmd = |k: usize| input.axes[slot(k)].command_counts;
-        let q = g.tool_tip_um([cmd(0), cmd(1), cmd(2)]);
-        let d = RotaryStage::deviation_um(&st.rotary, q);
+        let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
+        let d = RotaryStage::deviation_um(&st.rotary, n);
         let mut by_slot = [0.0f32; MAX_AXES];
         for (k, dk) in d.into_iter().enumerate() {
             by_slot[slot(k)] = dk;

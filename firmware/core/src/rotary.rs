@@ -49,8 +49,9 @@
 //! ≤ 50 µrad / 50 µm and |q| ≤ 840 mm they stay below 0.03 µm (checked against exact homogeneous
 //! transforms in `tests/group.rs` and `tests/rotary_kinds.rs`).
 //!
-//! k and M (9 numbers: M's diagonal is 0) are cached in [`RotaryCache`] and recomputed only when a commanded angle
-//! changes; each cycle then costs the tool tip and 6 multiply-adds.
+//! k and M (9 numbers: M's diagonal is 0), with the axes' µm per count and the tool length folded
+//! in, are cached in [`RotaryCache`] and recomputed only when a commanded angle changes; each cycle
+//! then costs the commanded counts from the pivot and 6 multiply-adds.
 //!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
@@ -421,6 +422,21 @@ impl RotaryStage {
             RotaryMachine::BcTrunnion => self.refresh_trunnion::<true>(cache, st, ct, sc, cc),
             RotaryMachine::BcHead => self.refresh_head(cache, st, ct, sc, cc),
         }
+        // Fold the scales and the tool length in: the deviation is k' + M'·n for the commanded
+        // counts n from the pivot (q = diag(µm per count)·n − (0, 0, L)).
+        let [ux, uy, uz] = self.um_per_count;
+        let l = self.tool_offset_um;
+        let m = cache.m;
+        cache.k[0] -= m[1] * l;
+        cache.k[1] -= m[3] * l;
+        cache.m = [
+            m[0] * uy,
+            m[1] * uz,
+            m[2] * ux,
+            m[3] * uz,
+            m[4] * ux,
+            m[5] * uy,
+        ];
         cache.a_counts = a_counts;
         cache.c_counts = c_counts;
         cache.valid = true;
@@ -508,28 +524,27 @@ impl RotaryStage {
         add3(add3(u, cross(g, turn(vb))), turn(inner))
     }
 
-    /// Deviation (reached − target, µm) along X, Y, Z for the tool tip q (µm from the pivot) with
-    /// the cached angle terms: k + M q (M without its zero diagonal).
+    /// Deviation (reached − target, µm) along X, Y, Z for the commanded counts `n` from the pivot
+    /// ([`RotaryStage::counts_from_pivot`]) with the cached angle terms: k' + M'·n (M' without its
+    /// zero diagonal).
     #[inline(always)]
-    pub(crate) fn deviation_um(cache: &RotaryCache, q: [f32; 3]) -> [f32; 3] {
+    pub(crate) fn deviation_um(cache: &RotaryCache, n: [f32; 3]) -> [f32; 3] {
         let (k, m) = (&cache.k, &cache.m);
         [
-            k[0] + (m[0] * q[1] + m[1] * q[2]),
-            k[1] + (m[2] * q[0] + m[3] * q[2]),
-            k[2] + (m[4] * q[0] + m[5] * q[1]),
+            k[0] + (m[0] * n[1] + m[1] * n[2]),
+            k[1] + (m[2] * n[0] + m[3] * n[2]),
+            k[2] + (m[4] * n[0] + m[5] * n[1]),
         ]
     }
 
-    /// The tool tip q (µm from the pivot) for the commanded positions of X, Y, Z (counts).
+    /// The commanded positions of X, Y, Z (counts) minus the pivot, saturated to i32, as f32.
     #[inline(always)]
-    pub(crate) fn tool_tip_um(&self, commands: [i64; 3]) -> [f32; 3] {
-        let mut q = [0.0f32; 3];
+    pub(crate) fn counts_from_pivot(&self, commands: [i64; 3]) -> [f32; 3] {
+        let mut n = [0.0f32; 3];
         for k in 0..3 {
-            q[k] = saturate_i32(commands[k].wrapping_sub(self.pivot_counts[k])) as f32
-                * self.um_per_count[k];
+            n[k] = saturate_i32(commands[k].wrapping_sub(self.pivot_counts[k])) as f32;
         }
-        q[2] -= self.tool_offset_um;
-        q
+        n
     }
 }
 
@@ -547,14 +562,16 @@ pub(crate) fn saturate_i32(d: i64) -> i32 {
 }
 
 /// Angle-dependent terms of the stage, valid for the commanded angles `a_counts` (the tilt axis,
-/// A or B) and `c_counts`: the deviation is k + M q.
+/// A or B) and `c_counts`: the deviation is k' + M'·n for the commanded counts n from the pivot
+/// (k + M q with the scales and the tool length folded in).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RotaryCache {
     pub(crate) valid: bool,
     pub(crate) a_counts: u32,
     pub(crate) c_counts: u32,
     pub(crate) k: [f32; 3],
-    /// M's off-diagonal entries M01, M02, M10, M12, M20, M21 (its diagonal is 0).
+    /// M' = M·diag(µm per count): its off-diagonal entries M'01, M'02, M'10, M'12, M'20, M'21 (the
+    /// diagonal is 0).
     pub(crate) m: [f32; 6],
 }
 
