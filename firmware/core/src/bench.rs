@@ -291,6 +291,7 @@ pub const GROUP_ROTARY_STAGE: RotaryLocationSpec = RotaryLocationSpec {
     ec0a_urad: -10.0,
     pivot_counts: [500_000, 500_000, 500_000],
     tool_length_um: 100_000.0,
+    ..RotaryLocationSpec::ZERO_AC
 };
 
 /// Group input `i`: X, Y, Z in triangle motions of different speeds over their strokes (and a

@@ -53,8 +53,8 @@ pub enum Field {
     Hysteresis,
     /// Group: counts per revolution of a rotary axis (index = group slot).
     CountsPerRev,
-    /// Rotary stage: a location error (index 0..8 in the order of
-    /// [`crate::rotary::RotaryLocationSpec::constants`]).
+    /// Rotary stage: a location error or squareness term (index 0..11 in the order of
+    /// [`crate::rotary::RotaryLocationSpec::all_constants`]).
     RotaryLocation,
     /// Rotary stage: pivot position (index = X, Y, Z).
     Pivot,
@@ -68,6 +68,8 @@ pub enum Field {
     ProbeLockout,
     /// Probe settings: speed above which an unarmed trigger counts as one during a move.
     ProbeMovingSpeed,
+    /// Rotary stage: machine kind code (1 ac-trunnion, 2 bc-trunnion, 3 bc-head).
+    RotaryMachine,
 }
 
 impl Field {
@@ -105,6 +107,7 @@ impl Field {
             Field::ProbeLatency => "probe.latency_ns",
             Field::ProbeLockout => "probe.lockout_us",
             Field::ProbeMovingSpeed => "probe.moving_um_per_s",
+            Field::RotaryMachine => "rotary.machine",
         }
     }
 }

@@ -16,10 +16,11 @@
 //!
 //! # Order of the stages in one group cycle
 //! 1. the cross-axis stage (if the image has one; it reads only the commanded positions):
-//!    commanded angles of A and C within the turn, sin/cos and the angle terms recomputed only
-//!    when one of them changed, the tool tip from the commanded X, Y, Z → a deviation for X, Y, Z;
+//!    commanded angles of the tilt axis (A or B) and C within the turn, sin/cos and the angle
+//!    terms recomputed only when one of them changed, the tool tip from the commanded X, Y, Z →
+//!    a deviation for X, Y, Z;
 //! 2. per axis, its whole pipeline in one call (in slot order; with the stage, in the order X, Y,
-//!    Z, A, C — each pipeline reads and writes only its own slot, so the order changes nothing):
+//!    Z, A (or B), C — each pipeline reads and writes only its own slot, so the order changes nothing):
 //!    counter extension → direction (hysteresis) → segment index of the table grid (once per axis
 //!    and cycle: the table position is the extended position, or the turn position for a rotary
 //!    axis; every error function of that axis uses this index) → table value → thermo-force term →
@@ -337,7 +338,8 @@ impl<const POOL: usize> Group<POOL> {
     /// Checks beyond each image's own: 1..=5 axes, each name once; a rotary axis has
     /// 2..=2^31 counts per revolution and a table grid starting at 0 and spanning exactly one
     /// turn; a linear axis has 0 counts per revolution; the tables fit the pool; the stage needs
-    /// X, Y, Z linear and A, C rotary in the group and in-range constants.
+    /// X, Y, Z linear and the stage's tilt axis (A or B) and C rotary in the group and in-range
+    /// constants.
     pub fn load(
         &mut self,
         axes: &[GroupAxisImage],
@@ -379,7 +381,7 @@ impl<const POOL: usize> Group<POOL> {
                 slot(AxisName::X),
                 slot(AxisName::Y),
                 slot(AxisName::Z),
-                slot(AxisName::A),
+                slot(spec.machine.tilt_axis()),
                 slot(AxisName::C),
             ];
             let upc = |k: usize| self.axes[slots[k] as usize].um_per_count;
@@ -603,8 +605,8 @@ impl<const POOL: usize> Group<POOL> {
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
         }
         let cmd = |k: usize| input.axes[slot(k)].command_counts;
-        let q = g.tool_tip_um([cmd(0), cmd(1), cmd(2)]);
-        RotaryStage::deviation_um(&st.rotary, q)
+        let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
+        RotaryStage::deviation_um(&st.rotary, n)
     }
 }
 
@@ -670,7 +672,7 @@ impl<const POOL: usize> Group<POOL> {
         let angle = |k: usize| wrap(positions_counts[slot(k)], self.counts_per_rev[slot(k)]);
         let mut cache = RotaryCache::NEW;
         g.refresh(&mut cache, angle(3), angle(4));
-        let q = g.tool_tip_um([
+        let q = g.counts_from_pivot([
             positions_counts[slot(0)],
             positions_counts[slot(1)],
             positions_counts[slot(2)],
@@ -823,7 +825,7 @@ pub(crate) fn validate_group<const POOL: usize>(
             AxisName::X,
             AxisName::Y,
             AxisName::Z,
-            AxisName::A,
+            spec.machine.tilt_axis(),
             AxisName::C,
         ] {
             if !axes.iter().any(|a| a.name == name) {

@@ -40,9 +40,14 @@
 //!   the latency and the filter belong to the probe and its receiver, calibrated with the
 //!   machine (`axcomp fit probe`) like the tables, and the latched point is corrected with this
 //!   image's tables, so they are swapped together (A/B) or not at all.
-//! - **rotary model** (3, version 1, axis 0xFF, 64 bytes): the 8 location errors of
-//!   [`RotaryLocationSpec`] (f32, in its field order), `pivot_counts` 3 × i64, `tool_length_um`
-//!   f32, reserved u32 = 0.
+//! - **rotary model** (3, axis 0xFF): version 2 (80 bytes): `machine` u8 (1 ac-trunnion,
+//!   2 bc-trunnion, 3 bc-head), reserved u8 = 0, `not_identified` u16 (bit k: constant k was not
+//!   identified and holds 0; provenance only), the 8 location errors of
+//!   [`RotaryLocationSpec`] (f32, in its field order), the squareness EA0Z, EB0Z, EC0Y (3 × f32),
+//!   `pivot_counts` 3 × i64, `tool_length_um` f32, reserved u32 = 0. Version 1 (64 bytes: the
+//!   same without the machine and the squareness) loads as an AC trunnion without squareness;
+//!   the writer uses it whenever it holds the model exactly (so older readers keep loading such
+//!   images).
 //! - **sensor names** (5, version 1, one per axis with sensors; `axis` = its code): one 16-byte
 //!   UTF-8 name per sensor of that axis, zero padded, non-empty.
 //! - **provenance** (6, version 1, axis 0xFF, optional: written without the mandatory flag, so
@@ -59,7 +64,7 @@ use crate::group::{AxisName, GroupAxisImage, MAX_AXES};
 use crate::image::{self, CRC_LEN, crc32};
 use crate::le::{Put, f32_at, i64_at, rd, u8_at, u16_at, u32_at};
 use crate::probe::{PROBE_SECTION_LEN, ProbeSettings};
-use crate::rotary::RotaryLocationSpec;
+use crate::rotary::{RotaryLocationSpec, RotaryMachine};
 use crate::{MAX_IMAGE_LEN, MAX_SENSORS};
 
 /// Schema version of group images.
@@ -72,8 +77,12 @@ pub const DIR_ENTRY_LEN: usize = 20;
 pub const MAX_SECTIONS: usize = 16;
 /// Fixed part of an axis section (before the embedded schema-1 image).
 pub const AXIS_SECTION_HEADER_LEN: usize = 32;
-/// Length of a rotary-model section.
-pub const ROTARY_SECTION_LEN: usize = 64;
+/// Length of a rotary-model section of version 1 (AC trunnion, no squareness).
+pub const ROTARY_SECTION_V1_LEN: usize = 64;
+/// Version of the rotary-model section with a machine kind and squareness.
+pub const ROTARY_SECTION_VERSION: u16 = 2;
+/// Length of a rotary-model section of version [`ROTARY_SECTION_VERSION`].
+pub const ROTARY_SECTION_LEN: usize = 80;
 /// Bytes per sensor name.
 pub const SENSOR_NAME_LEN: usize = 16;
 /// Directory `axis` value of a section that belongs to no axis.
@@ -383,7 +392,11 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
             None if mandatory => return Err(ImageError::UnknownSection { kind: e.kind }),
             None => continue,
         };
-        if e.version != 1 {
+        let supported = match kind {
+            SectionKind::Rotary => matches!(e.version, 1 | ROTARY_SECTION_VERSION),
+            _ => e.version == 1,
+        };
+        if !supported {
             if mandatory {
                 return Err(ImageError::UnsupportedSection { kind: e.kind });
             }
@@ -409,24 +422,10 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
                 view.n_axes += 1;
             }
             SectionKind::Rotary => {
-                if e.axis != NO_AXIS || s.len() != ROTARY_SECTION_LEN || view.rotary.is_some() {
+                if e.axis != NO_AXIS || view.rotary.is_some() {
                     return Err(ImageError::SectionBounds { index: i as u16 });
                 }
-                if u32_at(s, 60) != 0 {
-                    return Err(reserved());
-                }
-                let spec = RotaryLocationSpec {
-                    ex0c_um: f32_at(s, 0),
-                    ey0c_um: f32_at(s, 4),
-                    ea0c_urad: f32_at(s, 8),
-                    eb0c_urad: f32_at(s, 12),
-                    ey0a_um: f32_at(s, 16),
-                    ez0a_um: f32_at(s, 20),
-                    eb0a_urad: f32_at(s, 24),
-                    ec0a_urad: f32_at(s, 28),
-                    pivot_counts: [i64_at(s, 32), i64_at(s, 40), i64_at(s, 48)],
-                    tool_length_um: f32_at(s, 56),
-                };
+                let spec = parse_rotary(e.version, s, i)?;
                 spec.validate()?;
                 view.rotary = Some(spec);
             }
@@ -498,6 +497,67 @@ fn check_sensor_names(s: &[u8], n_sensors: usize, code: u8) -> Result<(), ImageE
         }
     }
     Ok(())
+}
+
+/// A rotary-model section of `version` 1 (AC trunnion, no squareness) or 2.
+fn parse_rotary(version: u16, s: &[u8], index: usize) -> Result<RotaryLocationSpec, ImageError> {
+    let bounds = ImageError::SectionBounds {
+        index: index as u16,
+    };
+    let (machine, at) = if version == 1 {
+        if s.len() != ROTARY_SECTION_V1_LEN {
+            return Err(bounds);
+        }
+        (RotaryMachine::AcTrunnion, 0)
+    } else {
+        if s.len() != ROTARY_SECTION_LEN {
+            return Err(bounds);
+        }
+        if u8_at(s, 1) != 0 {
+            return Err(reserved());
+        }
+        let Some(m) = RotaryMachine::from_code(u8_at(s, 0)) else {
+            return Err(ImageError::OutOfRange {
+                field: crate::error::Field::RotaryMachine,
+                index: 0,
+            });
+        };
+        (m, 4)
+    };
+    let f = |k: usize| f32_at(s, at + 4 * k);
+    let squareness_urad = if version == 1 {
+        [0.0; 3]
+    } else {
+        [f(8), f(9), f(10)]
+    };
+    let tail = if version == 1 { at + 32 } else { at + 44 };
+    if u32_at(s, tail + 28) != 0 {
+        return Err(reserved());
+    }
+    Ok(RotaryLocationSpec {
+        machine,
+        ex0c_um: f(0),
+        ey0c_um: f(1),
+        ea0c_urad: f(2),
+        eb0c_urad: f(3),
+        ey0a_um: f(4),
+        ez0a_um: f(5),
+        eb0a_urad: f(6),
+        ec0a_urad: f(7),
+        squareness_urad,
+        pivot_counts: [i64_at(s, tail), i64_at(s, tail + 8), i64_at(s, tail + 16)],
+        tool_length_um: f32_at(s, tail + 24),
+        not_identified: if version == 1 { 0 } else { u16_at(s, 2) },
+    })
+}
+
+/// Length of the rotary section [`write_group_image`] writes for `r` (version 1 when it fits).
+fn rotary_section_len(r: &RotaryLocationSpec) -> usize {
+    if r.fits_version_1() {
+        ROTARY_SECTION_V1_LEN
+    } else {
+        ROTARY_SECTION_LEN
+    }
 }
 
 fn reserved() -> ImageError {
@@ -591,8 +651,8 @@ pub fn group_image_len_with_probe(
     for a in axes {
         len += AXIS_SECTION_HEADER_LEN + a.image.len() + SENSOR_NAME_LEN * a.sensor_names.len();
     }
-    if rotary.is_some() {
-        len += ROTARY_SECTION_LEN;
+    if let Some(r) = rotary {
+        len += rotary_section_len(r);
     }
     if probe.is_some() {
         len += PROBE_SECTION_LEN;
@@ -649,7 +709,7 @@ pub fn write_group_image_with_probe(
     out.fill(0);
     // Sections first (after the directory), then the directory with their CRCs.
     let mut at = GROUP_HEADER_LEN + DIR_ENTRY_LEN * n;
-    let mut dir = [(0u16, 0u8, 0usize, 0usize); MAX_SECTIONS];
+    let mut dir = [(0u16, 1u16, 0u8, 0usize, 0usize); MAX_SECTIONS];
     let mut k = 0;
     for a in axes {
         let start = at;
@@ -663,7 +723,13 @@ pub fn write_group_image_with_probe(
         w.u32(0);
         w.bytes(a.image);
         at += w.pos;
-        dir[k] = (SectionKind::Axis as u16, a.name.code(), start, at - start);
+        dir[k] = (
+            SectionKind::Axis as u16,
+            1,
+            a.name.code(),
+            start,
+            at - start,
+        );
         k += 1;
         if !a.sensor_names.is_empty() {
             let start = at;
@@ -676,6 +742,7 @@ pub fn write_group_image_with_probe(
             at += w.pos;
             dir[k] = (
                 SectionKind::SensorNames as u16,
+                1,
                 a.name.code(),
                 start,
                 at - start,
@@ -686,8 +753,21 @@ pub fn write_group_image_with_probe(
     if let Some(r) = rotary {
         let start = at;
         let mut w = Put::new(out.get_mut(at..).unwrap_or(&mut []));
+        let version = if r.fits_version_1() {
+            1
+        } else {
+            w.u8(r.machine.code());
+            w.u8(0);
+            w.u16(r.not_identified);
+            ROTARY_SECTION_VERSION
+        };
         for v in r.constants() {
             w.f32(v);
+        }
+        if version != 1 {
+            for v in r.squareness_urad {
+                w.f32(v);
+            }
         }
         for p in r.pivot_counts {
             w.i64(p);
@@ -695,7 +775,13 @@ pub fn write_group_image_with_probe(
         w.f32(r.tool_length_um);
         w.u32(0);
         at += w.pos;
-        dir[k] = (SectionKind::Rotary as u16, NO_AXIS, start, at - start);
+        dir[k] = (
+            SectionKind::Rotary as u16,
+            version,
+            NO_AXIS,
+            start,
+            at - start,
+        );
         k += 1;
     }
     if let Some(p) = probe {
@@ -703,7 +789,7 @@ pub fn write_group_image_with_probe(
         let mut w = Put::new(out.get_mut(at..).unwrap_or(&mut []));
         w.bytes(&p.to_bytes());
         at += w.pos;
-        dir[k] = (SectionKind::Probe as u16, NO_AXIS, start, at - start);
+        dir[k] = (SectionKind::Probe as u16, 1, NO_AXIS, start, at - start);
         k += 1;
     }
     let mut w = Put::new(out);
@@ -715,10 +801,10 @@ pub fn write_group_image_with_probe(
     w.u16(0);
     w.u32(0);
     w.u32(0);
-    for &(kind, axis, off, slen) in dir.iter().take(k) {
+    for &(kind, version, axis, off, slen) in dir.iter().take(k) {
         let crc = crc32(w.buf.get(off..off + slen).unwrap_or(&[]));
         w.u16(kind);
-        w.u16(1);
+        w.u16(version);
         w.u8(axis);
         w.u8(FLAG_MANDATORY);
         w.u16(0);

@@ -1,37 +1,57 @@
 //! The rotary location-error stage: the deviation of the tool tip relative to the workpiece, along
-//! the linear axes X, Y, Z, caused by the location errors of the two rotary axes of an AC
-//! trunnion table.
+//! the linear axes X, Y, Z, caused by the location errors of the two rotary axes of a five-axis
+//! machine and by the squareness of its linear axes.
 //!
 //! # Glossary
-//! - **AC trunnion**: the workpiece sits on a C table (rotation about Z) carried by an A cradle
-//!   (rotation about X); the tool moves in X, Y, Z. Nominally both axis lines pass through the
-//!   **pivot**, the machine position (X, Y, Z counts) given in [`RotaryLocationSpec::pivot_counts`].
-//! - **location errors** (ISO 230-7 names, 8 constants): the A axis line passes through
-//!   (0, EY0A, EZ0A) relative to the pivot and is turned by EB0A about Y and EC0A about Z; the C
-//!   axis line (in the frame carried by A) passes through (EX0C, EY0C, 0) and is turned by EA0C
-//!   about X and EB0C about Y. Offsets in µm, angles in µrad, all small.
-//! - **tool tip**: the commanded spindle position minus the tool length along Z:
-//!   q = (X, Y, Z − L) − pivot, µm.
-//! - **deviation** (the sign convention of the whole crate): reached − target. The rotary errors
-//!   move the workpiece point under the tool by e (the workpiece point meant to be at q is at
-//!   q + e), so the tool reaches, relative to the workpiece, −e: the stage's deviation is −e and,
-//!   like every error, it is subtracted from the command (the tool follows the workpiece by +e).
+//! - **machine kinds** ([`RotaryMachine`], the host's `axcomp_kinematics::rotary::MachineKind`):
+//!   - **AC trunnion**: the workpiece sits on a C table (rotation about Z) carried by an A cradle
+//!     (rotation about X); the tool moves in X, Y, Z;
+//!   - **BC trunnion**: likewise with a B cradle (rotation about Y);
+//!   - **BC head**: the spindle head carries B (about Y) riding on C (about Z); the workpiece does
+//!     not turn.
+//!
+//!   The **tilt axis** is A (AC trunnion) or B (the two others). Nominally both axis lines pass
+//!   through the **pivot**, the machine position (X, Y, Z counts) given in
+//!   [`RotaryLocationSpec::pivot_counts`] (for the head: the X, Y, Z counts at which the head's
+//!   pivot sits at the origin the squareness is measured from).
+//! - **location errors** (ISO 230-7 names, 8 constants; offsets in µm, angles in µrad, all small):
+//!   the C axis line (in the frame carried by the tilt axis for a trunnion, relative to the pivot
+//!   for the head) passes through (EX0C, EY0C, 0) and is turned by EA0C about X and EB0C about Y.
+//!   The A axis line passes through (0, EY0A, EZ0A) and is turned by EB0A about Y and EC0A about
+//!   Z; a B axis line passes through (EX0B, 0, EZ0B), turned by EA0B about X and EC0B about Z. The
+//!   four tilt-axis fields of [`RotaryLocationSpec`] are named after A; for a B axis they hold
+//!   EX0B, EZ0B, EA0B, EC0B in the same places (offset ⟂ 1, offset along Z, turn about axis ⟂ 1,
+//!   turn about Z).
+//! - **squareness** (µrad): EA0Z, EB0Z (Z turned about X and Y), EC0Y (Y turned about Z): the
+//!   linear axes move along ey + EC0Y·(−1, 0, 0) and ez + (EB0Z, −EA0Z, 0).
+//! - **tool tip** q (µm): trunnion: the commanded spindle position minus the tool length along Z,
+//!   q = (X, Y, Z − L) − pivot; head: the commanded pivot position q = (X, Y, Z) − pivot, and the
+//!   tool tip sits L below the pivot at B = C = 0 (L = [`RotaryLocationSpec::tool_length_um`],
+//!   pivot to tool tip).
+//! - **deviation** (the sign convention of the whole crate): reached − target, the tool tip
+//!   relative to the workpiece. Like every error it is subtracted from the command. The host's
+//!   R-test displacement d = sphere − tool point is its negative.
 //!
 //! # Model (first order in the location errors)
-//! Rotation about a line through o with direction R(ε)·n instead of n through the origin maps p
-//! to R_n p + (I − R_n) o + (ε − R_n ε) × (R_n p) to first order in o and ε. Composed for the
-//! chain A ∘ C with w = R_Aᵀ q (the tool tip in the frame carried by A):
+//! Rotation by R about a line through o with direction turned by ε maps v to
+//! R v + (I − R) o + (ε − R ε) × (R v) to first order in o and ε. Composed for a trunnion (tilt
+//! rotation R_T, C rotation R_C, workpiece point p with R_T R_C p = q):
+//! e = R_T [(I − R_C) o_C] + (I − R_T) o_T + ω × q, ω = R_T (ε_C − R_C ε_C) + (ε_T − R_T ε_T),
+//! the displacement of the workpiece point meant to be at q; for the head (tool vector
+//! v = (0, 0, −L) from the pivot): δ = (I − R_C) o_C + (ε_C − R_C ε_C) × (R_C R_B v)
+//! + R_C [(I − R_B) o_T + (ε_T − R_B ε_T) × (R_B v)], the displacement of the tool tip. With the
+//! squareness displacement s(q) = (−EC0Y·q_y + EB0Z·q_z, −EA0Z·q_z, 0) of the tool tip:
 //!
-//! e = R_A [(I − R_C) o_C + (ε_C − R_C ε_C) × w] + (I − R_A) o_A + (ε_A − R_A ε_A) × q,
+//! deviation = s(q) − e (trunnion), s(q) + δ (head) — in both cases an affine map k + M q whose
+//! k and M depend on the angles only.
 //!
-//! with o_A = (0, EY0A, EZ0A), ε_A = (0, EB0A, EC0A), o_C = (EX0C, EY0C, 0),
-//! ε_C = (EA0C, EB0C, 0). The neglected terms are products of two location errors (|ε|·|o|,
-//! |ε|²·|q|, |ε|·|δ|): for each error ≤ 50 µrad / 50 µm and |q| ≤ 840 mm they stay below
-//! 0.03 µm (checked against the exact homogeneous transforms in `tests/group.rs`: 0.016 µm seen).
+//! The neglected terms are products of two errors (|ε|·|o|, |ε|²·|q|, |ε|·|δ|): for each error
+//! ≤ 50 µrad / 50 µm and |q| ≤ 840 mm they stay below 0.03 µm (checked against exact homogeneous
+//! transforms in `tests/group.rs` and `tests/rotary_kinds.rs`).
 //!
-//! The angle-dependent parts ((I − R_C) o_C, ε_C − R_C ε_C, (I − R_A) o_A, ε_A − R_A ε_A and
-//! sin/cos of both angles) are cached in [`RotaryCache`] and recomputed only when a commanded
-//! angle changes; each cycle then costs a few multiply-adds.
+//! k and M (9 numbers: M's diagonal is 0), with the axes' µm per count and the tool length folded
+//! in, are cached in [`RotaryCache`] and recomputed only when a commanded angle changes; each cycle
+//! then costs the commanded counts from the pivot and 6 multiply-adds.
 //!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
@@ -45,10 +65,68 @@
 //! values (tested).
 
 use crate::error::{Field, ImageError};
+use crate::group::AxisName;
 
-/// The 8 location errors of an AC trunnion and the geometry the stage needs.
+/// The kinematic structure the stage corrects.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+#[repr(u8)]
+pub enum RotaryMachine {
+    /// C table on an A cradle (A about X).
+    #[default]
+    AcTrunnion = 1,
+    /// C table on a B cradle (B about Y).
+    BcTrunnion = 2,
+    /// Spindle head: B (about Y) riding on C (about Z).
+    BcHead = 3,
+}
+
+impl RotaryMachine {
+    /// The code stored in the image.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+    /// From an image code.
+    pub const fn from_code(c: u8) -> Option<RotaryMachine> {
+        match c {
+            1 => Some(RotaryMachine::AcTrunnion),
+            2 => Some(RotaryMachine::BcTrunnion),
+            3 => Some(RotaryMachine::BcHead),
+            _ => None,
+        }
+    }
+    /// The contract's name (`ac-trunnion`, `bc-trunnion`, `bc-head`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            RotaryMachine::AcTrunnion => "ac-trunnion",
+            RotaryMachine::BcTrunnion => "bc-trunnion",
+            RotaryMachine::BcHead => "bc-head",
+        }
+    }
+    /// The tilt axis: A or B.
+    pub const fn tilt_axis(self) -> AxisName {
+        match self {
+            RotaryMachine::AcTrunnion => AxisName::A,
+            _ => AxisName::B,
+        }
+    }
+    /// ISO 230-7 names of [`RotaryLocationSpec::constants`], in order.
+    pub const fn constant_names(self) -> [&'static str; 11] {
+        let t = match self {
+            RotaryMachine::AcTrunnion => ["EY0A", "EZ0A", "EB0A", "EC0A"],
+            _ => ["EX0B", "EZ0B", "EA0B", "EC0B"],
+        };
+        [
+            "EX0C", "EY0C", "EA0C", "EB0C", t[0], t[1], t[2], t[3], "EA0Z", "EB0Z", "EC0Y",
+        ]
+    }
+}
+
+/// The location errors of a five-axis machine's two rotary axes, the linear axes' squareness and
+/// the geometry the stage needs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RotaryLocationSpec {
+    /// Which kinematics (the meaning of the tilt-axis fields and of the tool tip).
+    pub machine: RotaryMachine,
     /// C axis line offset in X, µm.
     pub ex0c_um: f32,
     /// C axis line offset in Y, µm.
@@ -57,22 +135,47 @@ pub struct RotaryLocationSpec {
     pub ea0c_urad: f32,
     /// C axis line turned about Y, µrad.
     pub eb0c_urad: f32,
-    /// A axis line offset in Y, µm.
+    /// A axis line offset in Y (B axis: EX0B, offset in X), µm.
     pub ey0a_um: f32,
-    /// A axis line offset in Z, µm.
+    /// A axis line offset in Z (B axis: EZ0B), µm.
     pub ez0a_um: f32,
-    /// A axis line turned about Y, µrad.
+    /// A axis line turned about Y (B axis: EA0B, turned about X), µrad.
     pub eb0a_urad: f32,
-    /// A axis line turned about Z, µrad.
+    /// A axis line turned about Z (B axis: EC0B), µrad.
     pub ec0a_urad: f32,
-    /// Machine position of the nominal intersection of A and C, counts of X, Y, Z.
+    /// Squareness of the linear axes EA0Z, EB0Z, EC0Y, µrad.
+    pub squareness_urad: [f32; 3],
+    /// Machine position of the nominal intersection of the rotary axes (head: of the origin the
+    /// head's pivot positions are measured from), counts of X, Y, Z.
     pub pivot_counts: [i64; 3],
-    /// Tool length (spindle gauge line to tool tip, along −Z), µm.
+    /// Trunnion: tool length (spindle gauge line to tool tip, along −Z); head: pivot to tool tip;
+    /// µm.
     pub tool_length_um: f32,
+    /// Provenance, not used by the stage: bit k set = constant k of
+    /// [`RotaryLocationSpec::all_constants`] was not identified by the fit and holds its fixed
+    /// prior (0).
+    pub not_identified: u16,
 }
 
 impl RotaryLocationSpec {
-    /// The 8 constants in the order of the fields (µm, µm, µrad, µrad, µm, µm, µrad, µrad).
+    /// An AC trunnion without errors, pivot at 0, no tool (a base for struct updates).
+    pub const ZERO_AC: RotaryLocationSpec = RotaryLocationSpec {
+        machine: RotaryMachine::AcTrunnion,
+        ex0c_um: 0.0,
+        ey0c_um: 0.0,
+        ea0c_urad: 0.0,
+        eb0c_urad: 0.0,
+        ey0a_um: 0.0,
+        ez0a_um: 0.0,
+        eb0a_urad: 0.0,
+        ec0a_urad: 0.0,
+        squareness_urad: [0.0; 3],
+        pivot_counts: [0; 3],
+        tool_length_um: 0.0,
+        not_identified: 0,
+    };
+
+    /// The 8 location errors in the order of the fields (µm, µm, µrad, µrad, µm, µm, µrad, µrad).
     pub fn constants(&self) -> [f32; 8] {
         [
             self.ex0c_um,
@@ -86,10 +189,42 @@ impl RotaryLocationSpec {
         ]
     }
 
+    /// The 8 location errors and the 3 squareness terms, in the order of
+    /// [`RotaryMachine::constant_names`].
+    pub fn all_constants(&self) -> [f32; 11] {
+        let c = self.constants();
+        let s = self.squareness_urad;
+        [
+            c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], s[0], s[1], s[2],
+        ]
+    }
+
+    /// True if a schema version-1 rotary section (AC trunnion, no squareness) holds it exactly.
+    pub fn fits_version_1(&self) -> bool {
+        self.machine == RotaryMachine::AcTrunnion
+            && self.squareness_urad == [0.0; 3]
+            && self.not_identified == 0
+    }
+
     /// Range checks: every constant finite, offsets ≤ 10 mm, angles ≤ 10 mrad (the model is
-    /// first order), |pivot| ≤ 2^62 counts, tool length in [0, 10 m].
+    /// first order), |pivot| ≤ 2^62 counts, tool length in [0, 10 m], `not_identified` naming
+    /// constants only (and each of them 0).
     pub fn validate(&self) -> Result<(), ImageError> {
-        for (i, v) in self.constants().into_iter().enumerate() {
+        if self.not_identified >> 11 != 0 {
+            return Err(ImageError::OutOfRange {
+                field: Field::Reserved,
+                index: 0,
+            });
+        }
+        for (i, v) in self.all_constants().into_iter().enumerate() {
+            if self.not_identified >> i & 1 == 1 && v != 0.0 {
+                return Err(ImageError::OutOfRange {
+                    field: Field::RotaryLocation,
+                    index: i as u16,
+                });
+            }
+        }
+        for (i, v) in self.all_constants().into_iter().enumerate() {
             if !v.is_finite() {
                 return Err(ImageError::NonFinite {
                     field: Field::RotaryLocation,
@@ -183,40 +318,71 @@ impl SinCosTable {
     }
 }
 
+#[inline(always)]
+fn add3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+#[inline(always)]
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
 /// The validated stage: constants in µm and radians, the pivot, the axes' scales.
+///
+/// The tilt axis's **plane** is (p, Z), p = Y for A and X for B; in it the tilt rotation is
+/// (v_p, v_z) ↦ (c·v_p − s'·v_z, s'·v_p + c·v_z) with s' = sin θ for A and −sin θ for B (a
+/// positive turn about Y takes Z towards X). The remaining coordinate ("other": X for A, Y for B)
+/// is unchanged.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct RotaryStage {
-    /// o_C = (EX0C, EY0C), µm.
+    pub(crate) machine: RotaryMachine,
+    /// (EX0C, EY0C), µm; negated for a trunnion.
     pub(crate) o_c: [f32; 2],
-    /// ε_C = (EA0C, EB0C), rad.
+    /// (EA0C, EB0C), rad.
     pub(crate) e_c: [f32; 2],
-    /// o_A = (EY0A, EZ0A), µm.
-    pub(crate) o_a: [f32; 2],
-    /// ε_A = (EB0A, EC0A), rad.
-    pub(crate) e_a: [f32; 2],
+    /// Tilt axis offsets in its plane (p, Z): A (EY0A, EZ0A), B (EX0B, EZ0B), µm; negated for a
+    /// trunnion.
+    pub(crate) o_t: [f32; 2],
+    /// Tilt axis turns in its plane: A (EB0A, EC0A), B (EA0B, EC0B), rad.
+    pub(crate) e_t: [f32; 2],
+    /// Squareness terms of the deviation: (−EC0Y, EB0Z, −EA0Z), rad: the deviation of the tool
+    /// tip gains (sq[0]·q_y + sq[1]·q_z, sq[2]·q_z, 0).
+    pub(crate) sq: [f32; 3],
     pub(crate) pivot_counts: [i64; 3],
-    pub(crate) tool_length_um: f32,
+    /// Subtracted from the tool tip's Z: the tool length (trunnion) or 0 (head).
+    pub(crate) tool_offset_um: f32,
+    /// Head: pivot to tool tip, µm (0 for a trunnion).
+    pub(crate) head_length_um: f32,
     /// µm per count of X, Y, Z.
     pub(crate) um_per_count: [f32; 3],
-    /// sin/cos tables of A and C.
+    /// sin/cos tables of the tilt axis and C.
     pub(crate) sincos: [SinCosTable; 2],
-    /// Group slots of X, Y, Z, A, C.
+    /// Group slots of X, Y, Z, the tilt axis (A or B), C.
     pub(crate) slot: [u8; 5],
 }
 
 impl RotaryStage {
     pub(crate) const ZERO: RotaryStage = RotaryStage {
+        machine: RotaryMachine::AcTrunnion,
         o_c: [0.0; 2],
         e_c: [0.0; 2],
-        o_a: [0.0; 2],
-        e_a: [0.0; 2],
+        o_t: [0.0; 2],
+        e_t: [0.0; 2],
+        sq: [0.0; 3],
         pivot_counts: [0; 3],
-        tool_length_um: 0.0,
+        tool_offset_um: 0.0,
+        head_length_um: 0.0,
         um_per_count: [0.0; 3],
         sincos: [SinCosTable::ZERO; 2],
         slot: [0; 5],
     };
 
+    /// `counts_per_rev` and `slot` in the order (tilt axis, C) and (X, Y, Z, tilt axis, C).
     pub(crate) fn new(
         spec: &RotaryLocationSpec,
         um_per_count: [f32; 3],
@@ -224,74 +390,161 @@ impl RotaryStage {
         slot: [u8; 5],
     ) -> RotaryStage {
         const URAD: f32 = 1.0e-6;
+        let head = spec.machine == RotaryMachine::BcHead;
+        let [ea0z, eb0z, ec0y] = spec.squareness_urad;
+        // Trunnions keep the offsets negated (see `refresh_trunnion`).
+        let o = if head { 1.0 } else { -1.0 };
         RotaryStage {
-            o_c: [spec.ex0c_um, spec.ey0c_um],
+            machine: spec.machine,
+            o_c: [o * spec.ex0c_um, o * spec.ey0c_um],
             e_c: [spec.ea0c_urad * URAD, spec.eb0c_urad * URAD],
-            o_a: [spec.ey0a_um, spec.ez0a_um],
-            e_a: [spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
+            o_t: [o * spec.ey0a_um, o * spec.ez0a_um],
+            e_t: [spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
+            sq: [-ec0y * URAD, eb0z * URAD, -ea0z * URAD],
             pivot_counts: spec.pivot_counts,
-            tool_length_um: spec.tool_length_um,
+            tool_offset_um: if head { 0.0 } else { spec.tool_length_um },
+            head_length_um: if head { spec.tool_length_um } else { 0.0 },
             um_per_count,
             sincos: counts_per_rev.map(SinCosTable::new),
             slot,
         }
     }
 
-    /// Recompute the angle-dependent terms for the commanded angles (counts within the turn).
+    /// Recompute the angle-dependent terms k and M for the commanded angles (counts within the
+    /// turn) of the tilt axis and C. Not inlined: the cycles without an angle change keep the
+    /// caller's registers free.
+    #[inline(never)]
     pub(crate) fn refresh(&self, cache: &mut RotaryCache, a_counts: u32, c_counts: u32) {
-        let (sa, ca) = self.sincos[0].sincos(a_counts);
+        let (st, ct) = self.sincos[0].sincos(a_counts);
         let (sc, cc) = self.sincos[1].sincos(c_counts);
-        let [ex, ey] = self.o_c;
-        let [ea, eb] = self.e_c;
-        // (I − R_C) o_C and g = ε_C − R_C ε_C (z components 0).
-        cache.oc = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey)];
-        cache.gc = [ea - (cc * ea - sc * eb), eb - (sc * ea + cc * eb)];
-        let [oy, oz] = self.o_a;
-        let [by, cz] = self.e_a;
-        // (I − R_A) o_A and h = ε_A − R_A ε_A (x components 0).
-        cache.oa = [oy - (ca * oy - sa * oz), oz - (sa * oy + ca * oz)];
-        cache.ha = [by - (ca * by - sa * cz), cz - (sa * by + ca * cz)];
-        cache.sin_a = sa;
-        cache.cos_a = ca;
+        match self.machine {
+            RotaryMachine::AcTrunnion => self.refresh_trunnion::<false>(cache, st, ct, sc, cc),
+            RotaryMachine::BcTrunnion => self.refresh_trunnion::<true>(cache, st, ct, sc, cc),
+            RotaryMachine::BcHead => self.refresh_head(cache, st, ct, sc, cc),
+        }
+        // Fold the scales and the tool length in: the deviation is k' + M'·n for the commanded
+        // counts n from the pivot (q = diag(µm per count)·n − (0, 0, L)).
+        let [ux, uy, uz] = self.um_per_count;
+        let l = self.tool_offset_um;
+        let m = cache.m;
+        cache.k[0] -= m[1] * l;
+        cache.k[1] -= m[3] * l;
+        cache.m = [
+            m[0] * uy,
+            m[1] * uz,
+            m[2] * ux,
+            m[3] * uz,
+            m[4] * ux,
+            m[5] * uy,
+        ];
         cache.a_counts = a_counts;
         cache.c_counts = c_counts;
         cache.valid = true;
     }
 
-    /// Deviation (reached − target, µm) along X, Y, Z for the tool tip q (µm from the pivot) with
-    /// the cached angle terms.
+    /// Trunnion (tilt axis B if `B`, else A): e = R_T u + (I − R_T) o_T + ω × q with
+    /// u = (I − R_C) o_C, ω = R_T g + h, g = ε_C − R_C ε_C, h = ε_T − R_T ε_T; the deviation is
+    /// s(q) − e. The offsets are stored negated, so k = −(R_T u + (I − R_T) o_T) is a plain sum.
     #[inline(always)]
-    pub(crate) fn deviation_um(cache: &RotaryCache, q: [f32; 3]) -> [f32; 3] {
-        let (sa, ca) = (cache.sin_a, cache.cos_a);
-        // w = R_Aᵀ q.
-        let w = [q[0], ca * q[1] + sa * q[2], ca * q[2] - sa * q[1]];
-        // δ_C = (I − R_C) o_C + g × w, g = (gx, gy, 0).
-        let [gx, gy] = cache.gc;
-        let d = [
-            cache.oc[0] + gy * w[2],
-            cache.oc[1] - gx * w[2],
-            gx * w[1] - gy * w[0],
-        ];
-        // e = R_A δ_C + (I − R_A) o_A + h × q, h = (0, hy, hz).
-        let [hy, hz] = cache.ha;
-        let e = [
-            d[0] + (hy * q[2] - hz * q[1]),
-            (ca * d[1] - sa * d[2]) + cache.oa[0] + hz * q[0],
-            (sa * d[1] + ca * d[2]) + cache.oa[1] - hy * q[0],
-        ];
-        [-e[0], -e[1], -e[2]]
+    fn refresh_trunnion<const B: bool>(
+        &self,
+        cache: &mut RotaryCache,
+        st: f32,
+        ct: f32,
+        sc: f32,
+        cc: f32,
+    ) {
+        // In the tilt plane (p, Z) the tilt turns by +θ for A and −θ for B.
+        let s = if B { -st } else { st };
+        // −u and g (z components 0).
+        let [ox, oy] = self.o_c;
+        let u = [ox - (cc * ox - sc * oy), oy - (sc * ox + cc * oy)];
+        let [ex, ey] = self.e_c;
+        let g = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey)];
+        // −(I − R_T) o_T and h in the tilt plane.
+        let [p1, p3] = self.o_t;
+        let [e1, e3] = self.e_t;
+        let (u_p, u_o, g_p, g_o) = if B {
+            (u[0], u[1], g[0], g[1])
+        } else {
+            (u[1], u[0], g[1], g[0])
+        };
+        let k_p = ct * u_p + (p1 - (ct * p1 - s * p3));
+        let k_z = s * u_p + (p3 - (s * p1 + ct * p3));
+        let w_p = ct * g_p + (e1 - (ct * e1 - s * e3));
+        let w_z = s * g_p + (e3 - (s * e1 + ct * e3));
+        let (k, w) = if B {
+            ([k_p, u_o, k_z], [w_p, g_o, w_z])
+        } else {
+            ([u_o, k_p, k_z], [g_o, w_p, w_z])
+        };
+        let [sq_y, sq_z, sq_yz] = self.sq;
+        cache.k = k;
+        // s(q) − ω × q, off-diagonal entries (the diagonal is 0).
+        cache.m = [sq_y + w[2], sq_z - w[1], -w[2], sq_yz + w[0], w[1], -w[0]];
     }
 
-    /// The tool tip q (µm from the pivot) for the commanded positions of X, Y, Z (counts).
+    /// BC head: the deviation is the tool tip's displacement δ + s(q) (see
+    /// [`RotaryStage::head_deviation`]).
+    #[cold]
+    #[inline(never)]
+    fn refresh_head(&self, cache: &mut RotaryCache, st: f32, ct: f32, sc: f32, cc: f32) {
+        let [ox, oy] = self.o_c;
+        let u = [ox - (cc * ox - sc * oy), oy - (sc * ox + cc * oy), 0.0];
+        let [ex, ey] = self.e_c;
+        let g = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey), 0.0];
+        let [sq_y, sq_z, sq_yz] = self.sq;
+        cache.k = self.head_deviation(st, ct, sc, cc, u, g);
+        cache.m = [sq_y, sq_z, 0.0, sq_yz, 0.0, 0.0];
+    }
+
+    /// BC head: the tool tip's displacement δ = u + g × (R_C R_B v) + R_C [(I − R_B) o_B +
+    /// (ε_B − R_B ε_B) × (R_B v)], v = (0, 0, −L).
+    #[cold]
+    fn head_deviation(
+        &self,
+        st: f32,
+        ct: f32,
+        sc: f32,
+        cc: f32,
+        u: [f32; 3],
+        g: [f32; 3],
+    ) -> [f32; 3] {
+        let l = self.head_length_um;
+        let turn = |v: [f32; 3]| [cc * v[0] - sc * v[1], sc * v[0] + cc * v[1], v[2]];
+        let tilt = |v: [f32; 3]| [ct * v[0] + st * v[2], v[1], ct * v[2] - st * v[0]];
+        let vb = [-st * l, 0.0, -ct * l];
+        let o_b = [self.o_t[0], 0.0, self.o_t[1]];
+        let e_b = [self.e_t[0], 0.0, self.e_t[1]];
+        let r_o = tilt(o_b);
+        let r_e = tilt(e_b);
+        let ob = [o_b[0] - r_o[0], 0.0, o_b[2] - r_o[2]];
+        let h = [e_b[0] - r_e[0], 0.0, e_b[2] - r_e[2]];
+        let inner = add3(ob, cross(h, vb));
+        add3(add3(u, cross(g, turn(vb))), turn(inner))
+    }
+
+    /// Deviation (reached − target, µm) along X, Y, Z for the commanded counts `n` from the pivot
+    /// ([`RotaryStage::counts_from_pivot`]) with the cached angle terms: k' + M'·n (M' without its
+    /// zero diagonal).
     #[inline(always)]
-    pub(crate) fn tool_tip_um(&self, commands: [i64; 3]) -> [f32; 3] {
-        let mut q = [0.0f32; 3];
+    pub(crate) fn deviation_um(cache: &RotaryCache, n: [f32; 3]) -> [f32; 3] {
+        let (k, m) = (&cache.k, &cache.m);
+        [
+            k[0] + (m[0] * n[1] + m[1] * n[2]),
+            k[1] + (m[2] * n[0] + m[3] * n[2]),
+            k[2] + (m[4] * n[0] + m[5] * n[1]),
+        ]
+    }
+
+    /// The commanded positions of X, Y, Z (counts) minus the pivot, saturated to i32, as f32.
+    #[inline(always)]
+    pub(crate) fn counts_from_pivot(&self, commands: [i64; 3]) -> [f32; 3] {
+        let mut n = [0.0f32; 3];
         for k in 0..3 {
-            q[k] = saturate_i32(commands[k].wrapping_sub(self.pivot_counts[k])) as f32
-                * self.um_per_count[k];
+            n[k] = saturate_i32(commands[k].wrapping_sub(self.pivot_counts[k])) as f32;
         }
-        q[2] -= self.tool_length_um;
-        q
+        n
     }
 }
 
@@ -308,18 +561,18 @@ pub(crate) fn saturate_i32(d: i64) -> i32 {
     }
 }
 
-/// Angle-dependent terms of the stage, valid for the commanded angles `a_counts`, `c_counts`.
+/// Angle-dependent terms of the stage, valid for the commanded angles `a_counts` (the tilt axis,
+/// A or B) and `c_counts`: the deviation is k' + M'·n for the commanded counts n from the pivot
+/// (k + M q with the scales and the tool length folded in).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RotaryCache {
     pub(crate) valid: bool,
     pub(crate) a_counts: u32,
     pub(crate) c_counts: u32,
-    pub(crate) sin_a: f32,
-    pub(crate) cos_a: f32,
-    pub(crate) oc: [f32; 2],
-    pub(crate) gc: [f32; 2],
-    pub(crate) oa: [f32; 2],
-    pub(crate) ha: [f32; 2],
+    pub(crate) k: [f32; 3],
+    /// M' = M·diag(µm per count): its off-diagonal entries M'01, M'02, M'10, M'12, M'20, M'21 (the
+    /// diagonal is 0).
+    pub(crate) m: [f32; 6],
 }
 
 impl RotaryCache {
@@ -328,12 +581,8 @@ impl RotaryCache {
         valid: false,
         a_counts: 0,
         c_counts: 0,
-        sin_a: 0.0,
-        cos_a: 0.0,
-        oc: [0.0; 2],
-        gc: [0.0; 2],
-        oa: [0.0; 2],
-        ha: [0.0; 2],
+        k: [0.0; 3],
+        m: [0.0; 6],
     };
 }
 

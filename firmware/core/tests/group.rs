@@ -312,6 +312,7 @@ fn rotary_stage_matches_exact_transforms() {
             ec0a_urad: r(50.0),
             pivot_counts: [1_000_000, -2_000_000, 4_000_000],
             tool_length_um: 120_000.0,
+            ..RotaryLocationSpec::ZERO_AC
         };
         let mut group = boxed_group();
         group.load(&axes, Some(&spec)).unwrap();
@@ -397,6 +398,7 @@ fn sin_cos_recomputed_only_when_an_angle_changes() {
         ec0a_urad: -4.0,
         pivot_counts: [0; 3],
         tool_length_um: 0.0,
+        ..RotaryLocationSpec::ZERO_AC
     };
     let mut engine: Box<GroupEngine<POOL>> = Box::new(GroupEngine::new());
     engine.load(&axes, Some(&spec)).unwrap();
@@ -532,6 +534,7 @@ fn typed_refusals_of_a_group() {
         ec0a_urad: 0.0,
         pivot_counts: [0; 3],
         tool_length_um: 0.0,
+        ..RotaryLocationSpec::ZERO_AC
     };
     let e = |r: Result<(), group::GroupError>| r.unwrap_err();
     assert_eq!(e(g.load(&[], None)).error, ImageError::AxisCount);

@@ -72,6 +72,7 @@ const STAGE: RotaryLocationSpec = RotaryLocationSpec {
     ec0a_urad: -9.0,
     pivot_counts: [0, 0, 0],
     tool_length_um: 50_000.0,
+    ..RotaryLocationSpec::ZERO_AC
 };
 
 struct Images {

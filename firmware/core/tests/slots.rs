@@ -114,6 +114,9 @@ fn largest_five_axis_image_fits_one_slot() {
         ec0a_urad: 1.0,
         pivot_counts: [0; 3],
         tool_length_um: 0.0,
+        // The largest rotary section: version 2 (machine kind, squareness).
+        squareness_urad: [1.0; 3],
+        ..RotaryLocationSpec::ZERO_AC
     };
     let written_len = group_image_len(&axes, Some(&stage));
     let geometric = DIR_ENTRY_LEN + GEOMETRIC_FUNCTIONS * GEOMETRIC_SEGMENTS * SEGMENT_BYTES;

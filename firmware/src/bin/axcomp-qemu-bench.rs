@@ -68,12 +68,14 @@ mod firmware {
         st: &mut GroupState,
         first: u32,
         call: GroupCall,
+        inputs: fn(u32) -> GroupInput,
     ) -> u32 {
         let call = black_box(call);
+        let inputs = black_box(inputs);
         let mut out = GroupOutput::ZERO;
         let t0 = now();
         for k in 0..BATCH as u32 {
-            let input = bench::group_input(first + k);
+            let input = inputs(first + k);
             call(
                 black_box(g),
                 black_box(&mut *st),
@@ -82,6 +84,17 @@ mod firmware {
             );
         }
         ticks_since(t0)
+    }
+
+    /// The group5 workload's input `i` with A and C held at one angle each (X, Y, Z moving as
+    /// in [`bench::group_input`]): the rotary stage's cost when no commanded angle changes.
+    fn group_input_steady_angles(i: u32) -> GroupInput {
+        let mut g = bench::group_input(i);
+        for (k, hold) in [(3, 123_457i64), (4, 2_345_679)] {
+            g.axes[k].command_counts = hold + 3;
+            g.axes[k].scale_raw = hold as u32;
+        }
+        g
     }
 
     /// Mean instructions per group cycle of the first `n` workload axes (with the rotary stage
@@ -93,6 +106,19 @@ mod firmware {
         n: usize,
         stage: bool,
         instr_per_tick: f32,
+    ) -> f32 {
+        measure_group_with(g, st, image, n, stage, instr_per_tick, bench::group_input)
+    }
+
+    /// [`measure_group`] with other inputs.
+    fn measure_group_with(
+        g: &mut Group<{ bench::GROUP_POOL }>,
+        st: &mut GroupState,
+        image: &mut [u8],
+        n: usize,
+        stage: bool,
+        instr_per_tick: f32,
+        inputs: fn(u32) -> GroupInput,
     ) -> f32 {
         let (axes, n) = match bench::write_group_images(n, image) {
             Ok(v) => v,
@@ -106,8 +132,14 @@ mod firmware {
         let mut full: u64 = 0;
         let mut empty: u64 = 0;
         for b in 0..BATCHES {
-            full += u64::from(group_batch(g, st, b * BATCH as u32, group_cycle));
-            empty += u64::from(group_batch(g, st, b * BATCH as u32, empty_group_cycle));
+            full += u64::from(group_batch(g, st, b * BATCH as u32, group_cycle, inputs));
+            empty += u64::from(group_batch(
+                g,
+                st,
+                b * BATCH as u32,
+                empty_group_cycle,
+                inputs,
+            ));
         }
         full.saturating_sub(empty) as f32 / (BATCHES as f32 * BATCH as f32) * instr_per_tick
     }
@@ -296,6 +328,15 @@ mod firmware {
         let group = GROUP.take();
         let gst = GROUP_STATE.take();
         let g3 = measure_group(group, gst, image, 3, false, instr_per_tick);
+        // (f) the rotary stage's added cost: group5 with minus without the rotary section, with A
+        // and C held (no angle change: no sin/cos) and with the workload's angles (both change
+        // every cycle: sin/cos and the angle terms recomputed every cycle).
+        let steady = group_input_steady_angles;
+        let g5_steady = measure_group_with(group, gst, image, 5, true, instr_per_tick, steady);
+        let steady_refreshes = gst.angle_refreshes();
+        let g5_steady_plain =
+            measure_group_with(group, gst, image, 5, false, instr_per_tick, steady);
+        let g5_plain = measure_group(group, gst, image, 5, false, instr_per_tick);
         let g5 = measure_group(group, gst, image, 5, true, instr_per_tick);
         let refreshes = gst.angle_refreshes();
 
@@ -319,6 +360,21 @@ mod firmware {
         hprintln!(
             "bench qemu_instructions_per_cycle_group5 {:.1} instructions",
             g5
+        );
+        hprintln!(
+            "bench qemu_instructions_per_cycle_group5_rotary {:.1} instructions",
+            g5_steady - g5_steady_plain
+        );
+        hprintln!(
+            "bench qemu_instructions_per_cycle_group5_rotary_angles_moving {:.1} instructions",
+            g5 - g5_plain
+        );
+        hprintln!(
+            "group5 without the rotary section: {:.1} instructions (angles held: {:.1} without, {:.1} with the section, sin/cos recomputed in {} cycles)",
+            g5_plain,
+            g5_steady_plain,
+            g5_steady,
+            steady_refreshes
         );
         hprintln!(
             "group5: sin/cos recomputed in {} of {} measured cycles",

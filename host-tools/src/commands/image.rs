@@ -15,10 +15,12 @@ use anyhow::Context;
 use axcomp_core::group::AxisName;
 use axcomp_core::group_image::{self, AxisSectionSpec};
 use axcomp_core::provenance;
-use axcomp_core::rotary::RotaryLocationSpec;
+use axcomp_core::rotary::{RotaryLocationSpec, RotaryMachine};
 use axcomp_core::wiring::{BoardInput, InputUnit};
 use axcomp_core::{Compensator, ImageSpec, LimitSpec, image_len, inspect_image, write_image};
+use axcomp_kinematics::rotary::MachineKind;
 use axcomp_positioning::TableFile;
+use axcomp_rtest::RtestModel;
 use axcomp_thermal::model_file::ThermalModelFile;
 
 use crate::output::OutputSet;
@@ -481,24 +483,57 @@ pub fn describe_any(bytes: &[u8]) -> anyhow::Result<String> {
         }
     }
     match view.rotary {
-        Some(r) => writeln!(
-            s,
-            "rotary location errors (AC trunnion): EX0C {} µm, EY0C {} µm, EA0C {} µrad, EB0C {} µrad, \
-             EY0A {} µm, EZ0A {} µm, EB0A {} µrad, EC0A {} µrad; pivot {:?} counts, tool length {} µm",
-            r.ex0c_um,
-            r.ey0c_um,
-            r.ea0c_urad,
-            r.eb0c_urad,
-            r.ey0a_um,
-            r.ez0a_um,
-            r.eb0a_urad,
-            r.ec0a_urad,
-            r.pivot_counts,
-            r.tool_length_um
-        )?,
+        Some(r) => s.push_str(&describe_rotary(&r)),
         None => writeln!(s, "rotary location errors: none")?,
     }
     Ok(s)
+}
+
+/// The rotary section's lines of `image inspect`: machine kind, every constant by its ISO 230-7
+/// name, which ones were not identified (fixed at 0), pivot and tool length.
+fn describe_rotary(r: &RotaryLocationSpec) -> String {
+    let names = r.machine.constant_names();
+    let values = r.all_constants();
+    let list = |range: std::ops::Range<usize>| {
+        range
+            .map(|k| {
+                let unit = if matches!(k, 0 | 1 | 4 | 5) {
+                    "µm"
+                } else {
+                    "µrad"
+                };
+                let fixed = if r.not_identified >> k & 1 == 1 {
+                    " (not identified: fixed at 0)"
+                } else {
+                    ""
+                };
+                format!("{} {} {unit}{fixed}", names[k], values[k])
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let not: Vec<&str> = (0..11)
+        .filter(|k| r.not_identified >> k & 1 == 1)
+        .map(|k| names[k])
+        .collect();
+    let length = if r.machine == RotaryMachine::BcHead {
+        "pivot to tool tip"
+    } else {
+        "tool length"
+    };
+    format!(
+        "rotary location errors ({}): {}\n  squareness: {}\n  not identified (fixed at their prior 0): {}\n  pivot {:?} counts, {length} {} µm\n",
+        r.machine.name(),
+        list(0..8),
+        list(8..11),
+        if not.is_empty() {
+            "none".to_string()
+        } else {
+            not.join(", ")
+        },
+        r.pivot_counts,
+        r.tool_length_um
+    )
 }
 
 #[derive(Debug, clap::Args)]
@@ -510,11 +545,22 @@ pub struct GroupArgs {
     /// Sensor names of an axis, one per sensor of its image: `NAME=first,second,...`.
     #[arg(long = "sensor-names", value_name = "NAME=N1,N2,...")]
     pub sensor_names: Vec<String>,
-    /// Rotary location-error model of an AC trunnion (JSON with `ex0c_um`, `ey0c_um`, `ea0c_urad`,
-    /// `eb0c_urad`, `ey0a_um`, `ez0a_um`, `eb0a_urad`, `ec0a_urad`, `pivot_counts` [x, y, z],
-    /// `tool_length_um`); the group needs X, Y, Z, A and C.
-    #[arg(long, value_name = "ROTARY.json")]
+    /// Rotary location-error model: the model file of `axcomp fit rtest --out` (ac-trunnion,
+    /// bc-trunnion or bc-head; needs --pivot-counts, and --tool-length-mm for a trunnion), or the
+    /// hand-written AC-trunnion form (JSON with `ex0c_um`, `ey0c_um`, `ea0c_urad`, `eb0c_urad`,
+    /// `ey0a_um`, `ez0a_um`, `eb0a_urad`, `ec0a_urad`, `pivot_counts` [x, y, z],
+    /// `tool_length_um`). The group needs X, Y, Z, the tilt axis (A or B) and C.
+    #[arg(long, value_name = "MODEL.json")]
     pub rotary: Option<PathBuf>,
+    /// With a `fit rtest` model: the X, Y, Z counts at which the tool point (trunnion) or the head's
+    /// pivot (bc-head) sits at the R-test frame's origin, the nominal intersection of the rotary
+    /// axes.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub pivot_counts: Option<String>,
+    /// With a `fit rtest` model: trunnion: tool length (spindle gauge line to tool tip), mm,
+    /// required; bc-head: B axis to tool tip, mm (default: the model's --pivot-mm).
+    #[arg(long, value_name = "L")]
+    pub tool_length_mm: Option<f64>,
     /// Output group image file.
     #[arg(long, value_name = "IMAGE")]
     pub out: PathBuf,
@@ -547,11 +593,153 @@ fn parse_axis_arg(arg: &str) -> anyhow::Result<(AxisName, u32, PathBuf)> {
     Ok((letter, cpr, PathBuf::from(path)))
 }
 
-fn rotary_from_json(path: &std::path::Path) -> anyhow::Result<RotaryLocationSpec> {
+/// The rotary section from `--rotary` (a `fit rtest` model or the hand-written form) and the
+/// placement arguments.
+fn rotary_from_args(args: &GroupArgs) -> anyhow::Result<Option<RotaryLocationSpec>> {
+    let Some(path) = args.rotary.as_deref() else {
+        anyhow::ensure!(
+            args.pivot_counts.is_none() && args.tool_length_mm.is_none(),
+            "--pivot-counts and --tool-length-mm go with --rotary"
+        );
+        return Ok(None);
+    };
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("--rotary {}: cannot read", path.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text)
         .with_context(|| format!("--rotary {}: not JSON", path.display()))?;
+    if v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
+        let model: RtestModel = serde_json::from_value(v).with_context(|| {
+            format!(
+                "--rotary {}: not a valid `fit rtest` model file",
+                path.display()
+            )
+        })?;
+        let pivot = args.pivot_counts.as_deref().with_context(|| {
+            format!(
+                "--rotary {}: a `fit rtest` model needs --pivot-counts X,Y,Z (the counts of the R-test frame's origin)",
+                path.display()
+            )
+        })?;
+        let pivot = parse_pivot_counts(pivot)?;
+        let spec = rotary_from_rtest_model(&model, pivot, args.tool_length_mm)
+            .with_context(|| format!("--rotary {}", path.display()))?;
+        return Ok(Some(spec));
+    }
+    anyhow::ensure!(
+        args.pivot_counts.is_none() && args.tool_length_mm.is_none(),
+        "--rotary {}: the hand-written form carries pivot_counts and tool_length_um itself; \
+         --pivot-counts and --tool-length-mm are for a `fit rtest` model",
+        path.display()
+    );
+    rotary_from_json(path, &v).map(Some)
+}
+
+fn parse_pivot_counts(arg: &str) -> anyhow::Result<[i64; 3]> {
+    let parts: Vec<&str> = arg.split(',').map(str::trim).collect();
+    anyhow::ensure!(
+        parts.len() == 3,
+        "--pivot-counts {arg}: expected three integers X,Y,Z"
+    );
+    let mut out = [0i64; 3];
+    for (o, p) in out.iter_mut().zip(&parts) {
+        *o = p
+            .parse()
+            .with_context(|| format!("--pivot-counts {arg}: `{p}` is not an integer"))?;
+    }
+    Ok(out)
+}
+
+/// The core's rotary section from a `fit rtest` model: every identified location error and
+/// squareness term goes in (f32); a parameter marked `identified: false` goes in as its fixed prior
+/// 0 and is flagged in `not_identified`. Refused: a model whose parameter list is not the 11 names
+/// of its machine kind, in order (the stage could not represent the rest), a non-finite value, a
+/// value beyond the stage's first-order range, a tool length out of range.
+pub fn rotary_from_rtest_model(
+    model: &RtestModel,
+    pivot_counts: [i64; 3],
+    tool_length_mm: Option<f64>,
+) -> anyhow::Result<RotaryLocationSpec> {
+    let machine = match model.machine {
+        MachineKind::AcTrunnion => RotaryMachine::AcTrunnion,
+        MachineKind::BcTrunnion => RotaryMachine::BcTrunnion,
+        MachineKind::BcHead => RotaryMachine::BcHead,
+    };
+    let names = machine.constant_names();
+    let got: Vec<&str> = model
+        .location_errors
+        .iter()
+        .map(|(n, _)| n.as_str())
+        .collect();
+    anyhow::ensure!(
+        got == names,
+        "the model's location errors {got:?} are not the {} parameters the firmware's rotary stage represents ({names:?}); refusing rather than dropping any",
+        model.machine.name()
+    );
+    let mut values = [0.0f32; 11];
+    let mut not_identified = 0u16;
+    for (k, (name, p)) in model.location_errors.iter().enumerate() {
+        let unit = if matches!(k, 0 | 1 | 4 | 5) {
+            "um"
+        } else {
+            "urad"
+        };
+        anyhow::ensure!(
+            p.unit == unit,
+            "{name}: unit `{}`, expected `{unit}`",
+            p.unit
+        );
+        if !p.identified {
+            not_identified |= 1 << k;
+            continue;
+        }
+        anyhow::ensure!(
+            p.value.is_finite(),
+            "{name}: value {} is not a number",
+            p.value
+        );
+        anyhow::ensure!(
+            p.value.abs() <= 1.0e4,
+            "{name}: {} {unit} is beyond the rotary stage's first-order range (10 mm / 10 mrad)",
+            p.value
+        );
+        values[k] = p.value as f32;
+    }
+    let tool_mm = match (machine, tool_length_mm) {
+        (RotaryMachine::BcHead, None) => model.pivot_mm,
+        (_, Some(l)) => l,
+        (_, None) => anyhow::bail!(
+            "a {} model needs --tool-length-mm L (spindle gauge line to tool tip)",
+            model.machine.name()
+        ),
+    };
+    anyhow::ensure!(
+        tool_mm.is_finite() && (0.0..=1.0e4).contains(&tool_mm),
+        "tool length {tool_mm} mm: need 0..=10000 mm"
+    );
+    let spec = RotaryLocationSpec {
+        machine,
+        ex0c_um: values[0],
+        ey0c_um: values[1],
+        ea0c_urad: values[2],
+        eb0c_urad: values[3],
+        ey0a_um: values[4],
+        ez0a_um: values[5],
+        eb0a_urad: values[6],
+        ec0a_urad: values[7],
+        squareness_urad: [values[8], values[9], values[10]],
+        pivot_counts,
+        tool_length_um: (tool_mm * 1000.0) as f32,
+        not_identified,
+    };
+    spec.validate()
+        .map_err(|e| anyhow::anyhow!("the rotary section is not valid: {e}"))?;
+    Ok(spec)
+}
+
+fn rotary_from_json(
+    path: &std::path::Path,
+    v: &serde_json::Value,
+) -> anyhow::Result<RotaryLocationSpec> {
     let f = |k: &str| -> anyhow::Result<f32> {
         v.get(k)
             .and_then(|x| x.as_f64())
@@ -586,6 +774,7 @@ fn rotary_from_json(path: &std::path::Path) -> anyhow::Result<RotaryLocationSpec
         ec0a_urad: f("ec0a_urad")?,
         pivot_counts: pivot,
         tool_length_um: f("tool_length_um")?,
+        ..RotaryLocationSpec::ZERO_AC
     })
 }
 
@@ -611,7 +800,7 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
             .with_context(|| format!("--sensor-names {arg}: unknown axis `{n}`"))?;
         names.push((name, list.split(',').map(str::to_string).collect()));
     }
-    let rotary = args.rotary.as_deref().map(rotary_from_json).transpose()?;
+    let rotary = rotary_from_args(args)?;
     // An axis without --sensor-names keeps the names its image carries (from `image build`).
     let carried: Vec<Vec<String>> = axes
         .iter()
@@ -797,6 +986,8 @@ mod tests {
             axes: axis_args.clone(),
             sensor_names: vec!["X=spindle,column".into()],
             rotary: Some(rot.clone()),
+            pivot_counts: None,
+            tool_length_mm: None,
             out: dir.join("g.bin"),
         };
         // The same group the scenario builds, byte for byte.
@@ -823,6 +1014,8 @@ mod tests {
                 axes: vec![bad.into()],
                 sensor_names: vec![],
                 rotary: None,
+                pivot_counts: None,
+                tool_length_mm: None,
                 out: dir.join("never.bin"),
             })
             .unwrap_err();
