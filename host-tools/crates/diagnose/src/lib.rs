@@ -37,6 +37,7 @@ pub mod engine;
 pub mod locate;
 pub mod lsq;
 pub mod obs;
+pub mod probe;
 pub mod report;
 pub mod stats;
 
