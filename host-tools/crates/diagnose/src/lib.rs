@@ -19,7 +19,8 @@
 //!   holding most of the held-out gap.
 //!
 //! Modules: [`obs`] (plain columns), [`dataset`] (from an `axcomp-data` CSV), [`basis`] (regressor
-//! families), [`lsq`] (rank-robust least squares and exact refit RSS drops), [`engine`] (the diagnosis),
+//! families), [`lsq`] (rank-robust least squares and exact refit RSS drops), [`judge`] (the verdict rule
+//! on columns, shared by every data kind), [`engine`] (the single-axis diagnosis),
 //! [`locate`] (where the gap lies), [`report`] (Markdown + SVG), [`stats`] (F / t tails). The
 //! withheld-effect validation harness lives in `axcomp-validation`, so that this crate depends on no
 //! simulator.
@@ -34,6 +35,7 @@
 pub mod basis;
 pub mod dataset;
 pub mod engine;
+pub mod judge;
 pub mod locate;
 pub mod lsq;
 pub mod obs;

@@ -135,22 +135,37 @@ fn regions_of(name: &str, v: &[f64], g: &[f64], noise2: f64, out: &mut Vec<Regio
     }
 }
 
-/// Regions of `target_mm`, `time_s`, `velocity_mm_s` and `direction` holding most of the held-out gap,
-/// largest share first. `residual` covers all rows; `noise2` is the noise variance (training residual).
-pub fn locate(obs: &Observations, residual: &[f64], noise2: f64) -> Vec<Region> {
-    let ho = obs.holdout_rows();
-    let g: Vec<f64> = ho.iter().map(|&i| residual[i] * residual[i]).collect();
-    let mut out = Vec::new();
-    for (name, col) in [
+/// The variables [`locate`] and [`locate_gain`] search, in their order.
+fn axis_variables(obs: &Observations) -> Vec<(&'static str, &[f64])> {
+    [
         ("target_mm", &obs.position_mm),
         ("time_s", &obs.time_s),
         ("velocity_mm_s", &obs.velocity_mm_s),
         ("direction", &obs.direction),
-    ] {
-        if let Some(c) = col {
-            let v: Vec<f64> = ho.iter().map(|&i| c[i]).collect();
-            regions_of(name, &v, &g, noise2, &mut out);
-        }
+    ]
+    .into_iter()
+    .filter_map(|(name, col)| col.as_deref().map(|c| (name, c)))
+    .collect()
+}
+
+/// Regions of `target_mm`, `time_s`, `velocity_mm_s` and `direction` holding most of the held-out gap,
+/// largest share first. `residual` covers all rows; `noise2` is the noise variance (training residual).
+pub fn locate(obs: &Observations, residual: &[f64], noise2: f64) -> Vec<Region> {
+    locate_variables(&axis_variables(obs), &obs.holdout_rows(), residual, noise2)
+}
+
+/// [`locate`] over named variables (values over all rows) and the held-out rows `ho`.
+pub fn locate_variables(
+    vars: &[(&str, &[f64])],
+    ho: &[usize],
+    residual: &[f64],
+    noise2: f64,
+) -> Vec<Region> {
+    let g: Vec<f64> = ho.iter().map(|&i| residual[i] * residual[i]).collect();
+    let mut out = Vec::new();
+    for (name, c) in vars {
+        let v: Vec<f64> = ho.iter().map(|&i| c[i]).collect();
+        regions_of(name, &v, &g, noise2, &mut out);
     }
     out.sort_by(|a, b| b.share.total_cmp(&a.share).then(b.lift.total_cmp(&a.lift)));
     out
@@ -161,7 +176,16 @@ pub fn locate(obs: &Observations, residual: &[f64], noise2: f64) -> Vec<Region> 
 /// [`locate`], with the average gain per row in place of the noise level (so a region is where the
 /// refit acts more than on average, lift > 1). Shares are fractions of the total gain.
 pub fn locate_gain(obs: &Observations, before: &[f64], after: &[f64]) -> Vec<Region> {
-    let ho = obs.holdout_rows();
+    locate_gain_variables(&axis_variables(obs), &obs.holdout_rows(), before, after)
+}
+
+/// [`locate_gain`] over named variables (values over all rows) and the held-out rows `ho`.
+pub fn locate_gain_variables(
+    vars: &[(&str, &[f64])],
+    ho: &[usize],
+    before: &[f64],
+    after: &[f64],
+) -> Vec<Region> {
     let g: Vec<f64> = ho
         .iter()
         .map(|&i| before[i] * before[i] - after[i] * after[i])
@@ -169,16 +193,9 @@ pub fn locate_gain(obs: &Observations, before: &[f64], after: &[f64]) -> Vec<Reg
     // Excess over the average gain per row: the region where the refit acts more than on average.
     let mean_gain = g.iter().sum::<f64>() / g.len().max(1) as f64;
     let mut out = Vec::new();
-    for (name, col) in [
-        ("target_mm", &obs.position_mm),
-        ("time_s", &obs.time_s),
-        ("velocity_mm_s", &obs.velocity_mm_s),
-        ("direction", &obs.direction),
-    ] {
-        if let Some(c) = col {
-            let v: Vec<f64> = ho.iter().map(|&i| c[i]).collect();
-            regions_of(name, &v, &g, mean_gain, &mut out);
-        }
+    for (name, c) in vars {
+        let v: Vec<f64> = ho.iter().map(|&i| c[i]).collect();
+        regions_of(name, &v, &g, mean_gain, &mut out);
     }
     out.sort_by(|a, b| b.share.total_cmp(&a.share).then(b.lift.total_cmp(&a.lift)));
     out
