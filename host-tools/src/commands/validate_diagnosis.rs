@@ -18,7 +18,8 @@ use crate::output::OutputSet;
 pub struct Args {
     /// Case generator: `standard` (5,000 rows, SNR 3–8, held out: every third run) or `hard` (1,500 rows,
     /// 3 ISO cycles, SNR 2–8, held out outside the training regime: last cycles, fastest scan, largest
-    /// loads, the re-heat's thermal rounds).
+    /// loads, the re-heat's thermal rounds), or `probe` (touch-probe twin: calibration sphere, plane, ring
+    /// gauge and ball plate for training, a second sphere held out; `--rows` is not used).
     #[arg(long, value_name = "NAME", default_value = "standard")]
     pub harness: String,
     /// Number of simulated cases (every 4th is a null case: nothing withheld).
@@ -47,6 +48,9 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.harness == "probe" {
+        return run_probe(args);
+    }
     let profile = Profile::parse(&args.harness).map_err(|e| anyhow::anyhow!("--harness: {e}"))?;
     let opts = ValidateOptions {
         profile,
@@ -89,6 +93,58 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let md = summary.to_markdown();
     print!("{md}");
     // The report and the JSON are committed together (both or neither).
+    if let Some(p) = &args.markdown {
+        outputs.file(p, md.as_bytes());
+    }
+    if let Some(p) = &args.json {
+        outputs.json(p, &summary)?;
+    }
+    outputs.commit()?;
+    Ok(())
+}
+
+/// `--harness probe`: withheld-effect validation on touch-probe twin campaigns (`axcomp_validation::probe`).
+fn run_probe(args: Args) -> anyhow::Result<()> {
+    use axcomp_validation::probe::{self as vprobe, ProbeValidateOptions};
+    let opts = ProbeValidateOptions {
+        cases: args.cases,
+        seed: args.seed,
+        snrs: args
+            .snr
+            .clone()
+            .unwrap_or_else(|| ProbeValidateOptions::default().snrs),
+        noise_um: args.noise_um,
+        ..ProbeValidateOptions::default()
+    }
+    .build()
+    .map_err(anyhow::Error::msg)?;
+    let mut outputs = OutputSet::new();
+    if let Some(p) = &args.markdown {
+        outputs.planned(p);
+    }
+    if let Some(p) = &args.json {
+        outputs.planned(p);
+    }
+    outputs.check()?;
+    let total = opts.cases;
+    let summary = vprobe::validate(&opts, |c| {
+        eprintln!(
+            "[{}/{}] probe withheld {} snr {} → verdict {} ({}), shrink {:.1} % (oracle {}), {:.2} s",
+            c.index + 1,
+            total,
+            c.withheld,
+            c.snr.map_or("–".to_string(), |s| s.to_string()),
+            c.verdict,
+            if c.correct { "right" } else { "wrong" },
+            c.shrink_pct,
+            c.oracle_shrink_pct
+                .map_or("–".to_string(), |o| format!("{o:.1} %")),
+            c.seconds
+        );
+    })
+    .map_err(anyhow::Error::msg)?;
+    let md = summary.to_markdown();
+    print!("{md}");
     if let Some(p) = &args.markdown {
         outputs.file(p, md.as_bytes());
     }

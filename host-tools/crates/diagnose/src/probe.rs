@@ -831,6 +831,209 @@ fn pretravel_structure(
     Ok((r.calibration.structure.clone(), r.why.clone()))
 }
 
+/// The diagnosis of probe touches (`--json` writes this): the verdict rule's result plus what the probe data
+/// add — how each artefact was linearised, what the model holds, what touches cannot tell apart.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ProbeDiagnosis {
+    /// Always `probe_touches`.
+    pub data_kind: &'static str,
+    #[serde(flatten)]
+    pub diagnosis: crate::judge::Diagnosis,
+    /// Effect kinds the model holds (not candidates).
+    pub model_holds: Vec<String>,
+    pub artefacts: Vec<ArtefactFit>,
+    /// What these data cannot determine.
+    pub cannot_tell: Vec<String>,
+}
+
+/// Simplicity rank of a kind for the tie rule (lower = simpler, preferred among candidates with as many
+/// parameters): latch latency before speed pretravel (its special case), the probe's own effects before the
+/// machine's.
+fn simplicity(k: ProbeEffect) -> u8 {
+    match k {
+        ProbeEffect::LatchLatency | ProbeEffect::StylusBending => 1,
+        ProbeEffect::SpeedPretravel | ProbeEffect::Lobing | ProbeEffect::ThermalDrift => 2,
+        ProbeEffect::MachineGeometry => 3,
+    }
+}
+
+/// Runs the verdict rule ([`crate::judge::judge`], one implementation for every data kind) on a probe
+/// campaign.
+pub fn diagnose(
+    c: &ProbeCampaign,
+    opts: &crate::DiagnoseOptions,
+) -> Result<ProbeDiagnosis, String> {
+    use crate::judge::{Campaign, CandidateFamily, CandidateVariant, ModelTerm};
+    let mut time_order = c.train.clone();
+    if let Some((_, t)) = c.where_variables.iter().find(|(n, _)| n == "time_s") {
+        time_order.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
+    }
+    let blocks: Vec<Vec<usize>> = match &c.blocks {
+        Some(b) => {
+            let k = b.iter().copied().max().map_or(0, |m| m + 1);
+            let mut out = vec![Vec::new(); k];
+            for &i in &c.train {
+                out[b[i]].push(i);
+            }
+            out.retain(|v| !v.is_empty());
+            out
+        }
+        None => Vec::new(),
+    };
+    let campaign = Campaign {
+        target: "radial_residual_um".into(),
+        y: &c.y,
+        base_columns: c.base_columns.clone(),
+        model: c
+            .base_terms
+            .iter()
+            .map(|(kind, params, columns)| ModelTerm {
+                kind: kind.clone(),
+                params: params.clone(),
+                columns: *columns,
+            })
+            .collect(),
+        train: c.train.clone(),
+        holdout: c.holdout.clone(),
+        blocks,
+        where_variables: c.where_variables.clone(),
+        position_order: None,
+        time_order,
+        not_applicable: c
+            .not_applicable
+            .iter()
+            .map(|(k, why)| format!("{k}: {why}"))
+            .collect(),
+    };
+    let families: Vec<CandidateFamily> = c
+        .families
+        .iter()
+        .map(|f| {
+            let mut fam = CandidateFamily::new(
+                f.kind.name(),
+                f.variants
+                    .iter()
+                    .map(|v| {
+                        let searched = v.n_params.saturating_sub(v.columns.len());
+                        CandidateVariant::new(v.columns.clone(), v.params.clone(), searched)
+                    })
+                    .collect(),
+            );
+            fam.simplicity = simplicity(f.kind);
+            fam
+        })
+        .collect();
+    let mut d = crate::judge::judge(&campaign, &families, opts)?;
+    // Latch latency and an isotropic speed pretravel are the same columns' span on touches: say so.
+    let lat = ProbeEffect::LatchLatency.name();
+    let spd = ProbeEffect::SpeedPretravel.name();
+    let both = [lat, spd]
+        .iter()
+        .all(|k| d.effects.iter().any(|e| e.kind == *k && e.explains));
+    if both && (d.verdict == lat || d.verdict == spd) {
+        d.note.push_str(if d.verdict == spd {
+            "; latch_latency explains part of the gap too: on touches alone the two differ only by the speed \
+             term's direction dependence, which is beyond noise here (speed_pretravel)"
+        } else {
+            "; speed_pretravel explains the gap too: on touches alone the two differ only by the speed term's \
+             direction dependence, which is not beyond noise here, so the isotropic latch_latency is named"
+        });
+    }
+    Ok(ProbeDiagnosis {
+        data_kind: "probe_touches",
+        diagnosis: d,
+        model_holds: c.held.iter().map(|k| k.name().to_string()).collect(),
+        artefacts: c.artefacts.clone(),
+        cannot_tell: c.notes.clone(),
+    })
+}
+
+/// The report: `diagnosis.md` and SVG figures of the held-out radial residual against the approach's
+/// azimuth, elevation, the feed and time, before and after the verdict's refit.
+pub fn report_files(
+    dir: &std::path::Path,
+    c: &ProbeCampaign,
+    d: &ProbeDiagnosis,
+) -> anyhow::Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
+    let dg = &d.diagnosis;
+    let mut files = Vec::new();
+    let after = dg.verdict_candidate().map(|k| &k.residual_after);
+    let mut figs = Vec::new();
+    for (name, v) in &c.where_variables {
+        let xs: Vec<f64> = c.holdout.iter().map(|&i| v[i]).collect();
+        if xs.iter().all(|x| (x - xs[0]).abs() < 1e-12) {
+            continue;
+        }
+        let before: Vec<f64> = c.holdout.iter().map(|&i| dg.residual[i]).collect();
+        let mut f = axcomp_plot::Figure::new(
+            &format!("held-out radial residual vs {name}"),
+            name,
+            "radial residual (µm)",
+        );
+        f.points("model (gap)", &xs, &before);
+        if let Some(a) = after {
+            let ys: Vec<f64> = c.holdout.iter().map(|&i| a[i]).collect();
+            f.points(&format!("with {}", dg.verdict), &xs, &ys);
+        }
+        let file = format!("holdout_vs_{name}.svg");
+        files.push((dir.join(&file), f.to_svg().into_bytes()));
+        figs.push(file);
+    }
+    let mut md = String::from("# Diagnosis of probe touches\n\n");
+    md += &format!(
+        "Target: the radial residual of each touch about its artefact (µm). Model holds: {}.\n\n",
+        if d.model_holds.is_empty() {
+            "one effective radius (probe_radius)".to_string()
+        } else {
+            d.model_holds.join(", ")
+        }
+    );
+    md += &format!(
+        "Gap: train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out touches).\n\n",
+        dg.gap.train_rms_um, dg.gap.holdout_rms_um, dg.gap.holdout_max_um, dg.n_train, dg.n_holdout
+    );
+    md += &format!("**Verdict: {}** — {}\n\n", dg.verdict, dg.note);
+    if !dg.ties.is_empty() {
+        md += &format!("Ties: {}.\n\n", dg.ties.join(", "));
+    }
+    md += "| artefact | shape | train | held-out | placement |\n|---|---|---|---|---|\n";
+    for a in &d.artefacts {
+        md += &format!(
+            "| {} | {} | {} | {} | {} |\n",
+            a.name, a.shape, a.train_touches, a.holdout_touches, a.placement
+        );
+    }
+    md += "\n| candidate | score | held-out RMS after (µm) | shrink | explains |\n|---|---|---|---|---|\n";
+    for e in &dg.effects {
+        md += &format!(
+            "| {} | {:.1} | {:.3} | {:.1} % | {} |\n",
+            e.kind, e.score, e.holdout_rms_after_um, e.shrink_pct, e.explains
+        );
+    }
+    md += "\n| where | from | to | share |\n|---|---|---|---|\n";
+    for r in &dg.where_ {
+        md += &format!(
+            "| {} | {:.4} | {:.4} | {:.1} % |\n",
+            r.variable,
+            r.from,
+            r.to,
+            100.0 * r.share
+        );
+    }
+    if !d.cannot_tell.is_empty() {
+        md += "\nWhat touches cannot tell:\n\n";
+        for n in &d.cannot_tell {
+            md += &format!("- {n}\n");
+        }
+    }
+    md += &format!("\nVerdict rule: {}\n\n", dg.verdict_rule);
+    for f in figs {
+        md += &format!("![{f}]({f})\n\n");
+    }
+    files.push((dir.join("diagnosis.md"), md.into_bytes()));
+    Ok(files)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
