@@ -167,3 +167,46 @@ fn bad_probe_input_names_what_and_writes_nothing() {
         "bad.csv:6",
     );
 }
+
+#[test]
+fn probe_pretravel_holds_the_calibrated_pretravel_and_names_a_thermal_drift() {
+    let dir = scratch("pretravel");
+    // Case 6 withholds thermal_drift (the order of `WITHHELD`, every 4th case null); SNR 8.
+    let (csv, withheld) = case_csv(&dir, 6, 8.0);
+    assert_eq!(withheld, "thermal_drift");
+    let o = axcomp_in(
+        &[
+            "diagnose",
+            "--data",
+            csv.to_str().unwrap(),
+            "--model",
+            "probe_pretravel",
+            "--holdout",
+            "artefact=sphere2",
+            "--json",
+            "d.json",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j = read_json(&dir.join("d.json"));
+    assert_eq!(j["verdict"], "thermal_drift", "{j}");
+    // The pretravel model (axcomp-probe's harmonic structure chosen by cross-validation) is a base term;
+    // the kinds it holds are no candidates.
+    assert!(
+        j["model"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|t| t["kind"] == "probe_pretravel")
+    );
+    let holds: Vec<&str> = j["model_holds"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    for e in j["effects"].as_array().unwrap() {
+        assert!(!holds.contains(&e["kind"].as_str().unwrap()), "{e}");
+    }
+}

@@ -19,7 +19,9 @@ pub struct Args {
     /// Case generator: `standard` (5,000 rows, SNR 3–8, held out: every third run) or `hard` (1,500 rows,
     /// 3 ISO cycles, SNR 2–8, held out outside the training regime: last cycles, fastest scan, largest
     /// loads, the re-heat's thermal rounds), or `probe` (touch-probe twin: calibration sphere, plane, ring
-    /// gauge and ball plate for training, a second sphere held out; `--rows` is not used).
+    /// gauge and ball plate for training, a second sphere held out; `--rows` is not used) or `probe-hard`
+    /// (the same with lobes and latency in the probe and the model, and withheld forms outside the
+    /// candidates' columns).
     #[arg(long, value_name = "NAME", default_value = "standard")]
     pub harness: String,
     /// Number of simulated cases (every 4th is a null case: nothing withheld).
@@ -48,7 +50,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.harness == "probe" {
+    if args.harness == "probe" || args.harness == "probe-hard" {
         return run_probe(args);
     }
     let profile = Profile::parse(&args.harness).map_err(|e| anyhow::anyhow!("--harness: {e}"))?;
@@ -114,6 +116,7 @@ fn run_probe(args: Args) -> anyhow::Result<()> {
             .clone()
             .unwrap_or_else(|| ProbeValidateOptions::default().snrs),
         noise_um: args.noise_um,
+        hard: args.harness == "probe-hard",
         ..ProbeValidateOptions::default()
     }
     .build()

@@ -425,6 +425,10 @@ pub fn touches_csv(touches: &[SimTouch]) -> String {
 ///   `e_k = Σ_j a_kj·q_j + Σ_j b_kj·q_j² + Σ_{j<l} c_k,jl·q_j·q_l`.
 /// - **thermal drift**: the frame's temperature rises as `rise_K·(1 − exp(−t/τ))` over the campaign
 ///   (`seconds_per_touch` per touch); the tip moves relative to the artefacts by `drift_um_per_K·ΔT`.
+/// - **forms outside the simple columns** (a harder test of the diagnosis): the speed term ∝
+///   `v^speed_exponent`, bending ∝ `cos^stylus_bending_exponent φ`, cubic terms of the machine error
+///   ([`MachineErrorField::cubic`]), a frame sensor lagging the temperature that moves the machine
+///   (`sensor_lag_s`). The defaults (1, 1, 0, 0) give the simple forms.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TouchDisturbances {
     pub speed_lateral_um_per_mm_s: f64,
@@ -441,6 +445,13 @@ pub struct TouchDisturbances {
     pub sensor_noise_k: f64,
     /// Time between touches, s.
     pub seconds_per_touch: f64,
+    /// Speed pretravel ∝ `v^speed_exponent` (1: linear in speed).
+    pub speed_exponent: f64,
+    /// Stylus bending ∝ `cos^exponent φ` (1: the horizontal approach component).
+    pub stylus_bending_exponent: f64,
+    /// The frame sensor lags the temperature that moves the machine by a first-order lag of this time
+    /// constant, s (0: no lag).
+    pub sensor_lag_s: f64,
 }
 
 impl Default for TouchDisturbances {
@@ -456,6 +467,9 @@ impl Default for TouchDisturbances {
             frame_start_degc: 20.0,
             sensor_noise_k: 0.01,
             seconds_per_touch: 3.0,
+            speed_exponent: 1.0,
+            stylus_bending_exponent: 1.0,
+            sensor_lag_s: 0.0,
         }
     }
 }
@@ -471,6 +485,8 @@ pub struct MachineErrorField {
     pub square: [[f64; 3]; 3],
     /// `cross[k][m]`: µm of `e_k` per unit `q_0·q_1`, `q_0·q_2`, `q_1·q_2` (m = 0, 1, 2).
     pub cross: [[f64; 3]; 3],
+    /// `cubic[k][j]`: µm of `e_k` per unit `q_j³` (beyond the degree-2 field).
+    pub cubic: [[f64; 3]; 3],
 }
 
 impl MachineErrorField {
@@ -487,7 +503,8 @@ impl MachineErrorField {
             for j in 0..3 {
                 e[k] += self.linear[k][j] * q[j]
                     + self.square[k][j] * q[j] * q[j]
-                    + self.cross[k][j] * qq[j];
+                    + self.cross[k][j] * qq[j]
+                    + self.cubic[k][j] * q[j] * q[j] * q[j];
             }
         }
         e
@@ -500,6 +517,7 @@ impl MachineErrorField {
             linear: m(self.linear),
             square: m(self.square),
             cross: m(self.cross),
+            cubic: m(self.cubic),
             ..self.clone()
         }
     }
@@ -515,12 +533,29 @@ impl TouchDisturbances {
         }
     }
 
+    /// What the frame sensor reads of the rise (K, without noise): the rise through the sensor's
+    /// first-order lag (`sensor_lag_s`).
+    pub fn sensed_delta_t_k(&self, t_s: f64) -> f64 {
+        let (tau, lag) = (self.warmup_tau_s, self.sensor_lag_s);
+        if !(lag > 0.0) || !(tau > 0.0) {
+            return self.delta_t_k(t_s);
+        }
+        // Response of a first-order lag to A·(1 − e^{−t/τ}) from rest.
+        let resp = if (tau - lag).abs() < 1e-9 * tau {
+            1.0 - (1.0 + t_s / tau) * (-t_s / tau).exp()
+        } else {
+            1.0 - (tau * (-t_s / tau).exp() - lag * (-t_s / lag).exp()) / (tau - lag)
+        };
+        self.warmup_rise_k * resp
+    }
+
     /// Extra pretravel (µm) along the approach for a touch with surface normal `n` at speed `v_mm_s`.
     pub fn extra_pretravel_um(&self, n: [f64; 3], v_mm_s: f64) -> f64 {
         let s2 = n[2].clamp(-1.0, 1.0).powi(2);
         let c2 = 1.0 - s2;
-        v_mm_s.abs() * (self.speed_lateral_um_per_mm_s * c2 + self.speed_axial_um_per_mm_s * s2)
-            + self.stylus_bending_um * c2.max(0.0).sqrt()
+        v_mm_s.abs().powf(self.speed_exponent)
+            * (self.speed_lateral_um_per_mm_s * c2 + self.speed_axial_um_per_mm_s * s2)
+            + self.stylus_bending_um * c2.max(0.0).sqrt().powf(self.stylus_bending_exponent)
     }
 }
 
@@ -574,7 +609,9 @@ pub fn simulate_disturbed_touches(
         out.push(DisturbedTouch {
             touch,
             time_s,
-            frame_degc: dist.frame_start_degc + dt + gauss(&mut sensor_rng, dist.sensor_noise_k),
+            frame_degc: dist.frame_start_degc
+                + dist.sensed_delta_t_k(time_s)
+                + gauss(&mut sensor_rng, dist.sensor_noise_k),
         });
     }
     out
@@ -676,6 +713,7 @@ mod tests {
                 linear: lin,
                 square: [[0.0; 3]; 3],
                 cross: [[0.0; 3]; 3],
+                cubic: [[0.0; 3]; 3],
             }),
             ..off
         };

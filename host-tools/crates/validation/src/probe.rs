@@ -62,6 +62,10 @@ pub struct ProbeValidateOptions {
     pub noise_um: f64,
     /// Every `null_every`-th case is a null case.
     pub null_every: usize,
+    /// The hard profile: a probe with lobes and latch latency that the model is told about (those not
+    /// withheld), withheld effects whose form lies outside the candidate's columns (speed pretravel ∝
+    /// v^0.6…1, bending ∝ cos^1…2 φ, a machine error with cubic terms, a frame sensor lagging by 0–10 min).
+    pub hard: bool,
 }
 
 impl Default for ProbeValidateOptions {
@@ -72,6 +76,7 @@ impl Default for ProbeValidateOptions {
             snrs: vec![3.0, 4.0, 6.0, 8.0],
             noise_um: 0.5,
             null_every: 4,
+            hard: false,
         }
     }
 }
@@ -200,6 +205,7 @@ pub fn with_unit_effect(
     kind: ProbeEffect,
     probe: &ProbeModel,
     rng: &mut StdRng,
+    hard: bool,
 ) -> (ProbeModel, TouchDisturbances, serde_json::Value) {
     let mut p = probe.clone();
     let mut d = TouchDisturbances::default();
@@ -212,11 +218,17 @@ pub fn with_unit_effect(
         ProbeEffect::SpeedPretravel => {
             d.speed_lateral_um_per_mm_s = 1.0;
             d.speed_axial_um_per_mm_s = rng.gen_range(0.0..0.3);
-            serde_json::json!({"axial_over_lateral": d.speed_axial_um_per_mm_s})
+            if hard {
+                d.speed_exponent = rng.gen_range(0.6..1.0);
+            }
+            serde_json::json!({"axial_over_lateral": d.speed_axial_um_per_mm_s, "speed_exponent": d.speed_exponent})
         }
         ProbeEffect::StylusBending => {
             d.stylus_bending_um = 1.0;
-            serde_json::json!({"form": "cos(elevation)"})
+            if hard {
+                d.stylus_bending_exponent = rng.gen_range(1.0..2.0);
+            }
+            serde_json::json!({"form": "cos(elevation)^k", "k": d.stylus_bending_exponent})
         }
         ProbeEffect::LatchLatency => {
             p.latency_ms = 1.0;
@@ -232,21 +244,31 @@ pub fn with_unit_effect(
                 }
                 a
             };
+            let (linear, square, cross) = (m(), m(), m());
+            let cubic = if hard {
+                m().map(|r| r.map(|x| 0.5 * x))
+            } else {
+                [[0.0; 3]; 3]
+            };
             let f = MachineErrorField {
                 origin_mm: [100.0, 80.0, 10.0],
                 scale_mm: 100.0,
-                linear: m(),
-                square: m(),
-                cross: m(),
+                linear,
+                square,
+                cross,
+                cubic,
             };
             d.machine_error = Some(f);
-            serde_json::json!({"degree": 2})
+            serde_json::json!({"degree": if hard { 3 } else { 2 }})
         }
         ProbeEffect::ThermalDrift => {
             let g: [f64; 3] = [0, 1, 2].map(|_| rng.gen_range(-1.0..1.0));
             let l = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-6);
             d.drift_um_per_k = g.map(|x| x / l);
-            serde_json::json!({"direction": d.drift_um_per_k})
+            if hard {
+                d.sensor_lag_s = rng.gen_range(0.0..600.0);
+            }
+            serde_json::json!({"direction": d.drift_um_per_k, "sensor_lag_s": d.sensor_lag_s})
         }
     };
     (p, d, truth)
@@ -308,12 +330,25 @@ pub fn make_case(opts: &ProbeValidateOptions, index: usize) -> Result<ProbeCase,
     let j = index - index / opts.null_every;
     let withheld = (!null).then(|| WITHHELD[j % WITHHELD.len()]);
     let snr = withheld.map(|_| opts.snrs[(j / WITHHELD.len()) % opts.snrs.len()]);
+    let plan = survey_plan();
+    let mut probe = plain_probe(opts.noise_um);
+    let mut told = Vec::new();
+    if opts.hard {
+        // Lobes and latch latency present and told, unless withheld.
+        if withheld != Some(ProbeEffect::Lobing) {
+            probe.lobe_um = 2.0;
+            probe.lobe_phase_deg = rng.gen_range(0.0..120.0);
+            told.push(ProbeEffect::Lobing);
+        }
+        if withheld != Some(ProbeEffect::LatchLatency) {
+            probe.latency_ms = 0.3;
+            told.push(ProbeEffect::LatchLatency);
+        }
+    }
     let model = ProbeModelSpec {
         pretravel: false,
-        extra: vec![],
+        extra: told,
     };
-    let plan = survey_plan();
-    let probe = plain_probe(opts.noise_um);
     let dist0 = TouchDisturbances::default();
     let null_touches = simulate_disturbed_touches(&probe, &dist0, &plan, seed);
     let null_data = probe_data(&null_touches);
@@ -330,7 +365,7 @@ pub fn make_case(opts: &ProbeValidateOptions, index: usize) -> Result<ProbeCase,
             truth_params: serde_json::json!({}),
         });
     };
-    let (p1, d1, truth_params) = with_unit_effect(kind, &probe, &mut rng);
+    let (p1, d1, truth_params) = with_unit_effect(kind, &probe, &mut rng, opts.hard);
     let unit_touches = simulate_disturbed_touches(&p1, &d1, &plan, seed);
     // The effect in position space (exactly what the unit effect adds to every latched point).
     let scaled = |f: f64| -> ProbeData {
@@ -462,6 +497,8 @@ pub struct ProbeKindRow {
 /// The figures.
 #[derive(Debug, Clone, Serialize)]
 pub struct ProbeSummary {
+    /// `probe` or `probe-hard`.
+    pub profile: String,
     pub cases: usize,
     pub seed: u64,
     pub noise_um: f64,
@@ -542,6 +579,7 @@ pub fn summarise(opts: &ProbeValidateOptions, results: Vec<ProbeCaseResult>) -> 
         .collect();
     ratios.sort_by(f64::total_cmp);
     ProbeSummary {
+        profile: if opts.hard { "probe-hard" } else { "probe" }.into(),
         cases: results.len(),
         seed: opts.seed,
         noise_um: opts.noise_um,
@@ -585,12 +623,13 @@ impl ProbeSummary {
             }
         };
         let mut s = format!(
-            "## Withheld-effect validation on probe touches ({} cases, seed {}, noise σ {} µm, held out: {})\n\n\
+            "## Withheld-effect validation on probe touches ({}: {} cases, seed {}, noise σ {} µm, held out: {})\n\n\
              | figure | value | target |\n|---|---|---|\n\
              | top-1 at SNR ≥ 4 ({} cases) | {} | ≥ 90 % |\n\
              | false alarms on null cases ({} cases) | {} | ≤ 5 % |\n\
              | median verdict shrink / oracle shrink (correct cases) | {} | – |\n\n\
              | SNR | cases | top-1 | top-1 or tied |\n|---|---|---|---|\n",
+            self.profile,
             self.cases,
             self.seed,
             self.noise_um,
