@@ -165,7 +165,7 @@ pub struct ArtefactFit {
     pub placement: &'static str,
 }
 
-fn unit_rms(c: &mut [f64], rows: &[usize]) -> f64 {
+fn rms_on(c: &[f64], rows: &[usize]) -> f64 {
     let ss: f64 = rows.iter().map(|&i| c[i] * c[i]).sum();
     (ss / rows.len().max(1) as f64).sqrt()
 }
@@ -175,7 +175,7 @@ fn unit_rms(c: &mut [f64], rows: &[usize]) -> f64 {
 fn orthonormal(cols: Vec<Vec<f64>>, rows: &[usize]) -> Vec<Vec<f64>> {
     let mut basis: Vec<Vec<f64>> = Vec::new();
     for mut c in cols {
-        let s = unit_rms(&mut c, rows);
+        let s = rms_on(&c, rows);
         if !(s > 1e-300) {
             continue;
         }
@@ -375,11 +375,25 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
                 }
                 cols.push(c);
             }
-            // Small rotation ω of the artefact: n·(ω × q) = ω·(q × n), q in mm.
+            // A translation along a direction no touch approaches is left out (its column is noise).
+            cols.retain(|c| rms_on(c, &rows) >= 1e-3);
+            // Small rotation ω of the artefact: n·(ω × q) = ω·(q × n), q in mm. A component that the
+            // artefact's shape does not show (a ring's tilt: its touches have one height) comes out at the
+            // measured residual's µm level: columns below 1e-3 of the artefact's extent are left out, so
+            // that no placement column is built from what was measured.
+            let qs: Vec<[f64; 3]> = rows
+                .iter()
+                .map(|&i| sub(d.touches[i].position_mm, pbar))
+                .collect();
+            let extent = (qs
+                .iter()
+                .map(|q| q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
+                .sum::<f64>()
+                / qs.len().max(1) as f64)
+                .sqrt();
             for k in 0..3 {
                 let mut c = zero();
-                for &i in &rows {
-                    let q = sub(d.touches[i].position_mm, pbar);
+                for (q, &i) in qs.iter().zip(&rows) {
                     let nn = normal[i];
                     let x = [
                         q[1] * nn[2] - q[2] * nn[1],
@@ -388,7 +402,9 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
                     ];
                     c[i] = x[k];
                 }
-                cols.push(c);
+                if rms_on(&c, &rows) >= 1e-3 * extent {
+                    cols.push(c);
+                }
             }
         }
         if tr.is_empty() {
