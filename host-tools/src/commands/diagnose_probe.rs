@@ -1,11 +1,131 @@
 //! `axcomp diagnose` on probe touches (`approach_x`, `approach_y`, `approach_z`): the base model fitted on the
-//! training rows, the held-out gap, and which unmodelled effect of the contract's vocabulary explains it.
+//! training rows, the held-out gap, and which unmodelled effect of the contract's vocabulary explains it
+//! (`axcomp_diagnose::probe`; the verdict rule is `axcomp_diagnose::judge`'s, the same for every data kind).
+//!
+//! Terms: *target* = the radial residual of each touch about its artefact (µm; `--target` is not used:
+//! touches have no error column); *placement* = where an artefact stands and how big it is, fitted on the
+//! training touches or, for an artefact touched only on held-out rows, projected out of them.
+
+use anyhow::Context;
+use axcomp_data::{Dataset, HoldoutSpec};
+use axcomp_diagnose::probe::{self as dprobe, ProbeData, ProbeModelSpec};
 
 use super::diagnose::Args;
+use crate::commands::predict::read_touches;
+use crate::output::OutputSet;
 
-pub fn run(_args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
-    anyhow::bail!(
-        "{}: diagnosis of probe touches (`approach_x`, `approach_y`, `approach_z`) is not available in this build (issue 12)",
-        ds.source()
-    )
+/// The touch columns as [`ProbeData`] (held-out rows from `--holdout`).
+pub fn probe_data(ds: &Dataset, holdout: &str) -> anyhow::Result<ProbeData> {
+    let spec = HoldoutSpec::parse(holdout).context("--holdout")?;
+    let held_out = spec.mask(ds)?;
+    let (touches, labels) = read_touches(ds)?;
+    let artefact = if ds.has("artefact") {
+        ds.text("artefact")?.iter().map(|s| s.to_string()).collect()
+    } else {
+        vec!["artefact".to_string(); ds.n_rows()]
+    };
+    let time_s = if ds.has("time_s") {
+        Some(ds.numeric("time_s")?.to_vec())
+    } else {
+        ds.time_s().map(<[f64]>::to_vec)
+    };
+    let mut temperatures = Vec::new();
+    for s in ds.sensors() {
+        let v = ds.numeric(&format!("{s}_degC"))?.to_vec();
+        temperatures.push((s, v));
+    }
+    Ok(ProbeData {
+        touches,
+        artefact,
+        run: ds.run(),
+        time_s,
+        temperatures,
+        held_out,
+        labels,
+    })
+}
+
+pub fn run(args: &Args, ds: Dataset) -> anyhow::Result<()> {
+    let model = ProbeModelSpec::parse(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
+    if args.target != "deviation_um" {
+        anyhow::bail!(
+            "--target {}: probe touches have no error column; the diagnosis models the radial residual of each \
+             touch about its artefact",
+            args.target
+        );
+    }
+    // The outputs are planned and checked before the search; written together at the end.
+    let mut outputs = OutputSet::new();
+    if let Some(dir) = &args.report {
+        outputs.dir(dir).planned(dir.join("diagnosis.md"));
+    }
+    if let Some(path) = &args.json {
+        outputs.planned(path);
+    }
+    outputs.check()?;
+    let data = probe_data(&ds, &args.holdout)?;
+    let source = ds.source().to_string();
+    drop(ds);
+    let campaign = dprobe::build(&data, &model).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let opts = axcomp_diagnose::DiagnoseOptions::default()
+        .build()
+        .map_err(anyhow::Error::msg)?;
+    let d = dprobe::diagnose(&campaign, &opts).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let g = &d.diagnosis.gap;
+    println!(
+        "gap of the radial residual (model: {}): train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out touches)",
+        args.model.trim(),
+        g.train_rms_um,
+        g.holdout_rms_um,
+        g.holdout_max_um,
+        d.diagnosis.n_train,
+        d.diagnosis.n_holdout
+    );
+    for a in &d.artefacts {
+        println!(
+            "  artefact {}: {} ({} train / {} held-out touches), placement {}",
+            a.name, a.shape, a.train_touches, a.holdout_touches, a.placement
+        );
+    }
+    for r in d.diagnosis.where_.iter().take(4) {
+        println!(
+            "  where: {} {:.4} … {:.4} holds {:.1} % of the held-out gap",
+            r.variable,
+            r.from,
+            r.to,
+            100.0 * r.share
+        );
+    }
+    for c in d.diagnosis.effects.iter().take(6) {
+        println!(
+            "  candidate {:<17} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",
+            c.kind,
+            c.score,
+            c.holdout_rms_after_um,
+            c.shrink_pct,
+            if c.explains {
+                ""
+            } else if c.train_p_value < opts.alpha {
+                "  (significant, not material)"
+            } else {
+                "  (not beyond noise)"
+            }
+        );
+    }
+    println!("verdict: {} — {}", d.diagnosis.verdict, d.diagnosis.note);
+    let mut report_files = 0;
+    if let Some(dir) = &args.report {
+        for (path, bytes) in dprobe::report_files(dir, &campaign, &d)? {
+            outputs.file(path, bytes);
+            report_files += 1;
+        }
+    }
+    if let Some(path) = &args.json {
+        outputs.json(path, &d)?;
+    }
+    outputs.commit()?;
+    if let Some(dir) = &args.report {
+        println!("report: {report_files} files in {}", dir.display());
+    }
+    Ok(())
 }

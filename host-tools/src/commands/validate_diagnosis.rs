@@ -19,7 +19,10 @@ pub struct Args {
     /// Case generator: `rtest` (five-axis twin, R-test data; see `axcomp_validation::rtest`),
     /// `standard` (5,000 rows, SNR 3–8, held out: every third run) or `hard` (1,500 rows,
     /// 3 ISO cycles, SNR 2–8, held out outside the training regime: last cycles, fastest scan, largest
-    /// loads, the re-heat's thermal rounds).
+    /// loads, the re-heat's thermal rounds), or `probe` (touch-probe twin: calibration sphere, plane, ring
+    /// gauge and ball plate for training, a second sphere held out; `--rows` is not used) or `probe-hard`
+    /// (the same with lobes and latency in the probe and the model, and withheld forms outside the
+    /// candidates' columns).
     #[arg(long, value_name = "NAME", default_value = "standard")]
     pub harness: String,
     /// Number of simulated cases (every 4th is a null case: nothing withheld).
@@ -50,6 +53,9 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.harness == "rtest" {
         return run_rtest(&args);
+    }
+    if args.harness == "probe" || args.harness == "probe-hard" {
+        return run_probe(args);
     }
     let profile = Profile::parse(&args.harness).map_err(|e| anyhow::anyhow!("--harness: {e}"))?;
     let opts = ValidateOptions {
@@ -143,6 +149,59 @@ fn run_rtest(args: &Args) -> anyhow::Result<()> {
             } else {
                 format!("; ties {}", c.ties.join(", "))
             },
+            c.shrink_pct,
+            c.oracle_shrink_pct
+                .map_or("–".to_string(), |o| format!("{o:.1} %")),
+            c.seconds
+        );
+    })
+    .map_err(anyhow::Error::msg)?;
+    let md = summary.to_markdown();
+    print!("{md}");
+    if let Some(p) = &args.markdown {
+        outputs.file(p, md.as_bytes());
+    }
+    if let Some(p) = &args.json {
+        outputs.json(p, &summary)?;
+    }
+    outputs.commit()?;
+    Ok(())
+}
+
+/// `--harness probe`: withheld-effect validation on touch-probe twin campaigns (`axcomp_validation::probe`).
+fn run_probe(args: Args) -> anyhow::Result<()> {
+    use axcomp_validation::probe::{self as vprobe, ProbeValidateOptions};
+    let opts = ProbeValidateOptions {
+        cases: args.cases,
+        seed: args.seed,
+        snrs: args
+            .snr
+            .clone()
+            .unwrap_or_else(|| ProbeValidateOptions::default().snrs),
+        noise_um: args.noise_um,
+        hard: args.harness == "probe-hard",
+        ..ProbeValidateOptions::default()
+    }
+    .build()
+    .map_err(anyhow::Error::msg)?;
+    let mut outputs = OutputSet::new();
+    if let Some(p) = &args.markdown {
+        outputs.planned(p);
+    }
+    if let Some(p) = &args.json {
+        outputs.planned(p);
+    }
+    outputs.check()?;
+    let total = opts.cases;
+    let summary = vprobe::validate(&opts, |c| {
+        eprintln!(
+            "[{}/{}] probe withheld {} snr {} → verdict {} ({}), shrink {:.1} % (oracle {}), {:.2} s",
+            c.index + 1,
+            total,
+            c.withheld,
+            c.snr.map_or("–".to_string(), |s| s.to_string()),
+            c.verdict,
+            if c.correct { "right" } else { "wrong" },
             c.shrink_pct,
             c.oracle_shrink_pct
                 .map_or("–".to_string(), |o| format!("{o:.1} %")),

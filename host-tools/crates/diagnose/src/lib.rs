@@ -39,6 +39,7 @@ pub mod judge;
 pub mod locate;
 pub mod lsq;
 pub mod obs;
+pub mod probe;
 pub mod report;
 pub mod rtest;
 pub mod stats;

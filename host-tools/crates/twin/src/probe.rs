@@ -410,6 +410,238 @@ pub fn touches_csv(touches: &[SimTouch]) -> String {
     s
 }
 
+/// Effects on the touches beyond [`ProbeModel`] (the withheld-effect validation of the diagnosis on probe
+/// data, issue 12): direction-dependent speed pretravel, stylus bending, the machine's geometric error at
+/// the touched point and thermal drift with a warm-up of the frame. All off by default
+/// ([`TouchDisturbances::default`]); [`simulate_disturbed_touches`] runs a plan with them.
+///
+/// - **direction-dependent speed pretravel**: extra pretravel `v·(s_lat·cos²φ + s_ax·sin²φ)` (µm, v in
+///   mm/s): a stylus is less stiff sideways than along its axis, so the speed term of a lateral touch differs
+///   from an axial one (the twin's `speed_um_per_mm_s` and `latency_ms` act the same in every direction).
+/// - **stylus bending**: extra pretravel `stylus_bending_um·cos φ`, growing with the lateral (horizontal)
+///   component of the approach.
+/// - **machine geometric error**: the tip stands at `p + e(p)` when the machine reads `p`; `e` (µm) is a
+///   polynomial of degree ≤ 2 in the scaled position `q = (p − origin)/scale`:
+///   `e_k = Σ_j a_kj·q_j + Σ_j b_kj·q_j² + Σ_{j<l} c_k,jl·q_j·q_l`.
+/// - **thermal drift**: the frame's temperature rises as `rise_K·(1 − exp(−t/τ))` over the campaign
+///   (`seconds_per_touch` per touch); the tip moves relative to the artefacts by `drift_um_per_K·ΔT`.
+/// - **forms outside the simple columns** (a harder test of the diagnosis): the speed term ∝
+///   `v^speed_exponent`, bending ∝ `cos^stylus_bending_exponent φ`, cubic terms of the machine error
+///   ([`MachineErrorField::cubic`]), a frame sensor lagging the temperature that moves the machine
+///   (`sensor_lag_s`). The defaults (1, 1, 0, 0) give the simple forms.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TouchDisturbances {
+    pub speed_lateral_um_per_mm_s: f64,
+    pub speed_axial_um_per_mm_s: f64,
+    pub stylus_bending_um: f64,
+    pub machine_error: Option<MachineErrorField>,
+    pub drift_um_per_k: [f64; 3],
+    /// Frame warm-up: total rise (K) and time constant (s).
+    pub warmup_rise_k: f64,
+    pub warmup_tau_s: f64,
+    /// Start temperature of the frame sensor, °C.
+    pub frame_start_degc: f64,
+    /// Standard deviation of the temperature reading, K.
+    pub sensor_noise_k: f64,
+    /// Time between touches, s.
+    pub seconds_per_touch: f64,
+    /// Speed pretravel ∝ `v^speed_exponent` (1: linear in speed).
+    pub speed_exponent: f64,
+    /// Stylus bending ∝ `cos^exponent φ` (1: the horizontal approach component).
+    pub stylus_bending_exponent: f64,
+    /// The frame sensor lags the temperature that moves the machine by a first-order lag of this time
+    /// constant, s (0: no lag).
+    pub sensor_lag_s: f64,
+}
+
+impl Default for TouchDisturbances {
+    fn default() -> Self {
+        TouchDisturbances {
+            speed_lateral_um_per_mm_s: 0.0,
+            speed_axial_um_per_mm_s: 0.0,
+            stylus_bending_um: 0.0,
+            machine_error: None,
+            drift_um_per_k: [0.0; 3],
+            warmup_rise_k: 2.0,
+            warmup_tau_s: 1800.0,
+            frame_start_degc: 20.0,
+            sensor_noise_k: 0.01,
+            seconds_per_touch: 3.0,
+            speed_exponent: 1.0,
+            stylus_bending_exponent: 1.0,
+            sensor_lag_s: 0.0,
+        }
+    }
+}
+
+/// The machine's geometric error field `e(p)` (µm), a polynomial of degree ≤ 2 in the scaled position.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MachineErrorField {
+    pub origin_mm: [f64; 3],
+    pub scale_mm: f64,
+    /// `linear[k][j]`: µm of `e_k` per unit `q_j`.
+    pub linear: [[f64; 3]; 3],
+    /// `square[k][j]`: µm of `e_k` per unit `q_j²`.
+    pub square: [[f64; 3]; 3],
+    /// `cross[k][m]`: µm of `e_k` per unit `q_0·q_1`, `q_0·q_2`, `q_1·q_2` (m = 0, 1, 2).
+    pub cross: [[f64; 3]; 3],
+    /// `cubic[k][j]`: µm of `e_k` per unit `q_j³` (beyond the degree-2 field).
+    pub cubic: [[f64; 3]; 3],
+}
+
+impl MachineErrorField {
+    /// The error vector at `p_mm`, µm.
+    pub fn error_um(&self, p_mm: [f64; 3]) -> [f64; 3] {
+        let q = [
+            (p_mm[0] - self.origin_mm[0]) / self.scale_mm,
+            (p_mm[1] - self.origin_mm[1]) / self.scale_mm,
+            (p_mm[2] - self.origin_mm[2]) / self.scale_mm,
+        ];
+        let qq = [q[0] * q[1], q[0] * q[2], q[1] * q[2]];
+        let mut e = [0.0; 3];
+        for k in 0..3 {
+            for j in 0..3 {
+                e[k] += self.linear[k][j] * q[j]
+                    + self.square[k][j] * q[j] * q[j]
+                    + self.cross[k][j] * qq[j]
+                    + self.cubic[k][j] * q[j] * q[j] * q[j];
+            }
+        }
+        e
+    }
+
+    /// The same field times `f`.
+    pub fn scaled(&self, f: f64) -> Self {
+        let m = |a: [[f64; 3]; 3]| a.map(|r| r.map(|x| x * f));
+        MachineErrorField {
+            linear: m(self.linear),
+            square: m(self.square),
+            cross: m(self.cross),
+            cubic: m(self.cubic),
+            ..self.clone()
+        }
+    }
+}
+
+impl TouchDisturbances {
+    /// Frame temperature rise (K, without sensor noise) at time `t_s`.
+    pub fn delta_t_k(&self, t_s: f64) -> f64 {
+        if self.warmup_tau_s > 0.0 {
+            self.warmup_rise_k * (1.0 - (-t_s / self.warmup_tau_s).exp())
+        } else {
+            0.0
+        }
+    }
+
+    /// What the frame sensor reads of the rise (K, without noise): the rise through the sensor's
+    /// first-order lag (`sensor_lag_s`).
+    pub fn sensed_delta_t_k(&self, t_s: f64) -> f64 {
+        let (tau, lag) = (self.warmup_tau_s, self.sensor_lag_s);
+        if !(lag > 0.0) || !(tau > 0.0) {
+            return self.delta_t_k(t_s);
+        }
+        // Response of a first-order lag to A·(1 − e^{−t/τ}) from rest.
+        let resp = if (tau - lag).abs() < 1e-9 * tau {
+            1.0 - (1.0 + t_s / tau) * (-t_s / tau).exp()
+        } else {
+            1.0 - (tau * (-t_s / tau).exp() - lag * (-t_s / lag).exp()) / (tau - lag)
+        };
+        self.warmup_rise_k * resp
+    }
+
+    /// Extra pretravel (µm) along the approach for a touch with surface normal `n` at speed `v_mm_s`.
+    pub fn extra_pretravel_um(&self, n: [f64; 3], v_mm_s: f64) -> f64 {
+        let s2 = n[2].clamp(-1.0, 1.0).powi(2);
+        let c2 = 1.0 - s2;
+        v_mm_s.abs().powf(self.speed_exponent)
+            * (self.speed_lateral_um_per_mm_s * c2 + self.speed_axial_um_per_mm_s * s2)
+            + self.stylus_bending_um * c2.max(0.0).sqrt().powf(self.stylus_bending_exponent)
+    }
+}
+
+/// One disturbed touch: the simulated trigger, when it happened and the frame sensor's reading.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DisturbedTouch {
+    pub touch: SimTouch,
+    pub time_s: f64,
+    pub frame_degc: f64,
+}
+
+/// Runs `plan` with `probe` and the further effects `dist` (touches in plan order, `seconds_per_touch`
+/// apart). Deterministic in `seed`; with `dist` all off the latched points equal [`simulate_touches`]'s
+/// (same seed), and the noise draws do not depend on `dist`, so two runs that differ only in an effect's
+/// size differ only by that effect.
+pub fn simulate_disturbed_touches(
+    probe: &ProbeModel,
+    dist: &TouchDisturbances,
+    plan: &ProbePlan,
+    seed: u64,
+) -> Vec<DisturbedTouch> {
+    let base = simulate_touches(probe, plan, seed);
+    let mut sensor_rng = StdRng::seed_from_u64(seed ^ 0x7e3a_91c5_0d2f_4b68);
+    let mut out = Vec::with_capacity(base.len());
+    for (i, t) in base.into_iter().enumerate() {
+        let time_s = i as f64 * dist.seconds_per_touch;
+        let dt = dist.delta_t_k(time_s);
+        let u = t.approach;
+        let extra_um = if t.kind == TouchKind::FalseTrigger {
+            0.0
+        } else {
+            dist.extra_pretravel_um(t.normal, t.feed_mm_min / 60.0)
+        };
+        // The machine reads p where the tip is at p + e(p) (+ drift): the reading is the tip minus that.
+        let mut shift_um = [0.0; 3];
+        if let Some(f) = &dist.machine_error {
+            let e = f.error_um(t.latched_mm);
+            for k in 0..3 {
+                shift_um[k] -= e[k];
+            }
+        }
+        for k in 0..3 {
+            shift_um[k] -= dist.drift_um_per_k[k] * dt;
+            shift_um[k] += extra_um * u[k];
+        }
+        let mut touch = t;
+        for k in 0..3 {
+            touch.latched_mm[k] += shift_um[k] * 1e-3;
+        }
+        touch.pretravel_um += extra_um;
+        out.push(DisturbedTouch {
+            touch,
+            time_s,
+            frame_degc: dist.frame_start_degc
+                + dist.sensed_delta_t_k(time_s)
+                + gauss(&mut sensor_rng, dist.sensor_noise_k),
+        });
+    }
+    out
+}
+
+/// Disturbed touches as the contract's touch CSV plus `time_s` and `frame_degC`.
+pub fn disturbed_touches_csv(touches: &[DisturbedTouch]) -> String {
+    let mut s = String::from(
+        "x_mm,y_mm,z_mm,approach_x,approach_y,approach_z,feed_mm_min,artefact,run,time_s,frame_degC\n",
+    );
+    for d in touches {
+        let t = &d.touch;
+        s.push_str(&format!(
+            "{:.7},{:.7},{:.7},{:.9},{:.9},{:.9},{},{},{},{:.3},{:.4}\n",
+            t.latched_mm[0],
+            t.latched_mm[1],
+            t.latched_mm[2],
+            t.approach[0],
+            t.approach[1],
+            t.approach[2],
+            t.feed_mm_min,
+            t.artefact,
+            t.run,
+            d.time_s,
+            d.frame_degc
+        ));
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -442,5 +674,51 @@ mod tests {
             let want = 12.5 + 1.5 - s.pretravel_um * 1e-3;
             assert!((d - want).abs() < 6.0 * 0.5e-3, "{d} vs {want}");
         }
+    }
+
+    #[test]
+    fn disturbances_off_reproduce_the_plain_touches_and_each_acts_as_documented() {
+        let plan = ProbePlan::calibration([0.0, 0.0, 0.0], 20.0, &[0.0, 45.0], 8, &[120.0], 1);
+        let probe = ProbeModel::kinematic_demo().without_glitches();
+        let plain = simulate_touches(&probe, &plan, 3);
+        let off = TouchDisturbances {
+            warmup_rise_k: 0.0,
+            ..TouchDisturbances::default()
+        };
+        let same = simulate_disturbed_touches(&probe, &off, &plan, 3);
+        // Reference: the undisturbed simulation with the same seed; exact.
+        for (a, b) in plain.iter().zip(&same) {
+            assert_eq!(a.latched_mm, b.touch.latched_mm);
+        }
+        // Stylus bending 2 µm on an equator touch (cos φ = 1): 2 µm further along the approach; tolerance
+        // 1e-9 mm (rounding only).
+        let bend = TouchDisturbances {
+            stylus_bending_um: 2.0,
+            ..off.clone()
+        };
+        let b = simulate_disturbed_touches(&probe, &bend, &plan, 3);
+        let d: f64 = (0..3)
+            .map(|k| {
+                (b[0].touch.latched_mm[k] - same[0].touch.latched_mm[k]) * same[0].touch.approach[k]
+            })
+            .sum();
+        assert!((d - 2e-3).abs() < 1e-9, "{d}");
+        // A linear machine error e_x = 3 µm per unit q_x shifts the reading by −e.
+        let mut lin = [[0.0; 3]; 3];
+        lin[0][0] = 3.0;
+        let geo = TouchDisturbances {
+            machine_error: Some(MachineErrorField {
+                origin_mm: [0.0; 3],
+                scale_mm: 10.0,
+                linear: lin,
+                square: [[0.0; 3]; 3],
+                cross: [[0.0; 3]; 3],
+                cubic: [[0.0; 3]; 3],
+            }),
+            ..off
+        };
+        let g = simulate_disturbed_touches(&probe, &geo, &plan, 3);
+        let x = same[0].touch.latched_mm[0];
+        assert!((g[0].touch.latched_mm[0] - (x - 3e-3 * x / 10.0)).abs() < 1e-9);
     }
 }
