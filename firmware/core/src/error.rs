@@ -213,6 +213,8 @@ pub enum ImageError {
         /// The axis ([`crate::group::AxisName`] code).
         axis: u8,
     } = 27,
+    /// The geometric model (section kind 2) was refused.
+    Geometric(crate::geometric::GeometricError) = 40,
 }
 
 impl fmt::Display for ImageError {
@@ -299,11 +301,18 @@ impl fmt::Display for ImageError {
                 "axis {}: sensor names must be one non-empty UTF-8 name per sensor",
                 axis_letter(axis)
             ),
+            ImageError::Geometric(e) => write!(f, "{e}"),
         }
     }
 }
 
 impl core::error::Error for ImageError {}
+
+impl From<crate::geometric::GeometricError> for ImageError {
+    fn from(e: crate::geometric::GeometricError) -> Self {
+        ImageError::Geometric(e)
+    }
+}
 
 /// Letter of an axis code (`?` for an unknown code).
 fn axis_letter(code: u8) -> char {

@@ -12,12 +12,17 @@
 //! - **pool**: the coefficient storage shared by the group's tables (`POOL` segments); an axis's
 //!   forward and backward halves are two ranges of it.
 //! - **cross-axis stage**: a deviation vector for X, Y, Z computed from all axes' commanded
-//!   positions, added to those axes' errors before their limits (today: [`crate::rotary`]).
+//!   positions, added to those axes' errors before their limits: the volumetric geometric stage
+//!   ([`crate::geometric`]) and the rotary location-error stage ([`crate::rotary`]); with both,
+//!   the deviation is the geometric one plus the rotary one (in that order of the f32 sum).
 //!
 //! # Order of the stages in one group cycle
-//! 1. the cross-axis stage (if the image has one; it reads only the commanded positions):
-//!    commanded angles of A and C within the turn, sin/cos and the angle terms recomputed only
-//!    when one of them changed, the tool tip from the commanded X, Y, Z → a deviation for X, Y, Z;
+//! 1. the cross-axis stages (if the image has them; they read only the commanded positions):
+//!    a. geometric: one segment search per axis on the commanded X, Y, Z, the model's functions
+//!       and lever arms → the model error e for X, Y, Z;
+//!    b. rotary: commanded angles of A and C within the turn, sin/cos and the angle terms
+//!       recomputed only when one of them changed, the tool tip from the commanded X, Y, Z → a
+//!       deviation for X, Y, Z, added to a's;
 //! 2. per axis, in slot order, its whole pipeline in one call: counter extension → direction
 //!    (hysteresis) → segment index of the table grid (once per axis and cycle: the table
 //!    position is the extended position, or the turn position for a rotary axis; every error
@@ -34,6 +39,7 @@ use crate::MAX_FORCES;
 use crate::compensator::{AxisCompensator, CycleInput, CycleOutput, Flags, State, TableStore};
 use crate::counter::{step_in_turn, wrap};
 use crate::error::{Field, ImageError};
+use crate::geometric::{GeometricSpec, GeometricStage};
 use crate::image::{self, Layout};
 use crate::limits::cold_path;
 use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryStage};
@@ -289,6 +295,9 @@ pub struct Group<const POOL: usize> {
     /// [`MODE_PLAIN`], [`MODE_MIXED`] or [`MODE_STAGE`].
     mode: u8,
     stage: RotaryStage,
+    /// The volumetric geometric stage is loaded (its functions follow the tables in the pool).
+    has_geometric: bool,
+    geometric: GeometricStage,
     axes: [AxisCompensator<PoolTable>; MAX_AXES],
     pool: [[f32; 4]; POOL],
 }
@@ -311,6 +320,8 @@ impl<const POOL: usize> Group<POOL> {
             has_stage: false,
             mode: MODE_NONE,
             stage: RotaryStage::ZERO,
+            has_geometric: false,
+            geometric: GeometricStage::ZERO,
             axes: [const { AxisCompensator::identity_with(PoolTable { base: [0; 2] }) }; MAX_AXES],
             pool: [[0.0; 4]; POOL],
         }
@@ -321,6 +332,7 @@ impl<const POOL: usize> Group<POOL> {
         self.loaded = false;
         self.n_axes = 0;
         self.has_stage = false;
+        self.has_geometric = false;
         self.mode = MODE_NONE;
         for a in self.axes.iter_mut() {
             a.clear();
@@ -339,7 +351,20 @@ impl<const POOL: usize> Group<POOL> {
         axes: &[GroupAxisImage],
         stage: Option<&RotaryLocationSpec>,
     ) -> Result<(), GroupError> {
-        let layouts = validate_group::<POOL>(axes, stage)?;
+        self.load_stages(axes, stage, None)
+    }
+
+    /// [`Group::load`] with the volumetric geometric stage too: it needs X, Y and Z in the group,
+    /// a valid model ([`GeometricSpec::validate`]) whose grid of each axis with a table spans
+    /// exactly that table's grid, and its functions (14 per segment position) fit the pool
+    /// after the tables. On `Err` `self` is untouched.
+    pub fn load_stages(
+        &mut self,
+        axes: &[GroupAxisImage],
+        stage: Option<&RotaryLocationSpec>,
+        geometric: Option<&GeometricSpec>,
+    ) -> Result<(), GroupError> {
+        let layouts = validate_group_stages::<POOL>(axes, stage, geometric)?;
         self.clear();
         let mut next = 0u32;
         for (i, (a, l)) in axes.iter().zip(layouts.iter()).enumerate() {
@@ -383,9 +408,20 @@ impl<const POOL: usize> Group<POOL> {
             self.stage = RotaryStage::new(spec, [upc(0), upc(1), upc(2)], [cpr(3), cpr(4)], slots);
             self.has_stage = true;
         }
+        if let Some(spec) = geometric {
+            let slot = |k: usize| {
+                axes.iter()
+                    .position(|a| a.name.code() as usize == k)
+                    .map_or(0, |p| p as u8)
+            };
+            let slots = [slot(0), slot(1), slot(2)];
+            let upc = slots.map(|s| self.axes[s as usize].um_per_count);
+            self.geometric = GeometricStage::load(spec, upc, slots, &mut self.pool, next);
+            self.has_geometric = true;
+        }
         self.loaded = true;
         let n = axes.len().min(MAX_AXES);
-        self.mode = if self.has_stage {
+        self.mode = if self.has_stage || self.has_geometric {
             MODE_STAGE
         } else if self.kinds[..n].iter().all(|&k| k == 0) {
             MODE_PLAIN
@@ -400,7 +436,7 @@ impl<const POOL: usize> Group<POOL> {
     pub fn load_image(&mut self, image: &[u8]) -> Result<(), GroupError> {
         let view = crate::group_image::parse(image)?;
         let (axes, n) = view.axis_images();
-        self.load(&axes[..n], view.rotary.as_ref())
+        self.load_stages(&axes[..n], view.rotary.as_ref(), view.geometric.as_ref())
     }
 
     /// True once a group image is loaded.
@@ -428,6 +464,29 @@ impl<const POOL: usize> Group<POOL> {
     /// True if the rotary location-error stage is loaded.
     pub fn has_rotary_stage(&self) -> bool {
         self.has_stage
+    }
+    /// True if the volumetric geometric stage is loaded.
+    pub fn has_geometric_stage(&self) -> bool {
+        self.has_geometric
+    }
+    /// The geometric stage's model error e (µm, reached − commanded, the deviation the stage adds
+    /// to X, Y, Z; the correction is −e) at commanded positions of X, Y, Z (counts); None without
+    /// the stage.
+    pub fn geometric_error_um(&self, commands_xyz: [i64; 3]) -> Option<[f32; 3]> {
+        if !self.has_geometric {
+            return None;
+        }
+        let mut by_slot = [0i64; MAX_AXES];
+        for (k, c) in commands_xyz.into_iter().enumerate() {
+            if let Some(s) = self.slot_of(AxisName::ALL[k]) {
+                by_slot[s] = c;
+            }
+        }
+        let d = self
+            .geometric
+            .deviation_by_slot(&self.pool, |i| by_slot[i.min(MAX_AXES - 1)]);
+        let at = |k: usize| self.slot_of(AxisName::ALL[k]).map_or(0.0, |s| d[s]);
+        Some([at(0), at(1), at(2)])
     }
     /// The pipeline of slot `i` (its table lives in the pool: use [`Group::table_um`]).
     pub fn axis(&self, i: usize) -> Option<&AxisCompensator<PoolTable>> {
@@ -517,7 +576,7 @@ impl<const POOL: usize> Group<POOL> {
     /// it between the error and the limits).
     #[inline(never)]
     fn cycle_with_stage(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
-        let d = self.rotary_stage(st, input);
+        let d = self.stage_deviations(st, input);
         let n = (self.n_axes as usize).min(MAX_AXES);
         for i in 0..n {
             let (ax, s, inp, o) = (
@@ -535,6 +594,24 @@ impl<const POOL: usize> Group<POOL> {
                 _ => axis_cycle::<POOL, true, true>(ax, &self.pool, s, inp, o),
             }
         }
+    }
+
+    /// The cross-axis stages' deviation by slot: the geometric one, plus the rotary one.
+    #[inline(always)]
+    fn stage_deviations(&self, st: &mut GroupState, input: &GroupInput) -> [f32; MAX_AXES] {
+        if !self.has_geometric {
+            return self.rotary_stage(st, input);
+        }
+        let mut d = self
+            .geometric
+            .deviation_by_slot(&self.pool, |i| input.axes[i].command_counts);
+        if self.has_stage {
+            let r = self.rotary_stage(st, input);
+            for (a, b) in d.iter_mut().zip(r) {
+                *a += b;
+            }
+        }
+        d
     }
 
     /// The rotary location-error stage: commanded angles within the turn, cached angle terms;
@@ -636,6 +713,50 @@ impl From<ImageError> for GroupError {
     fn from(error: ImageError) -> Self {
         GroupError { axis: None, error }
     }
+}
+
+/// Every check of [`Group::load_stages`]: [`validate_group`] and the geometric stage's (X, Y, Z
+/// in the group, a valid model, each grid spanning its axis's table grid if the axis has a
+/// table, tables and functions within the pool).
+pub(crate) fn validate_group_stages<const POOL: usize>(
+    axes: &[GroupAxisImage],
+    stage: Option<&RotaryLocationSpec>,
+    geometric: Option<&GeometricSpec>,
+) -> Result<[Option<Layout>; MAX_AXES], GroupError> {
+    let layouts = validate_group::<POOL>(axes, stage)?;
+    let Some(spec) = geometric else {
+        return Ok(layouts);
+    };
+    spec.validate().map_err(ImageError::from)?;
+    let mut needed = spec.pool_entries();
+    for (k, name) in [AxisName::X, AxisName::Y, AxisName::Z]
+        .into_iter()
+        .enumerate()
+    {
+        let Some(i) = axes.iter().position(|a| a.name == name) else {
+            return Err(ImageError::AxisNotInGroup { axis: name.code() }.into());
+        };
+        let Some(l) = layouts[i] else { continue };
+        if let Some((start, seg, n)) = image::table_grid(&l, axes[i].image) {
+            let g = spec.grids[k];
+            if start != g.start_counts
+                || seg as i128 * n as i128 != g.end_counts() - g.start_counts as i128
+            {
+                return Err(GroupError {
+                    axis: Some(name),
+                    error: ImageError::GridMismatch { axis: name.code() },
+                });
+            }
+        }
+    }
+    for l in layouts.iter().flatten() {
+        let halves = if l.bidirectional { 2 } else { 1 };
+        needed = needed.saturating_add(halves * l.n_segments as u32);
+    }
+    if needed as usize > POOL {
+        return Err(ImageError::PoolTooSmall { needed }.into());
+    }
+    Ok(layouts)
 }
 
 /// Every check of [`Group::load`]; the layouts of the axis images by slot.
@@ -795,8 +916,18 @@ impl<const POOL: usize> GroupEngine<POOL> {
         axes: &[GroupAxisImage],
         stage: Option<&RotaryLocationSpec>,
     ) -> Result<(), GroupError> {
+        self.load_stages(axes, stage, None)
+    }
+
+    /// [`GroupEngine::load`] with the geometric stage too (see [`Group::load_stages`]).
+    pub fn load_stages(
+        &mut self,
+        axes: &[GroupAxisImage],
+        stage: Option<&RotaryLocationSpec>,
+        geometric: Option<&GeometricSpec>,
+    ) -> Result<(), GroupError> {
         let spare = (self.active ^ 1) as usize & 1;
-        match self.slots[spare].load(axes, stage) {
+        match self.slots[spare].load_stages(axes, stage, geometric) {
             Ok(()) => {
                 self.active = spare as u8;
                 self.state.on_new_image();
@@ -820,7 +951,7 @@ impl<const POOL: usize> GroupEngine<POOL> {
         match crate::group_image::parse(image) {
             Ok(view) => {
                 let (axes, n) = view.axis_images();
-                self.load(&axes[..n], view.rotary.as_ref())
+                self.load_stages(&axes[..n], view.rotary.as_ref(), view.geometric.as_ref())
             }
             Err(error) => {
                 let e = GroupError { axis: None, error };
