@@ -23,16 +23,19 @@
 //!   δ_k = (EXk, EYk, EZk), ε_k = (EAk, EBk, ECk) in rad, positions in µm.
 //! - **grid**: each axis's 6 functions are cubic segments over one uniform knot grid of that axis
 //!   (`start_counts`, `segment_counts`, `n_segments`), in Horner form in t = (q − knot)/segment
-//!   ∈ [0, 1), as the positioning table; beyond the grid every function of that axis (and the
-//!   squareness term of its position, −y·EC0Y, z·EB0Z, −z·EA0Z) holds its end value, while the
-//!   lever arms use the commanded positions (the model says nothing beyond its volume; holding
-//!   does not extrapolate it). The host's `predict` refuses such positions.
+//!   ∈ [0, 1), as the positioning table.
+//! - **beyond the grid**: the model says nothing beyond its volume (the host's `predict` refuses
+//!   such positions); the stage evaluates it at the nearest point of the volume, each axis's
+//!   position clamped to its grid: functions, squareness terms and lever arms alike hold their
+//!   values at the grid's end (nothing is extrapolated).
 //!
 //! # What the cycle computes (work that depends only on the image is done at load)
 //! At load, in the **chain frame** (coordinates renamed so that the chain is 0, 1, 2: x'_i =
 //! x_{chain[i]}; an angular vector also takes the permutation's sign, so that ε'×b' = P(ε×b)):
 //! - ε_k × t is a cubic of q_k: folded into δ_k;
 //! - the squareness terms are linear in y or z: folded into `EXY`, `EXZ`, `EYZ`;
+//! - each polynomial is rescaled to r = t·segment (counts into the segment), so the cycle needs
+//!   no division or scaling for t;
 //! - an axis's angular errors only matter through the travel of the axes after it, so the pool
 //!   keeps per segment: chain axis 0: δ' (3) and ε' (3); chain axis 1: δ' (3) and ε'_0, ε'_1; chain
 //!   axis 2: δ' (3) — 14 functions instead of 18 + 3 constants.
@@ -40,12 +43,14 @@
 //! Each cycle: one segment search per axis (shared by that axis's functions), 14 Horner
 //! evaluations, and with p1, p2 the commanded positions (µm) of chain axes 1 and 2:
 //! e'_0 = Σδ'_0 + p2·(ε'_{0,1} + ε'_{1,1}) − p1·ε'_{0,2}, e'_1 = Σδ'_1 − p2·(ε'_{0,0} + ε'_{1,0}),
-//! e'_2 = Σδ'_2 + p1·ε'_{0,0}; e of axis chain[i] is e'_i.
+//! e'_2 = Σδ'_2 + p1·ε'_{0,0}; e of axis chain[i] is e'_i. The f32 sums run axis by axis from
+//! the workpiece end of the chain (chain axis 0, then 1, then 2; see `error_chain_um`).
+
+use core::num::NonZeroU32;
 
 use crate::group::MAX_AXES;
 use crate::le::f32_at;
 use crate::limits::cold_path;
-use crate::rotary::saturate_i32;
 
 /// Most segments of one axis's geometric grid.
 pub const MAX_GEOMETRIC_SEGMENTS: u32 = 1024;
@@ -340,12 +345,15 @@ pub(crate) struct GeometricStage {
     /// Per chain position: pool index of segment 0.
     base: [u32; 3],
     start: [i64; 3],
-    segment: [u32; 3],
+    segment: [NonZeroU32; 3],
     span: [u32; 3],
     last: [u32; 3],
-    inv_segment: [f32; 3],
+    /// r at the grid's end (the segment length, counts) for the last segment.
+    end_r: [f32; 3],
     /// µm per count of chain axes 1 and 2 (the lever arms).
     um_per_count: [f32; 2],
+    /// Position (µm) of the grid start of chain axes 1 and 2.
+    start_um: [f32; 2],
     /// Group slot of each chain position (slot of the axis chain[i]).
     pub(crate) slot: [u8; 3],
 }
@@ -354,11 +362,12 @@ impl GeometricStage {
     pub(crate) const ZERO: GeometricStage = GeometricStage {
         base: [0; 3],
         start: [0; 3],
-        segment: [1; 3],
+        segment: [NonZeroU32::MIN; 3],
         span: [0; 3],
         last: [0; 3],
-        inv_segment: [0.0; 3],
+        end_r: [0.0; 3],
         um_per_count: [0.0; 2],
+        start_um: [0.0; 2],
         slot: [0; 3],
     };
 
@@ -387,13 +396,16 @@ impl GeometricStage {
             let seg = grid.segment_counts.max(1);
             g.base[i] = next;
             g.start[i] = grid.start_counts;
-            g.segment[i] = seg;
+            g.segment[i] = NonZeroU32::new(seg).unwrap_or(NonZeroU32::MIN);
             g.span[i] = seg.wrapping_mul(grid.n_segments);
             g.last[i] = grid.n_segments.saturating_sub(1);
-            g.inv_segment[i] = 1.0 / seg as f32;
+            g.end_r[i] = seg as f32;
             g.slot[i] = slot[a];
             let upc = um_per_count[a];
             let h_um = seg as f32 * upc;
+            // 1/segment, 1/segment², 1/segment³ (f64 arithmetic, then rounded once).
+            let inv = 1.0 / seg as f64;
+            let inv_seg = [inv as f32, (inv * inv) as f32, (inv * inv * inv) as f32];
             for s in 0..grid.n_segments as usize {
                 let f = |k: usize| spec.segment(a, s, k);
                 let mut delta = [f(0), f(1), f(2)];
@@ -418,6 +430,16 @@ impl GeometricStage {
                 }
                 let stride = STRIDE[i];
                 let at = next as usize + s * stride as usize;
+                // In the pool, each polynomial is in r = t·segment (counts into the segment):
+                // c_k / segment^k, so the cycle needs no t.
+                let scale = |p: [f32; 4]| {
+                    [
+                        p[0],
+                        p[1] * inv_seg[0],
+                        p[2] * inv_seg[1],
+                        p[3] * inv_seg[2],
+                    ]
+                };
                 let funcs = [
                     delta[chain[0]],
                     delta[chain[1]],
@@ -428,63 +450,118 @@ impl GeometricStage {
                 ];
                 for (k, fk) in funcs.iter().take(stride as usize).enumerate() {
                     if let Some(dst) = pool.get_mut(at + k) {
-                        *dst = *fk;
+                        *dst = scale(*fk);
                     }
                 }
             }
             next = next.saturating_add(STRIDE[i].saturating_mul(grid.n_segments));
         }
         g.um_per_count = [um_per_count[chain[1]], um_per_count[chain[2]]];
+        g.start_um = [1, 2].map(|i| g.start[i] as f32 * um_per_count[chain[i]]);
         g
     }
 
-    /// Segment and t of chain position `i` at `command` (counts); beyond the grid the end
-    /// values hold.
+    /// The `N` functions' segment of chain position `i` at `command` (counts), r (counts into
+    /// the segment, as f32) and the offset from the grid start (counts); beyond the grid the
+    /// position is clamped to it.
     #[inline(always)]
-    fn locate(&self, i: usize, command: i64) -> (u32, f32) {
-        let diff = command.wrapping_sub(self.start[i]) as u64;
-        let offset = diff as u32;
-        if (diff >> 32) == 0 && offset < self.span[i] {
-            let seg = offset / self.segment[i];
-            let rem = offset - seg.wrapping_mul(self.segment[i]);
-            return (seg, rem as f32 * self.inv_segment[i]);
-        }
-        cold_path();
-        if command < self.start[i] {
-            (0, 0.0)
-        } else {
-            (self.last[i], 1.0)
-        }
-    }
-
-    /// The `N` functions of chain position `i` at `command`.
-    #[inline(always)]
-    fn eval<const N: usize>(&self, pool: &[[f32; 4]], i: usize, command: i64) -> [f32; N] {
+    fn segment_at<'p, const N: usize>(
+        &self,
+        pool: &'p [[f32; 4]],
+        i: usize,
+        command: i64,
+    ) -> (&'p [[f32; 4]; N], f32, u32) {
         const ZEROS: [[f32; 4]; 6] = [[0.0; 4]; 6];
-        let (seg, t) = self.locate(i, command);
+        let diff = command.wrapping_sub(self.start[i]) as u64;
+        let mut offset = diff as u32;
+        let (seg, t) = if (diff >> 32) == 0 && offset < self.span[i] {
+            let seg = offset / self.segment[i];
+            let rem = offset - seg.wrapping_mul(self.segment[i].get());
+            (seg, rem as f32)
+        } else {
+            cold_path();
+            if command < self.start[i] {
+                offset = 0;
+                (0, 0.0)
+            } else {
+                offset = self.span[i];
+                (self.last[i], self.end_r[i])
+            }
+        };
         let at = self.base[i] as usize + seg as usize * N;
-        let c: &[[f32; 4]] = pool.get(at..at + N).unwrap_or(&ZEROS[..N]);
-        let mut out = [0.0f32; N];
-        for (o, p) in out.iter_mut().zip(c.iter()) {
-            *o = p[0] + t * (p[1] + t * (p[2] + t * p[3]));
+        let c = pool
+            .get(at..at + N)
+            .and_then(|c| <&[[f32; 4]; N]>::try_from(c).ok());
+        match c {
+            Some(c) => (c, t, offset),
+            None => {
+                cold_path();
+                (
+                    <&[[f32; 4]; N]>::try_from(&ZEROS[..N]).unwrap_or(&[[0.0; 4]; N]),
+                    t,
+                    offset,
+                )
+            }
         }
-        out
     }
 
     /// The model error e (µm) of X, Y, Z at the commanded positions `commands` (counts, by chain
-    /// position), in the chain frame: entry i belongs to the axis at chain position i.
+    /// position), in the chain frame: entry i belongs to the axis at chain position i. Summed
+    /// axis by axis from the workpiece end of the chain (chain axis 0, then 1, then 2).
     #[inline(always)]
     pub(crate) fn error_chain_um(&self, pool: &[[f32; 4]], commands: [i64; 3]) -> [f32; 3] {
-        let a0 = self.eval::<6>(pool, 0, commands[0]);
-        let a1 = self.eval::<5>(pool, 1, commands[1]);
-        let a2 = self.eval::<3>(pool, 2, commands[2]);
-        let p1 = saturate_i32(commands[1]) as f32 * self.um_per_count[0];
-        let p2 = saturate_i32(commands[2]) as f32 * self.um_per_count[1];
-        [
-            a0[0] + a1[0] + a2[0] + p2 * (a0[4] + a1[4]) - p1 * a0[5],
-            a0[1] + a1[1] + a2[1] - p2 * (a0[3] + a1[3]),
-            a0[2] + a1[2] + a2[2] + p1 * a0[3],
-        ]
+        // A pool polynomial at r counts into its segment.
+        #[inline(always)]
+        fn h(p: &[f32; 4], r: f32) -> f32 {
+            p[0] + r * (p[1] + r * (p[2] + r * p[3]))
+        }
+        // The three segment searches, then the positions of chain axes 1 and 2 (µm, within
+        // their grids): the lever arms.
+        let (c0, t0, _) = self.segment_at::<6>(pool, 0, commands[0]);
+        let (c1, t1, off1) = self.segment_at::<5>(pool, 1, commands[1]);
+        let (c2, t2, off2) = self.segment_at::<3>(pool, 2, commands[2]);
+        let p1 = self.start_um[0] + off1 as f32 * self.um_per_count[0];
+        let p2 = self.start_um[1] + off2 as f32 * self.um_per_count[1];
+        // Chain axis 0: δ', and ε' × (0, p1, p2).
+        let ex = h(&c0[3], t0);
+        let mut e = [
+            h(&c0[0], t0) + p2 * h(&c0[4], t0) - p1 * h(&c0[5], t0),
+            h(&c0[1], t0) - p2 * ex,
+            h(&c0[2], t0) + p1 * ex,
+        ];
+        // Chain axis 1: δ', and ε' × (0, 0, p2).
+        e[0] += h(&c1[0], t1) + p2 * h(&c1[4], t1);
+        e[1] += h(&c1[1], t1) - p2 * h(&c1[3], t1);
+        e[2] += h(&c1[2], t1);
+        // Chain axis 2: δ' only (its angles act through the tool offset, folded in δ').
+        e[0] += h(&c2[0], t2);
+        e[1] += h(&c2[1], t2);
+        e[2] += h(&c2[2], t2);
+        e
+    }
+
+    /// [`GeometricStage::deviation_by_slot`] for a group of exactly X, Y, Z (slots 0..3): the
+    /// deviation of slots 0, 1, 2 (and 0 in entry 3).
+    #[inline(always)]
+    pub(crate) fn deviation_xyz_slots(
+        &self,
+        pool: &[[f32; 4]],
+        inputs: &[crate::CycleInput; MAX_AXES],
+    ) -> [f32; 4] {
+        let slot = |i: usize| self.slot[i] as usize & 3;
+        let e = self.error_chain_um(
+            pool,
+            [
+                inputs[slot(0)].command_counts,
+                inputs[slot(1)].command_counts,
+                inputs[slot(2)].command_counts,
+            ],
+        );
+        let mut d = [0.0f32; 4];
+        d[slot(0)] = e[0];
+        d[slot(1)] = e[1];
+        d[slot(2)] = e[2];
+        d
     }
 
     /// The stage's deviation by group slot (X, Y, Z: the model error; others 0) for the group's

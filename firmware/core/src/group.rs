@@ -297,6 +297,9 @@ pub struct Group<const POOL: usize> {
     stage: RotaryStage,
     /// The volumetric geometric stage is loaded (its functions follow the tables in the pool).
     has_geometric: bool,
+    /// The group is X, Y, Z with the geometric stage only, no thermo-force term (the cycle's
+    /// fast path [`Group::cycle_geometric_plain`]).
+    geometric_plain: bool,
     geometric: GeometricStage,
     axes: [AxisCompensator<PoolTable>; MAX_AXES],
     pool: [[f32; 4]; POOL],
@@ -321,6 +324,7 @@ impl<const POOL: usize> Group<POOL> {
             mode: MODE_NONE,
             stage: RotaryStage::ZERO,
             has_geometric: false,
+            geometric_plain: false,
             geometric: GeometricStage::ZERO,
             axes: [const { AxisCompensator::identity_with(PoolTable { base: [0; 2] }) }; MAX_AXES],
             pool: [[0.0; 4]; POOL],
@@ -333,6 +337,7 @@ impl<const POOL: usize> Group<POOL> {
         self.n_axes = 0;
         self.has_stage = false;
         self.has_geometric = false;
+        self.geometric_plain = false;
         self.mode = MODE_NONE;
         for a in self.axes.iter_mut() {
             a.clear();
@@ -421,6 +426,9 @@ impl<const POOL: usize> Group<POOL> {
         }
         self.loaded = true;
         let n = axes.len().min(MAX_AXES);
+        // X, Y, Z alone (the geometric stage needs all three), no thermo-force term.
+        self.geometric_plain =
+            self.has_geometric && !self.has_stage && self.kinds[..n].iter().all(|&k| k == 0);
         self.mode = if self.has_stage || self.has_geometric {
             MODE_STAGE
         } else if self.kinds[..n].iter().all(|&k| k == 0) {
@@ -556,7 +564,13 @@ impl<const POOL: usize> Group<POOL> {
                     }
                 }
             }
-            MODE_STAGE => self.cycle_with_stage(st, input, out),
+            MODE_STAGE => {
+                if self.geometric_plain {
+                    self.cycle_geometric_plain(st, input, out)
+                } else {
+                    self.cycle_with_stage(st, input, out)
+                }
+            }
             _ => self.identity_cycle(st, input, out),
         }
     }
@@ -596,15 +610,44 @@ impl<const POOL: usize> Group<POOL> {
         }
     }
 
+    /// [`Group::cycle`] with the geometric stage only, every axis linear without a
+    /// thermo-force term: each axis's plain pipeline with its deviation, no per-axis dispatch.
+    #[inline(never)]
+    fn cycle_geometric_plain(
+        &self,
+        st: &mut GroupState,
+        input: &GroupInput,
+        out: &mut GroupOutput,
+    ) {
+        // The group is exactly X, Y, Z: slots 0..3.
+        let d = self.geometric.deviation_xyz_slots(&self.pool, &input.axes);
+        for i in 0..3 {
+            axis_cycle_with::<POOL, false, false>(
+                &self.axes[i],
+                &self.pool,
+                &mut st.axes[i],
+                &input.axes[i],
+                &mut out.axes[i],
+                d[i],
+            );
+        }
+    }
+
+    /// The geometric stage's deviation by slot (out of line: the rotary stage's code beside it
+    /// stays as it is without it).
+    #[inline(never)]
+    fn geometric_by_slot(&self, input: &GroupInput) -> [f32; MAX_AXES] {
+        self.geometric
+            .deviation_by_slot(&self.pool, |i| input.axes[i].command_counts)
+    }
+
     /// The cross-axis stages' deviation by slot: the geometric one, plus the rotary one.
     #[inline(always)]
     fn stage_deviations(&self, st: &mut GroupState, input: &GroupInput) -> [f32; MAX_AXES] {
         if !self.has_geometric {
             return self.rotary_stage(st, input);
         }
-        let mut d = self
-            .geometric
-            .deviation_by_slot(&self.pool, |i| input.axes[i].command_counts);
+        let mut d = self.geometric_by_slot(input);
         if self.has_stage {
             let r = self.rotary_stage(st, input);
             for (a, b) in d.iter_mut().zip(r) {

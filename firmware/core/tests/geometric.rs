@@ -78,10 +78,14 @@ fn spec<'a>(coef: &'a [[f32; 4]], chain: [u8; 3], work: u8, tool: [f32; 3]) -> G
 
 /// f64 reference: e = Σ δ_k + Σ ε_k × arm_k + (−y·EC0Y + z·EB0Z, −z·EA0Z, 0) with arm_k = t +
 /// Σ_{j after k in the chain} q_j e_j (the `axcomp-kinematics` linearised model, written out
-/// independently in the original frame); beyond an axis's grid its functions and the squareness
-/// terms of its position hold their end values, the lever arms use the commanded positions.
+/// independently in the original frame); beyond an axis's grid its position is clamped to it.
 fn reference_um(s: &GeometricSpec, cmd: [i64; 3]) -> [f64; 3] {
-    let q: [f64; 3] = cmd.map(|c| c as f64 * UPC as f64);
+    // Beyond a grid the model is evaluated at the nearest point of its volume.
+    let q: [f64; 3] = core::array::from_fn(|k| {
+        let g = s.grids[k];
+        let end = g.start_counts + g.segment_counts as i64 * g.n_segments as i64;
+        cmd[k].clamp(g.start_counts, end) as f64 * UPC as f64
+    });
     let mut v = [[0.0f64; 6]; 3];
     for k in 0..3 {
         let g = s.grids[k];
@@ -113,15 +117,9 @@ fn reference_um(s: &GeometricSpec, cmd: [i64; 3]) -> [f64; 3] {
             e[i] += d[i] + cross[i];
         }
     }
-    // The squareness terms are functions of y and z: held beyond the grid like the rest.
-    let held = |k: usize| {
-        let g = s.grids[k];
-        let end = g.start_counts + g.segment_counts as i64 * g.n_segments as i64;
-        cmd[k].clamp(g.start_counts, end) as f64 * UPC as f64
-    };
     let [c0y, b0z, a0z] = s.squareness_urad.map(|v| v as f64 * 1e-6);
-    e[0] += -held(1) * c0y + held(2) * b0z;
-    e[1] += -held(2) * a0z;
+    e[0] += -q[1] * c0y + q[2] * b0z;
+    e[1] += -q[2] * a0z;
     e
 }
 

@@ -94,12 +94,27 @@ mod firmware {
         stage: bool,
         instr_per_tick: f32,
     ) -> f32 {
+        measure_group_stages(g, st, image, n, stage, false, instr_per_tick)
+    }
+
+    /// [`measure_group`] with the geometric stage (`axcomp_core::bench::group_geometric`) if
+    /// `geometric`.
+    fn measure_group_stages(
+        g: &mut Group<{ bench::GROUP_POOL }>,
+        st: &mut GroupState,
+        image: &mut [u8],
+        n: usize,
+        stage: bool,
+        geometric: bool,
+        instr_per_tick: f32,
+    ) -> f32 {
         let (axes, n) = match bench::write_group_images(n, image) {
             Ok(v) => v,
             Err(e) => panic!("writing the group images: {}", e),
         };
         let stage = stage.then_some(&bench::GROUP_ROTARY_STAGE);
-        if let Err(e) = g.load(&axes[..n], stage) {
+        let geo = bench::group_geometric();
+        if let Err(e) = g.load_stages(&axes[..n], stage, geometric.then_some(&geo)) {
             panic!("loading the group: {}", e);
         }
         *st = GroupState::new();
@@ -298,6 +313,8 @@ mod firmware {
         let g3 = measure_group(group, gst, image, 3, false, instr_per_tick);
         let g5 = measure_group(group, gst, image, 5, true, instr_per_tick);
         let refreshes = gst.angle_refreshes();
+        // (f) group3 plus the volumetric geometric stage (18 functions, 3 squareness, tool offset).
+        let g3_geo = measure_group_stages(group, gst, image, 3, false, true, instr_per_tick);
 
         hprintln!("calls per workload: {}", BATCHES * BATCH as u32);
         hprintln!(
@@ -319,6 +336,10 @@ mod firmware {
         hprintln!(
             "bench qemu_instructions_per_cycle_group5 {:.1} instructions",
             g5
+        );
+        hprintln!(
+            "bench qemu_instructions_per_cycle_group3_geometry {:.1} instructions",
+            g3_geo
         );
         hprintln!(
             "group5: sin/cos recomputed in {} of {} measured cycles",
