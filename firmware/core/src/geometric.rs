@@ -193,7 +193,9 @@ impl GeometricCoefficients<'_> {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-    /// Entry `i` (zeros beyond the end).
+    /// Entry `i` (zeros beyond the end). Out of line: it is called at load only, and inlined
+    /// into every loop it would cost flash.
+    #[inline(never)]
     pub fn get(&self, i: usize) -> [f32; 4] {
         match self {
             GeometricCoefficients::Values(v) => v.get(i).copied().unwrap_or([0.0; 4]),
@@ -312,20 +314,23 @@ impl GeometricSpec<'_> {
         if !exact {
             return Err(GeometricError::CoefficientCount);
         }
-        for a in 0..3 {
-            for s in 0..self.grids[a].n_segments as usize {
-                for f in 0..FUNCTIONS_PER_AXIS {
-                    let c = self.segment(a, s, f);
-                    if c.iter()
-                        .any(|v| !(v.is_finite() && libm::fabsf(*v) <= MAX_GEOMETRIC_COEFFICIENT))
-                    {
-                        return Err(GeometricError::Coefficient {
-                            axis: a as u8,
-                            function: f as u8,
-                            segment: s as u16,
-                        });
-                    }
+        for i in 0..total {
+            let c = self.coefficients.get(i);
+            if c.iter()
+                .any(|v| !(v.is_finite() && libm::fabsf(*v) <= MAX_GEOMETRIC_COEFFICIENT))
+            {
+                // Which axis, segment and function entry i is.
+                let mut seg = i / FUNCTIONS_PER_AXIS;
+                let mut axis = 0;
+                while axis < 2 && seg >= self.grids[axis].n_segments as usize {
+                    seg -= self.grids[axis].n_segments as usize;
+                    axis += 1;
                 }
+                return Err(GeometricError::Coefficient {
+                    axis: axis as u8,
+                    function: (i % FUNCTIONS_PER_AXIS) as u8,
+                    segment: seg as u16,
+                });
             }
         }
         Ok(())
@@ -333,6 +338,7 @@ impl GeometricSpec<'_> {
 }
 
 /// A polynomial plus `k` times another.
+#[inline(never)]
 fn add_scaled(p: &mut [f32; 4], q: &[f32; 4], k: f32) {
     for (a, b) in p.iter_mut().zip(q.iter()) {
         *a += k * b;
@@ -391,6 +397,13 @@ impl GeometricStage {
         let [c0y, b0z, a0z] = spec.squareness_urad.map(|v| v * URAD);
         let mut g = GeometricStage::ZERO;
         let mut next = base;
+        // Entry of segment 0 of each axis in the spec's coefficients.
+        let first = [
+            0,
+            spec.grids[0].n_segments as usize * FUNCTIONS_PER_AXIS,
+            (spec.grids[0].n_segments as usize + spec.grids[1].n_segments as usize)
+                * FUNCTIONS_PER_AXIS,
+        ];
         for (i, &a) in chain.iter().enumerate() {
             let grid = spec.grids[a];
             let seg = grid.segment_counts.max(1);
@@ -407,16 +420,17 @@ impl GeometricStage {
             let inv = 1.0 / seg as f64;
             let inv_seg = [inv as f32, (inv * inv) as f32, (inv * inv * inv) as f32];
             for s in 0..grid.n_segments as usize {
-                let f = |k: usize| spec.segment(a, s, k);
+                let at0 = first[a] + s * FUNCTIONS_PER_AXIS;
+                let f = |k: usize| spec.coefficients.get(at0 + k);
                 let mut delta = [f(0), f(1), f(2)];
                 let eps = [f(3), f(4), f(5)].map(|p| p.map(|c| c * URAD));
-                // ε × t (t constant): a cubic of this axis's position.
-                add_scaled(&mut delta[0], &eps[1], t[2]);
-                add_scaled(&mut delta[0], &eps[2], -t[1]);
-                add_scaled(&mut delta[1], &eps[2], t[0]);
-                add_scaled(&mut delta[1], &eps[0], -t[2]);
-                add_scaled(&mut delta[2], &eps[0], t[1]);
-                add_scaled(&mut delta[2], &eps[1], -t[0]);
+                // ε × t (t constant): a cubic of this axis's position; component d gets
+                // ε_{d+1}·t_{d+2} − ε_{d+2}·t_{d+1} (indices mod 3).
+                for d in 0..3 {
+                    let (j, k) = ((d + 1) % 3, (d + 2) % 3);
+                    add_scaled(&mut delta[d], &eps[j], t[k]);
+                    add_scaled(&mut delta[d], &eps[k], -t[j]);
+                }
                 // Squareness: −y·EC0Y, +z·EB0Z along x, −z·EA0Z along y; position = knot + t·h.
                 let knot_um =
                     (grid.start_counts as f32 + (s as u32).wrapping_mul(seg) as f32) * upc;
