@@ -113,36 +113,31 @@ impl core::fmt::Display for GeometricError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         let axis = |a: u8| ['X', 'Y', 'Z'].get(a as usize).copied().unwrap_or('?');
         match *self {
-            GeometricError::Stacking => {
-                f.write_str("geometric model: the stacking must name X, Y and Z once each")
+            GeometricError::Stacking => f.write_str("geometric: stacking must name X, Y, Z once"),
+            GeometricError::IdentifiedMask => f.write_str("geometric: identified mask > 21 bits"),
+            GeometricError::ToolOffset { index } => {
+                write!(f, "geometric: tool offset [{index}] not finite or > 10 m")
             }
-            GeometricError::IdentifiedMask => {
-                f.write_str("geometric model: identified mask has bits beyond the 21 components")
-            }
-            GeometricError::ToolOffset { index } => write!(
-                f,
-                "geometric model: tool offset [{index}] is not finite or beyond 10 m"
-            ),
             GeometricError::Squareness { index } => write!(
                 f,
-                "geometric model: squareness {} is not finite or beyond 10 mrad",
+                "geometric: {} not finite or > 10 mrad",
                 COMPONENT_NAMES.get(18 + index as usize).unwrap_or(&"?")
             ),
             GeometricError::Grid { axis: a } => write!(
                 f,
-                "geometric model: the grid of axis {} needs 1..=1024 segments of >= 1 count within range",
+                "geometric: grid of {} needs 1..=1024 segments in range",
                 axis(a)
             ),
-            GeometricError::CoefficientCount => f.write_str(
-                "geometric model: the coefficient block must hold 6 x 4 coefficients per segment",
-            ),
+            GeometricError::CoefficientCount => {
+                f.write_str("geometric: coefficient block length does not match the grids")
+            }
             GeometricError::Coefficient {
                 axis: a,
                 function,
                 segment,
             } => write!(
                 f,
-                "geometric model: {} segment {segment}: a coefficient is not finite or out of range",
+                "geometric: {} segment {segment}: coefficient not finite or out of range",
                 COMPONENT_NAMES
                     .get(6 * (a as usize) + function as usize)
                     .unwrap_or(&"?")
@@ -442,29 +437,24 @@ impl GeometricStage {
                     add_scaled(&mut delta[0], &line, b0z);
                     add_scaled(&mut delta[1], &line, -a0z);
                 }
-                let stride = STRIDE[i];
-                let at = next as usize + s * stride as usize;
-                // In the pool, each polynomial is in r = t·segment (counts into the segment):
-                // c_k / segment^k, so the cycle needs no t.
-                let scale = |p: [f32; 4]| {
-                    [
-                        p[0],
-                        p[1] * inv_seg[0],
-                        p[2] * inv_seg[1],
-                        p[3] * inv_seg[2],
-                    ]
-                };
-                let funcs = [
-                    delta[chain[0]],
-                    delta[chain[1]],
-                    delta[chain[2]],
-                    eps[chain[0]].map(|c| parity * c),
-                    eps[chain[1]].map(|c| parity * c),
-                    eps[chain[2]].map(|c| parity * c),
-                ];
-                for (k, fk) in funcs.iter().take(stride as usize).enumerate() {
+                let stride = STRIDE[i] as usize;
+                let at = next as usize + s * stride;
+                // In the chain frame (δ'_k = δ_{chain[k]}, ε'_k = ±ε_{chain[k]}); in the pool
+                // each polynomial is in r = t·segment (counts into the segment): c_k / segment^k,
+                // so the cycle needs no t.
+                for k in 0..stride {
+                    let (src, sign) = if k < 3 {
+                        (&delta[chain[k]], 1.0)
+                    } else {
+                        (&eps[chain[(k - 3) % 3]], parity)
+                    };
                     if let Some(dst) = pool.get_mut(at + k) {
-                        *dst = scale(*fk);
+                        *dst = [
+                            sign * src[0],
+                            sign * src[1] * inv_seg[0],
+                            sign * src[2] * inv_seg[1],
+                            sign * src[3] * inv_seg[2],
+                        ];
                     }
                 }
             }

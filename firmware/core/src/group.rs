@@ -644,14 +644,15 @@ impl<const POOL: usize> Group<POOL> {
     /// The cross-axis stages' deviation by slot: the geometric one, plus the rotary one.
     #[inline(always)]
     fn stage_deviations(&self, st: &mut GroupState, input: &GroupInput) -> [f32; MAX_AXES] {
-        if !self.has_geometric {
-            return self.rotary_stage(st, input);
-        }
-        let mut d = self.geometric_by_slot(input);
-        if self.has_stage {
-            let r = self.rotary_stage(st, input);
-            for (a, b) in d.iter_mut().zip(r) {
-                *a += b;
+        let mut d = if self.has_stage {
+            self.rotary_stage(st, input)
+        } else {
+            [0.0; MAX_AXES]
+        };
+        if self.has_geometric {
+            let g = self.geometric_by_slot(input);
+            for (a, b) in d.iter_mut().zip(g) {
+                *a = b + *a;
             }
         }
         d
