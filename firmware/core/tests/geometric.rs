@@ -502,3 +502,54 @@ fn geometric_section_refusals() {
     );
     assert!(!small.is_loaded());
 }
+
+/// With the rotary stage too (X, Y, Z, A, C): each linear axis's error gains the geometric
+/// error, the rotary axes are untouched. Reference: the same group with the rotary stage only,
+/// plus `geometric_error_um`; tolerance 1e-4 µm (f32 rounding of sums of terms ≤ 60 µm, ≈ 2e-5),
+/// compared in the cycles where neither output is clamped or slewed.
+#[test]
+fn geometric_and_rotary_stages_add() {
+    let mut buf = vec![0u8; 16 * 1024];
+    let (axes, n) = bench::write_group_images(5, &mut buf).unwrap();
+    let geo = bench::group_geometric();
+    let mut both = Box::new(Group::<1024>::new());
+    both.load_stages(&axes[..n], Some(&bench::GROUP_ROTARY_STAGE), Some(&geo))
+        .unwrap();
+    let mut rot = Box::new(Group::<1024>::new());
+    rot.load(&axes[..n], Some(&bench::GROUP_ROTARY_STAGE))
+        .unwrap();
+    assert!(both.has_rotary_stage() && both.has_geometric_stage());
+    let (mut sb, mut sr) = (GroupState::new(), GroupState::new());
+    let limited = Flags::CLAMPED.bits() | Flags::SLEWED.bits();
+    let mut compared = 0;
+    for i in 0..3000 {
+        let input = bench::group_input(i);
+        let (mut ob, mut or) = (GroupOutput::ZERO, GroupOutput::ZERO);
+        both.cycle(&mut sb, &input, &mut ob);
+        rot.cycle(&mut sr, &input, &mut or);
+        for k in 3..5 {
+            assert_eq!(ob.axes[k], or.axes[k], "cycle {i} rotary slot {k}");
+        }
+        let g = both
+            .geometric_error_um([0, 1, 2].map(|k| input.axes[k].command_counts))
+            .unwrap();
+        for k in 0..3 {
+            let (b, r) = (ob.axes[k], or.axes[k]);
+            if (b.flags.bits() | r.flags.bits()) & limited == 0 {
+                let diff = b.correction_um - r.correction_um;
+                assert!(
+                    (diff - g[k]).abs() <= 1e-4,
+                    "cycle {i} axis {k}: with both {} rotary only {} geometric {}",
+                    b.correction_um,
+                    r.correction_um,
+                    g[k]
+                );
+                compared += 1;
+            }
+        }
+    }
+    assert!(
+        compared > 100,
+        "compared {compared} unlimited linear outputs"
+    );
+}
