@@ -553,3 +553,35 @@ fn geometric_and_rotary_stages_add() {
         "compared {compared} unlimited linear outputs"
     );
 }
+
+proptest::proptest! {
+    /// Any byte of the geometric section changed (image re-sealed, so only the section's own
+    /// checks stand): parsing and loading never panic, and whatever is accepted loads and gives
+    /// finite errors everywhere, beyond the grids too.
+    #[test]
+    fn geometric_section_mutations_never_panic(at in 0usize..4096, byte in 0u8..=255) {
+        let mut rng = Lcg(17);
+        let coef = random_coefficients(&mut rng);
+        let good = spec(&coef, [0, 1, 2], 2, [0.0, 0.0, 100_000.0]);
+        let images = axis_images();
+        let mut b = write(&sections(&images), Some(&good)).unwrap();
+        let dir = GROUP_HEADER_LEN + DIR_ENTRY_LEN * 3;
+        let off = u32::from_le_bytes(b[dir + 8..dir + 12].try_into().unwrap()) as usize;
+        let len = u32::from_le_bytes(b[dir + 12..dir + 16].try_into().unwrap()) as usize;
+        b[off + at % len] = byte;
+        reseal(&mut b);
+        if group_image::parse(&b).is_ok() {
+            let mut g = Box::new(Group::<256>::new());
+            g.load_image(&b).unwrap();
+            for cmd in [
+                [0, 0, 0],
+                [-2_000_000, 9_000_000, -9_000_000],
+                [7_000_000, 5_000_000, 0],
+                [i64::MAX, i64::MIN, 1 << 40],
+            ] {
+                let e = g.geometric_error_um(cmd).unwrap();
+                proptest::prop_assert!(e.iter().all(|v| v.is_finite()), "{e:?} at {cmd:?}");
+            }
+        }
+    }
+}
