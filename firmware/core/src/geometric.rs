@@ -478,7 +478,7 @@ impl GeometricStage {
         const ZEROS: [[f32; 4]; 6] = [[0.0; 4]; 6];
         let diff = command.wrapping_sub(self.start[i]) as u64;
         let mut offset = diff as u32;
-        let (seg, t) = if (diff >> 32) == 0 && offset < self.span[i] {
+        let (seg, r) = if (diff >> 32) == 0 && offset < self.span[i] {
             let seg = offset / self.segment[i];
             let rem = offset - seg.wrapping_mul(self.segment[i].get());
             (seg, rem as f32)
@@ -492,17 +492,19 @@ impl GeometricStage {
                 (self.last[i], self.end_r[i])
             }
         };
-        let at = self.base[i] as usize + seg as usize * N;
-        let c = pool
+        // In range for a loaded stage (checked at load); the clamp keeps the path panic-free
+        // and, with the pool's length known at the call, costs one compare.
+        let at = (self.base[i] as usize + seg as usize * N).min(pool.len().saturating_sub(N));
+        match pool
             .get(at..at + N)
-            .and_then(|c| <&[[f32; 4]; N]>::try_from(c).ok());
-        match c {
-            Some(c) => (c, t, offset),
+            .and_then(|c| <&[[f32; 4]; N]>::try_from(c).ok())
+        {
+            Some(c) => (c, r, offset),
             None => {
                 cold_path();
                 (
                     <&[[f32; 4]; N]>::try_from(&ZEROS[..N]).unwrap_or(&[[0.0; 4]; N]),
-                    t,
+                    r,
                     offset,
                 )
             }
