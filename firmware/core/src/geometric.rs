@@ -421,6 +421,7 @@ impl GeometricStage {
                 let eps = [f(3), f(4), f(5)].map(|p| p.map(|c| c * URAD));
                 // ε × t (t constant): a cubic of this axis's position; component d gets
                 // ε_{d+1}·t_{d+2} − ε_{d+2}·t_{d+1} (indices mod 3).
+                #[allow(clippy::needless_range_loop)] // d, j, k index the same arrays
                 for d in 0..3 {
                     let (j, k) = ((d + 1) % 3, (d + 2) % 3);
                     add_scaled(&mut delta[d], &eps[j], t[k]);

@@ -19,10 +19,10 @@
 //! # Order of the stages in one group cycle
 //! 1. the cross-axis stages (if the image has them; they read only the commanded positions):
 //!    a. geometric: one segment search per axis on the commanded X, Y, Z, the model's functions
-//!       and lever arms → the model error e for X, Y, Z;
+//!    and lever arms → the model error e for X, Y, Z;
 //!    b. rotary: commanded angles of A and C within the turn, sin/cos and the angle terms
-//!       recomputed only when one of them changed, the tool tip from the commanded X, Y, Z → a
-//!       deviation for X, Y, Z, added to a's;
+//!    recomputed only when one of them changed, the tool tip from the commanded X, Y, Z → a
+//!    deviation for X, Y, Z, added to a's;
 //! 2. per axis, in slot order, its whole pipeline in one call: counter extension → direction
 //!    (hysteresis) → segment index of the table grid (once per axis and cycle: the table
 //!    position is the extended position, or the turn position for a rotary axis; every error
@@ -621,6 +621,7 @@ impl<const POOL: usize> Group<POOL> {
     ) {
         // The group is exactly X, Y, Z: slots 0..3.
         let d = self.geometric.deviation_xyz_slots(&self.pool, &input.axes);
+        #[allow(clippy::needless_range_loop)] // five parallel arrays indexed by slot
         for i in 0..3 {
             axis_cycle_with::<POOL, false, false>(
                 &self.axes[i],
@@ -652,7 +653,7 @@ impl<const POOL: usize> Group<POOL> {
         if self.has_geometric {
             let g = self.geometric_by_slot(input);
             for (a, b) in d.iter_mut().zip(g) {
-                *a = b + *a;
+                *a += b;
             }
         }
         d

@@ -533,16 +533,15 @@ fn geometric_and_rotary_stages_add() {
         let g = both
             .geometric_error_um([0, 1, 2].map(|k| input.axes[k].command_counts))
             .unwrap();
-        for k in 0..3 {
+        for (k, gk) in g.iter().enumerate() {
             let (b, r) = (ob.axes[k], or.axes[k]);
             if (b.flags.bits() | r.flags.bits()) & limited == 0 {
                 let diff = b.correction_um - r.correction_um;
                 assert!(
-                    (diff - g[k]).abs() <= 1e-4,
-                    "cycle {i} axis {k}: with both {} rotary only {} geometric {}",
+                    (diff - gk).abs() <= 1e-4,
+                    "cycle {i} axis {k}: with both {} rotary only {} geometric {gk}",
                     b.correction_um,
-                    r.correction_um,
-                    g[k]
+                    r.correction_um
                 );
                 compared += 1;
             }
