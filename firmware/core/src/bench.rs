@@ -318,3 +318,56 @@ pub fn group_input(i: u32) -> GroupInput {
     }
     g
 }
+
+// ---- the `group3_geometry` workload: group3 plus the volumetric geometric stage ----
+
+use crate::geometric::{GeometricCoefficients, GeometricGrid, GeometricSpec};
+
+/// Segments per axis of the geometric workload's grids (the stage's cost does not depend on it;
+/// small, so that its 14 × 8 pool entries fit beside group3's tables in [`GROUP_POOL`]).
+pub const GROUP_GEOMETRIC_SEGMENTS: usize = 8;
+
+/// The 18 functions of the geometric workload: per axis and segment, EX?, EY?, EZ? (µm, a few
+/// µm) and EA?, EB?, EC? (µrad, tens of µrad), cubic in each segment.
+const fn geometric_coefficients() -> [[f32; 4]; 3 * GROUP_GEOMETRIC_SEGMENTS * 6] {
+    let mut out = [[0.0f32; 4]; 3 * GROUP_GEOMETRIC_SEGMENTS * 6];
+    let mut i = 0;
+    while i < out.len() {
+        let f = i % 6;
+        let scale = if f < 3 { 1.0 } else { 4.0 };
+        let k = (i % 11) as f32;
+        out[i] = [
+            scale * (k - 5.0) * 0.4,
+            scale * 0.8,
+            scale * -0.3,
+            scale * 0.05 * (k - 5.0),
+        ];
+        i += 1;
+    }
+    out
+}
+
+/// Coefficients of [`group_geometric`].
+pub static GROUP_GEOMETRIC_COEFFICIENTS: [[f32; 4]; 3 * GROUP_GEOMETRIC_SEGMENTS * 6] =
+    geometric_coefficients();
+
+/// The geometric model of the `group3_geometry` workload: stacking YX/Z (table on X on Y,
+/// spindle on Z), every component identified, squareness 20 / −15 / 30 µrad, a 100 mm tool along
+/// −Z, grids over the group tables' strokes (8 segments of 125 000 counts).
+pub fn group_geometric() -> GeometricSpec<'static> {
+    let grid = GeometricGrid {
+        start_counts: 0,
+        segment_counts: GROUP_SEGMENT_COUNTS * GROUP_SEGMENTS as u32
+            / GROUP_GEOMETRIC_SEGMENTS as u32,
+        n_segments: GROUP_GEOMETRIC_SEGMENTS as u32,
+    };
+    GeometricSpec {
+        chain: [0, 1, 2],
+        work_axes: 2,
+        identified: (1 << 21) - 1,
+        tool_offset_um: [0.0, 0.0, -100_000.0],
+        squareness_urad: [20.0, -15.0, 30.0],
+        grids: [grid; 3],
+        coefficients: GeometricCoefficients::Values(&GROUP_GEOMETRIC_COEFFICIENTS),
+    }
+}

@@ -231,6 +231,8 @@ pub enum ImageError {
     /// A provenance block (group section kind 6, or the `PROV`/`SNAM` header extension of a
     /// schema-1 image) is malformed ([`crate::provenance`]).
     Provenance = 40,
+    /// The geometric model (section kind 2) was refused.
+    Geometric(crate::geometric::GeometricError) = 41,
 }
 
 impl fmt::Display for ImageError {
@@ -320,11 +322,18 @@ impl fmt::Display for ImageError {
             ImageError::Provenance => {
                 f.write_str("the provenance block or header extension is malformed")
             }
+            ImageError::Geometric(e) => write!(f, "{e}"),
         }
     }
 }
 
 impl core::error::Error for ImageError {}
+
+impl From<crate::geometric::GeometricError> for ImageError {
+    fn from(e: crate::geometric::GeometricError) -> Self {
+        ImageError::Geometric(e)
+    }
+}
 
 /// Letter of an axis code (`?` for an unknown code).
 fn axis_letter(code: u8) -> char {

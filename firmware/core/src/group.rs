@@ -12,19 +12,24 @@
 //! - **pool**: the coefficient storage shared by the group's tables (`POOL` segments); an axis's
 //!   forward and backward halves are two ranges of it.
 //! - **cross-axis stage**: a deviation vector for X, Y, Z computed from all axes' commanded
-//!   positions, added to those axes' errors before their limits (today: [`crate::rotary`]).
+//!   positions, added to those axes' errors before their limits: the volumetric geometric stage
+//!   ([`crate::geometric`]) and the rotary location-error stage ([`crate::rotary`]); with both,
+//!   the deviation is the geometric one plus the rotary one (in that order of the f32 sum).
 //!
 //! # Order of the stages in one group cycle
-//! 1. the cross-axis stage (if the image has one; it reads only the commanded positions):
-//!    commanded angles of the tilt axis (A or B) and C within the turn, sin/cos and the angle
-//!    terms recomputed only when one of them changed, the tool tip from the commanded X, Y, Z →
-//!    a deviation for X, Y, Z;
-//! 2. per axis, its whole pipeline in one call (in slot order; with the stage, in the order X, Y,
-//!    Z, A (or B), C — each pipeline reads and writes only its own slot, so the order changes nothing):
-//!    counter extension → direction (hysteresis) → segment index of the table grid (once per axis
-//!    and cycle: the table position is the extended position, or the turn position for a rotary
-//!    axis; every error function of that axis uses this index) → table value → thermo-force term →
-//!    + the stage's deviation (X, Y, Z) → clamp → slew → rounding to counts → corrected command.
+//! 1. the cross-axis stages (if the image has them; they read only the commanded positions):
+//!    a. geometric: one segment search per axis on the commanded X, Y, Z, the model's functions
+//!    and lever arms → the model error e for X, Y, Z;
+//!    b. rotary: commanded angles of the tilt axis (A or B) and C within the turn, sin/cos and
+//!    the angle terms recomputed only when one of them changed, the tool tip from the commanded
+//!    X, Y, Z → a deviation for X, Y, Z, added to a's;
+//! 2. per axis, its whole pipeline in one call (in slot order; with the rotary stage alone, in
+//!    the order X, Y, Z, A (or B), C — each pipeline reads and writes only its own slot, so the
+//!    order changes nothing): counter extension → direction (hysteresis) → segment index of the
+//!    table grid (once per axis and cycle: the table position is the extended position, or the
+//!    turn position for a rotary axis; every error function of that axis uses this index) →
+//!    table value → thermo-force term → + the stages' deviation (X, Y, Z) → clamp → slew →
+//!    rounding to counts → corrected command.
 //!
 //! The stage's deviation is added to the same error, in the same order, as when it ran between
 //! the error and the limits (one pass over the axes instead of two; the outputs are the same).
@@ -36,6 +41,7 @@ use crate::MAX_FORCES;
 use crate::compensator::{AxisCompensator, CycleInput, CycleOutput, Flags, State, TableStore};
 use crate::counter::{step_in_turn, wrap};
 use crate::error::{Field, ImageError};
+use crate::geometric::{GeometricSpec, GeometricStage};
 use crate::image::{self, Layout};
 use crate::limits::cold_path;
 use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryStage};
@@ -294,6 +300,12 @@ pub struct Group<const POOL: usize> {
     /// [`MODE_PLAIN`], [`MODE_MIXED`] or [`MODE_STAGE`].
     mode: u8,
     stage: RotaryStage,
+    /// The volumetric geometric stage is loaded (its functions follow the tables in the pool).
+    has_geometric: bool,
+    /// The group is X, Y, Z with the geometric stage only, no thermo-force term (the cycle's
+    /// fast path [`Group::cycle_geometric_plain`]).
+    geometric_plain: bool,
+    geometric: GeometricStage,
     axes: [AxisCompensator<PoolTable>; MAX_AXES],
     pool: [[f32; 4]; POOL],
 }
@@ -316,6 +328,9 @@ impl<const POOL: usize> Group<POOL> {
             has_stage: false,
             mode: MODE_NONE,
             stage: RotaryStage::ZERO,
+            has_geometric: false,
+            geometric_plain: false,
+            geometric: GeometricStage::ZERO,
             axes: [const { AxisCompensator::identity_with(PoolTable { base: [0; 2] }) }; MAX_AXES],
             pool: [[0.0; 4]; POOL],
         }
@@ -326,6 +341,8 @@ impl<const POOL: usize> Group<POOL> {
         self.loaded = false;
         self.n_axes = 0;
         self.has_stage = false;
+        self.has_geometric = false;
+        self.geometric_plain = false;
         self.mode = MODE_NONE;
         for a in self.axes.iter_mut() {
             a.clear();
@@ -345,7 +362,20 @@ impl<const POOL: usize> Group<POOL> {
         axes: &[GroupAxisImage],
         stage: Option<&RotaryLocationSpec>,
     ) -> Result<(), GroupError> {
-        let layouts = validate_group::<POOL>(axes, stage)?;
+        self.load_stages(axes, stage, None)
+    }
+
+    /// [`Group::load`] with the volumetric geometric stage too: it needs X, Y and Z in the group,
+    /// a valid model ([`GeometricSpec::validate`]) whose grid of each axis with a table spans
+    /// exactly that table's grid, and its functions (14 per segment position) fit the pool
+    /// after the tables. On `Err` `self` is untouched.
+    pub fn load_stages(
+        &mut self,
+        axes: &[GroupAxisImage],
+        stage: Option<&RotaryLocationSpec>,
+        geometric: Option<&GeometricSpec>,
+    ) -> Result<(), GroupError> {
+        let layouts = validate_group_stages::<POOL>(axes, stage, geometric)?;
         self.clear();
         let mut next = 0u32;
         for (i, (a, l)) in axes.iter().zip(layouts.iter()).enumerate() {
@@ -389,10 +419,24 @@ impl<const POOL: usize> Group<POOL> {
             self.stage = RotaryStage::new(spec, [upc(0), upc(1), upc(2)], [cpr(3), cpr(4)], slots);
             self.has_stage = true;
         }
+        if let Some(spec) = geometric {
+            let slot = |k: usize| {
+                axes.iter()
+                    .position(|a| a.name.code() as usize == k)
+                    .map_or(0, |p| p as u8)
+            };
+            let slots = [slot(0), slot(1), slot(2)];
+            let upc = slots.map(|s| self.axes[s as usize].um_per_count);
+            self.geometric = GeometricStage::load(spec, upc, slots, &mut self.pool, next);
+            self.has_geometric = true;
+        }
         self.loaded = true;
         let n = axes.len().min(MAX_AXES);
-        self.mode = if self.has_stage {
-            if self.stage.slot == [0, 1, 2, 3, 4] {
+        // X, Y, Z alone (the geometric stage needs all three), no thermo-force term.
+        self.geometric_plain =
+            self.has_geometric && !self.has_stage && self.kinds[..n].iter().all(|&k| k == 0);
+        self.mode = if self.has_stage || self.has_geometric {
+            if self.has_stage && !self.has_geometric && self.stage.slot == [0, 1, 2, 3, 4] {
                 MODE_STAGE_XYZAC
             } else {
                 MODE_STAGE
@@ -410,7 +454,7 @@ impl<const POOL: usize> Group<POOL> {
     pub fn load_image(&mut self, image: &[u8]) -> Result<(), GroupError> {
         let view = crate::group_image::parse(image)?;
         let (axes, n) = view.axis_images();
-        self.load(&axes[..n], view.rotary.as_ref())
+        self.load_stages(&axes[..n], view.rotary.as_ref(), view.geometric.as_ref())
     }
 
     /// True once a group image is loaded.
@@ -438,6 +482,29 @@ impl<const POOL: usize> Group<POOL> {
     /// True if the rotary location-error stage is loaded.
     pub fn has_rotary_stage(&self) -> bool {
         self.has_stage
+    }
+    /// True if the volumetric geometric stage is loaded.
+    pub fn has_geometric_stage(&self) -> bool {
+        self.has_geometric
+    }
+    /// The geometric stage's model error e (µm, reached − commanded, the deviation the stage adds
+    /// to X, Y, Z; the correction is −e) at commanded positions of X, Y, Z (counts); None without
+    /// the stage.
+    pub fn geometric_error_um(&self, commands_xyz: [i64; 3]) -> Option<[f32; 3]> {
+        if !self.has_geometric {
+            return None;
+        }
+        let mut by_slot = [0i64; MAX_AXES];
+        for (k, c) in commands_xyz.into_iter().enumerate() {
+            if let Some(s) = self.slot_of(AxisName::ALL[k]) {
+                by_slot[s] = c;
+            }
+        }
+        let d = self
+            .geometric
+            .deviation_by_slot(&self.pool, |i| by_slot[i.min(MAX_AXES - 1)]);
+        let at = |k: usize| self.slot_of(AxisName::ALL[k]).map_or(0.0, |s| d[s]);
+        Some([at(0), at(1), at(2)])
     }
     /// The pipeline of slot `i` (its table lives in the pool: use [`Group::table_um`]).
     pub fn axis(&self, i: usize) -> Option<&AxisCompensator<PoolTable>> {
@@ -508,7 +575,13 @@ impl<const POOL: usize> Group<POOL> {
                 }
             }
             MODE_STAGE_XYZAC => self.cycle_with_stage::<true>(st, input, out),
-            MODE_STAGE => self.cycle_with_stage::<false>(st, input, out),
+            MODE_STAGE => {
+                if self.geometric_plain {
+                    self.cycle_geometric_plain(st, input, out)
+                } else {
+                    self.cycle_with_stage::<false>(st, input, out)
+                }
+            }
             _ => self.identity_cycle(st, input, out),
         }
     }
@@ -538,7 +611,11 @@ impl<const POOL: usize> Group<POOL> {
         input: &GroupInput,
         out: &mut GroupOutput,
     ) {
-        let d = self.rotary_stage::<XYZAC>(st, input);
+        let d = if self.has_stage {
+            self.rotary_stage::<XYZAC>(st, input)
+        } else {
+            [0.0; 3]
+        };
         let (pool, inp) = (&self.pool, &input.axes);
         let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
         if XYZAC {
@@ -549,10 +626,17 @@ impl<const POOL: usize> Group<POOL> {
             axis_pipeline::<POOL, true, false>(&ax[4], pool, &mut s[4], &inp[4], &mut o[4], 0.0);
             return;
         }
-        // The deviation by slot (X, Y, Z: the stage's; A, C: none).
-        let mut by_slot = [0.0f32; MAX_AXES];
-        for (k, &dk) in d.iter().enumerate() {
-            by_slot[self.stage_slot::<false>(k)] = dk;
+        // The deviation by slot: the geometric stage's (X, Y, Z), plus the rotary stage's (X, Y,
+        // Z; A, C: none).
+        let mut by_slot = if self.has_geometric {
+            self.geometric_by_slot(input)
+        } else {
+            [0.0f32; MAX_AXES]
+        };
+        if self.has_stage {
+            for (k, &dk) in d.iter().enumerate() {
+                by_slot[self.stage_slot::<false>(k)] += dk;
+            }
         }
         let n = (self.n_axes as usize).min(MAX_AXES);
         for i in 0..n {
@@ -564,6 +648,38 @@ impl<const POOL: usize> Group<POOL> {
                 _ => axis_cycle::<POOL, true, true>(a, pool, st_i, in_i, out_i),
             }
         }
+    }
+
+    /// [`Group::cycle`] with the geometric stage only, every axis linear without a
+    /// thermo-force term: each axis's plain pipeline with its deviation, no per-axis dispatch.
+    #[inline(never)]
+    fn cycle_geometric_plain(
+        &self,
+        st: &mut GroupState,
+        input: &GroupInput,
+        out: &mut GroupOutput,
+    ) {
+        // The group is exactly X, Y, Z: slots 0..3.
+        let d = self.geometric.deviation_xyz_slots(&self.pool, &input.axes);
+        #[allow(clippy::needless_range_loop)] // five parallel arrays indexed by slot
+        for i in 0..3 {
+            axis_cycle_with::<POOL, false, false>(
+                &self.axes[i],
+                &self.pool,
+                &mut st.axes[i],
+                &input.axes[i],
+                &mut out.axes[i],
+                d[i],
+            );
+        }
+    }
+
+    /// The geometric stage's deviation by slot (out of line: the rotary stage's code beside it
+    /// stays as it is without it).
+    #[inline(never)]
+    fn geometric_by_slot(&self, input: &GroupInput) -> [f32; MAX_AXES] {
+        self.geometric
+            .deviation_by_slot(&self.pool, |i| input.axes[i].command_counts)
     }
 
     /// Slot of the stage's axis `k` (0..5: X, Y, Z, A, C): `k` itself when the slots are in that
@@ -616,8 +732,8 @@ impl<const POOL: usize> Group<POOL> {
     /// (extended counts, by slot), with each axis's present direction and cached thermal state:
     /// table (a rotary axis at its position within the turn) + thermo-force term (cached
     /// b0 + Σ b_i·ΔT_i + predicted forces + expansion at this position; no measured force) +
-    /// the cross-axis stage's deviation with these positions taken as the commanded ones, in the
-    /// cycle's order, then clamped to ±`max_correction_um` as the loop clamps (no slew: that
+    /// the cross-axis stages' deviation (geometric + rotary) with these positions taken as the
+    /// commanded ones, in the cycle's order, then clamped to ±`max_correction_um` as the loop clamps (no slew: that
     /// limits a change over time, not a position). The second value is true if a slot was
     /// clamped or not finite (a non-finite error is reported as 0). All zero for the identity.
     pub fn error_at(
@@ -629,11 +745,17 @@ impl<const POOL: usize> Group<POOL> {
         if !self.loaded {
             return (e, false);
         }
-        let d = if self.has_stage {
-            self.stage_deviation_at(positions_counts)
+        let mut d = if self.has_geometric {
+            self.geometric
+                .deviation_by_slot(&self.pool, |i| positions_counts[i.min(MAX_AXES - 1)])
         } else {
             [0.0; MAX_AXES]
         };
+        if self.has_stage {
+            for (a, b) in d.iter_mut().zip(self.stage_deviation_at(positions_counts)) {
+                *a += b;
+            }
+        }
         let mut limited = false;
         let n = (self.n_axes as usize).min(MAX_AXES);
         for i in 0..n {
@@ -768,6 +890,50 @@ impl From<ImageError> for GroupError {
     fn from(error: ImageError) -> Self {
         GroupError { axis: None, error }
     }
+}
+
+/// Every check of [`Group::load_stages`]: [`validate_group`] and the geometric stage's (X, Y, Z
+/// in the group, a valid model, each grid spanning its axis's table grid if the axis has a
+/// table, tables and functions within the pool).
+pub(crate) fn validate_group_stages<const POOL: usize>(
+    axes: &[GroupAxisImage],
+    stage: Option<&RotaryLocationSpec>,
+    geometric: Option<&GeometricSpec>,
+) -> Result<[Option<Layout>; MAX_AXES], GroupError> {
+    let layouts = validate_group::<POOL>(axes, stage)?;
+    let Some(spec) = geometric else {
+        return Ok(layouts);
+    };
+    spec.validate().map_err(ImageError::from)?;
+    let mut needed = spec.pool_entries();
+    for (k, name) in [AxisName::X, AxisName::Y, AxisName::Z]
+        .into_iter()
+        .enumerate()
+    {
+        let Some(i) = axes.iter().position(|a| a.name == name) else {
+            return Err(ImageError::AxisNotInGroup { axis: name.code() }.into());
+        };
+        let Some(l) = layouts[i] else { continue };
+        if let Some((start, seg, n)) = image::table_grid(&l, axes[i].image) {
+            let g = spec.grids[k];
+            if start != g.start_counts
+                || seg as i128 * n as i128 != g.end_counts() - g.start_counts as i128
+            {
+                return Err(GroupError {
+                    axis: Some(name),
+                    error: ImageError::GridMismatch { axis: name.code() },
+                });
+            }
+        }
+    }
+    for l in layouts.iter().flatten() {
+        let halves = if l.bidirectional { 2 } else { 1 };
+        needed = needed.saturating_add(halves * l.n_segments as u32);
+    }
+    if needed as usize > POOL {
+        return Err(ImageError::PoolTooSmall { needed }.into());
+    }
+    Ok(layouts)
 }
 
 /// Every check of [`Group::load`]; the layouts of the axis images by slot.
@@ -927,8 +1093,18 @@ impl<const POOL: usize> GroupEngine<POOL> {
         axes: &[GroupAxisImage],
         stage: Option<&RotaryLocationSpec>,
     ) -> Result<(), GroupError> {
+        self.load_stages(axes, stage, None)
+    }
+
+    /// [`GroupEngine::load`] with the geometric stage too (see [`Group::load_stages`]).
+    pub fn load_stages(
+        &mut self,
+        axes: &[GroupAxisImage],
+        stage: Option<&RotaryLocationSpec>,
+        geometric: Option<&GeometricSpec>,
+    ) -> Result<(), GroupError> {
         let spare = (self.active ^ 1) as usize & 1;
-        match self.slots[spare].load(axes, stage) {
+        match self.slots[spare].load_stages(axes, stage, geometric) {
             Ok(()) => {
                 self.active = spare as u8;
                 self.state.on_new_image();
@@ -952,7 +1128,7 @@ impl<const POOL: usize> GroupEngine<POOL> {
         match crate::group_image::parse(image) {
             Ok(view) => {
                 let (axes, n) = view.axis_images();
-                self.load(&axes[..n], view.rotary.as_ref())
+                self.load_stages(&axes[..n], view.rotary.as_ref(), view.geometric.as_ref())
             }
             Err(error) => {
                 let e = GroupError { axis: None, error };

@@ -33,7 +33,23 @@
 //!   (rotary; 0 linear), `stroke_start`, `stroke_end` i64 (linear: the table grid must span
 //!   exactly this stroke; both 0 = not stated), reserved u32 ×2 = 0, then the axis's pipeline as
 //!   a schema-1 image (table, thermo-force term, limits) filling the rest of the section.
-//! - **geometric model** (2): reserved, not supported yet.
+//! - **geometric model** (2, version 1, axis 0xFF, at most one; [`GeometricSpec`], see
+//!   [`crate::geometric`]): the group must have X, Y and Z, and each axis's grid must span exactly
+//!   its axis's stroke (the stated stroke of its axis section, else its table's grid; an axis with
+//!   neither is refused, [`ImageError::GridMismatch`]). Layout:
+//!
+//!   | off | type | field |
+//!   |---|---|---|
+//!   | 0 | `[u8; 3]` | chain: axis codes (0 = X, 1 = Y, 2 = Z) from the workpiece to the tool (work axes outermost first, then tool axes from the bed outward), each once |
+//!   | 3 | u8 | work axes: how many of the chain's first entries carry the workpiece (0..=3) |
+//!   | 4 | u32 | identified mask: bit i = component i (EXX … ECZ, EC0Y, EB0Z, EA0Z) was identified by the fit; the others are stored as the model gives them (zero) |
+//!   | 8 | f32 × 3 | tool offset from the tool reference point, µm (x, y, z) |
+//!   | 20 | f32 × 3 | squareness EC0Y, EB0Z, EA0Z, µrad |
+//!   | 32 | 3 × (i64, u32, u32) | grids of X, Y, Z: `start_counts`, `segment_counts`, `n_segments` (1..=1024) |
+//!   | 80 | u32 × 4 | reserved, 0 |
+//!   | 96 | f32 × 4 × 6 × Σn | coefficients: X's segments, then Y's, then Z's; per segment the axis's 6 functions (EX?, EY?, EZ?: µm; EA?, EB?, EC?: µrad) as `[c0, c1, c2, c3]` in t ∈ [0, 1) |
+//!
+//!   The section's length is exactly 96 + 96·Σn bytes.
 //! - **probe settings** (4, version 1, axis 0xFF, 20 bytes, at most one; [`crate::probe`]):
 //!   `min_pulse_us` u32, `latency_ns` u32, `lockout_us` u32, `moving_um_per_s` f32, reserved
 //!   u32 = 0 (ranges: [`ProbeSettings::validate`]). Image data rather than drive configuration:
@@ -60,6 +76,7 @@
 //! extension (`SNAM`, `PROV` blocks, [`crate::provenance`]) when it has one.
 
 use crate::error::ImageError;
+use crate::geometric::{GeometricCoefficients, GeometricGrid, GeometricSpec};
 use crate::group::{AxisName, GroupAxisImage, MAX_AXES};
 use crate::image::{self, CRC_LEN, crc32};
 use crate::le::{Put, f32_at, i64_at, rd, u8_at, u16_at, u32_at};
@@ -83,6 +100,10 @@ pub const ROTARY_SECTION_V1_LEN: usize = 64;
 pub const ROTARY_SECTION_VERSION: u16 = 2;
 /// Length of a rotary-model section of version [`ROTARY_SECTION_VERSION`].
 pub const ROTARY_SECTION_LEN: usize = 80;
+/// Fixed part of a geometric-model section (before the coefficients).
+pub const GEOMETRIC_HEADER_LEN: usize = 96;
+/// Bytes per segment of one axis in a geometric-model section (6 functions × 4 f32).
+pub const GEOMETRIC_SEGMENT_LEN: usize = 96;
 /// Bytes per sensor name.
 pub const SENSOR_NAME_LEN: usize = 16;
 /// Directory `axis` value of a section that belongs to no axis.
@@ -96,7 +117,7 @@ pub const FLAG_MANDATORY: u8 = 1;
 pub enum SectionKind {
     /// One axis's pipeline.
     Axis = 1,
-    /// Volumetric (21-error) geometric model — reserved.
+    /// Volumetric (21-error) geometric model.
     Geometric = 2,
     /// Rotary location-error model.
     Rotary = 3,
@@ -157,6 +178,8 @@ pub struct GroupImageView<'a> {
     pub probe: Option<ProbeSettings>,
     /// The provenance block, if the image has one (validated, never acted on).
     pub provenance: Option<crate::provenance::ProvenanceView<'a>>,
+    /// The volumetric geometric model, if any (its coefficients borrow the image).
+    pub geometric: Option<GeometricSpec<'a>>,
     /// The stored whole-image CRC-32.
     pub crc: u32,
 }
@@ -302,6 +325,7 @@ fn parse_v1(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
         rotary: None,
         probe: None,
         provenance,
+        geometric: None,
         crc: info.crc,
     })
 }
@@ -380,6 +404,7 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
         rotary: None,
         probe: None,
         provenance: None,
+        geometric: None,
         crc: u32_at(b, body_end),
     };
     let mut names: [Option<(u8, &[u8])>; MAX_AXES] = [None; MAX_AXES];
@@ -410,9 +435,10 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
                 view.probe = Some(ProbeSettings::from_bytes(s)?);
             }
             SectionKind::Geometric => {
-                if mandatory {
-                    return Err(ImageError::UnsupportedSection { kind: e.kind });
+                if e.axis != NO_AXIS || view.geometric.is_some() {
+                    return Err(ImageError::SectionBounds { index: i as u16 });
                 }
+                view.geometric = Some(parse_geometric(s, i)?);
             }
             SectionKind::Axis => {
                 if view.n_axes == MAX_AXES {
@@ -476,11 +502,31 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
             a.sensor_names = s;
         }
     }
-    // The group's own rules (counts per revolution, rotary grids, the stage's axes), as
+    // The geometric grids span their axes' strokes (stated, else the table's grid).
+    if let Some(g) = &view.geometric {
+        for (k, grid) in g.grids.iter().enumerate() {
+            let Some(a) = view.axes().find(|a| a.axis.name.code() as usize == k) else {
+                return Err(ImageError::AxisNotInGroup { axis: k as u8 });
+            };
+            let stroke = a.stroke_counts.or_else(|| {
+                image::table_grid_of(a.axis.image)
+                    .map(|(t0, seg, n)| (t0, (t0 as i128 + seg as i128 * n as i128) as i64))
+            });
+            match stroke {
+                Some((lo, hi)) if lo == grid.start_counts && hi as i128 == grid.end_counts() => {}
+                _ => return Err(ImageError::GridMismatch { axis: k as u8 }),
+            }
+        }
+    }
+    // The group's own rules (counts per revolution, rotary grids, the stages' axes), as
     // `Group::load` applies them (the pool size is the loading build's business).
     let (images, n) = view.axis_images();
-    crate::group::validate_group::<{ usize::MAX }>(&images[..n], view.rotary.as_ref())
-        .map_err(|g| g.error)?;
+    crate::group::validate_group_stages::<{ usize::MAX }>(
+        &images[..n],
+        view.rotary.as_ref(),
+        view.geometric.as_ref(),
+    )
+    .map_err(|g| g.error)?;
     Ok(view)
 }
 
@@ -560,6 +606,47 @@ fn rotary_section_len(r: &RotaryLocationSpec) -> usize {
     }
 }
 
+fn parse_geometric(s: &[u8], index: usize) -> Result<GeometricSpec<'_>, ImageError> {
+    if s.len() < GEOMETRIC_HEADER_LEN {
+        return Err(ImageError::SectionBounds {
+            index: index as u16,
+        });
+    }
+    if (80..GEOMETRIC_HEADER_LEN)
+        .step_by(4)
+        .any(|off| u32_at(s, off) != 0)
+    {
+        return Err(reserved());
+    }
+    let grid = |k: usize| GeometricGrid {
+        start_counts: i64_at(s, 32 + 16 * k),
+        segment_counts: u32_at(s, 40 + 16 * k),
+        n_segments: u32_at(s, 44 + 16 * k),
+    };
+    let spec = GeometricSpec {
+        chain: [u8_at(s, 0), u8_at(s, 1), u8_at(s, 2)],
+        work_axes: u8_at(s, 3),
+        identified: u32_at(s, 4),
+        tool_offset_um: [f32_at(s, 8), f32_at(s, 12), f32_at(s, 16)],
+        squareness_urad: [f32_at(s, 20), f32_at(s, 24), f32_at(s, 28)],
+        grids: [grid(0), grid(1), grid(2)],
+        coefficients: GeometricCoefficients::Bytes(s.get(GEOMETRIC_HEADER_LEN..).unwrap_or(&[])),
+    };
+    spec.validate()?;
+    Ok(spec)
+}
+
+/// Length of a geometric-model section for `spec`.
+pub fn geometric_section_len(spec: &GeometricSpec) -> usize {
+    GEOMETRIC_HEADER_LEN
+        + GEOMETRIC_SEGMENT_LEN
+            * spec
+                .grids
+                .iter()
+                .map(|g| g.n_segments as usize)
+                .sum::<usize>()
+}
+
 fn reserved() -> ImageError {
     ImageError::OutOfRange {
         field: crate::error::Field::Reserved,
@@ -637,7 +724,7 @@ pub struct AxisSectionSpec<'a> {
 
 /// Length of the group image [`write_group_image`] writes.
 pub fn group_image_len(axes: &[AxisSectionSpec], rotary: Option<&RotaryLocationSpec>) -> usize {
-    group_image_len_with_probe(axes, rotary, None)
+    group_image_len_with_stages(axes, rotary, None, None)
 }
 
 /// Length of the group image [`write_group_image_with_probe`] writes.
@@ -646,7 +733,26 @@ pub fn group_image_len_with_probe(
     rotary: Option<&RotaryLocationSpec>,
     probe: Option<&ProbeSettings>,
 ) -> usize {
-    let n = section_count(axes, rotary) + probe.is_some() as usize;
+    group_image_len_with_stages(axes, rotary, None, probe)
+}
+
+/// Length of the group image [`write_group_image_with`] writes.
+pub fn group_image_len_with(
+    axes: &[AxisSectionSpec],
+    rotary: Option<&RotaryLocationSpec>,
+    geometric: Option<&GeometricSpec>,
+) -> usize {
+    group_image_len_with_stages(axes, rotary, geometric, None)
+}
+
+/// Length of the group image [`write_group_image_with_stages`] writes.
+pub fn group_image_len_with_stages(
+    axes: &[AxisSectionSpec],
+    rotary: Option<&RotaryLocationSpec>,
+    geometric: Option<&GeometricSpec>,
+    probe: Option<&ProbeSettings>,
+) -> usize {
+    let n = section_count(axes, rotary) + geometric.is_some() as usize + probe.is_some() as usize;
     let mut len = GROUP_HEADER_LEN + DIR_ENTRY_LEN * n + CRC_LEN;
     for a in axes {
         len += AXIS_SECTION_HEADER_LEN + a.image.len() + SENSOR_NAME_LEN * a.sensor_names.len();
@@ -656,6 +762,9 @@ pub fn group_image_len_with_probe(
     }
     if probe.is_some() {
         len += PROBE_SECTION_LEN;
+    }
+    if let Some(g) = geometric {
+        len += geometric_section_len(g);
     }
     len
 }
@@ -673,7 +782,7 @@ pub fn write_group_image(
     rotary: Option<&RotaryLocationSpec>,
     out: &mut [u8],
 ) -> Result<usize, ImageError> {
-    write_group_image_with_probe(axes, rotary, None, out)
+    write_group_image_with_stages(axes, rotary, None, None, out)
 }
 
 /// [`write_group_image`] with a touch-probe settings section (kind 4) after the others.
@@ -683,6 +792,31 @@ pub fn write_group_image_with_probe(
     probe: Option<&ProbeSettings>,
     out: &mut [u8],
 ) -> Result<usize, ImageError> {
+    write_group_image_with_stages(axes, rotary, None, probe, out)
+}
+
+/// [`write_group_image`] with a geometric-model section (after the rotary one, if any).
+pub fn write_group_image_with(
+    axes: &[AxisSectionSpec],
+    rotary: Option<&RotaryLocationSpec>,
+    geometric: Option<&GeometricSpec>,
+    out: &mut [u8],
+) -> Result<usize, ImageError> {
+    write_group_image_with_stages(axes, rotary, geometric, None, out)
+}
+
+/// [`write_group_image`] with the optional sections after the others: the touch-probe settings,
+/// then the geometric model.
+pub fn write_group_image_with_stages(
+    axes: &[AxisSectionSpec],
+    rotary: Option<&RotaryLocationSpec>,
+    geometric: Option<&GeometricSpec>,
+    probe: Option<&ProbeSettings>,
+    out: &mut [u8],
+) -> Result<usize, ImageError> {
+    if let Some(g) = geometric {
+        g.validate()?;
+    }
     if let Some(p) = probe {
         p.validate()?;
     }
@@ -698,8 +832,8 @@ pub fn write_group_image_with_probe(
             }
         }
     }
-    let len = group_image_len_with_probe(axes, rotary, probe);
-    let n = section_count(axes, rotary) + probe.is_some() as usize;
+    let len = group_image_len_with_stages(axes, rotary, geometric, probe);
+    let n = section_count(axes, rotary) + geometric.is_some() as usize + probe.is_some() as usize;
     if len > MAX_IMAGE_LEN {
         return Err(ImageError::BadLength);
     }
@@ -790,6 +924,32 @@ pub fn write_group_image_with_probe(
         w.bytes(&p.to_bytes());
         at += w.pos;
         dir[k] = (SectionKind::Probe as u16, 1, NO_AXIS, start, at - start);
+        k += 1;
+    }
+    if let Some(g) = geometric {
+        let start = at;
+        let mut w = Put::new(out.get_mut(at..).unwrap_or(&mut []));
+        w.bytes(&g.chain);
+        w.u8(g.work_axes);
+        w.u32(g.identified);
+        for v in g.tool_offset_um.iter().chain(g.squareness_urad.iter()) {
+            w.f32(*v);
+        }
+        for grid in &g.grids {
+            w.i64(grid.start_counts);
+            w.u32(grid.segment_counts);
+            w.u32(grid.n_segments);
+        }
+        for _ in 0..4 {
+            w.u32(0);
+        }
+        for i in 0..g.coefficients.len() {
+            for c in g.coefficients.get(i) {
+                w.f32(c);
+            }
+        }
+        at += w.pos;
+        dir[k] = (SectionKind::Geometric as u16, 1, NO_AXIS, start, at - start);
         k += 1;
     }
     let mut w = Put::new(out);

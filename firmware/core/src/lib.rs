@@ -67,6 +67,7 @@ mod compensator;
 mod counter;
 mod engine;
 mod error;
+pub mod geometric;
 pub mod group;
 pub mod group_image;
 pub mod image;

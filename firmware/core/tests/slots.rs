@@ -1,9 +1,11 @@
 //! Image slots: the largest five-axis image fits one flash slot, and an image is cut out of a
 //! slot (image, then erased flash) by the length its header declares.
 mod common;
+use axcomp_core::geometric::{GeometricCoefficients, GeometricGrid, GeometricSpec};
 use axcomp_core::group::{AxisName, Group};
 use axcomp_core::group_image::{
-    AxisSectionSpec, DIR_ENTRY_LEN, group_image_len, parse, write_group_image,
+    AxisSectionSpec, GEOMETRIC_HEADER_LEN, group_image_len, group_image_len_with, parse,
+    write_group_image_with,
 };
 use axcomp_core::rotary::RotaryLocationSpec;
 use axcomp_core::*;
@@ -14,7 +16,7 @@ const LINEAR_SEGMENTS: usize = 512;
 /// Geometric functions and their segments (issue 9: 18 functions × 128 segments).
 const GEOMETRIC_FUNCTIONS: usize = 18;
 const GEOMETRIC_SEGMENTS: usize = 128;
-/// Bytes per segment: 4 f32 coefficients, as the axis tables.
+/// Bytes per segment of one function: 4 f32 coefficients, as the axis tables.
 const SEGMENT_BYTES: usize = 16;
 const CPR: u32 = 512 * 7200;
 
@@ -27,9 +29,8 @@ fn table(n: usize, off: f32) -> Vec<[f32; 4]> {
 /// The largest five-axis image of issue 9: X, Y, Z with bidirectional 512-segment tables and a
 /// full thermo-force term (16 sensors with names, expansion, 3 forces); A and C with a
 /// 512-segment table over the turn and 16 sensors too (more than the issue asks); the rotary
-/// model; and an 18 × 128-segment geometric model. The geometric section (kind 2) is reserved
-/// and not implemented yet: it is counted as an opaque payload of 18 × 128 × 16 bytes plus its
-/// directory entry. Every other section is written and parsed for real.
+/// model; and an 18 × 128-segment geometric model (section kind 2, issue 10). Every section is
+/// written, parsed and loaded for real.
 #[test]
 fn largest_five_axis_image_fits_one_slot() {
     let fwd = table(LINEAR_SEGMENTS, 0.0);
@@ -118,12 +119,33 @@ fn largest_five_axis_image_fits_one_slot() {
         squareness_urad: [1.0; 3],
         ..RotaryLocationSpec::ZERO_AC
     };
-    let written_len = group_image_len(&axes, Some(&stage));
-    let geometric = DIR_ENTRY_LEN + GEOMETRIC_FUNCTIONS * GEOMETRIC_SEGMENTS * SEGMENT_BYTES;
-    let largest = written_len + geometric;
-    eprintln!(
-        "largest five-axis image: {largest} B ({written_len} B written + {geometric} B geometric)"
+    // The geometric model over the linear tables' stroke (512 × 1000 counts): 128 segments of
+    // 4000 counts per axis, small smooth values.
+    let geo_coef: Vec<[f32; 4]> = (0..3 * GEOMETRIC_SEGMENTS * 6)
+        .map(|i| [(i % 7) as f32 * 0.1, 0.01, -0.002, 0.0005])
+        .collect();
+    assert_eq!(geo_coef.len(), GEOMETRIC_FUNCTIONS * GEOMETRIC_SEGMENTS);
+    let geo = GeometricSpec {
+        chain: [0, 1, 2],
+        work_axes: 2,
+        identified: (1 << 21) - 1,
+        tool_offset_um: [0.0, 0.0, 100_000.0],
+        squareness_urad: [20.0, -15.0, 30.0],
+        grids: [GeometricGrid {
+            start_counts: 0,
+            segment_counts: 4000,
+            n_segments: GEOMETRIC_SEGMENTS as u32,
+        }; 3],
+        coefficients: GeometricCoefficients::Values(&geo_coef),
+    };
+    let without = group_image_len(&axes, Some(&stage));
+    let largest = group_image_len_with(&axes, Some(&stage), Some(&geo));
+    let geometric = largest - without;
+    assert!(
+        geometric > GEOMETRIC_FUNCTIONS * GEOMETRIC_SEGMENTS * SEGMENT_BYTES + GEOMETRIC_HEADER_LEN,
+        "the section holds every function and segment (and its directory entry)"
     );
+    eprintln!("largest five-axis image: {largest} B ({without} B + {geometric} B geometric)");
     // The slot size comes from the same constant as the memory map's (`memory.x`: 128K slots).
     assert_eq!(IMAGE_SLOT_LEN, 128 * 1024);
     assert!(
@@ -134,15 +156,17 @@ fn largest_five_axis_image_fits_one_slot() {
         largest > 64 * 1024,
         "{largest} B: the old 64 KiB slots were too small"
     );
-    // The written part is a real image: it parses and loads as a group.
+    // It is a real image: it parses and loads as a group (pool: 4096 table segments and 14
+    // folded geometric functions × 128 segments).
     let mut buf = vec![0u8; IMAGE_SLOT_LEN];
-    let n = write_group_image(&axes, Some(&stage), &mut buf).unwrap();
-    assert_eq!(n, written_len);
+    let n = write_group_image_with(&axes, Some(&stage), Some(&geo), &mut buf).unwrap();
+    assert_eq!(n, largest);
     let view = parse(&buf[..n]).unwrap();
     assert_eq!(view.axis_count(), 5);
-    let mut g = Box::new(Group::<4096>::new());
+    assert!(view.geometric.is_some());
+    let mut g = Box::new(Group::<{ 4096 + 14 * GEOMETRIC_SEGMENTS }>::new());
     g.load_image(&buf[..n]).unwrap();
-    assert!(g.has_rotary_stage());
+    assert!(g.has_rotary_stage() && g.has_geometric_stage());
     // In the slot, followed by erased flash: cut by its declared length.
     buf[n..].fill(0xFF);
     assert_eq!(declared_image_len(&buf), Ok(n));

@@ -107,16 +107,28 @@ mod firmware {
         stage: bool,
         instr_per_tick: f32,
     ) -> f32 {
-        measure_group_with(g, st, image, n, stage, instr_per_tick, bench::group_input)
+        measure_group_with(
+            g,
+            st,
+            image,
+            n,
+            stage,
+            false,
+            instr_per_tick,
+            bench::group_input,
+        )
     }
 
-    /// [`measure_group`] with other inputs.
+    /// [`measure_group`] with the geometric stage (`axcomp_core::bench::group_geometric`) if
+    /// `geometric`, and other inputs.
+    #[allow(clippy::too_many_arguments)]
     fn measure_group_with(
         g: &mut Group<{ bench::GROUP_POOL }>,
         st: &mut GroupState,
         image: &mut [u8],
         n: usize,
         stage: bool,
+        geometric: bool,
         instr_per_tick: f32,
         inputs: fn(u32) -> GroupInput,
     ) -> f32 {
@@ -125,7 +137,8 @@ mod firmware {
             Err(e) => panic!("writing the group images: {}", e),
         };
         let stage = stage.then_some(&bench::GROUP_ROTARY_STAGE);
-        if let Err(e) = g.load(&axes[..n], stage) {
+        let geo = bench::group_geometric();
+        if let Err(e) = g.load_stages(&axes[..n], stage, geometric.then_some(&geo)) {
             panic!("loading the group: {}", e);
         }
         *st = GroupState::new();
@@ -332,13 +345,25 @@ mod firmware {
         // and C held (no angle change: no sin/cos) and with the workload's angles (both change
         // every cycle: sin/cos and the angle terms recomputed every cycle).
         let steady = group_input_steady_angles;
-        let g5_steady = measure_group_with(group, gst, image, 5, true, instr_per_tick, steady);
+        let g5_steady =
+            measure_group_with(group, gst, image, 5, true, false, instr_per_tick, steady);
         let steady_refreshes = gst.angle_refreshes();
         let g5_steady_plain =
-            measure_group_with(group, gst, image, 5, false, instr_per_tick, steady);
+            measure_group_with(group, gst, image, 5, false, false, instr_per_tick, steady);
         let g5_plain = measure_group(group, gst, image, 5, false, instr_per_tick);
         let g5 = measure_group(group, gst, image, 5, true, instr_per_tick);
         let refreshes = gst.angle_refreshes();
+        // (f) group3 plus the volumetric geometric stage (18 functions, 3 squareness, tool offset).
+        let g3_geo = measure_group_with(
+            group,
+            gst,
+            image,
+            3,
+            false,
+            true,
+            instr_per_tick,
+            bench::group_input,
+        );
 
         hprintln!("calls per workload: {}", BATCHES * BATCH as u32);
         hprintln!(
@@ -375,6 +400,10 @@ mod firmware {
             g5_steady_plain,
             g5_steady,
             steady_refreshes
+        );
+        hprintln!(
+            "bench qemu_instructions_per_cycle_group3_geometry {:.1} instructions",
+            g3_geo
         );
         hprintln!(
             "group5: sin/cos recomputed in {} of {} measured cycles",

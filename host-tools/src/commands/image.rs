@@ -8,16 +8,25 @@
 //! - *group image*: schema 2, one section per axis (each holding that axis's schema-1 image), an
 //!   optional rotary location-error model and sensor names (`axcomp_core::group_image`), built by
 //!   `image group` from images of `image build`.
+//! - *geometric section*: a `fit geometry` model converted for the core's volumetric stage
+//!   (`axcomp_core::geometric`): each of the 18 component functions, a cubic B-spline on its axis's
+//!   knot grid in mm, becomes per-segment Horner polynomials over the same knots in counts; the
+//!   squareness constants, the stacking and the tool offset are copied. A component the fit marks
+//!   `identified: false` goes in as zero (the model's prior) and `image inspect` says so.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
+use axcomp_core::geometric::{
+    COMPONENT_NAMES, GeometricCoefficients, GeometricGrid, GeometricSpec,
+};
 use axcomp_core::group::AxisName;
 use axcomp_core::group_image::{self, AxisSectionSpec};
 use axcomp_core::provenance;
 use axcomp_core::rotary::{RotaryLocationSpec, RotaryMachine};
 use axcomp_core::wiring::{BoardInput, InputUnit};
 use axcomp_core::{Compensator, ImageSpec, LimitSpec, image_len, inspect_image, write_image};
+use axcomp_geometry::GeometryModel;
 use axcomp_kinematics::rotary::MachineKind;
 use axcomp_positioning::TableFile;
 use axcomp_rtest::RtestModel;
@@ -486,6 +495,10 @@ pub fn describe_any(bytes: &[u8]) -> anyhow::Result<String> {
         Some(r) => s.push_str(&describe_rotary(&r)),
         None => writeln!(s, "rotary location errors: none")?,
     }
+    match &view.geometric {
+        Some(g) => s.push_str(&describe_geometric(g)),
+        None => writeln!(s, "geometric model: none")?,
+    }
     Ok(s)
 }
 
@@ -536,6 +549,231 @@ fn describe_rotary(r: &RotaryLocationSpec) -> String {
     )
 }
 
+/// The `image inspect` lines of a geometric section: stacking, tool offset, grids, squareness
+/// and each component's status and range of values over its grid.
+pub fn describe_geometric(g: &GeometricSpec) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let label = String::from_utf8_lossy(&g.stacking_label()).into_owned();
+    let n_id = (0..21).filter(|i| g.identified >> i & 1 == 1).count();
+    let _ = writeln!(
+        s,
+        "geometric model (21 ISO 230-1 components, volumetric stage): stacking {label} \
+         (work axes / tool axes), tool offset ({}, {}, {}) µm, {n_id} of 21 components identified",
+        g.tool_offset_um[0], g.tool_offset_um[1], g.tool_offset_um[2]
+    );
+    for (k, grid) in g.grids.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "  grid {}: {} segments of {} counts from {} counts ({} knots)",
+            ['X', 'Y', 'Z'][k],
+            grid.n_segments,
+            grid.segment_counts,
+            grid.start_counts,
+            grid.n_segments + 1
+        );
+    }
+    let status = |i: usize| {
+        if g.identified >> i & 1 == 1 {
+            "identified"
+        } else {
+            "NOT identified: stored as zero (the model's prior)"
+        }
+    };
+    for k in 0..3 {
+        for f in 0..6 {
+            let i = 6 * k + f;
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for seg in 0..g.grids[k].n_segments as usize {
+                let c = g.segment(k, seg, f);
+                for t in [0.0f32, 0.25, 0.5, 0.75, 1.0] {
+                    let v = c[0] + t * (c[1] + t * (c[2] + t * c[3]));
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+            let unit = if f < 3 { "µm" } else { "µrad" };
+            let _ = writeln!(
+                s,
+                "  {:<4} {:.3} .. {:.3} {unit}, {}",
+                COMPONENT_NAMES[i],
+                lo,
+                hi,
+                status(i)
+            );
+        }
+    }
+    for q in 0..3 {
+        let _ = writeln!(
+            s,
+            "  {:<4} {} µrad, {}",
+            COMPONENT_NAMES[18 + q],
+            g.squareness_urad[q],
+            status(18 + q)
+        );
+    }
+    s
+}
+
+/// A `fit geometry` model converted for the core's geometric stage (owned coefficients).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GeometricSection {
+    pub chain: [u8; 3],
+    pub work_axes: u8,
+    pub identified: u32,
+    pub tool_offset_um: [f32; 3],
+    pub squareness_urad: [f32; 3],
+    pub grids: [GeometricGrid; 3],
+    pub coefficients: Vec<[f32; 4]>,
+}
+
+impl GeometricSection {
+    /// The core's view of it.
+    pub fn spec(&self) -> GeometricSpec<'_> {
+        GeometricSpec {
+            chain: self.chain,
+            work_axes: self.work_axes,
+            identified: self.identified,
+            tool_offset_um: self.tool_offset_um,
+            squareness_urad: self.squareness_urad,
+            grids: self.grids,
+            coefficients: GeometricCoefficients::Values(&self.coefficients),
+        }
+    }
+    /// The stroke (start, end counts) each grid spans, for X, Y, Z.
+    pub fn strokes(&self) -> [(i64, i64); 3] {
+        self.grids.map(|g| {
+            (
+                g.start_counts,
+                g.end_counts().clamp(i64::MIN as i128, i64::MAX as i128) as i64,
+            )
+        })
+    }
+}
+
+/// Horner coefficients `[c0, c1, c2, c3]` in t ∈ [0, 1) of the uniform cubic B-spline segment with
+/// control coefficients `c` (the basis of `axcomp_geometry::spline::AxisGrid::local`).
+pub fn bspline_segment_to_horner(c: [f64; 4]) -> [f64; 4] {
+    [
+        (c[0] + 4.0 * c[1] + c[2]) / 6.0,
+        (c[2] - c[0]) / 2.0,
+        (c[0] - 2.0 * c[1] + c[2]) / 2.0,
+        (-c[0] + 3.0 * c[1] - 3.0 * c[2] + c[3]) / 6.0,
+    ]
+}
+
+/// Converts a `fit geometry` model for the core's geometric stage: the axes' scales
+/// `um_per_count` (X, Y, Z) put the grids on whole counts (else an error naming the axis), the
+/// tool offset is in mm. Components the model marks `identified: false` are stored as zero.
+pub fn geometric_from_model(
+    model: &GeometryModel,
+    um_per_count: [f64; 3],
+    tool_offset_mm: [f64; 3],
+) -> anyhow::Result<GeometricSection> {
+    let mut grids = [GeometricGrid {
+        start_counts: 0,
+        segment_counts: 1,
+        n_segments: 1,
+    }; 3];
+    for k in 0..3 {
+        let g = &model.grids[k];
+        let upc = um_per_count[k];
+        anyhow::ensure!(
+            upc.is_finite() && upc > 0.0,
+            "axis {}: µm per count {upc} must be a finite number > 0",
+            "XYZ".as_bytes()[k] as char
+        );
+        let per_mm = 1000.0 / upc;
+        let start = g.lo * per_mm;
+        let seg = (g.hi - g.lo) * per_mm / g.intervals.max(1) as f64;
+        let whole = |x: f64| (x - x.round()).abs() <= 1e-9 * x.abs().max(1.0);
+        anyhow::ensure!(
+            g.intervals >= 1
+                && g.intervals <= axcomp_core::geometric::MAX_GEOMETRIC_SEGMENTS as usize
+                && whole(start)
+                && whole(seg)
+                && seg.round() >= 1.0
+                && seg.round() * g.intervals as f64 <= u32::MAX as f64,
+            "geometry model: the {} grid ({} .. {} mm, {} intervals) does not fall on whole counts \
+             of {upc} µm (start {start} counts, knot spacing {seg} counts); the core's grid needs \
+             whole counts and 1..=1024 intervals",
+            "XYZ".as_bytes()[k] as char,
+            g.lo,
+            g.hi,
+            g.intervals
+        );
+        grids[k] = GeometricGrid {
+            start_counts: start.round() as i64,
+            segment_counts: seg.round() as u32,
+            n_segments: g.intervals as u32,
+        };
+    }
+    let mut identified = 0u32;
+    for (i, c) in model.components.iter().enumerate().take(21) {
+        if c.identified {
+            identified |= 1 << i;
+        }
+    }
+    let mut coefficients = Vec::new();
+    for k in 0..3 {
+        let n = model.grids[k].intervals;
+        for seg in 0..n {
+            for f in 0..6 {
+                let comp = &model.components[6 * k + f];
+                if !comp.identified {
+                    coefficients.push([0.0; 4]);
+                    continue;
+                }
+                anyhow::ensure!(
+                    comp.coefficients.len() == n + 3,
+                    "geometry model: {} has {} spline coefficients, its axis's grid needs {}",
+                    comp.name,
+                    comp.coefficients.len(),
+                    n + 3
+                );
+                let c = [0, 1, 2, 3].map(|j| comp.coefficients[seg + j]);
+                coefficients.push(bspline_segment_to_horner(c).map(|v| v as f32));
+            }
+        }
+    }
+    let sq = |i: usize| {
+        let c = &model.components[18 + i];
+        if c.identified { c.value as f32 } else { 0.0 }
+    };
+    let chain = model.topology.chain();
+    anyhow::ensure!(
+        chain.len() == 3,
+        "geometry model: the stacking must have 3 axes"
+    );
+    let section = GeometricSection {
+        chain: [0, 1, 2].map(|i| chain[i].index() as u8),
+        work_axes: model.topology.work.len() as u8,
+        identified,
+        tool_offset_um: tool_offset_mm.map(|v| (v * 1000.0) as f32),
+        squareness_urad: [sq(0), sq(1), sq(2)],
+        grids,
+        coefficients,
+    };
+    section
+        .spec()
+        .validate()
+        .map_err(|e| anyhow::anyhow!("geometry model: {e}"))?;
+    Ok(section)
+}
+
+fn parse_tool_offset(arg: &str) -> anyhow::Result<[f64; 3]> {
+    let v: Vec<f64> = arg
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("--tool-offset-mm {arg}: expected three numbers x,y,z"))?;
+    anyhow::ensure!(
+        v.len() == 3 && v.iter().all(|x| x.is_finite()),
+        "--tool-offset-mm {arg}: expected three finite numbers x,y,z"
+    );
+    Ok([v[0], v[1], v[2]])
+}
+
 #[derive(Debug, clap::Args)]
 pub struct GroupArgs {
     /// One axis, in slot order (1 to 5 times): `NAME=IMAGE` for a linear axis (X, Y, Z),
@@ -561,6 +799,18 @@ pub struct GroupArgs {
     /// required; bc-head: B axis to tool tip, mm (default: the model's --pivot-mm).
     #[arg(long, value_name = "L")]
     pub tool_length_mm: Option<f64>,
+    /// Volumetric geometric model (JSON from `fit geometry --out`); the group needs X, Y and Z,
+    /// whose strokes become the model's grids (an axis table must span the same grid).
+    #[arg(long, value_name = "MODEL.json")]
+    pub geometry: Option<PathBuf>,
+    /// Tool offset from the tool reference point for the geometric stage, mm: `x,y,z`.
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        requires = "geometry",
+        allow_hyphen_values = true
+    )]
+    pub tool_offset_mm: Option<String>,
     /// Output group image file.
     #[arg(long, value_name = "IMAGE")]
     pub out: PathBuf,
@@ -778,6 +1028,68 @@ fn rotary_from_json(
     })
 }
 
+/// `--geometry MODEL.json [--tool-offset-mm x,y,z]` for the group's axes: the model converted
+/// with the X, Y, Z images' scales; each axis table must span the model's grid of its axis.
+fn geometric_for_group(
+    path: &std::path::Path,
+    tool_offset: Option<&str>,
+    axes: &[(AxisName, u32, Vec<u8>)],
+) -> anyhow::Result<GeometricSection> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("--geometry {}: cannot read", path.display()))?;
+    let model = GeometryModel::from_json(&text, &path.display().to_string())?;
+    let tool = tool_offset
+        .map(parse_tool_offset)
+        .transpose()?
+        .unwrap_or([0.0; 3]);
+    let mut upc = [0.0f64; 3];
+    let mut tables = [None; 3];
+    for (k, name) in [AxisName::X, AxisName::Y, AxisName::Z]
+        .into_iter()
+        .enumerate()
+    {
+        let (_, _, bytes) = axes.iter().find(|(n, _, _)| *n == name).with_context(|| {
+            format!(
+                "--geometry {}: the geometric stage needs axis {} in the group (--axis {}=IMAGE)",
+                path.display(),
+                name.letter(),
+                name.letter()
+            )
+        })?;
+        let mut comp = Box::new(Compensator::IDENTITY);
+        comp.load(bytes)
+            .with_context(|| format!("axis {}: image does not load", name.letter()))?;
+        // The image stores f32: its shortest decimal (0.1, not 0.10000000149) is the scale meant.
+        upc[k] = comp
+            .um_per_count()
+            .to_string()
+            .parse::<f64>()
+            .unwrap_or(comp.um_per_count() as f64);
+        if comp.has_table() {
+            let n = comp.forward_segments().len() as i64;
+            let start = comp.table_start_counts();
+            tables[k] = Some((start, start + n * comp.segment_counts() as i64));
+        }
+    }
+    let g = geometric_from_model(&model, upc, tool)
+        .with_context(|| format!("--geometry {}", path.display()))?;
+    for (k, t) in tables.iter().enumerate() {
+        if let Some((lo, hi)) = t {
+            let (glo, ghi) = g.strokes()[k];
+            anyhow::ensure!(
+                (*lo, *hi) == (glo, ghi),
+                "--geometry {}: axis {}'s positioning table spans {lo} .. {hi} counts, the \
+                 geometry model's {} grid {glo} .. {ghi} counts; the group's tables of an axis \
+                 must span one stroke",
+                path.display(),
+                "XYZ".as_bytes()[k] as char,
+                "XYZ".as_bytes()[k] as char
+            );
+        }
+    }
+    Ok(g)
+}
+
 /// The group image bytes from the arguments (validated; nothing is written here).
 pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
     let mut axes = Vec::new();
@@ -824,20 +1136,34 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
             n.letter()
         );
     }
+    let geometric = match &args.geometry {
+        Some(path) => Some(geometric_for_group(
+            path,
+            args.tool_offset_mm.as_deref(),
+            &axes,
+        )?),
+        None => None,
+    };
     let specs: Vec<AxisSectionSpec> = axes
         .iter()
         .zip(&name_refs)
         .map(|((name, cpr, bytes), names)| AxisSectionSpec {
             name: *name,
             counts_per_rev: *cpr,
-            stroke_counts: None,
+            stroke_counts: geometric
+                .as_ref()
+                .filter(|_| !name.is_rotary())
+                .map(|g| g.strokes()[name.code() as usize]),
             image: bytes,
             sensor_names: names,
         })
         .collect();
-    let mut buf = vec![0u8; group_image::group_image_len(&specs, rotary.as_ref())];
-    let n = group_image::write_group_image(&specs, rotary.as_ref(), &mut buf)
-        .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
+    let geo_spec = geometric.as_ref().map(GeometricSection::spec);
+    let mut buf =
+        vec![0u8; group_image::group_image_len_with(&specs, rotary.as_ref(), geo_spec.as_ref())];
+    let n =
+        group_image::write_group_image_with(&specs, rotary.as_ref(), geo_spec.as_ref(), &mut buf)
+            .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
     buf.truncate(n);
     Ok(buf)
 }
@@ -932,7 +1258,7 @@ pub fn group(args: GroupArgs) -> anyhow::Result<()> {
     outputs.commit()?;
     let view = group_image::parse(&bytes)?;
     println!(
-        "wrote {} ({} bytes, group of {} axes: {}, rotary model: {}, CRC-32 {:08x})",
+        "wrote {} ({} bytes, group of {} axes: {}, rotary model: {}, geometric model: {}, CRC-32 {:08x})",
         args.out.display(),
         bytes.len(),
         view.axis_count(),
@@ -941,6 +1267,11 @@ pub fn group(args: GroupArgs) -> anyhow::Result<()> {
             .collect::<Vec<_>>()
             .join(""),
         if view.rotary.is_some() { "yes" } else { "no" },
+        if view.geometric.is_some() {
+            "yes"
+        } else {
+            "no"
+        },
         view.crc
     );
     Ok(())
@@ -988,6 +1319,8 @@ mod tests {
             rotary: Some(rot.clone()),
             pivot_counts: None,
             tool_length_mm: None,
+            geometry: None,
+            tool_offset_mm: None,
             out: dir.join("g.bin"),
         };
         // The same group the scenario builds, byte for byte.
@@ -1016,6 +1349,8 @@ mod tests {
                 rotary: None,
                 pivot_counts: None,
                 tool_length_mm: None,
+                geometry: None,
+                tool_offset_mm: None,
                 out: dir.join("never.bin"),
             })
             .unwrap_err();

@@ -17,6 +17,17 @@ use axcomp_kinematics::{Component, ComponentKind, ComponentValues, Topology, dot
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
+/// Volumetric error magnitude of a compensated run ([`GeometryTwin::compensated_volume`]): before (no
+/// compensation) and after, max and rms over the grid's points, µm.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct VolumetricResidual {
+    pub points: usize,
+    pub before_max_um: f64,
+    pub before_rms_um: f64,
+    pub after_max_um: f64,
+    pub after_rms_um: f64,
+}
+
 /// One smooth truth function of a component over its axis (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TruthCurve {
@@ -157,6 +168,47 @@ impl GeometryTwin {
     /// True tool-point error (µm, exact HTM chain) at axis positions `q` with tool offset `t`.
     pub fn error(&self, q: [f64; 3], t: [f64; 3]) -> [f64; 3] {
         exact_error(&self.topology, q, t, &self.values_at(q))
+    }
+
+    /// A compensated run over the volume: an `n`³ grid of axis positions in `[lo, hi]` (mm), tool offset
+    /// `t` (mm). Each position q is commanded through `controller` (q → the corrected command, mm: the
+    /// controller with its compensation, e.g. the core's geometric stage and its rounding to counts); the
+    /// axes go where commanded and the tool point lands, relative to the workpiece, at the corrected command
+    /// plus the truth error there (exact HTM chain). Residual = landed − q; before = the truth error at q.
+    pub fn compensated_volume(
+        &self,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        n: usize,
+        t: [f64; 3],
+        mut controller: impl FnMut([f64; 3]) -> [f64; 3],
+    ) -> VolumetricResidual {
+        let n = n.max(2);
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let mut r = VolumetricResidual::default();
+        let (mut sb, mut sa) = (0.0, 0.0);
+        for i in 0..n {
+            for j in 0..n {
+                for k in 0..n {
+                    let f =
+                        |a: usize, s: usize| lo[a] + (hi[a] - lo[a]) * s as f64 / (n - 1) as f64;
+                    let q = [f(0, i), f(1, j), f(2, k)];
+                    let before = norm(self.error(q, t));
+                    let c = controller(q);
+                    let e = self.error(c, t);
+                    let landed: [f64; 3] = std::array::from_fn(|d| c[d] + e[d] * 1e-3);
+                    let after = norm(std::array::from_fn(|d| (landed[d] - q[d]) * 1e3));
+                    r.before_max_um = r.before_max_um.max(before);
+                    r.after_max_um = r.after_max_um.max(after);
+                    sb += before * before;
+                    sa += after * after;
+                    r.points += 1;
+                }
+            }
+        }
+        r.before_rms_um = (sb / r.points as f64).sqrt();
+        r.after_rms_um = (sa / r.points as f64).sqrt();
+        r
     }
 
     /// Measures `lines`, each `runs` times (run 1 = all lines, then run 2, …), with noise and drift from
