@@ -247,17 +247,20 @@ fn typed_refusals() {
     u[dir_at(2)..dir_at(2) + 2].copy_from_slice(&77u16.to_le_bytes());
     reseal(&mut u);
     assert_eq!(err(&u), ImageError::UnknownSection { kind: 77 });
-    // The reserved type (probe settings) is not supported yet when mandatory. (Type 2, the
-    // geometric model, is supported since issue 10: an axis section retyped as one is refused
-    // as malformed; its own refusals are in tests/geometric.rs.)
+    // A known type in a version this reader does not support, mandatory: refused as unsupported.
+    // (Types 2, the geometric model, and 4, the probe settings, are supported since issues 10 and
+    // 12: an axis section retyped as one is refused as malformed; their own refusals are in
+    // tests/geometric.rs and tests/probe_image.rs.)
     let mut r = good.clone();
-    r[dir_at(2)..dir_at(2) + 2].copy_from_slice(&4u16.to_le_bytes());
+    r[dir_at(2) + 2..dir_at(2) + 4].copy_from_slice(&9u16.to_le_bytes());
     reseal(&mut r);
-    assert_eq!(err(&r), ImageError::UnsupportedSection { kind: 4 });
-    let mut r = good.clone();
-    r[dir_at(2)..dir_at(2) + 2].copy_from_slice(&2u16.to_le_bytes());
-    reseal(&mut r);
-    assert_eq!(err(&r), ImageError::SectionBounds { index: 2 });
+    assert_eq!(err(&r), ImageError::UnsupportedSection { kind: 1 });
+    for kind in [2u16, 4] {
+        let mut r = good.clone();
+        r[dir_at(2)..dir_at(2) + 2].copy_from_slice(&kind.to_le_bytes());
+        reseal(&mut r);
+        assert_eq!(err(&r), ImageError::SectionBounds { index: 2 }, "kind {kind}");
+    }
     // A section for an axis the group lacks: sensor names of B.
     let mut s = good.clone();
     s[dir_at(1) + 4] = AxisName::B.code();
