@@ -34,6 +34,13 @@ pub struct Args {
     /// Write a Markdown report with SVG figures into this directory.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// Laser-line data: axes carrying the workpiece, from the bed outward (the lever arms of the angular
+    /// errors).
+    #[arg(long, default_value = "YX", value_name = "AXES")]
+    pub work_axes: String,
+    /// Laser-line data: axes carrying the tool, from the bed outward.
+    #[arg(long, default_value = "Z", value_name = "AXES")]
+    pub tool_axes: String,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
