@@ -17,9 +17,9 @@
 //!
 //! | candidate | columns (each projected on the beam) | variants | applicable when |
 //! |---|---|---|---|
-//! | `abbe_angular` | the design columns of the angular components (`EAX` … `ECZ`) the model lacks: they act through the lever arms (axis positions above the axis in the chain, and the tool offsets) | per axis, and all missing | an angular component is missing and some training reading gives it a lever arm |
+//! | `abbe_angular` | the design columns of the angular components (`EAX` … `ECZ`) the model lacks: they act through the lever arms (axis positions above the axis in the chain, and the tool offsets) | per axis, and all missing; knot grid (1, 2, 4 intervals, the model's) | an angular component is missing and some training reading gives it a lever arm |
 //! | `squareness` | the columns of the missing `EC0Y`, `EB0Z`, `EA0Z` | each, and all missing | a squareness is missing and its axis moves |
-//! | `straightness` | the columns of the missing straightness components (`EYX`, `EZX`, `EXY`, `EZY`, `EXZ`, `EYZ`) | per axis, and all missing | a straightness is missing and read by a training beam |
+//! | `straightness` | the columns of the missing straightness components (`EYX`, `EZX`, `EXY`, `EZY`, `EXZ`, `EYZ`) | per axis, and all missing; knot grid (1, 2, 4 intervals, the model's) | a straightness is missing and read by a training beam |
 //! | `cross_coupling` | b_a·u_a^i·u_c^j, i, j ∈ {1, 2}: axis a's error depending on another axis c's position (the parts a rigid chain can carry — e.g. X's yaw times y — are absorbed by the model's angular columns; only the rest adds rank) | ordered pair (a, c) | both axes move |
 //! | `thermal_drift` | b_k·(q_k/1000)·ΔT_s (scale expansion along each axis, µm/m/K) and/or b_k·ΔT_s (offset) | sensor (or all), form | a `*_degC` column varies on the training rows |
 //! | `time_drift` | b_k·P_j(t̃), Legendre P1 … P_d, d ≤ 3 (a drift of the tool point along each axis) | degree | `time_s` varies |
@@ -234,12 +234,13 @@ fn names(c: &[Component]) -> String {
     c.iter().map(|c| c.name()).collect::<Vec<_>>().join(", ")
 }
 
-/// Families of one component group ("per axis, and all missing" or "each, and all missing").
+/// Families of one component group ("per axis, and all missing" or "each, and all missing"), each set
+/// on every knot grid of `designs` (coarse grids first: a smooth error needs few columns).
 fn component_family<'a>(
     kind: LineEffect,
     missing: &[Component],
     groups: Vec<Vec<Component>>,
-    design: &Design,
+    designs: &[&Design],
     train: &[usize],
 ) -> Option<CandidateFamily<'a>> {
     let mut variants = Vec::new();
@@ -248,18 +249,26 @@ fn component_family<'a>(
         .filter(|g| !g.is_empty() && g.len() < missing.len())
         .collect();
     sets.push(missing.to_vec());
-    let searched = usize::from(sets.len() > 1);
+    let searched = usize::from(sets.len() > 1) + usize::from(designs.len() > 1);
     for set in sets {
-        let cols = design.component_columns(&set, train);
-        if cols.is_empty() {
-            continue;
+        let mut seen = Vec::new();
+        for design in designs {
+            let cols = design.component_columns(&set, train);
+            if cols.is_empty() || seen.contains(&cols.len()) {
+                continue;
+            }
+            seen.push(cols.len());
+            let mut params = Map::new();
+            params.insert(
+                "components".into(),
+                json!(set.iter().map(|c| c.name()).collect::<Vec<_>>()),
+            );
+            params.insert(
+                "knot_intervals".into(),
+                json!(design.layout.grids.map(|g| g.intervals)),
+            );
+            variants.push(CandidateVariant::new(cols, params, searched));
         }
-        let mut params = Map::new();
-        params.insert(
-            "components".into(),
-            json!(set.iter().map(|c| c.name()).collect::<Vec<_>>()),
-        );
-        variants.push(CandidateVariant::new(cols, params, searched));
     }
     if variants.is_empty() {
         return None;
@@ -327,6 +336,14 @@ fn candidates<'a>(
         moves[k] = varies(&u[k], train);
     }
     let axis_name = |k: usize| ['X', 'Y', 'Z'][k];
+    // Knot grids of the component candidates: 1, 2 and 4 intervals per axis (when coarser than the
+    // model's), then the model's own grid.
+    let coarse: Vec<Design> = [1usize, 2, 4]
+        .into_iter()
+        .filter(|&k| design.layout.grids.iter().any(|g| g.intervals > k))
+        .map(|k| Design::new(obs, Some(k)))
+        .collect();
+    let designs: Vec<&Design> = coarse.iter().chain([design]).collect();
     for kind in kinds {
         match kind {
             LineEffect::AbbeAngular => {
@@ -343,7 +360,7 @@ fn candidates<'a>(
                             .collect()
                     })
                     .collect();
-                match component_family(kind, &miss, groups, design, train) {
+                match component_family(kind, &miss, groups, &designs, train) {
                     Some(f) => fams.push(f),
                     None => na.push(format!(
                         "abbe_angular: no training reading gives the missing angular components ({}) a lever arm",
@@ -358,7 +375,7 @@ fn candidates<'a>(
                     continue;
                 }
                 let groups = miss.iter().map(|c| vec![*c]).collect();
-                match component_family(kind, &miss, groups, design, train) {
+                match component_family(kind, &miss, groups, &[design], train) {
                     Some(f) => fams.push(f),
                     None => na.push(format!(
                         "squareness: no training reading depends on the missing {}",
@@ -380,7 +397,7 @@ fn candidates<'a>(
                             .collect()
                     })
                     .collect();
-                match component_family(kind, &miss, groups, design, train) {
+                match component_family(kind, &miss, groups, &designs, train) {
                     Some(f) => fams.push(f),
                     None => na.push(format!(
                         "straightness: no training beam reads the missing {}",

@@ -14,6 +14,8 @@
 //!   training rows — the best any diagnosis could do.
 //! - **shrink**: held-out RMS reduction in % (`100·(1 − after/before)`).
 //!
-//! Modules: [`axis`] (single-axis campaigns: ISO 230-2 runs, scans, load steps, thermal rounds).
+//! Modules: [`axis`] (single-axis campaigns: ISO 230-2 runs, scans, load steps, thermal rounds),
+//! [`lines`] (laser lines of the three-axis twin).
 
 pub mod axis;
+pub mod lines;
