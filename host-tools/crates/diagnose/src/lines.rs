@@ -498,6 +498,10 @@ fn candidates<'a>(
                         variants.push(CandidateVariant::new(cols, params, searched));
                     }
                 }
+                if variants.is_empty() {
+                    na.push("thermal_drift: no training beam reads the sensors' terms".into());
+                    continue;
+                }
                 let mut f = CandidateFamily::new(kind.name(), variants);
                 f.simplicity = 0;
                 fams.push(f);
@@ -532,6 +536,10 @@ fn candidates<'a>(
                     let mut params = Map::new();
                     params.insert("degree".into(), json!(degree));
                     variants.push(CandidateVariant::new(cols, params, 1));
+                }
+                if variants.is_empty() {
+                    na.push("time_drift: no training beam reads a drift".into());
+                    continue;
                 }
                 let mut f = CandidateFamily::new(kind.name(), variants);
                 f.last_resort = true;
