@@ -259,7 +259,11 @@ fn typed_refusals() {
         let mut r = good.clone();
         r[dir_at(2)..dir_at(2) + 2].copy_from_slice(&kind.to_le_bytes());
         reseal(&mut r);
-        assert_eq!(err(&r), ImageError::SectionBounds { index: 2 }, "kind {kind}");
+        assert_eq!(
+            err(&r),
+            ImageError::SectionBounds { index: 2 },
+            "kind {kind}"
+        );
     }
     // A section for an axis the group lacks: sensor names of B.
     let mut s = good.clone();

@@ -41,6 +41,13 @@ pub struct Args {
     /// R-test data, bc-head: nominal distance from the B axis to the tool point, mm.
     #[arg(long, value_name = "L")]
     pub pivot_mm: Option<f64>,
+    /// Laser-line data: axes carrying the workpiece, from the bed outward (the lever arms of the angular
+    /// errors).
+    #[arg(long, default_value = "YX", value_name = "AXES")]
+    pub work_axes: String,
+    /// Laser-line data: axes carrying the tool, from the bed outward.
+    #[arg(long, default_value = "Z", value_name = "AXES")]
+    pub tool_axes: String,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {

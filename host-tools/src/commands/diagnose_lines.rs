@@ -1,11 +1,180 @@
-//! `axcomp diagnose` on laser-line data (`x_mm`, `y_mm`, `z_mm`, `line`, `deviation_um`): the base model fitted on the
-//! training rows, the held-out gap, and which unmodelled effect of the contract's vocabulary explains it.
+//! `axcomp diagnose` on laser-line data (`x_mm`, `y_mm`, `z_mm`, `line`, `deviation_um`): the geometry
+//! model named by `--model` (`geometry` = the rigid 21-term model, or ISO names) fitted on the training
+//! rows, the gap on the held-out lines, and which unmodelled effect of the contract's line vocabulary
+//! explains it (`axcomp_diagnose::lines`; the verdict rule is `axcomp_diagnose::judge`'s).
+
+use anyhow::Context;
+use axcomp_data::HoldoutSpec;
+use axcomp_diagnose::lines::{self, LineObservations, LineOptions};
+use axcomp_diagnose::obs::{Named, Observations};
+use axcomp_diagnose::{DiagnoseOptions, report};
+use axcomp_geometry::LineData;
+use axcomp_kinematics::Topology;
 
 use super::diagnose::Args;
+use crate::output::OutputSet;
 
-pub fn run(_args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
-    anyhow::bail!(
-        "{}: diagnosis of laser-line data (`x_mm`, `y_mm`, `z_mm`, `line`, `deviation_um`) is not available in this build (issue 10)",
-        ds.source()
-    )
+/// The line observations of a dataset (checks of `axcomp-geometry`: ≥ 3 targets per line, unit beams
+/// along their lines, finite cells).
+pub fn observations(
+    ds: &axcomp_data::Dataset,
+    target: &str,
+    holdout: &str,
+    topology: Topology,
+) -> anyhow::Result<LineObservations> {
+    let mut data = LineData::from_dataset(ds, true)?;
+    if target != "deviation_um" {
+        let y = ds.numeric(target)?;
+        if let Some(i) = y.iter().position(|v| !v.is_finite()) {
+            anyhow::bail!("{}: not a finite number", ds.locate(target, i));
+        }
+        for (r, v) in data.readings.iter_mut().zip(y) {
+            r.deviation_um = *v;
+        }
+    }
+    let held_out = HoldoutSpec::parse(holdout)?.mask(ds)?;
+    let time_s = if ds.has("time_s") {
+        Some(ds.numeric("time_s")?.to_vec())
+    } else {
+        ds.time_s().map(<[f64]>::to_vec)
+    };
+    let mut temperatures = Vec::new();
+    for s in ds.sensors() {
+        let col = format!("{s}_degC");
+        temperatures.push(Named {
+            name: s,
+            values: ds.numeric(&col)?.to_vec(),
+        });
+    }
+    let obs = LineObservations {
+        data,
+        target_name: target.to_string(),
+        held_out,
+        time_s,
+        temperatures,
+        topology,
+    };
+    obs.validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
+    Ok(obs)
+}
+
+pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
+    let model = lines::parse_model(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
+    let topology = Topology::parse(&args.work_axes, &args.tool_axes)?;
+    let mut outputs = OutputSet::new();
+    if let Some(dir) = &args.report {
+        outputs.dir(dir).planned(dir.join("diagnosis.md"));
+    }
+    if let Some(path) = &args.json {
+        outputs.planned(path);
+    }
+    outputs.check()?;
+    let obs = observations(&ds, &args.target, &args.holdout, topology)
+        .with_context(|| format!("{}", args.data.data.display()))?;
+    drop(ds);
+    let opts = DiagnoseOptions {
+        progress: obs.n_rows() >= 20_000,
+        ..DiagnoseOptions::default()
+    }
+    .build()
+    .map_err(anyhow::Error::msg)?;
+    let ld = lines::diagnose_lines(&obs, &model, &opts, &LineOptions::default())
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.data.data.display()))?;
+    let d = &ld.diagnosis;
+    println!(
+        "gap of `{}` (model: {}, {} terms, axes {}): train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out readings)",
+        d.target,
+        args.model.trim(),
+        d.model.len(),
+        ld.topology,
+        d.gap.train_rms_um,
+        d.gap.holdout_rms_um,
+        d.gap.holdout_max_um,
+        d.n_train,
+        d.n_holdout
+    );
+    for l in &ld.holdout_lines {
+        println!(
+            "  held-out line {:<8} {:>4} readings  RMS {:.3} µm → {:.3} µm after the verdict",
+            l.line, l.rows, l.rms_before_um, l.rms_after_um
+        );
+    }
+    for r in d.where_.iter().take(4) {
+        println!(
+            "  where: {} {:.4} … {:.4} holds {:.1} % of the held-out gap",
+            r.variable,
+            r.from,
+            r.to,
+            100.0 * r.share
+        );
+    }
+    for c in d.effects.iter().take(6) {
+        println!(
+            "  candidate {:<16} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",
+            c.kind,
+            c.score,
+            c.holdout_rms_after_um,
+            c.shrink_pct,
+            if c.explains {
+                ""
+            } else if c.train_p_value < opts.alpha {
+                "  (significant, not material)"
+            } else {
+                "  (not beyond noise)"
+            }
+        );
+    }
+    for n in &d.not_applicable {
+        println!("  not applicable: {n}");
+    }
+    for n in &ld.notes {
+        println!("  note: {n}");
+    }
+    println!("verdict: {} — {}", d.verdict, d.note);
+    let mut report_files = 0;
+    if let Some(dir) = &args.report {
+        // The axis report's figures over time (the gap before / after the verdict), plus the held-out lines.
+        let pseudo = Observations {
+            target_name: obs.target_name.clone(),
+            target: obs.target(),
+            held_out: obs.held_out.clone(),
+            time_s: obs.time_s.clone(),
+            ..Default::default()
+        };
+        let mut files = report::report_files(dir, &pseudo, d)?;
+        if let Some((_, md)) = files.last_mut() {
+            let mut extra = String::from(
+                "\n## Held-out lines\n\n| line | readings | RMS before (µm) | RMS after the verdict (µm) |\n|---|---|---|---|\n",
+            );
+            for l in &ld.holdout_lines {
+                extra.push_str(&format!(
+                    "| {} | {} | {:.3} | {:.3} |\n",
+                    l.line, l.rows, l.rms_before_um, l.rms_after_um
+                ));
+            }
+            extra.push_str(&format!(
+                "\nModel: {} ({} terms), axis stacking {}.\n",
+                args.model.trim(),
+                d.model.len(),
+                ld.topology
+            ));
+            for n in &ld.notes {
+                extra.push_str(&format!("\nNote: {n}\n"));
+            }
+            md.extend_from_slice(extra.as_bytes());
+        }
+        for (path, bytes) in files {
+            outputs.file(path, bytes);
+            report_files += 1;
+        }
+    }
+    if let Some(path) = &args.json {
+        outputs.json(path, &ld)?;
+    }
+    outputs.commit()?;
+    if let Some(dir) = &args.report {
+        println!("report: {report_files} files in {}", dir.display());
+    }
+    Ok(())
 }

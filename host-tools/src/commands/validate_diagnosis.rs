@@ -16,6 +16,11 @@ use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
+    /// Which data the cases are: `axis` (single-axis campaigns, the `--harness` generators) or `lines`
+    /// (laser lines of the three-axis twin, also `--harness lines`: one of abbe_angular, squareness, straightness, cross_coupling,
+    /// thermal_drift, time_drift withheld, or none; `axcomp_validation::lines`).
+    #[arg(long, value_name = "KIND", default_value = "axis")]
+    pub data_kind: String,
     /// Case generator: `rtest` (five-axis twin, R-test data; see `axcomp_validation::rtest`),
     /// `standard` (5,000 rows, SNR 3–8, held out: every third run) or `hard` (1,500 rows,
     /// 3 ISO cycles, SNR 2–8, held out outside the training regime: last cycles, fastest scan, largest
@@ -51,6 +56,14 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    match args.data_kind.as_str() {
+        "axis" => {}
+        "lines" => return run_lines(args),
+        other => anyhow::bail!("--data-kind {other}: use axis or lines"),
+    }
+    if args.harness == "lines" {
+        return run_lines(args);
+    }
     if args.harness == "rtest" {
         return run_rtest(&args);
     }
@@ -200,6 +213,63 @@ fn run_probe(args: Args) -> anyhow::Result<()> {
             total,
             c.withheld,
             c.snr.map_or("–".to_string(), |s| s.to_string()),
+            c.verdict,
+            if c.correct { "right" } else { "wrong" },
+            c.shrink_pct,
+            c.oracle_shrink_pct
+                .map_or("–".to_string(), |o| format!("{o:.1} %")),
+            c.seconds
+        );
+    })
+    .map_err(anyhow::Error::msg)?;
+    let md = summary.to_markdown();
+    print!("{md}");
+    if let Some(p) = &args.markdown {
+        outputs.file(p, md.as_bytes());
+    }
+    if let Some(p) = &args.json {
+        outputs.json(p, &summary)?;
+    }
+    outputs.commit()?;
+    Ok(())
+}
+
+/// `--data-kind lines`: the laser-line harness on the three-axis twin.
+fn run_lines(args: Args) -> anyhow::Result<()> {
+    use axcomp_validation::lines::{LineValidateOptions, validate_lines};
+    if args.harness != "standard" || args.rows.is_some() {
+        anyhow::bail!(
+            "--harness and --rows belong to --data-kind axis (the line harness measures the twin's complete plan)"
+        );
+    }
+    let defaults = LineValidateOptions::default();
+    let opts = LineValidateOptions {
+        cases: args.cases,
+        seed: args.seed,
+        snrs: args.snr.clone().unwrap_or(defaults.snrs.clone()),
+        noise_um: args.noise_um,
+        ..defaults
+    }
+    .build()
+    .map_err(anyhow::Error::msg)?;
+    let mut outputs = OutputSet::new();
+    if let Some(p) = &args.markdown {
+        outputs.planned(p);
+    }
+    if let Some(p) = &args.json {
+        outputs.planned(p);
+    }
+    outputs.check()?;
+    let total = opts.cases;
+    let summary = validate_lines(&opts, |c| {
+        eprintln!(
+            "[{}/{}] withheld {} ({}) snr {} held out {} → verdict {} ({}), shrink {:.1} % (oracle {}), {:.2} s",
+            c.index + 1,
+            total,
+            c.withheld,
+            c.detail,
+            c.snr.map_or("–".to_string(), |s| s.to_string()),
+            c.holdout_lines.join(","),
             c.verdict,
             if c.correct { "right" } else { "wrong" },
             c.shrink_pct,

@@ -20,7 +20,7 @@
 //!
 //! Modules: [`obs`] (plain columns), [`dataset`] (from an `axcomp-data` CSV), [`basis`] (regressor
 //! families), [`lsq`] (rank-robust least squares and exact refit RSS drops), [`judge`] (the verdict rule
-//! on columns, shared by every data kind), [`engine`] (the single-axis diagnosis),
+//! on columns, shared by every data kind), [`engine`] (the single-axis diagnosis), [`lines`] (laser-line data of a three-axis machine),
 //! [`locate`] (where the gap lies), [`report`] (Markdown + SVG), [`stats`] (F / t tails). The
 //! withheld-effect validation harness lives in `axcomp-validation`, so that this crate depends on no
 //! simulator.
@@ -36,6 +36,7 @@ pub mod basis;
 pub mod dataset;
 pub mod engine;
 pub mod judge;
+pub mod lines;
 pub mod locate;
 pub mod lsq;
 pub mod obs;

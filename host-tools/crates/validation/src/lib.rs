@@ -14,9 +14,11 @@
 //!   training rows — the best any diagnosis could do.
 //! - **shrink**: held-out RMS reduction in % (`100·(1 − after/before)`).
 //!
-//! Modules: [`axis`] (single-axis campaigns: ISO 230-2 runs, scans, load steps, thermal rounds), [`probe`]
-//! (touch-probe campaigns: calibration sphere, plane, ring gauge, a held-out second sphere).
+//! Modules: [`axis`] (single-axis campaigns: ISO 230-2 runs, scans, load steps, thermal rounds),
+//! [`lines`] (laser lines of the three-axis twin), [`rtest`] (R-test campaigns of the five-axis twin),
+//! [`probe`] (touch-probe campaigns: calibration sphere, plane, ring gauge, a held-out second sphere).
 
 pub mod axis;
+pub mod lines;
 pub mod probe;
 pub mod rtest;
