@@ -115,15 +115,24 @@ pub fn model_record(
     role: u8,
 ) -> anyhow::Result<axcomp_core::provenance::ProvenanceRecord> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let data = read_from(&bytes)
+    Ok(model_record_of(&bytes, axis, role))
+}
+
+/// [`model_record`] of a model file's bytes (e.g. one written in the same run).
+pub fn model_record_of(
+    bytes: &[u8],
+    axis: u8,
+    role: u8,
+) -> axcomp_core::provenance::ProvenanceRecord {
+    let data = read_from(bytes)
         .and_then(|p| from_hex(&p.source_sha256))
         .unwrap_or([0; 32]);
-    Ok(axcomp_core::provenance::ProvenanceRecord {
+    axcomp_core::provenance::ProvenanceRecord {
         axis,
         role,
-        model_sha256: sha256(&bytes),
+        model_sha256: sha256(bytes),
         data_sha256: data,
-    })
+    }
 }
 
 /// The image's provenance block: [`TOOL`], the date now, `records`.

@@ -158,5 +158,24 @@ fn demo_table_carries_the_provenance_of_its_measurement() {
         );
     }
     assert!(p.tool.starts_with("axcomp ") && p.created_utc.ends_with('Z'));
+    // The demo's image names its table file and that file's data by their SHA-256 (issue 14 item 8:
+    // every image header), as `image build` does; `image inspect` shows them.
+    let o = Command::new(env!("CARGO_BIN_EXE_axcomp"))
+        .args(["image", "inspect", "d/image.bin"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let table_sha = axcomp_data::provenance::file_sha256(&dir.join("d/table.json"))
+        .unwrap()
+        .0;
+    assert!(
+        text.contains(&format!(
+            "positioning table sha256 {table_sha}; data sha256 {}",
+            p.source_sha256
+        )),
+        "{text}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

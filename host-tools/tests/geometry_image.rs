@@ -183,6 +183,7 @@ fn args(
         tool_length_mm: None,
         geometry,
         tool_offset_mm: tool.map(str::to_string),
+        probe: None,
         out,
     }
 }

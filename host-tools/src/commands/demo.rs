@@ -306,10 +306,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .into());
     }
     fitted.table.validate()?;
-    files.add(
-        "table.json",
-        serde_json::to_string_pretty(&fitted.table)? + "\n",
-    );
+    let table_json = serde_json::to_string_pretty(&fitted.table)? + "\n";
+    files.add("table.json", table_json.clone());
     let t_fit = t0.elapsed();
 
     // 3. Firmware image (the core's `write_image`, as `axcomp image build`), loaded as the firmware would.
@@ -323,7 +321,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         thermo: None,
         limits,
     };
-    let image = image_bytes(&spec)?;
+    // With its provenance (as `image build` writes it): the table file's hash and its data's.
+    let image = super::image::with_extension(
+        image_bytes(&spec)?,
+        &[crate::provenance::model_record_of(
+            table_json.as_bytes(),
+            axcomp_core::provenance::ANY_AXIS,
+            axcomp_core::provenance::role::POSITIONING_TABLE,
+        )],
+        &[],
+    )?;
     let mut comp = Compensator::IDENTITY;
     comp.load(&image).context("loading the built image")?;
     files.add("image.bin", image.clone());

@@ -22,6 +22,7 @@ use axcomp_core::geometric::{
 };
 use axcomp_core::group::AxisName;
 use axcomp_core::group_image::{self, AxisSectionSpec};
+use axcomp_core::probe::ProbeSettings;
 use axcomp_core::provenance;
 use axcomp_core::rotary::{RotaryLocationSpec, RotaryMachine};
 use axcomp_core::wiring::{BoardInput, InputUnit};
@@ -157,7 +158,17 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
             )?);
         }
     }
-    let block = crate::provenance::image_block(&records)?;
+    with_extension(buf, &records, &names)
+}
+
+/// A schema-1 image with its header extension: the provenance block (tool, date, `records`) and, if
+/// any, the sensor names (`PROV`, `SNAM`; CRC-covered, ignored by the correction).
+pub fn with_extension(
+    image: Vec<u8>,
+    records: &[axcomp_core::provenance::ProvenanceRecord],
+    names: &[String],
+) -> anyhow::Result<Vec<u8>> {
+    let block = crate::provenance::image_block(records)?;
     let mut field = vec![0u8; group_image::SENSOR_NAME_LEN * names.len()];
     for (i, n) in names.iter().enumerate() {
         let at = group_image::SENSOR_NAME_LEN * i;
@@ -167,8 +178,8 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
     if !names.is_empty() {
         blocks.push((provenance::SENSOR_NAMES_TAG, field.as_slice()));
     }
-    let mut out = vec![0u8; buf.len() + provenance::extension_len(&blocks)];
-    let n = provenance::with_header_extension(&buf, &blocks, &mut out)
+    let mut out = vec![0u8; image.len() + provenance::extension_len(&blocks)];
+    let n = provenance::with_header_extension(&image, &blocks, &mut out)
         .map_err(|e| anyhow::anyhow!("the image's sensor names or provenance: {e}"))?;
     out.truncate(n);
     Ok(out)
@@ -495,6 +506,17 @@ pub fn describe_any(bytes: &[u8]) -> anyhow::Result<String> {
         Some(r) => s.push_str(&describe_rotary(&r)),
         None => writeln!(s, "rotary location errors: none")?,
     }
+    match &view.probe {
+        Some(p) => writeln!(
+            s,
+            "probe settings: minimum pulse {} µs, latency {} µs, lockout {} ms, moving above {} mm/min",
+            p.min_pulse_us,
+            p.latency_ns as f64 / 1000.0,
+            p.lockout_us as f64 / 1000.0,
+            p.moving_um_per_s as f64 * 60.0 / 1000.0
+        )?,
+        None => writeln!(s, "probe settings: none")?,
+    }
     match &view.geometric {
         Some(g) => s.push_str(&describe_geometric(g)),
         None => writeln!(s, "geometric model: none")?,
@@ -761,6 +783,41 @@ pub fn geometric_from_model(
     Ok(section)
 }
 
+/// `--probe recommended` or `KEY=V,..` over [`ProbeSettings::RECOMMENDED`]; validated.
+pub fn parse_probe_settings(arg: &str) -> anyhow::Result<ProbeSettings> {
+    let mut p = ProbeSettings::RECOMMENDED;
+    if arg.trim() != "recommended" {
+        for kv in arg.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            let (k, v) = kv
+                .split_once('=')
+                .with_context(|| format!("--probe `{kv}`: expected KEY=VALUE or `recommended`"))?;
+            let v: f64 = v
+                .trim()
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite() && *v >= 0.0)
+                .with_context(|| format!("--probe `{kv}`: the value must be a number >= 0"))?;
+            let whole = |x: f64| -> anyhow::Result<u32> {
+                anyhow::ensure!(x <= u32::MAX as f64, "--probe `{kv}`: {x} is out of range");
+                Ok(x.round() as u32)
+            };
+            match k.trim() {
+                "min_pulse_us" => p.min_pulse_us = whole(v)?,
+                "latency_us" => p.latency_ns = whole(v * 1000.0)?,
+                "lockout_ms" => p.lockout_us = whole(v * 1000.0)?,
+                "moving_mm_min" => p.moving_um_per_s = (v * 1000.0 / 60.0) as f32,
+                other => anyhow::bail!(
+                    "--probe `{kv}`: unknown key `{other}` (min_pulse_us, latency_us, lockout_ms, \
+                     moving_mm_min)"
+                ),
+            }
+        }
+    }
+    p.validate()
+        .map_err(|e| anyhow::anyhow!("--probe {arg}: {e}"))?;
+    Ok(p)
+}
+
 fn parse_tool_offset(arg: &str) -> anyhow::Result<[f64; 3]> {
     let v: Vec<f64> = arg
         .split(',')
@@ -811,6 +868,11 @@ pub struct GroupArgs {
         allow_hyphen_values = true
     )]
     pub tool_offset_mm: Option<String>,
+    /// Touch-probe settings for the latch (section kind 4): `recommended` (the seed's 2 ms filter,
+    /// no latency, 20 ms lockout, 3 mm/min "moving"), or `KEY=V,..` over those with keys
+    /// `min_pulse_us`, `latency_us`, `lockout_ms`, `moving_mm_min` (e.g. `latency_us=850`).
+    #[arg(long, value_name = "SETTINGS")]
+    pub probe: Option<String>,
     /// Output group image file.
     #[arg(long, value_name = "IMAGE")]
     pub out: PathBuf,
@@ -1159,11 +1221,28 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
         })
         .collect();
     let geo_spec = geometric.as_ref().map(GeometricSection::spec);
-    let mut buf =
-        vec![0u8; group_image::group_image_len_with(&specs, rotary.as_ref(), geo_spec.as_ref())];
-    let n =
-        group_image::write_group_image_with(&specs, rotary.as_ref(), geo_spec.as_ref(), &mut buf)
-            .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
+    let probe = args
+        .probe
+        .as_deref()
+        .map(parse_probe_settings)
+        .transpose()?;
+    let mut buf = vec![
+        0u8;
+        group_image::group_image_len_with_stages(
+            &specs,
+            rotary.as_ref(),
+            geo_spec.as_ref(),
+            probe.as_ref()
+        )
+    ];
+    let n = group_image::write_group_image_with_stages(
+        &specs,
+        rotary.as_ref(),
+        geo_spec.as_ref(),
+        probe.as_ref(),
+        &mut buf,
+    )
+    .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
     buf.truncate(n);
     Ok(buf)
 }
@@ -1321,6 +1400,7 @@ mod tests {
             tool_length_mm: None,
             geometry: None,
             tool_offset_mm: None,
+            probe: None,
             out: dir.join("g.bin"),
         };
         // The same group the scenario builds, byte for byte.
@@ -1336,6 +1416,47 @@ mod tests {
             text.contains("sensor 1 name: column") && text.contains("EB0A 18 µrad"),
             "{text}"
         );
+        // With probe settings (section kind 4): parsed back by the core, shown by inspect.
+        let probed = group_bytes(&GroupArgs {
+            axes: axis_args.clone(),
+            sensor_names: vec!["X=spindle,column".into()],
+            rotary: Some(rot.clone()),
+            pivot_counts: None,
+            tool_length_mm: None,
+            geometry: None,
+            tool_offset_mm: None,
+            probe: Some("latency_us=850, lockout_ms=25".into()),
+            out: dir.join("never.bin"),
+        })
+        .unwrap();
+        let p = group_image::parse(&probed).unwrap().probe.unwrap();
+        assert_eq!(
+            p,
+            ProbeSettings {
+                latency_ns: 850_000,
+                lockout_us: 25_000,
+                ..ProbeSettings::RECOMMENDED
+            }
+        );
+        let text = describe_any(&probed).unwrap();
+        assert!(
+            text.contains("probe settings: minimum pulse 2000 µs, latency 850 µs, lockout 25 ms"),
+            "{text}"
+        );
+        assert!(describe_any(&g).unwrap().contains("probe settings: none"));
+        assert_eq!(
+            parse_probe_settings("recommended").unwrap(),
+            ProbeSettings::RECOMMENDED
+        );
+        for (bad, want) in [
+            ("latency=3", "unknown key `latency`"),
+            ("lockout_ms=-1", "must be a number >= 0"),
+            ("min_pulse_us=2000,lockout_ms=1", "--probe"),
+            ("fast", "expected KEY=VALUE"),
+        ] {
+            let e = parse_probe_settings(bad).unwrap_err();
+            assert!(format!("{e:#}").contains(want), "{bad}: {e:#}");
+        }
         // Errors name what is wrong.
         for (bad, want) in [
             ("Q=x.bin", "axis name must be one of"),
@@ -1351,6 +1472,7 @@ mod tests {
                 tool_length_mm: None,
                 geometry: None,
                 tool_offset_mm: None,
+                probe: None,
                 out: dir.join("never.bin"),
             })
             .unwrap_err();
