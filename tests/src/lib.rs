@@ -6,7 +6,7 @@
 //! - **CI mode**: env `CI` set; a missing prerequisite (shared data, QEMU) is then a failure, not a skip.
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus};
+use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 /// The workspace root.
@@ -145,4 +145,54 @@ pub fn qemu_command(elf: &Path, args: &[&str]) -> Command {
     .arg("-kernel")
     .arg(elf);
     c
+}
+
+/// How long one QEMU replay may take before the test fails.
+pub const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
+
+/// Runs the firmware `elf` in QEMU on `trace` (written as `trace.bin` into a scratch directory named
+/// after `tag`) and returns its exit status, its standard output (also printed, for `--nocapture`) and
+/// the `out.bin` it wrote (empty if none). A QEMU that does not finish within [`QEMU_TIMEOUT`] fails
+/// the test with its output.
+pub fn qemu_replay(elf: &Path, tag: &str, trace: &[u8]) -> (ExitStatus, String, Vec<u8>) {
+    let dir = scratch_dir(tag);
+    std::fs::write(dir.join("trace.bin"), trace).unwrap();
+    let mut child = qemu_command(elf, &["trace.bin", "out.bin"])
+        .current_dir(&dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("starting qemu-system-arm");
+    let status = wait_timeout(&mut child, QEMU_TIMEOUT).expect("waiting for QEMU");
+    let out = child.wait_with_output().expect("QEMU output");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let status = status.unwrap_or_else(|| {
+        panic!("QEMU timed out after {QEMU_TIMEOUT:?}\nstdout:\n{stdout}\nstderr:\n{stderr}")
+    });
+    println!("{stdout}");
+    let got = std::fs::read(dir.join("out.bin")).unwrap_or_default();
+    let _ = std::fs::remove_dir_all(&dir);
+    (status, stdout, got)
+}
+
+/// Coefficient pool of the group firmware `axcomp-qemu-group` (segments per slot).
+pub const GROUP_POOL: usize = 1024;
+
+/// The host's replay of a group trace through the same core as the firmware (`axcomp_firmware::replay`):
+/// the encoded output records, the number of cycles and of errors.
+pub fn host_group_replay(trace: &[u8]) -> (Vec<u8>, u32, u32) {
+    use axcomp_core::group::GroupEngine;
+    use axcomp_firmware::replay;
+    let mut engine: Box<GroupEngine<GROUP_POOL>> = Box::new(GroupEngine::new());
+    let mut buf = vec![0u8; 24 * 1024];
+    let mut stream = replay::TraceStream::new(trace, &mut buf).expect("trace header");
+    let mut out = Vec::new();
+    let sum = replay::replay_group(
+        &mut engine,
+        &mut stream,
+        |o| out.extend_from_slice(&o.encode()),
+        |_| {},
+    );
+    (out, sum.cycles, sum.errors)
 }

@@ -12,10 +12,6 @@
 //! (docs/firmware.md, "Setpoint link and faults") on the host replay, then requires QEMU to produce the
 //! same bytes.
 
-use std::path::Path;
-use std::process::{ExitStatus, Stdio};
-use std::time::Duration;
-
 use axcomp_core::group::GroupEngine;
 use axcomp_core::wiring::WiringError;
 use axcomp_firmware::drive::ImageRefusal;
@@ -26,12 +22,9 @@ use axcomp_firmware::drive::link_trace::{
 };
 use axcomp_firmware::scenario::{self, DriveFault, GroupImageVariant};
 use axcomp_firmware::status::Status;
-use axcomp_system_tests::{
-    build_qemu_firmware, qemu_command, require_tool, scratch_dir, wait_timeout,
-};
+use axcomp_system_tests::{build_qemu_firmware, qemu_replay, require_tool};
 
 const LINK_CYCLES: u32 = 4_500;
-const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
 /// The firmware's pool (`axcomp-qemu-group`).
 const POOL: usize = 1024;
 
@@ -56,27 +49,6 @@ fn decode_all(bytes: &[u8]) -> Vec<DecodedDriveOutput> {
         .chunks_exact(DRIVE_OUTPUT_LEN)
         .map(|c| DecodedDriveOutput::decode(c.try_into().unwrap()))
         .collect()
-}
-
-fn qemu_replay(elf: &Path, tag: &str, trace: &[u8]) -> (ExitStatus, String, Vec<u8>) {
-    let dir = scratch_dir(tag);
-    std::fs::write(dir.join("trace.bin"), trace).unwrap();
-    let mut child = qemu_command(elf, &["trace.bin", "out.bin"])
-        .current_dir(&dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starting qemu-system-arm");
-    let status = wait_timeout(&mut child, QEMU_TIMEOUT).expect("waiting for QEMU");
-    let out = child.wait_with_output().expect("QEMU output");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let status = status.unwrap_or_else(|| {
-        panic!("QEMU timed out after {QEMU_TIMEOUT:?}\nstdout:\n{stdout}\nstderr:\n{stderr}")
-    });
-    let got = std::fs::read(dir.join("out.bin")).unwrap_or_default();
-    let _ = std::fs::remove_dir_all(&dir);
-    (status, stdout, got)
 }
 
 fn assert_same_records(got: &[u8], want: &[u8]) {

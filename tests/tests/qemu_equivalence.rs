@@ -4,19 +4,12 @@
 //! 32-byte output record must match bit for bit (a one-ULP difference in `correction_um` or a dropped cycle
 //! fails), and the record count must equal the number of cycle records.
 
-use std::path::Path;
-use std::process::{ExitStatus, Stdio};
-use std::time::Duration;
-
 use axcomp_core::Engine;
 use axcomp_core::trace::{self, OUTPUT_RECORD_LEN, OutputRecord, Record};
 use axcomp_firmware::scenario;
-use axcomp_system_tests::{
-    build_qemu_firmware, qemu_command, require_tool, scratch_dir, wait_timeout,
-};
+use axcomp_system_tests::{build_qemu_firmware, qemu_replay, require_tool};
 
 const CYCLES: u32 = 30_000;
-const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
 
 /// Host replay: output records, cycle records seen, malformed records reported.
 fn host_replay(trace_bytes: &[u8]) -> (Vec<u8>, u32, u32) {
@@ -37,29 +30,6 @@ fn host_replay(trace_bytes: &[u8]) -> (Vec<u8>, u32, u32) {
         }
     }
     (out, cycles, errors)
-}
-
-/// Runs `elf` in QEMU on `trace_bytes`; returns its exit status, stdout and output file.
-fn qemu_replay(elf: &Path, tag: &str, trace_bytes: &[u8]) -> (ExitStatus, String, Vec<u8>) {
-    let dir = scratch_dir(tag);
-    std::fs::write(dir.join("trace.bin"), trace_bytes).unwrap();
-    let mut child = qemu_command(elf, &["trace.bin", "out.bin"])
-        .current_dir(&dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starting qemu-system-arm");
-    let status = wait_timeout(&mut child, QEMU_TIMEOUT).expect("waiting for QEMU");
-    let out = child.wait_with_output().expect("QEMU output");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let status = status.unwrap_or_else(|| {
-        panic!("QEMU timed out after {QEMU_TIMEOUT:?}\nstdout:\n{stdout}\nstderr:\n{stderr}")
-    });
-    println!("{stdout}");
-    let got = std::fs::read(dir.join("out.bin")).unwrap_or_default();
-    let _ = std::fs::remove_dir_all(&dir);
-    (status, stdout, got)
 }
 
 /// Panics with the first differing record, then compares the counts.

@@ -11,26 +11,16 @@
 //! count must be the group cycles times 3. The trace is checked to exercise the stage: against a
 //! replay of the same motion without the geometric section, the commands differ in most cycles.
 
-use std::path::Path;
-use std::process::{ExitStatus, Stdio};
-use std::time::Duration;
-
 use axcomp_core::bench;
 use axcomp_core::geometric::GeometricSpec;
-use axcomp_core::group::{GroupEngine, GroupInput};
+use axcomp_core::group::GroupInput;
 use axcomp_core::group_image::{
     self, AxisSectionSpec, DIR_ENTRY_LEN, GROUP_HEADER_LEN, write_group_image_with,
 };
 use axcomp_core::trace::{OUTPUT_RECORD_LEN, OutputRecord, Record};
-use axcomp_firmware::replay;
 use axcomp_firmware::scenario::{EQUIVALENCE_COUNTER_BITS, TraceBuilder};
-use axcomp_system_tests::{
-    build_qemu_firmware, qemu_command, require_tool, scratch_dir, wait_timeout,
-};
+use axcomp_system_tests::{build_qemu_firmware, host_group_replay, qemu_replay, require_tool};
 
-const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
-/// The firmware's pool (`axcomp-qemu-group`).
-const POOL: usize = 1024;
 /// Stroke of each axis and of the model's grids (`bench::group_geometric`), counts.
 const STROKE: i64 = bench::GROUP_SEGMENT_COUNTS as i64 * bench::GROUP_SEGMENTS as i64;
 /// Speed of a move, counts per cycle; dwell at a reading, cycles.
@@ -153,42 +143,6 @@ fn trace(first: &[u8], second: &[u8], corrupt: &[u8]) -> (Vec<u8>, u32) {
     (t.finish(), cycles)
 }
 
-fn host_replay(trace_bytes: &[u8]) -> (Vec<u8>, u32, u32) {
-    let mut engine: Box<GroupEngine<POOL>> = Box::new(GroupEngine::new());
-    let mut buf = vec![0u8; 24 * 1024];
-    let mut stream = replay::TraceStream::new(trace_bytes, &mut buf).expect("trace header");
-    let mut out = Vec::new();
-    let sum = replay::replay_group(
-        &mut engine,
-        &mut stream,
-        |o| out.extend_from_slice(&o.encode()),
-        |_| {},
-    );
-    (out, sum.cycles, sum.errors)
-}
-
-fn qemu_replay(elf: &Path, trace_bytes: &[u8]) -> (ExitStatus, String, Vec<u8>) {
-    let dir = scratch_dir("qemu-geometry");
-    std::fs::write(dir.join("trace.bin"), trace_bytes).unwrap();
-    let mut child = qemu_command(elf, &["trace.bin", "out.bin"])
-        .current_dir(&dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starting qemu-system-arm");
-    let status = wait_timeout(&mut child, QEMU_TIMEOUT).expect("waiting for QEMU");
-    let out = child.wait_with_output().expect("QEMU output");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let status = status.unwrap_or_else(|| {
-        panic!("QEMU timed out after {QEMU_TIMEOUT:?}\nstdout:\n{stdout}\nstderr:\n{stderr}")
-    });
-    println!("{stdout}");
-    let got = std::fs::read(dir.join("out.bin")).unwrap_or_default();
-    let _ = std::fs::remove_dir_all(&dir);
-    (status, stdout, got)
-}
-
 /// The images: the model, the model with a 100 mm tool offset, and the second with a bit
 /// flipped inside its geometric section (whole-image CRC re-sealed: only the section CRC can
 /// refuse it).
@@ -219,14 +173,14 @@ fn images() -> (Vec<u8>, Vec<u8>, Vec<u8>) {
 fn geometric_stage_matches_host_bit_for_bit_through_the_seven_lines() {
     let (first, second, corrupt) = images();
     let (trace_bytes, cycles) = trace(&first, &second, &corrupt);
-    let (want, replayed, errors) = host_replay(&trace_bytes);
+    let (want, replayed, errors) = host_group_replay(&trace_bytes);
     assert_eq!((replayed, errors), (cycles, 0));
     assert_eq!(want.len(), cycles as usize * 3 * OUTPUT_RECORD_LEN);
 
     // The trace exercises the stage: without the geometric section the commands differ.
     let plain = image(None);
     let (plain_trace, _) = trace(&plain, &plain, &corrupt);
-    let (without, _, _) = host_replay(&plain_trace);
+    let (without, _, _) = host_group_replay(&plain_trace);
     let records = |b: &[u8]| -> Vec<OutputRecord> {
         b.chunks(OUTPUT_RECORD_LEN)
             .map(|c| OutputRecord::decode(c).unwrap())
@@ -248,7 +202,7 @@ fn geometric_stage_matches_host_bit_for_bit_through_the_seven_lines() {
         return;
     }
     let elf = build_qemu_firmware("axcomp-qemu-group");
-    let (status, stdout, got) = qemu_replay(&elf, &trace_bytes);
+    let (status, stdout, got) = qemu_replay(&elf, "qemu-geometry", &trace_bytes);
     assert!(
         status.success(),
         "QEMU firmware failed ({status})\n{stdout}"

@@ -8,58 +8,11 @@
 //! record's `correction_um`, or one dropped record, fails), and the record count must be the
 //! number of group cycles times the axes.
 
-use std::path::Path;
-use std::process::{ExitStatus, Stdio};
-use std::time::Duration;
-
-use axcomp_core::group::GroupEngine;
 use axcomp_core::trace::{OUTPUT_RECORD_LEN, OutputRecord};
-use axcomp_firmware::{replay, scenario};
-use axcomp_system_tests::{
-    build_qemu_firmware, qemu_command, require_tool, scratch_dir, wait_timeout,
-};
+use axcomp_firmware::scenario;
+use axcomp_system_tests::{build_qemu_firmware, host_group_replay, qemu_replay, require_tool};
 
 const CYCLES: u32 = 20_000;
-const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
-/// The firmware's pool (`axcomp-qemu-group`): the host uses the same so that refusals agree.
-const POOL: usize = 1024;
-
-/// Host replay: output bytes, group cycles, malformed records.
-fn host_replay(trace_bytes: &[u8]) -> (Vec<u8>, u32, u32) {
-    let mut engine: Box<GroupEngine<POOL>> = Box::new(GroupEngine::new());
-    let mut buf = vec![0u8; 24 * 1024];
-    let mut stream = replay::TraceStream::new(trace_bytes, &mut buf).expect("trace header");
-    let mut out = Vec::new();
-    let sum = replay::replay_group(
-        &mut engine,
-        &mut stream,
-        |o| out.extend_from_slice(&o.encode()),
-        |_| {},
-    );
-    (out, sum.cycles, sum.errors)
-}
-
-fn qemu_replay(elf: &Path, tag: &str, trace_bytes: &[u8]) -> (ExitStatus, String, Vec<u8>) {
-    let dir = scratch_dir(tag);
-    std::fs::write(dir.join("trace.bin"), trace_bytes).unwrap();
-    let mut child = qemu_command(elf, &["trace.bin", "out.bin"])
-        .current_dir(&dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starting qemu-system-arm");
-    let status = wait_timeout(&mut child, QEMU_TIMEOUT).expect("waiting for QEMU");
-    let out = child.wait_with_output().expect("QEMU output");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let status = status.unwrap_or_else(|| {
-        panic!("QEMU timed out after {QEMU_TIMEOUT:?}\nstdout:\n{stdout}\nstderr:\n{stderr}")
-    });
-    println!("{stdout}");
-    let got = std::fs::read(dir.join("out.bin")).unwrap_or_default();
-    let _ = std::fs::remove_dir_all(&dir);
-    (status, stdout, got)
-}
 
 fn assert_same_records(got: &[u8], want: &[u8]) {
     assert_eq!(
@@ -89,7 +42,7 @@ fn check(n_axes: usize) {
     }
     let elf = build_qemu_firmware("axcomp-qemu-group");
     let trace_bytes = scenario::group(n_axes, CYCLES).expect("scenario");
-    let (want, cycles, errors) = host_replay(&trace_bytes);
+    let (want, cycles, errors) = host_group_replay(&trace_bytes);
     assert_eq!((cycles, errors), (CYCLES, 0));
     assert_eq!(want.len(), CYCLES as usize * n_axes * OUTPUT_RECORD_LEN);
     let (status, stdout, got) = qemu_replay(&elf, &format!("qemu-group{n_axes}"), &trace_bytes);
@@ -121,7 +74,7 @@ fn five_axis_group_matches_host_bit_for_bit() {
 #[test]
 fn comparison_fails_on_one_ulp_and_on_a_dropped_record() {
     let trace_bytes = scenario::group(5, 6_000).expect("scenario");
-    let (want, _, _) = host_replay(&trace_bytes);
+    let (want, _, _) = host_group_replay(&trace_bytes);
     assert_same_records(&want, &want);
     let k = want.len() / OUTPUT_RECORD_LEN / 2;
     let mut rec = OutputRecord::decode(&want[k * OUTPUT_RECORD_LEN..]).unwrap();

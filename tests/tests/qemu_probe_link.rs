@@ -12,10 +12,6 @@
 //! - QEMU against the host replay (the same code): no tolerance — every 128-byte drive record and
 //!   128-byte probe record byte for byte, one record pair per cycle.
 
-use std::path::Path;
-use std::process::{ExitStatus, Stdio};
-use std::time::Duration;
-
 use axcomp_core::group::GroupEngine;
 use axcomp_core::probe::{ProbeEvent, ProbeFlags};
 use axcomp_firmware::drive::link_trace::{
@@ -25,11 +21,8 @@ use axcomp_firmware::drive::link_trace::{
 use axcomp_firmware::scenario::{self, PROBE_CYCLES, PROBE_TICK_HZ, ProbeTraceTruth};
 use axcomp_firmware::setpoint::{PROBE_ITEM_COUNTER, ReplyDecoder};
 use axcomp_firmware::status::Status;
-use axcomp_system_tests::{
-    build_qemu_firmware, qemu_command, require_tool, scratch_dir, wait_timeout,
-};
+use axcomp_system_tests::{build_qemu_firmware, qemu_replay, require_tool};
 
-const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
 /// The firmware's pool (`axcomp-qemu-group`).
 const POOL: usize = 1024;
 const PAIR: usize = DRIVE_OUTPUT_LEN + PROBE_OUTPUT_LEN;
@@ -66,27 +59,6 @@ fn decode_all(bytes: &[u8]) -> Vec<(DecodedDriveOutput, DecodedProbeOutput)> {
             )
         })
         .collect()
-}
-
-fn qemu_replay(elf: &Path, trace: &[u8]) -> (ExitStatus, String, Vec<u8>) {
-    let dir = scratch_dir("qemu-probe-link");
-    std::fs::write(dir.join("trace.bin"), trace).unwrap();
-    let mut child = qemu_command(elf, &["trace.bin", "out.bin"])
-        .current_dir(&dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starting qemu-system-arm");
-    let status = wait_timeout(&mut child, QEMU_TIMEOUT).expect("waiting for QEMU");
-    let out = child.wait_with_output().expect("QEMU output");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let status = status.unwrap_or_else(|| {
-        panic!("QEMU timed out after {QEMU_TIMEOUT:?}\nstdout:\n{stdout}\nstderr:\n{stderr}")
-    });
-    let got = std::fs::read(dir.join("out.bin")).unwrap_or_default();
-    let _ = std::fs::remove_dir_all(&dir);
-    (status, stdout, got)
 }
 
 fn assert_same_records(got: &[u8], want: &[u8]) {
@@ -230,7 +202,7 @@ fn probe_trace_latches_within_half_a_micrometre_and_matches_qemu() {
         return;
     }
     let elf = build_qemu_firmware("axcomp-qemu-group");
-    let (status, stdout, got) = qemu_replay(&elf, &trace);
+    let (status, stdout, got) = qemu_replay(&elf, "qemu-probe-link", &trace);
     println!("{stdout}");
     assert!(
         status.success(),

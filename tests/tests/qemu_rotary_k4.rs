@@ -9,27 +9,17 @@
 //! host. Tolerance: none — every 32-byte output record must match bit for bit, and the record count
 //! must be the number of group cycles times five.
 
-use std::path::Path;
-use std::process::{ExitStatus, Stdio};
-use std::time::Duration;
-
 use axcomp_core::bench::{GROUP_COUNTS_PER_REV, group_axis_spec};
-use axcomp_core::group::{AxisName, GroupEngine, GroupInput};
+use axcomp_core::group::{AxisName, GroupInput};
 use axcomp_core::group_image::{self, AxisSectionSpec, ROTARY_SECTION_VERSION};
 use axcomp_core::rotary::{RotaryLocationSpec, RotaryMachine};
 use axcomp_core::trace::{self, OUTPUT_RECORD_LEN, OutputRecord, Record};
-use axcomp_firmware::replay;
-use axcomp_system_tests::{
-    build_qemu_firmware, qemu_command, require_tool, scratch_dir, wait_timeout,
-};
+use axcomp_system_tests::{build_qemu_firmware, host_group_replay, qemu_replay, require_tool};
 
 /// Cycles per K4 turn (C 360°, the tilt 0 → −60° → 0).
 const CYCLES_PER_TURN: u32 = 6_000;
 /// One turn per rotary model.
 const CYCLES: u32 = 3 * CYCLES_PER_TURN;
-const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
-/// The firmware's pool (`axcomp-qemu-group`).
-const POOL: usize = 1024;
 /// µm per count of X, Y, Z (the group workload's axes).
 const UPC: f64 = 0.1;
 /// Pivot (counts) and tool length (mm): the tool point stays inside the tables' 100 mm strokes.
@@ -165,42 +155,6 @@ fn k4_trace() -> Vec<u8> {
     t
 }
 
-fn host_replay(trace_bytes: &[u8]) -> (Vec<u8>, u32, u32) {
-    let mut engine: Box<GroupEngine<POOL>> = Box::new(GroupEngine::new());
-    let mut buf = vec![0u8; 24 * 1024];
-    let mut stream = replay::TraceStream::new(trace_bytes, &mut buf).expect("trace header");
-    let mut out = Vec::new();
-    let sum = replay::replay_group(
-        &mut engine,
-        &mut stream,
-        |o| out.extend_from_slice(&o.encode()),
-        |_| {},
-    );
-    (out, sum.cycles, sum.errors)
-}
-
-fn qemu_replay(elf: &Path, trace_bytes: &[u8]) -> (ExitStatus, String, Vec<u8>) {
-    let dir = scratch_dir("qemu-rotary-k4");
-    std::fs::write(dir.join("trace.bin"), trace_bytes).unwrap();
-    let mut child = qemu_command(elf, &["trace.bin", "out.bin"])
-        .current_dir(&dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starting qemu-system-arm");
-    let status = wait_timeout(&mut child, QEMU_TIMEOUT).expect("waiting for QEMU");
-    let out = child.wait_with_output().expect("QEMU output");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let status = status.unwrap_or_else(|| {
-        panic!("QEMU timed out after {QEMU_TIMEOUT:?}\nstdout:\n{stdout}\nstderr:\n{stderr}")
-    });
-    println!("{stdout}");
-    let got = std::fs::read(dir.join("out.bin")).unwrap_or_default();
-    let _ = std::fs::remove_dir_all(&dir);
-    (status, stdout, got)
-}
-
 /// The trace exercises what it claims: three version-2 rotary sections of the three kinds, and
 /// the stage's corrections are large (tens of µm) and change along the path.
 #[test]
@@ -221,7 +175,7 @@ fn k4_trace_carries_the_three_rotary_models() {
             ROTARY_SECTION_VERSION
         );
     }
-    let (out, cycles, errors) = host_replay(&k4_trace());
+    let (out, cycles, errors) = host_group_replay(&k4_trace());
     assert_eq!((cycles, errors), (CYCLES, 0));
     let x: Vec<f32> = out
         .chunks(OUTPUT_RECORD_LEN)
@@ -240,10 +194,10 @@ fn five_axis_k4_trace_with_rotary_models_matches_host_bit_for_bit() {
     }
     let elf = build_qemu_firmware("axcomp-qemu-group");
     let trace_bytes = k4_trace();
-    let (want, cycles, errors) = host_replay(&trace_bytes);
+    let (want, cycles, errors) = host_group_replay(&trace_bytes);
     assert_eq!((cycles, errors), (CYCLES, 0));
     assert_eq!(want.len(), CYCLES as usize * 5 * OUTPUT_RECORD_LEN);
-    let (status, stdout, got) = qemu_replay(&elf, &trace_bytes);
+    let (status, stdout, got) = qemu_replay(&elf, "qemu-rotary-k4", &trace_bytes);
     assert!(
         status.success(),
         "QEMU firmware failed ({status})\n{stdout}"
