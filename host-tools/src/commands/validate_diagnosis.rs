@@ -83,14 +83,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .build()
     .map_err(anyhow::Error::msg)?;
     // Both outputs are planned and checked before the (long) validation run.
-    let mut outputs = OutputSet::new();
-    if let Some(p) = &args.markdown {
-        outputs.planned(p);
-    }
-    if let Some(p) = &args.json {
-        outputs.planned(p);
-    }
-    outputs.check()?;
+    let outputs = planned_outputs(&args)?;
     let total = opts.cases;
     let summary = validate::validate(&opts, |c| {
         eprintln!(
@@ -109,16 +102,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     })
     .map_err(anyhow::Error::msg)?;
-    let md = summary.to_markdown();
-    print!("{md}");
     // The report and the JSON are committed together (both or neither).
-    if let Some(p) = &args.markdown {
-        outputs.file(p, md.as_bytes());
-    }
-    if let Some(p) = &args.json {
-        outputs.json(p, &summary)?;
-    }
-    outputs.commit()?;
+    write_summary(&args, outputs, &summary.to_markdown(), &summary)?;
     Ok(())
 }
 
@@ -141,11 +126,7 @@ fn run_rtest(args: &Args) -> anyhow::Result<()> {
     }
     .build()
     .map_err(anyhow::Error::msg)?;
-    let mut outputs = OutputSet::new();
-    for p in [&args.markdown, &args.json].into_iter().flatten() {
-        outputs.planned(p);
-    }
-    outputs.check()?;
+    let outputs = planned_outputs(&args)?;
     let total = opts.cases;
     let summary = validate(&opts, |c| {
         eprintln!(
@@ -169,15 +150,7 @@ fn run_rtest(args: &Args) -> anyhow::Result<()> {
         );
     })
     .map_err(anyhow::Error::msg)?;
-    let md = summary.to_markdown();
-    print!("{md}");
-    if let Some(p) = &args.markdown {
-        outputs.file(p, md.as_bytes());
-    }
-    if let Some(p) = &args.json {
-        outputs.json(p, &summary)?;
-    }
-    outputs.commit()?;
+    write_summary(&args, outputs, &summary.to_markdown(), &summary)?;
     Ok(())
 }
 
@@ -197,14 +170,7 @@ fn run_probe(args: Args) -> anyhow::Result<()> {
     }
     .build()
     .map_err(anyhow::Error::msg)?;
-    let mut outputs = OutputSet::new();
-    if let Some(p) = &args.markdown {
-        outputs.planned(p);
-    }
-    if let Some(p) = &args.json {
-        outputs.planned(p);
-    }
-    outputs.check()?;
+    let outputs = planned_outputs(&args)?;
     let total = opts.cases;
     let summary = vprobe::validate(&opts, |c| {
         eprintln!(
@@ -222,15 +188,7 @@ fn run_probe(args: Args) -> anyhow::Result<()> {
         );
     })
     .map_err(anyhow::Error::msg)?;
-    let md = summary.to_markdown();
-    print!("{md}");
-    if let Some(p) = &args.markdown {
-        outputs.file(p, md.as_bytes());
-    }
-    if let Some(p) = &args.json {
-        outputs.json(p, &summary)?;
-    }
-    outputs.commit()?;
+    write_summary(&args, outputs, &summary.to_markdown(), &summary)?;
     Ok(())
 }
 
@@ -252,14 +210,7 @@ fn run_lines(args: Args) -> anyhow::Result<()> {
     }
     .build()
     .map_err(anyhow::Error::msg)?;
-    let mut outputs = OutputSet::new();
-    if let Some(p) = &args.markdown {
-        outputs.planned(p);
-    }
-    if let Some(p) = &args.json {
-        outputs.planned(p);
-    }
-    outputs.check()?;
+    let outputs = planned_outputs(&args)?;
     let total = opts.cases;
     let summary = validate_lines(&opts, |c| {
         eprintln!(
@@ -279,13 +230,33 @@ fn run_lines(args: Args) -> anyhow::Result<()> {
         );
     })
     .map_err(anyhow::Error::msg)?;
-    let md = summary.to_markdown();
+    write_summary(&args, outputs, &summary.to_markdown(), &summary)?;
+    Ok(())
+}
+
+/// The outputs `--markdown` and `--json` name, checked before the cases run.
+fn planned_outputs(args: &Args) -> anyhow::Result<OutputSet> {
+    let mut outputs = OutputSet::new();
+    for p in [&args.markdown, &args.json].into_iter().flatten() {
+        outputs.planned(p);
+    }
+    outputs.check()?;
+    Ok(outputs)
+}
+
+/// Prints the Markdown tables and writes them and the JSON summary (all or nothing).
+fn write_summary<S: serde::Serialize>(
+    args: &Args,
+    mut outputs: OutputSet,
+    md: &str,
+    summary: &S,
+) -> anyhow::Result<()> {
     print!("{md}");
     if let Some(p) = &args.markdown {
         outputs.file(p, md.as_bytes());
     }
     if let Some(p) = &args.json {
-        outputs.json(p, &summary)?;
+        outputs.json(p, summary)?;
     }
     outputs.commit()?;
     Ok(())
