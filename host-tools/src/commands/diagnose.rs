@@ -119,22 +119,7 @@ fn run_axis(args: Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
             d.verdict
         );
     }
-    for c in d.effects.iter().take(5) {
-        println!(
-            "  candidate {:<20} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",
-            c.kind,
-            c.score,
-            c.holdout_rms_after_um,
-            c.shrink_pct,
-            if c.explains {
-                ""
-            } else if c.train_p_value < opts.alpha {
-                "  (significant, not material)"
-            } else {
-                "  (not beyond noise)"
-            }
-        );
-    }
+    print_candidates(&d.effects, 5, opts.alpha);
     println!("verdict: {} — {}", d.verdict, d.note);
     let mut report_files = 0;
     if let Some(dir) = &args.report {
@@ -151,4 +136,25 @@ fn run_axis(args: Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
         println!("report: {report_files} files in {}", dir.display());
     }
     Ok(())
+}
+
+/// The console lines of the best `n` candidates: kind, score, held-out RMS after, shrink, and why a
+/// candidate that does not explain the gap does not (one format for every data kind).
+pub(super) fn print_candidates(effects: &[axcomp_diagnose::Candidate], n: usize, alpha: f64) {
+    for c in effects.iter().take(n) {
+        println!(
+            "  candidate {:<20} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",
+            c.kind,
+            c.score,
+            c.holdout_rms_after_um,
+            c.shrink_pct,
+            if c.explains {
+                ""
+            } else if c.train_p_value < alpha {
+                "  (significant, not material)"
+            } else {
+                "  (not beyond noise)"
+            }
+        );
+    }
 }

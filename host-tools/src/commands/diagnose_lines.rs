@@ -109,22 +109,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
             100.0 * r.share
         );
     }
-    for c in d.effects.iter().take(6) {
-        println!(
-            "  candidate {:<16} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",
-            c.kind,
-            c.score,
-            c.holdout_rms_after_um,
-            c.shrink_pct,
-            if c.explains {
-                ""
-            } else if c.train_p_value < opts.alpha {
-                "  (significant, not material)"
-            } else {
-                "  (not beyond noise)"
-            }
-        );
-    }
+    super::diagnose::print_candidates(&d.effects, 6, opts.alpha);
     for n in &d.not_applicable {
         println!("  not applicable: {n}");
     }

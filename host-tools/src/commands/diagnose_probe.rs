@@ -96,22 +96,7 @@ pub fn run(args: &Args, ds: Dataset) -> anyhow::Result<()> {
             100.0 * r.share
         );
     }
-    for c in d.diagnosis.effects.iter().take(6) {
-        println!(
-            "  candidate {:<17} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",
-            c.kind,
-            c.score,
-            c.holdout_rms_after_um,
-            c.shrink_pct,
-            if c.explains {
-                ""
-            } else if c.train_p_value < opts.alpha {
-                "  (significant, not material)"
-            } else {
-                "  (not beyond noise)"
-            }
-        );
-    }
+    super::diagnose::print_candidates(&d.diagnosis.effects, 6, opts.alpha);
     println!("verdict: {} — {}", d.diagnosis.verdict, d.diagnosis.note);
     let mut report_files = 0;
     if let Some(dir) = &args.report {

@@ -56,22 +56,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
             100.0 * r.share
         );
     }
-    for c in dg.effects.iter() {
-        println!(
-            "  candidate {:<20} score {:>9.1}  held-out RMS after {:.3} µm  shrink {:>6.1} %{}",
-            c.kind,
-            c.score,
-            c.holdout_rms_after_um,
-            c.shrink_pct,
-            if c.explains {
-                ""
-            } else if c.train_p_value < opts.alpha {
-                "  (significant, not material)"
-            } else {
-                "  (not beyond noise)"
-            }
-        );
-    }
+    super::diagnose::print_candidates(&dg.effects, usize::MAX, opts.alpha);
     for [a, b] in &d.same_signature {
         println!("  {a} and {b}: same signature on these poses (the data cannot tell them apart)");
     }
