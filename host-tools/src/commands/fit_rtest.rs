@@ -7,9 +7,9 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
-use axcomp_rtest::analysis::analyse;
+use axcomp_rtest::analysis::analyse_with;
 use axcomp_rtest::report::report_files;
-use axcomp_rtest::{RtestData, RtestModel};
+use axcomp_rtest::{FitOptions, RtestData, RtestModel};
 
 use crate::cli::DataArgs;
 use crate::commands::common::{load_dataset, split_from};
@@ -18,7 +18,7 @@ use crate::output::OutputSet;
 const LONG_HELP: &str = "\
 Columns: x_mm, y_mm, z_mm (commanded tool point, tool length included, origin at the nominal intersection of the rotary axes), a_deg (ac-trunnion) or b_deg (bc-trunnion, bc-head), c_deg, dx_um, dy_um, dz_um (sphere centre relative to the R-test head along machine X, Y, Z); optional path (K4, C-circle, ...), run, setup (one sphere placement per value: its own set-up offsets), time_s. A probed-sphere campaign gives the same rows: each pose's fitted sphere centre minus the commanded tool point.
 
-Model: the exact homogeneous-transform chain with the 11 location errors (C: EX0C EY0C EA0C EB0C; A: EY0A EZ0A EB0A EC0A or B: EX0B EZ0B EA0B EC0B; squareness EA0Z EB0Z EC0Y) and the sphere's set-up offsets (nuisance). Levenberg–Marquardt; standard uncertainties from the residual variance and (JᵀJ)⁻¹. Parameters the poses cannot separate are fixed to 0 and reported identified: false with the reason (and those that absorb them too); parameters whose uncertainty is inflated more than 32× by correlation stay estimated but are reported identified: false; `axcomp plan rtest` says which paths to add.
+Model: the exact homogeneous-transform chain with the 11 location errors (C: EX0C EY0C EA0C EB0C; A: EY0A EZ0A EB0A EC0A or B: EX0B EZ0B EA0B EC0B; squareness EA0Z EB0Z EC0Y) and the sphere's set-up offsets (nuisance). Levenberg–Marquardt; standard uncertainties from (JᵀJ)⁻¹·JᵀWJ·(JᵀJ)⁻¹, W the residual variance of each component X, Y, Z; --head-zero-std-um adds the head's / probe's zero uncertainty, propagated (a constant zero error moves EX0C, EY0A, EZ0A and the set-up offsets). Parameters the poses cannot separate are fixed to 0 and reported identified: false with the reason (and those that absorb them too); parameters whose uncertainty is inflated more than 32× by correlation stay estimated but are reported identified: false; `axcomp plan rtest` says which paths to add.
 
 With --free-head-zero the R-test head's zero (tool length, radial offset) is estimated per set-up too; then the rotary axes' absolute position relative to the spindle (e.g. EX0C, EY0A, EZ0A on an AC trunnion) cannot be determined and is reported so.
 
@@ -44,6 +44,15 @@ pub struct Args {
     /// Estimate the R-test head's zero (tool length, radial offset) per set-up as a nuisance too.
     #[arg(long)]
     pub free_head_zero: bool,
+    /// The R-test head's / touch probe's zero is known only to this standard uncertainty (µm; one value or
+    /// X,Y,Z, from its own calibration): propagated into the location errors' standard uncertainties.
+    #[arg(
+        long,
+        value_name = "S|SX,SY,SZ",
+        conflicts_with = "free_head_zero",
+        allow_hyphen_values = true
+    )]
+    pub head_zero_std_um: Option<String>,
     /// Write the model file (for `axcomp predict`).
     #[arg(long, value_name = "MODEL.json")]
     pub out: Option<PathBuf>,
@@ -73,8 +82,31 @@ pub fn machine_from(kind: &str, pivot_mm: Option<f64>) -> anyhow::Result<FiveAxi
     }
 }
 
+/// `--head-zero-std-um S` or `SX,SY,SZ` (µm, finite, ≥ 0).
+fn parse_head_zero_std(s: &str) -> anyhow::Result<[f64; 3]> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| anyhow::anyhow!("--head-zero-std-um `{s}`: {e}"))?;
+    let v = match v[..] {
+        [a] => [a, a, a],
+        [a, b, c] => [a, b, c],
+        _ => bail!("--head-zero-std-um `{s}`: need one value or three (X,Y,Z), µm"),
+    };
+    if v.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+        bail!("--head-zero-std-um `{s}`: need finite values ≥ 0 µm");
+    }
+    Ok(v)
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let machine = machine_from(&args.machine, args.pivot_mm)?;
+    let head_zero_std_um = args
+        .head_zero_std_um
+        .as_deref()
+        .map(parse_head_zero_std)
+        .transpose()?;
     let split = split_from(args.holdout.as_deref(), args.cv.as_deref())?;
     // Every output path is checked before the fit; all files are written together at the end.
     let mut outputs = OutputSet::new();
@@ -88,7 +120,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ds = load_dataset(&args.data)?;
     let mut data = RtestData::from_dataset(&ds, machine, true)?;
     data.free_head_zero = args.free_head_zero;
-    let a = analyse(&ds, &data, split.as_ref())?;
+    let opts = FitOptions { head_zero_std_um };
+    let a = analyse_with(&ds, &data, split.as_ref(), &opts)?;
     let json = a.to_json(&data);
     let model = RtestModel::from_fit(&data, &a.fit);
     if let Some(dir) = &args.report {

@@ -83,11 +83,21 @@ pub fn analyse(
     data: &RtestData,
     split: Option<&Split>,
 ) -> Result<Analysis, RtestError> {
+    analyse_with(ds, data, split, &crate::FitOptions::default())
+}
+
+/// [`analyse`] with fit options (the head zero's uncertainty).
+pub fn analyse_with(
+    ds: &Dataset,
+    data: &RtestData,
+    split: Option<&Split>,
+    opts: &crate::FitOptions,
+) -> Result<Analysis, RtestError> {
     let n = data.poses.len();
     let all: Vec<usize> = (0..n).collect();
     let (fit_rows, judged_rows, judged_pred, judged_by, fit) = match split {
         None => {
-            let f = crate::fit(data, &all)?;
+            let f = crate::fit_with(data, &all, opts)?;
             let pred = predict_with(&f, data, &all)?;
             (all.clone(), all.clone(), pred, "fit", f)
         }
@@ -96,7 +106,7 @@ pub fn analyse(
             let train: Vec<usize> = all.iter().copied().filter(|&r| !mask[r]).collect();
             let test: Vec<usize> = all.iter().copied().filter(|&r| mask[r]).collect();
             check_setups_known(data, &train, &test)?;
-            let f = crate::fit(data, &train)?;
+            let f = crate::fit_with(data, &train, opts)?;
             let pred = predict_with(&f, data, &test)?;
             (train, test, pred, "holdout", f)
         }
@@ -113,14 +123,14 @@ pub fn analyse(
                 let train: Vec<usize> = all.iter().copied().filter(|&r| ids[r] != g).collect();
                 let test: Vec<usize> = all.iter().copied().filter(|&r| ids[r] == g).collect();
                 check_setups_known(data, &train, &test)?;
-                let f = crate::fit(data, &train).map_err(|e| {
+                let f = crate::fit_with(data, &train, opts).map_err(|e| {
                     RtestError::Fit(format!("--cv {col}: leaving out `{}`: {e}", labels[g]))
                 })?;
                 for (&r, p) in test.iter().zip(predict_with(&f, data, &test)?) {
                     pred[r] = p;
                 }
             }
-            let f = crate::fit(data, &all)?;
+            let f = crate::fit_with(data, &all, opts)?;
             (all.clone(), all.clone(), pred, "cv", f)
         }
     };
@@ -223,6 +233,8 @@ impl Analysis {
             "raw_rms_um": self.raw_rms_um,
             "fit_rms_um": f.fit_rms_um,
             "sigma_um": f.sigma_um,
+            "sigma_xyz_um": f.sigma_xyz_um,
+            "head_zero_std_um": f.head_zero_std_um,
             "iterations": f.iterations,
             "rows": { "fit": self.fit_rows.len(), "judged": self.judged_rows.len(), "judged_by": self.judged_by },
             "sign_convention": SIGN_CONVENTION,

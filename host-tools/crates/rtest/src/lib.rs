@@ -16,7 +16,13 @@
 //!   apart from, and the location errors that absorb it are not identified either. An estimated parameter
 //!   whose variance is inflated more than [`VIF_LIMIT`] by correlation is reported `identified: false`
 //!   (weakly determined) with its (large) standard uncertainty.
-//! - **standard uncertainty**: `σ̂·sqrt(diag((JᵀJ)⁻¹))`, `σ̂² = RSS/(3n − p)`, J at the solution.
+//! - **standard uncertainty**: `sqrt(diag(Cov))`, `Cov = (JᵀJ)⁻¹·JᵀWJ·(JᵀJ)⁻¹`, J at the solution,
+//!   `W = diag(σ̂_x², σ̂_y², σ̂_z²)` per reading, `σ̂_c² = RSS_c/(n − p/3)` for component `c` (n poses):
+//!   `σ̂·sqrt(diag((JᵀJ)⁻¹))` with `σ̂² = RSS/(3n − p)` when the components' noise is alike. With
+//!   [`FitOptions::head_zero_std_um`] (the R-test head's or touch probe's zero taken as known but known only
+//!   to a standard uncertainty `s`, from its own calibration), the covariance adds the propagated zero error:
+//!   the estimate is linear in the readings, a zero error `δh` (one offset common to every row) shifts it by
+//!   `G·δh` with `G = (JᵀJ)⁻¹·Jᵀ·J_h` (`J_h`: the head-zero columns), so `Cov = σ̂²(JᵀJ)⁻¹ + G·diag(s²)·Gᵀ`.
 
 pub mod analysis;
 pub mod plan;
@@ -537,7 +543,20 @@ pub struct Fit {
     pub fit_rms_um: f64,
     /// Residual standard deviation σ̂, µm.
     pub sigma_um: f64,
+    /// Residual standard deviation per component (X, Y, Z), µm: the standard uncertainties use these.
+    pub sigma_xyz_um: [f64; 3],
     pub iterations: usize,
+    /// The head zero's standard uncertainty (µm, X, Y, Z) included in `std` (see the glossary), if given.
+    pub head_zero_std_um: Option<[f64; 3]>,
+}
+
+/// Options of [`fit_with`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FitOptions {
+    /// Standard uncertainty (µm, along the head's X, Y, Z) of the R-test head's / touch probe's zero when
+    /// it is taken as known (not `free_head_zero`): one offset common to every row (one calibration), added
+    /// to the parameters' covariance by propagation (see the glossary). `None`: the zero is exact.
+    pub head_zero_std_um: Option<[f64; 3]>,
 }
 
 /// RMS of all components.
@@ -551,6 +570,19 @@ pub fn rms3(v: &[[f64; 3]]) -> f64 {
 /// Fits the model on `rows` of `data` by Levenberg–Marquardt (Jacobian: central differences of the exact
 /// model at the current estimate).
 pub fn fit(data: &RtestData, rows: &[usize]) -> Result<Fit, RtestError> {
+    fit_with(data, rows, &FitOptions::default())
+}
+
+/// [`fit`] with options (the head zero's uncertainty).
+pub fn fit_with(data: &RtestData, rows: &[usize], opts: &FitOptions) -> Result<Fit, RtestError> {
+    if let Some(s) = opts.head_zero_std_um
+        && let Some(v) = s.iter().find(|v| !(v.is_finite() && **v >= 0.0))
+    {
+        return Err(RtestError::BadValue {
+            at: "head zero standard uncertainty".into(),
+            what: format!("{v} µm (need a finite value ≥ 0)"),
+        });
+    }
     let m = &data.machine;
     let ns = data.setup_names.len();
     let p = data.n_params();
@@ -653,14 +685,51 @@ pub fn fit(data: &RtestData, rows: &[usize]) -> Result<Fit, RtestError> {
         .try_inverse()
         .or_else(|| jtj.pseudo_inverse(1e-12).ok())
         .ok_or_else(|| RtestError::Fit("singular normal matrix".into()))?;
+    // Per-component residual variance (the three components come from different sensors, or from different
+    // parts of a probed sphere): σ̂_c² = RSS_c / (n − p/3), and Cov = (JᵀJ)⁻¹·JᵀWJ·(JᵀJ)⁻¹ with
+    // W = diag(σ̂_c²) — equal to σ̂²(JᵀJ)⁻¹ when the three are alike.
+    let n_poses = poses.len() as f64;
+    let dof_c = n_poses - free.len() as f64 / 3.0;
+    let mut sigma_xyz = [0.0; 3];
+    for (c, sc) in sigma_xyz.iter_mut().enumerate() {
+        let rss: f64 = (0..poses.len()).map(|i| r[3 * i + c].powi(2)).sum();
+        *sc = (rss / dof_c).sqrt();
+    }
+    let mut jw = j.clone();
+    for (row, mut v) in jw.row_iter_mut().enumerate() {
+        v *= sigma_xyz[row % 3].powi(2);
+    }
+    let mut cov = &inv * (j.transpose() * jw) * &inv;
+    let head_zero = opts.head_zero_std_um.filter(|_| !data.free_head_zero);
+    if let Some(s) = head_zero {
+        // J_h: the readings' change per µm of the head zero (one offset for every row, whatever its set-up).
+        let mut jh = DMatrix::zeros(nobs, 3);
+        for (i, pose) in poses.iter().enumerate() {
+            for c in 0..3 {
+                let k = N_LOCATION + N_SETUP * setup[i] + 3 + c;
+                let mut tp = theta.clone();
+                let mut tm = theta.clone();
+                tp[k] += 1.0;
+                tm[k] -= 1.0;
+                let a = model_displacement(m, pose, setup[i], &tp);
+                let b = model_displacement(m, pose, setup[i], &tm);
+                for cc in 0..3 {
+                    jh[(3 * i + cc, c)] = (a[cc] - b[cc]) / 2.0;
+                }
+            }
+        }
+        let g = &inv * (j.transpose() * jh);
+        let sh = DMatrix::from_diagonal(&DVector::from_iterator(3, s.iter().map(|v| v * v)));
+        cov += &g * sh * g.transpose();
+    }
     let mut std = vec![None; p];
     for (c, &k) in free.iter().enumerate() {
-        std[k] = Some(sigma * inv[(c, c)].max(0.0).sqrt());
+        std[k] = Some(cov[(c, c)].max(0.0).sqrt());
     }
     let mut correlations = Vec::new();
     for a in 0..free.len() {
         for b in a + 1..free.len() {
-            let rr = inv[(a, b)] / (inv[(a, a)] * inv[(b, b)]).sqrt();
+            let rr = cov[(a, b)] / (cov[(a, a)] * cov[(b, b)]).sqrt();
             if rr.abs() > 0.9 {
                 correlations.push((free[a], free[b], rr));
             }
@@ -674,7 +743,9 @@ pub fn fit(data: &RtestData, rows: &[usize]) -> Result<Fit, RtestError> {
         correlations,
         fit_rms_um: pred_rms,
         sigma_um: sigma,
+        sigma_xyz_um: sigma_xyz,
         iterations,
+        head_zero_std_um: head_zero,
     })
 }
 
