@@ -6,14 +6,17 @@
 //! - **Reading** ([`CaptureReading`]): one capture interrupt. Per scale input, the capture channel's
 //!   flag (CCxIF: the timer latched its counter at a probe edge), its overcapture flag (CCxOF: a
 //!   second edge was latched before the first was read), the capture register (CCRx: the 16-bit
-//!   counter at the edge) and the counter now (CNT); the cycle clock at the interrupt's entry; the
-//!   probe pin's level now.
+//!   counter at the edge) and the counter now (CNT); the cycle clock at the interrupt's entry; then,
+//!   after a settling delay longer than the capture path's, the probe pin's level and the
+//!   interrupting channel's flags again (a newer edge pending; an overcapture that raced the reads).
 //! - **Edge direction**: the channels capture both edges, which the capture itself does not tell
 //!   apart; each edge toggles the level after the previous one (the level read at start-up).
-//! - **Lost edges**: an overcapture on any channel means edges came faster than the interrupt read
-//!   them: the reading is not queued as an edge, the queue reports edges lost (the core drops a
-//!   pending leading edge and never latches it, `ProbeEvent::EdgesLost`) and resynchronises its
-//!   level to the pin's. A full queue also loses the edge.
+//! - **Lost edges**: an overcapture on any channel (before or during the reads) means edges came
+//!   faster than the interrupt read them: the reading is not queued as an edge, the queue reports
+//!   edges lost (the core drops a pending leading edge and never latches it,
+//!   `ProbeEvent::EdgesLost`) and resynchronises its level to the pin's. So does a settled pin level
+//!   that differs from the queued edge's with no newer capture pending (an edge escaped the
+//!   capture), after queuing the edge. A full queue also loses the edge.
 //! - **A channel that missed the edge** (only possible for a pulse at the timers' input-filter
 //!   boundary, tens of ns: such a pulse is a glitch for the core's filter): its counter now (CNT,
 //!   read in the interrupt, about a microsecond after the edge) stands in for the capture.
@@ -40,8 +43,15 @@ pub struct CaptureReading {
     pub ccr: [u16; CAPTURE_INPUTS],
     /// Per scale input: the counter when the interrupt read it.
     pub cnt: [u16; CAPTURE_INPUTS],
-    /// The probe pin's level when the interrupt read it (true = deflected).
-    pub level_now: bool,
+    /// The probe pin's level, read after the captures and a settling delay longer than the capture
+    /// path's (input filter and synchroniser), so an edge the pin shows has been captured by then.
+    pub level_after: bool,
+    /// Read after `level_after`: a newer edge has been captured (the interrupting channel's flag is
+    /// set again, so the interrupt runs again for it).
+    pub next_pending: bool,
+    /// Read after `level_after`: the interrupting channel overcaptured while this reading was taken
+    /// (an edge between its status and capture reads): edges were lost.
+    pub raced: bool,
 }
 
 /// What a reading did to the queue.
@@ -96,10 +106,8 @@ impl CaptureQueue {
         if !r.captured.iter().any(|&c| c) {
             return CaptureOutcome::NoEdge;
         }
-        if r.overcaptured.iter().any(|&o| o) {
-            self.lost = true;
-            self.level = r.level_now;
-            return CaptureOutcome::Lost;
+        if r.raced || r.overcaptured.iter().any(|&o| o) {
+            return self.lose(r.level_after);
         }
         let level = !self.level;
         self.level = level;
@@ -117,7 +125,18 @@ impl CaptureQueue {
             level,
         };
         self.len += 1;
+        if !r.next_pending && r.level_after != level {
+            // The pin moved on without a capture that explains it: an edge escaped the capture.
+            return self.lose(r.level_after);
+        }
         CaptureOutcome::Queued
+    }
+
+    /// Edges were lost: report it, take the pin's level.
+    fn lose(&mut self, pin_level: bool) -> CaptureOutcome {
+        self.lost = true;
+        self.level = pin_level;
+        CaptureOutcome::Lost
     }
 
     /// Moves the queued edges (oldest first) into `out` as the drive takes them: the 16-bit captures
@@ -153,7 +172,8 @@ impl CaptureQueue {
 mod tests {
     use super::*;
 
-    fn edge_reading(time: u32, ccr: [u16; 3], level_now: bool) -> CaptureReading {
+    /// A clean edge to `level` (the pin still there when read, nothing newer pending).
+    fn edge_reading(time: u32, ccr: [u16; 3], level: bool) -> CaptureReading {
         CaptureReading {
             time,
             captured: [true; 3],
@@ -161,21 +181,22 @@ mod tests {
             ccr,
             // The counters moved on after the edge: never what is queued when the channel captured.
             cnt: ccr.map(|c| c.wrapping_add(7)),
-            level_now,
+            level_after: level,
+            next_pending: false,
+            raced: false,
         }
     }
 
     #[test]
     fn captures_become_alternating_edges_with_the_captured_counters() {
         let mut q = CaptureQueue::new(false);
+        // The pin already fell again when the interrupt read it, and that edge is pending: the
+        // direction comes from the alternation, not from the pin.
+        let mut r = edge_reading(1000, [10, 65535, 3], false);
+        r.next_pending = true;
+        assert_eq!(q.on_capture(&r), CaptureOutcome::Queued);
         assert_eq!(
-            q.on_capture(&edge_reading(1000, [10, 65535, 3], true)),
-            CaptureOutcome::Queued
-        );
-        // The pin already fell again when the interrupt read it: the direction comes from the
-        // alternation, not from the pin.
-        assert_eq!(
-            q.on_capture(&edge_reading(1200, [12, 0, 4], true)),
+            q.on_capture(&edge_reading(1200, [12, 0, 4], false)),
             CaptureOutcome::Queued
         );
         let mut out = [CapturedEdge::default(); MAX_EDGES_PER_CYCLE];
@@ -256,17 +277,47 @@ mod tests {
         let mut q = CaptureQueue::new(false);
         for t in 0..MAX_EDGES_PER_CYCLE as u32 {
             assert_eq!(
-                q.on_capture(&edge_reading(t, [0; 3], false)),
+                q.on_capture(&edge_reading(t, [0; 3], t % 2 == 0)),
                 CaptureOutcome::Queued
             );
         }
         assert_eq!(
-            q.on_capture(&edge_reading(99, [0; 3], false)),
+            q.on_capture(&edge_reading(99, [0; 3], true)),
             CaptureOutcome::Lost
         );
         let mut out = [CapturedEdge::default(); MAX_EDGES_PER_CYCLE];
         assert_eq!(q.take(&mut out), (MAX_EDGES_PER_CYCLE, true));
         // 9 edges from low: high after the last one.
         assert!(q.level());
+    }
+
+    #[test]
+    fn an_edge_between_the_status_and_capture_reads_is_lost_never_merged() {
+        // A glitch: its rising edge is read, its falling edge is captured between the status read
+        // and the capture read (the capture register then holds the falling edge's counter and the
+        // overcapture flag is set): losing it keeps the core from filtering a rising edge that never
+        // stayed high.
+        let mut q = CaptureQueue::new(false);
+        let mut r = edge_reading(10, [5, 5, 5], false);
+        r.raced = true;
+        assert_eq!(q.on_capture(&r), CaptureOutcome::Lost);
+        let mut out = [CapturedEdge::default(); MAX_EDGES_PER_CYCLE];
+        assert_eq!(q.take(&mut out), (0, true));
+        assert!(!q.level());
+    }
+
+    #[test]
+    fn a_pin_that_moved_without_a_pending_capture_loses_edges() {
+        // The rising edge is captured; by the settled pin read the pin is low again but no capture
+        // is pending: the falling edge escaped the capture.
+        let mut q = CaptureQueue::new(false);
+        let mut r = edge_reading(10, [5, 6, 7], true);
+        r.level_after = false;
+        assert_eq!(q.on_capture(&r), CaptureOutcome::Lost);
+        let mut out = [CapturedEdge::default(); MAX_EDGES_PER_CYCLE];
+        // The rising edge is handed out, then the loss: the core drops it (never latches it).
+        assert_eq!(q.take(&mut out), (1, true));
+        assert!(out[0].level);
+        assert!(!q.level());
     }
 }

@@ -173,6 +173,9 @@ static CAPTURE_QUEUE: Mutex<CriticalSectionRawMutex, RefCell<CaptureQueue>> =
 const TIM4_PROBE_CH: usize = 2;
 const TIM3_PROBE_CH: usize = 2;
 const TIM8_PROBE_CH: usize = 3;
+/// Core cycles the capture interrupt waits for the capture path to settle (~190 ns at 170 MHz, over
+/// twice the input filter's and synchroniser's ~70 ns).
+const CAPTURE_SETTLE_CYCLES: u32 = 32;
 /// The defined flag bits of TIMx_SR (RM0440): writing them as 1 leaves them (rc_w0), so a write with
 /// only one of them 0 clears that flag without racing the others.
 const SR_FLAGS: u32 = 0x00F3_3FFF;
@@ -206,16 +209,30 @@ pub fn on_probe_capture_interrupt() {
     let t4 = read_capture!(pac::TIM4, TIM4_PROBE_CH, pac::timer::regs::SrGp16);
     let t3 = read_capture!(pac::TIM3, TIM3_PROBE_CH, pac::timer::regs::SrGp16);
     let t8 = read_capture!(pac::TIM8, TIM8_PROBE_CH, pac::timer::regs::SrAdv);
+    // The capture path (synchroniser + the 8-clock input filter, ~70 ns) lags the pin's input data
+    // register (2 clocks): wait longer than that before and after reading the pin, so an edge the
+    // pin shows has set the capture flag by the time the flags are read again.
+    cortex_m::asm::delay(CAPTURE_SETTLE_CYCLES);
     // PC8's input data register (the pin stays readable in alternate-function mode).
-    let level_now = pac::GPIOC.idr().read().idr(8) == pac::gpio::vals::Idr::HIGH;
+    let level_after = pac::GPIOC.idr().read().idr(8) == pac::gpio::vals::Idr::HIGH;
+    cortex_m::asm::delay(CAPTURE_SETTLE_CYCLES);
+    let sr3 = pac::TIM3.sr().read();
     let reading = CaptureReading {
         time,
         captured: [t4.0, t3.0, t8.0],
         overcaptured: [t4.1, t3.1, t8.1],
         ccr: [t4.2, t3.2, t8.2],
         cnt: [t4.3, t3.3, t8.3],
-        level_now,
+        level_after,
+        next_pending: sr3.ccif(TIM3_PROBE_CH),
+        raced: t3.0 && sr3.ccof(TIM3_PROBE_CH),
     };
+    if reading.raced {
+        // Cleared here: the loss is reported with this reading, not again with the next edge.
+        pac::TIM3.sr().write_value(pac::timer::regs::SrGp16(
+            SR_FLAGS & !(1 << (9 + TIM3_PROBE_CH)),
+        ));
+    }
     CAPTURE_QUEUE.lock(|q| {
         q.borrow_mut().on_capture(&reading);
     });
