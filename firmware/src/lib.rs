@@ -24,6 +24,7 @@ mod fmt;
 pub mod control;
 pub mod drive;
 pub mod max31865;
+pub mod probe_capture;
 pub mod replay;
 pub mod setpoint;
 pub mod status;

@@ -58,6 +58,14 @@ mod firmware {
         unsafe { LOOP_EXECUTOR.on_interrupt() }
     }
 
+    /// The touch probe's capture interrupt (TIM3_CH3 captured a probe edge; enabled only with
+    /// `stm32g474::PROBE_INPUT_CAPTURE`): reads the three encoder timers' captures into the queue
+    /// the drive takes each cycle.
+    #[interrupt]
+    fn TIM3() {
+        stm32g474::on_probe_capture_interrupt();
+    }
+
     /// Publish the counters this often (10 Hz at 10 kHz).
     const PUBLISH_EVERY_CYCLES: u32 = 1_000;
     /// The status task looks this often.

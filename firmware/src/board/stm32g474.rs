@@ -16,16 +16,19 @@
 //!   UART4 interrupt at [`LOOP_PRIORITY`]); the RTD task's blocking SPI reads stay in thread mode, so the
 //!   loop preempts them.
 //! - **Image slots**: the two 128 KiB flash regions `__slot_a_start` / `__slot_b_start` from `memory.x`.
-//! - **Touch probe** ([`BoardProbe`]): PC8 (CN10), deflected = high (pull-down; an SSR/open-collector
-//!   probe interface switches 3.3 V). Today the input is *polled* once per cycle and an edge takes that
-//!   cycle's counters and DWT time: the latched point can be up to one cycle late (100 µs: 1.7 µm at
-//!   1000 mm/min), so it does not meet the 0.5 µm on this board yet. TODO (hardware input
-//!   capture, needs the probe signal fanned out on the board): TIM4_CH3 (PB8), TIM3_CH3 (PC8) and
-//!   TIM8_CH4 (PC9) in input-capture mode beside their encoder channels latch each counter at the edge
-//!   in hardware (CCR3/CCR4), and an EXTI interrupt on the same signal stamps the DWT time and queues
-//!   the [`crate::drive::probe::CapturedEdge`] with the three CCR values; the drive side (filter,
-//!   latency, lockout, correction) is unchanged and tested on the host and in QEMU.
-
+//! - **Touch probe** ([`BoardProbe`]): deflected = high (pull-down; an SSR/open-collector probe
+//!   interface switches 3.3 V). With [`PROBE_INPUT_CAPTURE`] (the default) the probe signal is wired to
+//!   three pins, one capture channel beside each encoder: **PB8 = TIM4_CH3** (AF2), **PC8 = TIM3_CH3**
+//!   (AF2), **PC9 = TIM8_CH4** (AF4) — the pin alternates are checked at compile time by embassy's
+//!   `TimerPin` traits (ST's data). Each channel captures its timer's counter on both edges in
+//!   hardware (CCR3 / CCR3 / CCR4); TIM3's capture interrupt ([`PROBE_CAPTURE_PRIORITY`], above the
+//!   loop) reads the three captures, stamps the DWT time at its entry and queues the edge
+//!   ([`crate::probe_capture`], host-tested); the drive takes the queue once per cycle. PB8 is also
+//!   the BOOT0 pin: a probe deflected at reset would start the ROM bootloader unless the option bytes
+//!   ignore the pin (nSWBOOT0 = 0, nBOOT0 = 1; `STM32_Programmer_CLI -c port=SWD -ob nSWBOOT0=0
+//!   nBOOT0=1`). Without the fan-out, set [`PROBE_INPUT_CAPTURE`] to false: PC8 alone is then *polled*
+//!   once per cycle and an edge takes that cycle's counters and time (up to one cycle late, 100 µs:
+//!   1.7 µm at 1000 mm/min).
 use core::cell::RefCell;
 
 use embassy_embedded_hal::shared_bus::blocking::spi::SpiDevice;
@@ -33,18 +36,21 @@ use embassy_stm32::gpio::{AnyPin, Input, Level, Output, Pull, Speed};
 use embassy_stm32::mode::Blocking;
 use embassy_stm32::spi::{self, Spi};
 use embassy_stm32::time::Hertz;
+use embassy_stm32::timer;
+use embassy_stm32::timer::input_capture::CapturePin;
 use embassy_stm32::timer::qei::{self, Qei};
 use embassy_stm32::usart::{self, BufferedUart, BufferedUartRx, BufferedUartTx};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Peri, bind_interrupts, peripherals};
 use embassy_sync::blocking_mutex::Mutex;
-use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+use embassy_sync::blocking_mutex::raw::{CriticalSectionRawMutex, NoopRawMutex};
 use static_cell::{ConstStaticCell, StaticCell};
 
 use crate::control::CycleClock;
 use crate::drive::probe::{CapturedEdge, ProbeIo};
 use crate::drive::{BoardCaps, DriveIo, ResetCause, Watchdog};
 use crate::max31865::{Max31865, SettingsBuilder};
+use crate::probe_capture::{CaptureQueue, CaptureReading};
 
 /// Core clock after [`config`]: HSI16 → PLL → 170 MHz.
 pub const CORE_CLOCK_HZ: u32 = 170_000_000;
@@ -149,8 +155,161 @@ impl DriveIo for BoardIo {
     }
 }
 
-/// The touch-probe input (PC8, polled each cycle; see the module doc for the input-capture TODO).
-pub struct BoardProbe {
+/// True: the probe edges are captured by the encoder timers in hardware (PB8, PC8, PC9 wired together:
+/// see the module doc); false: PC8 alone is polled once per cycle (the fallback for a board without
+/// the fan-out).
+pub const PROBE_INPUT_CAPTURE: bool = true;
+/// NVIC priority of the probe capture interrupt (TIM3): above the loop's executor ([`LOOP_PRIORITY`]),
+/// below USART1 and the time driver (P0). Its latency delays only the edge's time stamp (used by the
+/// filter and the lockout, in µs-to-ms terms), never the captured counters.
+pub const PROBE_CAPTURE_PRIORITY: embassy_stm32::interrupt::Priority =
+    embassy_stm32::interrupt::Priority::P1;
+
+/// The edges between the capture interrupt and the drive (see [`crate::probe_capture`]).
+static CAPTURE_QUEUE: Mutex<CriticalSectionRawMutex, RefCell<CaptureQueue>> =
+    Mutex::new(RefCell::new(CaptureQueue::new(false)));
+
+/// Capture channel (0-based index: CH3 = 2, CH4 = 3) of each encoder timer wired to the probe.
+const TIM4_PROBE_CH: usize = 2;
+const TIM3_PROBE_CH: usize = 2;
+const TIM8_PROBE_CH: usize = 3;
+/// Core cycles the capture interrupt waits for the capture path to settle (~190 ns at 170 MHz, over
+/// twice the input filter's and synchroniser's ~70 ns).
+const CAPTURE_SETTLE_CYCLES: u32 = 32;
+/// The defined flag bits of TIMx_SR (RM0440): writing them as 1 leaves them (rc_w0), so a write with
+/// only one of them 0 clears that flag without racing the others.
+const SR_FLAGS: u32 = 0x00F3_3FFF;
+
+/// One timer's capture channel in the capture interrupt: (captured, overcaptured, CCR, CNT). The
+/// capture register is read only when its flag is set (reading it clears the flag); an overcapture
+/// flag is cleared by writing it 0.
+macro_rules! read_capture {
+    ($tim:expr, $ch:expr, $sr:path) => {{
+        let tim = $tim;
+        let sr = tim.sr().read();
+        let captured = sr.ccif($ch);
+        let ccr = if captured {
+            tim.ccr($ch).read().ccr() as u16
+        } else {
+            0
+        };
+        let overcaptured = sr.ccof($ch);
+        if overcaptured {
+            tim.sr().write_value($sr(SR_FLAGS & !(1 << (9 + $ch))));
+        }
+        (captured, overcaptured, ccr, tim.cnt().read().cnt() as u16)
+    }};
+}
+
+/// The probe capture interrupt's work (the bin's `TIM3` handler calls it): the three captures, the
+/// time, the pin, into [`CAPTURE_QUEUE`].
+pub fn on_probe_capture_interrupt() {
+    use embassy_stm32::pac;
+    let time = cortex_m::peripheral::DWT::cycle_count();
+    let t4 = read_capture!(pac::TIM4, TIM4_PROBE_CH, pac::timer::regs::SrGp16);
+    let t3 = read_capture!(pac::TIM3, TIM3_PROBE_CH, pac::timer::regs::SrGp16);
+    let t8 = read_capture!(pac::TIM8, TIM8_PROBE_CH, pac::timer::regs::SrAdv);
+    // The capture path (synchroniser + the 8-clock input filter, ~70 ns) lags the pin's input data
+    // register (2 clocks): wait longer than that before and after reading the pin, so an edge the
+    // pin shows has set the capture flag by the time the flags are read again.
+    cortex_m::asm::delay(CAPTURE_SETTLE_CYCLES);
+    // PC8's input data register (the pin stays readable in alternate-function mode).
+    let level_after = pac::GPIOC.idr().read().idr(8) == pac::gpio::vals::Idr::HIGH;
+    cortex_m::asm::delay(CAPTURE_SETTLE_CYCLES);
+    let sr3 = pac::TIM3.sr().read();
+    let reading = CaptureReading {
+        time,
+        captured: [t4.0, t3.0, t8.0],
+        overcaptured: [t4.1, t3.1, t8.1],
+        ccr: [t4.2, t3.2, t8.2],
+        cnt: [t4.3, t3.3, t8.3],
+        level_after,
+        next_pending: sr3.ccif(TIM3_PROBE_CH),
+        raced: t3.0 && sr3.ccof(TIM3_PROBE_CH),
+    };
+    if reading.raced {
+        // Cleared here: the loss is reported with this reading, not again with the next edge.
+        pac::TIM3.sr().write_value(pac::timer::regs::SrGp16(
+            SR_FLAGS & !(1 << (9 + TIM3_PROBE_CH)),
+        ));
+    }
+    CAPTURE_QUEUE.lock(|q| {
+        q.borrow_mut().on_capture(&reading);
+    });
+}
+
+/// Puts channel `ch` (index) of an encoder timer in input-capture mode on both edges of its own
+/// input (TIx), with the input filter `fCK_INT, N = 8` (a pulse must last 8 timer clocks, 47 ns at
+/// 170 MHz: the same on the three timers, which run on the same clock).
+macro_rules! configure_capture {
+    ($tim:expr, $ch:expr) => {{
+        use embassy_stm32::pac::timer::vals::{CcmrInputCcs, FilterValue};
+        let tim = $tim;
+        // CCxS = 01: input, ICx mapped on TIx (the metapac names the value TI4).
+        tim.ccmr_input($ch / 2).modify(|w| {
+            w.set_ccs($ch % 2, CcmrInputCcs::TI4);
+            w.set_icf($ch % 2, FilterValue::FCK_INT_N8);
+            w.set_icpsc($ch % 2, 0);
+        });
+        tim.ccer().modify(|w| {
+            w.set_ccp($ch, true);
+            w.set_ccnp($ch, true);
+            w.set_cce($ch, true);
+        });
+        // Flags of captures before now are not edges of this run.
+        let _ = tim.ccr($ch).read();
+        tim.sr()
+            .modify(|w| w.0 &= !((1 << (1 + $ch)) | (1 << (9 + $ch))));
+    }};
+}
+
+/// The touch-probe input: hardware capture or the polled fallback ([`PROBE_INPUT_CAPTURE`]).
+pub enum BoardProbe {
+    /// The encoder timers capture the edges (PB8, PC8, PC9).
+    Capture(CaptureProbe),
+    /// PC8 polled once per cycle.
+    Polled(PolledProbe),
+}
+
+/// The probe pins in capture mode (held so they stay in their alternate function).
+pub struct CaptureProbe {
+    _pins: (
+        CapturePin<'static, peripherals::TIM4, timer::Ch3>,
+        CapturePin<'static, peripherals::TIM3, timer::Ch3>,
+        CapturePin<'static, peripherals::TIM8, timer::Ch4>,
+    ),
+}
+
+impl CaptureProbe {
+    /// Configures the capture channels beside the encoders (after `Qei::new`, which leaves CH3/CH4
+    /// alone) and enables TIM3's capture interrupt; `level` = the probe pin now.
+    fn start(
+        pins: (
+            CapturePin<'static, peripherals::TIM4, timer::Ch3>,
+            CapturePin<'static, peripherals::TIM3, timer::Ch3>,
+            CapturePin<'static, peripherals::TIM8, timer::Ch4>,
+        ),
+    ) -> Self {
+        use embassy_stm32::interrupt::InterruptExt;
+        use embassy_stm32::pac;
+        let level = pac::GPIOC.idr().read().idr(8) == pac::gpio::vals::Idr::HIGH;
+        CAPTURE_QUEUE.lock(|q| *q.borrow_mut() = CaptureQueue::new(level));
+        configure_capture!(pac::TIM4, TIM4_PROBE_CH);
+        configure_capture!(pac::TIM3, TIM3_PROBE_CH);
+        configure_capture!(pac::TIM8, TIM8_PROBE_CH);
+        // Only TIM3's channel interrupts; the ISR reads all three timers.
+        pac::TIM3.dier().modify(|w| w.set_ccie(TIM3_PROBE_CH, true));
+        embassy_stm32::interrupt::TIM3.set_priority(PROBE_CAPTURE_PRIORITY);
+        embassy_stm32::interrupt::TIM3.unpend();
+        // SAFETY: the bin's TIM3 handler only calls `on_probe_capture_interrupt`, whose state (the
+        // queue) is behind a critical-section mutex; nothing else uses TIM3's interrupt.
+        unsafe { embassy_stm32::interrupt::TIM3.enable() };
+        CaptureProbe { _pins: pins }
+    }
+}
+
+/// The probe input PC8, polled each cycle (the fallback).
+pub struct PolledProbe {
     pin: Input<'static>,
     last: bool,
 }
@@ -160,12 +319,31 @@ impl ProbeIo for BoardProbe {
         &mut self,
         out: &mut [CapturedEdge; axcomp_core::probe::MAX_EDGES_PER_CYCLE],
     ) -> (usize, bool) {
+        match self {
+            BoardProbe::Capture(_) => CAPTURE_QUEUE.lock(|q| q.borrow_mut().take(out)),
+            BoardProbe::Polled(p) => p.read_edges(out),
+        }
+    }
+
+    fn level(&mut self) -> bool {
+        match self {
+            BoardProbe::Capture(_) => CAPTURE_QUEUE.lock(|q| q.borrow().level()),
+            BoardProbe::Polled(p) => p.last,
+        }
+    }
+}
+
+impl PolledProbe {
+    fn read_edges(
+        &mut self,
+        out: &mut [CapturedEdge; axcomp_core::probe::MAX_EDGES_PER_CYCLE],
+    ) -> (usize, bool) {
         let level = self.pin.is_high();
         if level == self.last {
             return (0, false);
         }
         self.last = level;
-        // Polled: the counters and the time of this cycle stand in for the edge's (TODO above).
+        // Polled: the counters and the time of this cycle stand in for the edge's.
         let cnt = |t: embassy_stm32::pac::timer::TimGp16| u32::from(t.cnt().read().cnt() as u16);
         out[0] = CapturedEdge {
             time: cortex_m::peripheral::DWT::cycle_count(),
@@ -179,10 +357,6 @@ impl ProbeIo for BoardProbe {
             ],
         };
         (1, false)
-    }
-
-    fn level(&mut self) -> bool {
-        self.last
     }
 }
 
@@ -294,9 +468,16 @@ pub fn init() -> Board {
     };
     let rtds = [rtd(p.PB0.into()), rtd(p.PB1.into())];
 
-    let probe = BoardProbe {
-        pin: Input::new(p.PC8, Pull::Down),
-        last: false,
+    let probe = if PROBE_INPUT_CAPTURE {
+        BoardProbe::Capture(CaptureProbe::start((
+            CapturePin::new(p.PB8, Pull::Down),
+            CapturePin::new(p.PC8, Pull::Down),
+            CapturePin::new(p.PC9, Pull::Down),
+        )))
+    } else {
+        let pin = Input::new(p.PC8, Pull::Down);
+        let last = pin.is_high();
+        BoardProbe::Polled(PolledProbe { pin, last })
     };
 
     Board {
