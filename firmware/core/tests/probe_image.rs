@@ -12,54 +12,6 @@ use axcomp_core::rotary::RotaryLocationSpec;
 use axcomp_core::*;
 use common::*;
 
-const CPR: u32 = 3_600_000;
-
-fn linear_image(axis_id: u16, sensors: usize) -> Vec<u8> {
-    let fwd = [[1.0f32, 0.5, 0.0, 0.0]; 8];
-    let bwd = [[1.5f32, 0.5, 0.0, 0.0]; 8];
-    let sens = vec![sensor(20.0, 0.0); sensors];
-    let b = vec![0.5f32; sensors];
-    image(&ImageSpec {
-        axis_id,
-        um_per_count: 0.1,
-        counter_bits: 16,
-        table: Some(TableSpec {
-            start_counts: -4000,
-            segment_counts: 1000,
-            forward: &fwd,
-            backward: &bwd,
-            outside: OutsideStroke::Hold,
-        }),
-        thermo: (sensors > 0).then_some(ThermoForceSpec {
-            sensor_period_ms: 100,
-            sensors: &sens,
-            b0_um: 0.25,
-            b_um_per_k: &b,
-            expansion: None,
-            forces: &[],
-        }),
-        limits: LOOSE,
-    })
-}
-
-fn rotary_image(axis_id: u16) -> Vec<u8> {
-    let fwd = [[2.0f32, 1.0, 0.0, 0.0]; 16];
-    image(&ImageSpec {
-        axis_id,
-        um_per_count: 1_296_000.0 / CPR as f32,
-        counter_bits: 16,
-        table: Some(TableSpec {
-            start_counts: 0,
-            segment_counts: CPR / 16,
-            forward: &fwd,
-            backward: &[],
-            outside: OutsideStroke::Hold,
-        }),
-        thermo: None,
-        limits: LOOSE,
-    })
-}
-
 const STAGE: RotaryLocationSpec = RotaryLocationSpec {
     ex0c_um: 10.0,
     ey0c_um: -4.0,
