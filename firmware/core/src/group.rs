@@ -611,7 +611,8 @@ impl<const POOL: usize> Group<POOL> {
         input: &GroupInput,
         out: &mut GroupOutput,
     ) {
-        let d = if self.has_stage {
+        // XYZAC implies the rotary stage (set at load): no run-time test on that path.
+        let d = if XYZAC || self.has_stage {
             self.rotary_stage::<XYZAC>(st, input)
         } else {
             [0.0; 3]
