@@ -7,9 +7,9 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
-use axcomp_rtest::analysis::analyse_with;
+use axcomp_rtest::analysis::analyse_shared;
 use axcomp_rtest::report::report_files;
-use axcomp_rtest::{FitOptions, RtestData, RtestModel};
+use axcomp_rtest::{FitOptions, RtestData, RtestModel, read_shared_error};
 
 use crate::cli::DataArgs;
 use crate::commands::common::{load_dataset, split_from};
@@ -18,7 +18,7 @@ use crate::output::OutputSet;
 const LONG_HELP: &str = "\
 Columns: x_mm, y_mm, z_mm (commanded tool point, tool length included, origin at the nominal intersection of the rotary axes), a_deg (ac-trunnion) or b_deg (bc-trunnion, bc-head), c_deg, dx_um, dy_um, dz_um (sphere centre relative to the R-test head along machine X, Y, Z); optional path (K4, C-circle, ...), run, setup (one sphere placement per value: its own set-up offsets), time_s. A probed-sphere campaign gives the same rows: each pose's fitted sphere centre minus the commanded tool point.
 
-Model: the exact homogeneous-transform chain with the 11 location errors (C: EX0C EY0C EA0C EB0C; A: EY0A EZ0A EB0A EC0A or B: EX0B EZ0B EA0B EC0B; squareness EA0Z EB0Z EC0Y) and the sphere's set-up offsets (nuisance). Levenberg–Marquardt; standard uncertainties from (JᵀJ)⁻¹·JᵀWJ·(JᵀJ)⁻¹, W the residual variance of each component X, Y, Z; --head-zero-std-um adds the head's / probe's zero uncertainty, propagated (a constant zero error moves EX0C, EY0A, EZ0A and the set-up offsets). Parameters the poses cannot separate are fixed to 0 and reported identified: false with the reason (and those that absorb them too); parameters whose uncertainty is inflated more than 32× by correlation stay estimated but are reported identified: false; `axcomp plan rtest` says which paths to add.
+Model: the exact homogeneous-transform chain with the 11 location errors (C: EX0C EY0C EA0C EB0C; A: EY0A EZ0A EB0A EC0A or B: EX0B EZ0B EA0B EC0B; squareness EA0Z EB0Z EC0Y) and the sphere's set-up offsets (nuisance). Levenberg–Marquardt; standard uncertainties from (JᵀJ)⁻¹·JᵀWJ·(JᵀJ)⁻¹, W the residual variance of each component X, Y, Z; the head's / probe's zero uncertainty is added, propagated (a constant zero error moves EX0C, EY0A, EZ0A and the set-up offsets): by default from the data's optional columns zero1_dx_um, zero1_dy_um, zero1_dz_um, zero2_… (what `axcomp fit probe --centres-out` writes: the probe calibration's error shared by every pose's centre, each triplet one standard-uncertainty component, µm), or from --head-zero-std-um, which overrides them; without either the zero is taken as exact. The JSON's zero_uncertainty says which was used. Parameters the poses cannot separate are fixed to 0 and reported identified: false with the reason (and those that absorb them too); parameters whose uncertainty is inflated more than 32× by correlation stay estimated but are reported identified: false; `axcomp plan rtest` says which paths to add.
 
 With --free-head-zero the R-test head's zero (tool length, radial offset) is estimated per set-up too; then the rotary axes' absolute position relative to the spindle (e.g. EX0C, EY0A, EZ0A on an AC trunnion) cannot be determined and is reported so.
 
@@ -46,6 +46,7 @@ pub struct Args {
     pub free_head_zero: bool,
     /// The R-test head's / touch probe's zero is known only to this standard uncertainty (µm; one value or
     /// X,Y,Z, from its own calibration): propagated into the location errors' standard uncertainties.
+    /// Overrides the data's zero*_d*_um columns (the probe route's calibration uncertainty).
     #[arg(
         long,
         value_name = "S|SX,SY,SZ",
@@ -121,7 +122,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut data = RtestData::from_dataset(&ds, machine, true)?;
     data.free_head_zero = args.free_head_zero;
     let opts = FitOptions { head_zero_std_um };
-    let a = analyse_with(&ds, &data, split.as_ref(), &opts)?;
+    // The probe route's centres carry their calibration's shared error (zero1_dx_um, …): used unless
+    // --head-zero-std-um overrides it.
+    let shared = read_shared_error(&ds)?;
+    let a = analyse_shared(&ds, &data, split.as_ref(), &opts, shared.as_ref())?;
     let json = a.to_json(&data);
     let model = RtestModel::from_fit(&data, &a.fit);
     if let Some(dir) = &args.report {

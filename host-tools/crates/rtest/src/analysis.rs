@@ -93,11 +93,23 @@ pub fn analyse_with(
     split: Option<&Split>,
     opts: &crate::FitOptions,
 ) -> Result<Analysis, RtestError> {
+    analyse_shared(ds, data, split, opts, None)
+}
+
+/// [`analyse_with`] with the zero's shared error ([`crate::SharedError`], e.g. read from the data by
+/// [`crate::read_shared_error`]) propagated into every fit's standard uncertainties.
+pub fn analyse_shared(
+    ds: &Dataset,
+    data: &RtestData,
+    split: Option<&Split>,
+    opts: &crate::FitOptions,
+    shared: Option<&crate::SharedError>,
+) -> Result<Analysis, RtestError> {
     let n = data.poses.len();
     let all: Vec<usize> = (0..n).collect();
     let (fit_rows, judged_rows, judged_pred, judged_by, fit) = match split {
         None => {
-            let f = crate::fit_with(data, &all, opts)?;
+            let f = crate::fit_shared(data, &all, opts, shared)?;
             let pred = predict_with(&f, data, &all)?;
             (all.clone(), all.clone(), pred, "fit", f)
         }
@@ -106,7 +118,7 @@ pub fn analyse_with(
             let train: Vec<usize> = all.iter().copied().filter(|&r| !mask[r]).collect();
             let test: Vec<usize> = all.iter().copied().filter(|&r| mask[r]).collect();
             check_setups_known(data, &train, &test)?;
-            let f = crate::fit_with(data, &train, opts)?;
+            let f = crate::fit_shared(data, &train, opts, shared)?;
             let pred = predict_with(&f, data, &test)?;
             (train, test, pred, "holdout", f)
         }
@@ -123,14 +135,14 @@ pub fn analyse_with(
                 let train: Vec<usize> = all.iter().copied().filter(|&r| ids[r] != g).collect();
                 let test: Vec<usize> = all.iter().copied().filter(|&r| ids[r] == g).collect();
                 check_setups_known(data, &train, &test)?;
-                let f = crate::fit_with(data, &train, opts).map_err(|e| {
+                let f = crate::fit_shared(data, &train, opts, shared).map_err(|e| {
                     RtestError::Fit(format!("--cv {col}: leaving out `{}`: {e}", labels[g]))
                 })?;
                 for (&r, p) in test.iter().zip(predict_with(&f, data, &test)?) {
                     pred[r] = p;
                 }
             }
-            let f = crate::fit_with(data, &all, opts)?;
+            let f = crate::fit_shared(data, &all, opts, shared)?;
             (all.clone(), all.clone(), pred, "cv", f)
         }
     };
@@ -235,6 +247,7 @@ impl Analysis {
             "sigma_um": f.sigma_um,
             "sigma_xyz_um": f.sigma_xyz_um,
             "head_zero_std_um": f.head_zero_std_um,
+            "zero_uncertainty": f.zero_uncertainty.to_json(),
             "iterations": f.iterations,
             "rows": { "fit": self.fit_rows.len(), "judged": self.judged_rows.len(), "judged_by": self.judged_by },
             "sign_convention": SIGN_CONVENTION,

@@ -23,6 +23,10 @@
 //!   to a standard uncertainty `s`, from its own calibration), the covariance adds the propagated zero error:
 //!   the estimate is linear in the readings, a zero error `δh` (one offset common to every row) shifts it by
 //!   `G·δh` with `G = (JᵀJ)⁻¹·Jᵀ·J_h` (`J_h`: the head-zero columns), so `Cov = σ̂²(JᵀJ)⁻¹ + G·diag(s²)·Gᵀ`.
+//!   Without the option, the data's **shared-error** columns ([`SharedError`]: `zero1_dx_um` …, the probe
+//!   route's calibration uncertainty that every pose's centre shares, as `axcomp fit probe --centres-out`
+//!   writes it) are propagated the same way: the rows' readings carry `B·u` (`B`: one column per component,
+//!   `u` independent unit variances), `Cov += G·Gᵀ` with `G = (JᵀJ)⁻¹·Jᵀ·B` ([`fit_shared`]).
 
 pub mod analysis;
 pub mod plan;
@@ -548,6 +552,8 @@ pub struct Fit {
     pub iterations: usize,
     /// The head zero's standard uncertainty (µm, X, Y, Z) included in `std` (see the glossary), if given.
     pub head_zero_std_um: Option<[f64; 3]>,
+    /// Which zero uncertainty `std` includes.
+    pub zero_uncertainty: ZeroUncertainty,
 }
 
 /// Options of [`fit_with`].
@@ -557,6 +563,118 @@ pub struct FitOptions {
     /// it is taken as known (not `free_head_zero`): one offset common to every row (one calibration), added
     /// to the parameters' covariance by propagation (see the glossary). `None`: the zero is exact.
     pub head_zero_std_um: Option<[f64; 3]>,
+}
+
+/// The error every row shares through one calibration of the touch probe's (or R-test head's) zero, as the
+/// probe route's centres file carries it: columns `zero1_dx_um, zero1_dy_um, zero1_dz_um`, `zero2_…`, …
+/// (optional, whole triplets). Row `i`'s reading carries `Σ_k u_k·b_ik` with `u_k` independent, mean 0,
+/// variance 1, and `b_ik` the row's triplet `k` (µm): each triplet is one standard-uncertainty component of
+/// the shared (fully correlated between rows) error, e.g. the probe calibration's coefficient uncertainty
+/// propagated into each pose's fitted centre (`axcomp fit probe --centres-out`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SharedError {
+    /// Column stems (`zero1`, `zero2`, …).
+    pub components: Vec<String>,
+    /// Per dataset row, per component: the loading (µm along machine X, Y, Z).
+    pub loadings_um: Vec<Vec<[f64; 3]>>,
+}
+
+/// Reads [`SharedError`] columns from `ds`, if any: `None` without a `zero1_dx_um` column. A triplet with a
+/// missing component, a gap in the numbering (`zero3_…` without `zero2_…`) or a non-finite value is an error
+/// naming the column (and line).
+pub fn read_shared_error(ds: &Dataset) -> Result<Option<SharedError>, RtestError> {
+    let names = ds.column_names();
+    let stems: Vec<String> = {
+        let mut v: Vec<(usize, String)> = names
+            .iter()
+            .filter_map(|c| {
+                let rest = c.strip_prefix("zero")?;
+                let (num, tail) = rest.split_once('_')?;
+                let k: usize = num.parse().ok()?;
+                ["dx_um", "dy_um", "dz_um"]
+                    .contains(&tail)
+                    .then(|| (k, format!("zero{k}")))
+            })
+            .collect();
+        v.sort();
+        v.dedup();
+        v.into_iter().map(|(_, s)| s).collect()
+    };
+    if stems.is_empty() {
+        return Ok(None);
+    }
+    for (i, stem) in stems.iter().enumerate() {
+        if *stem != format!("zero{}", i + 1) {
+            return Err(RtestError::BadValue {
+                at: ds.source().to_string(),
+                what: format!(
+                    "shared-zero columns numbered {} without `zero{}_dx_um`: number them zero1, zero2, … without gaps",
+                    stem,
+                    i + 1
+                ),
+            });
+        }
+        for c in ["dx_um", "dy_um", "dz_um"] {
+            if !ds.has(&format!("{stem}_{c}")) {
+                return Err(RtestError::BadValue {
+                    at: ds.source().to_string(),
+                    what: format!(
+                        "column `{stem}_{c}` is missing: a shared-zero component needs all of {stem}_dx_um, {stem}_dy_um, {stem}_dz_um"
+                    ),
+                });
+            }
+        }
+    }
+    let cols: Vec<[Vec<f64>; 3]> = stems
+        .iter()
+        .map(|stem| {
+            Ok([
+                finite_column(ds, &format!("{stem}_dx_um"))?,
+                finite_column(ds, &format!("{stem}_dy_um"))?,
+                finite_column(ds, &format!("{stem}_dz_um"))?,
+            ])
+        })
+        .collect::<Result<_, RtestError>>()?;
+    let loadings_um = (0..ds.n_rows())
+        .map(|r| cols.iter().map(|c| [c[0][r], c[1][r], c[2][r]]).collect())
+        .collect();
+    Ok(Some(SharedError {
+        components: stems,
+        loadings_um,
+    }))
+}
+
+/// Which uncertainty of the head's / probe's zero the standard uncertainties include (the JSON's
+/// `zero_uncertainty`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ZeroUncertainty {
+    /// Taken as exact (none given).
+    Exact,
+    /// The R-test head's zero is estimated (`--free-head-zero`).
+    Estimated,
+    /// `--head-zero-std-um` (one offset common to every row).
+    Given([f64; 3]),
+    /// The data's shared-zero columns ([`SharedError`]).
+    Columns(Vec<String>),
+}
+
+impl ZeroUncertainty {
+    /// JSON form: `source` and what was used.
+    pub fn to_json(&self) -> serde_json::Value {
+        use serde_json::json;
+        match self {
+            ZeroUncertainty::Exact => {
+                json!({ "source": "none: the zero is taken as exact (no zero*_d*_um columns, no --head-zero-std-um)" })
+            }
+            ZeroUncertainty::Estimated => {
+                json!({ "source": "--free-head-zero: the head zero is estimated per set-up" })
+            }
+            ZeroUncertainty::Given(s) => json!({ "source": "--head-zero-std-um", "std_um": s }),
+            ZeroUncertainty::Columns(c) => {
+                json!({ "source": "data columns (the probe calibration's shared error)", "components": c })
+            }
+        }
+    }
 }
 
 /// RMS of all components.
@@ -575,6 +693,18 @@ pub fn fit(data: &RtestData, rows: &[usize]) -> Result<Fit, RtestError> {
 
 /// [`fit`] with options (the head zero's uncertainty).
 pub fn fit_with(data: &RtestData, rows: &[usize], opts: &FitOptions) -> Result<Fit, RtestError> {
+    fit_shared(data, rows, opts, None)
+}
+
+/// [`fit_with`] with the zero's shared error of the rows (indexed like `data`'s rows), propagated into the
+/// standard uncertainties: `Cov += G·Gᵀ`, `G = (JᵀJ)⁻¹·Jᵀ·B` (`B`: the fitted rows' loadings, one column per
+/// component). `opts.head_zero_std_um`, when given, overrides it.
+pub fn fit_shared(
+    data: &RtestData,
+    rows: &[usize],
+    opts: &FitOptions,
+    shared: Option<&SharedError>,
+) -> Result<Fit, RtestError> {
     if let Some(s) = opts.head_zero_std_um
         && let Some(v) = s.iter().find(|v| !(v.is_finite() && **v >= 0.0))
     {
@@ -722,6 +852,26 @@ pub fn fit_with(data: &RtestData, rows: &[usize], opts: &FitOptions) -> Result<F
         let sh = DMatrix::from_diagonal(&DVector::from_iterator(3, s.iter().map(|v| v * v)));
         cov += &g * sh * g.transpose();
     }
+    let zero = if let Some(s) = head_zero {
+        ZeroUncertainty::Given(s)
+    } else if let Some(sh) = shared {
+        let k = sh.components.len();
+        let mut b = DMatrix::zeros(nobs, k);
+        for (i, &row) in rows.iter().enumerate() {
+            for (kk, l) in sh.loadings_um[row].iter().enumerate() {
+                for c in 0..3 {
+                    b[(3 * i + c, kk)] = l[c];
+                }
+            }
+        }
+        let g = &inv * (j.transpose() * b);
+        cov += &g * g.transpose();
+        ZeroUncertainty::Columns(sh.components.clone())
+    } else if data.free_head_zero {
+        ZeroUncertainty::Estimated
+    } else {
+        ZeroUncertainty::Exact
+    };
     let mut std = vec![None; p];
     for (c, &k) in free.iter().enumerate() {
         std[k] = Some(cov[(c, c)].max(0.0).sqrt());
@@ -746,6 +896,7 @@ pub fn fit_with(data: &RtestData, rows: &[usize], opts: &FitOptions) -> Result<F
         sigma_xyz_um: sigma_xyz,
         iterations,
         head_zero_std_um: head_zero,
+        zero_uncertainty: zero,
     })
 }
 

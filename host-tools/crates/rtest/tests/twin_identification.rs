@@ -362,3 +362,99 @@ fn head_zero_uncertainty_is_the_propagated_shift() {
         }
     }
 }
+
+/// The shared-error columns (`zero1_dx_um` …, what `fit probe --centres-out` writes) are propagated like
+/// `--head-zero-std-um`: on an AC trunnion the head zero is a machine-frame offset, so loadings `(b_x, 0, 0)`,
+/// `(0, b_y, 0)`, `(0, 0, b_z)` on every row give the same std as `head_zero_std_um = b`, and an option given
+/// overrides the columns. Reference: the `head_zero_std_um` fit; tolerance 1e-9 relative (the same algebra
+/// through a different path).
+#[test]
+fn shared_error_columns_match_the_head_zero_propagation() {
+    let m = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
+    let paths = standard_paths(&m, sphere(m.kind), -60.0, 72, &[0.0, -60.0], 36, None);
+    let mut twin = FiveAxisTwin::random(m, 5);
+    twin.noise_um = NOISE_UM;
+    let csv = twin.measure(&paths, 5).to_csv_string();
+    let b = [0.05, 0.02, 0.1];
+    let mut with_cols = String::new();
+    for (i, line) in csv.lines().enumerate() {
+        if line.starts_with('#') {
+            with_cols.push_str(line);
+        } else if i == 0
+            || !line
+                .chars()
+                .next()
+                .is_some_and(|c| c.is_ascii_digit() || c == '-')
+        {
+            with_cols.push_str(&format!(
+                "{line},zero1_dx_um,zero1_dy_um,zero1_dz_um,zero2_dx_um,zero2_dy_um,zero2_dz_um,zero3_dx_um,zero3_dy_um,zero3_dz_um"
+            ));
+        } else {
+            with_cols.push_str(&format!("{line},{},0,0,0,{},0,0,0,{}", b[0], b[1], b[2]));
+        }
+        with_cols.push('\n');
+    }
+    let ds = Dataset::from_csv_str("twin.csv", &with_cols, &LoadOptions::default()).unwrap();
+    let data = RtestData::from_dataset(&ds, m, true).unwrap();
+    let shared = axcomp_rtest::read_shared_error(&ds).unwrap().unwrap();
+    assert_eq!(shared.components, ["zero1", "zero2", "zero3"]);
+    let rows: Vec<usize> = (0..data.poses.len()).collect();
+    let none = axcomp_rtest::FitOptions::default();
+    let by_cols = axcomp_rtest::fit_shared(&data, &rows, &none, Some(&shared)).unwrap();
+    let given = axcomp_rtest::FitOptions {
+        head_zero_std_um: Some(b),
+    };
+    let by_option = axcomp_rtest::fit_with(&data, &rows, &given).unwrap();
+    let exact = axcomp_rtest::fit(&data, &rows).unwrap();
+    assert_eq!(
+        by_cols.zero_uncertainty,
+        axcomp_rtest::ZeroUncertainty::Columns(vec![
+            "zero1".into(),
+            "zero2".into(),
+            "zero3".into()
+        ])
+    );
+    let overridden = axcomp_rtest::fit_shared(&data, &rows, &given, Some(&shared)).unwrap();
+    assert_eq!(
+        overridden.zero_uncertainty,
+        axcomp_rtest::ZeroUncertainty::Given(b)
+    );
+    for k in 0..N_LOCATION {
+        let (c, o, e) = (
+            by_cols.std[k].unwrap(),
+            by_option.std[k].unwrap(),
+            exact.std[k].unwrap(),
+        );
+        assert!((c - o).abs() <= 1e-9 * o, "{k}: {c} vs {o}");
+        assert_eq!(overridden.std[k], by_option.std[k]);
+        assert!(c >= e);
+    }
+}
+
+/// Bad shared-error columns: a triplet with a component missing, or numbered with a gap → a clear error
+/// naming the column.
+#[test]
+fn shared_error_columns_bad_input_is_refused() {
+    let base = "x_mm,y_mm,z_mm,a_deg,c_deg,dx_um,dy_um,dz_um";
+    for (extra, values, expect) in [
+        (",zero1_dx_um,zero1_dy_um", ",0.1,0.1", "zero1_dz_um"),
+        (
+            ",zero2_dx_um,zero2_dy_um,zero2_dz_um",
+            ",0.1,0.1,0.1",
+            "zero1_dx_um",
+        ),
+        (
+            ",zero1_dx_um,zero1_dy_um,zero1_dz_um",
+            ",0.1,NaN,0.1",
+            "zero1_dy_um",
+        ),
+    ] {
+        let csv =
+            format!("{base}{extra}\n150,0,100,0,0,1,2,3{values}\n150,0,100,0,10,1,2,3{values}\n");
+        let ds = Dataset::from_csv_str("c.csv", &csv, &LoadOptions::default()).unwrap();
+        let err = axcomp_rtest::read_shared_error(&ds)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(expect), "{extra}: {err}");
+    }
+}
