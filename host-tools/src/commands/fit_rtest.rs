@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
-use axcomp_rtest::analysis::analyse_shared;
+use axcomp_rtest::analysis::analyse_selected;
 use axcomp_rtest::report::report_files;
 use axcomp_rtest::{FitOptions, RtestData, RtestModel, read_shared_error};
 
@@ -19,6 +19,8 @@ const LONG_HELP: &str = "\
 Columns: x_mm, y_mm, z_mm (commanded tool point, tool length included, origin at the nominal intersection of the rotary axes), a_deg (ac-trunnion) or b_deg (bc-trunnion, bc-head), c_deg, dx_um, dy_um, dz_um (sphere centre relative to the R-test head along machine X, Y, Z); optional path (K4, C-circle, ...), run, setup (one sphere placement per value: its own set-up offsets), time_s. A probed-sphere campaign gives the same rows: each pose's fitted sphere centre minus the commanded tool point.
 
 Model: the exact homogeneous-transform chain with the 11 location errors (C: EX0C EY0C EA0C EB0C; A: EY0A EZ0A EB0A EC0A or B: EX0B EZ0B EA0B EC0B; squareness EA0Z EB0Z EC0Y) and the sphere's set-up offsets (nuisance). Levenberg–Marquardt; standard uncertainties from (JᵀJ)⁻¹·JᵀWJ·(JᵀJ)⁻¹, W the residual variance of each component X, Y, Z; the head's / probe's zero uncertainty is added, propagated (a constant zero error moves EX0C, EY0A, EZ0A and the set-up offsets): by default from the data's optional columns zero1_dx_um, zero1_dy_um, zero1_dz_um, zero2_… (what `axcomp fit probe --centres-out` writes: the probe calibration's error shared by every pose's centre, each triplet one standard-uncertainty component, µm), or from --head-zero-std-um, which overrides them; without either the zero is taken as exact. The JSON's zero_uncertainty says which was used. Parameters the poses cannot separate are fixed to 0 and reported identified: false with the reason (and those that absorb them too); parameters whose uncertainty is inflated more than 32× by correlation stay estimated but are reported identified: false; `axcomp plan rtest` says which paths to add.
+
+Default selection (do no harm on data with effects beyond the model): on the fitted rows alone, each path (else run) is left out in turn and predicted by the full model and by the nominal kinematics with the set-up offsets only (linearised refits); when the nominal one predicts better and the location errors explain little of the fitted rows (in-sample RMS ratio below 3), every location error is fixed at zero (identified: false, with the figures). --full-model turns it off. The JSON's comparison gives the judged rows' RMS of this model, the full model, the nominal kinematics without correction and with the set-up offsets only; selection.robust_std flags each location error against its standard uncertainty robust to residuals correlated along a path.
 
 With --free-head-zero the R-test head's zero (tool length, radial offset) is estimated per set-up too; then the rotary axes' absolute position relative to the spindle (e.g. EX0C, EY0A, EZ0A on an AC trunnion) cannot be determined and is reported so.
 
@@ -54,6 +56,9 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     pub head_zero_std_um: Option<String>,
+    /// Estimate every identifiable location error (no do-no-harm selection: see --help).
+    #[arg(long)]
+    pub full_model: bool,
     /// Write the model file (for `axcomp predict`).
     #[arg(long, value_name = "MODEL.json")]
     pub out: Option<PathBuf>,
@@ -125,7 +130,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The probe route's centres carry their calibration's shared error (zero1_dx_um, …): used unless
     // --head-zero-std-um overrides it.
     let shared = read_shared_error(&ds)?;
-    let a = analyse_shared(&ds, &data, split.as_ref(), &opts, shared.as_ref())?;
+    let a = analyse_selected(
+        &ds,
+        &data,
+        split.as_ref(),
+        &opts,
+        shared.as_ref(),
+        !args.full_model,
+    )?;
     let json = a.to_json(&data);
     let model = RtestModel::from_fit(&data, &a.fit);
     if let Some(dir) = &args.report {
@@ -148,6 +160,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     outputs.commit()?;
     print_summary(&a, &data, &json);
+    if a.judged_by != "fit" && a.judged_rms_um >= a.nominal_setup_rms_um {
+        eprintln!(
+            "axcomp: warning: the model predicts the {} rows no better than the nominal kinematics with the sphere's set-up offsets only ({:.3} µm vs {:.3} µm): effects beyond the location-error model? (axcomp diagnose --model location_errors)",
+            a.judged_by, a.judged_rms_um, a.nominal_setup_rms_um
+        );
+    }
     if a.judged_rms_um >= a.raw_rms_um {
         eprintln!(
             "axcomp: warning: the model predicts the {} rows no better than the nominal kinematics ({:.3} µm vs {:.3} µm): do not use it for compensation",
@@ -177,6 +195,16 @@ fn print_summary(a: &axcomp_rtest::analysis::Analysis, data: &RtestData, json: &
         "  condition number {:.1}; RMS raw {:.3} µm, fit {:.3} µm, {} {:.3} µm",
         a.fit.ident.condition_number, a.raw_rms_um, a.fit.fit_rms_um, a.judged_by, a.judged_rms_um
     );
+    println!(
+        "  {} RMS: this model {:.3} µm, full model {:.3} µm, nominal kinematics {:.3} µm (no correction), {:.3} µm (set-up offsets only)",
+        a.judged_by, a.judged_rms_um, a.full_rms_um, a.raw_rms_um, a.nominal_setup_rms_um
+    );
+    if let Some(sel) = a.selection.as_ref().filter(|s| !s.fixed.is_empty()) {
+        println!(
+            "  default selection: every location error fixed at zero (leave-one-out RMS of the fitted rows: nominal {:.3} µm < full {:.3} µm; --full-model estimates them)",
+            sel.inner_cv_nominal_um, sel.inner_cv_full_um
+        );
+    }
     if let Some(k) = json.get("k4").filter(|k| !k.is_null()) {
         println!("  K4 ranges before {} after {}", k["before"], k["after"]);
     }

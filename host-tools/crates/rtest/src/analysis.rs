@@ -26,6 +26,12 @@ pub struct Analysis {
     pub judged_by: &'static str,
     pub raw_rms_um: f64,
     pub judged_rms_um: f64,
+    /// Judged RMS of the full model (every identifiable location error estimated).
+    pub full_rms_um: f64,
+    /// Judged RMS of the nominal kinematics with only the sphere's set-up offsets fitted.
+    pub nominal_setup_rms_um: f64,
+    /// The default's selection in the reported fit (`None`: the full model was asked for).
+    pub selection: Option<crate::select::Selection>,
     pub k4: Option<K4Figures>,
 }
 
@@ -77,6 +83,70 @@ fn check_setups_known(
     Ok(())
 }
 
+/// Rows fitted, rows judged, their predictions, how they were judged, and the fit on the fitted rows (all
+/// rows with `--cv`), for one way of fitting (`fitter` on a set of rows).
+type Judged = (Vec<usize>, Vec<usize>, Vec<[f64; 3]>, &'static str, Fit);
+
+fn judge(
+    ds: &Dataset,
+    data: &RtestData,
+    split: Option<&Split>,
+    fitter: &dyn Fn(&[usize]) -> Result<Fit, RtestError>,
+) -> Result<Judged, RtestError> {
+    let n = data.poses.len();
+    let all: Vec<usize> = (0..n).collect();
+    Ok(match split {
+        None => {
+            let f = fitter(&all)?;
+            let pred = predict_with(&f, data, &all)?;
+            (all.clone(), all.clone(), pred, "fit", f)
+        }
+        Some(Split::Holdout(h)) => {
+            let mask = h.mask(ds)?;
+            let train: Vec<usize> = all.iter().copied().filter(|&r| !mask[r]).collect();
+            let test: Vec<usize> = all.iter().copied().filter(|&r| mask[r]).collect();
+            check_setups_known(data, &train, &test)?;
+            let f = fitter(&train)?;
+            let pred = predict_with(&f, data, &test)?;
+            (train, test, pred, "holdout", f)
+        }
+        Some(Split::Cv(col)) => {
+            let (ids, labels) = axcomp_data::groups(ds, col)?;
+            if labels.len() < 2 {
+                return Err(RtestError::Fit(format!(
+                    "--cv {col}: a single group `{}`, nothing to leave out",
+                    labels.first().cloned().unwrap_or_default()
+                )));
+            }
+            let mut pred = vec![[0.0; 3]; n];
+            for g in 0..labels.len() {
+                let train: Vec<usize> = all.iter().copied().filter(|&r| ids[r] != g).collect();
+                let test: Vec<usize> = all.iter().copied().filter(|&r| ids[r] == g).collect();
+                check_setups_known(data, &train, &test)?;
+                let f = fitter(&train).map_err(|e| {
+                    RtestError::Fit(format!("--cv {col}: leaving out `{}`: {e}", labels[g]))
+                })?;
+                for (&r, p) in test.iter().zip(predict_with(&f, data, &test)?) {
+                    pred[r] = p;
+                }
+            }
+            let f = fitter(&all)?;
+            (all.clone(), all.clone(), pred, "cv", f)
+        }
+    })
+}
+
+/// Measured minus predicted on `rows`.
+fn residuals(data: &RtestData, rows: &[usize], pred: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    rows.iter()
+        .zip(pred)
+        .map(|(&r, p)| {
+            let m = data.d_um[r];
+            [m[0] - p[0], m[1] - p[1], m[2] - p[2]]
+        })
+        .collect()
+}
+
 /// Runs the analysis.
 pub fn analyse(
     ds: &Dataset,
@@ -105,47 +175,65 @@ pub fn analyse_shared(
     opts: &crate::FitOptions,
     shared: Option<&crate::SharedError>,
 ) -> Result<Analysis, RtestError> {
-    let n = data.poses.len();
-    let all: Vec<usize> = (0..n).collect();
-    let (fit_rows, judged_rows, judged_pred, judged_by, fit) = match split {
-        None => {
-            let f = crate::fit_shared(data, &all, opts, shared)?;
-            let pred = predict_with(&f, data, &all)?;
-            (all.clone(), all.clone(), pred, "fit", f)
-        }
-        Some(Split::Holdout(h)) => {
-            let mask = h.mask(ds)?;
-            let train: Vec<usize> = all.iter().copied().filter(|&r| !mask[r]).collect();
-            let test: Vec<usize> = all.iter().copied().filter(|&r| mask[r]).collect();
-            check_setups_known(data, &train, &test)?;
-            let f = crate::fit_shared(data, &train, opts, shared)?;
-            let pred = predict_with(&f, data, &test)?;
-            (train, test, pred, "holdout", f)
-        }
-        Some(Split::Cv(col)) => {
+    analyse_selected(ds, data, split, opts, shared, false)
+}
+
+/// Groups of rows for the default's selection ([`crate::select`]): the `path` column's values when the
+/// file has at least two, else the `run` column's; `None` without either.
+pub fn selection_groups(ds: &Dataset) -> Result<Option<(Vec<usize>, &'static str)>, RtestError> {
+    for col in ["path", "run"] {
+        if ds.has(col) {
             let (ids, labels) = axcomp_data::groups(ds, col)?;
-            if labels.len() < 2 {
-                return Err(RtestError::Fit(format!(
-                    "--cv {col}: a single group `{}`, nothing to leave out",
-                    labels.first().cloned().unwrap_or_default()
-                )));
+            if labels.len() >= 2 {
+                return Ok(Some((ids, col)));
             }
-            let mut pred = vec![[0.0; 3]; n];
-            for g in 0..labels.len() {
-                let train: Vec<usize> = all.iter().copied().filter(|&r| ids[r] != g).collect();
-                let test: Vec<usize> = all.iter().copied().filter(|&r| ids[r] == g).collect();
-                check_setups_known(data, &train, &test)?;
-                let f = crate::fit_shared(data, &train, opts, shared).map_err(|e| {
-                    RtestError::Fit(format!("--cv {col}: leaving out `{}`: {e}", labels[g]))
-                })?;
-                for (&r, p) in test.iter().zip(predict_with(&f, data, &test)?) {
-                    pred[r] = p;
-                }
-            }
-            let f = crate::fit_shared(data, &all, opts, shared)?;
-            (all.clone(), all.clone(), pred, "cv", f)
         }
+    }
+    Ok(None)
+}
+
+/// What `fit rtest` does by default (`select`): [`analyse_shared`] with the do-no-harm selection of
+/// location errors ([`crate::select::fit_selected`]) inside every fit — on the training rows of a hold-out,
+/// inside every fold of a cross-validation. The full model (every identifiable location error) and the
+/// nominal kinematics with the set-up offsets only are judged on the same rows alongside.
+pub fn analyse_selected(
+    ds: &Dataset,
+    data: &RtestData,
+    split: Option<&Split>,
+    opts: &crate::FitOptions,
+    shared: Option<&crate::SharedError>,
+    select: bool,
+) -> Result<Analysis, RtestError> {
+    let groups = if select { selection_groups(ds)? } else { None };
+    let full_fitter = |rows: &[usize]| crate::fit_shared(data, rows, opts, shared);
+    let (fit_rows, judged_rows, full_pred, judged_by, full_fit) =
+        judge(ds, data, split, &full_fitter)?;
+    let full_rms_um = rms3(&residuals(data, &judged_rows, &full_pred));
+    let last_selection = std::cell::RefCell::new(None);
+    let (judged_pred, fit, selection) = if select {
+        let sel_fitter = |rows: &[usize]| {
+            let (f, s) = crate::select::fit_selected(
+                data,
+                rows,
+                opts,
+                shared,
+                groups.as_ref().map(|(ids, what)| (ids.as_slice(), *what)),
+            )?;
+            *last_selection.borrow_mut() = Some(s);
+            Ok(f)
+        };
+        let (_, _, pred, _, f) = judge(ds, data, split, &sel_fitter)?;
+        (pred, f, last_selection.into_inner())
+    } else {
+        (full_pred, full_fit, None)
     };
+    // The plain reference: the nominal kinematics with only the sphere's set-up offsets fitted (all 11
+    // location errors held at zero), judged on the same rows the same way.
+    let nominal_fix: Vec<Option<String>> =
+        vec![Some("held at zero: the nominal kinematics (plain reference)".into()); N_LOCATION];
+    let nominal_fitter = |rows: &[usize]| crate::fit_fixed(data, rows, opts, shared, &nominal_fix);
+    let (_, _, nominal_pred, _, _) = judge(ds, data, split, &nominal_fitter)?;
+    let nominal_setup_rms_um = rms3(&residuals(data, &judged_rows, &nominal_pred));
     let meas: Vec<[f64; 3]> = judged_rows.iter().map(|&r| data.d_um[r]).collect();
     let resid: Vec<[f64; 3]> = meas
         .iter()
@@ -184,6 +272,9 @@ pub fn analyse_shared(
         judged_by,
         raw_rms_um,
         judged_rms_um,
+        full_rms_um,
+        nominal_setup_rms_um,
+        selection,
         k4,
     })
 }
@@ -257,6 +348,39 @@ impl Analysis {
         }
         // Do-no-harm check against the nominal kinematics (no correction) on the judged rows.
         out["beats_nominal"] = json!(self.judged_rms_um < self.raw_rms_um);
+        // The same rows predicted by the plain references and the full model, judged the same way.
+        out["nominal_rms_um"] = json!(self.raw_rms_um);
+        out["nominal_setup_rms_um"] = json!(self.nominal_setup_rms_um);
+        out["full_model_rms_um"] = json!(self.full_rms_um);
+        out["beats_nominal_setup"] = json!(self.judged_rms_um < self.nominal_setup_rms_um);
+        out["comparison"] = json!({
+            "judged_by": self.judged_by,
+            "model_rms_um": self.judged_rms_um,
+            "nominal_rms_um": self.raw_rms_um,
+            "nominal_setup_rms_um": self.nominal_setup_rms_um,
+            "full_model_rms_um": self.full_rms_um,
+            "definition": "RMS over dx, dy, dz of the judged rows: the reported model; the nominal kinematics without correction (the readings themselves); the nominal kinematics with only the sphere's set-up offsets fitted on the same training rows (every location error zero: the plain reference); the full model (every identifiable location error, no selection)",
+        });
+        out["selection"] = match &self.selection {
+            Some(sel) => json!({
+                "rule": "default (axcomp_rtest::select): every location error fixed at zero when, on the fitted rows alone, the nominal kinematics with the set-up offsets predict each path (else run) left out better than the full model and the full model explains little (in-sample RMS ratio below ratio_limit); --full-model turns it off",
+                "applied": sel.applied,
+                "groups": sel.groups,
+                "inner_cv_rms_um": {
+                    "full_model": sel.inner_cv_full_um,
+                    "selected": sel.inner_cv_selected_um,
+                    "nominal_setup": sel.inner_cv_nominal_um,
+                },
+                "fit_rms_ratio_nominal_to_full": sel.fit_rms_ratio,
+                "ratio_limit": crate::select::RATIO_LIMIT,
+                "fixed": sel.fixed.iter().map(|(k, why)| json!({ "name": names[*k], "reason": why })).collect::<Vec<_>>(),
+                "robust_std": sel.robust_std.iter().map(|(k, sd, significant)| (names[*k].clone(), json!({ "std": sd, "significant": significant }))).collect::<Map<String, Value>>(),
+                "robust_std_definition": format!("standard uncertainty robust to residuals correlated along a path (cluster-robust over chunks of {} consecutive poses of the full model's fit); significant: |value| ≥ 2 × it. A flag: nothing is fixed by it", crate::select::CHUNK),
+            }),
+            None => {
+                json!({ "rule": "--full-model: every identifiable location error estimated", "applied": false })
+            }
+        };
         match self.judged_by {
             "holdout" => out["holdout_rms_um"] = json!(self.judged_rms_um),
             "cv" => out["cv_rms_um"] = json!(self.judged_rms_um),

@@ -31,6 +31,7 @@
 pub mod analysis;
 pub mod plan;
 pub mod report;
+pub mod select;
 
 use axcomp_data::Dataset;
 use axcomp_kinematics::rotary::{
@@ -705,6 +706,18 @@ pub fn fit_shared(
     opts: &FitOptions,
     shared: Option<&SharedError>,
 ) -> Result<Fit, RtestError> {
+    fit_fixed(data, rows, opts, shared, &[])
+}
+
+/// [`fit_shared`] with location errors held at zero by choice: `fix[k] = Some(reason)` for location error
+/// `k` (`fix` shorter than 11 leaves the rest free). They are reported not identified with the reason.
+pub fn fit_fixed(
+    data: &RtestData,
+    rows: &[usize],
+    opts: &FitOptions,
+    shared: Option<&SharedError>,
+    fix: &[Option<String>],
+) -> Result<Fit, RtestError> {
     if let Some(s) = opts.head_zero_std_um
         && let Some(v) = s.iter().find(|v| !(v.is_finite() && **v >= 0.0))
     {
@@ -721,7 +734,12 @@ pub fn fit_shared(
     let setup: Vec<usize> = rows.iter().map(|&r| data.setup[r]).collect();
     let meas: Vec<[f64; 3]> = rows.iter().map(|&r| data.d_um[r]).collect();
     let j0 = sensitivity_matrix(m, &poses, &setup, ns);
-    let fixed = head_fixed(p, data.free_head_zero);
+    let mut fixed = head_fixed(p, data.free_head_zero);
+    for (k, why) in fix.iter().enumerate().take(N_LOCATION) {
+        if why.is_some() {
+            fixed[k] = why.clone();
+        }
+    }
     let ident = identifiability(&j0, &names, &fixed);
     let free: Vec<usize> = (0..p).filter(|&k| ident.estimated[k]).collect();
     let nobs = 3 * poses.len();
