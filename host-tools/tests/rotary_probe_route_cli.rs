@@ -37,10 +37,26 @@ fn poses(m: &FiveAxis) -> Vec<Pose> {
 /// commanded tool point plus the twin's displacement d = S − T there (its exact location-error model, the
 /// sphere's set-up offset included, no reading noise: the probe brings its own).
 fn probe_campaign(twin: &FiveAxisTwin, seed: u64) -> String {
+    campaign(twin, seed, false)
+}
+
+/// Path of pose `k` of [`poses`]: `K4`, `C-circle@0`, `C-circle@-60`.
+fn path_of(k: usize) -> &'static str {
+    match k {
+        0..36 => "K4",
+        36..54 => "C-circle@0",
+        _ => "C-circle@-60",
+    }
+}
+
+/// [`probe_campaign`]; `with_path`: each touch also carries its pose's `path` and the twin's time (30 s per
+/// pose: its drifts, when switched on, move on during the campaign).
+fn campaign(twin: &FiveAxisTwin, seed: u64, with_path: bool) -> String {
     let probe = ProbeModel::kinematic_demo();
     let mut csv = String::new();
     for (k, pose) in poses(&twin.machine).iter().enumerate() {
-        let d = twin.reading(pose, SPHERE_MM, 0, 0.0);
+        let time_s = if with_path { 30.0 * k as f64 } else { 0.0 };
+        let d = twin.reading(pose, SPHERE_MM, 0, time_s);
         let centre = [0, 1, 2].map(|i| pose.p_mm[i] + d[i] * 1e-3);
         let plan = ProbePlan::calibration(
             centre,
@@ -54,14 +70,19 @@ fn probe_campaign(twin: &FiveAxisTwin, seed: u64) -> String {
         for (i, line) in touches_csv(&touches).lines().enumerate() {
             if i == 0 {
                 if k == 0 {
-                    csv.push_str(&format!("{line},a_deg,c_deg,cmd_x_mm,cmd_y_mm,cmd_z_mm\n"));
+                    csv.push_str(&format!("{line},a_deg,c_deg,cmd_x_mm,cmd_y_mm,cmd_z_mm"));
+                    csv.push_str(if with_path { ",path\n" } else { "\n" });
                 }
                 continue;
             }
             csv.push_str(&format!(
-                "{line},{},{},{},{},{}\n",
+                "{line},{},{},{},{},{}",
                 pose.tilt_deg, pose.c_deg, pose.p_mm[0], pose.p_mm[1], pose.p_mm[2]
             ));
+            if with_path {
+                csv.push_str(&format!(",{}", path_of(k)));
+            }
+            csv.push('\n');
         }
     }
     csv
@@ -347,5 +368,79 @@ fn head_zero_std_bad_input_is_refused() {
         assert!(err.contains(expect), "{args:?}: {err}");
         assert!(!dir.join("bad.json").exists());
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The probe route on a machine whose location errors are zero but whose motion carries every effect beyond
+/// the model (rotary positioning, wobble, run-out, linear geometry, thermal and set-up drift over a 36-minute
+/// campaign): the touches carry their pose's `path`, `fit probe --centres-out` carries it into the R-test
+/// rows, and `fit rtest --holdout path=C-circle@0` judges the circle at 0° never fitted against the plain
+/// reference (the nominal kinematics with the sphere's set-up offsets only, fitted on the same rows), seeds
+/// 1–20. Measured: the full model loses to the plain reference in 15 of 20 seeds, the default in 3 (seeds 4,
+/// 9, 14, by 0.0–2.8 µm: there the location errors' leave-one-path-out RMS on the fitted rows was the lower
+/// one); the default fixed all 11 at zero in 15 seeds. Asserted (the measured figures, deterministic seeds):
+/// the default loses to the plain reference in at most 3 of 20 seeds and never to the nominal kinematics
+/// without correction; the JSON names what the default selection did.
+#[test]
+fn probe_route_with_effects_beyond_the_model_does_no_harm() {
+    use axcomp_twin::five_axis::FiveAxisEffects;
+    let dir = scratch("probe-route-effects");
+    let (mut full_loses, mut default_loses, mut fixed) = (0, 0, 0);
+    for seed in 1..=20u64 {
+        let mut twin = FiveAxisTwin::random(FiveAxis::new(MachineKind::AcTrunnion, 0.0), seed);
+        twin.location = [0.0; N_LOCATION];
+        twin.effects = FiveAxisEffects {
+            rotary_positioning: true,
+            rotary_wobble: true,
+            radial_runout: true,
+            linear_geometry: true,
+            thermal_drift: true,
+            setup_drift: true,
+            time_drift: false,
+        };
+        std::fs::write(dir.join("touches.csv"), campaign(&twin, seed, true)).unwrap();
+        fit_probe_centres(&dir);
+        let centres = std::fs::read_to_string(dir.join("centres.csv")).unwrap();
+        assert!(
+            centres.starts_with("x_mm,y_mm,z_mm,a_deg,c_deg,path,dx_um"),
+            "{}",
+            centres.lines().next().unwrap()
+        );
+        let _ = std::fs::remove_file(dir.join("fit.json"));
+        run_ok(
+            &[
+                "fit",
+                "rtest",
+                "--data",
+                "centres.csv",
+                "--holdout",
+                "path=C-circle@0",
+                "--json",
+                "fit.json",
+            ],
+            &dir,
+        );
+        let j = read_json(&dir.join("fit.json"));
+        let c = &j["comparison"];
+        let (model, full, nominal, setup) = (
+            c["model_rms_um"].as_f64().unwrap(),
+            c["full_model_rms_um"].as_f64().unwrap(),
+            c["nominal_rms_um"].as_f64().unwrap(),
+            c["nominal_setup_rms_um"].as_f64().unwrap(),
+        );
+        let n_fixed = j["selection"]["fixed"].as_array().unwrap().len();
+        println!(
+            "seed {seed}: held-out RMS model {model:.3}, full {full:.3}, nominal {nominal:.3}, set-up only {setup:.3} µm; {n_fixed} fixed by the selection"
+        );
+        assert_eq!(j["selection"]["applied"], true);
+        assert!(model < nominal, "seed {seed}");
+        full_loses += (full > setup) as usize;
+        default_loses += (model > setup) as usize;
+        fixed += (n_fixed > 0) as usize;
+    }
+    println!(
+        "probe route, effects beyond the model, location errors zero: held-out worse than the plain reference: full model {full_loses}, default {default_loses} of 20 (selection applied in {fixed})"
+    );
+    assert!(default_loses <= 3, "default loses in {default_loses} of 20");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -71,7 +71,8 @@ pub struct Args {
     /// Columns naming a pose (e.g. a_deg,c_deg): fit one sphere centre per group.
     #[arg(long, value_delimiter = ',', value_name = "COL,..")]
     pub group: Vec<String>,
-    /// With --group: write one R-test row per group (x_mm,y_mm,z_mm,<group cols>,dx_um,dy_um,dz_um).
+    /// With --group: write one R-test row per group (x_mm,y_mm,z_mm,<group cols>[,path,setup],dx_um,
+    /// dy_um,dz_um, then zero1_dx_um,…: the calibration's error every centre shares, for `fit rtest`).
     #[arg(long, value_name = "F.csv")]
     pub centres_out: Option<PathBuf>,
     /// Write the calibration (input of `axcomp predict --model`).
@@ -381,6 +382,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 })
             })
             .collect::<anyhow::Result<Vec<_>>>()?;
+        // Columns an R-test row carries (path, setup), when the touches have them: constant per group (the
+        // touch CSV's `run` is a repeat id of touches; an R-test run goes into --group).
+        let carried: Vec<&str> = ["path", "setup"]
+            .into_iter()
+            .filter(|c| ds.has(c) && !args.group.iter().any(|g| g == c))
+            .collect();
         for key in &order {
             let rows: Vec<usize> = (0..ds.n_rows())
                 .filter(|&i| &g[i] == key && !held[i])
@@ -419,7 +426,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .map(|k| labels[rows[k]].clone())
                 .collect();
             let s = fit_center(cal, &kept, radius).with_context(|| format!("group `{gname}`"))?;
-            let values: Vec<String> = key.split('\u{1f}').map(str::to_string).collect();
+            let mut values: Vec<String> = key.split('\u{1f}').map(str::to_string).collect();
+            for c in &carried {
+                let t = ds.text(c)?;
+                let v = t[rows[0]].trim();
+                if let Some(&bad) = rows.iter().find(|&&i| t[i].trim() != v) {
+                    bail!(
+                        "{}: `{c}` differs within group `{}` (`{v}` at {}): each pose's touches carry one {c} into its R-test row",
+                        ds.locate(c, bad),
+                        key.replace('\u{1f}', ","),
+                        labels[rows[0]]
+                    );
+                }
+                values.push(v.to_string());
+            }
             group_rows.push((point, values, s, kept.len(), flagged, kept));
         }
     }
@@ -534,14 +554,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "holdout_touches": test.len(),
         "shared_zero": shared_zero.as_ref().map(shared_zero_json),
         "groups": group_rows.iter().map(|(p, v, s, n, flagged, _)| json!({
-            "group": v, "touches": n, "outliers": flagged, "commanded_mm": p, "center_mm": s.center_mm, "rms_um": s.rms_um,
+            "group": &v[..args.group.len()], "touches": n, "outliers": flagged, "commanded_mm": p, "center_mm": s.center_mm, "rms_um": s.rms_um,
             "dx_um": (s.center_mm[0] - p[0]) * 1000.0, "dy_um": (s.center_mm[1] - p[1]) * 1000.0,
             "dz_um": (s.center_mm[2] - p[2]) * 1000.0 })).collect::<Vec<_>>(),
     });
 
     let centres_csv = args.centres_out.as_ref().map(|_| {
         let mut s = String::from("x_mm,y_mm,z_mm");
-        for c in &args.group {
+        for c in args.group.iter().map(String::as_str).chain(
+            ["path", "setup"]
+                .into_iter()
+                .filter(|c| ds.has(c) && !args.group.iter().any(|g| g == c)),
+        ) {
             s.push(',');
             s.push_str(c);
         }
