@@ -39,6 +39,8 @@ How it works: algebraic sphere fit, then Levenberg–Marquardt geometric fits (c
 
 Correction (axcomp predict --model CAL): contact = latched + r_eff(n, v)·approach.
 
+Five-axis poses (--group COL,.. --centres-out F.csv, the probe route of `fit rtest`): the probe is calibrated on the first group (pose); every group's centre is fitted with that calibration (outlier flags iterated about the centre of the kept touches). The R-test rows carry the group columns, `path` and `setup` when the touches have them (constant per group), dx_um, dy_um, dz_um, then the calibration's error every centre shares: zero1_dx_um, zero1_dy_um, zero1_dz_um, zero2_… (the coefficients' covariance from the calibration fit propagated through each centre fit; each triplet one independent standard-uncertainty component, µm; JSON shared_zero), which `fit rtest` propagates into the location errors' standard uncertainties.
+
 diameter_error_um is judged on the held-out rows (--holdout, an artefact of --holdout-diameter-mm); without --holdout it is computed on the calibration rows, where the model fixes the diameter (after ≈ 0 by construction): use a held-out artefact to judge.
 
 Example (twin data):
