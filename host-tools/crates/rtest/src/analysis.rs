@@ -147,7 +147,8 @@ fn residuals(data: &RtestData, rows: &[usize], pred: &[[f64; 3]]) -> Vec<[f64; 3
         .collect()
 }
 
-/// Runs the analysis.
+/// Runs the analysis with the full model (every identifiable location error; no selection: what
+/// `fit rtest --full-model` does; the CLI's default is [`analyse_selected`]).
 pub fn analyse(
     ds: &Dataset,
     data: &RtestData,
