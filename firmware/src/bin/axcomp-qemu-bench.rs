@@ -415,8 +415,7 @@ mod firmware {
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
-        hprintln!("axcomp-qemu-bench: panic: {}", info);
-        semihosting::exit_failure()
+        semihosting::report_panic("axcomp-qemu-bench", info)
     }
 }
 

@@ -213,8 +213,7 @@ mod firmware {
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
-        hprintln!("axcomp-qemu-drive-bench: panic: {}", info);
-        semihosting::exit_failure()
+        semihosting::report_panic("axcomp-qemu-drive-bench", info)
     }
 }
 

@@ -229,8 +229,7 @@ mod firmware {
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
-        hprintln!("axcomp-qemu-group-drive-bench: panic: {}", info);
-        semihosting::exit_failure()
+        semihosting::report_panic("axcomp-qemu-group-drive-bench", info)
     }
 }
 

@@ -190,8 +190,7 @@ mod firmware {
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
-        hprintln!("axcomp-qemu-group: panic: {}", info);
-        semihosting::exit_failure()
+        semihosting::report_panic("axcomp-qemu-group", info)
     }
 }
 
