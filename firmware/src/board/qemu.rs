@@ -28,6 +28,20 @@ pub const OUT_BLOCK_RECORDS: usize = 64;
 /// netduinoplus2 core clock in QEMU (SysTick with CLKSOURCE = core).
 pub const CORE_CLOCK_HZ: u32 = 168_000_000;
 
+/// Device interrupts of the STM32F405 (netduinoplus2): the QEMU firmware enables none of them.
+pub const INTERRUPT_COUNT: usize = 82;
+
+/// The vector table's device part (cortex-m-rt feature `device`): every interrupt goes to
+/// cortex-m-rt's `DefaultHandler`. cortex-m-rt's generic table without `device` has 240 entries.
+#[used]
+#[unsafe(link_section = ".vector_table.interrupts")]
+#[unsafe(no_mangle)]
+pub static __INTERRUPTS: [unsafe extern "C" fn(); INTERRUPT_COUNT] = [DefaultHandler; INTERRUPT_COUNT];
+
+unsafe extern "C" {
+    fn DefaultHandler();
+}
+
 /// SysTick as a free-running down counter.
 pub struct SysTickClock;
 

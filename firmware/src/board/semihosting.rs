@@ -146,8 +146,13 @@ pub fn command_line(buf: &mut [u8]) -> Option<&str> {
     }
     // SAFETY: reading our own initialised local after the host may have written it.
     let len = unsafe { core::ptr::read_volatile(&block[1]) }.min(buf.len());
-    let s = core::str::from_utf8(&buf[..len]).ok()?;
-    let s = s.trim_end_matches('\0').trim();
+    // Trimmed as bytes (NULs, then ASCII white space): `str::trim` would link the Unicode
+    // white-space table for a command line QEMU writes in ASCII.
+    let mut s = &buf[..len];
+    while let [rest @ .., 0] = s {
+        s = rest;
+    }
+    let s = core::str::from_utf8(s.trim_ascii()).ok()?;
     (!s.is_empty()).then_some(s)
 }
 
@@ -178,39 +183,22 @@ pub fn exit_failure() -> ! {
     loop {}
 }
 
-/// Writes `program: panic: MESSAGE at FILE:LINE:COLUMN` to the host's stdout and exits with status 1.
+/// Writes `program: panic at FILE:LINE:COLUMN` to the host's stdout and exits with status 1.
 ///
-/// Without `core::fmt`: the message is printed when it is a plain string (`panic!("...")`, `unwrap` on
-/// `None`, `expect`), and as `(formatted message)` otherwise. A handler that formats the whole
-/// `PanicInfo` links the formatting machinery and every `Debug` impl a panic message may name (about
-/// 12 KiB of code flash in `axcomp-qemu-group`); the location still says which check failed.
+/// The location only: a handler that formats the whole `PanicInfo` (or even asks its message for a
+/// plain string) keeps every panic site's message arguments alive, linking `core::fmt`'s `Debug`
+/// builders, `str` escaping and the Unicode tables (about 3 to 8 KiB of code flash in
+/// `axcomp-qemu-group`); the location says which check failed.
 pub fn report_panic(program: &str, info: &core::panic::PanicInfo) -> ! {
-    if let Ok(mut out) = cortex_m_semihosting::hio::hstdout() {
-        let _ = out.write_all(program.as_bytes());
-        let _ = out.write_all(b": panic: ");
-        if let Some(at) = info.location() {
-            let _ = out.write_all(b" at ");
-            let _ = out.write_all(at.file().as_bytes());
-            for n in [at.line(), at.column()] {
-                let _ = out.write_all(b":");
-                let mut digits = [0u8; 10];
-                let _ = out.write_all(decimal(n, &mut digits));
-            }
-        }
-        let _ = out.write_all(b"\n");
+    match info.location() {
+        Some(at) => cortex_m_semihosting::hprintln!(
+            "{}: panic at {}:{}:{}",
+            program,
+            at.file(),
+            at.line(),
+            at.column()
+        ),
+        None => cortex_m_semihosting::hprintln!("{}: panic", program),
     }
     exit_failure()
-}
-
-/// `n` in decimal, written into the end of `buf`.
-fn decimal(mut n: u32, buf: &mut [u8; 10]) -> &[u8] {
-    let mut at = buf.len();
-    loop {
-        at -= 1;
-        buf[at] = b'0' + (n % 10) as u8;
-        n /= 10;
-        if n == 0 {
-            return &buf[at..];
-        }
-    }
 }
