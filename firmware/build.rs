@@ -27,8 +27,11 @@ fn main() {
     if env::var_os("CARGO_FEATURE_QEMU").is_some()
         && env::var_os("CARGO_FEATURE_BOARD_STM32G474").is_none()
     {
-        fs::write(out.join("device.x"), "/* QEMU: see board::qemu::__INTERRUPTS */\n")
-            .expect("writing device.x into OUT_DIR");
+        fs::write(
+            out.join("device.x"),
+            "/* QEMU: see board::qemu::__INTERRUPTS */\n",
+        )
+        .expect("writing device.x into OUT_DIR");
     }
     if env::var_os("CARGO_FEATURE_BOARD_STM32G474").is_some() {
         println!("cargo:rustc-link-arg-bin=axcomp-stm32g474=-Tdefmt.x");

@@ -56,10 +56,7 @@ mod firmware {
     #[entry]
     fn main() -> ! {
         let mut cmd_buf = [0u8; 256];
-        let cmd = semihosting::command_line(&mut cmd_buf).unwrap_or("");
-        let mut args = cmd.split_ascii_whitespace().skip(1);
-        let trace_path = args.next().unwrap_or("axcomp-trace.bin");
-        let out_path = args.next().unwrap_or("axcomp-out.bin");
+        let (trace_path, out_path) = semihosting::trace_and_output_paths(&mut cmd_buf);
 
         let mut head = [0u8; 4];
         let mut input =

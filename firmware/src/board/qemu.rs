@@ -36,7 +36,8 @@ pub const INTERRUPT_COUNT: usize = 82;
 #[used]
 #[unsafe(link_section = ".vector_table.interrupts")]
 #[unsafe(no_mangle)]
-pub static __INTERRUPTS: [unsafe extern "C" fn(); INTERRUPT_COUNT] = [DefaultHandler; INTERRUPT_COUNT];
+pub static __INTERRUPTS: [unsafe extern "C" fn(); INTERRUPT_COUNT] =
+    [DefaultHandler; INTERRUPT_COUNT];
 
 unsafe extern "C" {
     fn DefaultHandler();
@@ -97,13 +98,6 @@ impl OutBlock<'_> {
     }
 }
 
-fn paths(cmd: &str) -> (&str, &str) {
-    let mut it = cmd.split_ascii_whitespace().skip(1);
-    let trace = it.next().unwrap_or("axcomp-trace.bin");
-    let out = it.next().unwrap_or("axcomp-out.bin");
-    (trace, out)
-}
-
 /// Runs the whole replay and exits QEMU with the status described in the module docs.
 pub fn run(
     syst: SYST,
@@ -112,7 +106,7 @@ pub fn run(
     out_buf: &'static mut [u8; OUT_BLOCK_RECORDS * OUTPUT_RECORD_LEN],
 ) -> ! {
     let mut cmd_buf = [0u8; 256];
-    let (trace_path, out_path) = paths(semihosting::command_line(&mut cmd_buf).unwrap_or(""));
+    let (trace_path, out_path) = semihosting::trace_and_output_paths(&mut cmd_buf);
 
     let input = match HostFile::open_read(trace_path) {
         Ok(f) => f,

@@ -46,6 +46,8 @@ impl HostFile {
         Self::open(path, nr::open::W_TRUNC_BINARY, "create")
     }
 
+    // One copy for both modes (inlined, each would carry its own NUL scan).
+    #[inline(never)]
     fn open(path: &str, mode: usize, op: &'static str) -> Result<HostFile, HostError> {
         let mut name = [0u8; 256];
         let bytes = path.as_bytes();
@@ -134,26 +136,48 @@ impl Drop for HostFile {
     }
 }
 
-/// The semihosting command line (arguments separated by spaces) copied into `buf`, or `None` when the host
-/// gave none.
-pub fn command_line(buf: &mut [u8]) -> Option<&str> {
+/// Trace file name when the command line gives none.
+pub const DEFAULT_TRACE_PATH: &str = "axcomp-trace.bin";
+/// Output file name when the command line gives none.
+pub const DEFAULT_OUT_PATH: &str = "axcomp-out.bin";
+
+/// The trace and output file names from the semihosting command line `PROGRAM TRACE OUT` (words
+/// separated by ASCII white space or NULs), read into `buf`; a missing word (or one that is not
+/// UTF-8) is [`DEFAULT_TRACE_PATH`] / [`DEFAULT_OUT_PATH`]. Split by bytes: `str::split_ascii_whitespace`
+/// and `str::trim` cost about 1.5 KiB of code flash for these two words.
+pub fn trace_and_output_paths(buf: &mut [u8]) -> (&str, &str) {
+    let mut paths = [DEFAULT_TRACE_PATH, DEFAULT_OUT_PATH];
     let block = [buf.as_mut_ptr() as usize, buf.len()];
     // SAFETY: r1 points at the parameter block {buffer, length}; the host writes at most `length` bytes
     // into `buf` and the used length back into block[1] (read volatile below).
     let r = unsafe { cortex_m_semihosting::syscall(nr::GET_CMDLINE, &block) };
     if r != 0 {
-        return None;
+        return (paths[0], paths[1]);
     }
     // SAFETY: reading our own initialised local after the host may have written it.
     let len = unsafe { core::ptr::read_volatile(&block[1]) }.min(buf.len());
-    // Trimmed as bytes (NULs, then ASCII white space): `str::trim` would link the Unicode
-    // white-space table for a command line QEMU writes in ASCII.
-    let mut s = &buf[..len];
-    while let [rest @ .., 0] = s {
-        s = rest;
+    let line = &buf[..len];
+    let (mut at, mut word) = (0, 0);
+    while word <= paths.len() {
+        while at < line.len() && line[at] <= b' ' {
+            at += 1;
+        }
+        let start = at;
+        while at < line.len() && line[at] > b' ' {
+            at += 1;
+        }
+        if start == at {
+            break;
+        }
+        // Word 0 is the program's name.
+        if word > 0 {
+            if let Ok(p) = core::str::from_utf8(&line[start..at]) {
+                paths[word - 1] = p;
+            }
+        }
+        word += 1;
     }
-    let s = core::str::from_utf8(s.trim_ascii()).ok()?;
-    (!s.is_empty()).then_some(s)
+    (paths[0], paths[1])
 }
 
 /// Exits QEMU with status 0.
