@@ -15,11 +15,11 @@ mod firmware {
 
     use axcomp_core::trace::Record;
     use axcomp_core::{Engine, bench};
+    use axcomp_firmware::board::instruction_clock::{self, now, ticks_since};
     use axcomp_firmware::board::semihosting;
     use axcomp_firmware::control::{ControlLoop, LoopSettings, fake::SteppingClock};
     use axcomp_firmware::drive::{BoardCaps, Drive, DriveIo, LinkSettings, NoWatchdog, ResetCause};
     use axcomp_firmware::setpoint::{MAX_SETPOINT_FRAME_LEN, SetpointFrame};
-    use cortex_m::peripheral::{SYST, syst::SystClkSource};
     use cortex_m_rt::entry;
     use cortex_m_semihosting::hprintln;
     use static_cell::ConstStaticCell;
@@ -37,37 +37,6 @@ mod firmware {
         axis_ids: &[1, 2, 3],
         sensors: 8,
     };
-
-    fn now() -> u32 {
-        SYST::get_current()
-    }
-
-    fn ticks_since(t0: u32) -> u32 {
-        t0.wrapping_sub(now()) & 0x00FF_FFFF
-    }
-
-    /// SysTick ticks for 1 002 001 instructions. Never inlined: LLVM sizes the `.rept` block as one
-    /// instruction, so a literal pool of the caller could land out of reach behind it.
-    #[inline(never)]
-    fn calibrate() -> u32 {
-        let t0 = now();
-        // SAFETY: pure register arithmetic on a scratch register.
-        unsafe {
-            core::arch::asm!(
-                "mov {n}, #1000",
-                "2:",
-                ".rept 1000",
-                "nop",
-                ".endr",
-                "subs {n}, {n}, #1",
-                "bne 2b",
-                n = out(reg) _,
-                options(nomem, nostack),
-            );
-        }
-        ticks_since(t0)
-    }
-    const CALIBRATION_INSTRUCTIONS: f32 = 1_002_001.0;
 
     /// A link that delivers one pre-encoded frame per cycle and a scale input; replies go to a RAM sink.
     struct BenchIo {
@@ -163,12 +132,8 @@ mod firmware {
     #[entry]
     fn main() -> ! {
         let mut core = cortex_m::Peripherals::take().expect("core peripherals taken once");
-        core.SYST.set_clock_source(SystClkSource::Core);
-        core.SYST.set_reload(0x00FF_FFFF);
-        core.SYST.clear_current();
-        core.SYST.enable_counter();
-        let cal = calibrate();
-        let ipt = CALIBRATION_INSTRUCTIONS / cal as f32;
+        instruction_clock::start(&mut core.SYST);
+        let ipt = instruction_clock::instructions_per_tick();
 
         let engine = ENGINE.take();
         let image = IMAGE.take();
