@@ -1,6 +1,6 @@
-//! QEMU instruction-count benchmark of one drive cycle (`Drive::cycle`: setpoint bytes → decoder with CRC
-//! and sequence check → link supervisor → `ControlLoop::cycle` → status word → reply frame → watchdog),
-//! next to the bare `ControlLoop::cycle`, run with `-icount shift=0` like `axcomp-qemu-bench`.
+//! QEMU instruction-count benchmark of one single-axis drive cycle (`GroupDrive::cycle` with a group of
+//! one axis: setpoint bytes → decoder with CRC and sequence check → link supervisor → `GroupEngine`
+//! cycle → status word → reply frame → watchdog), run with `-icount shift=0` like `axcomp-qemu-bench`.
 //!
 //! Method: as `axcomp-qemu-bench` (SysTick calibrated against 1 002 001 instructions; batches of `BATCH`
 //! calls with varying inputs through a function pointer, minus the same loop calling an empty function of
@@ -13,12 +13,13 @@
 mod firmware {
     use core::hint::black_box;
 
-    use axcomp_core::trace::Record;
-    use axcomp_core::{Engine, bench};
+    use axcomp_core::bench;
+    use axcomp_core::group::GroupEngine;
     use axcomp_firmware::board::instruction_clock::{self, now, ticks_since};
     use axcomp_firmware::board::semihosting;
-    use axcomp_firmware::control::{ControlLoop, LoopSettings, fake::SteppingClock};
-    use axcomp_firmware::drive::{BoardCaps, Drive, DriveIo, LinkSettings, NoWatchdog, ResetCause};
+    use axcomp_firmware::control::{LoopSettings, fake::SteppingClock};
+    use axcomp_firmware::drive::group::GroupDrive;
+    use axcomp_firmware::drive::{BoardCaps, DriveIo, LinkSettings, NoWatchdog, ResetCause};
     use axcomp_firmware::setpoint::{MAX_SETPOINT_FRAME_LEN, SetpointFrame};
     use cortex_m_rt::entry;
     use cortex_m_semihosting::hprintln;
@@ -28,7 +29,10 @@ mod firmware {
     const BATCHES: u32 = 100;
     const IMAGE_BUF_LEN: usize = 36 * 1024;
 
-    static ENGINE: ConstStaticCell<Engine> = ConstStaticCell::new(Engine::new());
+    /// Coefficient pool (segments): the reference image's bidirectional 1024-segment table.
+    const POOL: usize = 2048;
+
+    static ENGINE: ConstStaticCell<GroupEngine<POOL>> = ConstStaticCell::new(GroupEngine::new());
     static IMAGE: ConstStaticCell<[u8; IMAGE_BUF_LEN]> = ConstStaticCell::new([0; IMAGE_BUF_LEN]);
 
     /// The reference image's board: 32-bit counter, axis 1 (plus 2 and 3 for the three-axis frame), 8 sensors.
@@ -68,18 +72,19 @@ mod firmware {
         }
     }
 
-    type DriveCall = fn(&mut Drive, &mut ControlLoop<'_>, &mut BenchIo, &SteppingClock);
+    type Engine = GroupEngine<POOL>;
+    type DriveCall = fn(&mut GroupDrive, &mut Engine, &mut BenchIo, &SteppingClock);
 
     #[inline(never)]
-    fn drive_cycle(d: &mut Drive, ctl: &mut ControlLoop<'_>, io: &mut BenchIo, c: &SteppingClock) {
-        black_box(d.cycle(ctl, io, c, &mut NoWatchdog));
+    fn drive_cycle(d: &mut GroupDrive, e: &mut Engine, io: &mut BenchIo, c: &SteppingClock) {
+        black_box(d.cycle(e, io, c, &mut NoWatchdog));
     }
 
     #[inline(never)]
-    fn empty_cycle(_: &mut Drive, _: &mut ControlLoop<'_>, _: &mut BenchIo, _: &SteppingClock) {}
+    fn empty_cycle(_: &mut GroupDrive, _: &mut Engine, _: &mut BenchIo, _: &SteppingClock) {}
 
-    /// Mean instructions per `Drive::cycle` with `n_axes` in the setpoint frame.
-    fn measure(drive: &mut Drive, ctl: &mut ControlLoop<'_>, n_axes: usize, ipt: f32) -> f32 {
+    /// Mean instructions per `GroupDrive::cycle` (one axis) with `n_axes` in the setpoint frame.
+    fn measure(drive: &mut GroupDrive, engine: &mut Engine, n_axes: usize, ipt: f32) -> f32 {
         let clock = SteppingClock::default();
         let mut io = BenchIo {
             frames: [[0; MAX_SETPOINT_FRAME_LEN]; BATCH],
@@ -96,9 +101,7 @@ mod firmware {
         // Continues the sequence of an earlier call (the drive checks it across calls).
         let mut seq = drive.counters().link.frames_ok as u8;
         for b in 0..BATCHES {
-            let t =
-                axcomp_core::trace::Temperatures::new(b * 100, &bench::reference_temperatures(b));
-            ctl.apply(&Record::Temperatures(t));
+            drive.update_temperatures(engine, b * 100, &bench::reference_temperatures(b));
             // Untimed: this batch's frames (fresh sequence numbers, the reference commands).
             for k in 0..BATCH {
                 let input = bench::reference_input(b * BATCH as u32 + k as u32);
@@ -118,7 +121,7 @@ mod firmware {
                     io.scale_raw = bench::reference_input(b * BATCH as u32 + k as u32).scale_raw;
                     call(
                         black_box(&mut *drive),
-                        black_box(&mut *ctl),
+                        black_box(&mut *engine),
                         black_box(&mut io),
                         &clock,
                     );
@@ -145,20 +148,19 @@ mod firmware {
             Ok(c) => c,
             Err(e) => panic!("{}", e),
         };
-        let mut ctl = ControlLoop::new(engine, cfg);
-        let mut drive = Drive::new(
+        let mut drive = GroupDrive::new(
             CAPS,
             &cfg,
             LinkSettings::defaults(cfg.rate_hz),
             ResetCause::default(),
         );
-        if let Err(e) = drive.offer_image(&mut ctl, &image[..n]) {
+        if let Err(e) = drive.offer_image(engine, &image[..n]) {
             panic!("bench image refused: {}", e);
         }
-        ctl.apply(&Record::Process(bench::PROCESS));
+        engine.set_process(&bench::PROCESS);
 
-        let one = measure(&mut drive, &mut ctl, 1, ipt);
-        let three = measure(&mut drive, &mut ctl, 3, ipt);
+        let one = measure(&mut drive, engine, 1, ipt);
+        let three = measure(&mut drive, engine, 3, ipt);
         let c = drive.counters();
         if c.link.frames_ok != 2 * BATCHES * BATCH as u32 || c.link.corrupt != 0 || c.link.lost != 0
         {
