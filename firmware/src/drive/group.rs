@@ -131,8 +131,6 @@ pub struct GroupDrive {
     counters: DriveCounters,
     last_status: Status,
     probe: ProbeDrive,
-    /// The engine's inputs of the current cycle (slots beyond the group's axes unused).
-    input: GroupInput,
 }
 
 impl GroupDrive {
@@ -163,7 +161,6 @@ impl GroupDrive {
             counters: DriveCounters::default(),
             last_status: Status::NONE,
             probe: ProbeDrive::new(config.period_ticks.saturating_mul(config.rate_hz)),
-            input: GroupInput::ZERO,
         }
     }
 
@@ -271,10 +268,6 @@ impl GroupDrive {
                 }
                 self.inputs = inputs;
                 self.n_axes = n;
-                // Slots beyond the group's axes read zero, as a fresh input each cycle would.
-                for a in self.input.axes.iter_mut().skip(n) {
-                    *a = GroupInput::ZERO.axes[0];
-                }
                 self.latched.set(Status::IMAGE_REFUSED, false);
                 self.probe
                     .configure(group_image::parse(image).ok().and_then(|v| v.probe));
@@ -390,10 +383,7 @@ impl GroupDrive {
 
         // ---- the engine: one cycle for every axis ----
         let forces = io.read_forces();
-        // The engine's inputs live in the drive: only the group's axes are written each cycle; the
-        // slots beyond them stay zero (cleared when an image changes the axis count), so no
-        // 160-byte clear per cycle.
-        let input = &mut self.input;
+        let mut input = GroupInput::ZERO;
         // The cycle's record is built in place (the caller's return slot): no copy of the engine's
         // outputs and the per-axis arrays on return.
         let mut r = GroupDriveCycle {
@@ -420,7 +410,7 @@ impl GroupDrive {
             input.axes[i].scale_raw = io.read_scale(usize::from(self.inputs[i]));
             input.axes[i].forces_n = forces;
         }
-        engine.cycle(input, out);
+        engine.cycle(&input, out);
         // Without probe settings (the common case) nothing of the probe runs.
         let probe_on = self.probe.enabled();
         let probe_flags = if probe_on {
