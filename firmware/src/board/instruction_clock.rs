@@ -1,5 +1,5 @@
-//! Instruction counting for the QEMU bench bins (`axcomp-qemu-bench`, `axcomp-qemu-drive-bench`,
-//! `axcomp-qemu-group-drive-bench`): under `-icount shift=0` SysTick advances deterministically with
+//! Instruction counting for the QEMU bench bins (`axcomp-qemu-bench`, `axcomp-qemu-drive-bench`):
+//! under `-icount shift=0` SysTick advances deterministically with
 //! executed instructions; it is calibrated against a block of exactly 1 002 001 instructions, so a
 //! measured tick count converts to instructions.
 //!
