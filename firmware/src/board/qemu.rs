@@ -16,7 +16,7 @@ use cortex_m_semihosting::hprintln;
 use axcomp_core::Engine;
 use axcomp_core::trace::OUTPUT_RECORD_LEN;
 
-use super::semihosting::{self, HostError, HostFile};
+use super::semihosting::{self, HostError, HostFile, OutBlock};
 use crate::control::{ControlLoop, CycleClock, LoopSettings};
 use crate::replay::{self, ByteSource, TraceStream};
 
@@ -72,32 +72,6 @@ impl ByteSource for HostFile {
     }
 }
 
-/// Output records collected into blocks before each semihosting write.
-struct OutBlock<'a> {
-    file: HostFile,
-    buf: &'a mut [u8; OUT_BLOCK_RECORDS * OUTPUT_RECORD_LEN],
-    len: usize,
-    error: Option<HostError>,
-}
-
-impl OutBlock<'_> {
-    fn push(&mut self, rec: &[u8; OUTPUT_RECORD_LEN]) {
-        self.buf[self.len..self.len + OUTPUT_RECORD_LEN].copy_from_slice(rec);
-        self.len += OUTPUT_RECORD_LEN;
-        if self.len == self.buf.len() {
-            self.flush();
-        }
-    }
-    fn flush(&mut self) {
-        if self.len > 0 && self.error.is_none() {
-            if let Err(e) = self.file.write_all(&self.buf[..self.len]) {
-                self.error = Some(e);
-            }
-        }
-        self.len = 0;
-    }
-}
-
 /// Runs the whole replay and exits QEMU with the status described in the module docs.
 pub fn run(
     syst: SYST,
@@ -146,12 +120,7 @@ pub fn run(
         Err(e) => panic!("loop settings: {}", e),
     };
     let mut ctl = ControlLoop::new(engine, cfg);
-    let mut out = OutBlock {
-        file: output,
-        buf: out_buf,
-        len: 0,
-        error: None,
-    };
+    let mut out = OutBlock::new(output, out_buf);
     let sum = replay::replay(
         &mut ctl,
         &mut stream,
@@ -159,19 +128,10 @@ pub fn run(
         |o| out.push(&o.encode()),
         |e| hprintln!("axcomp-qemu: {}: {}", trace_path, e),
     );
-    out.flush();
-    if let Some(e) = out.error {
+    if let Err((what, e)) = out.finish() {
         hprintln!(
-            "axcomp-qemu: writing {} failed: {} (errno {})",
-            out_path,
-            e.op,
-            e.errno
-        );
-        semihosting::exit_code(2)
-    }
-    if let Err(e) = out.file.close() {
-        hprintln!(
-            "axcomp-qemu: closing {} failed: {} (errno {})",
+            "axcomp-qemu: {} {} failed: {} (errno {})",
+            what,
             out_path,
             e.op,
             e.errno

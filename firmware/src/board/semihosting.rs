@@ -136,6 +136,54 @@ impl Drop for HostFile {
     }
 }
 
+/// Output bytes collected into a RAM block before each semihosting write (one host call per block
+/// instead of one per record); the file's bytes are the same for any block size.
+pub struct OutBlock<'a> {
+    file: HostFile,
+    buf: &'a mut [u8],
+    len: usize,
+    error: Option<HostError>,
+}
+
+impl<'a> OutBlock<'a> {
+    pub fn new(file: HostFile, buf: &'a mut [u8]) -> Self {
+        OutBlock {
+            file,
+            buf,
+            len: 0,
+            error: None,
+        }
+    }
+
+    /// Appends `bytes` (at most the block's size), writing the block out first when they do not fit.
+    /// After a failed write nothing more is written; [`OutBlock::finish`] reports it.
+    pub fn push(&mut self, bytes: &[u8]) {
+        if self.len + bytes.len() > self.buf.len() {
+            self.flush();
+        }
+        let n = bytes.len().min(self.buf.len() - self.len);
+        self.buf[self.len..self.len + n].copy_from_slice(&bytes[..n]);
+        self.len += n;
+    }
+
+    fn flush(&mut self) {
+        if self.len > 0 && self.error.is_none() {
+            self.error = self.file.write_all(&self.buf[..self.len]).err();
+        }
+        self.len = 0;
+    }
+
+    /// Writes what is left and closes the file: `Err(("writing", e))` for the first failed write,
+    /// `Err(("closing", e))` when the close fails.
+    pub fn finish(mut self) -> Result<(), (&'static str, HostError)> {
+        self.flush();
+        if let Some(e) = self.error {
+            return Err(("writing", e));
+        }
+        self.file.close().map_err(|e| ("closing", e))
+    }
+}
+
 /// Trace file name when the command line gives none.
 pub const DEFAULT_TRACE_PATH: &str = "axcomp-trace.bin";
 /// Output file name when the command line gives none.
