@@ -21,6 +21,18 @@ fn main() {
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg-bins=--nmagic");
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
+    // cortex-m-rt's `device` feature includes `device.x` (weak aliases of the interrupt handlers);
+    // the board's comes with its PAC. The QEMU bins name every vector in their own table
+    // (`board::qemu::__INTERRUPTS`), so theirs is empty.
+    if env::var_os("CARGO_FEATURE_QEMU").is_some()
+        && env::var_os("CARGO_FEATURE_BOARD_STM32G474").is_none()
+    {
+        fs::write(
+            out.join("device.x"),
+            "/* QEMU: see board::qemu::__INTERRUPTS */\n",
+        )
+        .expect("writing device.x into OUT_DIR");
+    }
     if env::var_os("CARGO_FEATURE_BOARD_STM32G474").is_some() {
         println!("cargo:rustc-link-arg-bin=axcomp-stm32g474=-Tdefmt.x");
     }

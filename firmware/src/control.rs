@@ -213,12 +213,14 @@ impl<'e> ControlLoop<'e> {
     }
 
     /// Loads an image into the engine's spare slot (A/B swap on success; on error the running slot is
-    /// kept). The board's drive checks an image against the board first ([`crate::drive::Drive::offer_image`]).
+    /// kept). The board's drive checks an image against the board first
+    /// ([`crate::drive::group::GroupDrive::offer_image`]).
     pub fn load_image(&mut self, image: &[u8]) -> Result<(), axcomp_core::ImageError> {
         self.engine.load_image(image)
     }
 
-    /// The between-cycles access ([`Inbox`]) outside [`ControlLoop::run`] (e.g. for [`crate::drive::Drive::run`]).
+    /// The between-cycles access ([`Inbox`]) outside [`ControlLoop::run`] (e.g. for a loop paced by
+    /// the caller).
     pub fn inbox(&mut self) -> Inbox<'_> {
         Inbox {
             engine: self.engine,

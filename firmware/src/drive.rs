@@ -1,6 +1,7 @@
-//! The drive around the control loop: what the board has ([`BoardCaps`]) and the check of every image
+//! The drive around the engine: what the board has ([`BoardCaps`]) and the check of every image
 //! against it, the setpoint link with its supervisor ([`LinkSupervisor`]), deadline lateness
-//! ([`LatenessMeter`]), the watchdog ([`Watchdog`]) and the status word of each cycle ([`Drive`]).
+//! ([`LatenessMeter`]), the watchdog ([`Watchdog`]) and the status word of each cycle; one drive for
+//! one to five axes ([`group::GroupDrive`]: a single-axis machine runs a group of one axis).
 //!
 //! Glossary:
 //! - **Board capabilities** ([`BoardCaps`]): the scale counters' width, the axis ids wired (in the order of
@@ -25,13 +26,11 @@
 //! Everything here is host-testable with the fakes in [`crate::control::fake`] and `drive::fake` (tests and
 //! feature `std`).
 
-use axcomp_core::trace::OutputRecord;
-use axcomp_core::{Compensator, Flags, ImageError, ImageInfo, MAX_FORCES, inspect_image};
-
-use crate::control::{AxisIo, ControlLoop, CycleClock, CycleTimer, Inbox, LoopConfig};
-use crate::setpoint::{
-    CounterId, LinkCounters, MAX_REPLY_FRAME_LEN, ReplyFrame, SetpointDecoder, extend_command,
+use axcomp_core::{
+    AxisCompensator, Flags, ImageError, ImageInfo, MAX_FORCES, TableStore, inspect_image,
 };
+
+use crate::setpoint::{LinkCounters, extend_command};
 use crate::status::Status;
 
 // ------------------------------------------------------------------------------------------------
@@ -139,8 +138,12 @@ impl BoardCaps {
         Ok((info, input))
     }
 
-    /// Checks a loaded compensator (e.g. the running slot) with its accessors; the identity passes.
-    pub fn check_compensator(&self, c: &Compensator) -> Result<usize, ImageRefusal> {
+    /// Checks a loaded compensator (e.g. an axis of the running group) with its accessors; the
+    /// identity passes.
+    pub fn check_compensator<S: TableStore>(
+        &self,
+        c: &AxisCompensator<S>,
+    ) -> Result<usize, ImageRefusal> {
         if !c.is_loaded() {
             return Ok(0);
         }
@@ -314,7 +317,7 @@ pub struct LatenessStats {
     pub max_lateness_ticks: u32,
 }
 
-/// Measures each cycle's start against its deadline on a 32-bit up-counting [`CycleClock`] (DWT CYCCNT,
+/// Measures each cycle's start against its deadline on a 32-bit up-counting [`CycleClock`](crate::control::CycleClock) (DWT CYCCNT,
 /// the host fakes).
 #[derive(Clone, Copy, Debug)]
 pub struct LatenessMeter {
@@ -448,7 +451,7 @@ pub trait DriveIo {
     fn write_link(&mut self, frame: &[u8]) -> bool;
 }
 
-/// Counters of a [`Drive`] (wrapping or saturating `u32`s since boot).
+/// Counters of a [`group::GroupDrive`] (wrapping or saturating `u32`s since boot).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveCounters {
@@ -461,315 +464,6 @@ pub struct DriveCounters {
     pub lateness: LatenessStats,
     pub images_refused: u32,
     pub replies_dropped: u32,
-}
-
-/// One cycle's result.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DriveCycle {
-    /// The command the axis followed (the last fresh one while frames are late).
-    pub command_counts: i64,
-    /// What went to the drive: command − applied correction.
-    pub corrected_command_counts: i64,
-    pub applied: Applied,
-    pub status: Status,
-    /// The engine's record of this cycle (the engine's own correction, before the link supervisor).
-    pub engine: Option<OutputRecord>,
-}
-
-/// The control loop's view of one axis in a drive cycle.
-struct CycleAxis {
-    scale_raw: u32,
-    command: i64,
-    forces: [f32; MAX_FORCES],
-}
-
-impl AxisIo for CycleAxis {
-    fn read_scale(&mut self) -> u32 {
-        self.scale_raw
-    }
-    fn read_command(&mut self) -> i64 {
-        self.command
-    }
-    fn read_forces(&mut self) -> [f32; MAX_FORCES] {
-        self.forces
-    }
-    fn write_command(&mut self, _counts: i64) {
-        // The drive writes after the link supervisor (see `Drive::cycle`).
-    }
-}
-
-/// The drive: link decoding and supervision, the engine's cycle, the status word and the reply frame.
-pub struct Drive {
-    caps: BoardCaps,
-    input: usize,
-    decoder: SetpointDecoder,
-    link: LinkSupervisor,
-    meter: LatenessMeter,
-    latched: Status,
-    last_seq: u8,
-    reply_seq: u8,
-    prev_overrun: bool,
-    prev_reply_dropped: bool,
-    next_counter: u8,
-    counters: DriveCounters,
-    last_status: Status,
-}
-
-impl Drive {
-    pub fn new(
-        caps: BoardCaps,
-        config: &LoopConfig,
-        link: LinkSettings,
-        reset: ResetCause,
-    ) -> Self {
-        let mut latched = Status::NONE;
-        latched.set(Status::WATCHDOG_RESET, reset.watchdog);
-        Drive {
-            caps,
-            input: 0,
-            decoder: SetpointDecoder::new(),
-            link: LinkSupervisor::new(link),
-            meter: LatenessMeter::new(config.period_ticks),
-            latched,
-            last_seq: 0,
-            reply_seq: 0,
-            prev_overrun: false,
-            prev_reply_dropped: false,
-            next_counter: 0,
-            counters: DriveCounters::default(),
-            last_status: Status::NONE,
-        }
-    }
-
-    /// Replaces the lateness meter (e.g. another tolerance).
-    pub fn set_lateness_meter(&mut self, meter: LatenessMeter) {
-        self.meter = meter;
-    }
-
-    pub fn caps(&self) -> &BoardCaps {
-        &self.caps
-    }
-
-    /// Scale input (and frame slot) of the running image's axis.
-    pub fn input(&self) -> usize {
-        self.input
-    }
-
-    /// Cycles run since construction (wrapping).
-    pub fn cycles(&self) -> u32 {
-        self.counters.cycles
-    }
-
-    pub fn counters(&self) -> DriveCounters {
-        let mut c = self.counters;
-        c.link = *self.decoder.counters();
-        c.lateness = *self.meter.stats();
-        c
-    }
-
-    /// Status word of the last cycle.
-    pub fn status(&self) -> Status {
-        self.last_status
-    }
-
-    pub fn supervisor(&self) -> &LinkSupervisor {
-        &self.link
-    }
-
-    /// Checks `image` against the board, then loads it into the spare slot. A refused image is never
-    /// loaded (the running slot is kept) and latches [`Status::IMAGE_REFUSED`] until an image is accepted.
-    pub fn offer_image(
-        &mut self,
-        ctl: &mut ControlLoop<'_>,
-        image: &[u8],
-    ) -> Result<(), ImageRefusal> {
-        let result = self.caps.check_image(image).and_then(|(_, input)| {
-            ctl.load_image(image)
-                .map(|()| input)
-                .map_err(ImageRefusal::Invalid)
-        });
-        match result {
-            Ok(input) => {
-                self.input = input;
-                self.latched.set(Status::IMAGE_REFUSED, false);
-                Ok(())
-            }
-            Err(e) => {
-                self.latched.insert(Status::IMAGE_REFUSED);
-                self.counters.images_refused = self.counters.images_refused.saturating_add(1);
-                Err(e)
-            }
-        }
-    }
-
-    /// One cycle: lateness, link bytes → fresh frame, supervised command, the engine's cycle, the applied
-    /// correction, the status word and the reply frame; feeds the watchdog at the end.
-    pub fn cycle<Io: DriveIo, C: CycleClock, W: Watchdog>(
-        &mut self,
-        ctl: &mut ControlLoop<'_>,
-        io: &mut Io,
-        clock: &C,
-        watchdog: &mut W,
-    ) -> DriveCycle {
-        let (_, late_start) = self.meter.start(clock.now());
-        self.counters.cycles = self.counters.cycles.wrapping_add(1);
-
-        // ---- link: every byte received since the last cycle; the newest fresh frame wins ----
-        let mut fresh = None;
-        let mut buf = [0u8; 32];
-        // Bounded: a flooded line cannot hold the cycle (at 2 Mbaud 20 bytes arrive per cycle).
-        for _ in 0..8 {
-            let n = io.read_link(&mut buf);
-            if n == 0 {
-                break;
-            }
-            if let Some(f) = self.decoder.push_bytes(&buf[..n.min(buf.len())]) {
-                fresh = Some(f);
-            }
-        }
-        let events = self.decoder.take_events();
-        let mut status = self.latched;
-        let mut own = None;
-        if let Some(f) = fresh {
-            self.last_seq = f.seq;
-            own = f.commands().get(self.input).copied();
-            if own.is_none() {
-                self.counters.short_frames = self.counters.short_frames.wrapping_add(1);
-                status.insert(Status::FRAME_CORRUPT);
-            }
-        }
-        if own.is_none() {
-            self.counters.cycles_without_frame = self.counters.cycles_without_frame.wrapping_add(1);
-            status.insert(Status::FRAME_LATE);
-        }
-        status.set(
-            Status::FRAME_CORRUPT,
-            status.contains(Status::FRAME_CORRUPT) || events.corrupt,
-        );
-        status.set(Status::FRAME_REPEATED, events.repeated);
-        status.set(Status::FRAME_MISSING, events.lost);
-        let command = self.link.begin(own);
-
-        // ---- the engine ----
-        let mut axis = CycleAxis {
-            scale_raw: io.read_scale(self.input),
-            command,
-            forces: io.read_forces(),
-        };
-        let out = ctl.cycle(&mut axis, clock);
-        let (engine_um, engine_counts, flags) = match &out {
-            Some(o) => (o.correction_um(), o.correction_counts, Flags(o.flags)),
-            None => (0.0, 0, Flags::NONE),
-        };
-        let um_per_count = ctl.engine().active().um_per_count();
-        let applied = self.link.finish(engine_um, engine_counts, um_per_count);
-        let corrected = command.saturating_sub(i64::from(applied.correction_counts));
-
-        // ---- status word ----
-        match applied.phase {
-            LinkPhase::Following => {}
-            LinkPhase::Holding => status.insert(Status::LINK_HOLD),
-            LinkPhase::RampingOut | LinkPhase::RampingIn => status.insert(Status::LINK_RAMP),
-        }
-        if flags.contains(Flags::SENSOR_FAULT) {
-            let comp = ctl.engine().active();
-            let st = ctl.engine().state();
-            let stale = (0..comp.sensor_count()).any(|i| st.sensor_stale(i));
-            status.insert(if stale {
-                Status::SENSOR_STALE
-            } else {
-                Status::SENSOR_IMPLAUSIBLE
-            });
-        }
-        status.insert(core_status(flags));
-        status.set(Status::CYCLE_LATE, late_start);
-        status.set(Status::OVERRUN, self.prev_overrun);
-        status.set(Status::REPLY_DROPPED, self.prev_reply_dropped);
-        self.last_status = status;
-
-        // ---- reply frame: corrected command, status, one counter ----
-        let (id, value) = self.next_counter_value(ctl);
-        let mut frame = [0u8; MAX_REPLY_FRAME_LEN];
-        let n = ReplyFrame::new(
-            self.reply_seq,
-            self.last_seq,
-            &[corrected as i32],
-            status.bits(),
-            id,
-            value,
-        )
-        .map(|r| r.encode_into(&mut frame))
-        .unwrap_or(0);
-        self.reply_seq = self.reply_seq.wrapping_add(1);
-        self.prev_reply_dropped = !io.write_link(&frame[..n]);
-        if self.prev_reply_dropped {
-            self.counters.replies_dropped = self.counters.replies_dropped.wrapping_add(1);
-        }
-
-        watchdog.feed();
-        self.prev_overrun = self.meter.finish(clock.now());
-        DriveCycle {
-            command_counts: command,
-            corrected_command_counts: corrected,
-            applied,
-            status,
-            engine: out,
-        }
-    }
-
-    fn next_counter_value(&mut self, ctl: &ControlLoop<'_>) -> (CounterId, u16) {
-        let id = CounterId::ALL[usize::from(self.next_counter) % CounterId::ALL.len()];
-        self.next_counter = ((usize::from(self.next_counter) + 1) % CounterId::ALL.len()) as u8;
-        let c = &self.counters;
-        let link = self.decoder.counters();
-        let late = self.meter.stats();
-        let v = match id {
-            CounterId::Cycles => c.cycles,
-            CounterId::FramesApplied => link.frames_ok,
-            CounterId::FramesCorrupt => link.corrupt.wrapping_add(c.short_frames),
-            CounterId::FramesLost => link.lost,
-            CounterId::FramesRepeated => link.repeated,
-            CounterId::CyclesWithoutFrame => c.cycles_without_frame,
-            CounterId::LateCycles => late.late_cycles,
-            CounterId::Overruns => late.overruns,
-            CounterId::ImagesRefused => c
-                .images_refused
-                .wrapping_add(ctl.engine().stats().images_rejected),
-            CounterId::SensorRejected => {
-                let comp = ctl.engine().active();
-                let st = ctl.engine().state();
-                (0..comp.sensor_count()).fold(0u32, |a, i| a.wrapping_add(st.rejected_readings(i)))
-            }
-            CounterId::MaxLatenessTicks => late.max_lateness_ticks,
-            CounterId::SkippedBytes => link.skipped_bytes,
-        };
-        (id, v as u16)
-    }
-
-    /// Runs forever at the timer's pace; `between` runs before each cycle with the loop's [`Inbox`]
-    /// (temperatures, process parameters) and the drive (the previous cycle's status, the counters).
-    pub async fn run<Io, C, T, W, F>(
-        &mut self,
-        ctl: &mut ControlLoop<'_>,
-        io: &mut Io,
-        clock: &C,
-        timer: &mut T,
-        watchdog: &mut W,
-        mut between: F,
-    ) -> !
-    where
-        Io: DriveIo,
-        C: CycleClock,
-        T: CycleTimer,
-        W: Watchdog,
-        F: FnMut(&mut Inbox<'_>, &Drive),
-    {
-        loop {
-            timer.next_cycle().await;
-            between(&mut ctl.inbox(), self);
-            self.cycle(ctl, io, clock, watchdog);
-        }
-    }
 }
 
 /// Host fakes of the drive's board traits (tests and feature `std`).

@@ -11,9 +11,10 @@
 //!   QEMU firmware and the host replay through the same `axcomp_core::Engine`.
 //! - **Overrun**: a cycle whose compute time exceeded the cycle period ([`control::CycleStats`]); the drive
 //!   also counts cycles whose output came after the next cycle's deadline ([`drive::LatenessMeter`]).
-//! - **Drive**: the board's loop around [`control::ControlLoop`]: setpoint link ([`setpoint`]) and its
-//!   supervisor, board capabilities and the image check, lateness, watchdog, status word ([`status`]);
-//!   see [`drive`].
+//! - **Drive**: the board's loop around the group engine (`axcomp_core::group::GroupEngine`, one to five
+//!   axes; a single-axis machine is a group of one): setpoint link ([`setpoint`]) and its supervisors,
+//!   board capabilities and the image check, lateness, watchdog, status word ([`status`]); see
+//!   [`drive::group::GroupDrive`].
 //!
 //! Host builds (`cargo test`) compile the portable modules only; the board modules need `target_os = "none"`.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]

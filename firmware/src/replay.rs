@@ -11,11 +11,12 @@
 //! Error semantics follow `axcomp_core::trace::Reader`: a record with intact framing but bad content is
 //! reported and skipped; a truncated record is reported and ends the stream; `End` ends it.
 
-use axcomp_core::trace::{
-    self, OutputRecord, RECORD_HEADER_LEN, Record, TRACE_HEADER_LEN, TraceError,
-};
+use axcomp_core::trace::{self, OutputRecord, Record, TRACE_HEADER_LEN, TraceError};
 
 use crate::control::{AxisIo, ControlLoop, CycleClock};
+
+// The window's framing is the core trace's.
+const _: () = assert!(FRAME_HEADER_LEN == trace::RECORD_HEADER_LEN);
 
 /// Where trace bytes come from.
 pub trait ByteSource {
@@ -68,63 +69,130 @@ impl<E: core::fmt::Debug> core::fmt::Display for StreamError<E> {
 
 impl<E: core::fmt::Debug> core::error::Error for StreamError<E> {}
 
-/// Reads trace records from a [`ByteSource`] through a fixed buffer.
-pub struct TraceStream<'b, S> {
+/// Why [`RecordWindow::next_frame`] could not return a whole record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameError<E> {
+    /// The byte source failed.
+    Source(E),
+    /// The input ends inside the record (its header or its payload).
+    Truncated,
+    /// The record (`len` bytes with its header) is larger than the buffer.
+    TooLarge { len: usize },
+}
+
+/// A fixed RAM window over a [`ByteSource`] for records framed as `tag: u8, payload length: u32
+/// (little-endian), payload`: the trace ([`TraceStream`]) and the drive trace
+/// (`drive::link_trace::LinkStream`) read through it. Bytes are shifted down and refilled as
+/// records are consumed; a record must fit in the buffer whole.
+pub struct RecordWindow<'b, S> {
     src: S,
     buf: &'b mut [u8],
     start: usize,
     end: usize,
     eof: bool,
-    done: bool,
-    /// Absolute trace offset of `buf[start]`.
+    /// Absolute input offset of `buf[start]`.
     offset: usize,
 }
 
-impl<'b, S: ByteSource> TraceStream<'b, S> {
-    /// Reads and checks the trace header.
-    pub fn new(src: S, buf: &'b mut [u8]) -> Result<Self, StreamError<S::Error>> {
-        let mut s = TraceStream {
+/// Bytes before a record's payload: tag and payload length.
+pub const FRAME_HEADER_LEN: usize = 5;
+
+impl<'b, S: ByteSource> RecordWindow<'b, S> {
+    pub fn new(src: S, buf: &'b mut [u8]) -> Self {
+        RecordWindow {
             src,
             buf,
             start: 0,
             end: 0,
             eof: false,
-            done: false,
             offset: 0,
-        };
-        s.fill_to(TRACE_HEADER_LEN)?;
-        let first = trace::check_header(&s.buf[s.start..s.end]).map_err(StreamError::Trace)?;
-        s.start += first;
-        s.offset += first;
-        Ok(s)
+        }
     }
 
-    /// Absolute trace offset of the next record.
+    /// Absolute input offset of the next unread byte.
     pub fn offset(&self) -> usize {
         self.offset
     }
 
-    /// Makes at least `n` bytes available from `start` (fewer only at end of input).
-    fn fill_to(&mut self, n: usize) -> Result<(), StreamError<S::Error>> {
-        if self.end - self.start >= n {
-            return Ok(());
-        }
-        if self.start > 0 {
-            self.buf.copy_within(self.start..self.end, 0);
-            self.end -= self.start;
-            self.start = 0;
-        }
-        while self.end < n && !self.eof {
-            let got = self
-                .src
-                .read(&mut self.buf[self.end..])
-                .map_err(StreamError::Source)?;
-            if got == 0 {
-                self.eof = true;
+    /// Capacity of the window (the largest record it can hold).
+    pub fn capacity(&self) -> usize {
+        self.buf.len()
+    }
+
+    /// Makes at least `n` bytes available (fewer only at end of input) and returns what is.
+    pub fn peek(&mut self, n: usize) -> Result<&[u8], S::Error> {
+        if self.end - self.start < n {
+            if self.start > 0 {
+                self.buf.copy_within(self.start..self.end, 0);
+                self.end -= self.start;
+                self.start = 0;
             }
-            self.end += got;
+            while self.end < n && !self.eof {
+                let got = self.src.read(&mut self.buf[self.end..])?;
+                if got == 0 {
+                    self.eof = true;
+                }
+                self.end += got;
+            }
         }
-        Ok(())
+        Ok(&self.buf[self.start..self.end])
+    }
+
+    /// Consumes `n` available bytes (e.g. a file header after [`RecordWindow::peek`]).
+    pub fn consume(&mut self, n: usize) {
+        let n = n.min(self.end - self.start);
+        self.start += n;
+        self.offset += n;
+    }
+
+    /// The next whole record (header and payload) and its absolute offset; `Ok(None)` at the end
+    /// of input.
+    #[allow(clippy::type_complexity)]
+    pub fn next_frame(&mut self) -> Result<Option<(usize, &[u8])>, FrameError<S::Error>> {
+        let at = self.offset;
+        let h = self.peek(FRAME_HEADER_LEN).map_err(FrameError::Source)?;
+        if h.is_empty() {
+            return Ok(None);
+        }
+        if h.len() < FRAME_HEADER_LEN {
+            return Err(FrameError::Truncated);
+        }
+        let payload = u32::from_le_bytes([h[1], h[2], h[3], h[4]]) as usize;
+        let total = FRAME_HEADER_LEN.saturating_add(payload);
+        if total > self.buf.len() {
+            return Err(FrameError::TooLarge { len: total });
+        }
+        if self.peek(total).map_err(FrameError::Source)?.len() < total {
+            return Err(FrameError::Truncated);
+        }
+        let s = self.start;
+        self.consume(total);
+        Ok(Some((at, &self.buf[s..s + total])))
+    }
+}
+
+/// Reads trace records from a [`ByteSource`] through a fixed buffer.
+pub struct TraceStream<'b, S> {
+    window: RecordWindow<'b, S>,
+    done: bool,
+}
+
+impl<'b, S: ByteSource> TraceStream<'b, S> {
+    /// Reads and checks the trace header.
+    pub fn new(src: S, buf: &'b mut [u8]) -> Result<Self, StreamError<S::Error>> {
+        let mut window = RecordWindow::new(src, buf);
+        let head = window.peek(TRACE_HEADER_LEN).map_err(StreamError::Source)?;
+        let first = trace::check_header(head).map_err(StreamError::Trace)?;
+        window.consume(first);
+        Ok(TraceStream {
+            window,
+            done: false,
+        })
+    }
+
+    /// Absolute trace offset of the next record.
+    pub fn offset(&self) -> usize {
+        self.window.offset()
     }
 
     /// The next record, `None` at the end of the trace (end of input or an `End` record).
@@ -132,48 +200,30 @@ impl<'b, S: ByteSource> TraceStream<'b, S> {
         if self.done {
             return None;
         }
-        let at = self.offset;
-        let at32 = at.min(u32::MAX as usize) as u32;
-        if let Err(e) = self.fill_to(RECORD_HEADER_LEN) {
-            self.done = true;
-            return Some(Err(e));
-        }
-        let avail = self.end - self.start;
-        if avail == 0 {
-            self.done = true;
-            return None;
-        }
-        if avail < RECORD_HEADER_LEN {
-            self.done = true;
-            return Some(Err(StreamError::Trace(TraceError::Truncated {
-                offset: at32,
-            })));
-        }
-        let h = &self.buf[self.start..];
-        let payload = u32::from_le_bytes([h[1], h[2], h[3], h[4]]) as usize;
-        let total = RECORD_HEADER_LEN.saturating_add(payload);
-        if total > self.buf.len() {
-            self.done = true;
-            return Some(Err(StreamError::RecordTooLarge {
-                offset: at32,
-                len: total.min(u32::MAX as usize) as u32,
-                capacity: self.buf.len() as u32,
-            }));
-        }
-        if let Err(e) = self.fill_to(total) {
-            self.done = true;
-            return Some(Err(e));
-        }
-        if self.end - self.start < total {
-            self.done = true;
-            return Some(Err(StreamError::Trace(TraceError::Truncated {
-                offset: at32,
-            })));
-        }
-        let s = self.start;
-        self.start += total;
-        self.offset += total;
-        match trace::decode_record(&self.buf[s..s + total], at) {
+        let at32 = self.window.offset().min(u32::MAX as usize) as u32;
+        let capacity = self.window.capacity() as u32;
+        let (at, frame) = match self.window.next_frame() {
+            Ok(Some(f)) => f,
+            Ok(None) => {
+                self.done = true;
+                return None;
+            }
+            Err(e) => {
+                self.done = true;
+                return Some(Err(match e {
+                    FrameError::Source(e) => StreamError::Source(e),
+                    FrameError::Truncated => {
+                        StreamError::Trace(TraceError::Truncated { offset: at32 })
+                    }
+                    FrameError::TooLarge { len } => StreamError::RecordTooLarge {
+                        offset: at32,
+                        len: len.min(u32::MAX as usize) as u32,
+                        capacity,
+                    },
+                }));
+            }
+        };
+        match trace::decode_record(frame, at) {
             Ok((rec, _)) => {
                 if rec == Record::End {
                     self.done = true;

@@ -3,6 +3,9 @@
 //! Readers return 0 for bytes out of bounds (callers check lengths first); the writer skips what
 //! does not fit (callers size the buffer first).
 
+// Not inlined: image and trace parsing (load time only) read fields at dozens of places, each
+// inlined copy of the range check costs code flash (about 2 KiB in the QEMU group firmware).
+#[inline(never)]
 pub(crate) fn rd<const N: usize>(b: &[u8], off: usize) -> [u8; N] {
     match b.get(off..off.wrapping_add(N)) {
         Some(s) => <[u8; N]>::try_from(s).unwrap_or([0; N]),

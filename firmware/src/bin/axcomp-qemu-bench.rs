@@ -18,10 +18,10 @@ mod firmware {
     use axcomp_core::{
         Compensator, CycleInput, CycleOutput, Engine, Flags, ImageSpec, State, bench,
     };
+    use axcomp_firmware::board::instruction_clock::{self, now, ticks_since};
     use axcomp_firmware::board::semihosting;
     use axcomp_firmware::control::{ControlLoop, LoopSettings, fake::SteppingClock};
     use axcomp_firmware::replay::TraceAxis;
-    use cortex_m::peripheral::{SYST, syst::SystClkSource};
     use cortex_m_rt::entry;
     use cortex_m_semihosting::hprintln;
     use static_cell::ConstStaticCell;
@@ -157,35 +157,6 @@ mod firmware {
         full.saturating_sub(empty) as f32 / (BATCHES as f32 * BATCH as f32) * instr_per_tick
     }
 
-    fn now() -> u32 {
-        SYST::get_current()
-    }
-
-    fn ticks_since(t0: u32) -> u32 {
-        t0.wrapping_sub(now()) & 0x00FF_FFFF
-    }
-
-    /// SysTick ticks for 1 002 001 instructions.
-    fn calibrate() -> u32 {
-        let t0 = now();
-        // SAFETY: pure register arithmetic on a scratch register.
-        unsafe {
-            core::arch::asm!(
-                "mov {n}, #1000",
-                "2:",
-                ".rept 1000",
-                "nop",
-                ".endr",
-                "subs {n}, {n}, #1",
-                "bne 2b",
-                n = out(reg) _,
-                options(nomem, nostack),
-            );
-        }
-        ticks_since(t0)
-    }
-    const CALIBRATION_INSTRUCTIONS: f32 = 1_002_001.0;
-
     /// The measured call's stand-in for the overhead calibration: same signature, same call and return of a
     /// `CycleOutput`, no work.
     #[inline(never)]
@@ -271,18 +242,9 @@ mod firmware {
     #[entry]
     fn main() -> ! {
         let mut core = cortex_m::Peripherals::take().expect("core peripherals taken once");
-        core.SYST.set_clock_source(SystClkSource::Core);
-        core.SYST.set_reload(0x00FF_FFFF);
-        core.SYST.clear_current();
-        core.SYST.enable_counter();
+        instruction_clock::start(&mut core.SYST);
 
-        let cal = calibrate();
-        let instr_per_tick = CALIBRATION_INSTRUCTIONS / cal as f32;
-        hprintln!(
-            "calibration: {} SysTick ticks for {} instructions",
-            cal,
-            CALIBRATION_INSTRUCTIONS as u32
-        );
+        let instr_per_tick = instruction_clock::instructions_per_tick();
 
         // The engine's slots hold the images; the measured calls use their own State.
         let engine = ENGINE.take();
@@ -415,8 +377,7 @@ mod firmware {
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
-        hprintln!("axcomp-qemu-bench: panic: {}", info);
-        semihosting::exit_failure()
+        semihosting::report_panic("axcomp-qemu-bench", info)
     }
 }
 

@@ -21,10 +21,8 @@
 mod firmware {
     use axcomp_core::group::GroupEngine;
     use axcomp_core::trace::OUTPUT_RECORD_LEN;
-    use axcomp_firmware::board::semihosting::{self, HostError, HostFile};
-    use axcomp_firmware::drive::link_trace::{
-        self, DRIVE_OUTPUT_LEN, LinkStream, PROBE_OUTPUT_LEN, ProbeOutputRecord,
-    };
+    use axcomp_firmware::board::semihosting::{self, HostError, HostFile, OutBlock};
+    use axcomp_firmware::drive::link_trace::{self, LinkStream, ProbeOutputRecord};
     use axcomp_firmware::replay::{self, TraceStream};
     use cortex_m_rt::entry;
     use cortex_m_semihosting::hprintln;
@@ -56,10 +54,7 @@ mod firmware {
     #[entry]
     fn main() -> ! {
         let mut cmd_buf = [0u8; 256];
-        let cmd = semihosting::command_line(&mut cmd_buf).unwrap_or("");
-        let mut args = cmd.split_ascii_whitespace().skip(1);
-        let trace_path = args.next().unwrap_or("axcomp-trace.bin");
-        let out_path = args.next().unwrap_or("axcomp-out.bin");
+        let (trace_path, out_path) = semihosting::trace_and_output_paths(&mut cmd_buf);
 
         let mut head = [0u8; 4];
         let mut input =
@@ -68,7 +63,7 @@ mod firmware {
         drop(input);
         let input =
             HostFile::open_read(trace_path).unwrap_or_else(|e| fail("cannot open", trace_path, e));
-        let mut output =
+        let output =
             HostFile::create(out_path).unwrap_or_else(|e| fail("cannot create", out_path, e));
         if link_trace::is_link_trace(&head[..got]) {
             replay_drive_trace(input, output, trace_path, out_path)
@@ -81,32 +76,15 @@ mod firmware {
             }
         };
         let engine = ENGINE.take();
-        let buf = OUT_BUF.take();
-        let mut len = 0;
-        let mut write_error = None;
+        let mut out = OutBlock::new(output, OUT_BUF.take());
         let sum = replay::replay_group(
             engine,
             &mut stream,
-            |o| {
-                buf[len..len + OUTPUT_RECORD_LEN].copy_from_slice(&o.encode());
-                len += OUTPUT_RECORD_LEN;
-                if len == buf.len() {
-                    if write_error.is_none() {
-                        write_error = output.write_all(&buf[..len]).err();
-                    }
-                    len = 0;
-                }
-            },
+            |o| out.push(&o.encode()),
             |e| hprintln!("axcomp-qemu-group: {}: {}", trace_path, e),
         );
-        if len > 0 && write_error.is_none() {
-            write_error = output.write_all(&buf[..len]).err();
-        }
-        if let Some(e) = write_error {
-            fail("writing", out_path, e)
-        }
-        if let Err(e) = output.close() {
-            fail("closing", out_path, e)
+        if let Err((what, e)) = out.finish() {
+            fail(what, out_path, e)
         }
         let s = engine.stats();
         hprintln!(
@@ -128,7 +106,7 @@ mod firmware {
     /// cycle times through the group drive; one 128-byte drive output record per cycle.
     fn replay_drive_trace(
         input: HostFile,
-        mut output: HostFile,
+        output: HostFile,
         trace_path: &str,
         out_path: &str,
     ) -> ! {
@@ -141,39 +119,22 @@ mod firmware {
         };
         let engine = ENGINE.take();
         let mut drive = link_trace::replay_drive();
-        let buf = OUT_BUF.take();
-        let mut len = 0;
-        let mut write_error = None;
+        let mut out = OutBlock::new(output, OUT_BUF.take());
         let probe = stream.is_probe_trace();
-        let record_len = DRIVE_OUTPUT_LEN + if probe { PROBE_OUTPUT_LEN } else { 0 };
         let sum = link_trace::replay_link(
             &mut drive,
             engine,
             &mut stream,
             |o| {
-                buf[len..len + DRIVE_OUTPUT_LEN].copy_from_slice(&o.encode());
-                len += DRIVE_OUTPUT_LEN;
+                out.push(&o.encode());
                 if probe {
-                    buf[len..len + PROBE_OUTPUT_LEN].copy_from_slice(&ProbeOutputRecord::encode(o));
-                    len += PROBE_OUTPUT_LEN;
-                }
-                if len + record_len > buf.len() {
-                    if write_error.is_none() {
-                        write_error = output.write_all(&buf[..len]).err();
-                    }
-                    len = 0;
+                    out.push(&ProbeOutputRecord::encode(o));
                 }
             },
             |e| hprintln!("axcomp-qemu-group: {}: {}", trace_path, e),
         );
-        if len > 0 && write_error.is_none() {
-            write_error = output.write_all(&buf[..len]).err();
-        }
-        if let Some(e) = write_error {
-            fail("writing", out_path, e)
-        }
-        if let Err(e) = output.close() {
-            fail("closing", out_path, e)
+        if let Err((what, e)) = out.finish() {
+            fail(what, out_path, e)
         }
         hprintln!(
             "axcomp-qemu-group: drive trace records={} cycles={} images_refused={} errors={}",
@@ -190,8 +151,7 @@ mod firmware {
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
-        hprintln!("axcomp-qemu-group: panic: {}", info);
-        semihosting::exit_failure()
+        semihosting::report_panic("axcomp-qemu-group", info)
     }
 }
 

@@ -10,7 +10,6 @@ mod firmware {
     use axcomp_core::trace::OUTPUT_RECORD_LEN;
     use axcomp_firmware::board::qemu::{self, OUT_BLOCK_RECORDS, TRACE_BUF_LEN};
     use axcomp_firmware::board::semihosting;
-    use cortex_m_semihosting::hprintln;
     use embassy_executor::Spawner;
     use static_cell::ConstStaticCell;
 
@@ -29,8 +28,7 @@ mod firmware {
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
-        hprintln!("axcomp-qemu: panic: {}", info);
-        semihosting::exit_failure()
+        semihosting::report_panic("axcomp-qemu", info)
     }
 }
 

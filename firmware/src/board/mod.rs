@@ -1,6 +1,8 @@
 //! Board support: the only place that names a chip.
 
 #[cfg(feature = "qemu")]
+pub mod instruction_clock;
+#[cfg(feature = "qemu")]
 pub mod semihosting;
 
 // Links cortex-m's single-core critical-section implementation (used by the executor and the HAL).

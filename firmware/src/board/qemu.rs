@@ -16,7 +16,7 @@ use cortex_m_semihosting::hprintln;
 use axcomp_core::Engine;
 use axcomp_core::trace::OUTPUT_RECORD_LEN;
 
-use super::semihosting::{self, HostError, HostFile};
+use super::semihosting::{self, HostError, HostFile, OutBlock};
 use crate::control::{ControlLoop, CycleClock, LoopSettings};
 use crate::replay::{self, ByteSource, TraceStream};
 
@@ -27,6 +27,21 @@ pub const TRACE_BUF_LEN: usize = 36 * 1024;
 pub const OUT_BLOCK_RECORDS: usize = 64;
 /// netduinoplus2 core clock in QEMU (SysTick with CLKSOURCE = core).
 pub const CORE_CLOCK_HZ: u32 = 168_000_000;
+
+/// Device interrupts of the STM32F405 (netduinoplus2): the QEMU firmware enables none of them.
+pub const INTERRUPT_COUNT: usize = 82;
+
+/// The vector table's device part (cortex-m-rt feature `device`): every interrupt goes to
+/// cortex-m-rt's `DefaultHandler`. cortex-m-rt's generic table without `device` has 240 entries.
+#[used]
+#[unsafe(link_section = ".vector_table.interrupts")]
+#[unsafe(no_mangle)]
+pub static __INTERRUPTS: [unsafe extern "C" fn(); INTERRUPT_COUNT] =
+    [DefaultHandler; INTERRUPT_COUNT];
+
+unsafe extern "C" {
+    fn DefaultHandler();
+}
 
 /// SysTick as a free-running down counter.
 pub struct SysTickClock;
@@ -57,39 +72,6 @@ impl ByteSource for HostFile {
     }
 }
 
-/// Output records collected into blocks before each semihosting write.
-struct OutBlock<'a> {
-    file: HostFile,
-    buf: &'a mut [u8; OUT_BLOCK_RECORDS * OUTPUT_RECORD_LEN],
-    len: usize,
-    error: Option<HostError>,
-}
-
-impl OutBlock<'_> {
-    fn push(&mut self, rec: &[u8; OUTPUT_RECORD_LEN]) {
-        self.buf[self.len..self.len + OUTPUT_RECORD_LEN].copy_from_slice(rec);
-        self.len += OUTPUT_RECORD_LEN;
-        if self.len == self.buf.len() {
-            self.flush();
-        }
-    }
-    fn flush(&mut self) {
-        if self.len > 0 && self.error.is_none() {
-            if let Err(e) = self.file.write_all(&self.buf[..self.len]) {
-                self.error = Some(e);
-            }
-        }
-        self.len = 0;
-    }
-}
-
-fn paths(cmd: &str) -> (&str, &str) {
-    let mut it = cmd.split_ascii_whitespace().skip(1);
-    let trace = it.next().unwrap_or("axcomp-trace.bin");
-    let out = it.next().unwrap_or("axcomp-out.bin");
-    (trace, out)
-}
-
 /// Runs the whole replay and exits QEMU with the status described in the module docs.
 pub fn run(
     syst: SYST,
@@ -98,7 +80,7 @@ pub fn run(
     out_buf: &'static mut [u8; OUT_BLOCK_RECORDS * OUTPUT_RECORD_LEN],
 ) -> ! {
     let mut cmd_buf = [0u8; 256];
-    let (trace_path, out_path) = paths(semihosting::command_line(&mut cmd_buf).unwrap_or(""));
+    let (trace_path, out_path) = semihosting::trace_and_output_paths(&mut cmd_buf);
 
     let input = match HostFile::open_read(trace_path) {
         Ok(f) => f,
@@ -138,12 +120,7 @@ pub fn run(
         Err(e) => panic!("loop settings: {}", e),
     };
     let mut ctl = ControlLoop::new(engine, cfg);
-    let mut out = OutBlock {
-        file: output,
-        buf: out_buf,
-        len: 0,
-        error: None,
-    };
+    let mut out = OutBlock::new(output, out_buf);
     let sum = replay::replay(
         &mut ctl,
         &mut stream,
@@ -151,19 +128,10 @@ pub fn run(
         |o| out.push(&o.encode()),
         |e| hprintln!("axcomp-qemu: {}: {}", trace_path, e),
     );
-    out.flush();
-    if let Some(e) = out.error {
+    if let Err((what, e)) = out.finish() {
         hprintln!(
-            "axcomp-qemu: writing {} failed: {} (errno {})",
-            out_path,
-            e.op,
-            e.errno
-        );
-        semihosting::exit_code(2)
-    }
-    if let Err(e) = out.file.close() {
-        hprintln!(
-            "axcomp-qemu: closing {} failed: {} (errno {})",
+            "axcomp-qemu: {} {} failed: {} (errno {})",
+            what,
             out_path,
             e.op,
             e.errno

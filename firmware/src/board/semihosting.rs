@@ -9,10 +9,19 @@
 use cortex_m_semihosting::{debug, nr, syscall};
 
 /// A semihosting operation failed; `op` names it, `errno` is the host's errno (SYS_ERRNO).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy)]
 pub struct HostError {
     pub op: &'static str,
     pub errno: usize,
+}
+
+/// `OP (errno N)`: the replay errors print their byte source's error with `{:?}`; a derived `Debug`
+/// would link `core::fmt`'s struct builders and the `str` escaping (Unicode tables) for this one struct.
+impl core::fmt::Debug for HostError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.op)?;
+        write!(f, " (errno {})", self.errno)
+    }
 }
 
 fn last_error(op: &'static str) -> HostError {
@@ -37,6 +46,8 @@ impl HostFile {
         Self::open(path, nr::open::W_TRUNC_BINARY, "create")
     }
 
+    // One copy for both modes (inlined, each would carry its own NUL scan).
+    #[inline(never)]
     fn open(path: &str, mode: usize, op: &'static str) -> Result<HostFile, HostError> {
         let mut name = [0u8; 256];
         let bytes = path.as_bytes();
@@ -125,21 +136,96 @@ impl Drop for HostFile {
     }
 }
 
-/// The semihosting command line (arguments separated by spaces) copied into `buf`, or `None` when the host
-/// gave none.
-pub fn command_line(buf: &mut [u8]) -> Option<&str> {
+/// Output bytes collected into a RAM block before each semihosting write (one host call per block
+/// instead of one per record); the file's bytes are the same for any block size.
+pub struct OutBlock<'a> {
+    file: HostFile,
+    buf: &'a mut [u8],
+    len: usize,
+    error: Option<HostError>,
+}
+
+impl<'a> OutBlock<'a> {
+    pub fn new(file: HostFile, buf: &'a mut [u8]) -> Self {
+        OutBlock {
+            file,
+            buf,
+            len: 0,
+            error: None,
+        }
+    }
+
+    /// Appends `bytes` (at most the block's size), writing the block out first when they do not fit.
+    /// After a failed write nothing more is written; [`OutBlock::finish`] reports it.
+    pub fn push(&mut self, bytes: &[u8]) {
+        if self.len + bytes.len() > self.buf.len() {
+            self.flush();
+        }
+        let n = bytes.len().min(self.buf.len() - self.len);
+        self.buf[self.len..self.len + n].copy_from_slice(&bytes[..n]);
+        self.len += n;
+    }
+
+    fn flush(&mut self) {
+        if self.len > 0 && self.error.is_none() {
+            self.error = self.file.write_all(&self.buf[..self.len]).err();
+        }
+        self.len = 0;
+    }
+
+    /// Writes what is left and closes the file: `Err(("writing", e))` for the first failed write,
+    /// `Err(("closing", e))` when the close fails.
+    pub fn finish(mut self) -> Result<(), (&'static str, HostError)> {
+        self.flush();
+        if let Some(e) = self.error {
+            return Err(("writing", e));
+        }
+        self.file.close().map_err(|e| ("closing", e))
+    }
+}
+
+/// Trace file name when the command line gives none.
+pub const DEFAULT_TRACE_PATH: &str = "axcomp-trace.bin";
+/// Output file name when the command line gives none.
+pub const DEFAULT_OUT_PATH: &str = "axcomp-out.bin";
+
+/// The trace and output file names from the semihosting command line `PROGRAM TRACE OUT` (words
+/// separated by ASCII white space or NULs), read into `buf`; a missing word (or one that is not
+/// UTF-8) is [`DEFAULT_TRACE_PATH`] / [`DEFAULT_OUT_PATH`]. Split by bytes: `str::split_ascii_whitespace`
+/// and `str::trim` cost about 1.5 KiB of code flash for these two words.
+pub fn trace_and_output_paths(buf: &mut [u8]) -> (&str, &str) {
+    let mut paths = [DEFAULT_TRACE_PATH, DEFAULT_OUT_PATH];
     let block = [buf.as_mut_ptr() as usize, buf.len()];
     // SAFETY: r1 points at the parameter block {buffer, length}; the host writes at most `length` bytes
     // into `buf` and the used length back into block[1] (read volatile below).
     let r = unsafe { cortex_m_semihosting::syscall(nr::GET_CMDLINE, &block) };
     if r != 0 {
-        return None;
+        return (paths[0], paths[1]);
     }
     // SAFETY: reading our own initialised local after the host may have written it.
     let len = unsafe { core::ptr::read_volatile(&block[1]) }.min(buf.len());
-    let s = core::str::from_utf8(&buf[..len]).ok()?;
-    let s = s.trim_end_matches('\0').trim();
-    (!s.is_empty()).then_some(s)
+    let line = &buf[..len];
+    let (mut at, mut word) = (0, 0);
+    while word <= paths.len() {
+        while at < line.len() && line[at] <= b' ' {
+            at += 1;
+        }
+        let start = at;
+        while at < line.len() && line[at] > b' ' {
+            at += 1;
+        }
+        if start == at {
+            break;
+        }
+        // Word 0 is the program's name.
+        if word > 0 {
+            if let Ok(p) = core::str::from_utf8(&line[start..at]) {
+                paths[word - 1] = p;
+            }
+        }
+        word += 1;
+    }
+    (paths[0], paths[1])
 }
 
 /// Exits QEMU with status 0.
@@ -167,4 +253,24 @@ pub fn exit_failure() -> ! {
     debug::exit(debug::EXIT_FAILURE);
     #[allow(clippy::empty_loop)]
     loop {}
+}
+
+/// Writes `program: panic at FILE:LINE:COLUMN` to the host's stdout and exits with status 1.
+///
+/// The location only: a handler that formats the whole `PanicInfo` (or even asks its message for a
+/// plain string) keeps every panic site's message arguments alive, linking `core::fmt`'s `Debug`
+/// builders, `str` escaping and the Unicode tables (about 3 to 8 KiB of code flash in
+/// `axcomp-qemu-group`); the location says which check failed.
+pub fn report_panic(program: &str, info: &core::panic::PanicInfo) -> ! {
+    match info.location() {
+        Some(at) => cortex_m_semihosting::hprintln!(
+            "{}: panic at {}:{}:{}",
+            program,
+            at.file(),
+            at.line(),
+            at.column()
+        ),
+        None => cortex_m_semihosting::hprintln!("{}: panic", program),
+    }
+    exit_failure()
 }

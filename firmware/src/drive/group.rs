@@ -283,6 +283,8 @@ impl GroupDrive {
 
     /// A set of board readings (reading `k` = board input `k`), to every axis through its wiring
     /// (a sensor whose input is missing from the set reads NaN, as the core treats a missing reading).
+    // Not inlined: one copy for every caller (replay and board), not on the cycle's path.
+    #[inline(never)]
     pub fn update_temperatures<const POOL: usize>(
         &self,
         engine: &mut GroupEngine<POOL>,

@@ -30,7 +30,7 @@ use super::group::{GroupDrive, GroupDriveCycle};
 use super::probe::{CapturedEdge, FakeProbe};
 use super::{DriveIo, NoWatchdog};
 use crate::control::CycleClock;
-use crate::replay::ByteSource;
+use crate::replay::{ByteSource, FrameError, RecordWindow};
 use crate::setpoint::MAX_REPLY_FRAME_LEN;
 use axcomp_core::probe::{Latch, ProbeCounters, ProbePhase};
 
@@ -47,7 +47,7 @@ pub const PROBE_OUTPUT_LEN: usize = 128;
 /// Header length.
 pub const HEADER_LEN: usize = 8;
 /// Record header (tag + length).
-pub const RECORD_HEADER_LEN: usize = 5;
+pub const RECORD_HEADER_LEN: usize = crate::replay::FRAME_HEADER_LEN;
 /// Payload of a `Cycle` record.
 pub const CYCLE_PAYLOAD_LEN: usize = 8 + 4 * MAX_AXES;
 /// Bytes of one [`DriveOutputRecord`].
@@ -129,30 +129,16 @@ pub fn is_link_trace(head: &[u8]) -> bool {
     head.len() >= 4 && head[..4] == MAGIC
 }
 
-/// Reads drive-trace records through a fixed buffer.
+/// Reads drive-trace records through a fixed buffer ([`RecordWindow`], the trace's framing).
 pub struct LinkStream<'b, S> {
     version: u16,
-    src: S,
-    buf: &'b mut [u8],
-    start: usize,
-    end: usize,
-    eof: bool,
-    offset: usize,
+    window: RecordWindow<'b, S>,
 }
 
 impl<'b, S: ByteSource> LinkStream<'b, S> {
     pub fn new(src: S, buf: &'b mut [u8]) -> Result<Self, LinkTraceError<S::Error>> {
-        let mut s = LinkStream {
-            version: VERSION,
-            src,
-            buf,
-            start: 0,
-            end: 0,
-            eof: false,
-            offset: 0,
-        };
-        s.fill_to(HEADER_LEN)?;
-        let h = &s.buf[..s.end];
+        let mut window = RecordWindow::new(src, buf);
+        let h = window.peek(HEADER_LEN).map_err(LinkTraceError::Source)?;
         let version = if h.len() >= HEADER_LEN {
             u16::from_le_bytes([h[4], h[5]])
         } else {
@@ -164,32 +150,8 @@ impl<'b, S: ByteSource> LinkStream<'b, S> {
         {
             return Err(LinkTraceError::BadHeader);
         }
-        s.version = version;
-        s.start = HEADER_LEN;
-        s.offset = HEADER_LEN;
-        Ok(s)
-    }
-
-    fn fill_to(&mut self, n: usize) -> Result<(), LinkTraceError<S::Error>> {
-        if self.end - self.start >= n {
-            return Ok(());
-        }
-        if self.start > 0 {
-            self.buf.copy_within(self.start..self.end, 0);
-            self.end -= self.start;
-            self.start = 0;
-        }
-        while self.end < n && !self.eof {
-            let got = self
-                .src
-                .read(&mut self.buf[self.end..])
-                .map_err(LinkTraceError::Source)?;
-            if got == 0 {
-                self.eof = true;
-            }
-            self.end += got;
-        }
-        Ok(())
+        window.consume(HEADER_LEN);
+        Ok(LinkStream { version, window })
     }
 
     /// The trace's format version ([`VERSION`], or [`VERSION_PROBE`]: a probe trace).
@@ -204,32 +166,22 @@ impl<'b, S: ByteSource> LinkStream<'b, S> {
 
     /// The next record; `Ok(None)` at the end of input.
     pub fn next_record(&mut self) -> Result<Option<LinkRecord<'_>>, LinkTraceError<S::Error>> {
-        let at = self.offset.min(u32::MAX as usize) as u32;
-        self.fill_to(RECORD_HEADER_LEN)?;
-        let avail = self.end - self.start;
-        if avail == 0 {
-            return Ok(None);
-        }
-        if avail < RECORD_HEADER_LEN {
-            return Err(LinkTraceError::Truncated { offset: at });
-        }
-        let h = &self.buf[self.start..];
-        let tag = h[0];
-        let len = u32::from_le_bytes([h[1], h[2], h[3], h[4]]) as usize;
-        let total = RECORD_HEADER_LEN.saturating_add(len);
-        if total > self.buf.len() {
-            return Err(LinkTraceError::TooLarge {
-                offset: at,
-                len: total.min(u32::MAX as usize) as u32,
-            });
-        }
-        self.fill_to(total)?;
-        if self.end - self.start < total {
-            return Err(LinkTraceError::Truncated { offset: at });
-        }
-        let p = &self.buf[self.start + RECORD_HEADER_LEN..self.start + total];
-        self.start += total;
-        self.offset += total;
+        let at = self.window.offset().min(u32::MAX as usize) as u32;
+        let version = self.version;
+        let frame = match self.window.next_frame() {
+            Ok(Some((_, f))) => f,
+            Ok(None) => return Ok(None),
+            Err(FrameError::Source(e)) => return Err(LinkTraceError::Source(e)),
+            Err(FrameError::Truncated) => return Err(LinkTraceError::Truncated { offset: at }),
+            Err(FrameError::TooLarge { len }) => {
+                return Err(LinkTraceError::TooLarge {
+                    offset: at,
+                    len: len.min(u32::MAX as usize) as u32,
+                });
+            }
+        };
+        let tag = frame[0];
+        let p = &frame[RECORD_HEADER_LEN..];
         let malformed = LinkTraceError::Malformed { offset: at, tag };
         let u32_at = |b: &[u8], i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
         let rec = match tag {
@@ -262,9 +214,7 @@ impl<'b, S: ByteSource> LinkStream<'b, S> {
                     n,
                 }
             }
-            TAG_PROBE_EDGE
-                if self.version == VERSION_PROBE && p.len() == PROBE_EDGE_PAYLOAD_LEN =>
-            {
+            TAG_PROBE_EDGE if version == VERSION_PROBE && p.len() == PROBE_EDGE_PAYLOAD_LEN => {
                 if p[4] > 1 || p[5..8] != [0, 0, 0] {
                     return Err(malformed);
                 }
