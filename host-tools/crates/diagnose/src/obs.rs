@@ -55,21 +55,7 @@ impl Observations {
         if n == 0 {
             return Err("no rows".into());
         }
-        let check = |name: &str, v: &[f64]| -> Result<(), String> {
-            if v.len() != n {
-                return Err(format!(
-                    "column `{name}` has {} values, expected {n}",
-                    v.len()
-                ));
-            }
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(format!(
-                    "column `{name}`: value in data row {} is not finite",
-                    i + 1
-                ));
-            }
-            Ok(())
-        };
+        let check = |name: &str, v: &[f64]| check_column(name, v, n);
         check(&self.target_name, &self.target)?;
         if self.held_out.len() != n {
             return Err("held-out mask has the wrong length".into());
@@ -122,4 +108,22 @@ impl Observations {
             })
             .collect()
     }
+}
+
+/// Checks that column `name` has `n` values, all finite; the error names the column and the first
+/// offending data row (1-based).
+pub fn check_column(name: &str, v: &[f64], n: usize) -> Result<(), String> {
+    if v.len() != n {
+        return Err(format!(
+            "column `{name}` has {} values, expected {n}",
+            v.len()
+        ));
+    }
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(format!(
+            "column `{name}`: value in data row {} is not finite",
+            i + 1
+        ));
+    }
+    Ok(())
 }

@@ -135,21 +135,11 @@ impl RtestObservations {
     }
 }
 
-/// One variant of a candidate family: its columns over all stacked rows.
-#[derive(Debug, Clone)]
-pub struct RtestVariant {
-    pub columns: Vec<Vec<f64>>,
-    pub params: Map<String, Value>,
-    /// Added columns + searched parameters.
-    pub n_params: usize,
-}
+/// One candidate variant: its columns over all rows and its parameters (what the variant is).
+pub type RtestVariant = crate::judge::BuiltVariant;
 
-/// A candidate family built from the data's columns.
-#[derive(Debug, Clone)]
-pub struct RtestFamily {
-    pub kind: RotaryEffect,
-    pub variants: Vec<RtestVariant>,
-}
+/// A candidate effect kind and its variants.
+pub type RtestFamily = crate::judge::BuiltFamily<RotaryEffect>;
 
 /// The stacked campaign: target, base columns, rows and `where` variables.
 #[derive(Debug, Clone)]
@@ -846,7 +836,7 @@ pub fn diagnose(
     model: &[RotaryEffect],
     opts: &crate::judge::DiagnoseOptions,
 ) -> Result<(RtestDiagnosis, RtestCampaign), String> {
-    use crate::judge::{self, CandidateFamily, CandidateVariant, ModelTerm};
+    use crate::judge::{self, CandidateFamily, ModelTerm};
     let c = campaign(obs, model)?;
     let n_rows = c.y.len();
     // Base: an intercept-free location-error model (its set-up offsets are the constants).
@@ -899,20 +889,7 @@ pub fn diagnose(
         .families
         .iter()
         .map(|f| {
-            let mut fam = CandidateFamily::new(
-                f.kind.name(),
-                f.variants
-                    .iter()
-                    .map(|v| {
-                        CandidateVariant::new(
-                            v.columns.clone(),
-                            v.params.clone(),
-                            v.n_params - v.columns.len(),
-                        )
-                    })
-                    .collect(),
-            );
-            fam.simplicity = simplicity(f.kind);
+            let mut fam = f.candidate(f.kind.name(), simplicity(f.kind));
             fam.last_resort = f.kind == RotaryEffect::TimeDrift;
             fam
         })
