@@ -643,6 +643,20 @@ mod tests {
         }
     }
 
+    /// The points of the hand-computed example (two targets, two runs, both directions).
+    fn hand_example() -> [Point; 8] {
+        [
+            pt(0.0, 1, 1, 1.0),
+            pt(0.0, 2, 1, 3.0),
+            pt(0.0, 1, -1, -1.0),
+            pt(0.0, 2, -1, -1.0),
+            pt(10.0, 1, 1, 4.0),
+            pt(10.0, 2, 1, 4.0),
+            pt(10.0, 1, -1, 2.0),
+            pt(10.0, 2, -1, 6.0),
+        ]
+    }
+
     /// Hand-computed example (reference: the formulas of the module glossary worked on paper):
     /// target 0: ↑ {1, 3} → x̄=2, s=√2; ↓ {−1, −1} → x̄=−1, s=0; B=3; x̄i=0.5;
     ///           R_i = max(2√2 + 0 + 3, 4√2, 0) = 5.828427;
@@ -653,16 +667,7 @@ mod tests {
     /// A = max(2+2√2, −1, 4, 4+4√2) − min(2−2√2, −1, 4, 4−4√2) = 8√2, R = 8√2, R↑ = 4√2, R↓ = 8√2.
     #[test]
     fn hand_computed_example() {
-        let pts = [
-            pt(0.0, 1, 1, 1.0),
-            pt(0.0, 2, 1, 3.0),
-            pt(0.0, 1, -1, -1.0),
-            pt(0.0, 2, -1, -1.0),
-            pt(10.0, 1, 1, 4.0),
-            pt(10.0, 2, 1, 4.0),
-            pt(10.0, 1, -1, 2.0),
-            pt(10.0, 2, -1, 6.0),
-        ];
+        let pts = hand_example();
         let r = evaluate(&pts).unwrap();
         let s2 = 2f64.sqrt();
         let tol = 1e-12; // exact arithmetic up to rounding of a few operations
@@ -709,16 +714,7 @@ mod tests {
     /// old `B_um: 0`, `A_down_um == A_up_um` were invented) and A/R `null` with one run per target.
     #[test]
     fn honest_figures() {
-        let pts = [
-            pt(0.0, 1, 1, 1.0),
-            pt(0.0, 2, 1, 3.0),
-            pt(0.0, 1, -1, -1.0),
-            pt(0.0, 2, -1, -1.0),
-            pt(10.0, 1, 1, 4.0),
-            pt(10.0, 2, 1, 4.0),
-            pt(10.0, 1, -1, 2.0),
-            pt(10.0, 2, -1, 6.0),
-        ];
+        let pts = hand_example();
         let full = evaluate(&pts).unwrap();
         let f = figures(&pts).unwrap();
         let json = serde_json::to_value(&full).unwrap();
@@ -790,15 +786,10 @@ mod tests {
     }
 
     fn shared() -> Option<std::path::PathBuf> {
-        let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../.."));
-        match axcomp_data::shared_dir(root) {
-            Some(d) => Some(d),
-            None if std::env::var_os("CI").is_some() => panic!("../shared not found (CI is set)"),
-            None => {
-                println!("skipped: ../shared not found");
-                None
-            }
-        }
+        axcomp_data::shared_dir_for_test(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../.."
+        )))
     }
 
     /// Against the ESS report `source_files/muts_logger__b02_x_x_iso230_2_report.md` (ecmc report tool,
