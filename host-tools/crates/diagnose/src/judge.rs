@@ -68,6 +68,11 @@ use crate::stats;
 /// holds only their parameters: memory O(rows), not O(rows·variants)).
 pub type ColumnsFn<'a> = Box<dyn Fn() -> Vec<Vec<f64>> + 'a>;
 
+/// The campaign's `not_applicable` lines (`kind: why`) from (kind, why) pairs.
+pub fn not_applicable_lines<K: std::fmt::Display>(v: &[(K, String)]) -> Vec<String> {
+    v.iter().map(|(k, why)| format!("{k}: {why}")).collect()
+}
+
 /// One variant of a candidate family with its columns built over all (stacked) rows: what the probe and
 /// R-test diagnoses build before handing them to [`judge`] as [`CandidateVariant`]s.
 #[derive(Debug, Clone)]

@@ -900,11 +900,7 @@ pub fn diagnose(
         where_variables: c.where_variables.clone(),
         position_order: None,
         time_order,
-        not_applicable: c
-            .not_applicable
-            .iter()
-            .map(|(k, why)| format!("{k}: {why}"))
-            .collect(),
+        not_applicable: crate::judge::not_applicable_lines(&c.not_applicable),
     };
     let families: Vec<CandidateFamily> = c
         .families

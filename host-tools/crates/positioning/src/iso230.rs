@@ -132,12 +132,19 @@ fn min_of(it: impl Iterator<Item = f64>) -> f64 {
     it.fold(f64::INFINITY, f64::min)
 }
 
-/// Evaluates the points per ISO 230-2 (see the module glossary).
-pub fn evaluate(points: &[Point]) -> Result<Iso230Result, Iso230Error> {
-    if points.is_empty() {
+/// The deviations of points `0..n` grouped by target: (target mm, positive-approach deviations,
+/// negative-approach deviations), targets ascending, a target within [`TARGET_TOLERANCE_MM`] of the
+/// previous one merged into it. Errors for no points, a non-finite value or a direction other than ±1
+/// (naming the point's index).
+fn group_by_target(
+    n: usize,
+    point: impl Fn(usize) -> Point,
+) -> Result<Vec<(f64, Vec<f64>, Vec<f64>)>, Iso230Error> {
+    if n == 0 {
         return Err(Iso230Error::Empty);
     }
-    for (index, p) in points.iter().enumerate() {
+    for index in 0..n {
+        let p = point(index);
         if !p.target_mm.is_finite() || !p.deviation_um.is_finite() {
             return Err(Iso230Error::NonFinite { index });
         }
@@ -148,16 +155,19 @@ pub fn evaluate(points: &[Point]) -> Result<Iso230Result, Iso230Error> {
             });
         }
     }
-    // Group by target (sorted, merging targets within the tolerance).
-    let mut order: Vec<usize> = (0..points.len()).collect();
-    order.sort_by(|&a, &b| points[a].target_mm.total_cmp(&points[b].target_mm));
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    order.sort_by(|&a, &b| {
+        point(a as usize)
+            .target_mm
+            .total_cmp(&point(b as usize).target_mm)
+    });
     let mut groups: Vec<(f64, Vec<f64>, Vec<f64>)> = Vec::new();
     for &k in &order {
-        let p = points[k];
-        let same = groups
+        let p = point(k as usize);
+        if !groups
             .last()
-            .is_some_and(|g| (p.target_mm - g.0).abs() <= TARGET_TOLERANCE_MM);
-        if !same {
+            .is_some_and(|g| (p.target_mm - g.0).abs() <= TARGET_TOLERANCE_MM)
+        {
             groups.push((p.target_mm, Vec::new(), Vec::new()));
         }
         let g = groups.last_mut().expect("pushed");
@@ -167,6 +177,12 @@ pub fn evaluate(points: &[Point]) -> Result<Iso230Result, Iso230Error> {
             g.2.push(p.deviation_um);
         }
     }
+    Ok(groups)
+}
+
+/// Evaluates the points per ISO 230-2 (see the module glossary).
+pub fn evaluate(points: &[Point]) -> Result<Iso230Result, Iso230Error> {
+    let groups = group_by_target(points.len(), |i| points[i])?;
     if groups.len() < 2 {
         return Err(Iso230Error::TooFewTargets {
             count: groups.len(),
@@ -385,43 +401,7 @@ pub fn figures_of_columns(
 }
 
 fn figures_by(n: usize, point: impl Fn(usize) -> Point) -> Result<Iso230Figures, Iso230Error> {
-    if n == 0 {
-        return Err(Iso230Error::Empty);
-    }
-    for index in 0..n {
-        let p = point(index);
-        if !p.target_mm.is_finite() || !p.deviation_um.is_finite() {
-            return Err(Iso230Error::NonFinite { index });
-        }
-        if p.direction != 1 && p.direction != -1 {
-            return Err(Iso230Error::BadDirection {
-                index,
-                direction: p.direction,
-            });
-        }
-    }
-    let mut order: Vec<u32> = (0..n as u32).collect();
-    order.sort_by(|&a, &b| {
-        point(a as usize)
-            .target_mm
-            .total_cmp(&point(b as usize).target_mm)
-    });
-    let mut groups: Vec<(f64, Vec<f64>, Vec<f64>)> = Vec::new();
-    for &k in &order {
-        let p = point(k as usize);
-        if !groups
-            .last()
-            .is_some_and(|g| (p.target_mm - g.0).abs() <= TARGET_TOLERANCE_MM)
-        {
-            groups.push((p.target_mm, Vec::new(), Vec::new()));
-        }
-        let g = groups.last_mut().expect("pushed");
-        if p.direction > 0 {
-            g.1.push(p.deviation_um);
-        } else {
-            g.2.push(p.deviation_um);
-        }
-    }
+    let groups = group_by_target(n, point)?;
     let has_up = groups.iter().any(|g| !g.1.is_empty());
     let has_down = groups.iter().any(|g| !g.2.is_empty());
     let ups: Vec<Option<Side>> = groups.iter().map(|g| side(&g.1)).collect();

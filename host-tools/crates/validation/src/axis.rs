@@ -608,20 +608,7 @@ fn ratio(c: &CaseResult) -> Option<f64> {
     }
 }
 
-impl CaseOutcome for CaseResult {
-    fn snr(&self) -> Option<f64> {
-        self.snr
-    }
-    fn verdict(&self) -> &str {
-        &self.verdict
-    }
-    fn correct(&self) -> bool {
-        self.correct
-    }
-    fn seconds(&self) -> f64 {
-        self.seconds
-    }
-}
+harness::case_outcome!(CaseResult);
 
 /// Summarises case results.
 pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {

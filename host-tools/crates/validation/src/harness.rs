@@ -28,6 +28,28 @@ pub trait CaseOutcome {
     }
 }
 
+/// Implements [`CaseOutcome`] for a case record with the fields `snr: Option<f64>`, `verdict: String`,
+/// `correct: bool` and `seconds: f64`.
+macro_rules! case_outcome {
+    ($t:ty) => {
+        impl $crate::harness::CaseOutcome for $t {
+            fn snr(&self) -> Option<f64> {
+                self.snr
+            }
+            fn verdict(&self) -> &str {
+                &self.verdict
+            }
+            fn correct(&self) -> bool {
+                self.correct
+            }
+            fn seconds(&self) -> f64 {
+                self.seconds
+            }
+        }
+    };
+}
+pub(crate) use case_outcome;
+
 /// The settings every harness checks in the same way.
 #[derive(Debug, Clone, Copy)]
 pub struct CommonOptions<'a> {
@@ -110,31 +132,26 @@ pub fn shrink_pct(before: f64, after: f64) -> f64 {
 
 /// The fraction of `true` (NaN when there is none).
 pub fn share(v: impl IntoIterator<Item = bool>) -> f64 {
-    let (k, n) = count(v);
-    if n == 0 {
-        f64::NAN
-    } else {
-        k as f64 / n as f64
-    }
+    scaled_share(v, 1.0)
 }
 
 /// The percentage of `true`, `100·k/n` (NaN when there is none).
 pub fn pct(v: impl IntoIterator<Item = bool>) -> f64 {
-    let (k, n) = count(v);
-    if n == 0 {
-        f64::NAN
-    } else {
-        100.0 * k as f64 / n as f64
-    }
+    scaled_share(v, 100.0)
 }
 
-fn count(v: impl IntoIterator<Item = bool>) -> (usize, usize) {
+/// `scale·k/n` for k `true` among n (NaN when n = 0); `1·k` is exact, so [`share`] is `k/n` to the bit.
+fn scaled_share(v: impl IntoIterator<Item = bool>, scale: f64) -> f64 {
     let (mut k, mut n) = (0usize, 0usize);
     for b in v {
         n += 1;
         k += b as usize;
     }
-    (k, n)
+    if n == 0 {
+        f64::NAN
+    } else {
+        scale * k as f64 / n as f64
+    }
 }
 
 /// Share of null cases with a verdict other than `none`.

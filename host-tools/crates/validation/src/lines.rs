@@ -578,20 +578,7 @@ pub struct LineSummary {
     pub case_results: Vec<LineCase>,
 }
 
-impl CaseOutcome for LineCase {
-    fn snr(&self) -> Option<f64> {
-        self.snr
-    }
-    fn verdict(&self) -> &str {
-        &self.verdict
-    }
-    fn correct(&self) -> bool {
-        self.correct
-    }
-    fn seconds(&self) -> f64 {
-        self.seconds
-    }
-}
+harness::case_outcome!(LineCase);
 
 /// The confusion matrix's labels: the kinds, then `none`.
 fn confusion_labels() -> Vec<String> {

@@ -506,20 +506,7 @@ pub struct ProbeSummary {
     pub results: Vec<ProbeCaseResult>,
 }
 
-impl CaseOutcome for ProbeCaseResult {
-    fn snr(&self) -> Option<f64> {
-        self.snr
-    }
-    fn verdict(&self) -> &str {
-        &self.verdict
-    }
-    fn correct(&self) -> bool {
-        self.correct
-    }
-    fn seconds(&self) -> f64 {
-        self.seconds
-    }
-}
+harness::case_outcome!(ProbeCaseResult);
 
 /// Summarises case results.
 pub fn summarise(opts: &ProbeValidateOptions, results: Vec<ProbeCaseResult>) -> ProbeSummary {

@@ -386,20 +386,7 @@ pub struct RtestSummary {
     pub case_results: Vec<RtestCaseResult>,
 }
 
-impl CaseOutcome for RtestCaseResult {
-    fn snr(&self) -> Option<f64> {
-        self.snr
-    }
-    fn verdict(&self) -> &str {
-        &self.verdict
-    }
-    fn correct(&self) -> bool {
-        self.correct
-    }
-    fn seconds(&self) -> f64 {
-        self.seconds
-    }
-}
+harness::case_outcome!(RtestCaseResult);
 
 /// Summarises case results.
 pub fn summarise(opts: &RtestValidateOptions, results: Vec<RtestCaseResult>) -> RtestSummary {
