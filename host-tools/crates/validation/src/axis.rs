@@ -48,7 +48,7 @@ use axcomp_diagnose::engine::{self, DiagnoseOptions};
 use axcomp_diagnose::obs::{Named, Observations};
 use axcomp_diagnose::stats;
 
-use crate::harness::{self, CaseOutcome, CommonOptions, Unlisted};
+use crate::harness::{self, CaseOutcome, Unlisted};
 
 /// Which case generator (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -122,13 +122,7 @@ impl Default for ValidateOptions {
 
 impl ValidateOptions {
     pub fn build(self) -> Result<Self, String> {
-        CommonOptions {
-            cases: self.cases,
-            snrs: &self.snrs,
-            noise_um: self.noise_um,
-            null_every: self.null_every,
-        }
-        .check()?;
+        harness::check_common(self.cases, &self.snrs, self.noise_um, self.null_every)?;
         if self.rows < 100 {
             return Err(format!("--rows must be ≥ 100, got {}", self.rows));
         }
@@ -608,7 +602,7 @@ fn ratio(c: &CaseResult) -> Option<f64> {
     }
 }
 
-harness::case_outcome!(CaseResult);
+harness::case_outcome!(CaseResult, withheld);
 
 /// Summarises case results.
 pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
@@ -634,13 +628,7 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
         .collect();
     let mut labels = vec!["none".to_string()];
     labels.extend(WITHHELD.iter().map(|k| k.name().to_string()));
-    let confusion = harness::confusion(
-        &labels,
-        results
-            .iter()
-            .map(|c| (c.withheld.as_str(), c.verdict.as_str())),
-        Unlisted::OtherColumn,
-    );
+    let confusion = harness::confusion(&labels, &results, Unlisted::OtherColumn);
     let loc: Vec<bool> = results.iter().filter_map(|c| c.localised).collect();
     let mut pe: Vec<f64> = results.iter().filter_map(|c| c.param_rel_error).collect();
     let mut r2: Vec<f64> = results.iter().filter_map(|c| c.contribution_r2).collect();

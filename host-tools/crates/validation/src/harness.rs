@@ -16,6 +16,8 @@ use axcomp_diagnose::lsq;
 pub trait CaseOutcome {
     /// The SNR of the withheld effect (`None` for a null case).
     fn snr(&self) -> Option<f64>;
+    /// The withheld kind as the confusion matrix labels it (`none` for a null case).
+    fn withheld_label(&self) -> &str;
     /// The diagnosis's verdict (`none` when it found nothing).
     fn verdict(&self) -> &str;
     /// The verdict is the withheld kind (`none` on a null case).
@@ -29,12 +31,16 @@ pub trait CaseOutcome {
 }
 
 /// Implements [`CaseOutcome`] for a case record with the fields `snr: Option<f64>`, `verdict: String`,
-/// `correct: bool` and `seconds: f64`.
+/// `correct: bool`, `seconds: f64` and the `String` field naming the withheld kind for the confusion
+/// matrix.
 macro_rules! case_outcome {
-    ($t:ty) => {
+    ($t:ty, $withheld:ident) => {
         impl $crate::harness::CaseOutcome for $t {
             fn snr(&self) -> Option<f64> {
                 self.snr
+            }
+            fn withheld_label(&self) -> &str {
+                &self.$withheld
             }
             fn verdict(&self) -> &str {
                 &self.verdict
@@ -50,36 +56,30 @@ macro_rules! case_outcome {
 }
 pub(crate) use case_outcome;
 
-/// The settings every harness checks in the same way.
-#[derive(Debug, Clone, Copy)]
-pub struct CommonOptions<'a> {
-    pub cases: usize,
-    pub snrs: &'a [f64],
-    pub noise_um: f64,
-    pub null_every: usize,
-}
-
-impl CommonOptions<'_> {
-    /// `cases` ≥ 1, at least one SNR and every one finite and > 0, noise σ finite and > 0,
-    /// `null_every` ≥ 2; the messages name the command-line option (`--cases`, `--snr`, `--noise-um`).
-    pub fn check(&self) -> Result<(), String> {
-        if self.cases == 0 {
-            return Err("--cases must be ≥ 1".into());
-        }
-        if self.snrs.is_empty() || self.snrs.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(format!(
-                "--snr: every SNR must be a finite number > 0, got {:?}",
-                self.snrs
-            ));
-        }
-        if !(self.noise_um.is_finite() && self.noise_um > 0.0) {
-            return Err(format!("--noise-um must be > 0 µm, got {}", self.noise_um));
-        }
-        if self.null_every < 2 {
-            return Err("null_every must be ≥ 2".into());
-        }
-        Ok(())
+/// The checks every harness makes of its settings: `cases` ≥ 1, at least one SNR and every one finite
+/// and > 0, noise σ finite and > 0, `null_every` ≥ 2; the messages name the command-line option
+/// (`--cases`, `--snr`, `--noise-um`).
+pub fn check_common(
+    cases: usize,
+    snrs: &[f64],
+    noise_um: f64,
+    null_every: usize,
+) -> Result<(), String> {
+    if cases == 0 {
+        return Err("--cases must be ≥ 1".into());
     }
+    if snrs.is_empty() || snrs.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(format!(
+            "--snr: every SNR must be a finite number > 0, got {snrs:?}"
+        ));
+    }
+    if !(noise_um.is_finite() && noise_um > 0.0) {
+        return Err(format!("--noise-um must be > 0 µm, got {noise_um}"));
+    }
+    if null_every < 2 {
+        return Err("null_every must be ≥ 2".into());
+    }
+    Ok(())
 }
 
 /// What case `index` withholds: every `null_every`-th case is null (`None`); the non-null cases cycle
@@ -177,10 +177,7 @@ pub fn at_snr<'a, C: CaseOutcome>(
     results: impl IntoIterator<Item = &'a C>,
     snr: f64,
 ) -> Vec<&'a C> {
-    results
-        .into_iter()
-        .filter(|c| c.snr() == Some(snr))
-        .collect()
+    with_snr(results, |s| s == snr)
 }
 
 /// The non-null cases at SNR ≥ `min`.
@@ -188,9 +185,16 @@ pub fn at_snr_ge<'a, C: CaseOutcome>(
     results: impl IntoIterator<Item = &'a C>,
     min: f64,
 ) -> Vec<&'a C> {
+    with_snr(results, |s| s >= min)
+}
+
+fn with_snr<'a, C: CaseOutcome>(
+    results: impl IntoIterator<Item = &'a C>,
+    keep: impl Fn(f64) -> bool,
+) -> Vec<&'a C> {
     results
         .into_iter()
-        .filter(|c| c.snr().is_some_and(|s| s >= min))
+        .filter(|c| c.snr().is_some_and(&keep))
         .collect()
 }
 
@@ -212,8 +216,21 @@ pub enum Unlisted {
     Skip,
 }
 
+/// `counts[withheld][verdict]` over `labels` for the cases.
+pub fn confusion<C: CaseOutcome>(
+    labels: &[String],
+    results: &[C],
+    unlisted: Unlisted,
+) -> Vec<Vec<usize>> {
+    confusion_of_pairs(
+        labels,
+        results.iter().map(|c| (c.withheld_label(), c.verdict())),
+        unlisted,
+    )
+}
+
 /// `counts[truth][verdict]` over `labels` for the (truth, verdict) pairs.
-pub fn confusion<'a>(
+pub fn confusion_of_pairs<'a>(
     labels: &[String],
     pairs: impl IntoIterator<Item = (&'a str, &'a str)>,
     unlisted: Unlisted,
@@ -306,15 +323,15 @@ mod tests {
         let labels: Vec<String> = ["none", "a"].iter().map(|s| s.to_string()).collect();
         let pairs = [("a", "a"), ("none", "b"), ("a", "none")];
         assert_eq!(
-            confusion(&labels, pairs, Unlisted::OtherColumn),
+            confusion_of_pairs(&labels, pairs, Unlisted::OtherColumn),
             vec![vec![0, 0, 1], vec![1, 1, 0]]
         );
         assert_eq!(
-            confusion(&labels, pairs, Unlisted::First),
+            confusion_of_pairs(&labels, pairs, Unlisted::First),
             vec![vec![1, 0], vec![1, 1]]
         );
         assert_eq!(
-            confusion(&labels, pairs, Unlisted::Skip),
+            confusion_of_pairs(&labels, pairs, Unlisted::Skip),
             vec![vec![0, 0], vec![1, 1]]
         );
         let rows: Vec<(String, &[usize])> =

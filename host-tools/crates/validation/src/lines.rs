@@ -54,7 +54,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
-use crate::harness::{self, CaseOutcome, CommonOptions, Unlisted};
+use crate::harness::{self, CaseOutcome, Unlisted};
 
 /// Settings of the line harness.
 #[derive(Debug, Clone)]
@@ -92,13 +92,7 @@ impl Default for LineValidateOptions {
 
 impl LineValidateOptions {
     pub fn build(self) -> Result<Self, String> {
-        CommonOptions {
-            cases: self.cases,
-            snrs: &self.snrs,
-            noise_um: self.noise_um,
-            null_every: self.null_every,
-        }
-        .check()?;
+        harness::check_common(self.cases, &self.snrs, self.noise_um, self.null_every)?;
         if self.targets < 4 {
             return Err(format!(
                 "targets per line must be ≥ 4, got {}",
@@ -578,7 +572,7 @@ pub struct LineSummary {
     pub case_results: Vec<LineCase>,
 }
 
-harness::case_outcome!(LineCase);
+harness::case_outcome!(LineCase, withheld);
 
 /// The confusion matrix's labels: the kinds, then `none`.
 fn confusion_labels() -> Vec<String> {
@@ -616,13 +610,7 @@ pub fn summarise(results: Vec<LineCase>) -> LineSummary {
         })
         .collect();
     let labels = confusion_labels();
-    let counts = harness::confusion(
-        &labels,
-        results
-            .iter()
-            .map(|c| (c.withheld.as_str(), c.verdict.as_str())),
-        Unlisted::Skip,
-    );
+    let counts = harness::confusion(&labels, &results, Unlisted::Skip);
     let confusion = labels.into_iter().zip(counts).collect();
     let mut ratios: Vec<f64> = real.iter().map(|c| ratio(c)).collect();
     let (mut secs, max_seconds) = harness::seconds(&results);

@@ -38,7 +38,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
-use crate::harness::{self, CaseOutcome, CommonOptions};
+use crate::harness::{self, CaseOutcome};
 
 /// The held-out artefact of the survey.
 pub const HOLDOUT_ARTEFACT: &str = "sphere2";
@@ -85,13 +85,7 @@ impl Default for ProbeValidateOptions {
 
 impl ProbeValidateOptions {
     pub fn build(self) -> Result<Self, String> {
-        CommonOptions {
-            cases: self.cases,
-            snrs: &self.snrs,
-            noise_um: self.noise_um,
-            null_every: self.null_every,
-        }
-        .check()?;
+        harness::check_common(self.cases, &self.snrs, self.noise_um, self.null_every)?;
         Ok(self)
     }
 }
@@ -506,7 +500,7 @@ pub struct ProbeSummary {
     pub results: Vec<ProbeCaseResult>,
 }
 
-harness::case_outcome!(ProbeCaseResult);
+harness::case_outcome!(ProbeCaseResult, withheld);
 
 /// Summarises case results.
 pub fn summarise(opts: &ProbeValidateOptions, results: Vec<ProbeCaseResult>) -> ProbeSummary {

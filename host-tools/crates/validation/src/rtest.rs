@@ -33,7 +33,7 @@ use axcomp_rtest::RtestData;
 use axcomp_twin::five_axis::{EffectParams, FiveAxisTwin, RtestCampaign, RtestPathSpec};
 use serde::Serialize;
 
-use crate::harness::{self, CaseOutcome, CommonOptions, Unlisted};
+use crate::harness::{self, CaseOutcome, Unlisted};
 
 /// The twin's effects that can be withheld, in the order cases cycle through them.
 pub const WITHHELD: [&str; 7] = [
@@ -86,13 +86,7 @@ impl Default for RtestValidateOptions {
 
 impl RtestValidateOptions {
     pub fn build(self) -> Result<Self, String> {
-        CommonOptions {
-            cases: self.cases,
-            snrs: &self.snrs,
-            noise_um: self.noise_um,
-            null_every: self.null_every,
-        }
-        .check()?;
+        harness::check_common(self.cases, &self.snrs, self.noise_um, self.null_every)?;
         if self.machines.is_empty() {
             return Err("at least one machine kind".into());
         }
@@ -386,7 +380,7 @@ pub struct RtestSummary {
     pub case_results: Vec<RtestCaseResult>,
 }
 
-harness::case_outcome!(RtestCaseResult);
+harness::case_outcome!(RtestCaseResult, withheld_kind);
 
 /// Summarises case results.
 pub fn summarise(opts: &RtestValidateOptions, results: Vec<RtestCaseResult>) -> RtestSummary {
@@ -406,13 +400,7 @@ pub fn summarise(opts: &RtestValidateOptions, results: Vec<RtestCaseResult>) -> 
     let ge4 = harness::at_snr_ge(&results, 4.0);
     let mut labels = vec!["none".to_string()];
     labels.extend(RotaryEffect::ALL.iter().map(|k| k.name().to_string()));
-    let confusion = harness::confusion(
-        &labels,
-        results
-            .iter()
-            .map(|c| (c.withheld_kind.as_str(), c.verdict.as_str())),
-        Unlisted::First,
-    );
+    let confusion = harness::confusion(&labels, &results, Unlisted::First);
     let per_effect_snr_ge_4 = WITHHELD
         .iter()
         .map(|w| {
