@@ -229,6 +229,23 @@ pub fn median(v: &mut [f64]) -> f64 {
     }
 }
 
+/// Upper median of `v`: sorted in place with `total_cmp`, the value at index n/2 (for an even count the
+/// upper of the two middle values, always one of the values); NaN when empty. The summaries' "typical
+/// value" (median time step, grid gap, time per case), where [`median`] would average two values.
+pub fn upper_median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// Sample variance `Σ(x − m)² / (n − 1)` about the mean `m` (the ISO 230-2 estimator s², the paired
+/// t-test's); needs n ≥ 2 (NaN or ∞ otherwise).
+pub fn sample_variance(x: &[f64], m: f64) -> f64 {
+    x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / (x.len() - 1) as f64
+}
+
 /// `P(F > f)` for an F(d1, d2) variable (survival function, through [`inc_beta`]).
 pub fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
     if f.is_nan() || f <= 0.0 {
@@ -275,5 +292,10 @@ mod distribution_tests {
         assert_eq!(rms_or_zero(std::iter::empty()), 0.0);
         assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
         assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
+        // Upper median: the value at n/2 after sorting; sample variance of {1, 2, 3, 6}: mean 3,
+        // Σ(x − 3)² = 14, /3 (hand-computed; exact in binary to 1 ulp).
+        assert_eq!(upper_median(&mut [4.0, 1.0, 2.0, 3.0]), 3.0);
+        assert!(upper_median(&mut []).is_nan());
+        assert!((sample_variance(&[1.0, 2.0, 3.0, 6.0], 3.0) - 14.0 / 3.0).abs() < 1e-15);
     }
 }

@@ -21,6 +21,7 @@
 //! Targets closer than [`TARGET_TOLERANCE_MM`] are one target.
 
 use axcomp_data::{DataError, Dataset};
+use axcomp_numeric::stats::mean;
 use serde::Serialize;
 
 /// Targets closer than this are the same measuring position (mm).
@@ -115,13 +116,9 @@ pub struct Iso230Result {
     pub targets: Vec<TargetFigures>,
 }
 
-fn mean(x: &[f64]) -> f64 {
-    x.iter().sum::<f64>() / x.len() as f64
-}
-
 /// Sample standard deviation (n − 1), the ISO 230-2 estimator s_i.
 fn std_n1(x: &[f64], m: f64) -> f64 {
-    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / (x.len() - 1) as f64).sqrt()
+    axcomp_numeric::stats::sample_variance(x, m).sqrt()
 }
 
 fn max_of(it: impl Iterator<Item = f64>) -> f64 {

@@ -545,7 +545,6 @@ pub fn summarise(opts: &ProbeValidateOptions, results: Vec<ProbeCaseResult>) -> 
                 .map(|o| r.shrink_pct / o)
         })
         .collect();
-    ratios.sort_by(f64::total_cmp);
     ProbeSummary {
         profile: if opts.hard { "probe-hard" } else { "probe" }.into(),
         cases: results.len(),
@@ -556,7 +555,8 @@ pub fn summarise(opts: &ProbeValidateOptions, results: Vec<ProbeCaseResult>) -> 
         top1_snr_ge4_cases: ge4.len(),
         false_alarm_pct: harness::pct(nulls.iter().map(|r| r.verdict != "none")),
         null_cases: nulls.len(),
-        median_shrink_over_oracle: (!ratios.is_empty()).then(|| ratios[ratios.len() / 2]),
+        median_shrink_over_oracle: (!ratios.is_empty())
+            .then(|| axcomp_numeric::stats::upper_median(&mut ratios)),
         by_snr,
         by_kind,
         results,

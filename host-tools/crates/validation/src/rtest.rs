@@ -413,7 +413,6 @@ pub fn summarise(opts: &RtestValidateOptions, results: Vec<RtestCaseResult>) -> 
         })
         .collect();
     let (mut secs, _) = harness::seconds(&results);
-    secs.sort_by(|a, b| a.total_cmp(b));
     RtestSummary {
         harness: "rtest",
         cases: results.len(),
@@ -427,11 +426,7 @@ pub fn summarise(opts: &RtestValidateOptions, results: Vec<RtestCaseResult>) -> 
         top1_or_tie_snr_ge_4: harness::share(ge4.iter().map(|c| c.correct_or_tied)),
         cases_snr_ge_4: ge4.len(),
         per_effect_snr_ge_4,
-        median_seconds: if secs.is_empty() {
-            f64::NAN
-        } else {
-            secs[secs.len() / 2]
-        },
+        median_seconds: axcomp_numeric::stats::upper_median(&mut secs),
         labels,
         confusion,
         case_results: results,
