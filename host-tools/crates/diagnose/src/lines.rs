@@ -96,14 +96,7 @@ impl LineObservations {
         for t in &self.temperatures {
             check(&format!("{}_degC", t.name), &t.values)?;
         }
-        let n_ho = self.held_out.iter().filter(|h| **h).count();
-        if n_ho == 0 {
-            return Err("the holdout selects no rows: nothing to judge the model on".into());
-        }
-        if n_ho == n {
-            return Err("the holdout selects every row: nothing left to fit on".into());
-        }
-        Ok(())
+        crate::obs::check_holdout(&self.held_out, "the holdout", "row")
     }
 }
 

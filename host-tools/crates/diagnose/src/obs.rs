@@ -75,14 +75,7 @@ impl Observations {
         for t in self.temperatures.iter().chain(&self.forces) {
             check(&t.name, &t.values)?;
         }
-        let n_ho = self.held_out.iter().filter(|&&h| h).count();
-        if n_ho == 0 {
-            return Err("the holdout selects no rows: nothing to judge the model on".into());
-        }
-        if n_ho == n {
-            return Err("the holdout selects every row: nothing left to fit on".into());
-        }
-        Ok(())
+        check_holdout(&self.held_out, "the holdout", "row")
     }
 
     /// Row order by time (stable; row order when there is no time).
@@ -108,6 +101,23 @@ impl Observations {
             })
             .collect()
     }
+}
+
+/// Checks that the held-out mask holds out at least one row and not every row; the message says what
+/// selected them (`by`: `the holdout`, `--holdout`) and what a row is (`unit`: `row`, `touch`, `pose`).
+pub fn check_holdout(held_out: &[bool], by: &str, unit: &str) -> Result<(), String> {
+    let n_ho = held_out.iter().filter(|&&h| h).count();
+    if n_ho == 0 {
+        return Err(format!(
+            "{by} selects no {unit}: nothing to judge the model on"
+        ));
+    }
+    if n_ho == held_out.len() {
+        return Err(format!(
+            "{by} selects every {unit}: nothing left to fit the model on"
+        ));
+    }
+    Ok(())
 }
 
 /// Checks that column `name` has `n` values, all finite; the error names the column and the first

@@ -238,14 +238,7 @@ pub fn validate(d: &ProbeData) -> Result<(), String> {
             ));
         }
     }
-    let n_ho = d.held_out.iter().filter(|&&h| h).count();
-    if n_ho == 0 {
-        return Err("--holdout selects no touch: nothing to judge on".into());
-    }
-    if n_ho == n {
-        return Err("--holdout selects every touch: nothing to fit on".into());
-    }
-    Ok(())
+    crate::obs::check_holdout(&d.held_out, "--holdout", "touch")
 }
 
 /// Builds the campaign: linearised radial residuals, the base model's columns and the candidate families.

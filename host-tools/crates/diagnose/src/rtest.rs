@@ -124,14 +124,7 @@ impl RtestObservations {
                 "R-test observations: time or temperature column of a different length".into(),
             );
         }
-        let n_ho = self.held_out.iter().filter(|&&h| h).count();
-        if n_ho == 0 {
-            return Err("--holdout selects no pose: nothing to judge the model on".into());
-        }
-        if n_ho == n {
-            return Err("--holdout selects every pose: nothing left to fit the model on".into());
-        }
-        Ok(())
+        crate::obs::check_holdout(&self.held_out, "--holdout", "pose")
     }
 }
 

@@ -457,29 +457,23 @@ fn figures_by(n: usize, point: impl Fn(usize) -> Point) -> Result<Iso230Figures,
         why_e: Option<String>,
         why_ar: Option<String>,
     }
+    // A side without figures, and why.
+    let undefined = |why: String| SideFigures {
+        e: None,
+        a: None,
+        r: None,
+        why_e: Some(why.clone()),
+        why_ar: Some(why),
+    };
     let side_figures = |sides: &[Option<Side>], present: bool, name: &str| -> SideFigures {
         if !present {
-            let why = format!("no {name}-approach points");
-            return SideFigures {
-                e: None,
-                a: None,
-                r: None,
-                why_e: Some(why.clone()),
-                why_ar: Some(why),
-            };
+            return undefined(format!("no {name}-approach points"));
         }
         if let Some(i) = sides.iter().position(Option::is_none) {
-            let why = format!(
+            return undefined(format!(
                 "target {} mm has no {name}-approach point while others do",
                 groups[i].0
-            );
-            return SideFigures {
-                e: None,
-                a: None,
-                r: None,
-                why_e: Some(why.clone()),
-                why_ar: Some(why),
-            };
+            ));
         }
         let ss: Vec<Side> = sides.iter().map(|s| s.expect("complete")).collect();
         let e = max_of(ss.iter().map(|s| s.mean)) - min_of(ss.iter().map(|s| s.mean));
