@@ -432,18 +432,14 @@ pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, Strin
 
 /// Simulates and diagnoses case `index`.
 pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, String> {
+    let case = make_case(opts, index)?;
     let CaseData {
-        index,
-        seed,
-        plan: plan_name,
         withheld,
-        snr,
-        model,
-        axis,
-        obs,
-        truth_um: truth_c,
-        unabsorbed_peak_ratio,
-    } = make_case(opts, index)?;
+        ref model,
+        ref obs,
+        truth_um: ref truth_c,
+        ..
+    } = case;
     let y = obs.target.clone();
     let hold = obs.holdout_rows();
     let train = obs.train_rows();
@@ -489,20 +485,20 @@ pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, Stri
         }
         if correct {
             let c = d.verdict_candidate().expect("verdict candidate");
-            param_rel_error = searched_param(w, &axis, &c.params);
+            param_rel_error = searched_param(w, &case.axis, &c.params);
             let a: Vec<f64> = hold.iter().map(|&i| c.contribution_um[i]).collect();
             let b: Vec<f64> = hold.iter().map(|&i| truth_c[i]).collect();
             contribution_r2 = Some(corr2(&a, &b));
         }
     }
     Ok(CaseResult {
-        index,
-        seed,
-        plan: plan_name.into(),
+        index: case.index,
+        seed: case.seed,
+        plan: case.plan.into(),
         rows: y.len(),
         withheld: expected.into(),
-        snr,
-        unabsorbed_peak_ratio,
+        snr: case.snr,
+        unabsorbed_peak_ratio: case.unabsorbed_peak_ratio,
         model: model.iter().map(|k| k.name().to_string()).collect(),
         verdict: d.verdict.clone(),
         ties: d.ties.clone(),
