@@ -74,6 +74,11 @@ pub enum ImageCommand {
     /// Validate an image (single-axis or group) and print its contents.
     Inspect(commands::image::InspectArgs),
     /// Build a group image (schema 2) from axis images of `image build` (and a rotary model).
+    ///
+    /// One error, one source: a group in which an axis table and the geometric model's positioning
+    /// component of that axis (EXX, EYY, EZZ), or the rotary model's and the geometric model's
+    /// squareness (EC0Y, EB0Z, EA0Z), would both correct the same error is refused (naming both, writing
+    /// nothing); `--exclude-geometric` leaves the geometric components out.
     Group(commands::image::GroupArgs),
 }
 

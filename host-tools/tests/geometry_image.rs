@@ -5,7 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
-use axcomp::commands::image::{GroupArgs, describe_any, geometric_from_model, group_bytes};
+use axcomp::commands::image::{
+    GroupArgs, describe_any, exclude_geometric_components, geometric_from_model, group_bytes,
+};
 use axcomp_core::group::Group;
 use axcomp_core::group_image;
 use axcomp_core::{ImageSpec, LimitSpec, OutsideStroke, TableSpec, image_len, write_image};
@@ -118,9 +120,15 @@ fn as_fitted(m: &GeometryModel) -> GeometryModel {
 /// An axis image with a zero table over the model's grid of axis `k` and loose limits, so the
 /// group's X, Y, Z corrections are the geometric stage's alone.
 fn axis_image(k: usize, table_start_counts: i64) -> Vec<u8> {
+    axis_image_correcting(k, table_start_counts, 0.0)
+}
+
+/// An axis image whose table corrects a constant `offset_um` over the model's grid of axis `k`
+/// (0: a zero table, which corrects nothing).
+fn axis_image_correcting(k: usize, table_start_counts: i64, offset_um: f32) -> Vec<u8> {
     let g = grids()[k];
     let seg = ((g.hi - g.lo) * 1000.0 / UPC as f64 / g.intervals as f64).round() as u32;
-    let zeros = vec![[0.0f32; 4]; g.intervals];
+    let zeros = vec![[offset_um, 0.0, 0.0, 0.0]; g.intervals];
     let spec = ImageSpec {
         axis_id: k as u16 + 1,
         um_per_count: UPC,
@@ -184,6 +192,7 @@ fn args(
         geometry,
         tool_offset_mm: tool.map(str::to_string),
         probe: None,
+        exclude_geometric: vec![],
         out,
     }
 }
@@ -362,6 +371,107 @@ fn bad_geometry_arguments_are_named() {
     ]);
     assert!(r.is_err());
     assert!(!out.exists(), "nothing written");
+}
+
+/// Issue 9 (dedupe item 3): an axis table that corrects X's positioning and a geometric model whose
+/// EXX does too would correct the same error twice: `image group` refuses it, naming both sources
+/// and the way out, and writes nothing; `--exclude-geometric EXX` builds the image with EXX stored as
+/// zero (identified bit kept), which `image inspect` lists as excluded, and the geometric stage then
+/// applies nothing for EXX (the other 16 identified components are unchanged).
+#[test]
+fn double_positioning_correction_is_refused_unless_excluded() {
+    let mut rng = Lcg(23);
+    let dir = scratch("double");
+    let m = model(Topology::default(), &mut rng);
+    let (model_path, mut axes) = files(&dir, &m, "XYZ");
+    let x_table = dir.join("Xtable.bin");
+    std::fs::write(&x_table, axis_image_correcting(0, start_counts(0), 2.5)).unwrap();
+    axes[0] = format!("X={}", x_table.display());
+    let out = dir.join("g.bin");
+    let run = |extra: &[&str]| {
+        let mut argv: Vec<String> = ["axcomp", "image", "group"].map(String::from).to_vec();
+        for a in &axes {
+            argv.extend(["--axis".to_string(), a.clone()]);
+        }
+        argv.extend(["--geometry".into(), model_path.display().to_string()]);
+        argv.extend(extra.iter().map(|s| s.to_string()));
+        argv.extend(["--out".into(), out.display().to_string()]);
+        axcomp::run(argv)
+    };
+    // Refused: both sources named, the way out given, nothing written.
+    let e = format!("{:#}", run(&[]).unwrap_err());
+    for want in [
+        "would correct the same error twice (nothing written)",
+        &format!(
+            "axis X's positioning table (--axis X={})",
+            x_table.display()
+        ),
+        &format!(
+            "the geometry model's EXX (--geometry {}) both correct X's positioning error",
+            model_path.display()
+        ),
+        "`--exclude-geometric EXX`",
+    ] {
+        assert!(e.contains(want), "missing {want:?} in: {e}");
+    }
+    assert!(
+        !e.contains("EYY") && !e.contains("EZZ"),
+        "zero tables correct nothing: {e}"
+    );
+    assert!(!out.exists(), "nothing written on refusal");
+    // The way out: EXX left out of the geometric section.
+    run(&["--exclude-geometric", "EXX"]).unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    let g = group_image::parse(&bytes).unwrap().geometric.unwrap();
+    assert_eq!(
+        g.identified.count_ones(),
+        17,
+        "the identified bits are kept"
+    );
+    for seg in 0..g.grids[0].n_segments as usize {
+        assert_eq!(g.segment(0, seg, 0), [0.0; 4], "EXX stored as zero");
+        assert_ne!(g.segment(0, seg, 1), [0.0; 4], "EYX kept");
+    }
+    let text = describe_any(&bytes).unwrap();
+    for want in [
+        "17 of 21 components identified, 1 of them excluded from this image (stored as zero)",
+        "EXX  0.000 .. 0.000 µm, identified by the fit, EXCLUDED from this image",
+        "ECY  0.000 .. 0.000 µrad, NOT identified: stored as zero (the model's prior)",
+    ] {
+        assert!(text.contains(want), "missing {want:?} in:\n{text}");
+    }
+    // The same image as the conversion with EXX excluded by hand (nothing else changed).
+    let mut by_hand = geometric_from_model(&m, [0.1; 3], [0.0; 3]).unwrap();
+    exclude_geometric_components(&mut by_hand, &["EXX".into()]).unwrap();
+    let want = by_hand.spec();
+    assert_eq!(
+        (g.identified, g.squareness_urad, g.grids),
+        (want.identified, want.squareness_urad, want.grids)
+    );
+    for k in 0..3 {
+        for seg in 0..g.grids[k].n_segments as usize {
+            for f in 0..6 {
+                assert_eq!(g.segment(k, seg, f), want.segment(k, seg, f));
+            }
+        }
+    }
+    // Excluding what the model did not identify, or an unknown name, is refused and writes nothing.
+    std::fs::remove_file(&out).unwrap();
+    let e = format!(
+        "{:#}",
+        run(&["--exclude-geometric", "EXX,ECY"]).unwrap_err()
+    );
+    assert!(
+        e.contains("--exclude-geometric ECY: the geometry model did not identify ECY"),
+        "{e}"
+    );
+    let e = format!("{:#}", run(&["--exclude-geometric", "EXQ"]).unwrap_err());
+    assert!(
+        e.contains("--exclude-geometric EXQ: not an ISO 230-1 component name"),
+        "{e}"
+    );
+    assert!(!out.exists(), "nothing written");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Issue 10 item 5's last clause: compensated three-axis twin runs driven through the core's

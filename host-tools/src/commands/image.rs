@@ -13,12 +13,19 @@
 //!   knot grid in mm, becomes per-segment Horner polynomials over the same knots in counts; the
 //!   squareness constants, the stacking and the tool offset are copied. A component the fit marks
 //!   `identified: false` goes in as zero (the model's prior) and `image inspect` says so.
+//! - *double correction*: two sources of one group image correcting the same error: an axis's
+//!   positioning table and the geometric model's positioning component of that axis (EXX, EYY,
+//!   EZZ), or the rotary model's squareness and the geometric model's (EC0Y, EB0Z, EA0Z), both
+//!   non-zero. `image group` refuses it (naming both sources) and writes nothing; with
+//!   `--exclude-geometric` the geometric model's components are left out (stored as zero, their
+//!   identified bit kept: `image inspect` lists an identified component stored as zero as
+//!   excluded).
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 use axcomp_core::geometric::{
-    COMPONENT_NAMES, GeometricCoefficients, GeometricGrid, GeometricSpec,
+    COMPONENT_NAMES, FUNCTIONS_PER_AXIS, GeometricCoefficients, GeometricGrid, GeometricSpec,
 };
 use axcomp_core::group::AxisName;
 use axcomp_core::group_image::{self, AxisSectionSpec};
@@ -578,11 +585,20 @@ pub fn describe_geometric(g: &GeometricSpec) -> String {
     let mut s = String::new();
     let label = String::from_utf8_lossy(&g.stacking_label()).into_owned();
     let n_id = (0..21).filter(|i| g.identified >> i & 1 == 1).count();
+    let n_excluded = (0..21)
+        .filter(|&i| g.identified >> i & 1 == 1 && !geometric_component_nonzero(g, i))
+        .count();
     let _ = writeln!(
         s,
         "geometric model (21 ISO 230-1 components, volumetric stage): stacking {label} \
-         (work axes / tool axes), tool offset ({}, {}, {}) µm, {n_id} of 21 components identified",
-        g.tool_offset_um[0], g.tool_offset_um[1], g.tool_offset_um[2]
+         (work axes / tool axes), tool offset ({}, {}, {}) µm, {n_id} of 21 components identified{}",
+        g.tool_offset_um[0],
+        g.tool_offset_um[1],
+        g.tool_offset_um[2],
+        match n_excluded {
+            0 => String::new(),
+            n => format!(", {n} of them excluded from this image (stored as zero)"),
+        }
     );
     for (k, grid) in g.grids.iter().enumerate() {
         let _ = writeln!(
@@ -596,10 +612,13 @@ pub fn describe_geometric(g: &GeometricSpec) -> String {
         );
     }
     let status = |i: usize| {
-        if g.identified >> i & 1 == 1 {
+        if g.identified >> i & 1 == 0 {
+            "NOT identified: stored as zero (the model's prior)"
+        } else if geometric_component_nonzero(g, i) {
             "identified"
         } else {
-            "NOT identified: stored as zero (the model's prior)"
+            "identified by the fit, EXCLUDED from this image: stored as zero (`image group \
+             --exclude-geometric`: an axis table or the rotary model corrects it)"
         }
     };
     for k in 0..3 {
@@ -873,6 +892,18 @@ pub struct GroupArgs {
     /// `min_pulse_us`, `latency_us`, `lockout_ms`, `moving_mm_min` (e.g. `latency_us=850`).
     #[arg(long, value_name = "SETTINGS")]
     pub probe: Option<String>,
+    /// Geometric components to leave out of the image, comma-separated ISO 230-1 names (e.g.
+    /// `EXX,EC0Y`): stored as zero, listed by `image inspect` as excluded. The way to build an image
+    /// whose axis positioning table (EXX, EYY, EZZ) or rotary model squareness (EC0Y, EB0Z, EA0Z)
+    /// corrects an error the geometric model also carries: without it `image group` refuses such a
+    /// group, naming both sources, since the error would be corrected twice.
+    #[arg(
+        long,
+        value_name = "NAMES",
+        value_delimiter = ',',
+        requires = "geometry"
+    )]
+    pub exclude_geometric: Vec<String>,
     /// Output group image file.
     #[arg(long, value_name = "IMAGE")]
     pub out: PathBuf,
@@ -1152,6 +1183,141 @@ fn geometric_for_group(
     Ok(g)
 }
 
+/// Leaves the named components out of `g` (`--exclude-geometric`): their functions (or squareness
+/// constant) are stored as zero and their identified bit is kept, which is how `image inspect` tells an
+/// excluded component from one the fit did not identify. A name that is not one of the 21, or a
+/// component the model did not identify (nothing to leave out), is an error naming it.
+pub fn exclude_geometric_components(
+    g: &mut GeometricSection,
+    names: &[String],
+) -> anyhow::Result<()> {
+    for name in names {
+        let name = name.trim();
+        let i = COMPONENT_NAMES
+            .iter()
+            .position(|n| n.eq_ignore_ascii_case(name))
+            .with_context(|| {
+                format!(
+                    "--exclude-geometric {name}: not an ISO 230-1 component name ({})",
+                    COMPONENT_NAMES.join(", ")
+                )
+            })?;
+        anyhow::ensure!(
+            g.identified >> i & 1 == 1,
+            "--exclude-geometric {name}: the geometry model did not identify {} (it is stored as \
+             zero already): nothing to leave out",
+            COMPONENT_NAMES[i]
+        );
+        if i >= 18 {
+            g.squareness_urad[i - 18] = 0.0;
+        } else {
+            let (k, f) = (i / 6, i % 6);
+            let before: usize = g.grids[..k].iter().map(|gr| gr.n_segments as usize).sum();
+            for seg in 0..g.grids[k].n_segments as usize {
+                g.coefficients[(before + seg) * FUNCTIONS_PER_AXIS + f] = [0.0; 4];
+            }
+        }
+    }
+    Ok(())
+}
+
+/// True if component `i` (of [`COMPONENT_NAMES`]) of the geometric section has a non-zero value.
+fn geometric_component_nonzero(g: &GeometricSpec, i: usize) -> bool {
+    if i >= 18 {
+        return g.squareness_urad[i - 18] != 0.0;
+    }
+    let (k, f) = (i / 6, i % 6);
+    (0..g.grids[k].n_segments as usize).any(|seg| g.segment(k, seg, f) != [0.0; 4])
+}
+
+/// Refuses a group in which one error would be corrected twice (see the module glossary): an axis's
+/// positioning table and the geometric model's positioning component of that axis, or the rotary
+/// model's squareness and the geometric model's, both non-zero. The error names both sources of
+/// each and the way out (`--exclude-geometric`).
+fn refuse_double_correction(
+    args: &GroupArgs,
+    axes: &[(AxisName, u32, Vec<u8>)],
+    geometric: Option<&GeometricSection>,
+    rotary: Option<&RotaryLocationSpec>,
+) -> anyhow::Result<()> {
+    let Some(geo) = geometric else {
+        return Ok(());
+    };
+    let spec = geo.spec();
+    let geo_path = args
+        .geometry
+        .as_deref()
+        .map_or(String::new(), |p| p.display().to_string());
+    let mut twice: Vec<(&str, String)> = Vec::new();
+    for (k, name) in [AxisName::X, AxisName::Y, AxisName::Z]
+        .into_iter()
+        .enumerate()
+    {
+        let i = 7 * k; // EXX, EYY, EZZ
+        let Some(slot) = axes.iter().position(|(n, _, _)| *n == name) else {
+            continue;
+        };
+        let mut comp = Box::new(Compensator::IDENTITY);
+        if comp.load(&axes[slot].2).is_err() || !comp.has_table() {
+            continue;
+        }
+        let table_corrects = comp
+            .forward_segments()
+            .iter()
+            .chain(comp.backward_segments())
+            .any(|c| *c != [0.0; 4]);
+        if table_corrects && geometric_component_nonzero(&spec, i) {
+            twice.push((
+                COMPONENT_NAMES[i],
+                format!(
+                    "axis {l}'s positioning table (--axis {}) and the geometry model's {} \
+                     (--geometry {geo_path}) both correct {l}'s positioning error",
+                    args.axes[slot],
+                    COMPONENT_NAMES[i],
+                    l = name.letter()
+                ),
+            ));
+        }
+    }
+    if let Some(r) = rotary {
+        let rotary_path = args
+            .rotary
+            .as_deref()
+            .map_or(String::new(), |p| p.display().to_string());
+        for q in 0..3 {
+            // The rotary section holds EA0Z, EB0Z, EC0Y; the geometric one EC0Y, EB0Z, EA0Z.
+            let i = 18 + q;
+            if r.squareness_urad[2 - q] != 0.0 && geometric_component_nonzero(&spec, i) {
+                twice.push((
+                    COMPONENT_NAMES[i],
+                    format!(
+                        "the rotary model's squareness {n} (--rotary {rotary_path}) and the \
+                         geometry model's {n} (--geometry {geo_path}) both correct it",
+                        n = COMPONENT_NAMES[i]
+                    ),
+                ));
+            }
+        }
+    }
+    if twice.is_empty() {
+        return Ok(());
+    }
+    let names: Vec<&str> = twice.iter().map(|(n, _)| *n).collect();
+    anyhow::bail!(
+        "the group would correct the same error twice (nothing written):\n{}\nkeep one source of \
+         each: `--exclude-geometric {}` leaves the geometry model's out (the axis table or the \
+         rotary model corrects it; `image inspect` lists it as excluded), or build the group from \
+         an axis image without a positioning table / a rotary model without that squareness to \
+         keep the geometry model's",
+        twice
+            .iter()
+            .map(|(_, why)| format!("  - {why}"))
+            .collect::<Vec<_>>()
+            .join("\n"),
+        names.join(",")
+    )
+}
+
 /// The group image bytes from the arguments (validated; nothing is written here).
 pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
     let mut axes = Vec::new();
@@ -1198,7 +1364,11 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
             n.letter()
         );
     }
-    let geometric = match &args.geometry {
+    anyhow::ensure!(
+        args.exclude_geometric.is_empty() || args.geometry.is_some(),
+        "--exclude-geometric goes with --geometry"
+    );
+    let mut geometric = match &args.geometry {
         Some(path) => Some(geometric_for_group(
             path,
             args.tool_offset_mm.as_deref(),
@@ -1206,6 +1376,10 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
         )?),
         None => None,
     };
+    if let Some(g) = geometric.as_mut() {
+        exclude_geometric_components(g, &args.exclude_geometric)?;
+    }
+    refuse_double_correction(args, &axes, geometric.as_ref(), rotary.as_ref())?;
     let specs: Vec<AxisSectionSpec> = axes
         .iter()
         .zip(&name_refs)
@@ -1401,6 +1575,7 @@ mod tests {
             geometry: None,
             tool_offset_mm: None,
             probe: None,
+            exclude_geometric: vec![],
             out: dir.join("g.bin"),
         };
         // The same group the scenario builds, byte for byte.
@@ -1426,6 +1601,7 @@ mod tests {
             geometry: None,
             tool_offset_mm: None,
             probe: Some("latency_us=850, lockout_ms=25".into()),
+            exclude_geometric: vec![],
             out: dir.join("never.bin"),
         })
         .unwrap();
@@ -1473,6 +1649,7 @@ mod tests {
                 geometry: None,
                 tool_offset_mm: None,
                 probe: None,
+                exclude_geometric: vec![],
                 out: dir.join("never.bin"),
             })
             .unwrap_err();
@@ -1484,6 +1661,68 @@ mod tests {
         let e = describe_any(&long).unwrap_err();
         assert!(format!("{e:#}").contains("bytes follow the end"), "{e:#}");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A rotary model and a geometric model that both carry a non-zero squareness term would correct
+    /// it twice: refused, naming both sources and `--exclude-geometric`; a term only one of them
+    /// carries is not a conflict. With the geometric EC0Y excluded the group passes and `inspect` lists
+    /// EC0Y as excluded.
+    #[test]
+    fn double_squareness_correction_is_refused_unless_excluded() {
+        let grid = GeometricGrid {
+            start_counts: 0,
+            segment_counts: 1000,
+            n_segments: 1,
+        };
+        let mut geo = GeometricSection {
+            chain: [0, 1, 2],
+            work_axes: 0,
+            identified: (1 << 21) - 1,
+            tool_offset_um: [0.0; 3],
+            // EC0Y, EB0Z, EA0Z.
+            squareness_urad: [5.0, 0.0, -3.0],
+            grids: [grid; 3],
+            coefficients: vec![[1.0, 0.0, 0.0, 0.0]; 18],
+        };
+        // EA0Z, EB0Z, EC0Y: only EC0Y is in both.
+        let rot = RotaryLocationSpec {
+            squareness_urad: [0.0, 2.0, 7.0],
+            ..RotaryLocationSpec::ZERO_AC
+        };
+        let args = GroupArgs {
+            axes: vec![],
+            sensor_names: vec![],
+            rotary: Some("r.json".into()),
+            pivot_counts: None,
+            tool_length_mm: None,
+            geometry: Some("g.json".into()),
+            tool_offset_mm: None,
+            probe: None,
+            exclude_geometric: vec![],
+            out: "never.bin".into(),
+        };
+        let e = format!(
+            "{:#}",
+            refuse_double_correction(&args, &[], Some(&geo), Some(&rot)).unwrap_err()
+        );
+        assert!(
+            e.contains(
+                "the rotary model's squareness EC0Y (--rotary r.json) and the geometry model's \
+                 EC0Y (--geometry g.json) both correct it"
+            ),
+            "{e}"
+        );
+        assert!(e.contains("`--exclude-geometric EC0Y`"), "{e}");
+        assert!(!e.contains("EA0Z") && !e.contains("EB0Z"), "{e}");
+        exclude_geometric_components(&mut geo, &["ec0y".into()]).unwrap();
+        assert_eq!(geo.squareness_urad, [0.0, 0.0, -3.0]);
+        refuse_double_correction(&args, &[], Some(&geo), Some(&rot)).unwrap();
+        let text = describe_geometric(&geo.spec());
+        assert!(
+            text.contains("  EC0Y 0 µrad, identified by the fit, EXCLUDED from this image"),
+            "{text}"
+        );
+        assert!(text.contains("  EA0Z -3 µrad, identified\n"), "{text}");
     }
 
     /// An image written before provenance and without names on a board's inputs: `inspect` says it has no

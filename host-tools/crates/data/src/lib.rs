@@ -988,5 +988,18 @@ pub fn shared_dir(workspace_root: &Path) -> Option<std::path::PathBuf> {
     dir.is_dir().then_some(dir)
 }
 
+/// [`shared_dir`] for a test on real data: `None` (and a `skipped` line) when the directory is absent, a
+/// panic when it is absent under CI (`CI` set), where a skipped real-data test would hide a failure.
+pub fn shared_dir_for_test(workspace_root: &Path) -> Option<std::path::PathBuf> {
+    match shared_dir(workspace_root) {
+        Some(d) => Some(d),
+        None if std::env::var_os("CI").is_some() => panic!("../shared not found (CI is set)"),
+        None => {
+            println!("skipped: ../shared not found");
+            None
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests;

@@ -238,8 +238,7 @@ pub fn unit_mix(
         large_rows.extend(mags[at..].iter().map(|m| m.1));
         log_ratios.push(mean(&mags[at..]) - mean(&mags[..at]));
     }
-    log_ratios.sort_by(f64::total_cmp);
-    let ratio = 10f64.powf(log_ratios[log_ratios.len() / 2]);
+    let ratio = 10f64.powf(axcomp_numeric::stats::upper_median(&mut log_ratios));
     let smaller_is_minority = small_rows.len() <= large_rows.len();
     let minority = if smaller_is_minority {
         &small_rows

@@ -345,15 +345,7 @@ fn groups_by_first_appearance() {
 // ---- real files in ../shared (skipped when absent, failure under CI) ----
 
 fn shared() -> Option<std::path::PathBuf> {
-    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../.."));
-    match shared_dir(root) {
-        Some(d) => Some(d),
-        None if std::env::var_os("CI").is_some() => panic!("../shared not found (CI is set)"),
-        None => {
-            println!("skipped: ../shared not found");
-            None
-        }
-    }
+    shared_dir_for_test(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../..")))
 }
 
 #[test]

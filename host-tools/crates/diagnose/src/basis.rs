@@ -188,8 +188,7 @@ pub fn regular_spacing(x: &[f64], rows: &[usize]) -> Option<f64> {
         return None;
     }
     let mut gaps: Vec<f64> = u.windows(2).map(|w| w[1] - w[0]).collect();
-    gaps.sort_by(|a, b| a.total_cmp(b));
-    let med = gaps[gaps.len() / 2];
+    let med = axcomp_numeric::stats::upper_median(&mut gaps);
     (gaps.iter().all(|g| (g - med).abs() <= 0.01 * med)).then_some(med)
 }
 

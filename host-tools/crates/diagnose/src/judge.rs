@@ -68,6 +68,47 @@ use crate::stats;
 /// holds only their parameters: memory O(rows), not O(rows·variants)).
 pub type ColumnsFn<'a> = Box<dyn Fn() -> Vec<Vec<f64>> + 'a>;
 
+/// The campaign's `not_applicable` lines (`kind: why`) from (kind, why) pairs.
+pub fn not_applicable_lines<K: std::fmt::Display>(v: &[(K, String)]) -> Vec<String> {
+    v.iter().map(|(k, why)| format!("{k}: {why}")).collect()
+}
+
+/// One variant of a candidate family with its columns built over all (stacked) rows: what the probe and
+/// R-test diagnoses build before handing them to [`judge`] as [`CandidateVariant`]s.
+#[derive(Debug, Clone)]
+pub struct BuiltVariant {
+    pub columns: Vec<Vec<f64>>,
+    pub params: Map<String, Value>,
+    /// Added columns + searched parameters.
+    pub n_params: usize,
+}
+
+/// A candidate family of effect kind `K` built from the data's columns.
+#[derive(Debug, Clone)]
+pub struct BuiltFamily<K> {
+    pub kind: K,
+    pub variants: Vec<BuiltVariant>,
+}
+
+impl<K> BuiltFamily<K> {
+    /// The family as the verdict rule takes it: named `name`, tie-break rank `simplicity`, each variant's
+    /// searched parameters = `n_params` − its columns.
+    pub fn candidate(&self, name: &str, simplicity: u8) -> CandidateFamily<'static> {
+        let mut fam = CandidateFamily::new(
+            name,
+            self.variants
+                .iter()
+                .map(|v| {
+                    let searched = v.n_params.saturating_sub(v.columns.len());
+                    CandidateVariant::new(v.columns.clone(), v.params.clone(), searched)
+                })
+                .collect(),
+        );
+        fam.simplicity = simplicity;
+        fam
+    }
+}
+
 /// A variant's columns: built, or built on demand.
 pub enum Columns<'a> {
     Built(Vec<Vec<f64>>),

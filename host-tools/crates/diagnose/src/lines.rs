@@ -89,35 +89,14 @@ impl LineObservations {
                 i + 1
             ));
         }
-        let check = |name: &str, v: &[f64]| -> Result<(), String> {
-            if v.len() != n {
-                return Err(format!(
-                    "column `{name}` has {} values, expected {n}",
-                    v.len()
-                ));
-            }
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(format!(
-                    "column `{name}`: value in data row {} is not finite",
-                    i + 1
-                ));
-            }
-            Ok(())
-        };
+        let check = |name: &str, v: &[f64]| crate::obs::check_column(name, v, n);
         if let Some(t) = &self.time_s {
             check("time_s", t)?;
         }
         for t in &self.temperatures {
             check(&format!("{}_degC", t.name), &t.values)?;
         }
-        let n_ho = self.held_out.iter().filter(|h| **h).count();
-        if n_ho == 0 {
-            return Err("the holdout selects no rows: nothing to judge the model on".into());
-        }
-        if n_ho == n {
-            return Err("the holdout selects every row: nothing left to fit on".into());
-        }
-        Ok(())
+        crate::obs::check_holdout(&self.held_out, "the holdout", "row")
     }
 }
 
@@ -344,6 +323,17 @@ fn candidates<'a>(
         .map(|k| Design::new(obs, Some(k)))
         .collect();
     let designs: Vec<&Design> = coarse.iter().chain([design]).collect();
+    // The missing components grouped by the axis they belong to (X, Y, Z).
+    let per_axis = |miss: &[Component]| -> Vec<Vec<Component>> {
+        (0..3)
+            .map(|a| {
+                miss.iter()
+                    .copied()
+                    .filter(|c| c.axis().map(|x| x.index()) == Some(a))
+                    .collect()
+            })
+            .collect()
+    };
     for kind in kinds {
         match kind {
             LineEffect::AbbeAngular => {
@@ -352,14 +342,7 @@ fn candidates<'a>(
                     na.push("abbe_angular: the model holds all nine angular components".into());
                     continue;
                 }
-                let groups = (0..3)
-                    .map(|a| {
-                        miss.iter()
-                            .copied()
-                            .filter(|c| c.axis().map(|x| x.index()) == Some(a))
-                            .collect()
-                    })
-                    .collect();
+                let groups = per_axis(&miss);
                 match component_family(kind, &miss, groups, &designs, train) {
                     Some(f) => fams.push(f),
                     None => na.push(format!(
@@ -389,14 +372,7 @@ fn candidates<'a>(
                     na.push("straightness: the model holds all six straightness components".into());
                     continue;
                 }
-                let groups = (0..3)
-                    .map(|a| {
-                        miss.iter()
-                            .copied()
-                            .filter(|c| c.axis().map(|x| x.index()) == Some(a))
-                            .collect()
-                    })
-                    .collect();
+                let groups = per_axis(&miss);
                 match component_family(kind, &miss, groups, &designs, train) {
                     Some(f) => fams.push(f),
                     None => na.push(format!(

@@ -55,21 +55,7 @@ impl Observations {
         if n == 0 {
             return Err("no rows".into());
         }
-        let check = |name: &str, v: &[f64]| -> Result<(), String> {
-            if v.len() != n {
-                return Err(format!(
-                    "column `{name}` has {} values, expected {n}",
-                    v.len()
-                ));
-            }
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(format!(
-                    "column `{name}`: value in data row {} is not finite",
-                    i + 1
-                ));
-            }
-            Ok(())
-        };
+        let check = |name: &str, v: &[f64]| check_column(name, v, n);
         check(&self.target_name, &self.target)?;
         if self.held_out.len() != n {
             return Err("held-out mask has the wrong length".into());
@@ -89,14 +75,7 @@ impl Observations {
         for t in self.temperatures.iter().chain(&self.forces) {
             check(&t.name, &t.values)?;
         }
-        let n_ho = self.held_out.iter().filter(|&&h| h).count();
-        if n_ho == 0 {
-            return Err("the holdout selects no rows: nothing to judge the model on".into());
-        }
-        if n_ho == n {
-            return Err("the holdout selects every row: nothing left to fit on".into());
-        }
-        Ok(())
+        check_holdout(&self.held_out, "the holdout", "row")
     }
 
     /// Row order by time (stable; row order when there is no time).
@@ -122,4 +101,39 @@ impl Observations {
             })
             .collect()
     }
+}
+
+/// Checks that the held-out mask holds out at least one row and not every row; the message says what
+/// selected them (`by`: `the holdout`, `--holdout`) and what a row is (`unit`: `row`, `touch`, `pose`).
+pub fn check_holdout(held_out: &[bool], by: &str, unit: &str) -> Result<(), String> {
+    let n_ho = held_out.iter().filter(|&&h| h).count();
+    if n_ho == 0 {
+        return Err(format!(
+            "{by} selects no {unit}: nothing to judge the model on"
+        ));
+    }
+    if n_ho == held_out.len() {
+        return Err(format!(
+            "{by} selects every {unit}: nothing left to fit the model on"
+        ));
+    }
+    Ok(())
+}
+
+/// Checks that column `name` has `n` values, all finite; the error names the column and the first
+/// offending data row (1-based).
+pub fn check_column(name: &str, v: &[f64], n: usize) -> Result<(), String> {
+    if v.len() != n {
+        return Err(format!(
+            "column `{name}` has {} values, expected {n}",
+            v.len()
+        ));
+    }
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(format!(
+            "column `{name}`: value in data row {} is not finite",
+            i + 1
+        ));
+    }
+    Ok(())
 }

@@ -47,20 +47,10 @@ use axcomp_probe::{DirSpeed, Touch};
 use serde_json::{Map, Value, json};
 
 /// One candidate variant: its columns over all rows and its parameters (what the variant is).
-#[derive(Debug, Clone)]
-pub struct ProbeVariant {
-    pub columns: Vec<Vec<f64>>,
-    pub params: Map<String, Value>,
-    /// Added columns + searched parameters.
-    pub n_params: usize,
-}
+pub type ProbeVariant = crate::judge::BuiltVariant;
 
 /// A candidate effect kind and its variants.
-#[derive(Debug, Clone)]
-pub struct ProbeFamily {
-    pub kind: ProbeEffect,
-    pub variants: Vec<ProbeVariant>,
-}
+pub type ProbeFamily = crate::judge::BuiltFamily<ProbeEffect>;
 
 /// Touch data as plain columns, with the held-out mask.
 #[derive(Debug, Clone)]
@@ -248,14 +238,7 @@ pub fn validate(d: &ProbeData) -> Result<(), String> {
             ));
         }
     }
-    let n_ho = d.held_out.iter().filter(|&&h| h).count();
-    if n_ho == 0 {
-        return Err("--holdout selects no touch: nothing to judge on".into());
-    }
-    if n_ho == n {
-        return Err("--holdout selects every touch: nothing to fit on".into());
-    }
-    Ok(())
+    crate::obs::check_holdout(&d.held_out, "--holdout", "touch")
 }
 
 /// Builds the campaign: linearised radial residuals, the base model's columns and the candidate families.
@@ -318,6 +301,23 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
         };
         let mut cols: Vec<Vec<f64>> = Vec::new();
         let zero = || vec![0.0; n];
+        // The artefact's placement columns on its rows: a size change along the normal (1), then a
+        // translation (the normal's three components).
+        let size_and_normal = |normal: &[[f64; 3]]| -> Vec<Vec<f64>> {
+            let mut size = zero();
+            for &i in &rows {
+                size[i] = 1.0;
+            }
+            let mut out = vec![size];
+            for k in 0..3 {
+                let mut c = zero();
+                for &i in &rows {
+                    c[i] = normal[i][k];
+                }
+                out.push(c);
+            }
+            out
+        };
         if let Some(fr) = fit_rows {
             let s = axcomp_probe::geometric_sphere(&pts(&fr), None)
                 .map_err(|e| format!("artefact `{name}`: sphere fit: {e}"))?;
@@ -336,18 +336,7 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
                 normal[i] = [q[0] / l, q[1] / l, q[2] / l];
                 y[i] = (l - s.radius_mm) * 1000.0;
             }
-            let mut size = zero();
-            for &i in &rows {
-                size[i] = 1.0;
-            }
-            cols.push(size);
-            for k in 0..3 {
-                let mut c = zero();
-                for &i in &rows {
-                    c[i] = normal[i][k];
-                }
-                cols.push(c);
-            }
+            cols.extend(size_and_normal(&normal));
         } else {
             let m = rows.len().max(1) as f64;
             let mut pbar = [0.0; 3];
@@ -363,18 +352,7 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
                 let q = sub(d.touches[i].position_mm, pbar);
                 y[i] = (0..3).map(|k| normal[i][k] * q[k]).sum::<f64>() * 1000.0;
             }
-            let mut size = zero();
-            for &i in &rows {
-                size[i] = 1.0;
-            }
-            cols.push(size);
-            for k in 0..3 {
-                let mut c = zero();
-                for &i in &rows {
-                    c[i] = normal[i][k];
-                }
-                cols.push(c);
-            }
+            cols.extend(size_and_normal(&normal));
             // A translation along a direction no touch approaches is left out (its column is noise).
             cols.retain(|c| rms_on(c, &rows) >= 1e-3);
             // Small rotation ω of the artefact: n·(ω × q) = ω·(q × n), q in mm. A component that the
@@ -879,7 +857,7 @@ pub fn diagnose(
     c: &ProbeCampaign,
     opts: &crate::DiagnoseOptions,
 ) -> Result<ProbeDiagnosis, String> {
-    use crate::judge::{Campaign, CandidateFamily, CandidateVariant, ModelTerm};
+    use crate::judge::{Campaign, CandidateFamily, ModelTerm};
     let mut time_order = c.train.clone();
     if let Some((_, t)) = c.where_variables.iter().find(|(n, _)| n == "time_s") {
         time_order.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
@@ -915,29 +893,12 @@ pub fn diagnose(
         where_variables: c.where_variables.clone(),
         position_order: None,
         time_order,
-        not_applicable: c
-            .not_applicable
-            .iter()
-            .map(|(k, why)| format!("{k}: {why}"))
-            .collect(),
+        not_applicable: crate::judge::not_applicable_lines(&c.not_applicable),
     };
     let families: Vec<CandidateFamily> = c
         .families
         .iter()
-        .map(|f| {
-            let mut fam = CandidateFamily::new(
-                f.kind.name(),
-                f.variants
-                    .iter()
-                    .map(|v| {
-                        let searched = v.n_params.saturating_sub(v.columns.len());
-                        CandidateVariant::new(v.columns.clone(), v.params.clone(), searched)
-                    })
-                    .collect(),
-            );
-            fam.simplicity = simplicity(f.kind);
-            fam
-        })
+        .map(|f| f.candidate(f.kind.name(), simplicity(f.kind)))
         .collect();
     let mut d = crate::judge::judge(&campaign, &families, opts)?;
     // Latch latency and an isotropic speed pretravel are the same columns' span on touches: say so.

@@ -124,32 +124,15 @@ impl RtestObservations {
                 "R-test observations: time or temperature column of a different length".into(),
             );
         }
-        let n_ho = self.held_out.iter().filter(|&&h| h).count();
-        if n_ho == 0 {
-            return Err("--holdout selects no pose: nothing to judge the model on".into());
-        }
-        if n_ho == n {
-            return Err("--holdout selects every pose: nothing left to fit the model on".into());
-        }
-        Ok(())
+        crate::obs::check_holdout(&self.held_out, "--holdout", "pose")
     }
 }
 
-/// One variant of a candidate family: its columns over all stacked rows.
-#[derive(Debug, Clone)]
-pub struct RtestVariant {
-    pub columns: Vec<Vec<f64>>,
-    pub params: Map<String, Value>,
-    /// Added columns + searched parameters.
-    pub n_params: usize,
-}
+/// One candidate variant: its columns over all rows and its parameters (what the variant is).
+pub type RtestVariant = crate::judge::BuiltVariant;
 
-/// A candidate family built from the data's columns.
-#[derive(Debug, Clone)]
-pub struct RtestFamily {
-    pub kind: RotaryEffect,
-    pub variants: Vec<RtestVariant>,
-}
+/// A candidate effect kind and its variants.
+pub type RtestFamily = crate::judge::BuiltFamily<RotaryEffect>;
 
 /// The stacked campaign: target, base columns, rows and `where` variables.
 #[derive(Debug, Clone)]
@@ -846,7 +829,7 @@ pub fn diagnose(
     model: &[RotaryEffect],
     opts: &crate::judge::DiagnoseOptions,
 ) -> Result<(RtestDiagnosis, RtestCampaign), String> {
-    use crate::judge::{self, CandidateFamily, CandidateVariant, ModelTerm};
+    use crate::judge::{self, CandidateFamily, ModelTerm};
     let c = campaign(obs, model)?;
     let n_rows = c.y.len();
     // Base: an intercept-free location-error model (its set-up offsets are the constants).
@@ -889,30 +872,13 @@ pub fn diagnose(
         where_variables: c.where_variables.clone(),
         position_order: None,
         time_order,
-        not_applicable: c
-            .not_applicable
-            .iter()
-            .map(|(k, why)| format!("{k}: {why}"))
-            .collect(),
+        not_applicable: crate::judge::not_applicable_lines(&c.not_applicable),
     };
     let families: Vec<CandidateFamily> = c
         .families
         .iter()
         .map(|f| {
-            let mut fam = CandidateFamily::new(
-                f.kind.name(),
-                f.variants
-                    .iter()
-                    .map(|v| {
-                        CandidateVariant::new(
-                            v.columns.clone(),
-                            v.params.clone(),
-                            v.n_params - v.columns.len(),
-                        )
-                    })
-                    .collect(),
-            );
-            fam.simplicity = simplicity(f.kind);
+            let mut fam = f.candidate(f.kind.name(), simplicity(f.kind));
             fam.last_resort = f.kind == RotaryEffect::TimeDrift;
             fam
         })

@@ -18,8 +18,8 @@ pub fn paired_t(d: &[f64]) -> (f64, f64) {
     if n < 2 {
         return (0.0, 1.0);
     }
-    let m = d.iter().sum::<f64>() / n as f64;
-    let var = d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64;
+    let m = axcomp_numeric::stats::mean(d);
+    let var = axcomp_numeric::stats::sample_variance(d, m);
     if var <= 0.0 {
         return if m > 0.0 {
             (f64::INFINITY, 0.0)

@@ -105,12 +105,7 @@ pub fn predict_readings(model: &GeometryModel, data: &LineData) -> Vec<f64> {
 }
 
 fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
-    if n == 0 {
-        f64::NAN
-    } else {
-        (s / n as f64).sqrt()
-    }
+    axcomp_numeric::stats::rms_of(v)
 }
 
 /// Volumetric figures of a model over its measured box (11³ grid, tool offset 0).

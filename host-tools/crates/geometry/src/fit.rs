@@ -6,6 +6,7 @@
 use std::collections::BTreeMap;
 
 use axcomp_kinematics::{Axis, Component, ComponentKind, Topology, dot, sensitivities};
+use axcomp_numeric::lsq::{cholesky_with_ridge, max_abs_diagonal};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use serde::Serialize;
 
@@ -246,45 +247,23 @@ fn normal(a: &DMatrix<f64>, d: &DVector<f64>, rows: &[usize]) -> (DMatrix<f64>, 
 /// Solves `(g + λP) β = r` by Cholesky, adding a tiny ridge (1e-12, then 1e-8 of the largest diagonal)
 /// when the system is singular (components the fold's lines do not reach stay at their prior 0).
 fn solve(m: &DMatrix<f64>, r: &DVector<f64>) -> (DVector<f64>, DMatrix<f64>) {
-    let maxd = m
-        .diagonal()
-        .iter()
-        .fold(0.0f64, |a, b| a.max(b.abs()))
-        .max(1e-300);
-    for ridge in [0.0, 1e-12, 1e-8, 1e-4] {
-        let mut mm = m.clone();
-        for i in 0..mm.nrows() {
-            mm[(i, i)] += ridge * maxd;
-        }
-        if let Some(ch) = mm.cholesky() {
-            let inv = ch.inverse();
-            return (&inv * r, inv);
-        }
+    if let Some(ch) = cholesky_with_ridge(m) {
+        let inv = ch.inverse();
+        return (&inv * r, inv);
     }
     let pinv = m
         .clone()
-        .pseudo_inverse(1e-12 * maxd)
+        .pseudo_inverse(1e-12 * max_abs_diagonal(m))
         .expect("finite matrix");
     (&pinv * r, pinv)
 }
 
 /// Solves `m β = r` (Cholesky, tiny ridge when singular) without forming the inverse.
 fn solve_only(m: &DMatrix<f64>, r: &DVector<f64>) -> DVector<f64> {
-    let maxd = m
-        .diagonal()
-        .iter()
-        .fold(0.0f64, |a, b| a.max(b.abs()))
-        .max(1e-300);
-    for ridge in [0.0, 1e-12, 1e-8, 1e-4] {
-        let mut mm = m.clone();
-        for i in 0..mm.nrows() {
-            mm[(i, i)] += ridge * maxd;
-        }
-        if let Some(ch) = mm.cholesky() {
-            return ch.solve(r);
-        }
+    match cholesky_with_ridge(m) {
+        Some(ch) => ch.solve(r),
+        None => solve(m, r).0,
     }
-    solve(m, r).0
 }
 
 /// Fits the model to the readings in `train` (indices into `data.readings`).

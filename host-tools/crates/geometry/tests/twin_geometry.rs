@@ -15,9 +15,7 @@ fn load(c: &LineCampaign) -> (Dataset, LineData) {
     (ds, data)
 }
 
-fn rms(v: &[f64]) -> f64 {
-    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
-}
+use axcomp_numeric::stats::rms;
 
 /// Max over an 11³ grid of the workspace of |truth error| and of |truth − model| (tool offset 0).
 fn volumetric_before_after(twin: &GeometryTwin, model: &GeometryModel) -> (f64, f64) {

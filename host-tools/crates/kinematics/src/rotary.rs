@@ -474,10 +474,9 @@ mod tests {
         Pose { p_mm: p, ..pose }
     }
 
-    /// Reference: central finite differences of the exact HTM model (step 1e-3 µm / µrad); tolerance
-    /// 1e-6 µm per unit parameter (the truncation and rounding errors are far below).
-    #[test]
-    fn sensitivity_matches_finite_differences() {
+    /// Every machine kind (head pivot 250 mm) with every test pose, the sphere at `sphere_mm`.
+    fn machine_poses(sphere_mm: [f64; 3]) -> Vec<(MachineKind, FiveAxis, Pose)> {
+        let mut out = Vec::new();
         for kind in [
             MachineKind::AcTrunnion,
             MachineKind::BcTrunnion,
@@ -485,32 +484,41 @@ mod tests {
         ] {
             let m = FiveAxis::new(kind, 250.0);
             for pose in poses() {
-                let pose = with_sphere(&m, pose, [120.0, -40.0, 80.0]);
-                let j = m.sensitivity(&pose);
-                for k in 0..N_LOCATION + N_SETUP {
-                    let h = 1e-3;
-                    let mut lp = [0.0; N_LOCATION];
-                    let mut lm = [0.0; N_LOCATION];
-                    let mut sp = [0.0; N_SETUP];
-                    let mut sm = [0.0; N_SETUP];
-                    if k < N_LOCATION {
-                        lp[k] = h;
-                        lm[k] = -h;
-                    } else {
-                        sp[k - N_LOCATION] = h;
-                        sm[k - N_LOCATION] = -h;
-                    }
-                    let dp = m.displacement(&pose, &lp, sp);
-                    let dm = m.displacement(&pose, &lm, sm);
-                    for i in 0..3 {
-                        let fd = (dp[i] - dm[i]) / (2.0 * h);
-                        assert!(
-                            (fd - j[k][i]).abs() < 1e-6,
-                            "{kind:?} param {} comp {i}: analytic {} fd {fd}",
-                            k,
-                            j[k][i]
-                        );
-                    }
+                out.push((kind, m, with_sphere(&m, pose, sphere_mm)));
+            }
+        }
+        out
+    }
+
+    /// Reference: central finite differences of the exact HTM model (step 1e-3 µm / µrad); tolerance
+    /// 1e-6 µm per unit parameter (the truncation and rounding errors are far below).
+    #[test]
+    fn sensitivity_matches_finite_differences() {
+        for (kind, m, pose) in machine_poses([120.0, -40.0, 80.0]) {
+            let j = m.sensitivity(&pose);
+            for k in 0..N_LOCATION + N_SETUP {
+                let h = 1e-3;
+                let mut lp = [0.0; N_LOCATION];
+                let mut lm = [0.0; N_LOCATION];
+                let mut sp = [0.0; N_SETUP];
+                let mut sm = [0.0; N_SETUP];
+                if k < N_LOCATION {
+                    lp[k] = h;
+                    lm[k] = -h;
+                } else {
+                    sp[k - N_LOCATION] = h;
+                    sm[k - N_LOCATION] = -h;
+                }
+                let dp = m.displacement(&pose, &lp, sp);
+                let dm = m.displacement(&pose, &lm, sm);
+                for i in 0..3 {
+                    let fd = (dp[i] - dm[i]) / (2.0 * h);
+                    assert!(
+                        (fd - j[k][i]).abs() < 1e-6,
+                        "{kind:?} param {} comp {i}: analytic {} fd {fd}",
+                        k,
+                        j[k][i]
+                    );
                 }
             }
         }
@@ -523,19 +531,11 @@ mod tests {
         let le = [
             30.0, -20.0, 80.0, -60.0, 40.0, -25.0, 90.0, -70.0, 50.0, -40.0, 30.0,
         ];
-        for kind in [
-            MachineKind::AcTrunnion,
-            MachineKind::BcTrunnion,
-            MachineKind::BcHead,
-        ] {
-            let m = FiveAxis::new(kind, 250.0);
-            for pose in poses() {
-                let pose = with_sphere(&m, pose, [150.0, 0.0, 100.0]);
-                let a = m.displacement(&pose, &le, [10.0, -5.0, 8.0, 3.0, -4.0, 6.0]);
-                let b = m.displacement_linear(&pose, &le, [10.0, -5.0, 8.0, 3.0, -4.0, 6.0]);
-                for i in 0..3 {
-                    assert!((a[i] - b[i]).abs() < 0.05, "{kind:?}: {a:?} vs {b:?}");
-                }
+        for (kind, m, pose) in machine_poses([150.0, 0.0, 100.0]) {
+            let a = m.displacement(&pose, &le, [10.0, -5.0, 8.0, 3.0, -4.0, 6.0]);
+            let b = m.displacement_linear(&pose, &le, [10.0, -5.0, 8.0, 3.0, -4.0, 6.0]);
+            for i in 0..3 {
+                assert!((a[i] - b[i]).abs() < 0.05, "{kind:?}: {a:?} vs {b:?}");
             }
         }
     }
@@ -543,17 +543,9 @@ mod tests {
     /// Reference: zero errors give zero displacement exactly (tolerance 1e-9 µm, rounding).
     #[test]
     fn nominal_machine_reads_zero() {
-        for kind in [
-            MachineKind::AcTrunnion,
-            MachineKind::BcTrunnion,
-            MachineKind::BcHead,
-        ] {
-            let m = FiveAxis::new(kind, 250.0);
-            for pose in poses() {
-                let pose = with_sphere(&m, pose, [150.0, 20.0, 100.0]);
-                let d = m.displacement(&pose, &[0.0; N_LOCATION], [0.0; N_SETUP]);
-                assert!(d.iter().all(|x| x.abs() < 1e-9), "{kind:?}: {d:?}");
-            }
+        for (kind, m, pose) in machine_poses([150.0, 20.0, 100.0]) {
+            let d = m.displacement(&pose, &[0.0; N_LOCATION], [0.0; N_SETUP]);
+            assert!(d.iter().all(|x| x.abs() < 1e-9), "{kind:?}: {d:?}");
         }
     }
 }

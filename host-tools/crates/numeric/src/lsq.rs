@@ -26,6 +26,31 @@ pub enum LsError {
     NonFinite,
 }
 
+/// Cholesky factor of the symmetric matrix `m` (normal equations), adding a tiny ridge to its diagonal when
+/// it is singular: 0, then 1e-12, 1e-8 and 1e-4 of the largest |diagonal| entry, the first that factors.
+/// `None` when none does (the caller falls back to a pseudo-inverse).
+pub fn cholesky_with_ridge(m: &DMatrix<f64>) -> Option<nalgebra::Cholesky<f64, nalgebra::Dyn>> {
+    let maxd = max_abs_diagonal(m);
+    for ridge in [0.0, 1e-12, 1e-8, 1e-4] {
+        let mut mm = m.clone();
+        for i in 0..mm.nrows() {
+            mm[(i, i)] += ridge * maxd;
+        }
+        if let Some(ch) = mm.cholesky() {
+            return Some(ch);
+        }
+    }
+    None
+}
+
+/// The largest |diagonal| entry of `m` (at least 1e-300, a scale for relative tolerances).
+pub fn max_abs_diagonal(m: &DMatrix<f64>) -> f64 {
+    m.diagonal()
+        .iter()
+        .fold(0.0f64, |a, b| a.max(b.abs()))
+        .max(1e-300)
+}
+
 /// Result of [`lstsq`].
 #[derive(Debug, Clone)]
 pub struct LsFit {

@@ -1272,21 +1272,8 @@ pub use smoothing::feature_breaks;
 pub(crate) mod tests {
     use super::*;
 
-    /// Deterministic normal noise (Box–Muller over a 64-bit LCG) for tests without extra dependencies.
-    pub(crate) struct Noise(pub(crate) u64);
-    impl Noise {
-        fn uniform(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        }
-        pub(crate) fn normal(&mut self) -> f64 {
-            let (u, v) = (self.uniform(), self.uniform());
-            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        }
-    }
+    /// Deterministic normal noise for tests (the host numeric layer's LCG + Box–Muller).
+    pub(crate) use axcomp_numeric::noise::TestNoise as Noise;
 
     #[test]
     fn folds_never_see_their_own_run() {

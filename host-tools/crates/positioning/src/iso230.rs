@@ -21,6 +21,7 @@
 //! Targets closer than [`TARGET_TOLERANCE_MM`] are one target.
 
 use axcomp_data::{DataError, Dataset};
+use axcomp_numeric::stats::mean;
 use serde::Serialize;
 
 /// Targets closer than this are the same measuring position (mm).
@@ -115,13 +116,9 @@ pub struct Iso230Result {
     pub targets: Vec<TargetFigures>,
 }
 
-fn mean(x: &[f64]) -> f64 {
-    x.iter().sum::<f64>() / x.len() as f64
-}
-
 /// Sample standard deviation (n − 1), the ISO 230-2 estimator s_i.
 fn std_n1(x: &[f64], m: f64) -> f64 {
-    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / (x.len() - 1) as f64).sqrt()
+    axcomp_numeric::stats::sample_variance(x, m).sqrt()
 }
 
 fn max_of(it: impl Iterator<Item = f64>) -> f64 {
@@ -132,12 +129,19 @@ fn min_of(it: impl Iterator<Item = f64>) -> f64 {
     it.fold(f64::INFINITY, f64::min)
 }
 
-/// Evaluates the points per ISO 230-2 (see the module glossary).
-pub fn evaluate(points: &[Point]) -> Result<Iso230Result, Iso230Error> {
-    if points.is_empty() {
+/// The deviations of points `0..n` grouped by target: (target mm, positive-approach deviations,
+/// negative-approach deviations), targets ascending, a target within [`TARGET_TOLERANCE_MM`] of the
+/// previous one merged into it. Errors for no points, a non-finite value or a direction other than ±1
+/// (naming the point's index).
+fn group_by_target(
+    n: usize,
+    point: impl Fn(usize) -> Point,
+) -> Result<Vec<(f64, Vec<f64>, Vec<f64>)>, Iso230Error> {
+    if n == 0 {
         return Err(Iso230Error::Empty);
     }
-    for (index, p) in points.iter().enumerate() {
+    for index in 0..n {
+        let p = point(index);
         if !p.target_mm.is_finite() || !p.deviation_um.is_finite() {
             return Err(Iso230Error::NonFinite { index });
         }
@@ -148,16 +152,19 @@ pub fn evaluate(points: &[Point]) -> Result<Iso230Result, Iso230Error> {
             });
         }
     }
-    // Group by target (sorted, merging targets within the tolerance).
-    let mut order: Vec<usize> = (0..points.len()).collect();
-    order.sort_by(|&a, &b| points[a].target_mm.total_cmp(&points[b].target_mm));
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    order.sort_by(|&a, &b| {
+        point(a as usize)
+            .target_mm
+            .total_cmp(&point(b as usize).target_mm)
+    });
     let mut groups: Vec<(f64, Vec<f64>, Vec<f64>)> = Vec::new();
     for &k in &order {
-        let p = points[k];
-        let same = groups
+        let p = point(k as usize);
+        if !groups
             .last()
-            .is_some_and(|g| (p.target_mm - g.0).abs() <= TARGET_TOLERANCE_MM);
-        if !same {
+            .is_some_and(|g| (p.target_mm - g.0).abs() <= TARGET_TOLERANCE_MM)
+        {
             groups.push((p.target_mm, Vec::new(), Vec::new()));
         }
         let g = groups.last_mut().expect("pushed");
@@ -167,6 +174,12 @@ pub fn evaluate(points: &[Point]) -> Result<Iso230Result, Iso230Error> {
             g.2.push(p.deviation_um);
         }
     }
+    Ok(groups)
+}
+
+/// Evaluates the points per ISO 230-2 (see the module glossary).
+pub fn evaluate(points: &[Point]) -> Result<Iso230Result, Iso230Error> {
+    let groups = group_by_target(points.len(), |i| points[i])?;
     if groups.len() < 2 {
         return Err(Iso230Error::TooFewTargets {
             count: groups.len(),
@@ -385,43 +398,7 @@ pub fn figures_of_columns(
 }
 
 fn figures_by(n: usize, point: impl Fn(usize) -> Point) -> Result<Iso230Figures, Iso230Error> {
-    if n == 0 {
-        return Err(Iso230Error::Empty);
-    }
-    for index in 0..n {
-        let p = point(index);
-        if !p.target_mm.is_finite() || !p.deviation_um.is_finite() {
-            return Err(Iso230Error::NonFinite { index });
-        }
-        if p.direction != 1 && p.direction != -1 {
-            return Err(Iso230Error::BadDirection {
-                index,
-                direction: p.direction,
-            });
-        }
-    }
-    let mut order: Vec<u32> = (0..n as u32).collect();
-    order.sort_by(|&a, &b| {
-        point(a as usize)
-            .target_mm
-            .total_cmp(&point(b as usize).target_mm)
-    });
-    let mut groups: Vec<(f64, Vec<f64>, Vec<f64>)> = Vec::new();
-    for &k in &order {
-        let p = point(k as usize);
-        if !groups
-            .last()
-            .is_some_and(|g| (p.target_mm - g.0).abs() <= TARGET_TOLERANCE_MM)
-        {
-            groups.push((p.target_mm, Vec::new(), Vec::new()));
-        }
-        let g = groups.last_mut().expect("pushed");
-        if p.direction > 0 {
-            g.1.push(p.deviation_um);
-        } else {
-            g.2.push(p.deviation_um);
-        }
-    }
+    let groups = group_by_target(n, point)?;
     let has_up = groups.iter().any(|g| !g.1.is_empty());
     let has_down = groups.iter().any(|g| !g.2.is_empty());
     let ups: Vec<Option<Side>> = groups.iter().map(|g| side(&g.1)).collect();
@@ -480,29 +457,23 @@ fn figures_by(n: usize, point: impl Fn(usize) -> Point) -> Result<Iso230Figures,
         why_e: Option<String>,
         why_ar: Option<String>,
     }
+    // A side without figures, and why.
+    let undefined = |why: String| SideFigures {
+        e: None,
+        a: None,
+        r: None,
+        why_e: Some(why.clone()),
+        why_ar: Some(why),
+    };
     let side_figures = |sides: &[Option<Side>], present: bool, name: &str| -> SideFigures {
         if !present {
-            let why = format!("no {name}-approach points");
-            return SideFigures {
-                e: None,
-                a: None,
-                r: None,
-                why_e: Some(why.clone()),
-                why_ar: Some(why),
-            };
+            return undefined(format!("no {name}-approach points"));
         }
         if let Some(i) = sides.iter().position(Option::is_none) {
-            let why = format!(
+            return undefined(format!(
                 "target {} mm has no {name}-approach point while others do",
                 groups[i].0
-            );
-            return SideFigures {
-                e: None,
-                a: None,
-                r: None,
-                why_e: Some(why.clone()),
-                why_ar: Some(why),
-            };
+            ));
         }
         let ss: Vec<Side> = sides.iter().map(|s| s.expect("complete")).collect();
         let e = max_of(ss.iter().map(|s| s.mean)) - min_of(ss.iter().map(|s| s.mean));
@@ -643,6 +614,20 @@ mod tests {
         }
     }
 
+    /// The points of the hand-computed example (two targets, two runs, both directions).
+    fn hand_example() -> [Point; 8] {
+        [
+            pt(0.0, 1, 1, 1.0),
+            pt(0.0, 2, 1, 3.0),
+            pt(0.0, 1, -1, -1.0),
+            pt(0.0, 2, -1, -1.0),
+            pt(10.0, 1, 1, 4.0),
+            pt(10.0, 2, 1, 4.0),
+            pt(10.0, 1, -1, 2.0),
+            pt(10.0, 2, -1, 6.0),
+        ]
+    }
+
     /// Hand-computed example (reference: the formulas of the module glossary worked on paper):
     /// target 0: ↑ {1, 3} → x̄=2, s=√2; ↓ {−1, −1} → x̄=−1, s=0; B=3; x̄i=0.5;
     ///           R_i = max(2√2 + 0 + 3, 4√2, 0) = 5.828427;
@@ -653,16 +638,7 @@ mod tests {
     /// A = max(2+2√2, −1, 4, 4+4√2) − min(2−2√2, −1, 4, 4−4√2) = 8√2, R = 8√2, R↑ = 4√2, R↓ = 8√2.
     #[test]
     fn hand_computed_example() {
-        let pts = [
-            pt(0.0, 1, 1, 1.0),
-            pt(0.0, 2, 1, 3.0),
-            pt(0.0, 1, -1, -1.0),
-            pt(0.0, 2, -1, -1.0),
-            pt(10.0, 1, 1, 4.0),
-            pt(10.0, 2, 1, 4.0),
-            pt(10.0, 1, -1, 2.0),
-            pt(10.0, 2, -1, 6.0),
-        ];
+        let pts = hand_example();
         let r = evaluate(&pts).unwrap();
         let s2 = 2f64.sqrt();
         let tol = 1e-12; // exact arithmetic up to rounding of a few operations
@@ -709,16 +685,7 @@ mod tests {
     /// old `B_um: 0`, `A_down_um == A_up_um` were invented) and A/R `null` with one run per target.
     #[test]
     fn honest_figures() {
-        let pts = [
-            pt(0.0, 1, 1, 1.0),
-            pt(0.0, 2, 1, 3.0),
-            pt(0.0, 1, -1, -1.0),
-            pt(0.0, 2, -1, -1.0),
-            pt(10.0, 1, 1, 4.0),
-            pt(10.0, 2, 1, 4.0),
-            pt(10.0, 1, -1, 2.0),
-            pt(10.0, 2, -1, 6.0),
-        ];
+        let pts = hand_example();
         let full = evaluate(&pts).unwrap();
         let f = figures(&pts).unwrap();
         let json = serde_json::to_value(&full).unwrap();
@@ -790,15 +757,10 @@ mod tests {
     }
 
     fn shared() -> Option<std::path::PathBuf> {
-        let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../.."));
-        match axcomp_data::shared_dir(root) {
-            Some(d) => Some(d),
-            None if std::env::var_os("CI").is_some() => panic!("../shared not found (CI is set)"),
-            None => {
-                println!("skipped: ../shared not found");
-                None
-            }
-        }
+        axcomp_data::shared_dir_for_test(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../.."
+        )))
     }
 
     /// Against the ESS report `source_files/muts_logger__b02_x_x_iso230_2_report.md` (ecmc report tool,

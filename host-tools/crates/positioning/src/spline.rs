@@ -99,26 +99,24 @@ impl PiecewiseCubic {
 
     /// Value at `x`, continuing the first / last piece's polynomial beyond the knot range.
     pub fn eval_extended(&self, x: f64) -> f64 {
-        let i = if x < self.start() {
-            0
-        } else {
-            self.segment(x.min(self.end()))
-        };
-        let u = x - self.knots[i];
-        let c = &self.coeffs[i];
+        let (u, c) = self.piece_extended(x);
         c[0] + u * (c[1] + u * (c[2] + u * c[3]))
     }
 
     /// First derivative, continuing the end pieces beyond the knot range (one-sided at the knots' ends).
     pub fn slope_extended(&self, x: f64) -> f64 {
+        let (u, c) = self.piece_extended(x);
+        c[1] + u * (2.0 * c[2] + u * 3.0 * c[3])
+    }
+
+    /// The piece `x` falls in (the first / last beyond the knot range) and `x`'s offset from its knot.
+    fn piece_extended(&self, x: f64) -> (f64, &[f64; 4]) {
         let i = if x < self.start() {
             0
         } else {
             self.segment(x.min(self.end()))
         };
-        let u = x - self.knots[i];
-        let c = &self.coeffs[i];
-        c[1] + u * (2.0 * c[2] + u * 3.0 * c[3])
+        (x - self.knots[i], &self.coeffs[i])
     }
 
     /// Pointwise linear combination `a·self + b·other` on the union of both knot sets.

@@ -108,23 +108,12 @@ impl GramSet {
     ) -> Option<DVector<f64>> {
         let s = Self::idx(terms);
         let p = s.len();
-        let y = self.k + 1;
         let n: usize = groups.iter().map(|&g| self.rows[g]).sum();
         if n < p || n == 0 {
             return None;
         }
         let nf = n as f64;
-        let mut a = DMatrix::<f64>::zeros(p, p);
-        let mut b = DVector::<f64>::zeros(p);
-        for &g in groups {
-            let m = &self.grams[g];
-            for (r, &i) in s.iter().enumerate() {
-                b[r] += m[(i, y)];
-                for (c, &j) in s.iter().enumerate() {
-                    a[(r, c)] += m[(i, j)];
-                }
-            }
-        }
+        let (a, b) = self.normal_equations(&s, groups);
         // Centred cross products / n (index 0 is the intercept).
         let q = p - 1;
         let cxx = DMatrix::from_fn(q, q, |r, c| {
@@ -185,22 +174,11 @@ impl GramSet {
         self.grams.len()
     }
 
-    fn idx(terms: &[usize]) -> Vec<usize> {
-        std::iter::once(0)
-            .chain(terms.iter().map(|t| t + 1))
-            .collect()
-    }
-
-    /// Coefficients (intercept first, standardized units) of a fit of `terms` on `groups`, ridge `lambda`
-    /// (penalty λ·n on the standardized coefficients). `None` if singular.
-    pub fn fit(&self, terms: &[usize], groups: &[usize], lambda: f64) -> Option<DVector<f64>> {
-        let s = Self::idx(terms);
+    /// The normal equations of the columns `s` (indices into the Gram matrices, intercept first) summed
+    /// over `groups`: (XᵀX, Xᵀy).
+    fn normal_equations(&self, s: &[usize], groups: &[usize]) -> (DMatrix<f64>, DVector<f64>) {
         let p = s.len();
         let y = self.k + 1;
-        let n: usize = groups.iter().map(|&g| self.rows[g]).sum();
-        if n < p {
-            return None;
-        }
         let mut a = DMatrix::<f64>::zeros(p, p);
         let mut b = DVector::<f64>::zeros(p);
         for &g in groups {
@@ -212,6 +190,25 @@ impl GramSet {
                 }
             }
         }
+        (a, b)
+    }
+
+    fn idx(terms: &[usize]) -> Vec<usize> {
+        std::iter::once(0)
+            .chain(terms.iter().map(|t| t + 1))
+            .collect()
+    }
+
+    /// Coefficients (intercept first, standardized units) of a fit of `terms` on `groups`, ridge `lambda`
+    /// (penalty λ·n on the standardized coefficients). `None` if singular.
+    pub fn fit(&self, terms: &[usize], groups: &[usize], lambda: f64) -> Option<DVector<f64>> {
+        let s = Self::idx(terms);
+        let p = s.len();
+        let n: usize = groups.iter().map(|&g| self.rows[g]).sum();
+        if n < p {
+            return None;
+        }
+        let (mut a, b) = self.normal_equations(&s, groups);
         // A tiny ridge (1e-10 relative) keeps exactly collinear candidates from breaking the solve.
         for r in 1..p {
             a[(r, r)] += (lambda + 1e-10) * n as f64;

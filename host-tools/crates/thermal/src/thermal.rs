@@ -364,14 +364,6 @@ pub struct Guard {
     pub reason: String,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
-}
-
 fn check(input: &ThermalInput) -> Result<(), ThermalError> {
     let n = input.time_s.len();
     let mut cols: Vec<(&str, &[f64])> = vec![("time_s", &input.time_s), ("target", &input.target)];
@@ -472,13 +464,13 @@ pub fn fit_thermal(
     let t_train: Vec<f64> = train_idx.iter().map(|&i| input.time_s[i]).collect();
     let duration = t_train.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
         - t_train.iter().cloned().fold(f64::INFINITY, f64::min);
-    let dts: Vec<f64> = input
+    let mut dts: Vec<f64> = input
         .time_s
         .windows(2)
         .map(|w| w[1] - w[0])
         .filter(|d| *d > 0.0)
         .collect();
-    let med_dt = median(dts);
+    let med_dt = axcomp_numeric::stats::upper_median(&mut dts);
     let mut grid = vec![0.0];
     if opts.lags && duration > 0.0 && med_dt.is_finite() {
         let lo = (2.0 * med_dt).max(duration / 300.0);

@@ -45,9 +45,10 @@ use axcomp_twin as twin;
 
 use axcomp_diagnose::EffectKind;
 use axcomp_diagnose::engine::{self, DiagnoseOptions};
-use axcomp_diagnose::lsq;
 use axcomp_diagnose::obs::{Named, Observations};
 use axcomp_diagnose::stats;
+
+use crate::harness::{self, CaseOutcome, Unlisted};
 
 /// Which case generator (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -121,23 +122,9 @@ impl Default for ValidateOptions {
 
 impl ValidateOptions {
     pub fn build(self) -> Result<Self, String> {
-        if self.cases == 0 {
-            return Err("--cases must be ≥ 1".into());
-        }
-        if self.snrs.is_empty() || self.snrs.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(format!(
-                "--snr needs positive finite values, got {:?}",
-                self.snrs
-            ));
-        }
+        harness::check_common(self.cases, &self.snrs, self.noise_um, self.null_every)?;
         if self.rows < 100 {
             return Err(format!("--rows must be ≥ 100, got {}", self.rows));
-        }
-        if self.noise_um.is_nan() || self.noise_um <= 0.0 {
-            return Err("noise σ must be > 0".into());
-        }
-        if self.null_every < 2 {
-            return Err("null_every must be ≥ 2".into());
         }
         Ok(self)
     }
@@ -355,14 +342,9 @@ pub const MIN_UNABSORBED_FRACTION: f64 = 1e-3;
 pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, String> {
     let seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(index as u64);
     let mut rng = StdRng::seed_from_u64(seed);
-    let null = index % opts.null_every == opts.null_every - 1;
-    let j = index - index / opts.null_every; // index among the non-null cases
-    let withheld = if null {
-        None
-    } else {
-        Some(WITHHELD[j % WITHHELD.len()])
-    };
-    let snr = withheld.map(|_| opts.snrs[(j / WITHHELD.len()) % opts.snrs.len()]);
+    let scheduled = harness::schedule(index, opts.null_every, WITHHELD.len(), &opts.snrs);
+    let withheld = scheduled.map(|(k, _)| WITHHELD[k]);
+    let snr = scheduled.map(|(_, s)| s);
     let plan_name = PLAN;
     let model = background(withheld, &mut rng);
     let mut kinds = model.clone();
@@ -450,18 +432,14 @@ pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, Strin
 
 /// Simulates and diagnoses case `index`.
 pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, String> {
+    let case = make_case(opts, index)?;
     let CaseData {
-        index,
-        seed,
-        plan: plan_name,
         withheld,
-        snr,
-        model,
-        axis,
-        obs,
-        truth_um: truth_c,
-        unabsorbed_peak_ratio,
-    } = make_case(opts, index)?;
+        ref model,
+        ref obs,
+        truth_um: ref truth_c,
+        ..
+    } = case;
     let y = obs.target.clone();
     let hold = obs.holdout_rows();
     let train = obs.train_rows();
@@ -477,9 +455,8 @@ pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, Stri
         let mut cols = vec![vec![1.0; y.len()]];
         cols.extend(d.model_columns.iter().cloned());
         cols.push(truth_c.clone());
-        let fit = lsq::fit(&cols, &y, &train);
-        let after = stats::rms(hold.iter().map(|&i| y[i] - fit.predict(&cols, i)));
-        100.0 * (1.0 - after / d.gap.holdout_rms_um)
+        let after = harness::holdout_rms_after_fit(&cols, &y, &train, &hold);
+        harness::shrink_pct(d.gap.holdout_rms_um, after)
     });
     let (mut localised, mut param_rel_error, mut contribution_r2) = (None, None, None);
     if let Some(w) = withheld {
@@ -508,20 +485,20 @@ pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, Stri
         }
         if correct {
             let c = d.verdict_candidate().expect("verdict candidate");
-            param_rel_error = searched_param(w, &axis, &c.params);
+            param_rel_error = searched_param(w, &case.axis, &c.params);
             let a: Vec<f64> = hold.iter().map(|&i| c.contribution_um[i]).collect();
             let b: Vec<f64> = hold.iter().map(|&i| truth_c[i]).collect();
             contribution_r2 = Some(corr2(&a, &b));
         }
     }
     Ok(CaseResult {
-        index,
-        seed,
-        plan: plan_name.into(),
+        index: case.index,
+        seed: case.seed,
+        plan: case.plan.into(),
         rows: y.len(),
         withheld: expected.into(),
-        snr,
-        unabsorbed_peak_ratio,
+        snr: case.snr,
+        unabsorbed_peak_ratio: case.unabsorbed_peak_ratio,
         model: model.iter().map(|k| k.name().to_string()).collect(),
         verdict: d.verdict.clone(),
         ties: d.ties.clone(),
@@ -621,39 +598,25 @@ fn ratio(c: &CaseResult) -> Option<f64> {
     }
 }
 
-fn frac(v: impl Iterator<Item = bool>) -> f64 {
-    let (mut k, mut n) = (0usize, 0usize);
-    for b in v {
-        n += 1;
-        k += b as usize;
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        k as f64 / n as f64
-    }
-}
+harness::case_outcome!(CaseResult, withheld);
 
 /// Summarises case results.
 pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
     let non_null: Vec<&CaseResult> = results.iter().filter(|c| c.snr.is_some()).collect();
-    let nulls: Vec<&CaseResult> = results.iter().filter(|c| c.snr.is_none()).collect();
-    let mut snrs: Vec<f64> = opts.snrs.clone();
-    snrs.sort_by(|a, b| a.total_cmp(b));
-    snrs.dedup();
-    let per_snr = snrs
-        .iter()
-        .map(|&s| {
-            let cs: Vec<&&CaseResult> = non_null.iter().filter(|c| c.snr == Some(s)).collect();
+    let null_cases = results.iter().filter(|c| c.is_null()).count();
+    let per_snr = harness::snr_levels(opts.snrs.iter().copied())
+        .into_iter()
+        .map(|s| {
+            let cs = harness::at_snr(non_null.iter().copied(), s);
             let mut r: Vec<f64> = cs.iter().filter_map(|c| ratio(c)).collect();
             SnrRow {
                 snr: s,
                 cases: cs.len(),
-                detection_rate: frac(cs.iter().map(|c| c.verdict != "none")),
-                top1_attribution: frac(cs.iter().map(|c| c.correct)),
+                detection_rate: harness::share(cs.iter().map(|c| c.verdict != "none")),
+                top1_attribution: harness::share(cs.iter().map(|c| c.correct)),
                 median_shrink_ratio_to_oracle: stats::median(&mut r),
                 identifiable_cases: cs.iter().filter(|c| identifiable(c)).count(),
-                identifiable_top1_attribution: frac(
+                identifiable_top1_attribution: harness::share(
                     cs.iter().filter(|c| identifiable(c)).map(|c| c.correct),
                 ),
             }
@@ -661,21 +624,12 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
         .collect();
     let mut labels = vec!["none".to_string()];
     labels.extend(WITHHELD.iter().map(|k| k.name().to_string()));
-    let mut confusion = vec![vec![0usize; labels.len() + 1]; labels.len()];
-    for c in &results {
-        let t = labels.iter().position(|l| *l == c.withheld).unwrap_or(0);
-        let v = labels
-            .iter()
-            .position(|l| *l == c.verdict)
-            .unwrap_or(labels.len());
-        confusion[t][v] += 1;
-    }
+    let confusion = harness::confusion(&labels, &results, Unlisted::OtherColumn);
     let loc: Vec<bool> = results.iter().filter_map(|c| c.localised).collect();
     let mut pe: Vec<f64> = results.iter().filter_map(|c| c.param_rel_error).collect();
     let mut r2: Vec<f64> = results.iter().filter_map(|c| c.contribution_r2).collect();
     let mut ratios: Vec<f64> = non_null.iter().filter_map(|c| ratio(c)).collect();
-    let mut secs: Vec<f64> = results.iter().map(|c| c.seconds).collect();
-    let max_seconds = secs.iter().cloned().fold(0.0, f64::max);
+    let (mut secs, max_seconds) = harness::seconds(&results);
     Summary {
         harness: opts.profile,
         cases: results.len(),
@@ -683,11 +637,11 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
         noise_um: opts.noise_um,
         seed: opts.seed,
         per_snr,
-        null_cases: nulls.len(),
-        false_alarm_rate: frac(nulls.iter().map(|c| c.verdict != "none")),
-        detection_rate: frac(non_null.iter().map(|c| c.verdict != "none")),
-        top1_attribution: frac(non_null.iter().map(|c| c.correct)),
-        top1_attribution_snr_ge_4: frac(
+        null_cases,
+        false_alarm_rate: harness::false_alarm_rate(&results),
+        detection_rate: harness::share(non_null.iter().map(|c| c.verdict != "none")),
+        top1_attribution: harness::share(non_null.iter().map(|c| c.correct)),
+        top1_attribution_snr_ge_4: harness::share(
             non_null
                 .iter()
                 .filter(|c| c.snr.is_some_and(|s| s >= 4.0))
@@ -697,7 +651,7 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
             .iter()
             .filter(|c| c.snr.is_some_and(|s| s >= 4.0))
             .count(),
-        identifiable_top1_attribution_snr_ge_4: frac(
+        identifiable_top1_attribution_snr_ge_4: harness::share(
             non_null
                 .iter()
                 .filter(|c| c.snr.is_some_and(|s| s >= 4.0) && identifiable(c))
@@ -711,7 +665,7 @@ pub fn summarise(opts: &ValidateOptions, results: Vec<CaseResult>) -> Summary {
         localisation_accuracy: if loc.is_empty() {
             None
         } else {
-            Some(frac(loc.iter().cloned()))
+            Some(harness::share(loc.iter().cloned()))
         },
         localisation_cases: loc.len(),
         median_param_rel_error: if pe.is_empty() {
@@ -738,12 +692,7 @@ pub fn validate(
     opts: &ValidateOptions,
     mut progress: impl FnMut(&CaseResult),
 ) -> Result<Summary, String> {
-    let mut results = Vec::with_capacity(opts.cases);
-    for i in 0..opts.cases {
-        let r = run_case(opts, i)?;
-        progress(&r);
-        results.push(r);
-    }
+    let results = harness::run_cases(opts.cases, |i| run_case(opts, i), &mut progress)?;
     Ok(summarise(opts, results))
 }
 
@@ -794,34 +743,20 @@ impl Summary {
             self.max_seconds
         ));
         s.push_str("\nConfusion matrix (rows: withheld, columns: verdict; only non-empty rows/columns):\n\n");
-        let mut cols: Vec<usize> = (0..=self.labels.len())
-            .filter(|&j| self.confusion.iter().any(|r| r[j] > 0))
+        let mut columns = self.labels.clone();
+        columns.push("other".into());
+        let rows: Vec<(String, &[usize])> = self
+            .labels
+            .iter()
+            .cloned()
+            .zip(self.confusion.iter().map(Vec::as_slice))
             .collect();
-        cols.sort();
-        let name = |j: usize| {
-            if j < self.labels.len() {
-                self.labels[j].clone()
-            } else {
-                "other".into()
-            }
-        };
-        s.push_str("| withheld \\ verdict |");
-        for &j in &cols {
-            s.push_str(&format!(" {} |", name(j)));
-        }
-        s.push_str("\n|---|");
-        s.push_str(&"---|".repeat(cols.len()));
-        s.push('\n');
-        for (i, row) in self.confusion.iter().enumerate() {
-            if row.iter().all(|&v| v == 0) {
-                continue;
-            }
-            s.push_str(&format!("| {} |", self.labels[i]));
-            for &j in &cols {
-                s.push_str(&format!(" {} |", row[j]));
-            }
-            s.push('\n');
-        }
+        s.push_str(&harness::counts_markdown(
+            "withheld \\ verdict",
+            &columns,
+            &rows,
+            true,
+        ));
         s
     }
 }

@@ -54,6 +54,8 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
+use crate::harness::{self, CaseOutcome, Unlisted};
+
 /// Settings of the line harness.
 #[derive(Debug, Clone)]
 pub struct LineValidateOptions {
@@ -90,26 +92,12 @@ impl Default for LineValidateOptions {
 
 impl LineValidateOptions {
     pub fn build(self) -> Result<Self, String> {
-        if self.cases == 0 {
-            return Err("--cases must be ≥ 1".into());
-        }
-        if self.snrs.is_empty() || self.snrs.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err("--snr: every SNR must be a positive number".into());
-        }
-        if !(self.noise_um.is_finite() && self.noise_um > 0.0) {
-            return Err(format!(
-                "--noise-um must be a positive number, got {}",
-                self.noise_um
-            ));
-        }
+        harness::check_common(self.cases, &self.snrs, self.noise_um, self.null_every)?;
         if self.targets < 4 {
             return Err(format!(
                 "targets per line must be ≥ 4, got {}",
                 self.targets
             ));
-        }
-        if self.null_every < 2 {
-            return Err("null_every must be ≥ 2".into());
         }
         Ok(self)
     }
@@ -149,13 +137,11 @@ pub struct LineCaseData {
 
 /// The withheld kind of case `index` (None = null) and its SNR.
 pub fn case_kind(opts: &LineValidateOptions, index: usize) -> (Option<LineEffect>, Option<f64>) {
-    if index % opts.null_every == opts.null_every - 1 {
-        return (None, None);
-    }
-    let k = index - index / opts.null_every;
-    let kind = LineEffect::ALL[k % LineEffect::ALL.len()];
-    let snr = opts.snrs[(k / LineEffect::ALL.len()) % opts.snrs.len()];
-    (Some(kind), Some(snr))
+    let scheduled = harness::schedule(index, opts.null_every, LineEffect::ALL.len(), &opts.snrs);
+    (
+        scheduled.map(|(k, _)| LineEffect::ALL[k]),
+        scheduled.map(|(_, s)| s),
+    )
 }
 
 fn line_data(c: &LineCampaign) -> LineData {
@@ -536,14 +522,8 @@ pub fn run_case(opts: &LineValidateOptions, index: usize) -> Result<LineCase, St
     let oracle_shrink_pct = c.withheld.map(|_| {
         let mut cols = d.model_columns.clone();
         cols.push(c.contribution_um.clone());
-        let fit = lsq::fit(&cols, &y, &train);
-        let after = (hold
-            .iter()
-            .map(|&i| (y[i] - fit.predict(&cols, i)).powi(2))
-            .sum::<f64>()
-            / hold.len() as f64)
-            .sqrt();
-        100.0 * (1.0 - after / d.gap.holdout_rms_um)
+        let after = harness::holdout_rms_after_fit(&cols, &y, &train, &hold);
+        harness::shrink_pct(d.gap.holdout_rms_um, after)
     });
     let expected = c.withheld.map_or("none", |k| k.name());
     Ok(LineCase {
@@ -592,17 +572,15 @@ pub struct LineSummary {
     pub case_results: Vec<LineCase>,
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
+harness::case_outcome!(LineCase, withheld);
+
+/// The confusion matrix's labels: the kinds, then `none`.
+fn confusion_labels() -> Vec<String> {
+    LineEffect::ALL
+        .iter()
+        .map(|k| k.name().to_string())
+        .chain(["none".to_string()])
+        .collect()
 }
 
 fn ratio(c: &LineCase) -> f64 {
@@ -614,74 +592,39 @@ fn ratio(c: &LineCase) -> f64 {
 
 /// The figures over the cases.
 pub fn summarise(results: Vec<LineCase>) -> LineSummary {
-    let nulls: Vec<&LineCase> = results.iter().filter(|c| c.snr.is_none()).collect();
-    let real: Vec<&LineCase> = results.iter().filter(|c| c.snr.is_some()).collect();
-    let share = |v: &[&LineCase]| {
-        if v.is_empty() {
-            f64::NAN
-        } else {
-            v.iter().filter(|c| c.correct).count() as f64 / v.len() as f64
-        }
-    };
-    let ge4: Vec<&LineCase> = real
-        .iter()
-        .copied()
-        .filter(|c| c.snr.is_some_and(|s| s >= 4.0))
-        .collect();
-    let mut snrs: Vec<f64> = real.iter().filter_map(|c| c.snr).collect();
-    snrs.sort_by(|a, b| a.total_cmp(b));
-    snrs.dedup();
-    let by_snr = snrs
-        .iter()
-        .map(|&s| {
-            let v: Vec<&LineCase> = real.iter().copied().filter(|c| c.snr == Some(s)).collect();
+    let null_cases = results.iter().filter(|c| c.is_null()).count();
+    let real: Vec<&LineCase> = results.iter().filter(|c| !c.is_null()).collect();
+    let top1 = |v: &[&LineCase]| harness::share(v.iter().map(|c| c.correct));
+    let ge4 = harness::at_snr_ge(&results, 4.0);
+    let by_snr = harness::snr_levels(real.iter().filter_map(|c| c.snr))
+        .into_iter()
+        .map(|s| {
+            let v = harness::at_snr(&results, s);
             let mut r: Vec<f64> = v.iter().map(|c| ratio(c)).collect();
             SnrRow {
                 snr: s,
                 cases: v.len(),
-                top1: share(&v),
-                median_shrink_ratio_to_oracle: median(&mut r),
+                top1: top1(&v),
+                median_shrink_ratio_to_oracle: axcomp_numeric::stats::median(&mut r),
             }
         })
         .collect();
-    let labels: Vec<&str> = LineEffect::ALL
-        .iter()
-        .map(|k| k.name())
-        .chain(["none"])
-        .collect();
-    let confusion = labels
-        .iter()
-        .map(|row| {
-            let counts = labels
-                .iter()
-                .map(|col| {
-                    results
-                        .iter()
-                        .filter(|c| c.withheld == *row && c.verdict == *col)
-                        .count()
-                })
-                .collect();
-            (row.to_string(), counts)
-        })
-        .collect();
+    let labels = confusion_labels();
+    let counts = harness::confusion(&labels, &results, Unlisted::Skip);
+    let confusion = labels.into_iter().zip(counts).collect();
     let mut ratios: Vec<f64> = real.iter().map(|c| ratio(c)).collect();
-    let mut secs: Vec<f64> = results.iter().map(|c| c.seconds).collect();
-    let max_seconds = secs.iter().cloned().fold(0.0, f64::max);
+    let (mut secs, max_seconds) = harness::seconds(&results);
     LineSummary {
         cases: results.len(),
-        null_cases: nulls.len(),
-        false_alarm_rate: if nulls.is_empty() {
-            f64::NAN
-        } else {
-            nulls.iter().filter(|c| !c.correct).count() as f64 / nulls.len() as f64
-        },
-        top1_at_snr_ge4: share(&ge4),
+        null_cases,
+        false_alarm_rate: harness::false_alarm_rate(&results),
+        top1_at_snr_ge4: top1(&ge4),
         cases_at_snr_ge4: ge4.len(),
-        top1_all: share(&real),
-        median_shrink_ratio_to_oracle: median(&mut ratios),
+        top1_all: top1(&real),
+        median_shrink_ratio_to_oracle: axcomp_numeric::stats::median(&mut ratios),
         by_snr,
         confusion,
-        median_seconds: median(&mut secs),
+        median_seconds: axcomp_numeric::stats::median(&mut secs),
         max_seconds,
         case_results: results,
     }
@@ -713,27 +656,18 @@ impl LineSummary {
             self.median_seconds,
             self.max_seconds
         ));
-        let labels: Vec<&str> = LineEffect::ALL
+        s.push_str("\nConfusion (rows: withheld, columns: verdict)\n\n");
+        let rows: Vec<(String, &[usize])> = self
+            .confusion
             .iter()
-            .map(|k| k.name())
-            .chain(["none"])
+            .map(|(row, counts)| (row.clone(), counts.as_slice()))
             .collect();
-        s.push_str("\nConfusion (rows: withheld, columns: verdict)\n\n| withheld |");
-        for l in &labels {
-            s.push_str(&format!(" {l} |"));
-        }
-        s.push_str("\n|---|");
-        for _ in &labels {
-            s.push_str("---|");
-        }
-        s.push('\n');
-        for (row, counts) in &self.confusion {
-            s.push_str(&format!("| {row} |"));
-            for c in counts {
-                s.push_str(&format!(" {c} |"));
-            }
-            s.push('\n');
-        }
+        s.push_str(&harness::counts_markdown(
+            "withheld",
+            &confusion_labels(),
+            &rows,
+            false,
+        ));
         s
     }
 }
@@ -743,11 +677,6 @@ pub fn validate_lines(
     opts: &LineValidateOptions,
     mut progress: impl FnMut(&LineCase),
 ) -> Result<LineSummary, String> {
-    let mut results = Vec::with_capacity(opts.cases);
-    for i in 0..opts.cases {
-        let c = run_case(opts, i)?;
-        progress(&c);
-        results.push(c);
-    }
+    let results = harness::run_cases(opts.cases, |i| run_case(opts, i), &mut progress)?;
     Ok(summarise(results))
 }

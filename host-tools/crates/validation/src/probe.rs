@@ -38,6 +38,8 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
+use crate::harness::{self, CaseOutcome};
+
 /// The held-out artefact of the survey.
 pub const HOLDOUT_ARTEFACT: &str = "sphere2";
 
@@ -83,18 +85,7 @@ impl Default for ProbeValidateOptions {
 
 impl ProbeValidateOptions {
     pub fn build(self) -> Result<Self, String> {
-        if self.cases == 0 {
-            return Err("cases must be ≥ 1".into());
-        }
-        if self.snrs.is_empty() || self.snrs.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err("SNRs must be finite and > 0".into());
-        }
-        if !(self.noise_um.is_finite() && self.noise_um > 0.0) {
-            return Err(format!("noise σ must be > 0 µm, got {}", self.noise_um));
-        }
-        if self.null_every < 2 {
-            return Err("null_every must be ≥ 2".into());
-        }
+        harness::check_common(self.cases, &self.snrs, self.noise_um, self.null_every)?;
         Ok(self)
     }
 }
@@ -326,10 +317,9 @@ pub fn make_case(opts: &ProbeValidateOptions, index: usize) -> Result<ProbeCase,
         .wrapping_add(index as u64)
         .wrapping_add(0x5eed_0012);
     let mut rng = StdRng::seed_from_u64(seed);
-    let null = index % opts.null_every == opts.null_every - 1;
-    let j = index - index / opts.null_every;
-    let withheld = (!null).then(|| WITHHELD[j % WITHHELD.len()]);
-    let snr = withheld.map(|_| opts.snrs[(j / WITHHELD.len()) % opts.snrs.len()]);
+    let scheduled = harness::schedule(index, opts.null_every, WITHHELD.len(), &opts.snrs);
+    let withheld = scheduled.map(|(k, _)| WITHHELD[k]);
+    let snr = scheduled.map(|(_, s)| s);
     let plan = survey_plan();
     let mut probe = plain_probe(opts.noise_um);
     let mut told = Vec::new();
@@ -433,13 +423,7 @@ fn holdout_rms_after(c: &dprobe::ProbeCampaign, extra: Option<&[f64]>) -> f64 {
     if let Some(e) = extra {
         cols.push(e.to_vec());
     }
-    let fit = lsq::fit(&cols, &c.y, &c.train);
-    let ss: f64 = c
-        .holdout
-        .iter()
-        .map(|&i| (c.y[i] - fit.predict(&cols, i)).powi(2))
-        .sum();
-    (ss / c.holdout.len() as f64).sqrt()
+    harness::holdout_rms_after_fit(&cols, &c.y, &c.train, &c.holdout)
 }
 
 /// Simulates and diagnoses case `index`.
@@ -456,7 +440,7 @@ pub fn run_case(opts: &ProbeValidateOptions, index: usize) -> Result<ProbeCaseRe
     let oracle = case.withheld.map(|_| {
         let before = holdout_rms_after(&campaign, None);
         let after = holdout_rms_after(&campaign, Some(&case.truth_um));
-        100.0 * (1.0 - after / before)
+        harness::shrink_pct(before, after)
     });
     Ok(ProbeCaseResult {
         index,
@@ -516,38 +500,22 @@ pub struct ProbeSummary {
     pub results: Vec<ProbeCaseResult>,
 }
 
-fn pct(a: usize, b: usize) -> f64 {
-    if b == 0 {
-        f64::NAN
-    } else {
-        100.0 * a as f64 / b as f64
-    }
-}
+harness::case_outcome!(ProbeCaseResult, withheld);
 
 /// Summarises case results.
 pub fn summarise(opts: &ProbeValidateOptions, results: Vec<ProbeCaseResult>) -> ProbeSummary {
     let non_null: Vec<&ProbeCaseResult> = results.iter().filter(|r| r.snr.is_some()).collect();
-    let ge4: Vec<&&ProbeCaseResult> = non_null
-        .iter()
-        .filter(|r| r.snr.unwrap_or(0.0) >= 4.0)
-        .collect();
-    let nulls: Vec<&ProbeCaseResult> = results.iter().filter(|r| r.snr.is_none()).collect();
-    let mut snrs: Vec<f64> = opts.snrs.clone();
-    snrs.sort_by(f64::total_cmp);
-    snrs.dedup();
-    let by_snr = snrs
-        .iter()
-        .map(|&s| {
-            let rows: Vec<&&ProbeCaseResult> =
-                non_null.iter().filter(|r| r.snr == Some(s)).collect();
+    let ge4 = harness::at_snr_ge(&results, 4.0);
+    let nulls: Vec<&ProbeCaseResult> = results.iter().filter(|r| r.is_null()).collect();
+    let by_snr = harness::snr_levels(opts.snrs.iter().copied())
+        .into_iter()
+        .map(|s| {
+            let rows = harness::at_snr(&results, s);
             ProbeSnrRow {
                 snr: s,
                 cases: rows.len(),
-                top1_pct: pct(rows.iter().filter(|r| r.correct).count(), rows.len()),
-                top1_or_tied_pct: pct(
-                    rows.iter().filter(|r| r.correct_or_tied).count(),
-                    rows.len(),
-                ),
+                top1_pct: harness::pct(rows.iter().map(|r| r.correct)),
+                top1_or_tied_pct: harness::pct(rows.iter().map(|r| r.correct_or_tied)),
             }
         })
         .collect();
@@ -563,7 +531,7 @@ pub fn summarise(opts: &ProbeValidateOptions, results: Vec<ProbeCaseResult>) -> 
             ProbeKindRow {
                 kind: k.name().into(),
                 cases: rows.len(),
-                top1_pct: pct(rows.iter().filter(|r| r.correct).count(), rows.len()),
+                top1_pct: harness::pct(rows.iter().map(|r| r.correct)),
                 verdicts,
             }
         })
@@ -577,21 +545,18 @@ pub fn summarise(opts: &ProbeValidateOptions, results: Vec<ProbeCaseResult>) -> 
                 .map(|o| r.shrink_pct / o)
         })
         .collect();
-    ratios.sort_by(f64::total_cmp);
     ProbeSummary {
         profile: if opts.hard { "probe-hard" } else { "probe" }.into(),
         cases: results.len(),
         seed: opts.seed,
         noise_um: opts.noise_um,
         holdout: format!("artefact={HOLDOUT_ARTEFACT}"),
-        top1_snr_ge4_pct: pct(ge4.iter().filter(|r| r.correct).count(), ge4.len()),
+        top1_snr_ge4_pct: harness::pct(ge4.iter().map(|r| r.correct)),
         top1_snr_ge4_cases: ge4.len(),
-        false_alarm_pct: pct(
-            nulls.iter().filter(|r| r.verdict != "none").count(),
-            nulls.len(),
-        ),
+        false_alarm_pct: harness::pct(nulls.iter().map(|r| r.verdict != "none")),
         null_cases: nulls.len(),
-        median_shrink_over_oracle: (!ratios.is_empty()).then(|| ratios[ratios.len() / 2]),
+        median_shrink_over_oracle: (!ratios.is_empty())
+            .then(|| axcomp_numeric::stats::upper_median(&mut ratios)),
         by_snr,
         by_kind,
         results,
@@ -603,12 +568,7 @@ pub fn validate(
     opts: &ProbeValidateOptions,
     mut progress: impl FnMut(&ProbeCaseResult),
 ) -> Result<ProbeSummary, String> {
-    let mut results = Vec::with_capacity(opts.cases);
-    for i in 0..opts.cases {
-        let r = run_case(opts, i)?;
-        progress(&r);
-        results.push(r);
-    }
+    let results = harness::run_cases(opts.cases, |i| run_case(opts, i), &mut progress)?;
     Ok(summarise(opts, results))
 }
 

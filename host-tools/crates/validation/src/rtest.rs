@@ -26,13 +26,14 @@
 use std::time::Instant;
 
 use axcomp_diagnose::judge::DiagnoseOptions;
-use axcomp_diagnose::lsq;
 use axcomp_diagnose::rtest::{self as diag, RtestObservations};
 use axcomp_effects::RotaryEffect;
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind, c_circle, k4_path};
 use axcomp_rtest::RtestData;
 use axcomp_twin::five_axis::{EffectParams, FiveAxisTwin, RtestCampaign, RtestPathSpec};
 use serde::Serialize;
+
+use crate::harness::{self, CaseOutcome, Unlisted};
 
 /// The twin's effects that can be withheld, in the order cases cycle through them.
 pub const WITHHELD: [&str; 7] = [
@@ -85,20 +86,9 @@ impl Default for RtestValidateOptions {
 
 impl RtestValidateOptions {
     pub fn build(self) -> Result<Self, String> {
-        if self.cases == 0 {
-            return Err("cases must be ≥ 1".into());
-        }
-        if self.snrs.is_empty() || self.snrs.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(format!("SNRs must be finite and > 0, got {:?}", self.snrs));
-        }
-        if !(self.noise_um.is_finite() && self.noise_um > 0.0) {
-            return Err(format!("noise σ must be > 0 µm, got {}", self.noise_um));
-        }
+        harness::check_common(self.cases, &self.snrs, self.noise_um, self.null_every)?;
         if self.machines.is_empty() {
             return Err("at least one machine kind".into());
-        }
-        if self.null_every < 2 {
-            return Err("null_every must be ≥ 2".into());
         }
         Ok(self)
     }
@@ -254,16 +244,10 @@ pub fn make_case(opts: &RtestValidateOptions, index: usize) -> Result<RtestCase,
     twin.dwell_s = DWELL_S;
     twin.temperature_sensor = true;
     let paths = plan(&machine);
-    let null = index % opts.null_every == opts.null_every - 1;
     // Non-null cases cycle through the effects, then the SNRs.
-    let non_null_rank = index - (index + 1) / opts.null_every;
-    let (withheld, snr) = if null {
-        (None, None)
-    } else {
-        let w = WITHHELD[non_null_rank % WITHHELD.len()];
-        let s = opts.snrs[(non_null_rank / WITHHELD.len()) % opts.snrs.len()];
-        (Some(w), Some(s))
-    };
+    let scheduled = harness::schedule(index, opts.null_every, WITHHELD.len(), &opts.snrs);
+    let withheld = scheduled.map(|(k, _)| WITHHELD[k]);
+    let snr = scheduled.map(|(_, s)| s);
     let mut contribution = vec![[0.0; 3]; paths.iter().map(|p| p.poses.len()).sum()];
     let mut unabsorbed_peak_ratio = None;
     if let (Some(w), Some(snr)) = (withheld, snr) {
@@ -340,21 +324,10 @@ pub fn run_case(opts: &RtestValidateOptions, index: usize) -> Result<RtestCaseRe
         let mut cols: Vec<&[f64]> = camp.base_columns.iter().map(|c| c.as_slice()).collect();
         let ones = vec![1.0; camp.y.len()];
         cols.push(&ones);
-        let before = lsq::fit(&cols, &camp.y, &camp.train);
+        let b = harness::holdout_rms_after_fit(&cols, &camp.y, &camp.train, &camp.holdout);
         cols.push(&col);
-        let after = lsq::fit(&cols, &camp.y, &camp.train);
-        let rms = |f: &lsq::LsFit, cols: &[&[f64]]| {
-            (camp
-                .holdout
-                .iter()
-                .map(|&i| (camp.y[i] - f.predict(cols, i)).powi(2))
-                .sum::<f64>()
-                / camp.holdout.len() as f64)
-                .sqrt()
-        };
-        let b = rms(&before, &cols[..cols.len() - 1]);
-        let a = rms(&after, &cols);
-        100.0 * (1.0 - a / b)
+        let a = harness::holdout_rms_after_fit(&cols, &camp.y, &camp.train, &camp.holdout);
+        harness::shrink_pct(b, a)
     });
     Ok(RtestCaseResult {
         index,
@@ -407,81 +380,53 @@ pub struct RtestSummary {
     pub case_results: Vec<RtestCaseResult>,
 }
 
-fn frac(v: impl Iterator<Item = bool>) -> f64 {
-    let (mut k, mut n) = (0usize, 0usize);
-    for b in v {
-        n += 1;
-        k += b as usize;
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        k as f64 / n as f64
-    }
-}
+harness::case_outcome!(RtestCaseResult, withheld_kind);
 
 /// Summarises case results.
 pub fn summarise(opts: &RtestValidateOptions, results: Vec<RtestCaseResult>) -> RtestSummary {
-    let mut snrs = opts.snrs.clone();
-    snrs.sort_by(|a, b| a.total_cmp(b));
-    snrs.dedup();
-    let per_snr = snrs
-        .iter()
-        .map(|&s| {
-            let cs: Vec<&RtestCaseResult> = results.iter().filter(|c| c.snr == Some(s)).collect();
+    let per_snr = harness::snr_levels(opts.snrs.iter().copied())
+        .into_iter()
+        .map(|s| {
+            let cs = harness::at_snr(&results, s);
             RtestSnrRow {
                 snr: s,
                 cases: cs.len(),
-                detection_rate: frac(cs.iter().map(|c| c.verdict != "none")),
-                top1: frac(cs.iter().map(|c| c.correct)),
-                top1_or_tie: frac(cs.iter().map(|c| c.correct_or_tied)),
+                detection_rate: harness::share(cs.iter().map(|c| c.verdict != "none")),
+                top1: harness::share(cs.iter().map(|c| c.correct)),
+                top1_or_tie: harness::share(cs.iter().map(|c| c.correct_or_tied)),
             }
         })
         .collect();
-    let ge4 = || results.iter().filter(|c| c.snr.is_some_and(|s| s >= 4.0));
+    let ge4 = harness::at_snr_ge(&results, 4.0);
     let mut labels = vec!["none".to_string()];
     labels.extend(RotaryEffect::ALL.iter().map(|k| k.name().to_string()));
-    let mut confusion = vec![vec![0usize; labels.len()]; labels.len()];
-    for c in &results {
-        let t = labels
-            .iter()
-            .position(|l| *l == c.withheld_kind)
-            .unwrap_or(0);
-        let v = labels.iter().position(|l| *l == c.verdict).unwrap_or(0);
-        confusion[t][v] += 1;
-    }
+    let confusion = harness::confusion(&labels, &results, Unlisted::First);
     let per_effect_snr_ge_4 = WITHHELD
         .iter()
         .map(|w| {
-            let cs: Vec<&RtestCaseResult> = ge4().filter(|c| c.withheld == *w).collect();
-            (w.to_string(), cs.len(), frac(cs.iter().map(|c| c.correct)))
+            let cs: Vec<&&RtestCaseResult> = ge4.iter().filter(|c| c.withheld == *w).collect();
+            (
+                w.to_string(),
+                cs.len(),
+                harness::share(cs.iter().map(|c| c.correct)),
+            )
         })
         .collect();
-    let mut secs: Vec<f64> = results.iter().map(|c| c.seconds).collect();
-    secs.sort_by(|a, b| a.total_cmp(b));
+    let (mut secs, _) = harness::seconds(&results);
     RtestSummary {
         harness: "rtest",
         cases: results.len(),
-        null_cases: results.iter().filter(|c| c.snr.is_none()).count(),
+        null_cases: results.iter().filter(|c| c.is_null()).count(),
         noise_um: opts.noise_um,
         seed: opts.seed,
         machines: opts.machines.iter().map(|m| m.name().to_string()).collect(),
         per_snr,
-        false_alarm_rate: frac(
-            results
-                .iter()
-                .filter(|c| c.snr.is_none())
-                .map(|c| c.verdict != "none"),
-        ),
-        top1_snr_ge_4: frac(ge4().map(|c| c.correct)),
-        top1_or_tie_snr_ge_4: frac(ge4().map(|c| c.correct_or_tied)),
-        cases_snr_ge_4: ge4().count(),
+        false_alarm_rate: harness::false_alarm_rate(&results),
+        top1_snr_ge_4: harness::share(ge4.iter().map(|c| c.correct)),
+        top1_or_tie_snr_ge_4: harness::share(ge4.iter().map(|c| c.correct_or_tied)),
+        cases_snr_ge_4: ge4.len(),
         per_effect_snr_ge_4,
-        median_seconds: if secs.is_empty() {
-            f64::NAN
-        } else {
-            secs[secs.len() / 2]
-        },
+        median_seconds: axcomp_numeric::stats::upper_median(&mut secs),
         labels,
         confusion,
         case_results: results,
@@ -493,12 +438,7 @@ pub fn validate(
     opts: &RtestValidateOptions,
     mut progress: impl FnMut(&RtestCaseResult),
 ) -> Result<RtestSummary, String> {
-    let mut results = Vec::with_capacity(opts.cases);
-    for i in 0..opts.cases {
-        let r = run_case(opts, i)?;
-        progress(&r);
-        results.push(r);
-    }
+    let results = harness::run_cases(opts.cases, |i| run_case(opts, i), &mut progress)?;
     Ok(summarise(opts, results))
 }
 
@@ -537,26 +477,19 @@ impl RtestSummary {
         for (w, n, t) in &self.per_effect_snr_ge_4 {
             s.push_str(&format!("| {w} | {n} | {:.1} % |\n", 100.0 * t));
         }
-        s.push_str("\nConfusion matrix (rows: withheld kind, columns: verdict):\n\n| withheld \\ verdict |");
-        let cols: Vec<usize> = (0..self.labels.len())
-            .filter(|&j| self.confusion.iter().any(|r| r[j] > 0))
+        s.push_str("\nConfusion matrix (rows: withheld kind, columns: verdict):\n\n");
+        let rows: Vec<(String, &[usize])> = self
+            .labels
+            .iter()
+            .cloned()
+            .zip(self.confusion.iter().map(Vec::as_slice))
             .collect();
-        for &j in &cols {
-            s.push_str(&format!(" {} |", self.labels[j]));
-        }
-        s.push_str("\n|---|");
-        s.push_str(&"---|".repeat(cols.len()));
-        s.push('\n');
-        for (i, row) in self.confusion.iter().enumerate() {
-            if row.iter().all(|&v| v == 0) {
-                continue;
-            }
-            s.push_str(&format!("| {} |", self.labels[i]));
-            for &j in &cols {
-                s.push_str(&format!(" {} |", row[j]));
-            }
-            s.push('\n');
-        }
+        s.push_str(&harness::counts_markdown(
+            "withheld \\ verdict",
+            &self.labels,
+            &rows,
+            true,
+        ));
         s
     }
 }
