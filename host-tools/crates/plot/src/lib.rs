@@ -709,14 +709,8 @@ fn wrap(text: &str, max_chars: usize) -> Vec<String> {
     lines
 }
 
-/// Writes `bytes` to `path` via a sibling temporary file and a rename.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = std::path::PathBuf::from(tmp);
-    std::fs::write(&tmp, bytes)?;
-    std::fs::rename(&tmp, path)
-}
+/// The host libraries' one atomic write (temporary sibling, sync, rename): see `axcomp-files`.
+pub use axcomp_files::write_atomic;
 
 /// "Nice" tick positions (1, 2, 5 × 10^k steps) covering `lo..hi` with about `target` ticks.
 pub fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {

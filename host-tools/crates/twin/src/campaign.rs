@@ -6,7 +6,7 @@
 //!   correction and each effect's contribution.
 //! - *contribution*: one effect's share of the true deviation at the row's scale position.
 
-use std::io::{self, Write};
+use std::io;
 use std::path::Path;
 
 use serde::Serialize;
@@ -181,31 +181,5 @@ pub fn rms(values: impl IntoIterator<Item = f64>) -> f64 {
     axcomp_numeric::stats::rms_or_zero(values)
 }
 
-/// Writes `bytes` to a temporary sibling of `path`, then renames it over `path`.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path.file_name().ok_or_else(|| {
-        io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!("{} is not a file path", path.display()),
-        )
-    })?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
+/// The host libraries' one atomic write (temporary sibling, sync, rename): see `axcomp-files`.
+pub use axcomp_files::write_atomic as write_atomically;
