@@ -356,7 +356,7 @@ impl<S: TableStore> AxisCompensator<S> {
     /// (one multiply-add with the cached c·ΔT_s) and the measured forces of this input.
     #[inline(always)]
     pub fn cycle_in(&self, pool: &[[f32; 4]], st: &mut State, input: &CycleInput) -> CycleOutput {
-        let pos = self.track(st, input.scale_raw);
+        let (pos, delta) = self.track(st, input.scale_raw);
         if !self.loaded {
             return CycleOutput {
                 position_counts: pos,
@@ -366,19 +366,21 @@ impl<S: TableStore> AxisCompensator<S> {
                 flags: Flags(((st.backward as u16) << 7) | Flags::IDENTITY.0),
             };
         }
-        let (total, flags) = self.axis_error_um(pool, st, pos, &input.forces_n, true, None);
+        let (total, flags) =
+            self.axis_error_um(pool, st, (pos, delta), &input.forces_n, true, None);
         self.finish(st, pos, total, input.command_counts, flags)
     }
 
     /// Table (at the extended position, or a rotary axis's position within the turn) +
     /// thermo-force term (at the extended position `pos`), µm before the limits, and
-    /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags).
+    /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags). `(pos, delta)` is what
+    /// [`AxisCompensator::track`] returned this cycle.
     #[inline(always)]
     pub(crate) fn axis_error_um(
         &self,
         pool: &[[f32; 4]],
         st: &mut State,
-        pos: i64,
+        (pos, delta): (i64, i32),
         forces_n: &[f32; MAX_FORCES],
         may_be_rotary: bool,
         thermo_known: Option<bool>,
@@ -386,7 +388,7 @@ impl<S: TableStore> AxisCompensator<S> {
         // `may_be_rotary` and `thermo_known` are constants at each call: where the caller knows
         // the axis is linear, or whether it has a thermo-force term, the check is compiled out.
         let (mut total, outside) = if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
-            let turn = self.turn_position(st, pos);
+            let turn = self.turn_position(st, pos, delta);
             self.table_um_turn(pool, st.direction(), turn)
         } else {
             self.table_um_in(pool, st.direction(), pos)
@@ -431,7 +433,6 @@ pub struct State {
     /// Rotary axis of a group: `pos_in_turn` follows the extended position (see
     /// [`crate::counter`]).
     pub(crate) turn_primed: bool,
-    pub(crate) turn_last_pos: i64,
     pub(crate) pos_in_turn: u32,
     /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
     pub(crate) stale_ramp: bool,
@@ -469,7 +470,6 @@ impl State {
             predicted_forces_n: [0.0; MAX_FORCES],
             sensors: [SensorState::NEW; MAX_SENSORS],
             turn_primed: false,
-            turn_last_pos: 0,
             pos_in_turn: 0,
             stale_ramp: false,
             stale_since_ms: 0,

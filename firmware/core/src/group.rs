@@ -61,8 +61,8 @@ const MODE_PLAIN: u8 = 1;
 const MODE_MIXED: u8 = 2;
 /// With the cross-axis stage.
 const MODE_STAGE: u8 = 3;
-/// With the cross-axis stage, the slots in the order X, Y, Z, A, C (every slot index a constant
-/// of the cycle's code).
+/// With the rotary stage only, the slots in the order X, Y, Z, A, C, no thermo-force term
+/// (every slot index and axis kind a constant of the cycle's code).
 const MODE_STAGE_XYZAC: u8 = 4;
 
 /// Name (and kind) of a group axis.
@@ -436,7 +436,13 @@ impl<const POOL: usize> Group<POOL> {
         self.geometric_plain =
             self.has_geometric && !self.has_stage && self.kinds[..n].iter().all(|&k| k == 0);
         self.mode = if self.has_stage || self.has_geometric {
-            if self.has_stage && !self.has_geometric && self.stage.slot == [0, 1, 2, 3, 4] {
+            // The inlined X, Y, Z, A, C cycle knows each axis's kind: none has a thermo-force
+            // term (kinds 0 for X, Y, Z and 1 for A, C); anything else takes the general path.
+            if self.has_stage
+                && !self.has_geometric
+                && self.stage.slot == [0, 1, 2, 3, 4]
+                && self.kinds == [0, 0, 0, 1, 1]
+            {
                 MODE_STAGE_XYZAC
             } else {
                 MODE_STAGE
@@ -819,11 +825,11 @@ fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     input: &CycleInput,
     out: &mut CycleOutput,
 ) {
-    let pos = ax.track(st, input.scale_raw);
+    let tracked = ax.track(st, input.scale_raw);
     // THERMO false: known to have none; true: checked at run time.
     let thermo = if THERMO { None } else { Some(false) };
-    let (e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, thermo);
-    *out = ax.finish(st, pos, e, input.command_counts, f);
+    let (e, f) = ax.axis_error_um(pool, st, tracked, &input.forces_n, ROTARY, thermo);
+    *out = ax.finish(st, tracked.0, e, input.command_counts, f);
 }
 
 /// One axis's whole pipeline of a group with the cross-axis stage in another slot order:
@@ -838,15 +844,16 @@ fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     out: &mut CycleOutput,
     stage_um: f32,
 ) {
-    let pos = ax.track(st, input.scale_raw);
+    let tracked = ax.track(st, input.scale_raw);
     let thermo = if THERMO { None } else { Some(false) };
-    let (mut e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, thermo);
+    let (mut e, f) = ax.axis_error_um(pool, st, tracked, &input.forces_n, ROTARY, thermo);
     e += stage_um;
-    *out = ax.finish(st, pos, e, input.command_counts, f);
+    *out = ax.finish(st, tracked.0, e, input.command_counts, f);
 }
 
 /// One axis's whole pipeline in a group with the cross-axis stage (inlined into the group's
-/// cycle): `ROTARY` known, the thermo-force term checked at run time; with `STAGE`, `stage_um`
+/// cycle): `ROTARY` known, no thermo-force term (the X, Y, Z, A, C path is chosen at load only
+/// for axes without one); with `STAGE`, `stage_um`
 /// (the stage's deviation, linear axes) is added to the axis's error before its limits (without
 /// it nothing is added: `e + 0.0` would turn a −0.0 error into +0.0).
 #[inline(always)]
@@ -858,12 +865,13 @@ fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool>(
     out: &mut CycleOutput,
     stage_um: f32,
 ) {
-    let pos = ax.track(st, input.scale_raw);
-    let (mut e, f) = ax.axis_error_um(pool, st, pos, &input.forces_n, ROTARY, None);
+    let tracked = ax.track(st, input.scale_raw);
+    // No thermo-force term (checked at load for this path).
+    let (mut e, f) = ax.axis_error_um(pool, st, tracked, &input.forces_n, ROTARY, Some(false));
     if STAGE {
         e += stage_um;
     }
-    *out = ax.finish(st, pos, e, input.command_counts, f);
+    *out = ax.finish(st, tracked.0, e, input.command_counts, f);
 }
 
 /// Why a group was refused: the error and the axis it concerns (None: the group as a whole or
