@@ -358,6 +358,8 @@ impl<S: TableStore> AxisCompensator<S> {
     pub fn cycle_in(&self, pool: &[[f32; 4]], st: &mut State, input: &CycleInput) -> CycleOutput {
         let (pos, delta) = self.track(st, input.scale_raw);
         if !self.loaded {
+            // No table follows the position here: the segment cache is void.
+            st.seg_limit = 0;
             return CycleOutput {
                 position_counts: pos,
                 corrected_command_counts: input.command_counts,
@@ -367,7 +369,7 @@ impl<S: TableStore> AxisCompensator<S> {
             };
         }
         let (total, flags) =
-            self.axis_error_um(pool, st, (pos, delta), &input.forces_n, true, None);
+            self.axis_error_um(pool, st, (pos, delta), &input.forces_n, true, None, false);
         self.finish(st, pos, total, input.command_counts, flags)
     }
 
@@ -384,14 +386,48 @@ impl<S: TableStore> AxisCompensator<S> {
         forces_n: &[f32; MAX_FORCES],
         may_be_rotary: bool,
         thermo_known: Option<bool>,
+        segment_cache: bool,
     ) -> (f32, Flags) {
-        // `may_be_rotary` and `thermo_known` are constants at each call: where the caller knows
-        // the axis is linear, or whether it has a thermo-force term, the check is compiled out.
-        let (mut total, outside) = if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
-            let turn = self.turn_position(st, pos, delta);
-            self.table_um_turn(pool, st.direction(), turn)
+        // `may_be_rotary`, `thermo_known` and `segment_cache` are constants at each call: where
+        // the caller knows the axis is linear, or whether it has a thermo-force term, the check
+        // is compiled out.
+        // With `segment_cache` (the group's pipelines), the table through the segment cache (see
+        // [`AxisCompensator::table_um_refill`]): within the last cycle's segment, the new
+        // remainder and the cached index; otherwise the full lookup, which refills the cache.
+        // Without it (the single-axis call, whose reference workload crosses a 1000-count
+        // segment every 6.4 cycles: there the refills cost more than the cache saves), the full
+        // lookup every cycle. Both give the same value bit for bit.
+        let r = st.seg_rem.wrapping_add(delta as u32);
+        let (mut total, outside) = if !segment_cache {
+            if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
+                let turn = self.turn_position(st, pos, delta);
+                self.table_um_in(pool, st.direction(), turn as i64)
+            } else {
+                self.table_um_in(pool, st.direction(), pos)
+            }
+        } else if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
+            if r < st.seg_limit {
+                // Within one segment of the turn: the turn position moved by delta, no wrap.
+                st.seg_rem = r;
+                st.pos_in_turn = st.pos_in_turn.wrapping_add(delta as u32);
+                (
+                    self.segment_um(pool, st.direction(), st.seg_index, r),
+                    false,
+                )
+            } else {
+                crate::limits::cold_path();
+                let turn = self.turn_position(st, pos, delta);
+                self.table_um_refill(pool, st, turn as i64)
+            }
+        } else if r < st.seg_limit {
+            st.seg_rem = r;
+            (
+                self.segment_um(pool, st.direction(), st.seg_index, r),
+                false,
+            )
         } else {
-            self.table_um_in(pool, st.direction(), pos)
+            crate::limits::cold_path();
+            self.table_um_refill(pool, st, pos)
         };
         // BACKWARD is bit 7, TABLE_OUTSIDE bit 0: built here, after the lookup, so that no flag
         // register is live across it.
@@ -407,7 +443,11 @@ impl<S: TableStore> AxisCompensator<S> {
 /// health, cached thermal contribution, predicted forces, last applied correction.
 ///
 /// All zero bytes after [`State::new`].
-#[derive(Debug, Clone, PartialEq)]
+///
+/// Equality compares everything the axis's behaviour depends on; it leaves out the table's
+/// segment cache (`seg_*`), which the group pipelines keep and the single-axis call does not
+/// (it only remembers where the last lookup was; a void or a valid cache gives the same value).
+#[derive(Debug, Clone)]
 pub struct State {
     pub(crate) primed: bool,
     pub(crate) raw_pending: bool,
@@ -434,11 +474,74 @@ pub struct State {
     /// [`crate::counter`]).
     pub(crate) turn_primed: bool,
     pub(crate) pos_in_turn: u32,
+    /// Segment cache of the table (see [`crate::table`]): the table position's remainder within
+    /// segment `seg_index`, and that segment's length while the cache is valid (0: void, the
+    /// next lookup is a full one).
+    pub(crate) seg_rem: u32,
+    pub(crate) seg_limit: u32,
+    pub(crate) seg_index: u32,
     /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
     pub(crate) stale_ramp: bool,
     pub(crate) stale_since_ms: u32,
     pub(crate) frozen_sensor_um: f32,
     pub(crate) frozen_expansion_um_per_count: f32,
+}
+
+impl PartialEq for State {
+    fn eq(&self, other: &State) -> bool {
+        // Destructured, so that a new field cannot be left out by accident.
+        let State {
+            primed,
+            raw_pending,
+            last_raw,
+            position,
+            backward,
+            back_counts,
+            last_correction_um,
+            sensor_um,
+            expansion_um_per_count,
+            thermal_live,
+            sensor_fault,
+            clock_started,
+            thermo_bits,
+            predicted_um,
+            cached_um,
+            predicted_forces_n,
+            sensors,
+            turn_primed,
+            pos_in_turn,
+            stale_ramp,
+            stale_since_ms,
+            frozen_sensor_um,
+            frozen_expansion_um_per_count,
+            seg_rem: _,
+            seg_limit: _,
+            seg_index: _,
+        } = self;
+        *primed == other.primed
+            && *raw_pending == other.raw_pending
+            && *last_raw == other.last_raw
+            && *position == other.position
+            && *backward == other.backward
+            && *back_counts == other.back_counts
+            && *last_correction_um == other.last_correction_um
+            && *sensor_um == other.sensor_um
+            && *expansion_um_per_count == other.expansion_um_per_count
+            && *thermal_live == other.thermal_live
+            && *sensor_fault == other.sensor_fault
+            && *clock_started == other.clock_started
+            && *thermo_bits == other.thermo_bits
+            && *predicted_um == other.predicted_um
+            && *cached_um == other.cached_um
+            && *predicted_forces_n == other.predicted_forces_n
+            && *sensors == other.sensors
+            && *turn_primed == other.turn_primed
+            && *pos_in_turn == other.pos_in_turn
+            && *stale_ramp == other.stale_ramp
+            && *stale_since_ms == other.stale_since_ms
+            && *frozen_sensor_um == other.frozen_sensor_um
+            && *frozen_expansion_um_per_count == other.frozen_expansion_um_per_count
+    }
 }
 
 impl Default for State {
@@ -471,6 +574,9 @@ impl State {
             sensors: [SensorState::NEW; MAX_SENSORS],
             turn_primed: false,
             pos_in_turn: 0,
+            seg_rem: 0,
+            seg_limit: 0,
+            seg_index: 0,
             stale_ramp: false,
             stale_since_ms: 0,
             frozen_sensor_um: 0.0,
@@ -495,6 +601,7 @@ impl State {
         self.position = position_counts;
         self.back_counts = 0;
         self.turn_primed = false;
+        self.seg_limit = 0;
     }
 
     /// A new image became active: sensor health, lags and the sensor clock restart (the new image
@@ -510,6 +617,7 @@ impl State {
         self.predicted_um = 0.0;
         self.predicted_forces_n = [0.0; MAX_FORCES];
         self.turn_primed = false;
+        self.seg_limit = 0;
         self.stale_ramp = false;
     }
 
