@@ -550,36 +550,19 @@ impl<const POOL: usize> Group<POOL> {
     /// (every slot, as identity outputs, while no group is loaded); slots beyond the group's
     /// axes are left as they are.
     pub fn cycle(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
-        let n = (self.n_axes as usize).min(MAX_AXES);
+        // One call per mode (each out of line): the cost of one mode does not depend on how
+        // the others are compiled.
         match self.mode {
             // Every axis linear without a thermo-force term (the common case): each axis's
             // whole pipeline with both checks compiled out, no per-axis dispatch.
             MODE_PLAIN => {
-                for i in 0..n {
-                    axis_cycle::<POOL, false, false>(
-                        &self.axes[i],
-                        &self.pool,
-                        &mut st.axes[i],
-                        &input.axes[i],
-                        &mut out.axes[i],
-                    );
+                if self.n_axes == 3 {
+                    self.cycle_plain3(st, input, out)
+                } else {
+                    self.cycle_plain(st, input, out)
                 }
             }
-            MODE_MIXED => {
-                for i in 0..n {
-                    let (ax, s, inp, o) = (
-                        &self.axes[i],
-                        &mut st.axes[i],
-                        &input.axes[i],
-                        &mut out.axes[i],
-                    );
-                    match self.kinds[i] {
-                        0 => axis_cycle::<POOL, false, false>(ax, &self.pool, s, inp, o),
-                        1 => axis_cycle::<POOL, true, false>(ax, &self.pool, s, inp, o),
-                        _ => axis_cycle::<POOL, true, true>(ax, &self.pool, s, inp, o),
-                    }
-                }
-            }
+            MODE_MIXED => self.cycle_mixed(st, input, out),
             MODE_STAGE_XYZAC => self.cycle_with_stage::<true>(st, input, out),
             MODE_STAGE => {
                 if self.geometric_plain {
@@ -589,6 +572,51 @@ impl<const POOL: usize> Group<POOL> {
                 }
             }
             _ => self.identity_cycle(st, input, out),
+        }
+    }
+
+    /// [`MODE_PLAIN`] with three axes (the common three-axis machine): the three pipelines
+    /// inlined with constant slots (no per-axis call).
+    #[inline(never)]
+    fn cycle_plain3(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        let (pool, inp) = (&self.pool, &input.axes);
+        let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
+        axis_pipeline::<POOL, false, false>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], 0.0);
+        axis_pipeline::<POOL, false, false>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], 0.0);
+        axis_pipeline::<POOL, false, false>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], 0.0);
+    }
+
+    /// [`MODE_PLAIN`] with any other number of axes: one pipeline call per axis.
+    #[inline(never)]
+    fn cycle_plain(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        let n = (self.n_axes as usize).min(MAX_AXES);
+        for i in 0..n {
+            axis_cycle::<POOL, false, false>(
+                &self.axes[i],
+                &self.pool,
+                &mut st.axes[i],
+                &input.axes[i],
+                &mut out.axes[i],
+            );
+        }
+    }
+
+    /// [`MODE_MIXED`]: one pipeline call per axis, chosen by its kind.
+    #[inline(never)]
+    fn cycle_mixed(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        let n = (self.n_axes as usize).min(MAX_AXES);
+        for i in 0..n {
+            let (ax, s, inp, o) = (
+                &self.axes[i],
+                &mut st.axes[i],
+                &input.axes[i],
+                &mut out.axes[i],
+            );
+            match self.kinds[i] {
+                0 => axis_cycle::<POOL, false, false>(ax, &self.pool, s, inp, o),
+                1 => axis_cycle::<POOL, true, false>(ax, &self.pool, s, inp, o),
+                _ => axis_cycle::<POOL, true, true>(ax, &self.pool, s, inp, o),
+            }
         }
     }
 
