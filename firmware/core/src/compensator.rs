@@ -190,6 +190,11 @@ pub trait TableStore {
     /// Segment `seg` (< the axis's segment count, checked by the caller) of half `dir`; `pool` is
     /// the group's coefficient pool (unused by [`OwnTable`]).
     fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4];
+    /// Storage index of segment `seg` of half `dir` (what [`TableStore::segment_at`] takes).
+    fn slot(&self, dir: usize, seg: u32) -> u32;
+    /// The segment at storage index `slot` (from [`TableStore::slot`]; any other value gives
+    /// some segment or zeros, never a panic).
+    fn segment_at<'a>(&'a self, pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4];
     /// True if axes with this storage may be rotary (turn tracking compiled in).
     const TURNS: bool = false;
 }
@@ -203,6 +208,14 @@ impl TableStore for OwnTable {
     #[inline(always)]
     fn segment<'a>(&'a self, _pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4] {
         &self.0[(seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1)]
+    }
+    #[inline(always)]
+    fn slot(&self, dir: usize, seg: u32) -> u32 {
+        seg.wrapping_add((dir * MAX_SEGMENTS) as u32)
+    }
+    #[inline(always)]
+    fn segment_at<'a>(&'a self, _pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4] {
+        &self.0[slot as usize & (2 * MAX_SEGMENTS - 1)]
     }
 }
 
@@ -410,10 +423,7 @@ impl<S: TableStore> AxisCompensator<S> {
                 // Within one segment of the turn: the turn position moved by delta, no wrap.
                 st.seg_rem = r;
                 st.pos_in_turn = st.pos_in_turn.wrapping_add(delta as u32);
-                (
-                    self.segment_um(pool, st.direction(), st.seg_index, r),
-                    false,
-                )
+                (self.segment_um_at(pool, st.seg_slot, r), false)
             } else {
                 crate::limits::cold_path();
                 let turn = self.turn_position(st, pos, delta);
@@ -421,10 +431,7 @@ impl<S: TableStore> AxisCompensator<S> {
             }
         } else if r < st.seg_limit {
             st.seg_rem = r;
-            (
-                self.segment_um(pool, st.direction(), st.seg_index, r),
-                false,
-            )
+            (self.segment_um_at(pool, st.seg_slot, r), false)
         } else {
             crate::limits::cold_path();
             self.table_um_refill(pool, st, pos)
@@ -474,12 +481,13 @@ pub struct State {
     /// [`crate::counter`]).
     pub(crate) turn_primed: bool,
     pub(crate) pos_in_turn: u32,
-    /// Segment cache of the table (see [`crate::table`]): the table position's remainder within
-    /// segment `seg_index`, and that segment's length while the cache is valid (0: void, the
-    /// next lookup is a full one).
+    /// Segment cache of the table (see [`AxisCompensator::table_um_refill`]): the table
+    /// position's remainder within its segment, that segment's length while the cache is valid
+    /// (0: void, the next lookup is a full one) and its storage index in the half of the
+    /// present direction ([`TableStore::slot`]; a reversal voids the cache).
     pub(crate) seg_rem: u32,
     pub(crate) seg_limit: u32,
-    pub(crate) seg_index: u32,
+    pub(crate) seg_slot: u32,
     /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
     pub(crate) stale_ramp: bool,
     pub(crate) stale_since_ms: u32,
@@ -516,7 +524,7 @@ impl PartialEq for State {
             frozen_expansion_um_per_count,
             seg_rem: _,
             seg_limit: _,
-            seg_index: _,
+            seg_slot: _,
         } = self;
         *primed == other.primed
             && *raw_pending == other.raw_pending
@@ -576,7 +584,7 @@ impl State {
             pos_in_turn: 0,
             seg_rem: 0,
             seg_limit: 0,
-            seg_index: 0,
+            seg_slot: 0,
             stale_ramp: false,
             stale_since_ms: 0,
             frozen_sensor_um: 0.0,

@@ -171,6 +171,17 @@ impl TableStore for PoolTable {
             .and_then(|j| pool.get(j))
             .unwrap_or(&ZERO_SEGMENT)
     }
+    #[inline(always)]
+    fn slot(&self, dir: usize, seg: u32) -> u32 {
+        self.base[dir & 1].wrapping_add(seg)
+    }
+    #[inline(always)]
+    fn segment_at<'a>(&'a self, pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4] {
+        (slot as usize)
+            .checked_rem(pool.len())
+            .and_then(|j| pool.get(j))
+            .unwrap_or(&ZERO_SEGMENT)
+    }
 }
 
 /// Inputs of one group cycle, by slot (entries beyond the group's axes are ignored).

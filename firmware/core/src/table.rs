@@ -67,19 +67,12 @@ impl<S: TableStore> AxisCompensator<S> {
         self.outside_um(dir, position_counts)
     }
 
-    /// Value of segment `seg` (< the segment count) of the half for `direction` at the
-    /// remainder `rem` (< the segment length): the Horner cubic of [`AxisCompensator::table_um_in`].
+    /// Value of the segment at storage index `slot` ([`TableStore::slot`]) at the remainder
+    /// `rem` (< the segment length): the Horner cubic of [`AxisCompensator::table_um_in`].
     #[inline(always)]
-    pub(crate) fn segment_um(
-        &self,
-        pool: &[[f32; 4]],
-        direction: Direction,
-        seg: u32,
-        rem: u32,
-    ) -> f32 {
-        let dir = (direction == Direction::Backward) as usize;
+    pub(crate) fn segment_um_at(&self, pool: &[[f32; 4]], slot: u32, rem: u32) -> f32 {
         let t = rem as f32 * self.inv_segment;
-        let c = self.table.segment(pool, dir, seg);
+        let c = self.table.segment_at(pool, slot);
         c[0] + t * (c[1] + t * (c[2] + t * c[3]))
     }
 
@@ -90,14 +83,14 @@ impl<S: TableStore> AxisCompensator<S> {
     /// 2^31 counts, void otherwise.
     ///
     /// Why the cache is exact: while valid it holds the remainder of the last cycle's table
-    /// position within segment `seg_index`, and this cycle's position is the last one plus the
+    /// position within its segment (stored for the present direction: a reversal voids it), and this cycle's position is the last one plus the
     /// counter step `delta` (an i32; [`AxisCompensator::track`]). With a segment length L ≤ 2^31,
     /// rem + delta lies in (−2^31, L + 2^31) ⊂ (−2^31, 2^32), so its wrapping u32 value is below L
     /// exactly when the new position is in the same segment — then it is the remainder the full
     /// lookup computes, and the value is the same bit for bit. Everything that moves the
-    /// position otherwise, or changes the table ([`crate::State::home`],
-    /// [`crate::State::reset`], [`crate::State::on_new_image`], a cycle without an image, a
-    /// fresh state), voids the cache.
+    /// position otherwise, or changes the table or the direction ([`crate::State::home`],
+    /// [`crate::State::reset`], [`crate::State::on_new_image`], a reversal, a cycle without an
+    /// image, a fresh state), voids the cache.
     #[cold]
     #[inline(never)]
     pub(crate) fn table_um_refill(
@@ -112,7 +105,8 @@ impl<S: TableStore> AxisCompensator<S> {
             let offset = diff as u32;
             if (diff >> 32) == 0 && offset < self.span_counts && seg_counts.get() <= 1 << 31 {
                 let seg = offset / seg_counts;
-                st.seg_index = seg;
+                let dir = (st.direction() == Direction::Backward) as usize;
+                st.seg_slot = self.table.slot(dir, seg);
                 st.seg_rem = offset - seg.wrapping_mul(seg_counts.get());
                 st.seg_limit = seg_counts.get();
             }
