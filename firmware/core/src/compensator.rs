@@ -411,34 +411,42 @@ impl<S: TableStore> AxisCompensator<S> {
         // segment every 6.4 cycles: there the refills cost more than the cache saves), the full
         // lookup every cycle. Both give the same value bit for bit.
         let r = st.seg_rem.wrapping_add(delta as u32);
-        let (mut total, outside) = if !segment_cache {
+        // BACKWARD is bit 7, TABLE_OUTSIDE bit 0; each path builds the flags after its lookup
+        // (the cached ones know TABLE_OUTSIDE is clear), so that no flag register is live
+        // across it.
+        let backward = |st: &State| Flags((st.backward as u16) << 7);
+        let with_outside = |st: &State, (v, outside): (f32, bool)| {
+            (v, Flags(((st.backward as u16) << 7) | outside as u16))
+        };
+        let (mut total, mut flags) = if !segment_cache {
             if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
                 let turn = self.turn_position(st, pos, delta);
-                self.table_um_in(pool, st.direction(), turn as i64)
+                let v = self.table_um_in(pool, st.direction(), turn as i64);
+                with_outside(st, v)
             } else {
-                self.table_um_in(pool, st.direction(), pos)
+                let v = self.table_um_in(pool, st.direction(), pos);
+                with_outside(st, v)
             }
         } else if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
             if r < st.seg_limit {
                 // Within one segment of the turn: the turn position moved by delta, no wrap.
                 st.seg_rem = r;
                 st.pos_in_turn = st.pos_in_turn.wrapping_add(delta as u32);
-                (self.segment_um_at(pool, st.seg_slot, r), false)
+                (self.segment_um_at(pool, st.seg_slot, r), backward(st))
             } else {
                 crate::limits::cold_path();
                 let turn = self.turn_position(st, pos, delta);
-                self.table_um_refill(pool, st, turn as i64)
+                let v = self.table_um_refill(pool, st, turn as i64);
+                with_outside(st, v)
             }
         } else if r < st.seg_limit {
             st.seg_rem = r;
-            (self.segment_um_at(pool, st.seg_slot, r), false)
+            (self.segment_um_at(pool, st.seg_slot, r), backward(st))
         } else {
             crate::limits::cold_path();
-            self.table_um_refill(pool, st, pos)
+            let v = self.table_um_refill(pool, st, pos);
+            with_outside(st, v)
         };
-        // BACKWARD is bit 7, TABLE_OUTSIDE bit 0: built here, after the lookup, so that no flag
-        // register is live across it.
-        let mut flags = Flags(((st.backward as u16) << 7) | outside as u16);
         if thermo_known.unwrap_or(self.has_thermo) {
             total = self.thermo_um(st, pos, forces_n, &mut flags, total);
         }
