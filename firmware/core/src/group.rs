@@ -586,15 +586,33 @@ impl<const POOL: usize> Group<POOL> {
         }
     }
 
-    /// [`MODE_PLAIN`] with three axes (the common three-axis machine): the three pipelines
-    /// inlined with constant slots (no per-axis call).
+    /// [`MODE_PLAIN`] with three axes (the common three-axis machine): [`Group::xyz_pipelines`]
+    /// with a deviation of −0.0, which leaves every error exactly as it is (x + (−0.0) = x for
+    /// every x, −0.0 and +0.0 included; +0.0 would turn a −0.0 error into +0.0).
     #[inline(never)]
     fn cycle_plain3(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        self.xyz_pipelines(st, input, out, -0.0, -0.0, -0.0);
+    }
+
+    /// Slots 0, 1, 2 linear without a thermo-force term: the three pipelines inlined with
+    /// constant slots (no per-axis call), `dx`, `dy`, `dz` added to the axes' errors before its limits. One
+    /// copy of this code serves three plain axes and three axes with the geometric stage.
+    #[inline(never)]
+    fn xyz_pipelines(
+        &self,
+        st: &mut GroupState,
+        input: &GroupInput,
+        out: &mut GroupOutput,
+        dx: f32,
+        dy: f32,
+        dz: f32,
+    ) {
+        let d = [dx, dy, dz];
         let (pool, inp) = (&self.pool, &input.axes);
         let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
-        axis_pipeline::<POOL, false, false>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], 0.0);
-        axis_pipeline::<POOL, false, false>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], 0.0);
-        axis_pipeline::<POOL, false, false>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], 0.0);
+        axis_pipeline::<POOL, false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
+        axis_pipeline::<POOL, false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
+        axis_pipeline::<POOL, false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
     }
 
     /// [`MODE_PLAIN`] with any other number of axes: one pipeline call per axis.
@@ -707,17 +725,7 @@ impl<const POOL: usize> Group<POOL> {
     ) {
         // The group is exactly X, Y, Z: slots 0..3.
         let d = self.geometric.deviation_xyz_slots(&self.pool, &input.axes);
-        #[allow(clippy::needless_range_loop)] // five parallel arrays indexed by slot
-        for i in 0..3 {
-            axis_cycle_with::<POOL, false, false>(
-                &self.axes[i],
-                &self.pool,
-                &mut st.axes[i],
-                &input.axes[i],
-                &mut out.axes[i],
-                d[i],
-            );
-        }
+        self.xyz_pipelines(st, input, out, d[0], d[1], d[2]);
     }
 
     /// The geometric stage's deviation by slot (out of line: the rotary stage's code beside it
