@@ -57,7 +57,7 @@
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
 //! software: about 2 400 instructions per call, 5 000 per cycle whenever both angles move. So
 //! `libm::sincos` is called at load only, for the [`SINCOS_STEPS`] + 1 coarse angles k·step per
-//! axis (step = ⌈counts per revolution / 64⌉, k = 0..=64). Per change of the angle n the cache
+//! axis (step = ⌈counts per revolution / 64⌉, made odd, k = 0..=64). Per change of the angle n the cache
 //! takes the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
 //! r = (n − k·step)·2π/cpr, |r| ≤ ⌊step/2⌋·2π/cpr, and
 //! sin θ = s_k·cos r + c_k·sin r, cos θ = c_k·cos r − s_k·sin r with
@@ -65,9 +65,9 @@
 //! target agree bit for bit.
 //!
 //! Error analysis (what the cheaper polynomials cost):
-//! - |r| ≤ π/64 + π/cpr: below 0.0495 for any turn of 6 400 counts or more, below 0.097 for every
-//!   turn (the worst is a turn of 65 counts, step 2);
-//! - truncation: |sin r − (r − r³/6)| ≤ r⁵/120 ≤ 2.5e-9 (7e-8 at 0.097),
+//! - |r| ≤ π/64 + 2π/cpr: below 0.0502 for any turn of 6 400 counts or more, below 0.097 for every
+//!   turn (the worst is a turn of 65 counts, step 3);
+//! - truncation: |sin r − (r − r³/6)| ≤ r⁵/120 ≤ 2.7e-9 (7e-8 at 0.097),
 //!   |cos r − (1 − r²/2 + r⁴/24)| ≤ r⁶/720 ≤ 2e-11;
 //! - rounding: table entries within 2⁻²⁵ ≈ 3e-8 of the exact values, r within about 1e-8 (an
 //!   exact integer times the f32 radians per count), a few f32 roundings of values ≤ 1 in the
@@ -284,12 +284,14 @@ impl RotaryLocationSpec {
 pub const SINCOS_STEPS: usize = 64;
 
 /// sin/cos of a rotary axis at its [`SINCOS_STEPS`] + 1 coarse angles k·step·2π/cpr, k = 0..=64,
-/// step = ⌈cpr/64⌉ counts (via `libm::sincos`, at load; the last one is 2π, or beyond for a
+/// step = ⌈cpr/64⌉ counts made odd (via `libm::sincos`, at load; the last one is 2π, or beyond for a
 /// turn that is not a multiple of 64 counts, so that the nearest coarse angle of any count of the
 /// turn is in the table).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SinCosTable {
-    step: core::num::NonZeroU32,
+    /// ⌈cpr/64⌉ made odd (+1 if even), ≥ 1 once built; 0 only in [`SinCosTable::ZERO`], which
+    /// keeps a new group all zero bytes, so that a `static` engine lands in `.bss`.
+    step: u32,
     /// ⌊step / 2⌋: the offset that makes the integer division round to the nearest coarse angle.
     half_step: u32,
     rad_per_count: f32,
@@ -299,7 +301,7 @@ pub(crate) struct SinCosTable {
 
 impl SinCosTable {
     pub(crate) const ZERO: SinCosTable = SinCosTable {
-        step: core::num::NonZeroU32::MIN,
+        step: 0,
         half_step: 0,
         rad_per_count: 0.0,
         sin_cos: [[0.0; 2]; SINCOS_STEPS + 1],
@@ -308,10 +310,11 @@ impl SinCosTable {
     /// For an axis of `cpr` (≥ 1) counts per revolution.
     pub(crate) fn new(cpr: u32) -> SinCosTable {
         let cpr = cpr.max(1);
-        let step = cpr.div_ceil(SINCOS_STEPS as u32);
+        // Odd (see `sincos`): ⌈cpr/64⌉, or one more.
+        let step = cpr.div_ceil(SINCOS_STEPS as u32) | 1;
         let rad = core::f64::consts::TAU / cpr as f64;
         let mut t = SinCosTable {
-            step: core::num::NonZeroU32::new(step).unwrap_or(core::num::NonZeroU32::MIN),
+            step,
             half_step: step / 2,
             rad_per_count: rad as f32,
             ..SinCosTable::ZERO
@@ -330,8 +333,11 @@ impl SinCosTable {
     pub(crate) fn sincos(&self, n: u32) -> (f32, f32) {
         // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ 64.
         let m = n.wrapping_add(self.half_step);
-        let k = m / self.step;
-        let rem = m - k.wrapping_mul(self.step.get());
+        // The step is odd (set at load), so `| 1` changes nothing but tells the compiler the
+        // divisor is not 0 (the zero table, step 0, divides by 1).
+        let step = self.step | 1;
+        let k = m / step;
+        let rem = m - k.wrapping_mul(step);
         let r = rem.wrapping_sub(self.half_step) as i32 as f32 * self.rad_per_count;
         let r2 = r * r;
         let sin_r = r - r * r2 * (1.0 / 6.0);
@@ -363,7 +369,10 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 /// is unchanged.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct RotaryStage {
-    pub(crate) machine: RotaryMachine,
+    /// [`RotaryMachine::code`] of the machine kind; 0 in [`RotaryStage::ZERO`] (all zero
+    /// bytes, so that a new group, and a `static` engine holding it, lands in `.bss`; its
+    /// constants are all 0, and it is refreshed as an AC trunnion: a zero deviation).
+    pub(crate) machine: u8,
     /// (EX0C, EY0C), µm; negated for a trunnion.
     pub(crate) o_c: [f32; 2],
     /// (EA0C, EB0C), rad.
@@ -391,7 +400,7 @@ pub(crate) struct RotaryStage {
 
 impl RotaryStage {
     pub(crate) const ZERO: RotaryStage = RotaryStage {
-        machine: RotaryMachine::AcTrunnion,
+        machine: 0,
         o_c: [0.0; 2],
         e_c: [0.0; 2],
         o_t: [0.0; 2],
@@ -418,7 +427,7 @@ impl RotaryStage {
         // Trunnions keep the offsets negated (see `refresh_trunnion`).
         let o = if head { 1.0 } else { -1.0 };
         RotaryStage {
-            machine: spec.machine,
+            machine: spec.machine.code(),
             o_c: [o * spec.ex0c_um, o * spec.ey0c_um],
             e_c: [spec.ea0c_urad * URAD, spec.eb0c_urad * URAD],
             o_t: [o * spec.ey0a_um, o * spec.ez0a_um],
@@ -440,10 +449,13 @@ impl RotaryStage {
     pub(crate) fn refresh(&self, cache: &mut RotaryCache, a_counts: u32, c_counts: u32) {
         let (st, ct) = self.sincos[0].sincos(a_counts);
         let (sc, cc) = self.sincos[1].sincos(c_counts);
+        const BC_TRUNNION: u8 = RotaryMachine::BcTrunnion.code();
+        const BC_HEAD: u8 = RotaryMachine::BcHead.code();
         match self.machine {
-            RotaryMachine::AcTrunnion => self.refresh_trunnion::<false>(cache, st, ct, sc, cc),
-            RotaryMachine::BcTrunnion => self.refresh_trunnion::<true>(cache, st, ct, sc, cc),
-            RotaryMachine::BcHead => self.refresh_head(cache, st, ct, sc, cc),
+            BC_TRUNNION => self.refresh_trunnion::<true>(cache, st, ct, sc, cc),
+            BC_HEAD => self.refresh_head(cache, st, ct, sc, cc),
+            // The AC trunnion (and the zero stage).
+            _ => self.refresh_trunnion::<false>(cache, st, ct, sc, cc),
         }
         cache.a_counts = a_counts;
         cache.c_counts = c_counts;
