@@ -190,6 +190,11 @@ pub trait TableStore {
     /// Segment `seg` (< the axis's segment count, checked by the caller) of half `dir`; `pool` is
     /// the group's coefficient pool (unused by [`OwnTable`]).
     fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4];
+    /// Storage index of segment `seg` of half `dir` (what [`TableStore::segment_at`] takes).
+    fn slot(&self, dir: usize, seg: u32) -> u32;
+    /// The segment at storage index `slot` (from [`TableStore::slot`]; any other value gives
+    /// some segment or zeros, never a panic).
+    fn segment_at<'a>(&'a self, pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4];
     /// True if axes with this storage may be rotary (turn tracking compiled in).
     const TURNS: bool = false;
 }
@@ -203,6 +208,14 @@ impl TableStore for OwnTable {
     #[inline(always)]
     fn segment<'a>(&'a self, _pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4] {
         &self.0[(seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1)]
+    }
+    #[inline(always)]
+    fn slot(&self, dir: usize, seg: u32) -> u32 {
+        seg.wrapping_add((dir * MAX_SEGMENTS) as u32)
+    }
+    #[inline(always)]
+    fn segment_at<'a>(&'a self, _pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4] {
+        &self.0[slot as usize & (2 * MAX_SEGMENTS - 1)]
     }
 }
 
@@ -356,8 +369,10 @@ impl<S: TableStore> AxisCompensator<S> {
     /// (one multiply-add with the cached c·ΔT_s) and the measured forces of this input.
     #[inline(always)]
     pub fn cycle_in(&self, pool: &[[f32; 4]], st: &mut State, input: &CycleInput) -> CycleOutput {
-        let pos = self.track(st, input.scale_raw);
+        let (pos, delta) = self.track(st, input.scale_raw);
         if !self.loaded {
+            // No table follows the position here: the segment cache is void.
+            st.seg_limit = 0;
             return CycleOutput {
                 position_counts: pos,
                 corrected_command_counts: input.command_counts,
@@ -366,34 +381,72 @@ impl<S: TableStore> AxisCompensator<S> {
                 flags: Flags(((st.backward as u16) << 7) | Flags::IDENTITY.0),
             };
         }
-        let (total, flags) = self.axis_error_um(pool, st, pos, &input.forces_n, true, None);
+        let (total, flags) =
+            self.axis_error_um(pool, st, (pos, delta), &input.forces_n, true, None, false);
         self.finish(st, pos, total, input.command_counts, flags)
     }
 
     /// Table (at the extended position, or a rotary axis's position within the turn) +
     /// thermo-force term (at the extended position `pos`), µm before the limits, and
-    /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags).
+    /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags). `(pos, delta)` is what
+    /// [`AxisCompensator::track`] returned this cycle.
     #[inline(always)]
     pub(crate) fn axis_error_um(
         &self,
         pool: &[[f32; 4]],
         st: &mut State,
-        pos: i64,
+        (pos, delta): (i64, i32),
         forces_n: &[f32; MAX_FORCES],
         may_be_rotary: bool,
         thermo_known: Option<bool>,
+        segment_cache: bool,
     ) -> (f32, Flags) {
-        // `may_be_rotary` and `thermo_known` are constants at each call: where the caller knows
-        // the axis is linear, or whether it has a thermo-force term, the check is compiled out.
-        let (mut total, outside) = if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
-            let turn = self.turn_position(st, pos);
-            self.table_um_turn(pool, st.direction(), turn)
-        } else {
-            self.table_um_in(pool, st.direction(), pos)
+        // `may_be_rotary`, `thermo_known` and `segment_cache` are constants at each call: where
+        // the caller knows the axis is linear, or whether it has a thermo-force term, the check
+        // is compiled out.
+        // With `segment_cache` (the group's pipelines), the table through the segment cache (see
+        // [`AxisCompensator::table_um_refill`]): within the last cycle's segment, the new
+        // remainder and the cached index; otherwise the full lookup, which refills the cache.
+        // Without it (the single-axis call, whose reference workload crosses a 1000-count
+        // segment every 6.4 cycles: there the refills cost more than the cache saves), the full
+        // lookup every cycle. Both give the same value bit for bit.
+        let r = st.seg_rem.wrapping_add(delta as u32);
+        // BACKWARD is bit 7, TABLE_OUTSIDE bit 0; each path builds the flags after its lookup
+        // (the cached ones know TABLE_OUTSIDE is clear), so that no flag register is live
+        // across it.
+        let backward = |st: &State| Flags((st.backward as u16) << 7);
+        let with_outside = |st: &State, (v, outside): (f32, bool)| {
+            (v, Flags(((st.backward as u16) << 7) | outside as u16))
         };
-        // BACKWARD is bit 7, TABLE_OUTSIDE bit 0: built here, after the lookup, so that no flag
-        // register is live across it.
-        let mut flags = Flags(((st.backward as u16) << 7) | outside as u16);
+        let (mut total, mut flags) = if !segment_cache {
+            if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
+                let turn = self.turn_position(st, pos, delta);
+                let v = self.table_um_in(pool, st.direction(), turn as i64);
+                with_outside(st, v)
+            } else {
+                let v = self.table_um_in(pool, st.direction(), pos);
+                with_outside(st, v)
+            }
+        } else if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
+            if r < st.seg_limit {
+                // Within one segment of the turn: the turn position moved by delta, no wrap.
+                st.seg_rem = r;
+                st.pos_in_turn = st.pos_in_turn.wrapping_add(delta as u32);
+                (self.segment_um_at(pool, st.seg_slot, r), backward(st))
+            } else {
+                crate::limits::cold_path();
+                let turn = self.turn_position(st, pos, delta);
+                let v = self.table_um_refill(pool, st, turn as i64);
+                with_outside(st, v)
+            }
+        } else if r < st.seg_limit {
+            st.seg_rem = r;
+            (self.segment_um_at(pool, st.seg_slot, r), backward(st))
+        } else {
+            crate::limits::cold_path();
+            let v = self.table_um_refill(pool, st, pos);
+            with_outside(st, v)
+        };
         if thermo_known.unwrap_or(self.has_thermo) {
             total = self.thermo_um(st, pos, forces_n, &mut flags, total);
         }
@@ -405,7 +458,11 @@ impl<S: TableStore> AxisCompensator<S> {
 /// health, cached thermal contribution, predicted forces, last applied correction.
 ///
 /// All zero bytes after [`State::new`].
-#[derive(Debug, Clone, PartialEq)]
+///
+/// Equality compares everything the axis's behaviour depends on; it leaves out the table's
+/// segment cache (`seg_*`), which the group pipelines keep and the single-axis call does not
+/// (it only remembers where the last lookup was; a void or a valid cache gives the same value).
+#[derive(Debug, Clone)]
 pub struct State {
     pub(crate) primed: bool,
     pub(crate) raw_pending: bool,
@@ -431,13 +488,76 @@ pub struct State {
     /// Rotary axis of a group: `pos_in_turn` follows the extended position (see
     /// [`crate::counter`]).
     pub(crate) turn_primed: bool,
-    pub(crate) turn_last_pos: i64,
     pub(crate) pos_in_turn: u32,
+    /// Segment cache of the table (see [`AxisCompensator::table_um_refill`]): the table
+    /// position's remainder within its segment, that segment's length while the cache is valid
+    /// (0: void, the next lookup is a full one) and its storage index in the half of the
+    /// present direction ([`TableStore::slot`]; a reversal voids the cache).
+    pub(crate) seg_rem: u32,
+    pub(crate) seg_limit: u32,
+    pub(crate) seg_slot: u32,
     /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
     pub(crate) stale_ramp: bool,
     pub(crate) stale_since_ms: u32,
     pub(crate) frozen_sensor_um: f32,
     pub(crate) frozen_expansion_um_per_count: f32,
+}
+
+impl PartialEq for State {
+    fn eq(&self, other: &State) -> bool {
+        // Destructured, so that a new field cannot be left out by accident.
+        let State {
+            primed,
+            raw_pending,
+            last_raw,
+            position,
+            backward,
+            back_counts,
+            last_correction_um,
+            sensor_um,
+            expansion_um_per_count,
+            thermal_live,
+            sensor_fault,
+            clock_started,
+            thermo_bits,
+            predicted_um,
+            cached_um,
+            predicted_forces_n,
+            sensors,
+            turn_primed,
+            pos_in_turn,
+            stale_ramp,
+            stale_since_ms,
+            frozen_sensor_um,
+            frozen_expansion_um_per_count,
+            seg_rem: _,
+            seg_limit: _,
+            seg_slot: _,
+        } = self;
+        *primed == other.primed
+            && *raw_pending == other.raw_pending
+            && *last_raw == other.last_raw
+            && *position == other.position
+            && *backward == other.backward
+            && *back_counts == other.back_counts
+            && *last_correction_um == other.last_correction_um
+            && *sensor_um == other.sensor_um
+            && *expansion_um_per_count == other.expansion_um_per_count
+            && *thermal_live == other.thermal_live
+            && *sensor_fault == other.sensor_fault
+            && *clock_started == other.clock_started
+            && *thermo_bits == other.thermo_bits
+            && *predicted_um == other.predicted_um
+            && *cached_um == other.cached_um
+            && *predicted_forces_n == other.predicted_forces_n
+            && *sensors == other.sensors
+            && *turn_primed == other.turn_primed
+            && *pos_in_turn == other.pos_in_turn
+            && *stale_ramp == other.stale_ramp
+            && *stale_since_ms == other.stale_since_ms
+            && *frozen_sensor_um == other.frozen_sensor_um
+            && *frozen_expansion_um_per_count == other.frozen_expansion_um_per_count
+    }
 }
 
 impl Default for State {
@@ -469,8 +589,10 @@ impl State {
             predicted_forces_n: [0.0; MAX_FORCES],
             sensors: [SensorState::NEW; MAX_SENSORS],
             turn_primed: false,
-            turn_last_pos: 0,
             pos_in_turn: 0,
+            seg_rem: 0,
+            seg_limit: 0,
+            seg_slot: 0,
             stale_ramp: false,
             stale_since_ms: 0,
             frozen_sensor_um: 0.0,
@@ -495,6 +617,7 @@ impl State {
         self.position = position_counts;
         self.back_counts = 0;
         self.turn_primed = false;
+        self.seg_limit = 0;
     }
 
     /// A new image became active: sensor health, lags and the sensor clock restart (the new image
@@ -510,6 +633,7 @@ impl State {
         self.predicted_um = 0.0;
         self.predicted_forces_n = [0.0; MAX_FORCES];
         self.turn_primed = false;
+        self.seg_limit = 0;
         self.stale_ramp = false;
     }
 

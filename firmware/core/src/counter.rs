@@ -26,9 +26,10 @@ use crate::limits::cold_path;
 
 impl<S: TableStore> AxisCompensator<S> {
     /// Counter extension (wrap-safe, sign-extended delta) and the direction hysteresis; returns
-    /// the extended position (also stored in `st`).
+    /// the extended position (also stored in `st`) and the step `delta` that was added to the
+    /// previous extended position (position = previous position + delta, exactly).
     #[inline(always)]
-    pub(crate) fn track(&self, st: &mut State, raw: u32) -> i64 {
+    pub(crate) fn track(&self, st: &mut State, raw: u32) -> (i64, i32) {
         let shift = self.sext_shift;
         if !st.primed {
             cold_path();
@@ -57,27 +58,35 @@ impl<S: TableStore> AxisCompensator<S> {
         if back > self.hysteresis_counts as i32 {
             st.backward = !st.backward;
             st.back_counts = 0;
+            // The segment cache holds the other half's storage index.
+            st.seg_limit = 0;
         } else {
             st.back_counts = if back < 0 { 0 } else { back };
         }
-        pos
+        (pos, delta)
     }
 }
 
 impl<S: TableStore> AxisCompensator<S> {
     /// The position within the turn of a rotary axis (`counts_per_rev` > 0) at extended
-    /// position `pos`; kept in `st`.
+    /// position `pos`, which [`AxisCompensator::track`] just reached by adding `delta`; kept in
+    /// `st`.
+    ///
+    /// While `turn_primed`, the previous cycle ran this after its own `track`, so `pos_in_turn`
+    /// belongs to the previous extended position and this cycle's step is exactly `delta` (an
+    /// i32: no 64-bit difference to form and test). Everything that moves the extended position
+    /// otherwise ([`State::home`], [`State::reset`], [`State::on_new_image`], a fresh state)
+    /// clears `turn_primed`, and the next cycle takes the full modulo.
     #[inline(always)]
-    pub(crate) fn turn_position(&self, st: &mut State, pos: i64) -> u32 {
+    pub(crate) fn turn_position(&self, st: &mut State, pos: i64, delta: i32) -> u32 {
         let cpr = self.counts_per_rev;
         st.pos_in_turn = if st.turn_primed {
-            step_in_turn(st.pos_in_turn, pos.wrapping_sub(st.turn_last_pos), cpr, pos)
+            step_in_turn(st.pos_in_turn, delta as i64, cpr, pos)
         } else {
             cold_path();
             st.turn_primed = true;
             wrap(pos, cpr)
         };
-        st.turn_last_pos = pos;
         st.pos_in_turn
     }
 }

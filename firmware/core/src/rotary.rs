@@ -56,13 +56,30 @@
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
 //! software: about 2 400 instructions per call, 5 000 per cycle whenever both angles move. So
-//! `libm::sincos` is called at load only, for [`SINCOS_STEPS`] coarse angles k·step per axis
-//! (step = ⌈counts per revolution / 64⌉); per change of the angle n = k·step + m counts the cache
-//! takes sin θ = s_k·cos r + c_k·sin r, cos θ = c_k·cos r − s_k·sin r with r = m·2π/cpr < 0.099
-//! and the Taylor polynomials
-//! sin r ≈ r − r³/6 + r⁵/120, cos r ≈ 1 − r²/2 + r⁴/24 − r⁶/720 (truncation below 2e-11): only
-//! integer division and `+ − ×`, so host and target agree bit for bit; within 2e-7 of the exact
-//! values (tested).
+//! `libm::sincos` is called at load only, for the [`SINCOS_STEPS`] + 1 coarse angles k·step per
+//! axis (step = ⌈counts per revolution / 64⌉, made odd, k = 0..=64). Per change of the angle n the cache
+//! takes the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
+//! r = (n − k·step)·2π/cpr, |r| ≤ ⌊step/2⌋·2π/cpr, and
+//! sin θ = s_k·cos r + c_k·sin r, cos θ = c_k·cos r − s_k·sin r with
+//! sin r ≈ r − r³/6, cos r ≈ 1 − r²/2 + r⁴/24: only integer division and `+ − ×`, so host and
+//! target agree bit for bit.
+//!
+//! Error analysis (what the cheaper polynomials cost):
+//! - |r| ≤ π/64 + 2π/cpr: below 0.0502 for any turn of 6 400 counts or more, below 0.097 for every
+//!   turn (the worst is a turn of 65 counts, step 3);
+//! - truncation: |sin r − (r − r³/6)| ≤ r⁵/120 ≤ 2.7e-9 (7e-8 at 0.097),
+//!   |cos r − (1 − r²/2 + r⁴/24)| ≤ r⁶/720 ≤ 2e-11;
+//! - rounding: table entries within 2⁻²⁵ ≈ 3e-8 of the exact values, r within about 1e-8 (an
+//!   exact integer times the f32 radians per count), a few f32 roundings of values ≤ 1 in the
+//!   polynomials and the sum: sin θ and cos θ are within δ = 2e-7 of the exact values (tested
+//!   against f64 over turns of 65 … 2³¹ counts);
+//! - effect on the deviation: every entry of k and M·q is a sum of (offset or angle × |q|) × (a
+//!   sin/cos or a product of two), so an error δ in each sin/cos moves the deviation by at most
+//!   about 2δ·(|o_C| + |o_T| + (|ε_C| + |ε_T|)·|q|): for offsets ≤ 50 µm and angles ≤ 100 µrad
+//!   at |q| ≤ 1 m, 2·2e-7·(100 µm + 200e-6·1e6 µm) = 1.2e-4 µm — below 0.001 µm by nearly a
+//!   decade and far below the first-order model's neglected terms (0.03 µm). Tested against the
+//!   same model evaluated with f64 sin/cos (tolerance 0.001 µm) in this module, and against exact
+//!   homogeneous transforms in `tests/group.rs` and `tests/rotary_kinds.rs`.
 
 use crate::error::{Field, ImageError};
 use crate::group::AxisName;
@@ -266,54 +283,66 @@ impl RotaryLocationSpec {
 /// Coarse angles per turn of the sin/cos table.
 pub const SINCOS_STEPS: usize = 64;
 
-/// sin/cos of a rotary axis at its [`SINCOS_STEPS`] coarse angles k·step·2π/cpr, step =
-/// ⌈cpr/64⌉ counts (via `libm::sincos`, at load).
+/// sin/cos of a rotary axis at its [`SINCOS_STEPS`] + 1 coarse angles k·step·2π/cpr, k = 0..=64,
+/// step = ⌈cpr/64⌉ counts made odd (via `libm::sincos`, at load; the last one is 2π, or beyond for a
+/// turn that is not a multiple of 64 counts, so that the nearest coarse angle of any count of the
+/// turn is in the table).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SinCosTable {
+    /// ⌈cpr/64⌉ made odd (+1 if even), ≥ 1 once built; 0 only in [`SinCosTable::ZERO`], which
+    /// keeps a new group all zero bytes, so that a `static` engine lands in `.bss`.
     step: u32,
+    /// ⌊step / 2⌋: the offset that makes the integer division round to the nearest coarse angle.
+    half_step: u32,
     rad_per_count: f32,
-    sin: [f32; SINCOS_STEPS],
-    cos: [f32; SINCOS_STEPS],
+    /// (sin, cos) of each coarse angle.
+    sin_cos: [[f32; 2]; SINCOS_STEPS + 1],
 }
 
 impl SinCosTable {
     pub(crate) const ZERO: SinCosTable = SinCosTable {
         step: 0,
+        half_step: 0,
         rad_per_count: 0.0,
-        sin: [0.0; SINCOS_STEPS],
-        cos: [0.0; SINCOS_STEPS],
+        sin_cos: [[0.0; 2]; SINCOS_STEPS + 1],
     };
 
     /// For an axis of `cpr` (≥ 1) counts per revolution.
     pub(crate) fn new(cpr: u32) -> SinCosTable {
         let cpr = cpr.max(1);
-        let step = cpr.div_ceil(SINCOS_STEPS as u32);
+        // Odd (see `sincos`): ⌈cpr/64⌉, or one more.
+        let step = cpr.div_ceil(SINCOS_STEPS as u32) | 1;
         let rad = core::f64::consts::TAU / cpr as f64;
         let mut t = SinCosTable {
             step,
+            half_step: step / 2,
             rad_per_count: rad as f32,
             ..SinCosTable::ZERO
         };
-        for k in 0..SINCOS_STEPS {
+        for (k, sc) in t.sin_cos.iter_mut().enumerate() {
             let (s, c) = libm::sincos((k as u64 * step as u64) as f64 * rad);
-            t.sin[k] = s as f32;
-            t.cos[k] = c as f32;
+            *sc = [s as f32, c as f32];
         }
         t
     }
 
-    /// (sin, cos) of the angle `n`·2π/cpr for `n` < cpr (see the module's notes): the coarse
-    /// angle k = n / step from the table, the remainder r = (n − k·step)·2π/cpr by polynomials.
+    /// (sin, cos) of the angle `n`·2π/cpr for `n` < cpr (see the module's notes): the nearest
+    /// coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ from the table, the signed remainder
+    /// r = (n − k·step)·2π/cpr, |r| ≤ ⌊step/2⌋·2π/cpr, by polynomials.
     #[inline]
     pub(crate) fn sincos(&self, n: u32) -> (f32, f32) {
-        let k = n.checked_div(self.step).unwrap_or(0);
-        let rem = n - k.wrapping_mul(self.step);
-        let r = rem as f32 * self.rad_per_count;
-        let k = k as usize % SINCOS_STEPS;
+        // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ 64.
+        let m = n.wrapping_add(self.half_step);
+        // The step is odd (set at load), so `| 1` changes nothing but tells the compiler the
+        // divisor is not 0 (the zero table, step 0, divides by 1).
+        let step = self.step | 1;
+        let k = m / step;
+        let rem = m - k.wrapping_mul(step);
+        let r = rem.wrapping_sub(self.half_step) as i32 as f32 * self.rad_per_count;
         let r2 = r * r;
-        let sin_r = r * (1.0 - r2 * (1.0 / 6.0 - r2 * (1.0 / 120.0)));
-        let cos_r = 1.0 - r2 * (0.5 - r2 * (1.0 / 24.0 - r2 * (1.0 / 720.0)));
-        let (s, c) = (self.sin[k], self.cos[k]);
+        let sin_r = r - r * r2 * (1.0 / 6.0);
+        let cos_r = 1.0 - r2 * (0.5 - r2 * (1.0 / 24.0));
+        let [s, c] = self.sin_cos[(k as usize).min(SINCOS_STEPS)];
         (s * cos_r + c * sin_r, c * cos_r - s * sin_r)
     }
 }
@@ -340,7 +369,10 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 /// is unchanged.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct RotaryStage {
-    pub(crate) machine: RotaryMachine,
+    /// [`RotaryMachine::code`] of the machine kind; 0 in [`RotaryStage::ZERO`] (all zero
+    /// bytes, so that a new group, and a `static` engine holding it, lands in `.bss`; its
+    /// constants are all 0, and it is refreshed as an AC trunnion: a zero deviation).
+    pub(crate) machine: u8,
     /// (EX0C, EY0C), µm; negated for a trunnion.
     pub(crate) o_c: [f32; 2],
     /// (EA0C, EB0C), rad.
@@ -368,7 +400,7 @@ pub(crate) struct RotaryStage {
 
 impl RotaryStage {
     pub(crate) const ZERO: RotaryStage = RotaryStage {
-        machine: RotaryMachine::AcTrunnion,
+        machine: 0,
         o_c: [0.0; 2],
         e_c: [0.0; 2],
         o_t: [0.0; 2],
@@ -395,7 +427,7 @@ impl RotaryStage {
         // Trunnions keep the offsets negated (see `refresh_trunnion`).
         let o = if head { 1.0 } else { -1.0 };
         RotaryStage {
-            machine: spec.machine,
+            machine: spec.machine.code(),
             o_c: [o * spec.ex0c_um, o * spec.ey0c_um],
             e_c: [spec.ea0c_urad * URAD, spec.eb0c_urad * URAD],
             o_t: [o * spec.ey0a_um, o * spec.ez0a_um],
@@ -417,18 +449,26 @@ impl RotaryStage {
     pub(crate) fn refresh(&self, cache: &mut RotaryCache, a_counts: u32, c_counts: u32) {
         let (st, ct) = self.sincos[0].sincos(a_counts);
         let (sc, cc) = self.sincos[1].sincos(c_counts);
+        const BC_TRUNNION: u8 = RotaryMachine::BcTrunnion.code();
+        const BC_HEAD: u8 = RotaryMachine::BcHead.code();
         match self.machine {
-            RotaryMachine::AcTrunnion => self.refresh_trunnion::<false>(cache, st, ct, sc, cc),
-            RotaryMachine::BcTrunnion => self.refresh_trunnion::<true>(cache, st, ct, sc, cc),
-            RotaryMachine::BcHead => self.refresh_head(cache, st, ct, sc, cc),
+            BC_TRUNNION => self.refresh_trunnion::<true>(cache, st, ct, sc, cc),
+            BC_HEAD => self.refresh_head(cache, st, ct, sc, cc),
+            // The AC trunnion (and the zero stage).
+            _ => self.refresh_trunnion::<false>(cache, st, ct, sc, cc),
         }
-        // Fold the scales and the tool length in: the deviation is k' + M'·n for the commanded
-        // counts n from the pivot (q = diag(µm per count)·n − (0, 0, L)).
+        cache.a_counts = a_counts;
+        cache.c_counts = c_counts;
+        cache.valid = true;
+    }
+
+    /// Fold the scales and the tool length into k and M (unscaled M, without its zero
+    /// diagonal): the deviation is k' + M'·n for the commanded counts n from the pivot
+    /// (q = diag(µm per count)·n − (0, 0, L)). The trunnion path does the same inline.
+    fn fold(&self, cache: &mut RotaryCache, k: [f32; 3], m: [f32; 6]) {
         let [ux, uy, uz] = self.um_per_count;
         let l = self.tool_offset_um;
-        let m = cache.m;
-        cache.k[0] -= m[1] * l;
-        cache.k[1] -= m[3] * l;
+        cache.k = [k[0] - m[1] * l, k[1] - m[3] * l, k[2]];
         cache.m = [
             m[0] * uy,
             m[1] * uz,
@@ -437,14 +477,14 @@ impl RotaryStage {
             m[4] * ux,
             m[5] * uy,
         ];
-        cache.a_counts = a_counts;
-        cache.c_counts = c_counts;
-        cache.valid = true;
     }
 
     /// Trunnion (tilt axis B if `B`, else A): e = R_T u + (I − R_T) o_T + ω × q with
     /// u = (I − R_C) o_C, ω = R_T g + h, g = ε_C − R_C ε_C, h = ε_T − R_T ε_T; the deviation is
-    /// s(q) − e. The offsets are stored negated, so k = −(R_T u + (I − R_T) o_T) is a plain sum.
+    /// s(q) − e. The offsets are stored negated, so k = −(R_T u + (I − R_T) o_T) is a plain sum;
+    /// in the tilt plane R_T (u_p, 0) + o_T − R_T o_T = (c·(u_p − o_p) + o_p + s'·o_z,
+    /// s'·(u_p − o_p) + o_z − c·o_z), and likewise for ω. The scales and the tool length are
+    /// folded in as in [`RotaryStage::fold`] (M' = M·diag(µm per count), k' = k − M·(0, 0, L)).
     #[inline(always)]
     fn refresh_trunnion<const B: bool>(
         &self,
@@ -469,19 +509,33 @@ impl RotaryStage {
         } else {
             (u[1], u[0], g[1], g[0])
         };
-        let k_p = ct * u_p + (p1 - (ct * p1 - s * p3));
-        let k_z = s * u_p + (p3 - (s * p1 + ct * p3));
-        let w_p = ct * g_p + (e1 - (ct * e1 - s * e3));
-        let w_z = s * g_p + (e3 - (s * e1 + ct * e3));
+        let a = u_p - p1;
+        let k_p = ct * a + (p1 + s * p3);
+        let k_z = s * a + (p3 - ct * p3);
+        let b = g_p - e1;
+        let w_p = ct * b + (e1 + s * e3);
+        let w_z = s * b + (e3 - ct * e3);
         let (k, w) = if B {
             ([k_p, u_o, k_z], [w_p, g_o, w_z])
         } else {
             ([u_o, k_p, k_z], [g_o, w_p, w_z])
         };
+        // s(q) − ω × q, off-diagonal entries (the diagonal is 0): M = [sq_y + w_z, sq_z − w_y,
+        // −w_z, sq_yz + w_x, w_y, −w_x], scaled by (uy, uz, ux, uz, ux, uy).
         let [sq_y, sq_z, sq_yz] = self.sq;
-        cache.k = k;
-        // s(q) − ω × q, off-diagonal entries (the diagonal is 0).
-        cache.m = [sq_y + w[2], sq_z - w[1], -w[2], sq_yz + w[0], w[1], -w[0]];
+        let [ux, uy, uz] = self.um_per_count;
+        let l = self.tool_offset_um;
+        let m1 = sq_z - w[1];
+        let m3 = sq_yz + w[0];
+        cache.k = [k[0] - m1 * l, k[1] - m3 * l, k[2]];
+        cache.m = [
+            (sq_y + w[2]) * uy,
+            m1 * uz,
+            -(w[2] * ux),
+            m3 * uz,
+            w[1] * ux,
+            -(w[0] * uy),
+        ];
     }
 
     /// BC head: the deviation is the tool tip's displacement δ + s(q) (see
@@ -494,8 +548,8 @@ impl RotaryStage {
         let [ex, ey] = self.e_c;
         let g = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey), 0.0];
         let [sq_y, sq_z, sq_yz] = self.sq;
-        cache.k = self.head_deviation(st, ct, sc, cc, u, g);
-        cache.m = [sq_y, sq_z, 0.0, sq_yz, 0.0, 0.0];
+        let k = self.head_deviation(st, ct, sc, cc, u, g);
+        self.fold(cache, k, [sq_y, sq_z, 0.0, sq_yz, 0.0, 0.0]);
     }
 
     /// BC head: the tool tip's displacement δ = u + g × (R_C R_B v) + R_C [(I − R_B) o_B +
@@ -590,15 +644,18 @@ impl RotaryCache {
 mod tests {
     use super::*;
 
-    /// Reference: f64 `sin`/`cos` of n·2π/cpr; tolerance 2e-7 (a few f32 roundings of values
-    /// ≤ 1), over every 997th count of turns of 3 600 000, 1000 (not a multiple of 64) and
-    /// 2^31 counts, and the last counts of each.
+    /// Reference: f64 `sin`/`cos` of n·2π/cpr; tolerance 2e-7 (the module's bound: a few f32
+    /// roundings of values ≤ 1 plus the polynomials' truncation, below 1e-7 even at the largest
+    /// remainder |r| < 0.097 of a turn of 65 counts), over every 997th count of turns of
+    /// 3 600 000, 1000 (not a multiple of 64), 65 and 100 (the largest remainders) and 2^31
+    /// counts, every count of the small turns, and the last counts of each.
     #[test]
     fn sincos_from_table_and_polynomial() {
-        for cpr in [3_600_000u32, 1000, 1 << 31] {
+        for cpr in [3_600_000u32, 1000, 65, 100, 1 << 31] {
             let t = SinCosTable::new(cpr);
             let mut worst = 0.0f64;
-            for n in (0..cpr).step_by(997).chain(cpr - 5..cpr) {
+            let stride = if cpr < 10_000 { 1 } else { 997 };
+            for n in (0..cpr).step_by(stride).chain(cpr - 5..cpr) {
                 let (s, c) = t.sincos(n);
                 let a = n as f64 * core::f64::consts::TAU / cpr as f64;
                 worst = worst
@@ -607,5 +664,113 @@ mod tests {
             }
             assert!(worst < 2e-7, "cpr {cpr}: largest error {worst:e}");
         }
+    }
+
+    /// The first-order trunnion model of the module's docs in f64 with f64 sin/cos (the
+    /// reference for the table + polynomial sin/cos and the f32 folding): deviation
+    /// s(q) − e, e = R_T u + (I − R_T) o_T + ω × q, for an AC (`b` false) or BC trunnion.
+    fn reference_deviation(spec: &RotaryLocationSpec, upc: f64, cpr: u32, n: [i64; 5]) -> [f64; 3] {
+        let b = spec.machine == RotaryMachine::BcTrunnion;
+        let ang = |c: i64| c as f64 * core::f64::consts::TAU / cpr as f64;
+        let (st, ct) = libm::sincos(ang(n[3]));
+        let (sc, cc) = libm::sincos(ang(n[4]));
+        let rc = |v: [f64; 3]| [cc * v[0] - sc * v[1], sc * v[0] + cc * v[1], v[2]];
+        let rt = |v: [f64; 3]| {
+            if b {
+                [ct * v[0] + st * v[2], v[1], -st * v[0] + ct * v[2]]
+            } else {
+                [v[0], ct * v[1] - st * v[2], st * v[1] + ct * v[2]]
+            }
+        };
+        let sub = |a: [f64; 3], c: [f64; 3]| [a[0] - c[0], a[1] - c[1], a[2] - c[2]];
+        let add = |a: [f64; 3], c: [f64; 3]| [a[0] + c[0], a[1] + c[1], a[2] + c[2]];
+        let cr = |a: [f64; 3], c: [f64; 3]| {
+            [
+                a[1] * c[2] - a[2] * c[1],
+                a[2] * c[0] - a[0] * c[2],
+                a[0] * c[1] - a[1] * c[0],
+            ]
+        };
+        let f = |x: f32| x as f64;
+        let urad = 1e-6;
+        let o_c = [f(spec.ex0c_um), f(spec.ey0c_um), 0.0];
+        let e_c = [f(spec.ea0c_urad) * urad, f(spec.eb0c_urad) * urad, 0.0];
+        // A: (0, EY0A, EZ0A), (0, EB0A, EC0A); B: (EX0B, 0, EZ0B), (EA0B, 0, EC0B).
+        let (o_t, e_t) = if b {
+            (
+                [f(spec.ey0a_um), 0.0, f(spec.ez0a_um)],
+                [f(spec.eb0a_urad) * urad, 0.0, f(spec.ec0a_urad) * urad],
+            )
+        } else {
+            (
+                [0.0, f(spec.ey0a_um), f(spec.ez0a_um)],
+                [0.0, f(spec.eb0a_urad) * urad, f(spec.ec0a_urad) * urad],
+            )
+        };
+        let q = [
+            (n[0] - spec.pivot_counts[0]) as f64 * upc,
+            (n[1] - spec.pivot_counts[1]) as f64 * upc,
+            (n[2] - spec.pivot_counts[2]) as f64 * upc - f(spec.tool_length_um),
+        ];
+        let u = sub(o_c, rc(o_c));
+        let g = sub(e_c, rc(e_c));
+        let h = sub(e_t, rt(e_t));
+        let w = add(rt(g), h);
+        let e = add(add(rt(u), sub(o_t, rt(o_t))), cr(w, q));
+        let [ea0z, eb0z, ec0y] = spec.squareness_urad.map(|v| f(v) * urad);
+        let s = [-ec0y * q[1] + eb0z * q[2], -ea0z * q[2], 0.0];
+        sub(s, e)
+    }
+
+    /// Reference: [`reference_deviation`] (the same first-order model in f64 with exact
+    /// sin/cos); tolerance 0.001 µm — the budget the module's error analysis leaves for the
+    /// table + polynomial sin/cos (about 1.2e-4 µm at these magnitudes) and the f32 arithmetic.
+    /// Offsets of 50 µm, angles of 100 µrad, squareness 30 µrad, a 200 mm tool, |q| up to about
+    /// 0.7 m, A and B trunnions, angles over whole turns (every 9 973rd count of each axis, the
+    /// two axes at unrelated angles).
+    #[test]
+    fn stage_with_table_sincos_matches_the_f64_model() {
+        let cpr = 3_600_000u32;
+        let upc = 0.1f32;
+        let mut worst = 0.0f64;
+        for machine in [RotaryMachine::AcTrunnion, RotaryMachine::BcTrunnion] {
+            let spec = RotaryLocationSpec {
+                machine,
+                ex0c_um: 50.0,
+                ey0c_um: -45.0,
+                ea0c_urad: 100.0,
+                eb0c_urad: -90.0,
+                ey0a_um: 40.0,
+                ez0a_um: -50.0,
+                eb0a_urad: 80.0,
+                ec0a_urad: -100.0,
+                squareness_urad: [30.0, -20.0, 25.0],
+                pivot_counts: [2_000_000, -1_000_000, 3_000_000],
+                tool_length_um: 200_000.0,
+                ..RotaryLocationSpec::ZERO_AC
+            };
+            let stage = RotaryStage::new(&spec, [upc; 3], [cpr; 2], [0, 1, 2, 3, 4]);
+            let mut cache = RotaryCache::NEW;
+            let mut i = 0i64;
+            for a in (0..cpr).step_by(9973) {
+                i += 1;
+                let c = (a as u64 * 7 + 1_234_567) % cpr as u64;
+                let n = [
+                    -3_000_000 + (i * 104_729) % 7_000_000,
+                    -6_000_000 + (i * 130_363) % 9_000_000,
+                    (i * 86_243) % 6_000_000,
+                    a as i64,
+                    c as i64,
+                ];
+                stage.refresh(&mut cache, a, c as u32);
+                let d =
+                    RotaryStage::deviation_um(&cache, stage.counts_from_pivot([n[0], n[1], n[2]]));
+                let r = reference_deviation(&spec, upc as f64, cpr, n);
+                for k in 0..3 {
+                    worst = worst.max((d[k] as f64 - r[k]).abs());
+                }
+            }
+        }
+        assert!(worst < 1e-3, "largest deviation error {worst:e} µm");
     }
 }

@@ -67,31 +67,51 @@ impl<S: TableStore> AxisCompensator<S> {
         self.outside_um(dir, position_counts)
     }
 
-    /// [`AxisCompensator::table_um_in`] at the position within the turn `turn` of a rotary group
-    /// axis. Its table grid starts at 0 (validated at load: a rotary axis's knot 0 is at 0 and its
-    /// stroke is one turn), so the 64-bit difference to the start and the test of its high word
-    /// are not needed: the same segment, the same arithmetic, the same value.
+    /// Value of the segment at storage index `slot` ([`TableStore::slot`]) at the remainder
+    /// `rem` (< the segment length): the Horner cubic of [`AxisCompensator::table_um_in`].
     #[inline(always)]
-    pub(crate) fn table_um_turn(
+    pub(crate) fn segment_um_at(&self, pool: &[[f32; 4]], slot: u32, rem: u32) -> f32 {
+        let t = rem as f32 * self.inv_segment;
+        let c = self.table.segment_at(pool, slot);
+        c[0] + t * (c[1] + t * (c[2] + t * c[3]))
+    }
+
+    /// The full lookup of the cycle ([`AxisCompensator::table_um_in`] at `table_pos`: the
+    /// extended position, or a rotary axis's position within the turn) when the segment cache
+    /// of `st` does not hold it, and the cache refilled: valid (segment index, remainder,
+    /// segment length) when `table_pos` is within the stroke and the segment length is at most
+    /// 2^31 counts, void otherwise.
+    ///
+    /// Why the cache is exact: while valid it holds the remainder of the last cycle's table
+    /// position within its segment (stored for the present direction: a reversal voids it), and this cycle's position is the last one plus the
+    /// counter step `delta` (an i32; [`AxisCompensator::track`]). With a segment length L ≤ 2^31,
+    /// rem + delta lies in (−2^31, L + 2^31) ⊂ (−2^31, 2^32), so its wrapping u32 value is below L
+    /// exactly when the new position is in the same segment — then it is the remainder the full
+    /// lookup computes, and the value is the same bit for bit. Everything that moves the
+    /// position otherwise, or changes the table or the direction ([`crate::State::home`],
+    /// [`crate::State::reset`], [`crate::State::on_new_image`], a reversal, a cycle without an
+    /// image, a fresh state), voids the cache.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn table_um_refill(
         &self,
         pool: &[[f32; 4]],
-        direction: Direction,
-        turn: u32,
+        st: &mut crate::State,
+        table_pos: i64,
     ) -> (f32, bool) {
-        let Some(seg_counts) = self.segment else {
-            return (0.0, false);
-        };
-        let dir = (direction == Direction::Backward) as usize;
-        if turn < self.span_counts {
-            let seg = turn / seg_counts;
-            let rem = turn - seg.wrapping_mul(seg_counts.get());
-            let t = rem as f32 * self.inv_segment;
-            let c = self.table.segment(pool, dir, seg);
-            return (c[0] + t * (c[1] + t * (c[2] + t * c[3])), false);
+        st.seg_limit = 0;
+        if let Some(seg_counts) = self.segment {
+            let diff = table_pos.wrapping_sub(self.start_counts) as u64;
+            let offset = diff as u32;
+            if (diff >> 32) == 0 && offset < self.span_counts && seg_counts.get() <= 1 << 31 {
+                let seg = offset / seg_counts;
+                let dir = (st.direction() == Direction::Backward) as usize;
+                st.seg_slot = self.table.slot(dir, seg);
+                st.seg_rem = offset - seg.wrapping_mul(seg_counts.get());
+                st.seg_limit = seg_counts.get();
+            }
         }
-        // Only after a misuse (a turn position of another turn length); the general rules.
-        cold_path();
-        self.table_um_in(pool, direction, turn as i64)
+        self.table_um_in(pool, st.direction(), table_pos)
     }
 
     /// Table value beyond the stroke (hold or taper), for direction half `dir`.

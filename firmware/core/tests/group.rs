@@ -672,3 +672,84 @@ mod counter_extension {
         }
     }
 }
+
+mod segment_cache {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+
+        /// Reference: `Group::table_um` — the full table lookup (64-bit range test, segment
+        /// division), no cache — at the extended position (linear X) and at the position within
+        /// the turn (rotary C), in the axis's direction after the cycle; tolerance: none (bit for
+        /// bit, and the same TABLE_OUTSIDE flag). The group's pipelines look the table up
+        /// through the segment cache; the steps stay within segments, cross their boundaries,
+        /// leave and re-enter the stroke, wrap the turn, jump by up to ±(2^31 − 1) counts, and
+        /// the axes are homed now and then (which voids the cache). Loose limits: the applied
+        /// correction is the table value itself.
+        #[test]
+        fn cached_lookup_equals_the_full_lookup(
+            start in -(1i64 << 40)..(1i64 << 40),
+            steps in proptest::collection::vec((0u8..8, any::<i32>()), 1..400),
+        ) {
+            let fwd: Vec<[f32; 4]> = (0..16)
+                .map(|k| [k as f32 * 0.25, 0.5, -0.125 * (k % 3) as f32, 0.0625])
+                .collect();
+            let bwd: Vec<[f32; 4]> = fwd.iter().map(|c| [c[0] + 1.5, c[1], c[2], c[3]]).collect();
+            let lin = image(&table_spec(
+                TableSpec {
+                    start_counts: -3_000,
+                    segment_counts: 1_000,
+                    forward: &fwd,
+                    backward: &bwd,
+                    outside: OutsideStroke::Taper { length_counts: 5_000 },
+                },
+                LOOSE,
+            ));
+            let mut rfwd = Vec::new();
+            let rot = rotary_table_image(64, 100.0, &mut rfwd);
+            let mut group = boxed_group();
+            group
+                .load(
+                    &[
+                        GroupAxisImage { name: AxisName::X, counts_per_rev: 0, image: &lin },
+                        GroupAxisImage { name: AxisName::C, counts_per_rev: CPR, image: &rot },
+                    ],
+                    None,
+                )
+                .unwrap();
+            let mut gst = Box::new(GroupState::new());
+            let mut input = GroupInput::ZERO;
+            let mut out = GroupOutput::ZERO;
+            let mut truth = start % 20_000;
+            for (i, (kind, s)) in steps.into_iter().enumerate() {
+                let step = match kind {
+                    0..=3 => (s % 700) as i64,   // within a segment, mostly
+                    4 | 5 => (s % 40_000) as i64, // across segments, out of the stroke
+                    6 => s as i64,                // anything an i32 holds
+                    _ => 0,
+                };
+                truth += step;
+                let raw = truth as u32;
+                if kind == 7 && s % 3 == 0 {
+                    for a in gst.axes.iter_mut().take(2) {
+                        a.home(raw, truth);
+                    }
+                }
+                input.axes[0].scale_raw = raw;
+                input.axes[1].scale_raw = raw;
+                group.cycle(&mut gst, &input, &mut out);
+                let turn = truth.rem_euclid(CPR as i64);
+                for (slot, table_pos) in [(0usize, truth), (1, turn)] {
+                    let (want, outside) =
+                        group.table_um(slot, gst.axes[slot].direction(), table_pos);
+                    let o = out.axes[slot];
+                    prop_assert_eq!(o.correction_um.to_bits(), want.to_bits(), "cycle {}, slot {}", i, slot);
+                    prop_assert_eq!(o.flags.contains(Flags::TABLE_OUTSIDE), outside);
+                }
+                prop_assert_eq!(gst.turn_position(1), Some(turn as u32));
+            }
+        }
+    }
+}
