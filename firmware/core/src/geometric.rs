@@ -360,7 +360,10 @@ pub(crate) struct GeometricStage {
 }
 
 impl GeometricStage {
-    pub(crate) const ZERO: GeometricStage = GeometricStage {
+    /// The start of [`GeometricStage::load`] (segment lengths 1, never 0: the cycle divides by
+    /// them without a zero test). A group without the stage holds `None` instead, which is all
+    /// zero bytes (this niche).
+    const ZERO: GeometricStage = GeometricStage {
         base: [0; 3],
         start: [0; 3],
         segment: [NonZeroU32::MIN; 3],

@@ -64,6 +64,9 @@ const MODE_STAGE: u8 = 3;
 /// With the rotary stage only, the slots in the order X, Y, Z, A, C, no thermo-force term
 /// (every slot index and axis kind a constant of the cycle's code).
 const MODE_STAGE_XYZAC: u8 = 4;
+/// With the geometric stage only, the group exactly X, Y, Z (linear) without a thermo-force term
+/// (the fast path [`Group::cycle_geometric_plain`]).
+const MODE_GEOMETRIC_PLAIN: u8 = 5;
 
 /// Name (and kind) of a group axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
@@ -299,26 +302,28 @@ impl GroupState {
 /// One validated group (one A/B slot of a [`GroupEngine`]): up to five axis pipelines, the
 /// cross-axis stage and the coefficient pool of `POOL` segments. All zero bytes when new.
 #[derive(Debug, Clone)]
+// In this order (not the compiler's): the pipelines, then the stages, each within the reach of
+// a load's 12-bit offset from the group's address in the cycle's code, then the pool.
+#[repr(C)]
 pub struct Group<const POOL: usize> {
-    loaded: bool,
-    n_axes: u8,
-    names: [AxisName; MAX_AXES],
+    axes: [AxisCompensator<PoolTable>; MAX_AXES],
+    /// The volumetric geometric stage, if loaded (its functions follow the tables in the pool).
+    /// `None` is all zero bytes (the niche of the stage's non-zero segment lengths), so a new
+    /// group, and a `static` engine holding it, is all zero bytes (`.bss`, nothing copied at boot).
+    geometric: Option<GeometricStage>,
+    stage: RotaryStage,
+    pool: [[f32; 4]; POOL],
     counts_per_rev: [u32; MAX_AXES],
+    names: [AxisName; MAX_AXES],
     /// Per slot: bit 0 rotary, bit 1 has a thermo-force term (the cycle's dispatch).
     kinds: [u8; MAX_AXES],
+    loaded: bool,
+    n_axes: u8,
     has_stage: bool,
     /// The cycle's dispatch, set at load: [`MODE_NONE`] (no group: all zero bytes when new),
-    /// [`MODE_PLAIN`], [`MODE_MIXED`] or [`MODE_STAGE`].
+    /// [`MODE_PLAIN`], [`MODE_MIXED`], [`MODE_STAGE`], [`MODE_STAGE_XYZAC`] or
+    /// [`MODE_GEOMETRIC_PLAIN`].
     mode: u8,
-    stage: RotaryStage,
-    /// The volumetric geometric stage is loaded (its functions follow the tables in the pool).
-    has_geometric: bool,
-    /// The group is X, Y, Z with the geometric stage only, no thermo-force term (the cycle's
-    /// fast path [`Group::cycle_geometric_plain`]).
-    geometric_plain: bool,
-    geometric: GeometricStage,
-    axes: [AxisCompensator<PoolTable>; MAX_AXES],
-    pool: [[f32; 4]; POOL],
 }
 
 impl<const POOL: usize> Default for Group<POOL> {
@@ -339,9 +344,7 @@ impl<const POOL: usize> Group<POOL> {
             has_stage: false,
             mode: MODE_NONE,
             stage: RotaryStage::ZERO,
-            has_geometric: false,
-            geometric_plain: false,
-            geometric: GeometricStage::ZERO,
+            geometric: None,
             axes: [const { AxisCompensator::identity_with(PoolTable { base: [0; 2] }) }; MAX_AXES],
             pool: [[0.0; 4]; POOL],
         }
@@ -352,8 +355,7 @@ impl<const POOL: usize> Group<POOL> {
         self.loaded = false;
         self.n_axes = 0;
         self.has_stage = false;
-        self.has_geometric = false;
-        self.geometric_plain = false;
+        self.geometric = None;
         self.mode = MODE_NONE;
         for a in self.axes.iter_mut() {
             a.clear();
@@ -438,19 +440,19 @@ impl<const POOL: usize> Group<POOL> {
             };
             let slots = [slot(0), slot(1), slot(2)];
             let upc = slots.map(|s| self.axes[s as usize].um_per_count);
-            self.geometric = GeometricStage::load(spec, upc, slots, &mut self.pool, next);
-            self.has_geometric = true;
+            self.geometric = Some(GeometricStage::load(spec, upc, slots, &mut self.pool, next));
         }
         self.loaded = true;
         let n = axes.len().min(MAX_AXES);
-        // X, Y, Z alone (the geometric stage needs all three), no thermo-force term.
-        self.geometric_plain =
-            self.has_geometric && !self.has_stage && self.kinds[..n].iter().all(|&k| k == 0);
-        self.mode = if self.has_stage || self.has_geometric {
+        let has_geometric = self.geometric.is_some();
+        self.mode = if has_geometric && !self.has_stage && self.kinds[..n].iter().all(|&k| k == 0) {
+            // X, Y, Z alone (the geometric stage needs all three), no thermo-force term.
+            MODE_GEOMETRIC_PLAIN
+        } else if self.has_stage || has_geometric {
             // The inlined X, Y, Z, A, C cycle knows each axis's kind: none has a thermo-force
             // term (kinds 0 for X, Y, Z and 1 for A, C); anything else takes the general path.
             if self.has_stage
-                && !self.has_geometric
+                && !has_geometric
                 && self.stage.slot == [0, 1, 2, 3, 4]
                 && self.kinds == [0, 0, 0, 1, 1]
             {
@@ -502,24 +504,20 @@ impl<const POOL: usize> Group<POOL> {
     }
     /// True if the volumetric geometric stage is loaded.
     pub fn has_geometric_stage(&self) -> bool {
-        self.has_geometric
+        self.geometric.is_some()
     }
     /// The geometric stage's model error e (µm, reached − commanded, the deviation the stage adds
     /// to X, Y, Z; the correction is −e) at commanded positions of X, Y, Z (counts); None without
     /// the stage.
     pub fn geometric_error_um(&self, commands_xyz: [i64; 3]) -> Option<[f32; 3]> {
-        if !self.has_geometric {
-            return None;
-        }
+        let geometric = self.geometric.as_ref()?;
         let mut by_slot = [0i64; MAX_AXES];
         for (k, c) in commands_xyz.into_iter().enumerate() {
             if let Some(s) = self.slot_of(AxisName::ALL[k]) {
                 by_slot[s] = c;
             }
         }
-        let d = self
-            .geometric
-            .deviation_by_slot(&self.pool, |i| by_slot[i.min(MAX_AXES - 1)]);
+        let d = geometric.deviation_by_slot(&self.pool, |i| by_slot[i.min(MAX_AXES - 1)]);
         let at = |k: usize| self.slot_of(AxisName::ALL[k]).map_or(0.0, |s| d[s]);
         Some([at(0), at(1), at(2)])
     }
@@ -575,13 +573,8 @@ impl<const POOL: usize> Group<POOL> {
             }
             MODE_MIXED => self.cycle_mixed(st, input, out),
             MODE_STAGE_XYZAC => self.cycle_with_stage::<true>(st, input, out),
-            MODE_STAGE => {
-                if self.geometric_plain {
-                    self.cycle_geometric_plain(st, input, out)
-                } else {
-                    self.cycle_with_stage::<false>(st, input, out)
-                }
-            }
+            MODE_STAGE => self.cycle_with_stage::<false>(st, input, out),
+            MODE_GEOMETRIC_PLAIN => self.cycle_geometric_plain(st, input, out),
             _ => self.identity_cycle(st, input, out),
         }
     }
@@ -692,10 +685,9 @@ impl<const POOL: usize> Group<POOL> {
         }
         // The deviation by slot: the geometric stage's (X, Y, Z), plus the rotary stage's (X, Y,
         // Z; A, C: none).
-        let mut by_slot = if self.has_geometric {
-            self.geometric_by_slot(input)
-        } else {
-            [0.0f32; MAX_AXES]
+        let mut by_slot = match &self.geometric {
+            Some(g) => Self::geometric_by_slot(g, &self.pool, input),
+            None => [0.0f32; MAX_AXES],
         };
         if self.has_stage {
             for (k, &dk) in d.iter().enumerate() {
@@ -723,17 +715,24 @@ impl<const POOL: usize> Group<POOL> {
         input: &GroupInput,
         out: &mut GroupOutput,
     ) {
-        // The group is exactly X, Y, Z: slots 0..3.
-        let d = self.geometric.deviation_xyz_slots(&self.pool, &input.axes);
+        // The group is exactly X, Y, Z: slots 0..3. The stage is there in this mode (set at
+        // load); the test takes the place of the dispatch's former test of a second flag.
+        let Some(g) = &self.geometric else {
+            return self.identity_cycle(st, input, out);
+        };
+        let d = g.deviation_xyz_slots(&self.pool, &input.axes);
         self.xyz_pipelines(st, input, out, d[0], d[1], d[2]);
     }
 
     /// The geometric stage's deviation by slot (out of line: the rotary stage's code beside it
     /// stays as it is without it).
     #[inline(never)]
-    fn geometric_by_slot(&self, input: &GroupInput) -> [f32; MAX_AXES] {
-        self.geometric
-            .deviation_by_slot(&self.pool, |i| input.axes[i].command_counts)
+    fn geometric_by_slot(
+        g: &GeometricStage,
+        pool: &[[f32; 4]; POOL],
+        input: &GroupInput,
+    ) -> [f32; MAX_AXES] {
+        g.deviation_by_slot(pool, |i| input.axes[i].command_counts)
     }
 
     /// Slot of the stage's axis `k` (0..5: X, Y, Z, A, C): `k` itself when the slots are in that
@@ -799,9 +798,8 @@ impl<const POOL: usize> Group<POOL> {
         if !self.loaded {
             return (e, false);
         }
-        let mut d = if self.has_geometric {
-            self.geometric
-                .deviation_by_slot(&self.pool, |i| positions_counts[i.min(MAX_AXES - 1)])
+        let mut d = if let Some(g) = &self.geometric {
+            g.deviation_by_slot(&self.pool, |i| positions_counts[i.min(MAX_AXES - 1)])
         } else {
             [0.0; MAX_AXES]
         };
