@@ -67,6 +67,8 @@ const MODE_STAGE_XYZAC: u8 = 4;
 /// With the geometric stage only, the group exactly X, Y, Z (linear) without a thermo-force term
 /// (the fast path [`Group::cycle_geometric_plain`]).
 const MODE_GEOMETRIC_PLAIN: u8 = 5;
+/// [`MODE_PLAIN`] with exactly three axes (the fast path [`Group::cycle_plain3`]).
+const MODE_PLAIN3: u8 = 6;
 
 /// Name (and kind) of a group axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
@@ -307,6 +309,10 @@ impl GroupState {
 #[repr(C)]
 pub struct Group<const POOL: usize> {
     axes: [AxisCompensator<PoolTable>; MAX_AXES],
+    /// The cycle's dispatch, set at load: [`MODE_NONE`] (no group: all zero bytes when new),
+    /// [`MODE_PLAIN`], [`MODE_PLAIN3`], [`MODE_MIXED`], [`MODE_STAGE`], [`MODE_STAGE_XYZAC`] or
+    /// [`MODE_GEOMETRIC_PLAIN`] (here: one load with an immediate offset).
+    mode: u8,
     /// The volumetric geometric stage, if loaded (its functions follow the tables in the pool).
     /// `None` is all zero bytes (the niche of the stage's non-zero segment lengths), so a new
     /// group, and a `static` engine holding it, is all zero bytes (`.bss`, nothing copied at boot).
@@ -320,10 +326,6 @@ pub struct Group<const POOL: usize> {
     loaded: bool,
     n_axes: u8,
     has_stage: bool,
-    /// The cycle's dispatch, set at load: [`MODE_NONE`] (no group: all zero bytes when new),
-    /// [`MODE_PLAIN`], [`MODE_MIXED`], [`MODE_STAGE`], [`MODE_STAGE_XYZAC`] or
-    /// [`MODE_GEOMETRIC_PLAIN`].
-    mode: u8,
 }
 
 impl<const POOL: usize> Default for Group<POOL> {
@@ -461,7 +463,11 @@ impl<const POOL: usize> Group<POOL> {
                 MODE_STAGE
             }
         } else if self.kinds[..n].iter().all(|&k| k == 0) {
-            MODE_PLAIN
+            if n == 3 {
+                MODE_PLAIN3
+            } else {
+                MODE_PLAIN
+            }
         } else {
             MODE_MIXED
         };
@@ -564,13 +570,8 @@ impl<const POOL: usize> Group<POOL> {
         match self.mode {
             // Every axis linear without a thermo-force term (the common case): each axis's
             // whole pipeline with both checks compiled out, no per-axis dispatch.
-            MODE_PLAIN => {
-                if self.n_axes == 3 {
-                    self.cycle_plain3(st, input, out)
-                } else {
-                    self.cycle_plain(st, input, out)
-                }
-            }
+            MODE_PLAIN3 => self.cycle_plain3(st, input, out),
+            MODE_PLAIN => self.cycle_plain(st, input, out),
             MODE_MIXED => self.cycle_mixed(st, input, out),
             MODE_STAGE_XYZAC => self.cycle_with_stage::<true>(st, input, out),
             MODE_STAGE => self.cycle_with_stage::<false>(st, input, out),
