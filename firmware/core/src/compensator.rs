@@ -382,7 +382,7 @@ impl<S: TableStore> AxisCompensator<S> {
             };
         }
         let (total, flags) =
-            self.axis_error_um(pool, st, (pos, delta), &input.forces_n, true, None, false);
+            self.axis_error_um(pool, st, (pos, delta), &input.forces_n, None, None, false);
         self.finish(st, pos, total, input.command_counts, flags)
     }
 
@@ -397,13 +397,15 @@ impl<S: TableStore> AxisCompensator<S> {
         st: &mut State,
         (pos, delta): (i64, i32),
         forces_n: &[f32; MAX_FORCES],
-        may_be_rotary: bool,
+        rotary_known: Option<bool>,
         thermo_known: Option<bool>,
         segment_cache: bool,
     ) -> (f32, Flags) {
-        // `may_be_rotary`, `thermo_known` and `segment_cache` are constants at each call: where
-        // the caller knows the axis is linear, or whether it has a thermo-force term, the check
-        // is compiled out.
+        // `rotary_known`, `thermo_known` and `segment_cache` are constants at each call: where
+        // the caller knows whether the axis is rotary (a group's pipelines: its kind, set at
+        // load from the same counts per revolution) or has a thermo-force term, the check is
+        // compiled out.
+        let rotary = S::TURNS && rotary_known.unwrap_or(self.counts_per_rev != 0);
         // With `segment_cache` (the group's pipelines), the table through the segment cache (see
         // [`AxisCompensator::table_um_refill`]): within the last cycle's segment, the new
         // remainder and the cached index; otherwise the full lookup, which refills the cache.
@@ -419,7 +421,7 @@ impl<S: TableStore> AxisCompensator<S> {
             (v, Flags(((st.backward as u16) << 7) | outside as u16))
         };
         let (mut total, mut flags) = if !segment_cache {
-            if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
+            if rotary {
                 let turn = self.turn_position(st, pos, delta);
                 let v = self.table_um_in(pool, st.direction(), turn as i64);
                 with_outside(st, v)
@@ -427,7 +429,7 @@ impl<S: TableStore> AxisCompensator<S> {
                 let v = self.table_um_in(pool, st.direction(), pos);
                 with_outside(st, v)
             }
-        } else if S::TURNS && may_be_rotary && self.counts_per_rev != 0 {
+        } else if rotary {
             if r < st.seg_limit {
                 // Within one segment of the turn: the turn position moved by delta, no wrap.
                 st.seg_rem = r;

@@ -463,11 +463,7 @@ impl<const POOL: usize> Group<POOL> {
                 MODE_STAGE
             }
         } else if self.kinds[..n].iter().all(|&k| k == 0) {
-            if n == 3 {
-                MODE_PLAIN3
-            } else {
-                MODE_PLAIN
-            }
+            if n == 3 { MODE_PLAIN3 } else { MODE_PLAIN }
         } else {
             MODE_MIXED
         };
@@ -862,7 +858,9 @@ impl<const POOL: usize> Group<POOL> {
 }
 
 /// One axis's whole pipeline of a loaded group (not inlined: each axis gets the register
-/// allocation of the single-axis call).
+/// allocation of the single-axis call). Without `THERMO`, `ROTARY` is the axis's kind (bit 0 of
+/// `Group::kinds`, set at load from its counts per revolution): no run-time test; with `THERMO`
+/// (the callers' catch-all for kinds 2 and 3) the counts per revolution are tested.
 #[inline(never)]
 fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     ax: &AxisCompensator<PoolTable>,
@@ -872,13 +870,15 @@ fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     out: &mut CycleOutput,
 ) {
     let tracked = ax.track(st, input.scale_raw);
-    // THERMO false: known to have none; true: checked at run time.
+    // THERMO false: known to have none, and ROTARY is the kind; true: both checked at run time.
     let thermo = if THERMO { None } else { Some(false) };
-    let (e, f) = ax.axis_error_um(pool, st, tracked, &input.forces_n, ROTARY, thermo, true);
+    let rotary = if THERMO { None } else { Some(ROTARY) };
+    let (e, f) = ax.axis_error_um(pool, st, tracked, &input.forces_n, rotary, thermo, true);
     *out = ax.finish(st, tracked.0, e, input.command_counts, f);
 }
 
-/// One axis's whole pipeline of a group with the cross-axis stage in another slot order:
+/// One axis's whole pipeline of a group with the cross-axis stage in another slot order
+/// (`ROTARY` false: called for kinds 0 and 2 only, linear):
 /// `stage_um` (the stage's deviation, linear axes only) is added to the axis's error before its
 /// limits.
 #[inline(never)]
@@ -894,7 +894,15 @@ fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     let thermo = if THERMO { None } else { Some(false) };
     // Without the segment cache: here (beside the geometric stage's registers) it measured
     // 8 instructions more per cycle than the full lookup on the group3_geometry workload.
-    let (mut e, f) = ax.axis_error_um(pool, st, tracked, &input.forces_n, ROTARY, thermo, false);
+    let (mut e, f) = ax.axis_error_um(
+        pool,
+        st,
+        tracked,
+        &input.forces_n,
+        Some(ROTARY),
+        thermo,
+        false,
+    );
     e += stage_um;
     *out = ax.finish(st, tracked.0, e, input.command_counts, f);
 }
@@ -920,7 +928,7 @@ fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool>(
         st,
         tracked,
         &input.forces_n,
-        ROTARY,
+        Some(ROTARY),
         Some(false),
         true,
     );
