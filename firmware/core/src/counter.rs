@@ -92,28 +92,30 @@ impl<S: TableStore> AxisCompensator<S> {
 }
 
 /// `in_turn + delta` modulo `cpr` (> 0), for `in_turn < cpr` and `absolute` ≡ in_turn + delta:
-/// one add and one compare when the step is below a turn, the full (slow) modulo otherwise.
+/// one add and one compare when the step stays within the turn, the full (slow) modulo for a
+/// step of a turn or more.
 ///
-/// The common case (|delta| < cpr, `in_turn` < cpr) runs on 32 bits: a delta that does not fit an
-/// i32 is ≥ 2^31 ≥ cpr in magnitude (cpr ≤ 2^31), and in_turn + delta then lies in (−cpr, 2·cpr),
-/// so one correction by ±cpr, in wrapping u32 arithmetic, gives the exact value. Anything else
-/// takes [`step_in_turn_wide`], the same rule on 64 bits.
+/// The common case runs on 32 bits. With delta an i32 d and in_turn < cpr ≤ 2^31, the sum
+/// s = in_turn + d lies in (−2^31, 2^32), and its wrapping u32 value v is below cpr exactly when
+/// s is in [0, cpr) (a negative s wraps to v ≥ 2^31 ≥ cpr): then v is the result, whatever d's
+/// size. Otherwise, for |d| < cpr, s lies in (−cpr, 2·cpr) and one correction by ±cpr, in
+/// wrapping u32 arithmetic, gives the exact value. Anything else (a delta that does not fit an
+/// i32, a step of a turn or more, `in_turn` ≥ cpr) takes [`step_in_turn_wide`], the same rule on
+/// 64 bits.
 #[inline(always)]
 pub(crate) fn step_in_turn(in_turn: u32, delta: i64, cpr: u32, absolute: i64) -> u32 {
     let d = delta as i32;
-    if d as i64 == delta && d.unsigned_abs() < cpr && in_turn < cpr {
+    if d as i64 == delta && in_turn < cpr {
         let v = in_turn.wrapping_add(d as u32);
         if v < cpr {
-            v
-        } else if d < 0 {
-            v.wrapping_add(cpr)
-        } else {
-            v - cpr
+            return v;
         }
-    } else {
-        cold_path();
-        step_in_turn_wide(in_turn, delta, cpr, absolute)
+        if d.unsigned_abs() < cpr {
+            return if d < 0 { v.wrapping_add(cpr) } else { v - cpr };
+        }
     }
+    cold_path();
+    step_in_turn_wide(in_turn, delta, cpr, absolute)
 }
 
 /// [`step_in_turn`] in 64-bit arithmetic (any `in_turn`).
