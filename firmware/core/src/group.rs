@@ -304,8 +304,9 @@ impl GroupState {
 /// One validated group (one A/B slot of a [`GroupEngine`]): up to five axis pipelines, the
 /// cross-axis stage and the coefficient pool of `POOL` segments. All zero bytes when new.
 #[derive(Debug, Clone)]
-// In this order (not the compiler's): the pipelines, then the stages, each within the reach of
-// a load's 12-bit offset from the group's address in the cycle's code, then the pool.
+// In this order (not the compiler's): the pipelines, the dispatch byte and the small fields (no
+// padding before the stages), then the stages, each within the reach of a load's 12-bit offset
+// from the group's address in the cycle's code, then the pool.
 #[repr(C)]
 pub struct Group<const POOL: usize> {
     axes: [AxisCompensator<PoolTable>; MAX_AXES],
@@ -313,19 +314,19 @@ pub struct Group<const POOL: usize> {
     /// [`MODE_PLAIN`], [`MODE_PLAIN3`], [`MODE_MIXED`], [`MODE_STAGE`], [`MODE_STAGE_XYZAC`] or
     /// [`MODE_GEOMETRIC_PLAIN`] (here: one load with an immediate offset).
     mode: u8,
+    loaded: bool,
+    n_axes: u8,
+    has_stage: bool,
+    names: [AxisName; MAX_AXES],
+    /// Per slot: bit 0 rotary, bit 1 has a thermo-force term (the cycle's dispatch).
+    kinds: [u8; MAX_AXES],
+    counts_per_rev: [u32; MAX_AXES],
     /// The volumetric geometric stage, if loaded (its functions follow the tables in the pool).
     /// `None` is all zero bytes (the niche of the stage's non-zero segment lengths), so a new
     /// group, and a `static` engine holding it, is all zero bytes (`.bss`, nothing copied at boot).
     geometric: Option<GeometricStage>,
     stage: RotaryStage,
     pool: [[f32; 4]; POOL],
-    counts_per_rev: [u32; MAX_AXES],
-    names: [AxisName; MAX_AXES],
-    /// Per slot: bit 0 rotary, bit 1 has a thermo-force term (the cycle's dispatch).
-    kinds: [u8; MAX_AXES],
-    loaded: bool,
-    n_axes: u8,
-    has_stage: bool,
 }
 
 impl<const POOL: usize> Default for Group<POOL> {
