@@ -995,3 +995,79 @@ fn fault_matrix() {
         assert_eq!(i64::from(r.corrected()[0]), c.corrected_command_counts);
     }
 }
+
+/// The run loop's cycle without a record (`cycle_status`, what the board runs) is the recorded
+/// cycle (`cycle`, what the replay and these tests run): on the same link bytes, scales and images,
+/// every cycle's status word, every reply frame (bytes), the counters and each supervisor's state
+/// are identical. Exact comparison: both run the same code.
+#[test]
+fn the_run_loops_cycle_without_a_record_is_the_recorded_cycle() {
+    let (mut e_rec, mut e_run) = (engine(), engine());
+    let (mut rec, mut run) = (
+        Rig::new(ResetCause::default()),
+        Rig::new(ResetCause::default()),
+    );
+    for (rig, e) in [(&mut rec, &mut *e_rec), (&mut run, &mut *e_run)] {
+        rig.drive.offer_image(e, &image(BASE)).unwrap();
+    }
+    let mut seq = 0u8;
+    for k in 0..400u32 {
+        let cmd = 1000 + (k as i32) * 37 - 5000 * ((k / 90) % 2) as i32;
+        let scale = (cmd as u32).wrapping_mul(3) & 0xFFFF;
+        for (rig, e) in [(&mut rec, &mut *e_rec), (&mut run, &mut *e_run)] {
+            rig.io.scales[0] = scale;
+            match k {
+                // late frames: hold, then ramp out, then back in
+                60..=90 => {}
+                // garbage before a frame, a repeated frame, a corrupt frame
+                120 => rig.io.rx.extend([0x55u8, 0x00, 0xAA]),
+                150 => {
+                    send(&mut rig.io, seq.wrapping_sub(1), &[cmd]);
+                }
+                180 => {
+                    let mut f = frame(seq, &[cmd]);
+                    f[3] ^= 0x10;
+                    rig.io.rx.extend(f);
+                }
+                // a refused image (32-bit counters on the 16-bit board), then the same one again
+                200 => {
+                    let bad = image(ImageArgs {
+                        counter_bits: 32,
+                        ..BASE
+                    });
+                    assert!(rig.drive.offer_image(e, &bad).is_err());
+                }
+                _ => send(&mut rig.io, seq, &[cmd]),
+            }
+            if k == 300 {
+                rig.io.tx_full = true;
+            }
+        }
+        if !(60..=90).contains(&k) && k != 150 && k != 120 {
+            seq = seq.wrapping_add(1);
+        }
+        let a = rec
+            .drive
+            .cycle(&mut e_rec, &mut rec.io, &rec.clock, &mut NoWatchdog);
+        let b = run
+            .drive
+            .cycle_status(&mut e_run, &mut run.io, &run.clock, &mut NoWatchdog);
+        assert_eq!(a.status, b, "cycle {k}: status word");
+        assert_eq!(rec.drive.status(), run.drive.status(), "cycle {k}");
+        assert_eq!(rec.io.tx, run.io.tx, "cycle {k}: reply frames");
+        assert_eq!(rec.drive.counters(), run.drive.counters(), "cycle {k}");
+        let (sa, sb) = (
+            rec.drive.supervisor(0).unwrap(),
+            run.drive.supervisor(0).unwrap(),
+        );
+        assert_eq!(
+            format!("{sa:?}"),
+            format!("{sb:?}"),
+            "cycle {k}: supervisor"
+        );
+    }
+    // The sequence went through every link phase and both fault kinds.
+    let c = rec.drive.counters();
+    assert!(c.cycles_without_frame >= 31 && c.link.corrupt >= 1 && c.link.repeated >= 1);
+    assert!(c.images_refused == 1 && c.replies_dropped > 0);
+}
