@@ -446,7 +446,7 @@ impl GroupDrive {
     /// command, applied correction and corrected command to `results`; returns the status word and
     /// the probe flags.
     #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
+    #[inline(never)]
     fn cycle_in<
         const POOL: usize,
         Io: DriveIo,
