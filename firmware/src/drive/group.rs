@@ -394,7 +394,7 @@ impl GroupDrive {
             applied,
         };
         let (status, probe) =
-            self.cycle_in(engine, io, probe_io, clock, watchdog, out, &mut record);
+            self.cycle_recorded(engine, io, probe_io, clock, watchdog, out, &mut record);
         r.status = status;
         r.probe = probe;
         r
@@ -442,11 +442,28 @@ impl GroupDrive {
         .0
     }
 
+    /// [`GroupDrive::cycle_in`] into a record, not inlined into its caller (the replay loop):
+    /// one copy of the cycle, less code flash; the record is still written in place.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    fn cycle_recorded<const POOL: usize, Io: DriveIo, P: ProbeIo, C: CycleClock, W: Watchdog>(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        probe_io: &mut P,
+        clock: &C,
+        watchdog: &mut W,
+        out: &mut GroupOutput,
+        record: &mut Record<'_>,
+    ) -> (Status, axcomp_core::probe::ProbeFlags) {
+        self.cycle_in(engine, io, probe_io, clock, watchdog, out, record)
+    }
+
     /// The cycle itself (see [`GroupDrive::cycle`]): the engine's outputs go to `out`, each axis's
     /// command, applied correction and corrected command to `results`; returns the status word and
     /// the probe flags.
     #[allow(clippy::too_many_arguments)]
-    #[inline(never)]
+    #[inline(always)]
     fn cycle_in<
         const POOL: usize,
         Io: DriveIo,
