@@ -141,8 +141,8 @@ impl AxisResults for Discard {
 }
 
 /// Board inputs a frame of this group addresses: the largest input used + 1 (1 without axes).
-fn inputs_addressed(inputs: &[u8]) -> usize {
-    usize::from(inputs.iter().fold(0, |m: u8, &i| m.max(i))) + 1
+fn inputs_addressed(inputs: &[u8]) -> u8 {
+    inputs.iter().fold(0, |m: u8, &i| m.max(i)) + 1
 }
 
 /// The drive of a group: link decoding, one supervisor per axis, the group engine's cycle, the merged
@@ -150,9 +150,10 @@ fn inputs_addressed(inputs: &[u8]) -> usize {
 pub struct GroupDrive {
     caps: BoardCaps,
     inputs: [u8; MAX_AXES],
+    /// Board inputs a setpoint frame must carry and the reply carries (set with the group; a
+    /// byte next to `inputs`: no static RAM added).
+    n_inputs: u8,
     n_axes: usize,
-    /// Board inputs a setpoint frame must carry and the reply carries (set with the group).
-    n_inputs: usize,
     sensor_inputs: Option<&'static [BoardInput<'static>]>,
     wiring: [SensorWiring; MAX_AXES],
     decoder: SetpointDecoder,
@@ -373,7 +374,7 @@ impl GroupDrive {
         // outputs into it and the per-axis results go straight into its arrays, no copy on return.
         let mut r = GroupDriveCycle {
             n_axes: self.n_axes,
-            n_inputs: self.n_inputs,
+            n_inputs: usize::from(self.n_inputs),
             command_counts: [0; MAX_AXES],
             corrected_command_counts: [0; MAX_AXES],
             applied: [APPLIED_ZERO; MAX_AXES],
@@ -486,7 +487,7 @@ impl GroupDrive {
         self.counters.cycles = self.counters.cycles.wrapping_add(1);
         let n = self.n_axes.min(MAX_AXES);
         // Set with the group (`offer_image`): the largest board input of the group + 1.
-        let n_inputs = self.n_inputs;
+        let n_inputs = usize::from(self.n_inputs);
 
         // ---- link: every byte received since the last cycle; the newest fresh frame wins ----
         let mut fresh = None;
