@@ -528,15 +528,21 @@ impl GroupDrive {
 
         // ---- the engine: one cycle for every axis ----
         let forces = io.read_forces();
-        let mut input = GroupInput::ZERO;
+        // Every slot gets the forces (read only by the group's axes with a force term; the identity
+        // and the slots beyond the group never read them): a pattern of stores, no 160-byte clear.
+        let mut input = GroupInput {
+            axes: [CycleInput {
+                scale_raw: 0,
+                command_counts: 0,
+                forces_n: forces,
+            }; MAX_AXES],
+        };
         for i in 0..n {
             let board_input = usize::from(self.inputs[i]);
-            let cmd = self.links[i].begin(commands.and_then(|c| c.get(board_input).copied()));
-            input.axes[i] = CycleInput {
-                scale_raw: io.read_scale(board_input),
-                command_counts: cmd,
-                forces_n: forces,
-            };
+            let a = &mut input.axes[i];
+            a.command_counts =
+                self.links[i].begin(commands.and_then(|c| c.get(board_input).copied()));
+            a.scale_raw = io.read_scale(board_input);
         }
         engine.cycle(&input, out);
         // Without probe settings (the common case) nothing of the probe runs.
