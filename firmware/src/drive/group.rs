@@ -26,7 +26,7 @@
 
 use axcomp_core::group::{GroupEngine, GroupInput, GroupOutput, MAX_AXES};
 use axcomp_core::wiring::{self, BoardInput, SensorWiring};
-use axcomp_core::{CycleInput, Flags, MAX_SENSORS, group_image, inspect_image};
+use axcomp_core::{CycleInput, CycleOutput, Flags, MAX_SENSORS, group_image, inspect_image};
 
 use super::probe::{NoProbe, ProbeDrive, ProbeIo};
 use super::{
@@ -430,7 +430,17 @@ impl GroupDrive {
         clock: &C,
         watchdog: &mut W,
     ) -> Status {
-        let mut out = GroupOutput::ZERO;
+        // Slots the engine does not write (beyond the group) read as identity outputs; only the
+        // group's are read. (Not all zero: a pattern of stores, no 160-byte clear.)
+        let mut out = GroupOutput {
+            axes: [CycleOutput {
+                position_counts: 0,
+                corrected_command_counts: 0,
+                correction_counts: 0,
+                correction_um: 0.0,
+                flags: Flags::IDENTITY,
+            }; MAX_AXES],
+        };
         self.cycle_in(
             engine,
             io,
