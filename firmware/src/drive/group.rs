@@ -23,6 +23,10 @@
 //!   reads the board's [`ProbeIo`] after the engine's cycle, latches the corrected point, sets the
 //!   `PROBE_*` status flags and answers with v3 reply frames; [`GroupDrive::cycle`] is the same with
 //!   no probe input.
+//! - **Cycle record**: [`GroupDrive::cycle`] returns the cycle's per-axis record
+//!   ([`GroupDriveCycle`], the replay's and the tests' path); the run loop ([`GroupDrive::run`],
+//!   the board) runs the same cycle without it ([`GroupDrive::cycle_status`]: the status word
+//!   only, no 5-slot record initialised and written each cycle).
 
 use axcomp_core::group::{GroupEngine, GroupInput, GroupOutput, MAX_AXES};
 use axcomp_core::wiring::{self, BoardInput, SensorWiring};
@@ -538,8 +542,8 @@ impl GroupDrive {
 
         // ---- the engine: one cycle for every axis ----
         let forces = io.read_forces();
-        // Every slot gets the forces (read only by the group's axes with a force term; the identity
-        // and the slots beyond the group never read them): a pattern of stores, no 160-byte clear.
+        // Every slot initialised once with the forces (read only by the group's axes with a force
+        // term; the identity and the slots beyond the group never read them): no per-axis copy.
         let mut input = GroupInput {
             axes: [CycleInput {
                 scale_raw: 0,
