@@ -23,10 +23,14 @@
 //!   reads the board's [`ProbeIo`] after the engine's cycle, latches the corrected point, sets the
 //!   `PROBE_*` status flags and answers with v3 reply frames; [`GroupDrive::cycle`] is the same with
 //!   no probe input.
+//! - **Cycle record**: [`GroupDrive::cycle`] returns the cycle's per-axis record
+//!   ([`GroupDriveCycle`], the replay's and the tests' path); the run loop ([`GroupDrive::run`],
+//!   the board) runs the same cycle without it ([`GroupDrive::cycle_status`]: the status word
+//!   only, no 5-slot record initialised and written each cycle).
 
 use axcomp_core::group::{GroupEngine, GroupInput, GroupOutput, MAX_AXES};
 use axcomp_core::wiring::{self, BoardInput, SensorWiring};
-use axcomp_core::{Flags, MAX_SENSORS, group_image, inspect_image};
+use axcomp_core::{CycleInput, CycleOutput, Flags, MAX_SENSORS, group_image, inspect_image};
 
 use super::probe::{NoProbe, ProbeDrive, ProbeIo};
 use super::{
@@ -111,11 +115,48 @@ const APPLIED_ZERO: Applied = Applied {
     phase: LinkPhase::Following,
 };
 
+/// Where a cycle puts each axis's command, applied correction and corrected command.
+trait AxisResults {
+    fn axis(&mut self, i: usize, command: i64, applied: Applied, corrected: i64);
+}
+
+/// Into the cycle's record ([`GroupDrive::cycle`]).
+struct Record<'a> {
+    command_counts: &'a mut [i64; MAX_AXES],
+    corrected_command_counts: &'a mut [i64; MAX_AXES],
+    applied: &'a mut [Applied; MAX_AXES],
+}
+
+impl AxisResults for Record<'_> {
+    #[inline(always)]
+    fn axis(&mut self, i: usize, command: i64, applied: Applied, corrected: i64) {
+        self.command_counts[i] = command;
+        self.corrected_command_counts[i] = corrected;
+        self.applied[i] = applied;
+    }
+}
+
+/// Nowhere: the status word is all the caller keeps ([`GroupDrive::cycle_status`], the run loop).
+struct Discard;
+
+impl AxisResults for Discard {
+    #[inline(always)]
+    fn axis(&mut self, _: usize, _: i64, _: Applied, _: i64) {}
+}
+
+/// Board inputs a frame of this group addresses: the largest input used + 1 (1 without axes).
+fn inputs_addressed(inputs: &[u8]) -> u8 {
+    inputs.iter().fold(0, |m: u8, &i| m.max(i)) + 1
+}
+
 /// The drive of a group: link decoding, one supervisor per axis, the group engine's cycle, the merged
 /// status word and the reply frame.
 pub struct GroupDrive {
     caps: BoardCaps,
     inputs: [u8; MAX_AXES],
+    /// Board inputs a setpoint frame must carry and the reply carries (set with the group; a
+    /// byte next to `inputs`: no static RAM added).
+    n_inputs: u8,
     n_axes: usize,
     sensor_inputs: Option<&'static [BoardInput<'static>]>,
     wiring: [SensorWiring; MAX_AXES],
@@ -147,6 +188,7 @@ impl GroupDrive {
             caps,
             inputs,
             n_axes,
+            n_inputs: inputs_addressed(&inputs[..n_axes]),
             sensor_inputs: None,
             wiring: [wiring::POSITIONAL; MAX_AXES],
             decoder: SetpointDecoder::new(),
@@ -268,6 +310,7 @@ impl GroupDrive {
                 }
                 self.inputs = inputs;
                 self.n_axes = n;
+                self.n_inputs = inputs_addressed(&inputs[..n]);
                 self.latched.set(Status::IMAGE_REFUSED, false);
                 self.probe
                     .configure(group_image::parse(image).ok().and_then(|v| v.probe));
@@ -331,15 +374,134 @@ impl GroupDrive {
         clock: &C,
         watchdog: &mut W,
     ) -> GroupDriveCycle {
+        // The cycle's record is built in place (the caller's return slot): the engine writes its
+        // outputs into it and the per-axis results go straight into its arrays, no copy on return.
+        let mut r = GroupDriveCycle {
+            n_axes: self.n_axes,
+            n_inputs: usize::from(self.n_inputs),
+            command_counts: [0; MAX_AXES],
+            corrected_command_counts: [0; MAX_AXES],
+            applied: [APPLIED_ZERO; MAX_AXES],
+            status: Status::NONE,
+            engine: GroupOutput::ZERO,
+            probe: axcomp_core::probe::ProbeFlags::NONE,
+        };
+        let GroupDriveCycle {
+            command_counts,
+            corrected_command_counts,
+            applied,
+            engine: out,
+            ..
+        } = &mut r;
+        let mut record = Record {
+            command_counts,
+            corrected_command_counts,
+            applied,
+        };
+        let (status, probe) =
+            self.cycle_recorded(engine, io, probe_io, clock, watchdog, out, &mut record);
+        r.status = status;
+        r.probe = probe;
+        r
+    }
+
+    /// [`GroupDrive::cycle`] without the cycle's record: the same cycle (frames, supervisors,
+    /// engine, status word, reply frame, watchdog), only the status word is returned and no
+    /// per-axis record is built. What [`GroupDrive::run`] runs.
+    pub fn cycle_status<const POOL: usize, Io: DriveIo, C: CycleClock, W: Watchdog>(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        clock: &C,
+        watchdog: &mut W,
+    ) -> Status {
+        self.cycle_status_with_probe(engine, io, &mut NoProbe, clock, watchdog)
+    }
+
+    /// [`GroupDrive::cycle_with_probe`] without the cycle's record (see
+    /// [`GroupDrive::cycle_status`]). What [`GroupDrive::run_with_probe`] runs.
+    pub fn cycle_status_with_probe<
+        const POOL: usize,
+        Io: DriveIo,
+        P: ProbeIo,
+        C: CycleClock,
+        W: Watchdog,
+    >(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        probe_io: &mut P,
+        clock: &C,
+        watchdog: &mut W,
+    ) -> Status {
+        // Slots the engine does not write (beyond the group) read as identity outputs; only the
+        // group's are read. (Not all zero: a pattern of stores, no 160-byte clear.)
+        let mut out = GroupOutput {
+            axes: [CycleOutput {
+                position_counts: 0,
+                corrected_command_counts: 0,
+                correction_counts: 0,
+                correction_um: 0.0,
+                flags: Flags::IDENTITY,
+            }; MAX_AXES],
+        };
+        self.cycle_in(
+            engine,
+            io,
+            probe_io,
+            clock,
+            watchdog,
+            &mut out,
+            &mut Discard,
+        )
+        .0
+    }
+
+    /// [`GroupDrive::cycle_in`] into a record, not inlined into its caller (the replay loop):
+    /// one copy of the cycle, less code flash; the record is still written in place.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    fn cycle_recorded<const POOL: usize, Io: DriveIo, P: ProbeIo, C: CycleClock, W: Watchdog>(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        probe_io: &mut P,
+        clock: &C,
+        watchdog: &mut W,
+        out: &mut GroupOutput,
+        record: &mut Record<'_>,
+    ) -> (Status, axcomp_core::probe::ProbeFlags) {
+        self.cycle_in(engine, io, probe_io, clock, watchdog, out, record)
+    }
+
+    /// The cycle itself (see [`GroupDrive::cycle`]): the engine's outputs go to `out`, each axis's
+    /// command, applied correction and corrected command to `results`; returns the status word and
+    /// the probe flags.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn cycle_in<
+        const POOL: usize,
+        Io: DriveIo,
+        P: ProbeIo,
+        C: CycleClock,
+        W: Watchdog,
+        R: AxisResults,
+    >(
+        &mut self,
+        engine: &mut GroupEngine<POOL>,
+        io: &mut Io,
+        probe_io: &mut P,
+        clock: &C,
+        watchdog: &mut W,
+        out: &mut GroupOutput,
+        results: &mut R,
+    ) -> (Status, axcomp_core::probe::ProbeFlags) {
         let start_tick = clock.now();
         let (_, late_start) = self.meter.start(start_tick);
         self.counters.cycles = self.counters.cycles.wrapping_add(1);
-        let n = self.n_axes;
-        let n_inputs = self.inputs[..n]
-            .iter()
-            .map(|&i| usize::from(i) + 1)
-            .max()
-            .unwrap_or(1);
+        let n = self.n_axes.min(MAX_AXES);
+        // Set with the group (`offer_image`): the largest board input of the group + 1.
+        let n_inputs = usize::from(self.n_inputs);
 
         // ---- link: every byte received since the last cycle; the newest fresh frame wins ----
         let mut fresh = None;
@@ -355,17 +517,14 @@ impl GroupDrive {
         }
         let events = self.decoder.take_events();
         let mut status = self.latched;
-        let mut commands: Option<[i32; MAX_AXES]> = None;
-        if let Some(f) = fresh {
+        // The fresh frame's commands by board input (every input of the group present).
+        let mut commands: Option<&[i32]> = None;
+        if let Some(f) = &fresh {
             self.last_seq = f.seq;
-            self.probe.take_frame(&f);
+            self.probe.take_frame(f);
             let c = f.commands();
             if c.len() >= n_inputs {
-                let mut own = [0i32; MAX_AXES];
-                for (o, &input) in own.iter_mut().zip(self.inputs[..n].iter()) {
-                    *o = c[usize::from(input)];
-                }
-                commands = Some(own);
+                commands = Some(c);
             } else {
                 self.counters.short_frames = self.counters.short_frames.wrapping_add(1);
                 status.insert(Status::FRAME_CORRUPT);
@@ -383,32 +542,21 @@ impl GroupDrive {
 
         // ---- the engine: one cycle for every axis ----
         let forces = io.read_forces();
-        let mut input = GroupInput::ZERO;
-        // The cycle's record is built in place (the caller's return slot): no copy of the engine's
-        // outputs and the per-axis arrays on return.
-        let mut r = GroupDriveCycle {
-            n_axes: n,
-            n_inputs,
-            command_counts: [0; MAX_AXES],
-            corrected_command_counts: [0; MAX_AXES],
-            applied: [APPLIED_ZERO; MAX_AXES],
-            status,
-            engine: GroupOutput::ZERO,
-            probe: axcomp_core::probe::ProbeFlags::NONE,
+        // Every slot initialised once with the forces (read only by the group's axes with a force
+        // term; the identity and the slots beyond the group never read them): no per-axis copy.
+        let mut input = GroupInput {
+            axes: [CycleInput {
+                scale_raw: 0,
+                command_counts: 0,
+                forces_n: forces,
+            }; MAX_AXES],
         };
-        let GroupDriveCycle {
-            command_counts,
-            corrected_command_counts: corrected,
-            applied,
-            engine: out,
-            ..
-        } = &mut r;
         for i in 0..n {
-            let cmd = self.links[i].begin(commands.map(|c| c[i]));
-            command_counts[i] = cmd;
-            input.axes[i].command_counts = cmd;
-            input.axes[i].scale_raw = io.read_scale(usize::from(self.inputs[i]));
-            input.axes[i].forces_n = forces;
+            let board_input = usize::from(self.inputs[i]);
+            let a = &mut input.axes[i];
+            a.command_counts =
+                self.links[i].begin(commands.and_then(|c| c.get(board_input).copied()));
+            a.scale_raw = io.read_scale(board_input);
         }
         engine.cycle(&input, out);
         // Without probe settings (the common case) nothing of the probe runs.
@@ -420,9 +568,10 @@ impl GroupDrive {
             axcomp_core::probe::ProbeFlags::NONE
         };
 
-        // ---- supervisors, status word ----
+        // ---- supervisors, status word, the reply's corrected commands by board input ----
         let group = engine.active();
         let mut flags = Flags::NONE;
+        let mut reply = [0i32; MAX_AXES];
         for i in 0..n {
             let o = &out.axes[i];
             let um_per_count = group.axis(i).map_or(0.0, |a| a.um_per_count());
@@ -432,8 +581,10 @@ impl GroupDrive {
                 LinkPhase::Holding => status.insert(Status::LINK_HOLD),
                 LinkPhase::RampingOut | LinkPhase::RampingIn => status.insert(Status::LINK_RAMP),
             }
-            applied[i] = a;
-            corrected[i] = command_counts[i].saturating_sub(i64::from(a.correction_counts));
+            let cmd = input.axes[i].command_counts;
+            let corrected = cmd.saturating_sub(i64::from(a.correction_counts));
+            reply[usize::from(self.inputs[i])] = corrected as i32;
+            results.axis(i, cmd, a, corrected);
             flags.insert(o.flags);
             if o.flags.contains(Flags::SENSOR_FAULT) {
                 let st = &engine.state().axes[i];
@@ -459,10 +610,6 @@ impl GroupDrive {
         self.last_status = status;
 
         // ---- reply frame: corrected commands by board input, status, one counter ----
-        let mut reply = [0i32; MAX_AXES];
-        for (i, &input) in self.inputs[..n].iter().enumerate() {
-            reply[usize::from(input)] = corrected[i] as i32;
-        }
         let (id, value) = self.next_counter_value(engine);
         let probe_block =
             probe_on.then(|| self.probe.reply(probe_flags, &self.inputs[..n], n_inputs));
@@ -489,9 +636,7 @@ impl GroupDrive {
 
         watchdog.feed();
         self.prev_overrun = self.meter.finish(clock.now());
-        r.status = status;
-        r.probe = probe_flags;
-        r
+        (status, probe_flags)
     }
 
     fn next_counter_value<const POOL: usize>(
@@ -552,7 +697,7 @@ impl GroupDrive {
         loop {
             timer.next_cycle().await;
             between(engine, self);
-            self.cycle_with_probe(engine, io, probe, clock, watchdog);
+            self.cycle_status_with_probe(engine, io, probe, clock, watchdog);
         }
     }
 
@@ -577,7 +722,7 @@ impl GroupDrive {
         loop {
             timer.next_cycle().await;
             between(engine, self);
-            self.cycle(engine, io, clock, watchdog);
+            self.cycle_status(engine, io, clock, watchdog);
         }
     }
 }

@@ -995,3 +995,175 @@ fn fault_matrix() {
         assert_eq!(i64::from(r.corrected()[0]), c.corrected_command_counts);
     }
 }
+
+/// The run loop's cycle without a record (`cycle_status`, what the board runs) is the recorded
+/// cycle (`cycle`, what the replay and these tests run): on the same link bytes, scales and images,
+/// every cycle's status word, every reply frame (bytes), the counters and each supervisor's state
+/// are identical. Exact comparison: both run the same code.
+#[test]
+fn the_run_loops_cycle_without_a_record_is_the_recorded_cycle() {
+    let (mut e_rec, mut e_run) = (engine(), engine());
+    let (mut rec, mut run) = (
+        Rig::new(ResetCause::default()),
+        Rig::new(ResetCause::default()),
+    );
+    for (rig, e) in [(&mut rec, &mut *e_rec), (&mut run, &mut *e_run)] {
+        rig.drive.offer_image(e, &image(BASE)).unwrap();
+    }
+    let mut seq = 0u8;
+    for k in 0..400u32 {
+        let cmd = 1000 + (k as i32) * 37 - 5000 * ((k / 90) % 2) as i32;
+        let scale = (cmd as u32).wrapping_mul(3) & 0xFFFF;
+        for (rig, e) in [(&mut rec, &mut *e_rec), (&mut run, &mut *e_run)] {
+            rig.io.scales[0] = scale;
+            match k {
+                // late frames: hold, then ramp out, then back in
+                60..=90 => {}
+                // garbage before a frame, a repeated frame, a corrupt frame
+                120 => rig.io.rx.extend([0x55u8, 0x00, 0xAA]),
+                150 => {
+                    send(&mut rig.io, seq.wrapping_sub(1), &[cmd]);
+                }
+                180 => {
+                    let mut f = frame(seq, &[cmd]);
+                    f[3] ^= 0x10;
+                    rig.io.rx.extend(f);
+                }
+                // a refused image (32-bit counters on the 16-bit board), then the same one again
+                200 => {
+                    let bad = image(ImageArgs {
+                        counter_bits: 32,
+                        ..BASE
+                    });
+                    assert!(rig.drive.offer_image(e, &bad).is_err());
+                }
+                _ => send(&mut rig.io, seq, &[cmd]),
+            }
+            if k == 300 {
+                rig.io.tx_full = true;
+            }
+        }
+        if !(60..=90).contains(&k) && k != 150 && k != 120 {
+            seq = seq.wrapping_add(1);
+        }
+        let a = rec
+            .drive
+            .cycle(&mut e_rec, &mut rec.io, &rec.clock, &mut NoWatchdog);
+        let b = run
+            .drive
+            .cycle_status(&mut e_run, &mut run.io, &run.clock, &mut NoWatchdog);
+        assert_eq!(a.status, b, "cycle {k}: status word");
+        assert_eq!(rec.drive.status(), run.drive.status(), "cycle {k}");
+        assert_eq!(rec.io.tx, run.io.tx, "cycle {k}: reply frames");
+        assert_eq!(rec.drive.counters(), run.drive.counters(), "cycle {k}");
+        let (sa, sb) = (
+            rec.drive.supervisor(0).unwrap(),
+            run.drive.supervisor(0).unwrap(),
+        );
+        assert_eq!(
+            format!("{sa:?}"),
+            format!("{sb:?}"),
+            "cycle {k}: supervisor"
+        );
+    }
+    // The sequence went through every link phase and both fault kinds.
+    let c = rec.drive.counters();
+    assert!(c.cycles_without_frame >= 31 && c.link.corrupt >= 1 && c.link.repeated >= 1);
+    assert!(c.images_refused == 1 && c.replies_dropped > 0);
+}
+
+/// The same for the `group3` workload (three linear axes with bidirectional tables and clamps) on a
+/// board whose inputs are in another order than the group's slots (Z, X, Y), with late and corrupt
+/// frames: the run loop's cycle and the recorded cycle answer with the same bytes.
+#[test]
+fn the_run_loops_cycle_without_a_record_is_the_recorded_cycle_for_three_axes() {
+    use axcomp_core::group_image::{AxisSectionSpec, write_group_image};
+    type Eng3 = GroupEngine<2048>;
+    const CAPS3: BoardCaps = BoardCaps {
+        counter_bits: 32,
+        axis_ids: &[3, 1, 2],
+        sensors: 0,
+    };
+    let mut axis_buf = vec![0u8; 24 * 1024];
+    let (axes, n) = axcomp_core::bench::write_group_images(3, &mut axis_buf).unwrap();
+    let specs: Vec<AxisSectionSpec> = axes[..n]
+        .iter()
+        .map(|a| AxisSectionSpec {
+            name: a.name,
+            counts_per_rev: a.counts_per_rev,
+            stroke_counts: None,
+            image: a.image,
+            sensor_names: &[],
+        })
+        .collect();
+    let mut group = vec![0u8; 12 * 1024];
+    let len = write_group_image(&specs, None, &mut group).unwrap();
+    let mut engines: [Box<Eng3>; 2] = [Box::new(GroupEngine::new()), Box::new(GroupEngine::new())];
+    let mut rigs = [0, 1].map(|_| Rig {
+        drive: GroupDrive::new(CAPS3, &config(), LINK, ResetCause::default()),
+        io: FakeDriveIo::default(),
+        clock: SteppingClock::default(),
+    });
+    for (rig, e) in rigs.iter_mut().zip(engines.iter_mut()) {
+        rig.drive.offer_image(e, &group[..len]).unwrap();
+        assert_eq!(rig.drive.inputs(), &[1, 2, 0]);
+    }
+    let mut seq = 0u8;
+    let mut corrected_cycles = 0;
+    for k in 0..600u32 {
+        let g = axcomp_core::bench::group_input(k * 7);
+        let by_input = [2, 0, 1];
+        let cmds = by_input.map(|slot| g.axes[slot].command_counts as i32);
+        for rig in rigs.iter_mut() {
+            for (input, &slot) in by_input.iter().enumerate() {
+                rig.io.scales[input] = g.axes[slot].scale_raw;
+            }
+            match k {
+                100..=180 => {}
+                300 => {
+                    let mut f = frame(seq, &cmds);
+                    f[4] ^= 0x01;
+                    rig.io.rx.extend(f);
+                }
+                // a frame short of one of the group's inputs
+                400 => send(&mut rig.io, seq, &cmds[..2]),
+                _ => send(&mut rig.io, seq, &cmds),
+            }
+        }
+        if !(100..=180).contains(&k) {
+            seq = seq.wrapping_add(1);
+        }
+        let [rec, run] = &mut rigs;
+        let [e_rec, e_run] = &mut engines;
+        let a = rec
+            .drive
+            .cycle(e_rec, &mut rec.io, &rec.clock, &mut NoWatchdog);
+        let b = run
+            .drive
+            .cycle_status(e_run, &mut run.io, &run.clock, &mut NoWatchdog);
+        assert_eq!(a.status, b, "cycle {k}: status word");
+        assert_eq!(rec.io.tx, run.io.tx, "cycle {k}: reply frames");
+        assert_eq!(rec.drive.counters(), run.drive.counters(), "cycle {k}");
+        if a.applied[..3].iter().all(|x| x.correction_counts != 0) {
+            corrected_cycles += 1;
+        }
+        for i in 0..3 {
+            let (sa, sb) = (
+                rec.drive.supervisor(i).unwrap(),
+                run.drive.supervisor(i).unwrap(),
+            );
+            assert_eq!(
+                format!("{sa:?}"),
+                format!("{sb:?}"),
+                "cycle {k}: supervisor {i}"
+            );
+        }
+    }
+    let c = rigs[0].drive.counters();
+    assert!(c.cycles_without_frame >= 81 && c.link.corrupt >= 1 && c.short_frames == 1);
+    // The tables and clamps ran: every axis corrected in most cycles.
+    assert!(
+        corrected_cycles > 300,
+        "{corrected_cycles} cycles with every axis corrected"
+    );
+}
