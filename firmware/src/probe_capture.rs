@@ -162,7 +162,8 @@ impl CaptureQueue {
     }
 
     /// The level after the last edge handed to the drive (edges still queued have not happened for
-    /// it), or the pin's after a loss.
+    /// it), or the pin's after a loss. (Not the field `level`, the level after the last queued edge.)
+    #[allow(clippy::misnamed_getters)]
     pub fn level(&self) -> bool {
         self.level_out
     }

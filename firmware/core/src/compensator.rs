@@ -389,7 +389,9 @@ impl<S: TableStore> AxisCompensator<S> {
     /// Table (at the extended position, or a rotary axis's position within the turn) +
     /// thermo-force term (at the extended position `pos`), µm before the limits, and
     /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags). `(pos, delta)` is what
-    /// [`AxisCompensator::track`] returned this cycle.
+    /// [`AxisCompensator::track`] returned this cycle. (Eight arguments: the hot path takes its
+    /// compile-time choices as plain arguments that inlining folds away, not as a struct.)
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub(crate) fn axis_error_um(
         &self,

@@ -248,7 +248,7 @@ pub fn header_extension(image: &[u8]) -> &[u8] {
 
 /// The body of the block tagged `tag` in a header extension (`None` when absent); the whole chain's
 /// framing is checked ([`ImageError::Provenance`] when it does not fill the extension exactly).
-pub fn find_block<'a>(extension: &'a [u8], tag: [u8; 4]) -> Result<Option<&'a [u8]>, ImageError> {
+pub fn find_block(extension: &[u8], tag: [u8; 4]) -> Result<Option<&[u8]>, ImageError> {
     let mut at = 0;
     let mut found = None;
     while at < extension.len() {

@@ -39,7 +39,7 @@
 //! e = R_T [(I − R_C) o_C] + (I − R_T) o_T + ω × q, ω = R_T (ε_C − R_C ε_C) + (ε_T − R_T ε_T),
 //! the displacement of the workpiece point meant to be at q; for the head (tool vector
 //! v = (0, 0, −L) from the pivot): δ = (I − R_C) o_C + (ε_C − R_C ε_C) × (R_C R_B v)
-//! + R_C [(I − R_B) o_T + (ε_T − R_B ε_T) × (R_B v)], the displacement of the tool tip. With the
+//! \+ R_C [(I − R_B) o_T + (ε_T − R_B ε_T) × (R_B v)], the displacement of the tool tip. With the
 //! squareness displacement s(q) = (−EC0Y·q_y + EB0Z·q_z, −EA0Z·q_z, 0) of the tool tip:
 //!
 //! deviation = s(q) − e (trunnion), s(q) + δ (head) — in both cases an affine map k + M q whose
