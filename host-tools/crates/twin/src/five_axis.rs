@@ -198,7 +198,7 @@ impl FiveAxisTwin {
     /// The same machine with the R-test head's zero off by 2–20 µm per axis and set-up (an uncalibrated tool
     /// length / radial offset, or readings zeroed at the first pose).
     pub fn unknown_head_zero(mut self, seed: u64) -> FiveAxisTwin {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0068_6561_64);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x6865_6164);
         for v in self.setup_offsets_um.iter_mut() {
             for x in v[3..].iter_mut() {
                 *x = signed(&mut rng, 2.0, 20.0);
