@@ -389,15 +389,7 @@ fn probe_route_with_effects_beyond_the_model_does_no_harm() {
     for seed in 1..=20u64 {
         let mut twin = FiveAxisTwin::random(FiveAxis::new(MachineKind::AcTrunnion, 0.0), seed);
         twin.location = [0.0; N_LOCATION];
-        twin.effects = FiveAxisEffects {
-            rotary_positioning: true,
-            rotary_wobble: true,
-            radial_runout: true,
-            linear_geometry: true,
-            thermal_drift: true,
-            setup_drift: true,
-            time_drift: false,
-        };
+        twin.effects = FiveAxisEffects::all_but_time_drift();
         std::fs::write(dir.join("touches.csv"), campaign(&twin, seed, true)).unwrap();
         fit_probe_centres(&dir);
         let centres = std::fs::read_to_string(dir.join("centres.csv")).unwrap();
@@ -421,13 +413,7 @@ fn probe_route_with_effects_beyond_the_model_does_no_harm() {
             &dir,
         );
         let j = read_json(&dir.join("fit.json"));
-        let c = &j["comparison"];
-        let (model, full, nominal, setup) = (
-            c["model_rms_um"].as_f64().unwrap(),
-            c["full_model_rms_um"].as_f64().unwrap(),
-            c["nominal_rms_um"].as_f64().unwrap(),
-            c["nominal_setup_rms_um"].as_f64().unwrap(),
-        );
+        let (model, full, nominal, setup) = common::rtest_comparison_rms_um(&j);
         let n_fixed = j["selection"]["fixed"].as_array().unwrap().len();
         println!(
             "seed {seed}: held-out RMS model {model:.3}, full {full:.3}, nominal {nominal:.3}, set-up only {setup:.3} µm; {n_fixed} fixed by the selection"

@@ -379,15 +379,7 @@ fn held_out_comparison_with_the_nominal_kinematics() {
     let m = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
     let mut twin = FiveAxisTwin::random(m, 2);
     twin.location = [0.0; 11];
-    twin.effects = FiveAxisEffects {
-        rotary_positioning: true,
-        rotary_wobble: true,
-        radial_runout: true,
-        linear_geometry: true,
-        thermal_drift: true,
-        setup_drift: true,
-        time_drift: false,
-    };
+    twin.effects = FiveAxisEffects::all_but_time_drift();
     let paths = standard_paths(&m, [150.0, 0.0, 100.0], -60.0, 72, &[0.0, -60.0], 36, None);
     std::fs::write(dir.join("fx.csv"), twin.measure(&paths, 2).to_csv_string()).unwrap();
     std::fs::write(dir.join("clean.csv"), twin_csv()).unwrap();
@@ -401,13 +393,7 @@ fn held_out_comparison_with_the_nominal_kinematics() {
     };
     for split in [["--holdout", "path=C-circle@0"], ["--cv", "path"]] {
         let j = run("fx.csv", &split);
-        let c = &j["comparison"];
-        let (model, full, nominal, setup) = (
-            c["model_rms_um"].as_f64().unwrap(),
-            c["full_model_rms_um"].as_f64().unwrap(),
-            c["nominal_rms_um"].as_f64().unwrap(),
-            c["nominal_setup_rms_um"].as_f64().unwrap(),
-        );
+        let (model, full, nominal, setup) = common::rtest_comparison_rms_um(&j);
         println!(
             "{split:?}: model {model:.3}, full {full:.3}, nominal {nominal:.3}, set-up only {setup:.3} µm; selection {}",
             j["selection"]

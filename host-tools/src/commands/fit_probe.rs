@@ -109,7 +109,18 @@ fn radial_about_fitted_centre(
     radius_mm: f64,
 ) -> anyhow::Result<(Sphere, Vec<f64>)> {
     let s = fit_center(cal, touches, radius_mm)?;
-    let res = touches
+    let res = radial_residuals_um(cal, touches, &s, radius_mm);
+    Ok((s, res))
+}
+
+/// Radial residuals (µm) of contacts about the centre of `s` for a sphere of radius `radius_mm`.
+fn radial_residuals_um(
+    cal: &Calibration,
+    touches: &[Touch],
+    s: &Sphere,
+    radius_mm: f64,
+) -> Vec<f64> {
+    touches
         .iter()
         .map(|t| {
             let c = cal.contact_mm(t);
@@ -119,8 +130,7 @@ fn radial_about_fitted_centre(
             .sqrt();
             (d - radius_mm) * 1000.0
         })
-        .collect();
-    Ok((s, res))
+        .collect()
 }
 
 /// |e − median| > k·max(1.4826·MAD, 0.05 µm), as in the calibration.
@@ -159,17 +169,7 @@ fn iterated_flags(
             break;
         }
         let s = fit_center(cal, &kept, radius_mm)?;
-        let r: Vec<f64> = touches
-            .iter()
-            .map(|t| {
-                let c = cal.contact_mm(t);
-                let d = ((c[0] - s.center_mm[0]).powi(2)
-                    + (c[1] - s.center_mm[1]).powi(2)
-                    + (c[2] - s.center_mm[2]).powi(2))
-                .sqrt();
-                (d - radius_mm) * 1000.0
-            })
-            .collect();
+        let r = radial_residuals_um(cal, touches, &s, radius_mm);
         let next = robust_flags(&r, k);
         if next == flags {
             break;

@@ -95,3 +95,20 @@ pub fn ok_in(args: &[&str], dir: &Path) {
         String::from_utf8_lossy(&o.stderr)
     );
 }
+
+/// The held-out RMS figures (µm) of `fit rtest --json`'s `comparison`: the reported model, the full model,
+/// the nominal kinematics and the nominal kinematics with the sphere's set-up offsets only.
+pub fn rtest_comparison_rms_um(j: &serde_json::Value) -> (f64, f64, f64, f64) {
+    let c = &j["comparison"];
+    let rms = |key: &str| {
+        c[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("comparison.{key} is not a number: {c}"))
+    };
+    (
+        rms("model_rms_um"),
+        rms("full_model_rms_um"),
+        rms("nominal_rms_um"),
+        rms("nominal_setup_rms_um"),
+    )
+}

@@ -4,43 +4,24 @@
 //! against the root mean square of the reported std (ratio 1 when the std is right; its own sampling spread
 //! is ±1/√(2N)), and the share of draws within 2 reported std of the truth.
 //! Run: `cargo run --release -p axcomp-rtest --example rtest_noise_mc -- 400 1` (N, S).
-use axcomp_data::{Dataset, LoadOptions};
-use axcomp_kinematics::rotary::{FiveAxis, MachineKind, N_LOCATION};
-use axcomp_rtest::{RtestData, fit};
-use axcomp_twin::five_axis::{FiveAxisTwin, standard_paths};
+use axcomp_kinematics::rotary::N_LOCATION;
+use axcomp_twin::five_axis::FiveAxisTwin;
+
+#[path = "common/mod.rs"]
+mod common;
 
 fn main() {
-    let n: u64 = std::env::args()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(400);
-    let seed: u64 = std::env::args()
-        .nth(2)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1);
-    for kind in [
-        MachineKind::AcTrunnion,
-        MachineKind::BcTrunnion,
-        MachineKind::BcHead,
-    ] {
-        let m = FiveAxis::new(kind, 250.0);
-        let sphere = if kind == MachineKind::BcHead {
-            [0.0; 3]
-        } else {
-            [150.0, 0.0, 100.0]
-        };
-        let paths = standard_paths(&m, sphere, -60.0, 72, &[0.0, -60.0], 36, None);
+    let n: u64 = common::arg(1, 400);
+    let seed: u64 = common::arg(2, 1);
+    for kind in common::KINDS {
+        let (m, paths) = common::machine_and_paths(kind);
         let fitted = &paths[..paths.len() - 1];
         let twin = FiveAxisTwin::random(m, seed);
         let mut est: Vec<Vec<f64>> = vec![Vec::new(); N_LOCATION];
         let mut var: Vec<f64> = vec![0.0; N_LOCATION];
         let mut within = vec![0usize; N_LOCATION];
         for draw in 0..n {
-            let csv = twin.measure(fitted, 100_000 + draw).to_csv_string();
-            let ds = Dataset::from_csv_str("twin", &csv, &LoadOptions::default()).unwrap();
-            let data = RtestData::from_dataset(&ds, m, true).unwrap();
-            let rows: Vec<usize> = (0..data.poses.len()).collect();
-            let f = fit(&data, &rows).unwrap();
+            let f = common::measure_and_fit(&twin, fitted, 100_000 + draw);
             for k in 0..N_LOCATION {
                 let s = f.std[k].unwrap();
                 est[k].push(f.theta[k]);

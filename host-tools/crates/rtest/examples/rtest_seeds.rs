@@ -3,36 +3,18 @@
 //! deviation of the z-score (estimate − truth)/std and the share within 2 std, then the pooled coverage; and a
 //! noise-free fit's largest |estimate − truth| (the model's own consistency with the twin).
 //! Run: `cargo run --release -p axcomp-rtest --example rtest_seeds -- 200`.
-use axcomp_data::{Dataset, LoadOptions};
-use axcomp_kinematics::rotary::{FiveAxis, MachineKind, N_LOCATION};
-use axcomp_rtest::{RtestData, fit};
-use axcomp_twin::five_axis::{FiveAxisTwin, standard_paths};
+use axcomp_kinematics::rotary::N_LOCATION;
+use axcomp_twin::five_axis::FiveAxisTwin;
+
+#[path = "common/mod.rs"]
+mod common;
 
 fn main() {
-    let n: u64 = std::env::args()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(20);
-    let first: u64 = std::env::args()
-        .nth(2)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1);
-    let sigma: f64 = std::env::args()
-        .nth(3)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(0.3);
-    for kind in [
-        MachineKind::AcTrunnion,
-        MachineKind::BcTrunnion,
-        MachineKind::BcHead,
-    ] {
-        let m = FiveAxis::new(kind, 250.0);
-        let sphere = if kind == MachineKind::BcHead {
-            [0.0; 3]
-        } else {
-            [150.0, 0.0, 100.0]
-        };
-        let paths = standard_paths(&m, sphere, -60.0, 72, &[0.0, -60.0], 36, None);
+    let n: u64 = common::arg(1, 20);
+    let first: u64 = common::arg(2, 1);
+    let sigma: f64 = common::arg(3, 0.3);
+    for kind in common::KINDS {
+        let (m, paths) = common::machine_and_paths(kind);
         let fitted = &paths[..paths.len() - 1];
         let mut z: Vec<Vec<f64>> = vec![Vec::new(); N_LOCATION];
         let mut noise_free_max = 0.0f64;
@@ -40,11 +22,7 @@ fn main() {
             for noise in [sigma, 0.0] {
                 let mut twin = FiveAxisTwin::random(m, seed);
                 twin.noise_um = noise;
-                let csv = twin.measure(fitted, seed).to_csv_string();
-                let ds = Dataset::from_csv_str("twin", &csv, &LoadOptions::default()).unwrap();
-                let data = RtestData::from_dataset(&ds, m, true).unwrap();
-                let rows: Vec<usize> = (0..data.poses.len()).collect();
-                let f = fit(&data, &rows).unwrap();
+                let f = common::measure_and_fit(&twin, fitted, seed);
                 for k in 0..N_LOCATION {
                     let e = f.theta[k] - twin.location[k];
                     if noise > 0.0 {

@@ -4,34 +4,19 @@
 //! the held-out RMS of the full model, of the default (`fit rtest` as shipped), of the nominal kinematics
 //! without correction and of the nominal kinematics with only the sphere's set-up offsets fitted.
 //! Run: `cargo run --release -p axcomp-rtest --example rtest_unmodelled -- 20 0.1 [run=2|path=C-circle@0|cv:path]`.
-use axcomp_data::{Dataset, LoadOptions, Split};
-use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
-use axcomp_rtest::RtestData;
+use axcomp_data::Split;
 use axcomp_rtest::analysis::analyse_selected;
-use axcomp_twin::five_axis::{FiveAxisEffects, FiveAxisTwin, standard_paths};
+use axcomp_twin::five_axis::{FiveAxisEffects, FiveAxisTwin};
+
+#[path = "common/mod.rs"]
+mod common;
 
 fn main() {
-    let n: u64 = std::env::args()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(20);
-    let scale: f64 = std::env::args()
-        .nth(2)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1.0);
+    let n: u64 = common::arg(1, 20);
+    let scale: f64 = common::arg(2, 1.0);
     let holdout = std::env::args().nth(3).unwrap_or_else(|| "run=2".into());
-    for kind in [
-        MachineKind::AcTrunnion,
-        MachineKind::BcTrunnion,
-        MachineKind::BcHead,
-    ] {
-        let m = FiveAxis::new(kind, 250.0);
-        let sphere = if kind == MachineKind::BcHead {
-            [0.0; 3]
-        } else {
-            [150.0, 0.0, 100.0]
-        };
-        let paths = standard_paths(&m, sphere, -60.0, 72, &[0.0, -60.0], 36, None);
+    for kind in common::KINDS {
+        let (m, paths) = common::machine_and_paths(kind);
         let (mut worse_full, mut worse_default) = (0, 0);
         let mut sums = [0.0; 4];
         for seed in 1..=n {
@@ -39,18 +24,8 @@ fn main() {
             for v in twin.location.iter_mut() {
                 *v *= scale;
             }
-            twin.effects = FiveAxisEffects {
-                rotary_positioning: true,
-                rotary_wobble: true,
-                radial_runout: true,
-                linear_geometry: true,
-                thermal_drift: true,
-                setup_drift: true,
-                time_drift: false,
-            };
-            let csv = twin.measure(&paths, seed).to_csv_string();
-            let ds = Dataset::from_csv_str("twin", &csv, &LoadOptions::default()).unwrap();
-            let data = RtestData::from_dataset(&ds, m, true).unwrap();
+            twin.effects = FiveAxisEffects::all_but_time_drift();
+            let (ds, data) = common::measure(&twin, &paths, seed);
             let split = match holdout.strip_prefix("cv:") {
                 Some(col) => Split::from_args(None, Some(col)).unwrap(),
                 None => Split::from_args(Some(&holdout), None).unwrap(),

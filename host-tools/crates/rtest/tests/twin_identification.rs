@@ -18,6 +18,19 @@ fn sphere(kind: MachineKind) -> [f64; 3] {
     }
 }
 
+/// The three machine kinds, in the order the tests report them.
+const KINDS: [MachineKind; 3] = [
+    MachineKind::AcTrunnion,
+    MachineKind::BcTrunnion,
+    MachineKind::BcHead,
+];
+
+/// The standard plan on `m`: K4 run 1 (72 poses, tilt to −60°), C circles at 0° and −60° (36 poses each),
+/// K4 run 2; the sphere at [`sphere`] of its kind.
+fn standard_plan(m: &FiveAxis) -> Vec<RtestPathSpec> {
+    standard_paths(m, sphere(m.kind), -60.0, 72, &[0.0, -60.0], 36, None)
+}
+
 fn campaign(twin: &FiveAxisTwin, paths: &[RtestPathSpec], seed: u64) -> (Dataset, RtestData) {
     let csv = twin.measure(paths, seed).to_csv_string();
     let ds = Dataset::from_csv_str("twin.csv", &csv, &LoadOptions::default()).unwrap();
@@ -41,7 +54,7 @@ fn one_seed(kind: MachineKind, seed: u64) -> SeedResult {
     let m = FiveAxis::new(kind, 250.0);
     let mut twin = FiveAxisTwin::random(m, seed);
     twin.noise_um = NOISE_UM;
-    let paths = standard_paths(&m, sphere(kind), -60.0, 72, &[0.0, -60.0], 36, None);
+    let paths = standard_plan(&m);
     let (ds, data) = campaign(&twin, &paths, seed);
     let split = Split::from_args(Some("run=2"), None).unwrap();
     let a = analyse(&ds, &data, split.as_ref()).unwrap();
@@ -263,13 +276,9 @@ fn k4_alone_reports_what_it_cannot_determine() {
 /// z-scores (estimate − truth)/std within 1e-3 — no second-order (linearisation) bias at these magnitudes.
 #[test]
 fn noise_free_fit_returns_the_truth_and_is_linear_in_the_noise() {
-    for kind in [
-        MachineKind::AcTrunnion,
-        MachineKind::BcTrunnion,
-        MachineKind::BcHead,
-    ] {
+    for kind in KINDS {
         let m = FiveAxis::new(kind, 250.0);
-        let paths = standard_paths(&m, sphere(kind), -60.0, 72, &[0.0, -60.0], 36, None);
+        let paths = standard_plan(&m);
         for seed in 1..=3 {
             let z = |noise: f64| -> Vec<f64> {
                 let mut twin = FiveAxisTwin::random(m, seed);
@@ -315,7 +324,7 @@ fn noise_free_fit_returns_the_truth_and_is_linear_in_the_noise() {
 fn head_zero_uncertainty_is_the_propagated_shift() {
     for kind in [MachineKind::AcTrunnion, MachineKind::BcHead] {
         let m = FiveAxis::new(kind, 250.0);
-        let paths = standard_paths(&m, sphere(kind), -60.0, 72, &[0.0, -60.0], 36, None);
+        let paths = standard_plan(&m);
         let twin = FiveAxisTwin::random(m, 4);
         let (_, data) = campaign(&twin, &paths, 4);
         let rows: Vec<usize> = (0..data.poses.len()).collect();
@@ -371,7 +380,7 @@ fn head_zero_uncertainty_is_the_propagated_shift() {
 #[test]
 fn shared_error_columns_match_the_head_zero_propagation() {
     let m = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
-    let paths = standard_paths(&m, sphere(m.kind), -60.0, 72, &[0.0, -60.0], 36, None);
+    let paths = standard_plan(&m);
     let mut twin = FiveAxisTwin::random(m, 5);
     twin.noise_um = NOISE_UM;
     let csv = twin.measure(&paths, 5).to_csv_string();
@@ -477,13 +486,9 @@ fn shared_error_columns_bad_input_is_refused() {
 fn default_selection_does_no_harm_with_effects_beyond_the_model() {
     use axcomp_rtest::analysis::analyse_selected;
     use axcomp_twin::five_axis::FiveAxisEffects;
-    for kind in [
-        MachineKind::AcTrunnion,
-        MachineKind::BcTrunnion,
-        MachineKind::BcHead,
-    ] {
+    for kind in KINDS {
         let m = FiveAxis::new(kind, 250.0);
-        let paths = standard_paths(&m, sphere(kind), -60.0, 72, &[0.0, -60.0], 36, None);
+        let paths = standard_plan(&m);
         for scale in [0.0, 1.0] {
             let (mut full_loses, mut default_loses) = (0, 0);
             for seed in 1..=20 {
@@ -491,15 +496,7 @@ fn default_selection_does_no_harm_with_effects_beyond_the_model() {
                 for v in twin.location.iter_mut() {
                     *v *= scale;
                 }
-                twin.effects = FiveAxisEffects {
-                    rotary_positioning: true,
-                    rotary_wobble: true,
-                    radial_runout: true,
-                    linear_geometry: true,
-                    thermal_drift: true,
-                    setup_drift: true,
-                    time_drift: false,
-                };
+                twin.effects = FiveAxisEffects::all_but_time_drift();
                 let (ds, data) = campaign(&twin, &paths, seed);
                 let split = Split::from_args(Some("path=C-circle@0"), None).unwrap();
                 let a =

@@ -42,6 +42,20 @@ pub struct FiveAxisEffects {
 }
 
 impl FiveAxisEffects {
+    /// Every effect beyond the location errors except `time_drift` (creep with no temperature behind it):
+    /// the twin the R-test checks of effects beyond the model use.
+    pub const fn all_but_time_drift() -> Self {
+        Self {
+            rotary_positioning: true,
+            rotary_wobble: true,
+            radial_runout: true,
+            linear_geometry: true,
+            thermal_drift: true,
+            setup_drift: true,
+            time_drift: false,
+        }
+    }
+
     /// Effect names (the contract's candidate kinds for R-test data; `radial_runout` belongs to
     /// `rotary_wobble` there).
     pub const NAMES: [&'static str; 7] = [
