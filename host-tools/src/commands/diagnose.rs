@@ -121,18 +121,35 @@ fn run_axis(args: Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
     }
     print_candidates(&d.effects, 5, opts.alpha);
     println!("verdict: {} — {}", d.verdict, d.note);
+    let report = match &args.report {
+        Some(dir) => Some((dir.as_path(), report::report_files(dir, &obs, &d)?)),
+        None => None,
+    };
+    write_diagnosis(outputs, report, args.json.as_deref(), &d)
+}
+
+/// The end of every `diagnose` data kind: the report's files (`--report DIR`, `None` without it) and the
+/// JSON (`--json`) join the planned outputs, everything is written together, and the number of report
+/// files is said.
+pub(super) fn write_diagnosis<T: serde::Serialize>(
+    mut outputs: OutputSet,
+    report: Option<(&std::path::Path, Vec<(std::path::PathBuf, Vec<u8>)>)>,
+    json: Option<&std::path::Path>,
+    value: &T,
+) -> anyhow::Result<()> {
     let mut report_files = 0;
-    if let Some(dir) = &args.report {
-        for (path, bytes) in report::report_files(dir, &obs, &d)? {
+    let report_dir = report.map(|(dir, files)| {
+        for (path, bytes) in files {
             outputs.file(path, bytes);
             report_files += 1;
         }
-    }
-    if let Some(path) = &args.json {
-        outputs.json(path, &d)?;
+        dir
+    });
+    if let Some(path) = json {
+        outputs.json(path, value)?;
     }
     outputs.commit()?;
-    if let Some(dir) = &args.report {
+    if let Some(dir) = report_dir {
         println!("report: {report_files} files in {}", dir.display());
     }
     Ok(())

@@ -117,7 +117,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
         println!("  note: {n}");
     }
     println!("verdict: {} — {}", d.verdict, d.note);
-    let mut report_files = 0;
+    let mut report = None;
     if let Some(dir) = &args.report {
         // The axis report's figures over time (the gap before / after the verdict), plus the held-out lines.
         let pseudo = Observations {
@@ -149,17 +149,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
             }
             md.extend_from_slice(extra.as_bytes());
         }
-        for (path, bytes) in files {
-            outputs.file(path, bytes);
-            report_files += 1;
-        }
+        report = Some((dir.as_path(), files));
     }
-    if let Some(path) = &args.json {
-        outputs.json(path, &ld)?;
-    }
-    outputs.commit()?;
-    if let Some(dir) = &args.report {
-        println!("report: {report_files} files in {}", dir.display());
-    }
-    Ok(())
+    super::diagnose::write_diagnosis(outputs, report, args.json.as_deref(), &ld)
 }

@@ -98,19 +98,9 @@ pub fn run(args: &Args, ds: Dataset) -> anyhow::Result<()> {
     }
     super::diagnose::print_candidates(&d.diagnosis.effects, 6, opts.alpha);
     println!("verdict: {} — {}", d.diagnosis.verdict, d.diagnosis.note);
-    let mut report_files = 0;
-    if let Some(dir) = &args.report {
-        for (path, bytes) in dprobe::report_files(dir, &campaign, &d)? {
-            outputs.file(path, bytes);
-            report_files += 1;
-        }
-    }
-    if let Some(path) = &args.json {
-        outputs.json(path, &d)?;
-    }
-    outputs.commit()?;
-    if let Some(dir) = &args.report {
-        println!("report: {report_files} files in {}", dir.display());
-    }
-    Ok(())
+    let report = match &args.report {
+        Some(dir) => Some((dir.as_path(), dprobe::report_files(dir, &campaign, &d)?)),
+        None => None,
+    };
+    super::diagnose::write_diagnosis(outputs, report, args.json.as_deref(), &d)
 }

@@ -61,19 +61,12 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
         println!("  {a} and {b}: same signature on these poses (the data cannot tell them apart)");
     }
     println!("verdict: {} — {}", dg.verdict, dg.note);
-    let mut n_files = 0;
-    if let Some(dir) = &args.report {
-        for (name, bytes) in rtest::report_files(&d, &camp) {
-            outputs.file(dir.join(name), bytes);
-            n_files += 1;
-        }
-    }
-    if let Some(path) = &args.json {
-        outputs.json(path, &d)?;
-    }
-    outputs.commit()?;
-    if let Some(dir) = &args.report {
-        println!("report: {n_files} files in {}", dir.display());
-    }
-    Ok(())
+    let report = args.report.as_deref().map(|dir| {
+        let files = rtest::report_files(&d, &camp)
+            .into_iter()
+            .map(|(name, bytes)| (dir.join(name), bytes))
+            .collect();
+        (dir, files)
+    });
+    super::diagnose::write_diagnosis(outputs, report, args.json.as_deref(), &d)
 }
