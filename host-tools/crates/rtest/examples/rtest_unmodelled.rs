@@ -3,7 +3,8 @@
 //! already compensated machine, where the unmodelled effects dominate), all effects on, K4 run 2 held out:
 //! the held-out RMS of the full model, of the default (`fit rtest` as shipped), of the nominal kinematics
 //! without correction and of the nominal kinematics with only the sphere's set-up offsets fitted.
-//! Run: `cargo run --release -p axcomp-rtest --example rtest_unmodelled -- 20 0.1 [run=2|path=C-circle@0|cv:path]`.
+//! Run: `cargo run --release -p axcomp-rtest --example rtest_unmodelled -- 20 0.1 [run=2|path=C-circle@0|cv:path|cv:run] [FIRST]`
+//! (N seeds from FIRST, default 1).
 use axcomp_data::Split;
 use axcomp_rtest::analysis::analyse_selected;
 use axcomp_twin::five_axis::{FiveAxisEffects, FiveAxisTwin};
@@ -15,11 +16,12 @@ fn main() {
     let n: u64 = common::arg(1, 20);
     let scale: f64 = common::arg(2, 1.0);
     let holdout = std::env::args().nth(3).unwrap_or_else(|| "run=2".into());
+    let first: u64 = common::arg(4, 1);
     for kind in common::KINDS {
         let (m, paths) = common::machine_and_paths(kind);
         let (mut worse_full, mut worse_default) = (0, 0);
         let mut sums = [0.0; 4];
-        for seed in 1..=n {
+        for seed in first..first + n {
             let mut twin = FiveAxisTwin::random(m, seed);
             for v in twin.location.iter_mut() {
                 *v *= scale;
@@ -58,7 +60,7 @@ fn main() {
             }
         }
         println!(
-            "{} (scale {scale}, {n} seeds): mean held-out RMS full {:.3} default {:.3} nominal {:.3} nominal+set-up {:.3} µm; worse than nominal+set-up: full {worse_full}, default {worse_default}",
+            "{} (scale {scale}, {holdout}, {n} seeds from {first}): mean held-out RMS full {:.3} default {:.3} nominal {:.3} nominal+set-up {:.3} µm; worse than nominal+set-up: full {worse_full}, default {worse_default}",
             kind.name(),
             sums[0],
             sums[1],

@@ -364,7 +364,7 @@ impl Analysis {
         });
         out["selection"] = match &self.selection {
             Some(sel) => json!({
-                "rule": "default (axcomp_rtest::select): every location error fixed at zero when, on the fitted rows alone, the nominal kinematics with the set-up offsets predict each path (else run) left out better than the full model and the full model explains little (in-sample RMS ratio below ratio_limit); --full-model turns it off",
+                "rule": "default (axcomp_rtest::select): every location error fixed at zero unless, on the fitted rows alone, they explain most of them (in-sample RMS ratio at least ratio_limit) or they predict each path (else run) left out better than the nominal kinematics with the set-up offsets by more than gain_z standard errors (cv_gain_um2 > gain_z × cv_gain_std_um2); with a single path (or run) fitted only the ratio can keep them; --full-model turns it off",
                 "applied": sel.applied,
                 "groups": sel.groups,
                 "inner_cv_rms_um": {
@@ -374,6 +374,9 @@ impl Analysis {
                 },
                 "fit_rms_ratio_nominal_to_full": sel.fit_rms_ratio,
                 "ratio_limit": crate::select::RATIO_LIMIT,
+                "cv_gain_um2": sel.cv_gain_um2,
+                "cv_gain_std_um2": sel.cv_gain_std_um2,
+                "gain_z": crate::select::GAIN_Z,
                 "fixed": sel.fixed.iter().map(|(k, why)| json!({ "name": names[*k], "reason": why })).collect::<Vec<_>>(),
                 "robust_std": sel.robust_std.iter().map(|(k, sd, significant)| (names[*k].clone(), json!({ "std": sd, "significant": significant }))).collect::<Map<String, Value>>(),
                 "robust_std_definition": format!("standard uncertainty robust to residuals correlated along a path (cluster-robust over chunks of {} consecutive poses of the full model's fit); significant: |value| ≥ 2 × it. A flag: nothing is fixed by it", crate::select::CHUNK),
