@@ -376,9 +376,9 @@ fn head_zero_std_bad_input_is_refused() {
 /// campaign): the touches carry their pose's `path`, `fit probe --centres-out` carries it into the R-test
 /// rows, and `fit rtest --holdout path=C-circle@0` judges the circle at 0° never fitted against the plain
 /// reference (the nominal kinematics with the sphere's set-up offsets only, fitted on the same rows), seeds
-/// 1–20. Measured: the full model loses to the plain reference in 15 of 20 seeds, the default in 3 (seeds 4,
-/// 9, 14, by 0.0–2.8 µm: there the location errors' leave-one-path-out RMS on the fitted rows was the lower
-/// one); the default fixed all 11 at zero in 15 seeds. Asserted (the measured figures, deterministic seeds):
+/// 1–20. Measured: the full model loses to the plain reference in 15 of 20 seeds, the default in 0 (3 with
+/// the point comparison of leave-one-path-out RMS before the paired-gain rule: seeds 4, 9, 14, by 0.0–2.8
+/// µm). Asserted (the measured figures, deterministic seeds):
 /// the default loses to the plain reference in at most 3 of 20 seeds and never to the nominal kinematics
 /// without correction; the JSON names what the default selection did.
 #[test]

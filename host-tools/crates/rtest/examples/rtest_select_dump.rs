@@ -37,29 +37,29 @@ fn main() {
                 let (pid, _) = axcomp_data::groups(&ds, "path").unwrap();
                 let (rid, _) = axcomp_data::groups(&ds, "run").unwrap();
                 for mode in modes {
-                    let folds: Vec<(Vec<usize>, Vec<usize>)> =
-                        if let Some(col) = mode.strip_prefix("cv:") {
-                            let (ids, labels) = axcomp_data::groups(&ds, col).unwrap();
-                            (0..labels.len())
-                                .map(|g| {
-                                    (
-                                        (0..n).filter(|&r| ids[r] != g).collect(),
-                                        (0..n).filter(|&r| ids[r] == g).collect(),
-                                    )
-                                })
-                                .collect()
-                        } else {
-                            let split =
-                                Split::from_args(Some(mode.strip_prefix("h:").unwrap()), None)
-                                    .unwrap()
-                                    .unwrap();
-                            let Split::Holdout(h) = split else { panic!() };
-                            let mask = h.mask(&ds).unwrap();
-                            vec![(
-                                (0..n).filter(|&r| !mask[r]).collect(),
-                                (0..n).filter(|&r| mask[r]).collect(),
-                            )]
-                        };
+                    let folds: Vec<(Vec<usize>, Vec<usize>)> = if let Some(col) =
+                        mode.strip_prefix("cv:")
+                    {
+                        let (ids, labels) = axcomp_data::groups(&ds, col).unwrap();
+                        (0..labels.len())
+                            .map(|g| {
+                                (
+                                    (0..n).filter(|&r| ids[r] != g).collect(),
+                                    (0..n).filter(|&r| ids[r] == g).collect(),
+                                )
+                            })
+                            .collect()
+                    } else {
+                        let split = Split::from_args(Some(mode.strip_prefix("h:").unwrap()), None)
+                            .unwrap()
+                            .unwrap();
+                        let Split::Holdout(h) = split else { panic!() };
+                        let mask = h.mask(&ds).unwrap();
+                        vec![(
+                            (0..n).filter(|&r| !mask[r]).collect(),
+                            (0..n).filter(|&r| mask[r]).collect(),
+                        )]
+                    };
                     for (fi, (train, test)) in folds.iter().enumerate() {
                         let full = fit_shared(&data, train, &Default::default(), None).unwrap();
                         let lin = linearise(&data, train, &full);
@@ -78,7 +78,8 @@ fn main() {
                             vec![0; train.len()]
                         };
                         // segments: (path, run); blocks: 4 contiguous per segment
-                        let seg: Vec<usize> = train.iter().map(|&r| pid[r] * 100 + rid[r]).collect();
+                        let seg: Vec<usize> =
+                            train.iter().map(|&r| pid[r] * 100 + rid[r]).collect();
                         let mut blk = vec![0usize; train.len()];
                         {
                             let mut segs = seg.clone();
@@ -109,8 +110,9 @@ fn main() {
                             }
                         }
                         let nchunk = chunk.iter().max().unwrap() + 1;
-                        let setup_cols: Vec<usize> =
-                            (0..lin.free.len()).filter(|&c| lin.free[c] >= N_LOCATION).collect();
+                        let setup_cols: Vec<usize> = (0..lin.free.len())
+                            .filter(|&c| lin.free[c] >= N_LOCATION)
+                            .collect();
                         let mut models = Vec::new();
                         for mask in 0..8usize {
                             let mut cols = setup_cols.clone();
@@ -118,7 +120,8 @@ fn main() {
                             for (g, range) in GROUPS.iter().enumerate() {
                                 if mask & (1 << g) != 0 {
                                     cols.extend(
-                                        (0..lin.free.len()).filter(|&c| range.contains(&lin.free[c])),
+                                        (0..lin.free.len())
+                                            .filter(|&c| range.contains(&lin.free[c])),
                                     );
                                 } else {
                                     for k in range.clone() {
@@ -142,10 +145,16 @@ fn main() {
                             };
                             let inner_blk = agg(&blk);
                             let ins = in_sample_sse(&lin, &cols);
-                            let f = fit_fixed(&data, train, &Default::default(), None, &fix).unwrap();
+                            let f =
+                                fit_fixed(&data, train, &Default::default(), None, &fix).unwrap();
                             let mut sse = 0.0;
                             for &r in test {
-                                let p = model_displacement(&data.machine, &data.poses[r], data.setup[r], &f.theta);
+                                let p = model_displacement(
+                                    &data.machine,
+                                    &data.poses[r],
+                                    data.setup[r],
+                                    &f.theta,
+                                );
                                 for c in 0..3 {
                                     sse += (data.d_um[r][c] - p[c]).powi(2);
                                 }
@@ -163,7 +172,10 @@ fn main() {
                         let chunk_blk: Vec<usize> = (0..nchunk)
                             .map(|c| blk[(0..train.len()).find(|&i| chunk[i] == c).unwrap()])
                             .collect();
-                        let raw: f64 = test.iter().map(|&r| data.d_um[r].iter().map(|v| v * v).sum::<f64>()).sum();
+                        let raw: f64 = test
+                            .iter()
+                            .map(|&r| data.d_um[r].iter().map(|v| v * v).sum::<f64>())
+                            .sum();
                         println!(
                             "{}",
                             json!({

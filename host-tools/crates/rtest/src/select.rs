@@ -195,13 +195,14 @@ pub fn fit_selected(
     );
     // Every location error at zero, as in the plain reference: one the full fit could not determine keeps
     // its reason (left free, it could become determinable once the others are fixed).
-    let mut fix: Vec<Option<String>> = (0..N_LOCATION)
-        .map(|k| {
-            Some(full.ident.reasons[k].clone().unwrap_or_else(|| {
-                "held at zero: not determined by the fitted rows".to_string()
-            }))
-        })
-        .collect();
+    let mut fix: Vec<Option<String>> =
+        (0..N_LOCATION)
+            .map(|k| {
+                Some(full.ident.reasons[k].clone().unwrap_or_else(|| {
+                    "held at zero: not determined by the fitted rows".to_string()
+                }))
+            })
+            .collect();
     for &c in &current {
         if free[c] < N_LOCATION {
             fix[free[c]] = Some(why.clone());
@@ -309,11 +310,7 @@ pub fn linearise(data: &RtestData, rows: &[usize], full: &Fit) -> Linearised {
 /// Per row (index into the linearised rows), the squared prediction error summed over dx, dy, dz when the
 /// row's group is left out of the linear least-squares fit `y ≈ J[:, cols]·β` (minimum-norm where the
 /// others do not determine every column); `None` where a fold cannot be solved.
-pub fn leave_group_out_sq(
-    lin: &Linearised,
-    cols: &[usize],
-    group: &[usize],
-) -> Option<Vec<f64>> {
+pub fn leave_group_out_sq(lin: &Linearised, cols: &[usize], group: &[usize]) -> Option<Vec<f64>> {
     let (j, y) = (&lin.j, &lin.y);
     let mut labels: Vec<usize> = group.to_vec();
     labels.sort();
