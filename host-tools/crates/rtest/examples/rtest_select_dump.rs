@@ -1,5 +1,12 @@
-//! Experiment (select): per outer fold, inner statistics of the nested location-error models and their outer
-//! held-out SSE. JSON lines on stdout. `-- FIRST LAST`.
+//! The measurements behind the default selection's rule (`axcomp_rtest::select`): for every machine kind,
+//! location errors ×0 / ×0.1 / ×1 (all effects beyond the model on), seeds FIRST..=LAST, and six ways of
+//! judging (held-out circle at 0° / −60°, held-out K4, held-out run 2, `--cv path`, `--cv run`), per outer
+//! fold: for the eight models by parameter group (bit 0 C axis, bit 1 tilt axis, bit 2 squareness; 0 = the
+//! set-up offsets only, 7 = the full model) the squared errors of the inner leave-one-path-out (`inner_grp`)
+//! and leave-one-quarter-of-a-path-out (`inner_blk`) predictions summed per chunk of 8 poses, the in-sample
+//! SSE, and the outer held-out SSE of the model fitted on the fold's training rows. JSON lines on stdout, to
+//! judge candidate rules offline on the same folds (README, issue 11):
+//! `cargo run --release -p axcomp-rtest --example rtest_select_dump -- 1 20 > design.jsonl`.
 use axcomp_data::Split;
 use axcomp_kinematics::rotary::N_LOCATION;
 use axcomp_rtest::select::{in_sample_sse, leave_group_out_sq, linearise};

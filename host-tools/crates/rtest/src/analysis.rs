@@ -180,14 +180,19 @@ pub fn analyse_shared(
 }
 
 /// Groups of rows for the default's selection ([`crate::select`]): the `path` column's values when the
-/// file has at least two, else the `run` column's; `None` without either.
+/// file has that column, else the `run` column's when it has at least two; `None` without either. Runs of
+/// one path are repeats: one predicting the other says nothing about another path (on the twin, K4 run 1
+/// predicts run 2 of K4 well with spurious location errors that predict the circles 6× worse than the
+/// set-up offsets alone), so with a `path` column the runs are not cross-checked on.
 pub fn selection_groups(ds: &Dataset) -> Result<Option<(Vec<usize>, &'static str)>, RtestError> {
-    for col in ["path", "run"] {
-        if ds.has(col) {
-            let (ids, labels) = axcomp_data::groups(ds, col)?;
-            if labels.len() >= 2 {
-                return Ok(Some((ids, col)));
-            }
+    if ds.has("path") {
+        let (ids, _) = axcomp_data::groups(ds, "path")?;
+        return Ok(Some((ids, "path")));
+    }
+    if ds.has("run") {
+        let (ids, labels) = axcomp_data::groups(ds, "run")?;
+        if labels.len() >= 2 {
+            return Ok(Some((ids, "run")));
         }
     }
     Ok(None)
@@ -364,7 +369,7 @@ impl Analysis {
         });
         out["selection"] = match &self.selection {
             Some(sel) => json!({
-                "rule": "default (axcomp_rtest::select): every location error fixed at zero unless, on the fitted rows alone, they explain most of them (in-sample RMS ratio at least ratio_limit) or they predict each path (else run) left out better than the nominal kinematics with the set-up offsets by more than gain_z standard errors (cv_gain_um2 > gain_z × cv_gain_std_um2); with a single path (or run) fitted only the ratio can keep them; --full-model turns it off",
+                "rule": "default (axcomp_rtest::select): every location error fixed at zero unless, on the fitted rows alone, they explain most of them (in-sample RMS ratio at least ratio_limit) or they predict each path (runs only in a file without a path column) left out better than the nominal kinematics with the set-up offsets by more than gain_z standard errors (cv_gain_um2 > gain_z × cv_gain_std_um2); with a single path (or run) fitted only the ratio can keep them; --full-model turns it off",
                 "applied": sel.applied,
                 "groups": sel.groups,
                 "inner_cv_rms_um": {
