@@ -11,8 +11,8 @@
 //! - they **explain most** of the fitted rows: the set-up-only in-sample RMS is at least [`RATIO_LIMIT`] ×
 //!   the full model's (they explain ≥ 1 − 1/5² = 96 % of the readings' variance beyond the set-up offsets;
 //!   the 5–50 µm / 10–100 µrad always do, with ratios 7.6–127 on the twin), or
-//! - they **carry over** to paths not fitted: the fitted rows are split into groups (their `path` values,
-//!   else their `run` values), each group is left out in turn and predicted by both models (refitted,
+//! - they **carry over** to paths not fitted: the fitted rows are split into groups (their `path` values;
+//!   their `run` values only in a file without a `path` column: runs of one path are repeats), each group is left out in turn and predicted by both models (refitted,
 //!   minimum-norm where a fold does not determine every column), and the paired gain
 //!   Σ(nominal² − full²) over the left-out readings exceeds [`GAIN_Z`] × its standard error (from the
 //!   spread of the gain over chunks of [`CHUNK`] consecutive poses). One-sided, the burden of proof on the
