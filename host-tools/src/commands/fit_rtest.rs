@@ -200,9 +200,22 @@ fn print_summary(a: &axcomp_rtest::analysis::Analysis, data: &RtestData, json: &
         a.judged_by, a.judged_rms_um, a.full_rms_um, a.raw_rms_um, a.nominal_setup_rms_um
     );
     if let Some(sel) = a.selection.as_ref().filter(|s| !s.fixed.is_empty()) {
+        let evidence = if sel.cv_gain_um2.is_finite() {
+            format!(
+                "leave-one-out RMS of the fitted rows: set-up offsets only {:.3} µm, full {:.3} µm; gain {:.3} µm² per reading, not above {} × its standard error {:.3} µm²",
+                sel.inner_cv_nominal_um,
+                sel.inner_cv_full_um,
+                sel.cv_gain_um2,
+                axcomp_rtest::select::GAIN_Z,
+                sel.cv_gain_std_um2
+            )
+        } else {
+            sel.groups.clone()
+        };
         println!(
-            "  default selection: every location error fixed at zero (leave-one-out RMS of the fitted rows: nominal {:.3} µm < full {:.3} µm; --full-model estimates them)",
-            sel.inner_cv_nominal_um, sel.inner_cv_full_um
+            "  default selection: every location error fixed at zero ({evidence}; in-sample RMS ratio {:.2} < {}; --full-model estimates them)",
+            sel.fit_rms_ratio,
+            axcomp_rtest::select::RATIO_LIMIT
         );
     }
     if let Some(k) = json.get("k4").filter(|k| !k.is_null()) {
