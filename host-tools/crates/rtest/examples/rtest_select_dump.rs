@@ -162,9 +162,9 @@ fn main() {
                                     data.setup[r],
                                     &f.theta,
                                 );
-                                for c in 0..3 {
-                                    sse += (data.d_um[r][c] - p[c]).powi(2);
-                                }
+                                sse += (0..3)
+                                    .map(|c| (data.d_um[r][c] - p[c]).powi(2))
+                                    .sum::<f64>();
                             }
                             models.push(json!({
                                 "mask": mask, "ncols": cols.len(),
