@@ -582,36 +582,80 @@ impl<K: FrameKind> FrameDecoder<K> {
     }
 
     fn parse(&self) -> Parse {
-        if self.len == 0 {
-            return Parse::NeedMore;
-        }
-        if self.buf[0] != K::SYNC {
+        Self::parse_bytes(&self.buf[..self.len])
+    }
+
+    /// What the candidate frame at the start of `b` is: incomplete, to be dropped, or a valid frame
+    /// of the returned length (the bytes after it are not looked at).
+    #[inline(always)]
+    fn parse_bytes(b: &[u8]) -> Parse {
+        let (&sync, rest) = match b.split_first() {
+            Some(x) => x,
+            None => return Parse::NeedMore,
+        };
+        if sync != K::SYNC {
             return Parse::Drop { corrupt: false };
         }
-        if self.len < 2 {
+        let Some(&head) = rest.first() else {
             return Parse::NeedMore;
-        }
-        let n = usize::from(self.buf[1] & 0x0F);
-        let version = self.buf[1] >> 4;
+        };
+        let n = usize::from(head & 0x0F);
+        let version = head >> 4;
         if (version != VERSION && version != VERSION_PROBE) || n == 0 || n > MAX_AXES {
             return Parse::Drop { corrupt: false };
         }
         let body = HEADER_LEN + 4 * n + K::tail_len(version);
         let flen = body + CRC_LEN;
-        if self.len < flen {
+        let Some(frame) = b.get(..flen) else {
             return Parse::NeedMore;
-        }
-        let crc = u16::from_le_bytes([self.buf[body], self.buf[body + 1]]);
-        if crc16(&self.buf[1..body]) != crc {
+        };
+        let crc = u16::from_le_bytes([frame[body], frame[body + 1]]);
+        if crc16(&frame[1..body]) != crc {
             return Parse::Drop { corrupt: true };
         }
         Parse::Frame(flen)
+    }
+
+    /// The sequence check of a valid frame: `None` for a repeat (counted, never returned), else the
+    /// frame (a gap counted as lost frames).
+    #[inline(always)]
+    fn accept(&mut self, frame: K::Frame) -> Option<K::Frame> {
+        let seq = K::seq(&frame);
+        if let Some(last) = self.last_seq {
+            let step = seq.wrapping_sub(last);
+            if step == 0 {
+                self.counters.repeated = self.counters.repeated.wrapping_add(1);
+                self.events.repeated = true;
+                return None;
+            }
+            if step > 1 {
+                self.counters.lost = self.counters.lost.wrapping_add(u32::from(step - 1));
+                self.events.lost = true;
+            }
+        }
+        self.last_seq = Some(seq);
+        self.counters.frames_ok = self.counters.frames_ok.wrapping_add(1);
+        Some(frame)
     }
 
     /// Feeds every byte of `bytes`; returns the newest valid, not repeated frame they complete.
     pub fn push_bytes(&mut self, bytes: &[u8]) -> Option<K::Frame> {
         let mut newest = None;
         let mut rest = bytes;
+        // Nothing pending and a whole valid frame at the start of the bytes (the common case: one
+        // frame per cycle): checked and decoded where it lies, not collected into `buf` first. Byte
+        // by byte the same frame would be collected, checked and returned with the same counters,
+        // leaving the decoder empty again (`len` and `need` 0), as here.
+        while self.len == 0 {
+            let Parse::Frame(flen) = Self::parse_bytes(rest) else {
+                break;
+            };
+            let (frame, after) = rest.split_at(flen);
+            if let Some(f) = self.accept(K::decode(frame)) {
+                newest = Some(f);
+            }
+            rest = after;
+        }
         while let Some((&b, after)) = rest.split_first() {
             // `push`'s fast path for a run of bytes at once: inside a candidate frame whose header
             // was checked, collect every byte before the frame's last one in one copy (the same
@@ -703,23 +747,10 @@ impl<K: FrameKind> FrameDecoder<K> {
                     let frame = K::decode(&self.buf[..flen]);
                     self.buf.copy_within(flen..self.len, 0);
                     self.len -= flen;
-                    let seq = K::seq(&frame);
-                    if let Some(last) = self.last_seq {
-                        let step = seq.wrapping_sub(last);
-                        if step == 0 {
-                            self.counters.repeated = self.counters.repeated.wrapping_add(1);
-                            self.events.repeated = true;
-                            continue;
-                        }
-                        if step > 1 {
-                            self.counters.lost =
-                                self.counters.lost.wrapping_add(u32::from(step - 1));
-                            self.events.lost = true;
-                        }
+                    match self.accept(frame) {
+                        Some(f) => return Some(f),
+                        None => continue,
                     }
-                    self.last_seq = Some(seq);
-                    self.counters.frames_ok = self.counters.frames_ok.wrapping_add(1);
-                    return Some(frame);
                 }
             }
         }
