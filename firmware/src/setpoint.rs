@@ -372,34 +372,14 @@ impl ReplyFrame {
 
     /// Writes the frame into `out`; returns its length.
     pub fn encode_into(&self, out: &mut [u8; MAX_REPLY_FRAME_LEN]) -> usize {
-        let n = self.n_axes();
-        out[0] = REPLY_SYNC;
-        let version = if self.probe.is_some() {
-            VERSION_PROBE
-        } else {
-            VERSION
+        let fields = ReplyFields {
+            seq: self.seq,
+            echo: self.echo,
+            status: self.status,
+            counter_id: self.counter_id.map_or(0xFF, |c| c as u8),
+            counter_value: self.counter_value,
         };
-        out[1] = (version << 4) | self.n_axes;
-        out[2] = self.seq;
-        for (i, c) in self.corrected().iter().enumerate() {
-            out[HEADER_LEN + 4 * i..HEADER_LEN + 4 * i + 4].copy_from_slice(&c.to_le_bytes());
-        }
-        let t = HEADER_LEN + 4 * n;
-        out[t..t + 4].copy_from_slice(&self.status.to_le_bytes());
-        out[t + 4] = self.echo;
-        out[t + 5] = self.counter_id.map_or(0xFF, |c| c as u8);
-        out[t + 6..t + 8].copy_from_slice(&self.counter_value.to_le_bytes());
-        let mut body = t + REPLY_TAIL_LEN;
-        if let Some(p) = self.probe {
-            out[body..body + 2].copy_from_slice(&p.flags.to_le_bytes());
-            out[body + 2] = p.latch_seq;
-            out[body + 3] = p.item;
-            out[body + 4..body + 8].copy_from_slice(&p.value.to_le_bytes());
-            body += REPLY_PROBE_LEN;
-        }
-        let crc = crc16(&out[1..body]);
-        out[body..body + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
-        body + CRC_LEN
+        encode_reply(out, &fields, self.corrected(), self.probe.as_ref())
     }
 
     fn decode(bytes: &[u8]) -> ReplyFrame {
@@ -427,6 +407,62 @@ impl ReplyFrame {
             probe,
         }
     }
+}
+
+/// The fields of a reply frame besides its corrected commands and probe block (see [`ReplyFrame`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReplyFields {
+    pub seq: u8,
+    pub echo: u8,
+    pub status: u32,
+    /// The [`CounterId`] code (0xFF: none).
+    pub counter_id: u8,
+    pub counter_value: u16,
+}
+
+/// Writes a reply frame with `corrected.len()` corrected commands (1..=[`MAX_AXES`]) and, if given,
+/// the probe block (a v3 frame) into `out`; returns its length, 0 (nothing written) for an axis count
+/// outside 1..=[`MAX_AXES`]. The one encoder of the reply layout ([`ReplyFrame::encode_into`], the
+/// drive's cycle): the frame is written where it is sent from, without a [`ReplyFrame`] in between.
+pub fn encode_reply(
+    out: &mut [u8; MAX_REPLY_FRAME_LEN],
+    fields: &ReplyFields,
+    corrected: &[i32],
+    probe: Option<&ProbeReply>,
+) -> usize {
+    let n = corrected.len();
+    if n == 0 || n > MAX_AXES {
+        return 0;
+    }
+    out[0] = REPLY_SYNC;
+    let version = if probe.is_some() {
+        VERSION_PROBE
+    } else {
+        VERSION
+    };
+    out[1] = (version << 4) | n as u8;
+    out[2] = fields.seq;
+    for (d, c) in out[HEADER_LEN..].chunks_exact_mut(4).zip(corrected) {
+        d.copy_from_slice(&c.to_le_bytes());
+    }
+    let t = HEADER_LEN + 4 * n;
+    let tail = &mut out[t..t + REPLY_TAIL_LEN];
+    tail[..4].copy_from_slice(&fields.status.to_le_bytes());
+    tail[4] = fields.echo;
+    tail[5] = fields.counter_id;
+    tail[6..].copy_from_slice(&fields.counter_value.to_le_bytes());
+    let mut body = t + REPLY_TAIL_LEN;
+    if let Some(p) = probe {
+        let block = &mut out[body..body + REPLY_PROBE_LEN];
+        block[..2].copy_from_slice(&p.flags.to_le_bytes());
+        block[2] = p.latch_seq;
+        block[3] = p.item;
+        block[4..].copy_from_slice(&p.value.to_le_bytes());
+        body += REPLY_PROBE_LEN;
+    }
+    let crc = crc16(&out[1..body]);
+    out[body..body + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
+    body + CRC_LEN
 }
 
 fn i32_at(b: &[u8], at: usize) -> i32 {
@@ -513,8 +549,9 @@ impl FrameKind for Replies {
 
 /// Byte-at-a-time resynchronising decoder with sequence checking.
 #[derive(Clone, Debug)]
-pub struct FrameDecoder<K: FrameKind> {
-    buf: [u8; MAX_REPLY_FRAME_LEN],
+pub struct FrameDecoder<K: FrameKind, const N: usize> {
+    /// The candidate frame being collected (`N`: the longest frame of the kind).
+    buf: [u8; N],
     len: usize,
     /// Length of the candidate frame in `buf` once its header was checked (0: not yet).
     need: usize,
@@ -525,9 +562,9 @@ pub struct FrameDecoder<K: FrameKind> {
 }
 
 /// The drive's decoder of setpoint frames.
-pub type SetpointDecoder = FrameDecoder<Setpoints>;
+pub type SetpointDecoder = FrameDecoder<Setpoints, MAX_SETPOINT_FRAME_LEN>;
 /// The CNC's (or a test's) decoder of reply frames.
-pub type ReplyDecoder = FrameDecoder<Replies>;
+pub type ReplyDecoder = FrameDecoder<Replies, MAX_REPLY_FRAME_LEN>;
 
 enum Parse {
     NeedMore,
@@ -538,16 +575,16 @@ enum Parse {
     Frame(usize),
 }
 
-impl<K: FrameKind> Default for FrameDecoder<K> {
+impl<K: FrameKind, const N: usize> Default for FrameDecoder<K, N> {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<K: FrameKind> FrameDecoder<K> {
+impl<K: FrameKind, const N: usize> FrameDecoder<K, N> {
     pub const fn new() -> Self {
         FrameDecoder {
-            buf: [0; MAX_REPLY_FRAME_LEN],
+            buf: [0; N],
             len: 0,
             need: 0,
             last_seq: None,

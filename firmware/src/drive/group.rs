@@ -34,11 +34,11 @@ use axcomp_core::{CycleInput, CycleOutput, Flags, MAX_SENSORS, group_image, insp
 
 use super::probe::{NoProbe, ProbeDrive, ProbeIo};
 use super::{
-    Applied, BoardCaps, DriveCounters, DriveIo, ImageRefusal, LatenessMeter, LinkPhase,
-    LinkSettings, LinkSupervisor, ResetCause, Watchdog, core_status,
+    Applied, BoardCaps, DriveCounters, DriveIo, ImageRefusal, LINK_CHUNK, LINK_READS_PER_CYCLE,
+    LatenessMeter, LinkPhase, LinkSettings, LinkSupervisor, ResetCause, Watchdog, core_status,
 };
 use crate::control::{CycleClock, CycleTimer, LoopConfig};
-use crate::setpoint::{CounterId, MAX_REPLY_FRAME_LEN, ReplyFrame, SetpointDecoder};
+use crate::setpoint::{CounterId, MAX_REPLY_FRAME_LEN, ReplyFields, SetpointDecoder, encode_reply};
 use crate::status::Status;
 
 /// Board inputs of a group image's axes (by group slot) and how many axes it has.
@@ -169,9 +169,27 @@ pub struct GroupDrive {
     prev_overrun: bool,
     prev_reply_dropped: bool,
     next_counter: u8,
-    counters: DriveCounters,
+    counters: OwnCounters,
     last_status: Status,
     probe: ProbeDrive,
+    /// The reply frame of the last cycle, encoded in place (bytes past its length are stale).
+    reply: ReplyBuffer,
+}
+
+/// A reply frame's bytes, word aligned (copied out whole words at a time).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(4))]
+struct ReplyBuffer([u8; MAX_REPLY_FRAME_LEN]);
+
+/// The counters the drive keeps itself (the link's are the decoder's, the lateness the meter's:
+/// [`GroupDrive::counters`] puts them together).
+#[derive(Clone, Copy, Debug, Default)]
+struct OwnCounters {
+    cycles: u32,
+    short_frames: u32,
+    cycles_without_frame: u32,
+    images_refused: u32,
+    replies_dropped: u32,
 }
 
 impl GroupDrive {
@@ -200,9 +218,10 @@ impl GroupDrive {
             prev_overrun: false,
             prev_reply_dropped: false,
             next_counter: 0,
-            counters: DriveCounters::default(),
+            counters: OwnCounters::default(),
             last_status: Status::NONE,
             probe: ProbeDrive::new(config.period_ticks.saturating_mul(config.rate_hz)),
+            reply: ReplyBuffer([0; MAX_REPLY_FRAME_LEN]),
         }
     }
 
@@ -262,10 +281,16 @@ impl GroupDrive {
     }
 
     pub fn counters(&self) -> DriveCounters {
-        let mut c = self.counters;
-        c.link = *self.decoder.counters();
-        c.lateness = *self.meter.stats();
-        c
+        let c = &self.counters;
+        DriveCounters {
+            cycles: c.cycles,
+            link: *self.decoder.counters(),
+            short_frames: c.short_frames,
+            cycles_without_frame: c.cycles_without_frame,
+            lateness: *self.meter.stats(),
+            images_refused: c.images_refused,
+            replies_dropped: c.replies_dropped,
+        }
     }
 
     /// Status word of the last cycle.
@@ -505,14 +530,15 @@ impl GroupDrive {
 
         // ---- link: every byte received since the last cycle; the newest fresh frame wins ----
         let mut fresh = None;
-        let mut buf = [0u8; 32];
-        for _ in 0..8 {
-            let got = io.read_link(&mut buf);
+        for _ in 0..LINK_READS_PER_CYCLE {
+            let decoder = &mut self.decoder;
+            let got = io.take_link(LINK_CHUNK, |bytes| {
+                if let Some(f) = decoder.push_bytes(bytes) {
+                    fresh = Some(f);
+                }
+            });
             if got == 0 {
                 break;
-            }
-            if let Some(f) = self.decoder.push_bytes(&buf[..got.min(buf.len())]) {
-                fresh = Some(f);
             }
         }
         let events = self.decoder.take_events();
@@ -613,23 +639,22 @@ impl GroupDrive {
         let (id, value) = self.next_counter_value(engine);
         let probe_block =
             probe_on.then(|| self.probe.reply(probe_flags, &self.inputs[..n], n_inputs));
-        let mut frame = [0u8; MAX_REPLY_FRAME_LEN];
-        let len = ReplyFrame::new(
-            self.reply_seq,
-            self.last_seq,
-            &reply[..n_inputs],
-            status.bits(),
-            id,
-            value,
-        )
-        .map(|r| match probe_block {
-            Some(p) => r.with_probe(p),
-            None => r,
-        })
-        .map(|r| r.encode_into(&mut frame))
-        .unwrap_or(0);
+        let fields = ReplyFields {
+            seq: self.reply_seq,
+            echo: self.last_seq,
+            status: status.bits(),
+            counter_id: id as u8,
+            counter_value: value,
+        };
+        // Encoded where it is sent from (the drive's reply buffer: no frame cleared each cycle).
+        let len = encode_reply(
+            &mut self.reply.0,
+            &fields,
+            reply.get(..n_inputs).unwrap_or(&[]),
+            probe_block.as_ref(),
+        );
         self.reply_seq = self.reply_seq.wrapping_add(1);
-        self.prev_reply_dropped = !io.write_link(&frame[..len]);
+        self.prev_reply_dropped = !io.write_link(&self.reply.0[..len]);
         if self.prev_reply_dropped {
             self.counters.replies_dropped = self.counters.replies_dropped.wrapping_add(1);
         }
