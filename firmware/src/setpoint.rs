@@ -442,8 +442,12 @@ pub fn encode_reply(
     };
     out[1] = (version << 4) | n as u8;
     out[2] = fields.seq;
-    for (d, c) in out[HEADER_LEN..].chunks_exact_mut(4).zip(corrected) {
-        d.copy_from_slice(&c.to_le_bytes());
+    // One 4-byte store per command, every slot's test unrolled (a loop over `corrected` would
+    // become a library `memcpy` call: dozens of instructions for a few bytes).
+    for i in 0..MAX_AXES {
+        if let Some(c) = corrected.get(i) {
+            out[HEADER_LEN + 4 * i..HEADER_LEN + 4 * i + 4].copy_from_slice(&c.to_le_bytes());
+        }
     }
     let t = HEADER_LEN + 4 * n;
     let tail = &mut out[t..t + REPLY_TAIL_LEN];
