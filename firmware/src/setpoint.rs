@@ -657,17 +657,16 @@ impl<K: FrameKind, const N: usize> FrameDecoder<K, N> {
         Parse::Frame(flen)
     }
 
-    /// The sequence check of a valid frame: `None` for a repeat (counted, never returned), else the
-    /// frame (a gap counted as lost frames).
+    /// The sequence check of a valid frame with sequence `seq` (byte 2 of every frame): false for a
+    /// repeat (counted, never returned), else true (a gap counted as lost frames).
     #[inline(always)]
-    fn accept(&mut self, frame: K::Frame) -> Option<K::Frame> {
-        let seq = K::seq(&frame);
+    fn accept(&mut self, seq: u8) -> bool {
         if let Some(last) = self.last_seq {
             let step = seq.wrapping_sub(last);
             if step == 0 {
                 self.counters.repeated = self.counters.repeated.wrapping_add(1);
                 self.events.repeated = true;
-                return None;
+                return false;
             }
             if step > 1 {
                 self.counters.lost = self.counters.lost.wrapping_add(u32::from(step - 1));
@@ -676,12 +675,19 @@ impl<K: FrameKind, const N: usize> FrameDecoder<K, N> {
         }
         self.last_seq = Some(seq);
         self.counters.frames_ok = self.counters.frames_ok.wrapping_add(1);
-        Some(frame)
+        true
     }
 
     /// Feeds every byte of `bytes`; returns the newest valid, not repeated frame they complete.
     pub fn push_bytes(&mut self, bytes: &[u8]) -> Option<K::Frame> {
         let mut newest = None;
+        self.push_bytes_into(bytes, &mut newest);
+        newest
+    }
+
+    /// [`FrameDecoder::push_bytes`] into `newest`: each valid, not repeated frame the bytes complete
+    /// is decoded into it (the last one stays); untouched when they complete none.
+    pub fn push_bytes_into(&mut self, bytes: &[u8], newest: &mut Option<K::Frame>) {
         let mut rest = bytes;
         // Nothing pending and a whole valid frame at the start of the bytes (the common case: one
         // frame per cycle): checked and decoded where it lies, not collected into `buf` first. Byte
@@ -692,8 +698,8 @@ impl<K: FrameKind, const N: usize> FrameDecoder<K, N> {
                 break;
             };
             let (frame, after) = rest.split_at(flen);
-            if let Some(f) = self.accept(K::decode(frame)) {
-                newest = Some(f);
+            if self.accept(frame[2]) {
+                *newest = Some(K::decode(frame));
             }
             rest = after;
         }
@@ -720,11 +726,10 @@ impl<K: FrameKind, const N: usize> FrameDecoder<K, N> {
                 continue;
             }
             if let Some(f) = self.push(b) {
-                newest = Some(f);
+                *newest = Some(f);
             }
             rest = after;
         }
-        newest
     }
 
     /// Feeds one byte; returns a frame when the byte completes a valid, not repeated one.
@@ -785,12 +790,12 @@ impl<K: FrameKind, const N: usize> FrameDecoder<K, N> {
                     self.len -= next;
                 }
                 Parse::Frame(flen) => {
-                    let frame = K::decode(&self.buf[..flen]);
+                    let fresh = self.accept(self.buf[2]);
+                    let frame = fresh.then(|| K::decode(&self.buf[..flen]));
                     self.buf.copy_within(flen..self.len, 0);
                     self.len -= flen;
-                    match self.accept(frame) {
-                        Some(f) => return Some(f),
-                        None => continue,
+                    if frame.is_some() {
+                        return frame;
                     }
                 }
             }

@@ -533,9 +533,7 @@ impl GroupDrive {
         for _ in 0..LINK_READS_PER_CYCLE {
             let decoder = &mut self.decoder;
             let got = io.take_link(LINK_CHUNK, |bytes| {
-                if let Some(f) = decoder.push_bytes(bytes) {
-                    fresh = Some(f);
-                }
+                decoder.push_bytes_into(bytes, &mut fresh)
             });
             if got == 0 {
                 break;
