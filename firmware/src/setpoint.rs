@@ -235,15 +235,31 @@ impl SetpointFrame {
         body + CRC_LEN
     }
 
+    /// The frame in `bytes` (a checked frame: header, length and CRC valid).
+    #[inline(never)]
     fn decode(bytes: &[u8]) -> SetpointFrame {
-        let n = usize::from(bytes[1] & 0x0F);
+        let head = bytes.get(1).copied().unwrap_or(0);
+        let n = usize::from(head & 0x0F).min(MAX_AXES);
         let mut commands = [0; MAX_AXES];
-        for (i, c) in commands.iter_mut().enumerate().take(n) {
-            *c = i32_at(bytes, HEADER_LEN + 4 * i);
+        let (body, tail) = bytes
+            .get(HEADER_LEN..)
+            .unwrap_or(&[])
+            .split_at_checked(4 * n)
+            .unwrap_or((&[], &[]));
+        // One 4-byte load per command, every slot's test unrolled (a loop over the commands would
+        // become a library `memcpy` call: dozens of instructions for a few bytes).
+        for (i, c) in commands.iter_mut().enumerate() {
+            if let Some(b) = body.get(4 * i..4 * i + 4) {
+                *c = i32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            }
         }
-        let probe = (bytes[1] >> 4 == VERSION_PROBE).then(|| bytes[HEADER_LEN + 4 * n]);
+        let probe = if head >> 4 == VERSION_PROBE {
+            tail.first().copied()
+        } else {
+            None
+        };
         SetpointFrame {
-            seq: bytes[2],
+            seq: bytes.get(2).copied().unwrap_or(0),
             n_axes: n as u8,
             commands,
             probe,
