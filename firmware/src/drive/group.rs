@@ -30,7 +30,9 @@
 
 use axcomp_core::group::{GroupEngine, GroupInput, GroupOutput, MAX_AXES};
 use axcomp_core::wiring::{self, BoardInput, SensorWiring};
-use axcomp_core::{CycleInput, CycleOutput, Flags, MAX_SENSORS, group_image, inspect_image};
+use axcomp_core::{
+    CycleInput, CycleOutput, Flags, MAX_FORCES, MAX_SENSORS, group_image, inspect_image,
+};
 
 use super::probe::{NoProbe, ProbeDrive, ProbeIo};
 use super::{
@@ -566,13 +568,14 @@ impl GroupDrive {
 
         // ---- the engine: one cycle for every axis ----
         let forces = io.read_forces();
-        // Every slot initialised once with the forces (read only by the group's axes with a force
-        // term; the identity and the slots beyond the group never read them): no per-axis copy.
+        // Slots beyond the group read counter 0, command 0 and no force readings (NaN: read only by
+        // axes with a force term, so by none of them; as a pattern of stores, not a 120-byte clear
+        // of an all-zero array); each of the group's slots gets its command, scale and the forces.
         let mut input = GroupInput {
             axes: [CycleInput {
                 scale_raw: 0,
                 command_counts: 0,
-                forces_n: forces,
+                forces_n: [f32::NAN; MAX_FORCES],
             }; MAX_AXES],
         };
         for i in 0..n {
@@ -581,6 +584,7 @@ impl GroupDrive {
             a.command_counts =
                 self.links[i].begin(commands.and_then(|c| c.get(board_input).copied()));
             a.scale_raw = io.read_scale(board_input);
+            a.forces_n = forces;
         }
         engine.cycle(&input, out);
         // Without probe settings (the common case) nothing of the probe runs.
