@@ -146,6 +146,18 @@ impl AxisResults for Discard {
     fn axis(&mut self, _: usize, _: i64, _: Applied, _: i64) {}
 }
 
+/// Sensor readings rejected by every axis of the active group (one reply in twelve: out of line).
+#[cold]
+#[inline(never)]
+fn sensor_readings_rejected<const POOL: usize>(engine: &GroupEngine<POOL>) -> u32 {
+    let g = engine.active();
+    let st = engine.state();
+    (0..g.axis_count()).fold(0u32, |acc, i| {
+        let sensors = g.axis(i).map_or(0, |a| a.sensor_count());
+        (0..sensors).fold(acc, |a, j| a.wrapping_add(st.axes[i].rejected_readings(j)))
+    })
+}
+
 /// Board inputs a frame of this group addresses: the largest input used + 1 (1 without axes).
 fn inputs_addressed(inputs: &[u8]) -> u8 {
     inputs.iter().fold(0, |m: u8, &i| m.max(i)) + 1
@@ -670,8 +682,14 @@ impl GroupDrive {
         &mut self,
         engine: &GroupEngine<POOL>,
     ) -> (CounterId, u16) {
-        let id = CounterId::ALL[usize::from(self.next_counter) % CounterId::ALL.len()];
-        self.next_counter = ((usize::from(self.next_counter) + 1) % CounterId::ALL.len()) as u8;
+        // Round robin (`next_counter` < 12 always: a compare, no division).
+        let k = usize::from(self.next_counter);
+        let id = CounterId::ALL.get(k).copied().unwrap_or(CounterId::Cycles);
+        self.next_counter = if k + 1 < CounterId::ALL.len() {
+            (k + 1) as u8
+        } else {
+            0
+        };
         let c = &self.counters;
         let link = self.decoder.counters();
         let late = self.meter.stats();
@@ -687,14 +705,7 @@ impl GroupDrive {
             CounterId::ImagesRefused => c
                 .images_refused
                 .wrapping_add(engine.stats().images_rejected),
-            CounterId::SensorRejected => {
-                let g = engine.active();
-                let st = engine.state();
-                (0..g.axis_count()).fold(0u32, |acc, i| {
-                    let sensors = g.axis(i).map_or(0, |a| a.sensor_count());
-                    (0..sensors).fold(acc, |a, j| a.wrapping_add(st.axes[i].rejected_readings(j)))
-                })
-            }
+            CounterId::SensorRejected => sensor_readings_rejected(engine),
             CounterId::MaxLatenessTicks => late.max_lateness_ticks,
             CounterId::SkippedBytes => link.skipped_bytes,
         };
