@@ -437,6 +437,12 @@ pub fn core_status(flags: Flags) -> Status {
     status
 }
 
+/// Most bytes the drive takes from the link per read, and reads per cycle ([`group::GroupDrive`]):
+/// 8 × 32 = 256 bytes, over ten 25-byte frames, so a backlog is worked off within a cycle or two.
+pub const LINK_CHUNK: usize = 32;
+/// Reads of the link per cycle (see [`LINK_CHUNK`]).
+pub const LINK_READS_PER_CYCLE: usize = 8;
+
 /// Board I/O of the drive: scale inputs and the setpoint link, never blocking.
 pub trait DriveIo {
     /// Raw counter of scale input `input` (board wiring order, see [`BoardCaps::axis_ids`]).
@@ -447,6 +453,20 @@ pub trait DriveIo {
     }
     /// Moves bytes received on the link into `buf` without waiting; returns how many (0: none).
     fn read_link(&mut self, buf: &mut [u8]) -> usize;
+    /// Hands at most `max` bytes received on the link to `take` without waiting, and drops them from
+    /// the receive buffer; returns how many (0: none, `take` not called). A board whose driver
+    /// exposes its receive buffer hands them where they lie (no copy: the drive decodes them
+    /// there); the default reads them through [`DriveIo::read_link`] into a buffer of
+    /// [`LINK_CHUNK`] bytes.
+    fn take_link(&mut self, max: usize, take: impl FnOnce(&[u8])) -> usize {
+        let mut buf = [0u8; LINK_CHUNK];
+        let got = self.read_link(&mut buf[..max.min(LINK_CHUNK)]);
+        let bytes = &buf[..got.min(max).min(LINK_CHUNK)];
+        if !bytes.is_empty() {
+            take(bytes);
+        }
+        bytes.len()
+    }
     /// Queues one reply frame without waiting; false if the transmit buffer had no room (dropped).
     fn write_link(&mut self, frame: &[u8]) -> bool;
 }

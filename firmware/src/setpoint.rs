@@ -59,7 +59,7 @@
 //! and every burst up to 16 bits is detected; a random frame passes with probability 2^−16. A CRC-32
 //! (Hamming distance 6 at this length) would add 2 bytes per frame = 10 µs at 2 Mbaud, 10 % of the cycle in
 //! each direction, which the link budget above does not have. The UART's own start/stop-bit framing
-//! errors come on top. The table-driven CRC costs one lookup per byte.
+//! errors come on top. The table-driven CRC takes two bytes per step (two lookups in 1 KiB of tables).
 
 /// First byte of a setpoint frame (CNC → drive).
 pub const SETPOINT_SYNC: u8 = 0xA5;
@@ -114,8 +114,11 @@ pub const MAX_REPLY_FRAME_LEN: usize = reply_probe_frame_len(MAX_AXES);
 /// Longest v2 reply frame (5 axes, no probe block).
 pub const MAX_REPLY_V2_FRAME_LEN: usize = reply_frame_len(MAX_AXES);
 
-const CRC_TABLE: [u16; 256] = {
-    let mut t = [0u16; 256];
+/// CRC-16/CCITT-FALSE tables, two bytes at a time ("slice by 2"): `CRC_TABLES[0][v]` is the CRC
+/// contribution of byte value `v` in the register's high byte, `CRC_TABLES[1][v]` the same followed by
+/// one more (zero) byte. 1 KiB of flash.
+const CRC_TABLES: [[u16; 256]; 2] = {
+    let mut t = [[0u16; 256]; 2];
     let mut i = 0;
     while i < 256 {
         let mut c = (i as u16) << 8;
@@ -128,17 +131,34 @@ const CRC_TABLE: [u16; 256] = {
             };
             k += 1;
         }
-        t[i] = c;
+        t[0][i] = c;
+        i += 1;
+    }
+    let mut i = 0;
+    while i < 256 {
+        let c = t[0][i];
+        t[1][i] = (c << 8) ^ t[0][(c >> 8) as usize];
         i += 1;
     }
     t
 };
 
-/// CRC-16/CCITT-FALSE of `bytes` (check value of `b"123456789"`: 0x29B1).
+/// CRC-16/CCITT-FALSE of `bytes` (check value of `b"123456789"`: 0x29B1): two bytes per step, the
+/// register's high byte with the first and its low byte with the second looked up at once (by
+/// linearity the same as byte by byte), an odd last byte alone.
+#[inline(never)]
 pub fn crc16(bytes: &[u8]) -> u16 {
-    bytes.iter().fold(0xFFFF, |crc, &b| {
-        (crc << 8) ^ CRC_TABLE[usize::from((crc >> 8) as u8 ^ b)]
-    })
+    let [t0, t1] = &CRC_TABLES;
+    let mut pairs = bytes.chunks_exact(2);
+    let mut crc = 0xFFFFu16;
+    for p in &mut pairs {
+        let x = crc ^ u16::from_be_bytes([p[0], p[1]]);
+        crc = t1[usize::from(x >> 8)] ^ t0[usize::from(x & 0xFF)];
+    }
+    if let Some(&b) = pairs.remainder().first() {
+        crc = (crc << 8) ^ t0[usize::from((crc >> 8) as u8 ^ b)];
+    }
+    crc
 }
 
 /// Extends a command's low 32 bits (as sent) against the previous full command of that axis.
@@ -235,15 +255,31 @@ impl SetpointFrame {
         body + CRC_LEN
     }
 
+    /// The frame in `bytes` (a checked frame: header, length and CRC valid).
+    #[inline(never)]
     fn decode(bytes: &[u8]) -> SetpointFrame {
-        let n = usize::from(bytes[1] & 0x0F);
+        let head = bytes.get(1).copied().unwrap_or(0);
+        let n = usize::from(head & 0x0F).min(MAX_AXES);
         let mut commands = [0; MAX_AXES];
-        for (i, c) in commands.iter_mut().enumerate().take(n) {
-            *c = i32_at(bytes, HEADER_LEN + 4 * i);
+        let (body, tail) = bytes
+            .get(HEADER_LEN..)
+            .unwrap_or(&[])
+            .split_at_checked(4 * n)
+            .unwrap_or((&[], &[]));
+        // One 4-byte load per command, every slot's test unrolled (a loop over the commands would
+        // become a library `memcpy` call: dozens of instructions for a few bytes).
+        for (i, c) in commands.iter_mut().enumerate() {
+            if let Some(b) = body.get(4 * i..4 * i + 4) {
+                *c = i32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            }
         }
-        let probe = (bytes[1] >> 4 == VERSION_PROBE).then(|| bytes[HEADER_LEN + 4 * n]);
+        let probe = if head >> 4 == VERSION_PROBE {
+            tail.first().copied()
+        } else {
+            None
+        };
         SetpointFrame {
-            seq: bytes[2],
+            seq: bytes.get(2).copied().unwrap_or(0),
             n_axes: n as u8,
             commands,
             probe,
@@ -372,34 +408,14 @@ impl ReplyFrame {
 
     /// Writes the frame into `out`; returns its length.
     pub fn encode_into(&self, out: &mut [u8; MAX_REPLY_FRAME_LEN]) -> usize {
-        let n = self.n_axes();
-        out[0] = REPLY_SYNC;
-        let version = if self.probe.is_some() {
-            VERSION_PROBE
-        } else {
-            VERSION
+        let fields = ReplyFields {
+            seq: self.seq,
+            echo: self.echo,
+            status: self.status,
+            counter_id: self.counter_id.map_or(0xFF, |c| c as u8),
+            counter_value: self.counter_value,
         };
-        out[1] = (version << 4) | self.n_axes;
-        out[2] = self.seq;
-        for (i, c) in self.corrected().iter().enumerate() {
-            out[HEADER_LEN + 4 * i..HEADER_LEN + 4 * i + 4].copy_from_slice(&c.to_le_bytes());
-        }
-        let t = HEADER_LEN + 4 * n;
-        out[t..t + 4].copy_from_slice(&self.status.to_le_bytes());
-        out[t + 4] = self.echo;
-        out[t + 5] = self.counter_id.map_or(0xFF, |c| c as u8);
-        out[t + 6..t + 8].copy_from_slice(&self.counter_value.to_le_bytes());
-        let mut body = t + REPLY_TAIL_LEN;
-        if let Some(p) = self.probe {
-            out[body..body + 2].copy_from_slice(&p.flags.to_le_bytes());
-            out[body + 2] = p.latch_seq;
-            out[body + 3] = p.item;
-            out[body + 4..body + 8].copy_from_slice(&p.value.to_le_bytes());
-            body += REPLY_PROBE_LEN;
-        }
-        let crc = crc16(&out[1..body]);
-        out[body..body + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
-        body + CRC_LEN
+        encode_reply(out, &fields, self.corrected(), self.probe.as_ref())
     }
 
     fn decode(bytes: &[u8]) -> ReplyFrame {
@@ -427,6 +443,66 @@ impl ReplyFrame {
             probe,
         }
     }
+}
+
+/// The fields of a reply frame besides its corrected commands and probe block (see [`ReplyFrame`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReplyFields {
+    pub seq: u8,
+    pub echo: u8,
+    pub status: u32,
+    /// The [`CounterId`] code (0xFF: none).
+    pub counter_id: u8,
+    pub counter_value: u16,
+}
+
+/// Writes a reply frame with `corrected.len()` corrected commands (1..=[`MAX_AXES`]) and, if given,
+/// the probe block (a v3 frame) into `out`; returns its length, 0 (nothing written) for an axis count
+/// outside 1..=[`MAX_AXES`]. The one encoder of the reply layout ([`ReplyFrame::encode_into`], the
+/// drive's cycle): the frame is written where it is sent from, without a [`ReplyFrame`] in between.
+pub fn encode_reply(
+    out: &mut [u8; MAX_REPLY_FRAME_LEN],
+    fields: &ReplyFields,
+    corrected: &[i32],
+    probe: Option<&ProbeReply>,
+) -> usize {
+    let n = corrected.len();
+    if n == 0 || n > MAX_AXES {
+        return 0;
+    }
+    out[0] = REPLY_SYNC;
+    let version = if probe.is_some() {
+        VERSION_PROBE
+    } else {
+        VERSION
+    };
+    out[1] = (version << 4) | n as u8;
+    out[2] = fields.seq;
+    // One 4-byte store per command, every slot's test unrolled (a loop over `corrected` would
+    // become a library `memcpy` call: dozens of instructions for a few bytes).
+    for i in 0..MAX_AXES {
+        if let Some(c) = corrected.get(i) {
+            out[HEADER_LEN + 4 * i..HEADER_LEN + 4 * i + 4].copy_from_slice(&c.to_le_bytes());
+        }
+    }
+    let t = HEADER_LEN + 4 * n;
+    let tail = &mut out[t..t + REPLY_TAIL_LEN];
+    tail[..4].copy_from_slice(&fields.status.to_le_bytes());
+    tail[4] = fields.echo;
+    tail[5] = fields.counter_id;
+    tail[6..].copy_from_slice(&fields.counter_value.to_le_bytes());
+    let mut body = t + REPLY_TAIL_LEN;
+    if let Some(p) = probe {
+        let block = &mut out[body..body + REPLY_PROBE_LEN];
+        block[..2].copy_from_slice(&p.flags.to_le_bytes());
+        block[2] = p.latch_seq;
+        block[3] = p.item;
+        block[4..].copy_from_slice(&p.value.to_le_bytes());
+        body += REPLY_PROBE_LEN;
+    }
+    let crc = crc16(&out[1..body]);
+    out[body..body + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
+    body + CRC_LEN
 }
 
 fn i32_at(b: &[u8], at: usize) -> i32 {
@@ -513,8 +589,9 @@ impl FrameKind for Replies {
 
 /// Byte-at-a-time resynchronising decoder with sequence checking.
 #[derive(Clone, Debug)]
-pub struct FrameDecoder<K: FrameKind> {
-    buf: [u8; MAX_REPLY_FRAME_LEN],
+pub struct FrameDecoder<K: FrameKind, const N: usize> {
+    /// The candidate frame being collected (`N`: the longest frame of the kind).
+    buf: [u8; N],
     len: usize,
     /// Length of the candidate frame in `buf` once its header was checked (0: not yet).
     need: usize,
@@ -525,9 +602,9 @@ pub struct FrameDecoder<K: FrameKind> {
 }
 
 /// The drive's decoder of setpoint frames.
-pub type SetpointDecoder = FrameDecoder<Setpoints>;
+pub type SetpointDecoder = FrameDecoder<Setpoints, MAX_SETPOINT_FRAME_LEN>;
 /// The CNC's (or a test's) decoder of reply frames.
-pub type ReplyDecoder = FrameDecoder<Replies>;
+pub type ReplyDecoder = FrameDecoder<Replies, MAX_REPLY_FRAME_LEN>;
 
 enum Parse {
     NeedMore,
@@ -538,16 +615,16 @@ enum Parse {
     Frame(usize),
 }
 
-impl<K: FrameKind> Default for FrameDecoder<K> {
+impl<K: FrameKind, const N: usize> Default for FrameDecoder<K, N> {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<K: FrameKind> FrameDecoder<K> {
+impl<K: FrameKind, const N: usize> FrameDecoder<K, N> {
     pub const fn new() -> Self {
         FrameDecoder {
-            buf: [0; MAX_REPLY_FRAME_LEN],
+            buf: [0; N],
             len: 0,
             need: 0,
             last_seq: None,
@@ -582,36 +659,86 @@ impl<K: FrameKind> FrameDecoder<K> {
     }
 
     fn parse(&self) -> Parse {
-        if self.len == 0 {
-            return Parse::NeedMore;
-        }
-        if self.buf[0] != K::SYNC {
+        Self::parse_bytes(&self.buf[..self.len])
+    }
+
+    /// What the candidate frame at the start of `b` is: incomplete, to be dropped, or a valid frame
+    /// of the returned length (the bytes after it are not looked at).
+    #[inline(always)]
+    fn parse_bytes(b: &[u8]) -> Parse {
+        let (&sync, rest) = match b.split_first() {
+            Some(x) => x,
+            None => return Parse::NeedMore,
+        };
+        if sync != K::SYNC {
             return Parse::Drop { corrupt: false };
         }
-        if self.len < 2 {
+        let Some(&head) = rest.first() else {
             return Parse::NeedMore;
-        }
-        let n = usize::from(self.buf[1] & 0x0F);
-        let version = self.buf[1] >> 4;
+        };
+        let n = usize::from(head & 0x0F);
+        let version = head >> 4;
         if (version != VERSION && version != VERSION_PROBE) || n == 0 || n > MAX_AXES {
             return Parse::Drop { corrupt: false };
         }
         let body = HEADER_LEN + 4 * n + K::tail_len(version);
         let flen = body + CRC_LEN;
-        if self.len < flen {
+        let Some(frame) = b.get(..flen) else {
             return Parse::NeedMore;
-        }
-        let crc = u16::from_le_bytes([self.buf[body], self.buf[body + 1]]);
-        if crc16(&self.buf[1..body]) != crc {
+        };
+        let crc = u16::from_le_bytes([frame[body], frame[body + 1]]);
+        if crc16(&frame[1..body]) != crc {
             return Parse::Drop { corrupt: true };
         }
         Parse::Frame(flen)
     }
 
+    /// The sequence check of a valid frame with sequence `seq` (byte 2 of every frame): false for a
+    /// repeat (counted, never returned), else true (a gap counted as lost frames).
+    #[inline(always)]
+    fn accept(&mut self, seq: u8) -> bool {
+        if let Some(last) = self.last_seq {
+            let step = seq.wrapping_sub(last);
+            if step == 0 {
+                self.counters.repeated = self.counters.repeated.wrapping_add(1);
+                self.events.repeated = true;
+                return false;
+            }
+            if step > 1 {
+                self.counters.lost = self.counters.lost.wrapping_add(u32::from(step - 1));
+                self.events.lost = true;
+            }
+        }
+        self.last_seq = Some(seq);
+        self.counters.frames_ok = self.counters.frames_ok.wrapping_add(1);
+        true
+    }
+
     /// Feeds every byte of `bytes`; returns the newest valid, not repeated frame they complete.
     pub fn push_bytes(&mut self, bytes: &[u8]) -> Option<K::Frame> {
         let mut newest = None;
+        self.push_bytes_into(bytes, &mut newest);
+        newest
+    }
+
+    /// [`FrameDecoder::push_bytes`] into `newest`: each valid, not repeated frame the bytes complete
+    /// is decoded into it (the last one stays); untouched when they complete none.
+    pub fn push_bytes_into(&mut self, bytes: &[u8], newest: &mut Option<K::Frame>) {
         let mut rest = bytes;
+        // Nothing pending and a whole valid frame at the start of the bytes (the common case: one
+        // frame per cycle): checked and decoded where it lies, not collected into `buf` first. Byte
+        // by byte the same frame would be collected, checked and returned with the same counters,
+        // leaving the decoder empty again (`len` and `need` 0), as here.
+        while self.len == 0 {
+            let Parse::Frame(flen) = Self::parse_bytes(rest) else {
+                break;
+            };
+            let (frame, after) = rest.split_at(flen);
+            if self.accept(frame[2]) {
+                *newest = Some(K::decode(frame));
+            }
+            rest = after;
+        }
         while let Some((&b, after)) = rest.split_first() {
             // `push`'s fast path for a run of bytes at once: inside a candidate frame whose header
             // was checked, collect every byte before the frame's last one in one copy (the same
@@ -635,11 +762,10 @@ impl<K: FrameKind> FrameDecoder<K> {
                 continue;
             }
             if let Some(f) = self.push(b) {
-                newest = Some(f);
+                *newest = Some(f);
             }
             rest = after;
         }
-        newest
     }
 
     /// Feeds one byte; returns a frame when the byte completes a valid, not repeated one.
@@ -700,26 +826,13 @@ impl<K: FrameKind> FrameDecoder<K> {
                     self.len -= next;
                 }
                 Parse::Frame(flen) => {
-                    let frame = K::decode(&self.buf[..flen]);
+                    let fresh = self.accept(self.buf[2]);
+                    let frame = fresh.then(|| K::decode(&self.buf[..flen]));
                     self.buf.copy_within(flen..self.len, 0);
                     self.len -= flen;
-                    let seq = K::seq(&frame);
-                    if let Some(last) = self.last_seq {
-                        let step = seq.wrapping_sub(last);
-                        if step == 0 {
-                            self.counters.repeated = self.counters.repeated.wrapping_add(1);
-                            self.events.repeated = true;
-                            continue;
-                        }
-                        if step > 1 {
-                            self.counters.lost =
-                                self.counters.lost.wrapping_add(u32::from(step - 1));
-                            self.events.lost = true;
-                        }
+                    if frame.is_some() {
+                        return frame;
                     }
-                    self.last_seq = Some(seq);
-                    self.counters.frames_ok = self.counters.frames_ok.wrapping_add(1);
-                    return Some(frame);
                 }
             }
         }
@@ -746,6 +859,40 @@ mod tests {
     fn crc16_check_value() {
         // Reference: the CRC catalogue's check value of CRC-16/CCITT-FALSE for "123456789".
         assert_eq!(crc16(b"123456789"), 0x29B1);
+    }
+
+    /// Reference: the bitwise definition of CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, MSB
+    /// first, no final XOR); tolerance: exact, for every length 0..=48 (even and odd) of
+    /// pseudo-random bytes.
+    #[test]
+    fn crc16_two_bytes_per_step_equals_the_bitwise_definition() {
+        fn bitwise(bytes: &[u8]) -> u16 {
+            let mut crc = 0xFFFFu16;
+            for &b in bytes {
+                crc ^= u16::from(b) << 8;
+                for _ in 0..8 {
+                    crc = if crc & 0x8000 != 0 {
+                        (crc << 1) ^ 0x1021
+                    } else {
+                        crc << 1
+                    };
+                }
+            }
+            crc
+        }
+        let mut x = 0x9E37_79B9u32;
+        let bytes: Vec<u8> = (0..48)
+            .map(|_| {
+                x ^= x << 13;
+                x ^= x >> 17;
+                x ^= x << 5;
+                x as u8
+            })
+            .collect();
+        for len in 0..=bytes.len() {
+            assert_eq!(crc16(&bytes[..len]), bitwise(&bytes[..len]), "length {len}");
+        }
+        assert_eq!(bitwise(b"123456789"), 0x29B1);
     }
 
     #[test]

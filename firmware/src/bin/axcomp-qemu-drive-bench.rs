@@ -83,6 +83,18 @@ mod firmware {
             buf[..n].copy_from_slice(&self.frames[self.next % BATCH][..n]);
             n
         }
+        /// The frame where it lies (as the board's UART driver hands its receive buffer).
+        fn take_link(&mut self, max: usize, take: impl FnOnce(&[u8])) -> usize {
+            if self.delivered {
+                return 0;
+            }
+            self.delivered = true;
+            let n = self.frame_len.min(max);
+            if n > 0 {
+                take(&self.frames[self.next % BATCH][..n]);
+            }
+            n
+        }
         fn write_link(&mut self, frame: &[u8]) -> bool {
             let n = frame.len().min(self.sink.len());
             self.sink[..n].copy_from_slice(&frame[..n]);

@@ -141,6 +141,36 @@ impl DriveIo for BoardIo {
         self.rx.read(buf).unwrap_or(0)
     }
 
+    /// The received bytes where they lie in the driver's receive ring (its `fill_buf`, polled once:
+    /// only what has arrived), then dropped from it (`consume`): no copy. At the ring's end the
+    /// bytes before the wrap come first, the rest on the next call.
+    fn take_link(&mut self, max: usize, take: impl FnOnce(&[u8])) -> usize {
+        use core::future::Future;
+        use core::task::{Context, Poll, Waker};
+        use embedded_io_async::{BufRead, ReadReady};
+        // `fill_buf` pends on an empty ring (it would register the waker), so ask first.
+        if !matches!(self.rx.read_ready(), Ok(true)) {
+            return 0;
+        }
+        let n = {
+            let mut fut = core::pin::pin!(self.rx.fill_buf());
+            match fut.as_mut().poll(&mut Context::from_waker(Waker::noop())) {
+                Poll::Ready(Ok(bytes)) => {
+                    let n = bytes.len().min(max);
+                    if n > 0 {
+                        take(&bytes[..n]);
+                    }
+                    n
+                }
+                _ => 0,
+            }
+        };
+        if n > 0 {
+            self.rx.consume(n);
+        }
+        n
+    }
+
     fn write_link(&mut self, frame: &[u8]) -> bool {
         use core::future::Future;
         use core::task::{Context, Poll, Waker};

@@ -30,15 +30,17 @@
 
 use axcomp_core::group::{GroupEngine, GroupInput, GroupOutput, MAX_AXES};
 use axcomp_core::wiring::{self, BoardInput, SensorWiring};
-use axcomp_core::{CycleInput, CycleOutput, Flags, MAX_SENSORS, group_image, inspect_image};
+use axcomp_core::{
+    CycleInput, CycleOutput, Flags, MAX_FORCES, MAX_SENSORS, group_image, inspect_image,
+};
 
 use super::probe::{NoProbe, ProbeDrive, ProbeIo};
 use super::{
-    Applied, BoardCaps, DriveCounters, DriveIo, ImageRefusal, LatenessMeter, LinkPhase,
-    LinkSettings, LinkSupervisor, ResetCause, Watchdog, core_status,
+    Applied, BoardCaps, DriveCounters, DriveIo, ImageRefusal, LINK_CHUNK, LINK_READS_PER_CYCLE,
+    LatenessMeter, LinkPhase, LinkSettings, LinkSupervisor, ResetCause, Watchdog, core_status,
 };
 use crate::control::{CycleClock, CycleTimer, LoopConfig};
-use crate::setpoint::{CounterId, MAX_REPLY_FRAME_LEN, ReplyFrame, SetpointDecoder};
+use crate::setpoint::{CounterId, MAX_REPLY_FRAME_LEN, ReplyFields, SetpointDecoder, encode_reply};
 use crate::status::Status;
 
 /// Board inputs of a group image's axes (by group slot) and how many axes it has.
@@ -144,6 +146,18 @@ impl AxisResults for Discard {
     fn axis(&mut self, _: usize, _: i64, _: Applied, _: i64) {}
 }
 
+/// Sensor readings rejected by every axis of the active group (one reply in twelve: out of line).
+#[cold]
+#[inline(never)]
+fn sensor_readings_rejected<const POOL: usize>(engine: &GroupEngine<POOL>) -> u32 {
+    let g = engine.active();
+    let st = engine.state();
+    (0..g.axis_count()).fold(0u32, |acc, i| {
+        let sensors = g.axis(i).map_or(0, |a| a.sensor_count());
+        (0..sensors).fold(acc, |a, j| a.wrapping_add(st.axes[i].rejected_readings(j)))
+    })
+}
+
 /// Board inputs a frame of this group addresses: the largest input used + 1 (1 without axes).
 fn inputs_addressed(inputs: &[u8]) -> u8 {
     inputs.iter().fold(0, |m: u8, &i| m.max(i)) + 1
@@ -169,9 +183,27 @@ pub struct GroupDrive {
     prev_overrun: bool,
     prev_reply_dropped: bool,
     next_counter: u8,
-    counters: DriveCounters,
+    counters: OwnCounters,
     last_status: Status,
     probe: ProbeDrive,
+    /// The reply frame of the last cycle, encoded in place (bytes past its length are stale).
+    reply: ReplyBuffer,
+}
+
+/// A reply frame's bytes, word aligned (copied out whole words at a time).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(4))]
+struct ReplyBuffer([u8; MAX_REPLY_FRAME_LEN]);
+
+/// The counters the drive keeps itself (the link's are the decoder's, the lateness the meter's:
+/// [`GroupDrive::counters`] puts them together).
+#[derive(Clone, Copy, Debug, Default)]
+struct OwnCounters {
+    cycles: u32,
+    short_frames: u32,
+    cycles_without_frame: u32,
+    images_refused: u32,
+    replies_dropped: u32,
 }
 
 impl GroupDrive {
@@ -200,9 +232,10 @@ impl GroupDrive {
             prev_overrun: false,
             prev_reply_dropped: false,
             next_counter: 0,
-            counters: DriveCounters::default(),
+            counters: OwnCounters::default(),
             last_status: Status::NONE,
             probe: ProbeDrive::new(config.period_ticks.saturating_mul(config.rate_hz)),
+            reply: ReplyBuffer([0; MAX_REPLY_FRAME_LEN]),
         }
     }
 
@@ -262,10 +295,16 @@ impl GroupDrive {
     }
 
     pub fn counters(&self) -> DriveCounters {
-        let mut c = self.counters;
-        c.link = *self.decoder.counters();
-        c.lateness = *self.meter.stats();
-        c
+        let c = &self.counters;
+        DriveCounters {
+            cycles: c.cycles,
+            link: *self.decoder.counters(),
+            short_frames: c.short_frames,
+            cycles_without_frame: c.cycles_without_frame,
+            lateness: *self.meter.stats(),
+            images_refused: c.images_refused,
+            replies_dropped: c.replies_dropped,
+        }
     }
 
     /// Status word of the last cycle.
@@ -505,14 +544,13 @@ impl GroupDrive {
 
         // ---- link: every byte received since the last cycle; the newest fresh frame wins ----
         let mut fresh = None;
-        let mut buf = [0u8; 32];
-        for _ in 0..8 {
-            let got = io.read_link(&mut buf);
+        for _ in 0..LINK_READS_PER_CYCLE {
+            let decoder = &mut self.decoder;
+            let got = io.take_link(LINK_CHUNK, |bytes| {
+                decoder.push_bytes_into(bytes, &mut fresh)
+            });
             if got == 0 {
                 break;
-            }
-            if let Some(f) = self.decoder.push_bytes(&buf[..got.min(buf.len())]) {
-                fresh = Some(f);
             }
         }
         let events = self.decoder.take_events();
@@ -542,13 +580,14 @@ impl GroupDrive {
 
         // ---- the engine: one cycle for every axis ----
         let forces = io.read_forces();
-        // Every slot initialised once with the forces (read only by the group's axes with a force
-        // term; the identity and the slots beyond the group never read them): no per-axis copy.
+        // Slots beyond the group read counter 0, command 0 and no force readings (NaN: read only by
+        // axes with a force term, so by none of them; as a pattern of stores, not a 120-byte clear
+        // of an all-zero array); each of the group's slots gets its command, scale and the forces.
         let mut input = GroupInput {
             axes: [CycleInput {
                 scale_raw: 0,
                 command_counts: 0,
-                forces_n: forces,
+                forces_n: [f32::NAN; MAX_FORCES],
             }; MAX_AXES],
         };
         for i in 0..n {
@@ -557,6 +596,7 @@ impl GroupDrive {
             a.command_counts =
                 self.links[i].begin(commands.and_then(|c| c.get(board_input).copied()));
             a.scale_raw = io.read_scale(board_input);
+            a.forces_n = forces;
         }
         engine.cycle(&input, out);
         // Without probe settings (the common case) nothing of the probe runs.
@@ -613,23 +653,22 @@ impl GroupDrive {
         let (id, value) = self.next_counter_value(engine);
         let probe_block =
             probe_on.then(|| self.probe.reply(probe_flags, &self.inputs[..n], n_inputs));
-        let mut frame = [0u8; MAX_REPLY_FRAME_LEN];
-        let len = ReplyFrame::new(
-            self.reply_seq,
-            self.last_seq,
-            &reply[..n_inputs],
-            status.bits(),
-            id,
-            value,
-        )
-        .map(|r| match probe_block {
-            Some(p) => r.with_probe(p),
-            None => r,
-        })
-        .map(|r| r.encode_into(&mut frame))
-        .unwrap_or(0);
+        let fields = ReplyFields {
+            seq: self.reply_seq,
+            echo: self.last_seq,
+            status: status.bits(),
+            counter_id: id as u8,
+            counter_value: value,
+        };
+        // Encoded where it is sent from (the drive's reply buffer: no frame cleared each cycle).
+        let len = encode_reply(
+            &mut self.reply.0,
+            &fields,
+            reply.get(..n_inputs).unwrap_or(&[]),
+            probe_block.as_ref(),
+        );
         self.reply_seq = self.reply_seq.wrapping_add(1);
-        self.prev_reply_dropped = !io.write_link(&frame[..len]);
+        self.prev_reply_dropped = !io.write_link(&self.reply.0[..len]);
         if self.prev_reply_dropped {
             self.counters.replies_dropped = self.counters.replies_dropped.wrapping_add(1);
         }
@@ -643,8 +682,14 @@ impl GroupDrive {
         &mut self,
         engine: &GroupEngine<POOL>,
     ) -> (CounterId, u16) {
-        let id = CounterId::ALL[usize::from(self.next_counter) % CounterId::ALL.len()];
-        self.next_counter = ((usize::from(self.next_counter) + 1) % CounterId::ALL.len()) as u8;
+        // Round robin (`next_counter` < 12 always: a compare, no division).
+        let k = usize::from(self.next_counter);
+        let id = CounterId::ALL.get(k).copied().unwrap_or(CounterId::Cycles);
+        self.next_counter = if k + 1 < CounterId::ALL.len() {
+            (k + 1) as u8
+        } else {
+            0
+        };
         let c = &self.counters;
         let link = self.decoder.counters();
         let late = self.meter.stats();
@@ -660,14 +705,7 @@ impl GroupDrive {
             CounterId::ImagesRefused => c
                 .images_refused
                 .wrapping_add(engine.stats().images_rejected),
-            CounterId::SensorRejected => {
-                let g = engine.active();
-                let st = engine.state();
-                (0..g.axis_count()).fold(0u32, |acc, i| {
-                    let sensors = g.axis(i).map_or(0, |a| a.sensor_count());
-                    (0..sensors).fold(acc, |a, j| a.wrapping_add(st.axes[i].rejected_readings(j)))
-                })
-            }
+            CounterId::SensorRejected => sensor_readings_rejected(engine),
             CounterId::MaxLatenessTicks => late.max_lateness_ticks,
             CounterId::SkippedBytes => link.skipped_bytes,
         };
