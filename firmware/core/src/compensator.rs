@@ -125,7 +125,7 @@ pub struct AxisCompensator<S> {
     pub(crate) axis_id: u16,
     pub(crate) counter_bits: u8,
     /// 32 − counter_bits (0 for the identity: a 32-bit counter).
-    pub(crate) sext_shift: u32,
+    pub(crate) sext_shift: crate::counter::CounterShift,
     pub(crate) um_per_count: f32,
     /// Counts per revolution of a rotary group axis (its table is indexed by the position within
     /// the turn); 0 for a linear axis and always for [`OwnTable`] storage.
@@ -226,7 +226,7 @@ impl<S> AxisCompensator<S> {
             loaded: false,
             axis_id: 0,
             counter_bits: 0,
-            sext_shift: 0,
+            sext_shift: crate::counter::CounterShift::S0,
             um_per_count: 0.0,
             counts_per_rev: 0,
             bidirectional: false,
@@ -324,7 +324,7 @@ impl<S: TableStore> AxisCompensator<S> {
         self.thermo_flags_xor = 0;
         self.axis_id = 0;
         self.counter_bits = 0;
-        self.sext_shift = 0;
+        self.sext_shift = crate::counter::CounterShift::S0;
         self.um_per_count = 0.0;
         self.counts_per_rev = 0;
         self.half_um_per_count = 0.0;

@@ -24,13 +24,68 @@ pub enum Direction {
 use crate::compensator::{AxisCompensator, State, TableStore};
 use crate::limits::cold_path;
 
+/// The shift of the counter's sign extension, 32 − `counter_bits` (0..=31): an enum, so that a load
+/// of it carries its range and the shifts by it need no `& 31` (one instruction per axis and cycle).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[repr(u8)]
+pub(crate) enum CounterShift {
+    /// A 32-bit counter (and the identity).
+    #[default]
+    S0 = 0,
+    S1 = 1,
+    S2 = 2,
+    S3 = 3,
+    S4 = 4,
+    S5 = 5,
+    S6 = 6,
+    S7 = 7,
+    S8 = 8,
+    S9 = 9,
+    S10 = 10,
+    S11 = 11,
+    S12 = 12,
+    S13 = 13,
+    S14 = 14,
+    S15 = 15,
+    S16 = 16,
+    S17 = 17,
+    S18 = 18,
+    S19 = 19,
+    S20 = 20,
+    S21 = 21,
+    S22 = 22,
+    S23 = 23,
+    S24 = 24,
+    S25 = 25,
+    S26 = 26,
+    S27 = 27,
+    S28 = 28,
+    S29 = 29,
+    S30 = 30,
+    S31 = 31,
+}
+
+impl CounterShift {
+    /// `shift` modulo 32 (a counter width of 16..=32 bits gives 0..=16).
+    pub(crate) const fn new(shift: u32) -> CounterShift {
+        use CounterShift::*;
+        const ALL: [CounterShift; 32] = [S0, S1, S2, S3, S4, S5, S6, S7, S8, S9, S10, S11, S12, S13, S14, S15, S16, S17, S18, S19, S20, S21, S22, S23, S24, S25, S26, S27, S28, S29, S30, S31];
+        ALL[(shift & 31) as usize]
+    }
+    /// The shift.
+    #[inline(always)]
+    pub(crate) const fn get(self) -> u32 {
+        self as u32
+    }
+}
+
 impl<S: TableStore> AxisCompensator<S> {
     /// Counter extension (wrap-safe, sign-extended delta) and the direction hysteresis; returns
     /// the extended position (also stored in `st`) and the step `delta` that was added to the
     /// previous extended position (position = previous position + delta, exactly).
     #[inline(always)]
     pub(crate) fn track(&self, st: &mut State, raw: u32) -> (i64, i32) {
-        let shift = self.sext_shift;
+        let shift = self.sext_shift.get();
         if !st.primed {
             cold_path();
             let base = if st.raw_pending { st.last_raw } else { raw };
