@@ -190,11 +190,6 @@ pub trait TableStore {
     /// Segment `seg` (< the axis's segment count, checked by the caller) of half `dir`; `pool` is
     /// the group's coefficient pool (unused by [`OwnTable`]).
     fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4];
-    /// Storage index of segment `seg` of half `dir` (what [`TableStore::segment_at`] takes).
-    fn slot(&self, dir: usize, seg: u32) -> u32;
-    /// The segment at storage index `slot` (from [`TableStore::slot`]; any other value gives
-    /// some segment or zeros, never a panic).
-    fn segment_at<'a>(&'a self, pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4];
     /// True if axes with this storage may be rotary (turn tracking compiled in).
     const TURNS: bool = false;
 }
@@ -208,14 +203,6 @@ impl TableStore for OwnTable {
     #[inline(always)]
     fn segment<'a>(&'a self, _pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4] {
         &self.0[(seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1)]
-    }
-    #[inline(always)]
-    fn slot(&self, dir: usize, seg: u32) -> u32 {
-        seg.wrapping_add((dir * MAX_SEGMENTS) as u32)
-    }
-    #[inline(always)]
-    fn segment_at<'a>(&'a self, _pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4] {
-        &self.0[slot as usize & (2 * MAX_SEGMENTS - 1)]
     }
 }
 
@@ -381,15 +368,27 @@ impl<S: TableStore> AxisCompensator<S> {
                 flags: Flags(((st.backward as u16) << 7) | Flags::IDENTITY.0),
             };
         }
-        let (total, flags) =
-            self.axis_error_um(pool, st, (pos, delta), &input.forces_n, None, None, false);
+        let (pos, total, flags) = self.axis_error_um(
+            pool,
+            st,
+            (pos, delta),
+            input.scale_raw,
+            &input.forces_n,
+            None,
+            None,
+            false,
+        );
         self.finish(st, pos, total, input.command_counts, flags)
     }
 
     /// Table (at the extended position, or a rotary axis's position within the turn) +
-    /// thermo-force term (at the extended position `pos`), µm before the limits, and
-    /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags). `(pos, delta)` is what
-    /// [`AxisCompensator::track`] returned this cycle. (Eight arguments: the hot path takes its
+    /// thermo-force term (at the extended position), µm before the limits, and
+    /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags), with the extended
+    /// position. `(pos, delta)` is what [`AxisCompensator::track`] returned this cycle with the
+    /// counter value `raw`; with `segment_cache`, what [`AxisCompensator::track_primed`]
+    /// returned: on a state that was not primed (its segment cache is void) the cache miss's
+    /// path replaces it by what `track` computes ([`AxisCompensator::track_unprimed`]), so the
+    /// returned position is the one to use. (Nine arguments: the hot path takes its
     /// compile-time choices as plain arguments that inlining folds away, not as a struct.)
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
@@ -397,12 +396,13 @@ impl<S: TableStore> AxisCompensator<S> {
         &self,
         pool: &[[f32; 4]],
         st: &mut State,
-        (pos, delta): (i64, i32),
+        (mut pos, mut delta): (i64, i32),
+        raw: u32,
         forces_n: &[f32; MAX_FORCES],
         rotary_known: Option<bool>,
         thermo_known: Option<bool>,
         segment_cache: bool,
-    ) -> (f32, Flags) {
+    ) -> (i64, f32, Flags) {
         // `rotary_known`, `thermo_known` and `segment_cache` are constants at each call: where
         // the caller knows whether the axis is rotary (a group's pipelines: its kind, set at
         // load from the same counts per revolution) or has a thermo-force term, the check is
@@ -436,25 +436,31 @@ impl<S: TableStore> AxisCompensator<S> {
                 // Within one segment of the turn: the turn position moved by delta, no wrap.
                 st.seg_rem = r;
                 st.pos_in_turn = st.pos_in_turn.wrapping_add(delta as u32);
-                (self.segment_um_at(pool, st.seg_slot, r), backward(st))
+                (self.segment_um_cached(st, r), backward(st))
             } else {
                 crate::limits::cold_path();
+                if !st.primed {
+                    (pos, delta) = self.track_unprimed(st, raw, delta);
+                }
                 let turn = self.turn_position(st, pos, delta);
                 let v = self.table_um_refill(pool, st, turn as i64);
                 with_outside(st, v)
             }
         } else if r < st.seg_limit {
             st.seg_rem = r;
-            (self.segment_um_at(pool, st.seg_slot, r), backward(st))
+            (self.segment_um_cached(st, r), backward(st))
         } else {
             crate::limits::cold_path();
+            if !st.primed {
+                pos = self.track_unprimed(st, raw, delta).0;
+            }
             let v = self.table_um_refill(pool, st, pos);
             with_outside(st, v)
         };
         if thermo_known.unwrap_or(self.has_thermo) {
             total = self.thermo_um(st, pos, forces_n, &mut flags, total);
         }
-        (total, flags)
+        (pos, total, flags)
     }
 }
 
@@ -495,11 +501,11 @@ pub struct State {
     pub(crate) pos_in_turn: u32,
     /// Segment cache of the table (see [`AxisCompensator::table_um_refill`]): the table
     /// position's remainder within its segment, that segment's length while the cache is valid
-    /// (0: void, the next lookup is a full one) and its storage index in the half of the
-    /// present direction ([`TableStore::slot`]; a reversal voids the cache).
+    /// (0: void, the next lookup is a full one; always 0 while `primed` is false) and a copy of
+    /// its coefficients in the half of the present direction (a reversal voids the cache).
     pub(crate) seg_rem: u32,
     pub(crate) seg_limit: u32,
-    pub(crate) seg_slot: u32,
+    pub(crate) seg_coef: [f32; 4],
     /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
     pub(crate) stale_ramp: bool,
     pub(crate) stale_since_ms: u32,
@@ -536,7 +542,7 @@ impl PartialEq for State {
             frozen_expansion_um_per_count,
             seg_rem: _,
             seg_limit: _,
-            seg_slot: _,
+            seg_coef: _,
         } = self;
         *primed == other.primed
             && *raw_pending == other.raw_pending
@@ -596,7 +602,7 @@ impl State {
             pos_in_turn: 0,
             seg_rem: 0,
             seg_limit: 0,
-            seg_slot: 0,
+            seg_coef: [0.0; 4],
             stale_ramp: false,
             stale_since_ms: 0,
             frozen_sensor_um: 0.0,

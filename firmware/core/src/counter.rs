@@ -69,7 +69,10 @@ impl CounterShift {
     /// `shift` modulo 32 (a counter width of 16..=32 bits gives 0..=16).
     pub(crate) const fn new(shift: u32) -> CounterShift {
         use CounterShift::*;
-        const ALL: [CounterShift; 32] = [S0, S1, S2, S3, S4, S5, S6, S7, S8, S9, S10, S11, S12, S13, S14, S15, S16, S17, S18, S19, S20, S21, S22, S23, S24, S25, S26, S27, S28, S29, S30, S31];
+        const ALL: [CounterShift; 32] = [
+            S0, S1, S2, S3, S4, S5, S6, S7, S8, S9, S10, S11, S12, S13, S14, S15, S16, S17, S18,
+            S19, S20, S21, S22, S23, S24, S25, S26, S27, S28, S29, S30, S31,
+        ];
         ALL[(shift & 31) as usize]
     }
     /// The shift.
@@ -85,16 +88,33 @@ impl<S: TableStore> AxisCompensator<S> {
     /// previous extended position (position = previous position + delta, exactly).
     #[inline(always)]
     pub(crate) fn track(&self, st: &mut State, raw: u32) -> (i64, i32) {
-        let shift = self.sext_shift.get();
         if !st.primed {
             cold_path();
-            let base = if st.raw_pending { st.last_raw } else { raw };
-            st.position = ((base.wrapping_shl(shift) as i32) >> shift) as i64;
-            st.last_raw = base;
-            st.back_counts = 0;
-            st.primed = true;
-            st.raw_pending = false;
+            self.prime(st, raw);
         }
+        self.track_primed(st, raw)
+    }
+
+    /// The first cycle of a fresh or reset state: the counter value (at reset, or this cycle's)
+    /// sign-extended is the extended position.
+    #[inline(always)]
+    fn prime(&self, st: &mut State, raw: u32) {
+        let shift = self.sext_shift.get();
+        let base = if st.raw_pending { st.last_raw } else { raw };
+        st.position = ((base.wrapping_shl(shift) as i32) >> shift) as i64;
+        st.last_raw = base;
+        st.back_counts = 0;
+        st.primed = true;
+        st.raw_pending = false;
+    }
+
+    /// [`AxisCompensator::track`] without the test of `primed` (the group pipelines, whose
+    /// segment cache is void while the state is not primed): on a state that is not primed it
+    /// computes something else, which [`AxisCompensator::track_unprimed`] (the cache miss's
+    /// path) replaces by what `track` computes.
+    #[inline(always)]
+    pub(crate) fn track_primed(&self, st: &mut State, raw: u32) -> (i64, i32) {
+        let shift = self.sext_shift.get();
         let delta = ((raw.wrapping_sub(st.last_raw)).wrapping_shl(shift) as i32) >> shift;
         st.last_raw = raw;
         let pos = st.position.wrapping_add(delta as i64);
@@ -119,6 +139,24 @@ impl<S: TableStore> AxisCompensator<S> {
             st.back_counts = if back < 0 { 0 } else { back };
         }
         (pos, delta)
+    }
+
+    /// After [`AxisCompensator::track_primed`] with `raw` returned `delta` on a state that was
+    /// not primed: the state and the result `track` would have given.
+    ///
+    /// Exact because a state that is not primed is a fresh one or a reset one ([`State::new`],
+    /// [`State::reset`]; nothing else clears `primed`): direction forward, nothing moved back,
+    /// and the counter value at reset (if any) in `last_raw`, whose low `counter_bits` bits —
+    /// all that the priming reads of it — are `raw − delta` (delta is the sign extension of
+    /// `raw − last_raw` from those bits).
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn track_unprimed(&self, st: &mut State, raw: u32, delta: i32) -> (i64, i32) {
+        st.last_raw = raw.wrapping_sub(delta as u32);
+        st.backward = false;
+        st.back_counts = 0;
+        self.prime(st, raw);
+        self.track_primed(st, raw)
     }
 }
 

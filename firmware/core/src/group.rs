@@ -176,17 +176,6 @@ impl TableStore for PoolTable {
             .and_then(|j| pool.get(j))
             .unwrap_or(&ZERO_SEGMENT)
     }
-    #[inline(always)]
-    fn slot(&self, dir: usize, seg: u32) -> u32 {
-        self.base[dir & 1].wrapping_add(seg)
-    }
-    #[inline(always)]
-    fn segment_at<'a>(&'a self, pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4] {
-        (slot as usize)
-            .checked_rem(pool.len())
-            .and_then(|j| pool.get(j))
-            .unwrap_or(&ZERO_SEGMENT)
-    }
 }
 
 /// Inputs of one group cycle, by slot (entries beyond the group's axes are ignored).
@@ -870,12 +859,23 @@ fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     input: &CycleInput,
     out: &mut CycleOutput,
 ) {
-    let tracked = ax.track(st, input.scale_raw);
+    // The test of `primed` in the segment cache's miss path (see `axis_error_um`).
+    let tracked = ax.track_primed(st, input.scale_raw);
     // THERMO false: known to have none, and ROTARY is the kind; true: both checked at run time.
     let thermo = if THERMO { None } else { Some(false) };
     let rotary = if THERMO { None } else { Some(ROTARY) };
-    let (e, f) = ax.axis_error_um(pool, st, tracked, &input.forces_n, rotary, thermo, true);
-    *out = ax.finish(st, tracked.0, e, input.command_counts, f);
+    let raw = input.scale_raw;
+    let (pos, e, f) = ax.axis_error_um(
+        pool,
+        st,
+        tracked,
+        raw,
+        &input.forces_n,
+        rotary,
+        thermo,
+        true,
+    );
+    *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
 /// One axis's whole pipeline of a group with the cross-axis stage in another slot order
@@ -895,17 +895,18 @@ fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     let thermo = if THERMO { None } else { Some(false) };
     // Without the segment cache: here (beside the geometric stage's registers) it measured
     // 8 instructions more per cycle than the full lookup on the group3_geometry workload.
-    let (mut e, f) = ax.axis_error_um(
+    let (pos, mut e, f) = ax.axis_error_um(
         pool,
         st,
         tracked,
+        input.scale_raw,
         &input.forces_n,
         Some(ROTARY),
         thermo,
         false,
     );
     e += stage_um;
-    *out = ax.finish(st, tracked.0, e, input.command_counts, f);
+    *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
 /// One axis's whole pipeline in a group with the cross-axis stage (inlined into the group's
@@ -922,12 +923,14 @@ fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool>(
     out: &mut CycleOutput,
     stage_um: f32,
 ) {
-    let tracked = ax.track(st, input.scale_raw);
+    // The test of `primed` in the segment cache's miss path (see `axis_error_um`).
+    let tracked = ax.track_primed(st, input.scale_raw);
     // No thermo-force term (checked at load for this path).
-    let (mut e, f) = ax.axis_error_um(
+    let (pos, mut e, f) = ax.axis_error_um(
         pool,
         st,
         tracked,
+        input.scale_raw,
         &input.forces_n,
         Some(ROTARY),
         Some(false),
@@ -936,7 +939,7 @@ fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool>(
     if STAGE {
         e += stage_um;
     }
-    *out = ax.finish(st, tracked.0, e, input.command_counts, f);
+    *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
 /// Why a group was refused: the error and the axis it concerns (None: the group as a whole or

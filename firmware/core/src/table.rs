@@ -67,12 +67,13 @@ impl<S: TableStore> AxisCompensator<S> {
         self.outside_um(dir, position_counts)
     }
 
-    /// Value of the segment at storage index `slot` ([`TableStore::slot`]) at the remainder
-    /// `rem` (< the segment length): the Horner cubic of [`AxisCompensator::table_um_in`].
+    /// Value of the segment cached in `st` (by [`AxisCompensator::table_um_refill`]) at the
+    /// remainder `rem` (< the segment length): the Horner cubic of
+    /// [`AxisCompensator::table_um_in`].
     #[inline(always)]
-    pub(crate) fn segment_um_at(&self, pool: &[[f32; 4]], slot: u32, rem: u32) -> f32 {
+    pub(crate) fn segment_um_cached(&self, st: &crate::State, rem: u32) -> f32 {
         let t = rem as f32 * self.inv_segment;
-        let c = self.table.segment_at(pool, slot);
+        let c = &st.seg_coef;
         c[0] + t * (c[1] + t * (c[2] + t * c[3]))
     }
 
@@ -106,7 +107,7 @@ impl<S: TableStore> AxisCompensator<S> {
             if (diff >> 32) == 0 && offset < self.span_counts && seg_counts.get() <= 1 << 31 {
                 let seg = offset / seg_counts;
                 let dir = (st.direction() == Direction::Backward) as usize;
-                st.seg_slot = self.table.slot(dir, seg);
+                st.seg_coef = *self.table.segment(pool, dir, seg);
                 st.seg_rem = offset - seg.wrapping_mul(seg_counts.get());
                 st.seg_limit = seg_counts.get();
             }
