@@ -127,6 +127,20 @@ pub struct AxisCompensator<S> {
     /// 32 − counter_bits (0 for the identity: a 32-bit counter).
     pub(crate) sext_shift: crate::counter::CounterShift,
     pub(crate) um_per_count: f32,
+    // ---- limits (beside the counter's fields and the table's per-cycle one, `inv_segment`:
+    // every field of a group axis's per-cycle path within a few words of each other) ----
+    pub(crate) max_correction_um: f32,
+    pub(crate) max_slew_um_per_cycle: f32,
+    pub(crate) hysteresis_counts: u32,
+    /// `um_per_count / 2` (exact), so that the cycle's quotient is already doubled for the
+    /// bounded rounding.
+    pub(crate) half_um_per_count: f32,
+    /// `max_correction_um` if every applied correction, in counts, is below 2^29 in magnitude
+    /// (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else −1: the cycle's fast path (within the
+    /// clamp, rounded with `round_half_away_bounded`) is never taken for an unbounded image.
+    pub(crate) fast_max_um: f32,
+    /// 1 / segment length (the table's per-cycle field).
+    pub(crate) inv_segment: f32,
     /// Counts per revolution of a rotary group axis (its table is indexed by the position within
     /// the turn); 0 for a linear axis and always for [`OwnTable`] storage.
     pub(crate) counts_per_rev: u32,
@@ -139,7 +153,6 @@ pub struct AxisCompensator<S> {
     pub(crate) segment: Option<core::num::NonZeroU32>,
     /// n·segment_counts ≤ u32::MAX (validated).
     pub(crate) span_counts: u32,
-    pub(crate) inv_segment: f32,
     pub(crate) taper_counts: u32,
     pub(crate) inv_taper: f32,
     /// `[direction][0 = low end, 1 = high end]` table value at the stroke ends.
@@ -168,17 +181,6 @@ pub struct AxisCompensator<S> {
     /// XOR this, so that a fresh (all-zero) State reads as frozen until its sensors report.
     pub(crate) thermo_flags_xor: u16,
     pub(crate) laws: [ForceLaw; MAX_FORCES],
-    // ---- limits ----
-    pub(crate) max_correction_um: f32,
-    pub(crate) max_slew_um_per_cycle: f32,
-    pub(crate) hysteresis_counts: u32,
-    /// `um_per_count / 2` (exact), so that the cycle's quotient is already doubled for the
-    /// bounded rounding.
-    pub(crate) half_um_per_count: f32,
-    /// `max_correction_um` if every applied correction, in counts, is below 2^29 in magnitude
-    /// (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else −1: the cycle's fast path (within the
-    /// clamp, rounded with `round_half_away_bounded`) is never taken for an unbounded image.
-    pub(crate) fast_max_um: f32,
     /// The table segments (or where to find them). Last, so that every other field is within a
     /// load's immediate offset of `self`.
     pub(crate) table: S,
