@@ -475,44 +475,47 @@ impl<S: TableStore> AxisCompensator<S> {
 /// segment cache (`seg_*`), which the group pipelines keep and the single-axis call does not
 /// (it only remembers where the last lookup was; a void or a valid cache gives the same value).
 #[derive(Debug, Clone)]
+// In this order (not the compiler's): the fields of the per-cycle path first, within a few words
+// of each other (one base address per axis of a group; a float load reaches 1020 bytes).
+#[repr(C)]
 pub struct State {
-    pub(crate) primed: bool,
-    pub(crate) raw_pending: bool,
-    pub(crate) last_raw: u32,
     pub(crate) position: i64,
-    pub(crate) backward: bool,
+    pub(crate) last_raw: u32,
     pub(crate) back_counts: i32,
     pub(crate) last_correction_um: f32,
-    pub(crate) sensor_um: f32,
-    pub(crate) expansion_um_per_count: f32,
-    pub(crate) thermal_live: bool,
-    pub(crate) sensor_fault: bool,
-    pub(crate) clock_started: bool,
-    /// Thermo flags (SENSOR_FAULT, THERMAL_FROZEN, FORCE_INVALID of the process) XOR the
-    /// compensator's `thermo_flags_xor`.
-    pub(crate) thermo_bits: u16,
-    /// Σ χ_j·F_j of the predicted forces, µm.
-    pub(crate) predicted_um: f32,
-    /// b0 + sensor_um + predicted_um, µm (what the cycle adds).
-    pub(crate) cached_um: f32,
-    pub(crate) predicted_forces_n: [f32; MAX_FORCES],
-    pub(crate) sensors: [SensorState; MAX_SENSORS],
-    /// Rotary axis of a group: `pos_in_turn` follows the extended position (see
-    /// [`crate::counter`]).
-    pub(crate) turn_primed: bool,
-    pub(crate) pos_in_turn: u32,
     /// Segment cache of the table (see [`AxisCompensator::table_um_refill`]): the table
     /// position's remainder within its segment, that segment's length while the cache is valid
     /// (0: void, the next lookup is a full one; always 0 while `primed` is false) and a copy of
     /// its coefficients in the half of the present direction (a reversal voids the cache).
     pub(crate) seg_rem: u32,
     pub(crate) seg_limit: u32,
+    /// Rotary axis of a group: `pos_in_turn` follows the extended position (see
+    /// [`crate::counter`]).
+    pub(crate) pos_in_turn: u32,
     pub(crate) seg_coef: [f32; 4],
+    pub(crate) backward: bool,
+    pub(crate) primed: bool,
+    pub(crate) raw_pending: bool,
+    pub(crate) turn_primed: bool,
+    pub(crate) thermal_live: bool,
+    pub(crate) sensor_fault: bool,
+    pub(crate) clock_started: bool,
     /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
     pub(crate) stale_ramp: bool,
+    /// Thermo flags (SENSOR_FAULT, THERMAL_FROZEN, FORCE_INVALID of the process) XOR the
+    /// compensator's `thermo_flags_xor`.
+    pub(crate) thermo_bits: u16,
+    pub(crate) sensor_um: f32,
+    pub(crate) expansion_um_per_count: f32,
+    /// Σ χ_j·F_j of the predicted forces, µm.
+    pub(crate) predicted_um: f32,
+    /// b0 + sensor_um + predicted_um, µm (what the cycle adds).
+    pub(crate) cached_um: f32,
+    pub(crate) predicted_forces_n: [f32; MAX_FORCES],
     pub(crate) stale_since_ms: u32,
     pub(crate) frozen_sensor_um: f32,
     pub(crate) frozen_expansion_um_per_count: f32,
+    pub(crate) sensors: [SensorState; MAX_SENSORS],
 }
 
 impl PartialEq for State {
