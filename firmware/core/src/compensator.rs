@@ -361,6 +361,9 @@ impl<S: TableStore> AxisCompensator<S> {
         let (pos, delta) = self.track(st, input.scale_raw);
         if !self.loaded {
             // No table follows the position here: the segment cache is void.
+            if S::TURNS {
+                st.settle_turn((pos as u32).wrapping_sub(delta as u32));
+            }
             st.seg_limit = 0;
             return CycleOutput {
                 position_counts: pos,
@@ -411,12 +414,13 @@ impl<S: TableStore> AxisCompensator<S> {
         // compiled out.
         let rotary = S::TURNS && rotary_known.unwrap_or(self.counts_per_rev != 0);
         // With `segment_cache` (the group's pipelines), the table through the segment cache (see
-        // [`AxisCompensator::table_um_refill`]): within the last cycle's segment, the new
-        // remainder and the cached index; otherwise the full lookup, which refills the cache.
+        // [`AxisCompensator::table_um_refill`]): within the last cycle's segment, the remainder
+        // from the segment's start and the cached coefficients; otherwise the full lookup, which
+        // refills the cache.
         // Without it (the single-axis call, whose reference workload crosses a 1000-count
         // segment every 6.4 cycles: there the refills cost more than the cache saves), the full
         // lookup every cycle. Both give the same value bit for bit.
-        let r = st.seg_rem.wrapping_add(delta as u32);
+        let r = (pos as u32).wrapping_sub(st.seg_start);
         // BACKWARD is bit 7, TABLE_OUTSIDE bit 0; each path builds the flags after its lookup
         // (the cached ones know TABLE_OUTSIDE is clear), so that no flag register is live
         // across it.
@@ -435,28 +439,28 @@ impl<S: TableStore> AxisCompensator<S> {
             }
         } else if rotary {
             if r < st.seg_limit {
-                // Within one segment of the turn: the turn position moved by delta, no wrap.
-                st.seg_rem = r;
-                st.pos_in_turn = st.pos_in_turn.wrapping_add(delta as u32);
+                // Within one segment of the turn (no wrap): the turn position is the segment's
+                // start within the turn + r, not stored (see `State::turn_in`).
                 (self.segment_um_cached(st, r), backward(st))
             } else {
                 crate::limits::cold_path();
                 if !st.primed {
                     (pos, delta) = self.track_unprimed(st, raw, delta);
                 }
+                // The last cycle's turn position, where the cache held it.
+                st.settle_turn((pos as u32).wrapping_sub(delta as u32));
                 let turn = self.turn_position(st, pos, delta);
-                let v = self.table_um_refill(pool, st, turn as i64);
+                let v = self.table_um_refill(pool, st, turn as i64, pos as u32);
                 with_outside(st, v)
             }
         } else if r < st.seg_limit {
-            st.seg_rem = r;
             (self.segment_um_cached(st, r), backward(st))
         } else {
             crate::limits::cold_path();
             if !st.primed {
                 pos = self.track_unprimed(st, raw, delta).0;
             }
-            let v = self.table_um_refill(pool, st, pos);
+            let v = self.table_um_refill(pool, st, pos, pos as u32);
             with_outside(st, v)
         };
         if thermo_known.unwrap_or(self.has_thermo) {
@@ -483,15 +487,18 @@ pub struct State {
     pub(crate) last_raw: u32,
     pub(crate) back_counts: i32,
     pub(crate) last_correction_um: f32,
-    /// Segment cache of the table (see [`AxisCompensator::table_um_refill`]): the table
-    /// position's remainder within its segment, that segment's length while the cache is valid
-    /// (0: void, the next lookup is a full one; always 0 while `primed` is false) and a copy of
-    /// its coefficients in the half of the present direction (a reversal voids the cache).
-    pub(crate) seg_rem: u32,
+    /// Segment cache of the table (see [`AxisCompensator::table_um_refill`]): the low 32 bits
+    /// of the extended position where the last cycle's table segment starts, that segment's
+    /// length while the cache is valid (0: void, the next lookup is a full one; always 0 while
+    /// `primed` is false), a copy of its coefficients in the half of the present direction (a
+    /// reversal voids the cache) and, for a rotary axis, the segment's start within the turn.
+    pub(crate) seg_start: u32,
     pub(crate) seg_limit: u32,
-    /// Rotary axis of a group: `pos_in_turn` follows the extended position (see
-    /// [`crate::counter`]).
+    /// Rotary axis of a group: the position within the turn (see [`crate::counter`]) — while
+    /// the segment cache is valid, of the position where it was filled only: the present one is
+    /// [`State::turn_in`].
     pub(crate) pos_in_turn: u32,
+    pub(crate) seg_turn_start: u32,
     pub(crate) seg_coef: [f32; 4],
     pub(crate) backward: bool,
     pub(crate) primed: bool,
@@ -539,13 +546,14 @@ impl PartialEq for State {
             cached_um,
             predicted_forces_n,
             sensors,
-            turn_primed,
-            pos_in_turn,
+            turn_primed: _,
+            pos_in_turn: _,
             stale_ramp,
             stale_since_ms,
             frozen_sensor_um,
             frozen_expansion_um_per_count,
-            seg_rem: _,
+            seg_start: _,
+            seg_turn_start: _,
             seg_limit: _,
             seg_coef: _,
         } = self;
@@ -566,8 +574,7 @@ impl PartialEq for State {
             && *cached_um == other.cached_um
             && *predicted_forces_n == other.predicted_forces_n
             && *sensors == other.sensors
-            && *turn_primed == other.turn_primed
-            && *pos_in_turn == other.pos_in_turn
+            && self.turn_in() == other.turn_in()
             && *stale_ramp == other.stale_ramp
             && *stale_since_ms == other.stale_since_ms
             && *frozen_sensor_um == other.frozen_sensor_um
@@ -605,7 +612,8 @@ impl State {
             sensors: [SensorState::NEW; MAX_SENSORS],
             turn_primed: false,
             pos_in_turn: 0,
-            seg_rem: 0,
+            seg_start: 0,
+            seg_turn_start: 0,
             seg_limit: 0,
             seg_coef: [0.0; 4],
             stale_ramp: false,
@@ -650,6 +658,34 @@ impl State {
         self.turn_primed = false;
         self.seg_limit = 0;
         self.stale_ramp = false;
+    }
+
+    /// Position within the turn of a rotary axis of a group (None before it is known): while the
+    /// segment cache is valid, the segment's start within the turn + the extended position's
+    /// distance from the segment's start (both within one segment of the turn: no wrap), else
+    /// `pos_in_turn`.
+    pub(crate) fn turn_in(&self) -> Option<u32> {
+        if !self.turn_primed {
+            return None;
+        }
+        Some(if self.seg_limit != 0 {
+            self.seg_turn_start
+                .wrapping_add((self.position as u32).wrapping_sub(self.seg_start))
+        } else {
+            self.pos_in_turn
+        })
+    }
+
+    /// Before the segment cache is voided or refilled: `pos_in_turn` of the last cycle's
+    /// extended position, whose low 32 bits are `last_low` (it was within the cached segment
+    /// while the cache is valid). Nothing to do for a void cache or a linear axis.
+    #[inline(always)]
+    pub(crate) fn settle_turn(&mut self, last_low: u32) {
+        if self.seg_limit != 0 && self.turn_primed {
+            self.pos_in_turn = self
+                .seg_turn_start
+                .wrapping_add(last_low.wrapping_sub(self.seg_start));
+        }
     }
 
     pub(crate) fn set_thermo_flag(&mut self, flag: Flags, on: bool) {

@@ -133,7 +133,10 @@ impl<S: TableStore> AxisCompensator<S> {
         if back > self.hysteresis_counts as i32 {
             st.backward = !st.backward;
             st.back_counts = 0;
-            // The segment cache holds the other half's storage index.
+            // The segment cache holds the other half's coefficients.
+            if S::TURNS {
+                st.settle_turn((pos as u32).wrapping_sub(delta as u32));
+            }
             st.seg_limit = 0;
         } else {
             st.back_counts = if back < 0 { 0 } else { back };

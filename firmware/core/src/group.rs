@@ -280,9 +280,7 @@ impl GroupState {
     /// Position within the turn of rotary slot `i` (None before its first cycle or for a
     /// linear slot).
     pub fn turn_position(&self, i: usize) -> Option<u32> {
-        self.axes
-            .get(i)
-            .and_then(|s| s.turn_primed.then_some(s.pos_in_turn))
+        self.axes.get(i).and_then(|s| s.turn_in())
     }
     /// How often the stage recomputed sin/cos (once per change of a commanded angle).
     pub fn angle_refreshes(&self) -> u32 {
@@ -590,15 +588,9 @@ impl<const POOL: usize> Group<POOL> {
         let d = [dx, dy, dz];
         let (pool, inp) = (&self.pool, &input.axes);
         let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
-        axis_pipeline::<POOL, false, true, false>(
-            &ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0],
-        );
-        axis_pipeline::<POOL, false, true, false>(
-            &ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1],
-        );
-        axis_pipeline::<POOL, false, true, false>(
-            &ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2],
-        );
+        axis_pipeline::<POOL, false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
+        axis_pipeline::<POOL, false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
+        axis_pipeline::<POOL, false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
     }
 
     /// [`MODE_PLAIN`] with any other number of axes: one pipeline call per axis.
@@ -669,21 +661,11 @@ impl<const POOL: usize> Group<POOL> {
         let (pool, inp) = (&self.pool, &input.axes);
         let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
         if XYZAC {
-            axis_pipeline::<POOL, false, true, true>(
-                &ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0],
-            );
-            axis_pipeline::<POOL, false, true, true>(
-                &ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1],
-            );
-            axis_pipeline::<POOL, false, true, true>(
-                &ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2],
-            );
-            axis_pipeline::<POOL, true, false, true>(
-                &ax[3], pool, &mut s[3], &inp[3], &mut o[3], 0.0,
-            );
-            axis_pipeline::<POOL, true, false, true>(
-                &ax[4], pool, &mut s[4], &inp[4], &mut o[4], 0.0,
-            );
+            axis_pipeline::<POOL, false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
+            axis_pipeline::<POOL, false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
+            axis_pipeline::<POOL, false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
+            axis_pipeline::<POOL, true, false>(&ax[3], pool, &mut s[3], &inp[3], &mut o[3], 0.0);
+            axis_pipeline::<POOL, true, false>(&ax[4], pool, &mut s[4], &inp[4], &mut o[4], 0.0);
             return;
         }
         // The deviation by slot: the geometric stage's (X, Y, Z), plus the rotary stage's (X, Y,
@@ -931,7 +913,7 @@ fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
 /// (the stage's deviation, linear axes) is added to the axis's error before its limits (without
 /// it nothing is added: `e + 0.0` would turn a −0.0 error into +0.0).
 #[inline(always)]
-fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool, const EARLY: bool>(
+fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool>(
     ax: &AxisCompensator<PoolTable>,
     pool: &[[f32; 4]; POOL],
     st: &mut State,
@@ -952,22 +934,16 @@ fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool, const
         Some(false),
         true,
     );
-    if EARLY {
-        // The position out at once: not live across the limits (fewer registers spilled).
-        out.position_counts = pos;
-    }
+    // The position out at once: not live across the limits (fewer registers spilled).
+    out.position_counts = pos;
     if STAGE {
         e += stage_um;
     }
     let o = ax.finish(st, pos, e, input.command_counts, f);
-    if EARLY {
-        out.corrected_command_counts = o.corrected_command_counts;
-        out.correction_counts = o.correction_counts;
-        out.correction_um = o.correction_um;
-        out.flags = o.flags;
-    } else {
-        *out = o;
-    }
+    out.corrected_command_counts = o.corrected_command_counts;
+    out.correction_counts = o.correction_counts;
+    out.correction_um = o.correction_um;
+    out.flags = o.flags;
 }
 
 /// Why a group was refused: the error and the axis it concerns (None: the group as a whole or

@@ -79,19 +79,25 @@ impl<S: TableStore> AxisCompensator<S> {
 
     /// The full lookup of the cycle ([`AxisCompensator::table_um_in`] at `table_pos`: the
     /// extended position, or a rotary axis's position within the turn) when the segment cache
-    /// of `st` does not hold it, and the cache refilled: valid (segment index, remainder,
-    /// segment length) when `table_pos` is within the stroke and the segment length is at most
-    /// 2^31 counts, void otherwise.
+    /// of `st` does not hold it, and the cache refilled: valid (the segment's start as the low
+    /// 32 bits of the extended position `pos_low` minus the remainder, its start within the
+    /// turn, its length and a copy of its coefficients) when `table_pos` is within the stroke
+    /// and the segment length is at most 2^31 counts, void otherwise.
     ///
-    /// Why the cache is exact: while valid it holds the remainder of the last cycle's table
-    /// position within its segment (stored for the present direction: a reversal voids it), and this cycle's position is the last one plus the
-    /// counter step `delta` (an i32; [`AxisCompensator::track`]). With a segment length L ≤ 2^31,
-    /// rem + delta lies in (−2^31, L + 2^31) ⊂ (−2^31, 2^32), so its wrapping u32 value is below L
-    /// exactly when the new position is in the same segment — then it is the remainder the full
-    /// lookup computes, and the value is the same bit for bit. Everything that moves the
-    /// position otherwise, or changes the table or the direction ([`crate::State::home`],
-    /// [`crate::State::reset`], [`crate::State::on_new_image`], a reversal, a cycle without an
-    /// image, a fresh state), voids the cache.
+    /// Why the cache is exact: while valid, the last cycle's extended position p lay in the
+    /// cached segment, i.e. p − s ∈ [0, L) for the segment's start s in extended counts (its low
+    /// 32 bits stored), for the present direction (a reversal voids the cache). This cycle's
+    /// position is p + delta with delta an i32 ([`AxisCompensator::track`]); with L ≤ 2^31,
+    /// p + delta − s lies in (−2^31, L + 2^31) ⊂ (−2^31, 2^32), so the wrapping u32 difference
+    /// of the low words is below L exactly when the new position is in the same segment — then
+    /// it is the remainder the full lookup computes, and the value is the same bit for bit. For
+    /// a rotary axis the segment lies within one turn (its grid spans exactly one turn, checked
+    /// at load), so inside it the position within the turn is the segment's start within the
+    /// turn + that remainder, no wrap ([`crate::State::turn_in`]); it is written to
+    /// `pos_in_turn` ([`crate::State::settle_turn`]) whenever the cache is voided or refilled.
+    /// Everything that moves the position otherwise, or changes the table or the direction
+    /// ([`crate::State::home`], [`crate::State::reset`], [`crate::State::on_new_image`], a
+    /// reversal, a cycle without an image, a fresh state), voids the cache.
     #[cold]
     #[inline(never)]
     pub(crate) fn table_um_refill(
@@ -99,6 +105,7 @@ impl<S: TableStore> AxisCompensator<S> {
         pool: &[[f32; 4]],
         st: &mut crate::State,
         table_pos: i64,
+        pos_low: u32,
     ) -> (f32, bool) {
         st.seg_limit = 0;
         if let Some(seg_counts) = self.segment {
@@ -108,7 +115,9 @@ impl<S: TableStore> AxisCompensator<S> {
                 let seg = offset / seg_counts;
                 let dir = (st.direction() == Direction::Backward) as usize;
                 st.seg_coef = *self.table.segment(pool, dir, seg);
-                st.seg_rem = offset - seg.wrapping_mul(seg_counts.get());
+                let rem = offset - seg.wrapping_mul(seg_counts.get());
+                st.seg_start = pos_low.wrapping_sub(rem);
+                st.seg_turn_start = (table_pos as u32).wrapping_sub(rem);
                 st.seg_limit = seg_counts.get();
             }
         }
