@@ -424,7 +424,9 @@ impl<S: TableStore> AxisCompensator<S> {
         // BACKWARD is bit 7, TABLE_OUTSIDE bit 0; each path builds the flags after its lookup
         // (the cached ones know TABLE_OUTSIDE is clear), so that no flag register is live
         // across it.
-        let backward = |st: &State| Flags((st.backward as u16) << 7);
+        // (The cached paths: the direction's flag as the refill stored it; the cache is voided
+        // on a reversal.)
+        let backward = |st: &State| Flags(st.seg_flags);
         let with_outside = |st: &State, (v, outside): (f32, bool)| {
             (v, Flags(((st.backward as u16) << 7) | outside as u16))
         };
@@ -512,6 +514,9 @@ pub struct State {
     /// Thermo flags (SENSOR_FAULT, THERMAL_FROZEN, FORCE_INVALID of the process) XOR the
     /// compensator's `thermo_flags_xor`.
     pub(crate) thermo_bits: u16,
+    /// The segment cache's flags: [`Flags::BACKWARD`] if the direction was backward when it was
+    /// filled (a reversal voids it), else none.
+    pub(crate) seg_flags: u16,
     pub(crate) sensor_um: f32,
     pub(crate) expansion_um_per_count: f32,
     /// Σ χ_j·F_j of the predicted forces, µm.
@@ -554,6 +559,7 @@ impl PartialEq for State {
             frozen_expansion_um_per_count,
             seg_start: _,
             seg_turn_start: _,
+            seg_flags: _,
             seg_limit: _,
             seg_coef: _,
         } = self;
@@ -614,6 +620,7 @@ impl State {
             pos_in_turn: 0,
             seg_start: 0,
             seg_turn_start: 0,
+            seg_flags: 0,
             seg_limit: 0,
             seg_coef: [0.0; 4],
             stale_ramp: false,

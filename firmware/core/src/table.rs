@@ -119,6 +119,7 @@ impl<S: TableStore> AxisCompensator<S> {
                 st.seg_start = pos_low.wrapping_sub(rem);
                 st.seg_turn_start = (table_pos as u32).wrapping_sub(rem);
                 st.seg_limit = seg_counts.get();
+                st.seg_flags = (dir as u16) << 7;
             }
         }
         self.table_um_in(pool, st.direction(), table_pos)
