@@ -235,13 +235,16 @@ impl Turn {
 /// Everything that changes while a group runs: each axis's [`State`], the rotary axes' turn
 /// positions and the cross-axis stage's angle cache.
 #[derive(Debug, Clone, PartialEq)]
+// In this order (not the compiler's): the stage's angle cache and turns first, within a float
+// load's reach of the state's address in the cycle's code, then the axes.
+#[repr(C)]
 pub struct GroupState {
-    /// Per slot.
-    pub axes: [State; MAX_AXES],
-    pub(crate) turns: [Turn; MAX_AXES],
     pub(crate) rotary: RotaryCache,
     /// Times the stage's angle terms were recomputed (sin/cos calls / 2).
     pub(crate) angle_refreshes: u32,
+    pub(crate) turns: [Turn; MAX_AXES],
+    /// Per slot.
+    pub axes: [State; MAX_AXES],
 }
 
 impl Default for GroupState {
