@@ -449,10 +449,7 @@ impl<S: TableStore> AxisCompensator<S> {
                 if !st.primed {
                     (pos, delta) = self.track_unprimed(st, raw, delta);
                 }
-                // The last cycle's turn position, where the cache held it.
-                st.settle_turn((pos as u32).wrapping_sub(delta as u32));
-                let turn = self.turn_position(st, pos, delta);
-                let v = self.table_um_refill(pool, st, turn as i64, pos as u32);
+                let v = self.table_um_refill_turn(pool, st, pos, delta);
                 with_outside(st, v)
             }
         } else if r < st.seg_limit {
@@ -693,6 +690,18 @@ impl State {
                 .seg_turn_start
                 .wrapping_add(last_low.wrapping_sub(self.seg_start));
         }
+    }
+
+    /// The direction reverses ([`AxisCompensator::track`]): nothing moved back yet, and the
+    /// segment cache, which holds the other half's coefficients, voided (the turn position of
+    /// the last cycle's extended position, whose low 32 bits are `last_low`, settled first).
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn reverse(&mut self, last_low: u32) {
+        self.backward = !self.backward;
+        self.back_counts = 0;
+        self.settle_turn(last_low);
+        self.seg_limit = 0;
     }
 
     pub(crate) fn set_thermo_flag(&mut self, flag: Flags, on: bool) {

@@ -131,13 +131,14 @@ impl<S: TableStore> AxisCompensator<S> {
         };
         let back = st.back_counts.saturating_add(against);
         if back > self.hysteresis_counts as i32 {
-            st.backward = !st.backward;
-            st.back_counts = 0;
-            // The segment cache holds the other half's coefficients.
             if S::TURNS {
-                st.settle_turn((pos as u32).wrapping_sub(delta as u32));
+                // A group axis (segment cache, turn position): out of line.
+                st.reverse((pos as u32).wrapping_sub(delta as u32));
+            } else {
+                st.backward = !st.backward;
+                st.back_counts = 0;
+                st.seg_limit = 0;
             }
-            st.seg_limit = 0;
         } else {
             st.back_counts = if back < 0 { 0 } else { back };
         }

@@ -125,6 +125,24 @@ impl<S: TableStore> AxisCompensator<S> {
         self.table_um_in(pool, st.direction(), table_pos)
     }
 
+    /// [`AxisCompensator::table_um_refill`] for a rotary axis at the extended position `pos`,
+    /// which [`AxisCompensator::track`] reached by adding `delta`: the last cycle's turn position
+    /// settled from the cache (if it held it), this cycle's followed by `delta`, the table looked
+    /// up there. Out of line: the miss path of the rotary pipelines in one call.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn table_um_refill_turn(
+        &self,
+        pool: &[[f32; 4]],
+        st: &mut crate::State,
+        pos: i64,
+        delta: i32,
+    ) -> (f32, bool) {
+        st.settle_turn((pos as u32).wrapping_sub(delta as u32));
+        let turn = self.turn_position(st, pos, delta);
+        self.table_um_refill(pool, st, turn as i64, pos as u32)
+    }
+
     /// Table value beyond the stroke (hold or taper), for direction half `dir`.
     #[inline(always)]
     fn outside_um(&self, dir: usize, position_counts: i64) -> (f32, bool) {
