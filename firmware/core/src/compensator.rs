@@ -401,7 +401,7 @@ impl<S: TableStore> AxisCompensator<S> {
         &self,
         pool: &[[f32; 4]],
         st: &mut State,
-        (mut pos, mut delta): (i64, i32),
+        (mut pos, delta): (i64, i32),
         raw: u32,
         forces_n: &[f32; MAX_FORCES],
         rotary_known: Option<bool>,
@@ -446,20 +446,17 @@ impl<S: TableStore> AxisCompensator<S> {
                 (self.segment_um_cached(st, r), backward(st))
             } else {
                 crate::limits::cold_path();
-                if !st.primed {
-                    (pos, delta) = self.track_unprimed(st, raw, delta);
-                }
-                let v = self.table_um_refill_turn(pool, st, pos, delta);
+                let v = self.table_um_miss::<true>(pool, st, pos, delta, raw);
+                // (Redone by the miss path on a state that was not primed.)
+                pos = st.position;
                 with_outside(st, v)
             }
         } else if r < st.seg_limit {
             (self.segment_um_cached(st, r), backward(st))
         } else {
             crate::limits::cold_path();
-            if !st.primed {
-                pos = self.track_unprimed(st, raw, delta).0;
-            }
-            let v = self.table_um_refill(pool, st, pos, pos as u32);
+            let v = self.table_um_miss::<false>(pool, st, pos, delta, raw);
+            pos = st.position;
             with_outside(st, v)
         };
         if thermo_known.unwrap_or(self.has_thermo) {

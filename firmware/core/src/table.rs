@@ -125,22 +125,32 @@ impl<S: TableStore> AxisCompensator<S> {
         self.table_um_in(pool, st.direction(), table_pos)
     }
 
-    /// [`AxisCompensator::table_um_refill`] for a rotary axis at the extended position `pos`,
-    /// which [`AxisCompensator::track`] reached by adding `delta`: the last cycle's turn position
-    /// settled from the cache (if it held it), this cycle's followed by `delta`, the table looked
-    /// up there. Out of line: the miss path of the rotary pipelines in one call.
+    /// The segment cache's miss path of the group pipelines (one out-of-line call): on a state
+    /// that was not primed, the counter extension redone ([`AxisCompensator::track_unprimed`]:
+    /// the caller reads the extended position back from `st`); for a rotary axis (`ROTARY`) the
+    /// last cycle's turn position settled from the cache (if it held it) and followed by this
+    /// cycle's step; then [`AxisCompensator::table_um_refill`] at the table position. `(pos,
+    /// delta)` is what [`AxisCompensator::track_primed`] returned with the counter value `raw`.
     #[cold]
     #[inline(never)]
-    pub(crate) fn table_um_refill_turn(
+    pub(crate) fn table_um_miss<const ROTARY: bool>(
         &self,
         pool: &[[f32; 4]],
         st: &mut crate::State,
-        pos: i64,
-        delta: i32,
+        mut pos: i64,
+        mut delta: i32,
+        raw: u32,
     ) -> (f32, bool) {
-        st.settle_turn((pos as u32).wrapping_sub(delta as u32));
-        let turn = self.turn_position(st, pos, delta);
-        self.table_um_refill(pool, st, turn as i64, pos as u32)
+        if !st.primed {
+            (pos, delta) = self.track_unprimed(st, raw, delta);
+        }
+        if ROTARY {
+            st.settle_turn((pos as u32).wrapping_sub(delta as u32));
+            let turn = self.turn_position(st, pos, delta);
+            self.table_um_refill(pool, st, turn as i64, pos as u32)
+        } else {
+            self.table_um_refill(pool, st, pos, pos as u32)
+        }
     }
 
     /// Table value beyond the stroke (hold or taper), for direction half `dir`.
