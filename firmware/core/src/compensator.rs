@@ -348,8 +348,8 @@ impl<S: TableStore> AxisCompensator<S> {
     ///
     /// No library calls, no i64 multiplication/division, no i64↔f32 conversion, no panic path.
     /// Cost on a Cortex-M4F (QEMU count by `.ci/bench`, firmware bin `axcomp-qemu-bench`): about
-    /// 119 instructions for the [`crate::bench`] workload (table + 8-sensor thermo-force + 3
-    /// forces), about 86 with the table only. The common case is laid out as the fall-through
+    /// 118 instructions for the [`crate::bench`] workload (table + 8-sensor thermo-force + 3
+    /// forces), about 85 with the table only. The common case is laid out as the fall-through
     /// (the rare branches — first cycle, clamp/slew acting, command near ±2^63 — are marked
     /// cold) and is sensitive to register pressure: measure any change with `.ci/bench`.
     ///
