@@ -124,11 +124,9 @@ impl<S: TableStore> AxisCompensator<S> {
         // (= extreme − position going forward), ≥ 0, saturating; hysteresis ≤ i32::MAX (validated).
         // (A delta of exactly −2^31, a half turn of a 32-bit counter, is ambiguous anyway; its
         // wrapping negation keeps it "forward".)
-        let against = if st.backward {
-            delta
-        } else {
-            delta.wrapping_neg()
-        };
+        // (m = 0 backward, −1 forward: (delta ^ m) − m is delta or its wrapping negation.)
+        let m = (st.backward as i32) - 1;
+        let against = (delta ^ m).wrapping_sub(m);
         let back = st.back_counts.saturating_add(against);
         if back > self.hysteresis_counts as i32 {
             if S::TURNS {
