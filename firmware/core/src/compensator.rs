@@ -125,8 +125,22 @@ pub struct AxisCompensator<S> {
     pub(crate) axis_id: u16,
     pub(crate) counter_bits: u8,
     /// 32 − counter_bits (0 for the identity: a 32-bit counter).
-    pub(crate) sext_shift: u32,
+    pub(crate) sext_shift: crate::counter::CounterShift,
     pub(crate) um_per_count: f32,
+    // ---- limits (beside the counter's fields and the table's per-cycle one, `inv_segment`:
+    // every field of a group axis's per-cycle path within a few words of each other) ----
+    pub(crate) max_correction_um: f32,
+    pub(crate) max_slew_um_per_cycle: f32,
+    pub(crate) hysteresis_counts: u32,
+    /// `um_per_count / 2` (exact), so that the cycle's quotient is already doubled for the
+    /// bounded rounding.
+    pub(crate) half_um_per_count: f32,
+    /// `max_correction_um` if every applied correction, in counts, is below 2^29 in magnitude
+    /// (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else −1: the cycle's fast path (within the
+    /// clamp, rounded with `round_half_away_bounded`) is never taken for an unbounded image.
+    pub(crate) fast_max_um: f32,
+    /// 1 / segment length (the table's per-cycle field).
+    pub(crate) inv_segment: f32,
     /// Counts per revolution of a rotary group axis (its table is indexed by the position within
     /// the turn); 0 for a linear axis and always for [`OwnTable`] storage.
     pub(crate) counts_per_rev: u32,
@@ -139,7 +153,6 @@ pub struct AxisCompensator<S> {
     pub(crate) segment: Option<core::num::NonZeroU32>,
     /// n·segment_counts ≤ u32::MAX (validated).
     pub(crate) span_counts: u32,
-    pub(crate) inv_segment: f32,
     pub(crate) taper_counts: u32,
     pub(crate) inv_taper: f32,
     /// `[direction][0 = low end, 1 = high end]` table value at the stroke ends.
@@ -168,17 +181,6 @@ pub struct AxisCompensator<S> {
     /// XOR this, so that a fresh (all-zero) State reads as frozen until its sensors report.
     pub(crate) thermo_flags_xor: u16,
     pub(crate) laws: [ForceLaw; MAX_FORCES],
-    // ---- limits ----
-    pub(crate) max_correction_um: f32,
-    pub(crate) max_slew_um_per_cycle: f32,
-    pub(crate) hysteresis_counts: u32,
-    /// `um_per_count / 2` (exact), so that the cycle's quotient is already doubled for the
-    /// bounded rounding.
-    pub(crate) half_um_per_count: f32,
-    /// `max_correction_um` if every applied correction, in counts, is below 2^29 in magnitude
-    /// (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else −1: the cycle's fast path (within the
-    /// clamp, rounded with `round_half_away_bounded`) is never taken for an unbounded image.
-    pub(crate) fast_max_um: f32,
     /// The table segments (or where to find them). Last, so that every other field is within a
     /// load's immediate offset of `self`.
     pub(crate) table: S,
@@ -190,11 +192,6 @@ pub trait TableStore {
     /// Segment `seg` (< the axis's segment count, checked by the caller) of half `dir`; `pool` is
     /// the group's coefficient pool (unused by [`OwnTable`]).
     fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4];
-    /// Storage index of segment `seg` of half `dir` (what [`TableStore::segment_at`] takes).
-    fn slot(&self, dir: usize, seg: u32) -> u32;
-    /// The segment at storage index `slot` (from [`TableStore::slot`]; any other value gives
-    /// some segment or zeros, never a panic).
-    fn segment_at<'a>(&'a self, pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4];
     /// True if axes with this storage may be rotary (turn tracking compiled in).
     const TURNS: bool = false;
 }
@@ -209,14 +206,6 @@ impl TableStore for OwnTable {
     fn segment<'a>(&'a self, _pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4] {
         &self.0[(seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1)]
     }
-    #[inline(always)]
-    fn slot(&self, dir: usize, seg: u32) -> u32 {
-        seg.wrapping_add((dir * MAX_SEGMENTS) as u32)
-    }
-    #[inline(always)]
-    fn segment_at<'a>(&'a self, _pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4] {
-        &self.0[slot as usize & (2 * MAX_SEGMENTS - 1)]
-    }
 }
 
 impl<S> AxisCompensator<S> {
@@ -226,7 +215,7 @@ impl<S> AxisCompensator<S> {
             loaded: false,
             axis_id: 0,
             counter_bits: 0,
-            sext_shift: 0,
+            sext_shift: crate::counter::CounterShift::S0,
             um_per_count: 0.0,
             counts_per_rev: 0,
             bidirectional: false,
@@ -324,7 +313,7 @@ impl<S: TableStore> AxisCompensator<S> {
         self.thermo_flags_xor = 0;
         self.axis_id = 0;
         self.counter_bits = 0;
-        self.sext_shift = 0;
+        self.sext_shift = crate::counter::CounterShift::S0;
         self.um_per_count = 0.0;
         self.counts_per_rev = 0;
         self.half_um_per_count = 0.0;
@@ -359,8 +348,8 @@ impl<S: TableStore> AxisCompensator<S> {
     ///
     /// No library calls, no i64 multiplication/division, no i64↔f32 conversion, no panic path.
     /// Cost on a Cortex-M4F (QEMU count by `.ci/bench`, firmware bin `axcomp-qemu-bench`): about
-    /// 119 instructions for the [`crate::bench`] workload (table + 8-sensor thermo-force + 3
-    /// forces), about 86 with the table only. The common case is laid out as the fall-through
+    /// 118 instructions for the [`crate::bench`] workload (table + 8-sensor thermo-force + 3
+    /// forces), about 85 with the table only. The common case is laid out as the fall-through
     /// (the rare branches — first cycle, clamp/slew acting, command near ±2^63 — are marked
     /// cold) and is sensitive to register pressure: measure any change with `.ci/bench`.
     ///
@@ -372,6 +361,9 @@ impl<S: TableStore> AxisCompensator<S> {
         let (pos, delta) = self.track(st, input.scale_raw);
         if !self.loaded {
             // No table follows the position here: the segment cache is void.
+            if S::TURNS {
+                st.settle_turn((pos as u32).wrapping_sub(delta as u32));
+            }
             st.seg_limit = 0;
             return CycleOutput {
                 position_counts: pos,
@@ -381,15 +373,27 @@ impl<S: TableStore> AxisCompensator<S> {
                 flags: Flags(((st.backward as u16) << 7) | Flags::IDENTITY.0),
             };
         }
-        let (total, flags) =
-            self.axis_error_um(pool, st, (pos, delta), &input.forces_n, None, None, false);
+        let (pos, total, flags) = self.axis_error_um(
+            pool,
+            st,
+            (pos, delta),
+            input.scale_raw,
+            &input.forces_n,
+            None,
+            None,
+            false,
+        );
         self.finish(st, pos, total, input.command_counts, flags)
     }
 
     /// Table (at the extended position, or a rotary axis's position within the turn) +
-    /// thermo-force term (at the extended position `pos`), µm before the limits, and
-    /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags). `(pos, delta)` is what
-    /// [`AxisCompensator::track`] returned this cycle. (Eight arguments: the hot path takes its
+    /// thermo-force term (at the extended position), µm before the limits, and
+    /// the cycle's flags so far (BACKWARD, TABLE_OUTSIDE, thermo flags), with the extended
+    /// position. `(pos, delta)` is what [`AxisCompensator::track`] returned this cycle with the
+    /// counter value `raw`; with `segment_cache`, what [`AxisCompensator::track_primed`]
+    /// returned: on a state that was not primed (its segment cache is void) the cache miss's
+    /// path replaces it by what `track` computes ([`AxisCompensator::track_unprimed`]), so the
+    /// returned position is the one to use. (Nine arguments: the hot path takes its
     /// compile-time choices as plain arguments that inlining folds away, not as a struct.)
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
@@ -397,28 +401,32 @@ impl<S: TableStore> AxisCompensator<S> {
         &self,
         pool: &[[f32; 4]],
         st: &mut State,
-        (pos, delta): (i64, i32),
+        (mut pos, delta): (i64, i32),
+        raw: u32,
         forces_n: &[f32; MAX_FORCES],
         rotary_known: Option<bool>,
         thermo_known: Option<bool>,
         segment_cache: bool,
-    ) -> (f32, Flags) {
+    ) -> (i64, f32, Flags) {
         // `rotary_known`, `thermo_known` and `segment_cache` are constants at each call: where
         // the caller knows whether the axis is rotary (a group's pipelines: its kind, set at
         // load from the same counts per revolution) or has a thermo-force term, the check is
         // compiled out.
         let rotary = S::TURNS && rotary_known.unwrap_or(self.counts_per_rev != 0);
         // With `segment_cache` (the group's pipelines), the table through the segment cache (see
-        // [`AxisCompensator::table_um_refill`]): within the last cycle's segment, the new
-        // remainder and the cached index; otherwise the full lookup, which refills the cache.
+        // [`AxisCompensator::table_um_refill`]): within the last cycle's segment, the remainder
+        // from the segment's start and the cached coefficients; otherwise the full lookup, which
+        // refills the cache.
         // Without it (the single-axis call, whose reference workload crosses a 1000-count
         // segment every 6.4 cycles: there the refills cost more than the cache saves), the full
         // lookup every cycle. Both give the same value bit for bit.
-        let r = st.seg_rem.wrapping_add(delta as u32);
+        let r = (pos as u32).wrapping_sub(st.seg_start);
         // BACKWARD is bit 7, TABLE_OUTSIDE bit 0; each path builds the flags after its lookup
         // (the cached ones know TABLE_OUTSIDE is clear), so that no flag register is live
         // across it.
-        let backward = |st: &State| Flags((st.backward as u16) << 7);
+        // (The cached paths: the direction's flag as the refill stored it; the cache is voided
+        // on a reversal.)
+        let backward = |st: &State| Flags(st.seg_flags);
         let with_outside = |st: &State, (v, outside): (f32, bool)| {
             (v, Flags(((st.backward as u16) << 7) | outside as u16))
         };
@@ -433,28 +441,28 @@ impl<S: TableStore> AxisCompensator<S> {
             }
         } else if rotary {
             if r < st.seg_limit {
-                // Within one segment of the turn: the turn position moved by delta, no wrap.
-                st.seg_rem = r;
-                st.pos_in_turn = st.pos_in_turn.wrapping_add(delta as u32);
-                (self.segment_um_at(pool, st.seg_slot, r), backward(st))
+                // Within one segment of the turn (no wrap): the turn position is the segment's
+                // start within the turn + r, not stored (see `State::turn_in`).
+                (self.segment_um_cached(st, r), backward(st))
             } else {
                 crate::limits::cold_path();
-                let turn = self.turn_position(st, pos, delta);
-                let v = self.table_um_refill(pool, st, turn as i64);
+                let v = self.table_um_miss::<true>(pool, st, pos, delta, raw);
+                // (Redone by the miss path on a state that was not primed.)
+                pos = st.position;
                 with_outside(st, v)
             }
         } else if r < st.seg_limit {
-            st.seg_rem = r;
-            (self.segment_um_at(pool, st.seg_slot, r), backward(st))
+            (self.segment_um_cached(st, r), backward(st))
         } else {
             crate::limits::cold_path();
-            let v = self.table_um_refill(pool, st, pos);
+            let v = self.table_um_miss::<false>(pool, st, pos, delta, raw);
+            pos = st.position;
             with_outside(st, v)
         };
         if thermo_known.unwrap_or(self.has_thermo) {
             total = self.thermo_um(st, pos, forces_n, &mut flags, total);
         }
-        (total, flags)
+        (pos, total, flags)
     }
 }
 
@@ -467,44 +475,53 @@ impl<S: TableStore> AxisCompensator<S> {
 /// segment cache (`seg_*`), which the group pipelines keep and the single-axis call does not
 /// (it only remembers where the last lookup was; a void or a valid cache gives the same value).
 #[derive(Debug, Clone)]
+// In this order (not the compiler's): the fields of the per-cycle path first, within a few words
+// of each other (one base address per axis of a group; a float load reaches 1020 bytes).
+#[repr(C)]
 pub struct State {
-    pub(crate) primed: bool,
-    pub(crate) raw_pending: bool,
-    pub(crate) last_raw: u32,
     pub(crate) position: i64,
-    pub(crate) backward: bool,
+    pub(crate) last_raw: u32,
     pub(crate) back_counts: i32,
     pub(crate) last_correction_um: f32,
-    pub(crate) sensor_um: f32,
-    pub(crate) expansion_um_per_count: f32,
+    /// Segment cache of the table (see [`AxisCompensator::table_um_refill`]): the low 32 bits
+    /// of the extended position where the last cycle's table segment starts, that segment's
+    /// length while the cache is valid (0: void, the next lookup is a full one; always 0 while
+    /// `primed` is false), a copy of its coefficients in the half of the present direction (a
+    /// reversal voids the cache) and, for a rotary axis, the segment's start within the turn.
+    pub(crate) seg_start: u32,
+    pub(crate) seg_limit: u32,
+    /// Rotary axis of a group: the position within the turn (see [`crate::counter`]) — while
+    /// the segment cache is valid, of the position where it was filled only: the present one is
+    /// [`State::turn_in`].
+    pub(crate) pos_in_turn: u32,
+    pub(crate) seg_turn_start: u32,
+    pub(crate) seg_coef: [f32; 4],
+    pub(crate) backward: bool,
+    pub(crate) primed: bool,
+    pub(crate) raw_pending: bool,
+    pub(crate) turn_primed: bool,
     pub(crate) thermal_live: bool,
     pub(crate) sensor_fault: bool,
     pub(crate) clock_started: bool,
+    /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
+    pub(crate) stale_ramp: bool,
     /// Thermo flags (SENSOR_FAULT, THERMAL_FROZEN, FORCE_INVALID of the process) XOR the
     /// compensator's `thermo_flags_xor`.
     pub(crate) thermo_bits: u16,
+    /// The segment cache's flags: [`Flags::BACKWARD`] if the direction was backward when it was
+    /// filled (a reversal voids it), else none.
+    pub(crate) seg_flags: u16,
+    pub(crate) sensor_um: f32,
+    pub(crate) expansion_um_per_count: f32,
     /// Σ χ_j·F_j of the predicted forces, µm.
     pub(crate) predicted_um: f32,
     /// b0 + sensor_um + predicted_um, µm (what the cycle adds).
     pub(crate) cached_um: f32,
     pub(crate) predicted_forces_n: [f32; MAX_FORCES],
-    pub(crate) sensors: [SensorState; MAX_SENSORS],
-    /// Rotary axis of a group: `pos_in_turn` follows the extended position (see
-    /// [`crate::counter`]).
-    pub(crate) turn_primed: bool,
-    pub(crate) pos_in_turn: u32,
-    /// Segment cache of the table (see [`AxisCompensator::table_um_refill`]): the table
-    /// position's remainder within its segment, that segment's length while the cache is valid
-    /// (0: void, the next lookup is a full one) and its storage index in the half of the
-    /// present direction ([`TableStore::slot`]; a reversal voids the cache).
-    pub(crate) seg_rem: u32,
-    pub(crate) seg_limit: u32,
-    pub(crate) seg_slot: u32,
-    /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
-    pub(crate) stale_ramp: bool,
     pub(crate) stale_since_ms: u32,
     pub(crate) frozen_sensor_um: f32,
     pub(crate) frozen_expansion_um_per_count: f32,
+    pub(crate) sensors: [SensorState; MAX_SENSORS],
 }
 
 impl PartialEq for State {
@@ -528,15 +545,17 @@ impl PartialEq for State {
             cached_um,
             predicted_forces_n,
             sensors,
-            turn_primed,
-            pos_in_turn,
+            turn_primed: _,
+            pos_in_turn: _,
             stale_ramp,
             stale_since_ms,
             frozen_sensor_um,
             frozen_expansion_um_per_count,
-            seg_rem: _,
+            seg_start: _,
+            seg_turn_start: _,
+            seg_flags: _,
             seg_limit: _,
-            seg_slot: _,
+            seg_coef: _,
         } = self;
         *primed == other.primed
             && *raw_pending == other.raw_pending
@@ -555,8 +574,7 @@ impl PartialEq for State {
             && *cached_um == other.cached_um
             && *predicted_forces_n == other.predicted_forces_n
             && *sensors == other.sensors
-            && *turn_primed == other.turn_primed
-            && *pos_in_turn == other.pos_in_turn
+            && self.turn_in() == other.turn_in()
             && *stale_ramp == other.stale_ramp
             && *stale_since_ms == other.stale_since_ms
             && *frozen_sensor_um == other.frozen_sensor_um
@@ -594,9 +612,11 @@ impl State {
             sensors: [SensorState::NEW; MAX_SENSORS],
             turn_primed: false,
             pos_in_turn: 0,
-            seg_rem: 0,
+            seg_start: 0,
+            seg_turn_start: 0,
+            seg_flags: 0,
             seg_limit: 0,
-            seg_slot: 0,
+            seg_coef: [0.0; 4],
             stale_ramp: false,
             stale_since_ms: 0,
             frozen_sensor_um: 0.0,
@@ -639,6 +659,46 @@ impl State {
         self.turn_primed = false;
         self.seg_limit = 0;
         self.stale_ramp = false;
+    }
+
+    /// Position within the turn of a rotary axis of a group (None before it is known): while the
+    /// segment cache is valid, the segment's start within the turn + the extended position's
+    /// distance from the segment's start (both within one segment of the turn: no wrap), else
+    /// `pos_in_turn`.
+    pub(crate) fn turn_in(&self) -> Option<u32> {
+        if !self.turn_primed {
+            return None;
+        }
+        Some(if self.seg_limit != 0 {
+            self.seg_turn_start
+                .wrapping_add((self.position as u32).wrapping_sub(self.seg_start))
+        } else {
+            self.pos_in_turn
+        })
+    }
+
+    /// Before the segment cache is voided or refilled: `pos_in_turn` of the last cycle's
+    /// extended position, whose low 32 bits are `last_low` (it was within the cached segment
+    /// while the cache is valid). Nothing to do for a void cache or a linear axis.
+    #[inline(always)]
+    pub(crate) fn settle_turn(&mut self, last_low: u32) {
+        if self.seg_limit != 0 && self.turn_primed {
+            self.pos_in_turn = self
+                .seg_turn_start
+                .wrapping_add(last_low.wrapping_sub(self.seg_start));
+        }
+    }
+
+    /// The direction reverses ([`AxisCompensator::track`]): nothing moved back yet, and the
+    /// segment cache, which holds the other half's coefficients, voided (the turn position of
+    /// the last cycle's extended position, whose low 32 bits are `last_low`, settled first).
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn reverse(&mut self, last_low: u32) {
+        self.backward = !self.backward;
+        self.back_counts = 0;
+        self.settle_turn(last_low);
+        self.seg_limit = 0;
     }
 
     pub(crate) fn set_thermo_flag(&mut self, flag: Flags, on: bool) {

@@ -24,22 +24,97 @@ pub enum Direction {
 use crate::compensator::{AxisCompensator, State, TableStore};
 use crate::limits::cold_path;
 
+/// The shift of the counter's sign extension, 32 − `counter_bits` (0..=31): an enum, so that a load
+/// of it carries its range and the shifts by it need no `& 31` (one instruction per axis and cycle).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[repr(u8)]
+pub(crate) enum CounterShift {
+    /// A 32-bit counter (and the identity).
+    #[default]
+    S0 = 0,
+    S1 = 1,
+    S2 = 2,
+    S3 = 3,
+    S4 = 4,
+    S5 = 5,
+    S6 = 6,
+    S7 = 7,
+    S8 = 8,
+    S9 = 9,
+    S10 = 10,
+    S11 = 11,
+    S12 = 12,
+    S13 = 13,
+    S14 = 14,
+    S15 = 15,
+    S16 = 16,
+    S17 = 17,
+    S18 = 18,
+    S19 = 19,
+    S20 = 20,
+    S21 = 21,
+    S22 = 22,
+    S23 = 23,
+    S24 = 24,
+    S25 = 25,
+    S26 = 26,
+    S27 = 27,
+    S28 = 28,
+    S29 = 29,
+    S30 = 30,
+    S31 = 31,
+}
+
+impl CounterShift {
+    /// `shift` modulo 32 (a counter width of 16..=32 bits gives 0..=16).
+    pub(crate) const fn new(shift: u32) -> CounterShift {
+        use CounterShift::*;
+        const ALL: [CounterShift; 32] = [
+            S0, S1, S2, S3, S4, S5, S6, S7, S8, S9, S10, S11, S12, S13, S14, S15, S16, S17, S18,
+            S19, S20, S21, S22, S23, S24, S25, S26, S27, S28, S29, S30, S31,
+        ];
+        ALL[(shift & 31) as usize]
+    }
+    /// The shift.
+    #[inline(always)]
+    pub(crate) const fn get(self) -> u32 {
+        self as u32
+    }
+}
+
 impl<S: TableStore> AxisCompensator<S> {
     /// Counter extension (wrap-safe, sign-extended delta) and the direction hysteresis; returns
     /// the extended position (also stored in `st`) and the step `delta` that was added to the
     /// previous extended position (position = previous position + delta, exactly).
     #[inline(always)]
     pub(crate) fn track(&self, st: &mut State, raw: u32) -> (i64, i32) {
-        let shift = self.sext_shift;
         if !st.primed {
             cold_path();
-            let base = if st.raw_pending { st.last_raw } else { raw };
-            st.position = ((base.wrapping_shl(shift) as i32) >> shift) as i64;
-            st.last_raw = base;
-            st.back_counts = 0;
-            st.primed = true;
-            st.raw_pending = false;
+            self.prime(st, raw);
         }
+        self.track_primed(st, raw)
+    }
+
+    /// The first cycle of a fresh or reset state: the counter value (at reset, or this cycle's)
+    /// sign-extended is the extended position.
+    #[inline(always)]
+    fn prime(&self, st: &mut State, raw: u32) {
+        let shift = self.sext_shift.get();
+        let base = if st.raw_pending { st.last_raw } else { raw };
+        st.position = ((base.wrapping_shl(shift) as i32) >> shift) as i64;
+        st.last_raw = base;
+        st.back_counts = 0;
+        st.primed = true;
+        st.raw_pending = false;
+    }
+
+    /// [`AxisCompensator::track`] without the test of `primed` (the group pipelines, whose
+    /// segment cache is void while the state is not primed): on a state that is not primed it
+    /// computes something else, which [`AxisCompensator::track_unprimed`] (the cache miss's
+    /// path) replaces by what `track` computes.
+    #[inline(always)]
+    pub(crate) fn track_primed(&self, st: &mut State, raw: u32) -> (i64, i32) {
+        let shift = self.sext_shift.get();
         let delta = ((raw.wrapping_sub(st.last_raw)).wrapping_shl(shift) as i32) >> shift;
         st.last_raw = raw;
         let pos = st.position.wrapping_add(delta as i64);
@@ -49,21 +124,41 @@ impl<S: TableStore> AxisCompensator<S> {
         // (= extreme − position going forward), ≥ 0, saturating; hysteresis ≤ i32::MAX (validated).
         // (A delta of exactly −2^31, a half turn of a 32-bit counter, is ambiguous anyway; its
         // wrapping negation keeps it "forward".)
-        let against = if st.backward {
-            delta
-        } else {
-            delta.wrapping_neg()
-        };
+        // (m = 0 backward, −1 forward: (delta ^ m) − m is delta or its wrapping negation.)
+        let m = (st.backward as i32) - 1;
+        let against = (delta ^ m).wrapping_sub(m);
         let back = st.back_counts.saturating_add(against);
         if back > self.hysteresis_counts as i32 {
-            st.backward = !st.backward;
-            st.back_counts = 0;
-            // The segment cache holds the other half's storage index.
-            st.seg_limit = 0;
+            if S::TURNS {
+                // A group axis (segment cache, turn position): out of line.
+                st.reverse((pos as u32).wrapping_sub(delta as u32));
+            } else {
+                st.backward = !st.backward;
+                st.back_counts = 0;
+                st.seg_limit = 0;
+            }
         } else {
             st.back_counts = if back < 0 { 0 } else { back };
         }
         (pos, delta)
+    }
+
+    /// After [`AxisCompensator::track_primed`] with `raw` returned `delta` on a state that was
+    /// not primed: the state and the result `track` would have given.
+    ///
+    /// Exact because a state that is not primed is a fresh one or a reset one ([`State::new`],
+    /// [`State::reset`]; nothing else clears `primed`): direction forward, nothing moved back,
+    /// and the counter value at reset (if any) in `last_raw`, whose low `counter_bits` bits —
+    /// all that the priming reads of it — are `raw − delta` (delta is the sign extension of
+    /// `raw − last_raw` from those bits).
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn track_unprimed(&self, st: &mut State, raw: u32, delta: i32) -> (i64, i32) {
+        st.last_raw = raw.wrapping_sub(delta as u32);
+        st.backward = false;
+        st.back_counts = 0;
+        self.prime(st, raw);
+        self.track_primed(st, raw)
     }
 }
 

@@ -176,17 +176,6 @@ impl TableStore for PoolTable {
             .and_then(|j| pool.get(j))
             .unwrap_or(&ZERO_SEGMENT)
     }
-    #[inline(always)]
-    fn slot(&self, dir: usize, seg: u32) -> u32 {
-        self.base[dir & 1].wrapping_add(seg)
-    }
-    #[inline(always)]
-    fn segment_at<'a>(&'a self, pool: &'a [[f32; 4]], slot: u32) -> &'a [f32; 4] {
-        (slot as usize)
-            .checked_rem(pool.len())
-            .and_then(|j| pool.get(j))
-            .unwrap_or(&ZERO_SEGMENT)
-    }
 }
 
 /// Inputs of one group cycle, by slot (entries beyond the group's axes are ignored).
@@ -246,13 +235,16 @@ impl Turn {
 /// Everything that changes while a group runs: each axis's [`State`], the rotary axes' turn
 /// positions and the cross-axis stage's angle cache.
 #[derive(Debug, Clone, PartialEq)]
+// In this order (not the compiler's): the stage's angle cache and turns first, within a float
+// load's reach of the state's address in the cycle's code, then the axes.
+#[repr(C)]
 pub struct GroupState {
-    /// Per slot.
-    pub axes: [State; MAX_AXES],
-    pub(crate) turns: [Turn; MAX_AXES],
     pub(crate) rotary: RotaryCache,
     /// Times the stage's angle terms were recomputed (sin/cos calls / 2).
     pub(crate) angle_refreshes: u32,
+    pub(crate) turns: [Turn; MAX_AXES],
+    /// Per slot.
+    pub axes: [State; MAX_AXES],
 }
 
 impl Default for GroupState {
@@ -291,9 +283,7 @@ impl GroupState {
     /// Position within the turn of rotary slot `i` (None before its first cycle or for a
     /// linear slot).
     pub fn turn_position(&self, i: usize) -> Option<u32> {
-        self.axes
-            .get(i)
-            .and_then(|s| s.turn_primed.then_some(s.pos_in_turn))
+        self.axes.get(i).and_then(|s| s.turn_in())
     }
     /// How often the stage recomputed sin/cos (once per change of a commanded angle).
     pub fn angle_refreshes(&self) -> u32 {
@@ -870,12 +860,23 @@ fn axis_cycle<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     input: &CycleInput,
     out: &mut CycleOutput,
 ) {
-    let tracked = ax.track(st, input.scale_raw);
+    // The test of `primed` in the segment cache's miss path (see `axis_error_um`).
+    let tracked = ax.track_primed(st, input.scale_raw);
     // THERMO false: known to have none, and ROTARY is the kind; true: both checked at run time.
     let thermo = if THERMO { None } else { Some(false) };
     let rotary = if THERMO { None } else { Some(ROTARY) };
-    let (e, f) = ax.axis_error_um(pool, st, tracked, &input.forces_n, rotary, thermo, true);
-    *out = ax.finish(st, tracked.0, e, input.command_counts, f);
+    let raw = input.scale_raw;
+    let (pos, e, f) = ax.axis_error_um(
+        pool,
+        st,
+        tracked,
+        raw,
+        &input.forces_n,
+        rotary,
+        thermo,
+        true,
+    );
+    *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
 /// One axis's whole pipeline of a group with the cross-axis stage in another slot order
@@ -895,17 +896,18 @@ fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
     let thermo = if THERMO { None } else { Some(false) };
     // Without the segment cache: here (beside the geometric stage's registers) it measured
     // 8 instructions more per cycle than the full lookup on the group3_geometry workload.
-    let (mut e, f) = ax.axis_error_um(
+    let (pos, mut e, f) = ax.axis_error_um(
         pool,
         st,
         tracked,
+        input.scale_raw,
         &input.forces_n,
         Some(ROTARY),
         thermo,
         false,
     );
     e += stage_um;
-    *out = ax.finish(st, tracked.0, e, input.command_counts, f);
+    *out = ax.finish(st, pos, e, input.command_counts, f);
 }
 
 /// One axis's whole pipeline in a group with the cross-axis stage (inlined into the group's
@@ -922,21 +924,29 @@ fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool>(
     out: &mut CycleOutput,
     stage_um: f32,
 ) {
-    let tracked = ax.track(st, input.scale_raw);
+    // The test of `primed` in the segment cache's miss path (see `axis_error_um`).
+    let tracked = ax.track_primed(st, input.scale_raw);
     // No thermo-force term (checked at load for this path).
-    let (mut e, f) = ax.axis_error_um(
+    let (pos, mut e, f) = ax.axis_error_um(
         pool,
         st,
         tracked,
+        input.scale_raw,
         &input.forces_n,
         Some(ROTARY),
         Some(false),
         true,
     );
+    // The position out at once: not live across the limits (fewer registers spilled).
+    out.position_counts = pos;
     if STAGE {
         e += stage_um;
     }
-    *out = ax.finish(st, tracked.0, e, input.command_counts, f);
+    let o = ax.finish(st, pos, e, input.command_counts, f);
+    out.corrected_command_counts = o.corrected_command_counts;
+    out.correction_counts = o.correction_counts;
+    out.correction_um = o.correction_um;
+    out.flags = o.flags;
 }
 
 /// Why a group was refused: the error and the axis it concerns (None: the group as a whole or

@@ -509,7 +509,7 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
     let upc = f32_at(b, 16);
     c.axis_id = u16_at(b, 12);
     c.counter_bits = bits;
-    c.sext_shift = 32u32.saturating_sub(bits as u32);
+    c.sext_shift = crate::counter::CounterShift::new(32u32.saturating_sub(bits as u32));
     c.um_per_count = upc;
     c.counts_per_rev = 0;
 

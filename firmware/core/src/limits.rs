@@ -48,14 +48,15 @@ impl<S: TableStore> AxisCompensator<S> {
             };
         st.last_correction_um = applied;
         // command − counts, saturating. |counts| < 2^31, so a command in [−2^62, 2^62) (bits 63
-        // and 62 equal: one test of the high word) cannot overflow; the saturating form only
-        // beyond, out of the way.
+        // and 62 equal, i.e. the high word in [−2^30, 2^30): one add and its sign, the add
+        // wrapping to a negative value exactly outside) cannot overflow; the saturating form
+        // only beyond, out of the way.
         let high = (command >> 32) as i32;
-        let corrected = if (high ^ (high << 1)) >= 0 {
-            command.wrapping_sub(counts as i64)
-        } else {
+        let corrected = if high.wrapping_add(1 << 30) < 0 {
             cold_path();
             command.saturating_sub(counts as i64)
+        } else {
+            command.wrapping_sub(counts as i64)
         };
         CycleOutput {
             position_counts: pos,

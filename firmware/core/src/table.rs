@@ -67,30 +67,37 @@ impl<S: TableStore> AxisCompensator<S> {
         self.outside_um(dir, position_counts)
     }
 
-    /// Value of the segment at storage index `slot` ([`TableStore::slot`]) at the remainder
-    /// `rem` (< the segment length): the Horner cubic of [`AxisCompensator::table_um_in`].
+    /// Value of the segment cached in `st` (by [`AxisCompensator::table_um_refill`]) at the
+    /// remainder `rem` (< the segment length): the Horner cubic of
+    /// [`AxisCompensator::table_um_in`].
     #[inline(always)]
-    pub(crate) fn segment_um_at(&self, pool: &[[f32; 4]], slot: u32, rem: u32) -> f32 {
+    pub(crate) fn segment_um_cached(&self, st: &crate::State, rem: u32) -> f32 {
         let t = rem as f32 * self.inv_segment;
-        let c = self.table.segment_at(pool, slot);
+        let c = &st.seg_coef;
         c[0] + t * (c[1] + t * (c[2] + t * c[3]))
     }
 
     /// The full lookup of the cycle ([`AxisCompensator::table_um_in`] at `table_pos`: the
     /// extended position, or a rotary axis's position within the turn) when the segment cache
-    /// of `st` does not hold it, and the cache refilled: valid (segment index, remainder,
-    /// segment length) when `table_pos` is within the stroke and the segment length is at most
-    /// 2^31 counts, void otherwise.
+    /// of `st` does not hold it, and the cache refilled: valid (the segment's start as the low
+    /// 32 bits of the extended position `pos_low` minus the remainder, its start within the
+    /// turn, its length and a copy of its coefficients) when `table_pos` is within the stroke
+    /// and the segment length is at most 2^31 counts, void otherwise.
     ///
-    /// Why the cache is exact: while valid it holds the remainder of the last cycle's table
-    /// position within its segment (stored for the present direction: a reversal voids it), and this cycle's position is the last one plus the
-    /// counter step `delta` (an i32; [`AxisCompensator::track`]). With a segment length L ≤ 2^31,
-    /// rem + delta lies in (−2^31, L + 2^31) ⊂ (−2^31, 2^32), so its wrapping u32 value is below L
-    /// exactly when the new position is in the same segment — then it is the remainder the full
-    /// lookup computes, and the value is the same bit for bit. Everything that moves the
-    /// position otherwise, or changes the table or the direction ([`crate::State::home`],
-    /// [`crate::State::reset`], [`crate::State::on_new_image`], a reversal, a cycle without an
-    /// image, a fresh state), voids the cache.
+    /// Why the cache is exact: while valid, the last cycle's extended position p lay in the
+    /// cached segment, i.e. p − s ∈ [0, L) for the segment's start s in extended counts (its low
+    /// 32 bits stored), for the present direction (a reversal voids the cache). This cycle's
+    /// position is p + delta with delta an i32 ([`AxisCompensator::track`]); with L ≤ 2^31,
+    /// p + delta − s lies in (−2^31, L + 2^31) ⊂ (−2^31, 2^32), so the wrapping u32 difference
+    /// of the low words is below L exactly when the new position is in the same segment — then
+    /// it is the remainder the full lookup computes, and the value is the same bit for bit. For
+    /// a rotary axis the segment lies within one turn (its grid spans exactly one turn, checked
+    /// at load), so inside it the position within the turn is the segment's start within the
+    /// turn + that remainder, no wrap ([`crate::State::turn_in`]); it is written to
+    /// `pos_in_turn` ([`crate::State::settle_turn`]) whenever the cache is voided or refilled.
+    /// Everything that moves the position otherwise, or changes the table or the direction
+    /// ([`crate::State::home`], [`crate::State::reset`], [`crate::State::on_new_image`], a
+    /// reversal, a cycle without an image, a fresh state), voids the cache.
     #[cold]
     #[inline(never)]
     pub(crate) fn table_um_refill(
@@ -98,6 +105,7 @@ impl<S: TableStore> AxisCompensator<S> {
         pool: &[[f32; 4]],
         st: &mut crate::State,
         table_pos: i64,
+        pos_low: u32,
     ) -> (f32, bool) {
         st.seg_limit = 0;
         if let Some(seg_counts) = self.segment {
@@ -106,12 +114,43 @@ impl<S: TableStore> AxisCompensator<S> {
             if (diff >> 32) == 0 && offset < self.span_counts && seg_counts.get() <= 1 << 31 {
                 let seg = offset / seg_counts;
                 let dir = (st.direction() == Direction::Backward) as usize;
-                st.seg_slot = self.table.slot(dir, seg);
-                st.seg_rem = offset - seg.wrapping_mul(seg_counts.get());
+                st.seg_coef = *self.table.segment(pool, dir, seg);
+                let rem = offset - seg.wrapping_mul(seg_counts.get());
+                st.seg_start = pos_low.wrapping_sub(rem);
+                st.seg_turn_start = (table_pos as u32).wrapping_sub(rem);
                 st.seg_limit = seg_counts.get();
+                st.seg_flags = (dir as u16) << 7;
             }
         }
         self.table_um_in(pool, st.direction(), table_pos)
+    }
+
+    /// The segment cache's miss path of the group pipelines (one out-of-line call): on a state
+    /// that was not primed, the counter extension redone ([`AxisCompensator::track_unprimed`]:
+    /// the caller reads the extended position back from `st`); for a rotary axis (`ROTARY`) the
+    /// last cycle's turn position settled from the cache (if it held it) and followed by this
+    /// cycle's step; then [`AxisCompensator::table_um_refill`] at the table position. `(pos,
+    /// delta)` is what [`AxisCompensator::track_primed`] returned with the counter value `raw`.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn table_um_miss<const ROTARY: bool>(
+        &self,
+        pool: &[[f32; 4]],
+        st: &mut crate::State,
+        mut pos: i64,
+        mut delta: i32,
+        raw: u32,
+    ) -> (f32, bool) {
+        if !st.primed {
+            (pos, delta) = self.track_unprimed(st, raw, delta);
+        }
+        if ROTARY {
+            st.settle_turn((pos as u32).wrapping_sub(delta as u32));
+            let turn = self.turn_position(st, pos, delta);
+            self.table_um_refill(pool, st, turn as i64, pos as u32)
+        } else {
+            self.table_um_refill(pool, st, pos, pos as u32)
+        }
     }
 
     /// Table value beyond the stroke (hold or taper), for direction half `dir`.

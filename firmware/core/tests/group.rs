@@ -753,3 +753,89 @@ mod segment_cache {
         }
     }
 }
+
+mod priming {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+
+        /// Reference: `Compensator::cycle` (which tests `primed` before extending the counter) on
+        /// the same image and inputs; tolerance: none (every output bit for bit, and the same
+        /// state). The group pipelines extend the counter without that test and redo the
+        /// first cycle of a fresh or reset state in the segment cache's miss path: counter
+        /// widths 16..=32, resets whose counter value has other high bits than the counter
+        /// width keeps and differs from the next cycle's, steps large enough to reverse the
+        /// direction (hysteresis 0..50) on that first cycle, a linear and a rotary slot.
+        #[test]
+        fn first_cycle_after_a_fresh_state_or_a_reset_equals_the_single_axis_call(
+            bits in 16u8..=32,
+            hysteresis in 0u32..50,
+            start in any::<u32>(),
+            steps in proptest::collection::vec((any::<i16>(), any::<u32>(), 0u8..6), 1..60),
+        ) {
+            let mask = if bits == 32 { u32::MAX } else { (1u32 << bits) - 1 };
+            let fwd: Vec<[f32; 4]> = (0..64)
+                .map(|k| [k as f32 * 0.25, 0.5, -0.125 * (k % 3) as f32, 0.0625])
+                .collect();
+            let bwd: Vec<[f32; 4]> = fwd.iter().map(|c| [c[0] + 1.5, c[1], c[2], c[3]]).collect();
+            let mut spec = table_spec(
+                TableSpec {
+                    start_counts: 0,
+                    segment_counts: CPR / 64,
+                    forward: &fwd,
+                    backward: &bwd,
+                    outside: OutsideStroke::Hold,
+                },
+                LOOSE,
+            );
+            spec.counter_bits = bits;
+            spec.limits.direction_hysteresis_counts = hysteresis;
+            let img = image(&spec);
+            let mut comp = Box::new(Compensator::IDENTITY);
+            comp.load(&img).unwrap();
+            let mut group = boxed_group();
+            group
+                .load(
+                    &[
+                        GroupAxisImage { name: AxisName::X, counts_per_rev: 0, image: &img },
+                        GroupAxisImage { name: AxisName::C, counts_per_rev: CPR, image: &img },
+                    ],
+                    None,
+                )
+                .unwrap();
+            let mut st = State::new();
+            let mut gst = Box::new(GroupState::new());
+            let mut input = GroupInput::ZERO;
+            let mut out = GroupOutput::ZERO;
+            let mut raw = start;
+            for (i, (step, reset_raw, kind)) in steps.into_iter().enumerate() {
+                if kind == 0 {
+                    // A reset at a counter value with arbitrary high bits.
+                    st.reset(reset_raw);
+                    gst.reset(&[reset_raw; MAX_AXES]);
+                } else if kind == 1 {
+                    st = State::new();
+                    *gst = GroupState::new();
+                }
+                raw = raw.wrapping_add(step as i32 as u32) & mask | (reset_raw & !mask);
+                input.axes[0].scale_raw = raw;
+                input.axes[1].scale_raw = raw;
+                input.axes[0].command_counts = step as i64 * 1000;
+                input.axes[1].command_counts = step as i64 * 1000;
+                let want = comp.cycle(&mut st, &input.axes[0]);
+                group.cycle(&mut gst, &input, &mut out);
+                prop_assert_eq!(out.axes[0].position_counts, want.position_counts, "cycle {}", i);
+                prop_assert_eq!(out.axes[1].position_counts, want.position_counts, "cycle {}", i);
+                prop_assert_eq!(out.axes[0].corrected_command_counts, want.corrected_command_counts);
+                prop_assert_eq!(out.axes[0].correction_um.to_bits(), want.correction_um.to_bits());
+                prop_assert_eq!(out.axes[0].flags, want.flags, "cycle {}", i);
+                prop_assert_eq!(out.axes[1].flags.contains(Flags::BACKWARD), want.flags.contains(Flags::BACKWARD));
+                prop_assert_eq!(&gst.axes[0], &st, "cycle {}", i);
+                let turn = want.position_counts.rem_euclid(CPR as i64) as u32;
+                prop_assert_eq!(gst.turn_position(1), Some(turn));
+            }
+        }
+    }
+}
