@@ -81,6 +81,7 @@
 //!   same model evaluated with f64 sin/cos (tolerance 0.001 µm) in this module, and against exact
 //!   homogeneous transforms in `tests/group.rs` and `tests/rotary_kinds.rs`.
 
+use crate::counter::wrap;
 use crate::error::{Field, ImageError};
 use crate::group::AxisName;
 
@@ -280,43 +281,52 @@ impl RotaryLocationSpec {
     }
 }
 
-/// Coarse angles per turn of the sin/cos table.
+/// Coarse angles per turn of the sin/cos table (a power of two: the index is masked, not
+/// clamped).
 pub const SINCOS_STEPS: usize = 64;
 
-/// sin/cos of a rotary axis at its [`SINCOS_STEPS`] + 1 coarse angles k·step·2π/cpr, k = 0..=64,
-/// step = ⌈cpr/64⌉ counts made odd (via `libm::sincos`, at load; the last one is 2π, or beyond for a
-/// turn that is not a multiple of 64 counts, so that the nearest coarse angle of any count of the
-/// turn is in the table).
+/// sin/cos of a rotary axis at its [`SINCOS_STEPS`] coarse angles k·step·2π/cpr, k = 0..64,
+/// step = ⌈cpr/63⌉ counts made odd (via `libm::sincos`, at load; 63 steps cover the turn with
+/// half a step to spare, so the nearest coarse angle of any count of the turn is in the table and
+/// its index is below 64), and the remainder polynomials' coefficients with the radians per count
+/// folded in.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SinCosTable {
-    /// ⌈cpr/64⌉ made odd (+1 if even), ≥ 1 once built; 0 only in [`SinCosTable::ZERO`], which
+    /// ⌈cpr/63⌉ made odd (+1 if even), ≥ 1 once built; 0 only in [`SinCosTable::ZERO`], which
     /// keeps a new group all zero bytes, so that a `static` engine lands in `.bss`.
     step: u32,
     /// ⌊step / 2⌋: the offset that makes the integer division round to the nearest coarse angle.
     half_step: u32,
-    rad_per_count: f32,
+    /// For the remainder x (counts) and ρ = 2π/cpr: sin r = x·(ρ − (ρ³/6)·x²),
+    /// 1 − cos r = x²·(ρ²/2 − (ρ⁴/24)·x²): [ρ, ρ³/6, ρ²/2, ρ⁴/24] (each rounded once from f64).
+    poly: [f32; 4],
     /// (sin, cos) of each coarse angle.
-    sin_cos: [[f32; 2]; SINCOS_STEPS + 1],
+    sin_cos: [[f32; 2]; SINCOS_STEPS],
 }
 
 impl SinCosTable {
     pub(crate) const ZERO: SinCosTable = SinCosTable {
         step: 0,
         half_step: 0,
-        rad_per_count: 0.0,
-        sin_cos: [[0.0; 2]; SINCOS_STEPS + 1],
+        poly: [0.0; 4],
+        sin_cos: [[0.0; 2]; SINCOS_STEPS],
     };
 
     /// For an axis of `cpr` (≥ 1) counts per revolution.
     pub(crate) fn new(cpr: u32) -> SinCosTable {
         let cpr = cpr.max(1);
-        // Odd (see `sincos`): ⌈cpr/64⌉, or one more.
-        let step = cpr.div_ceil(SINCOS_STEPS as u32) | 1;
+        // Odd (see `sincos`): ⌈cpr/63⌉, or one more.
+        let step = cpr.div_ceil(SINCOS_STEPS as u32 - 1) | 1;
         let rad = core::f64::consts::TAU / cpr as f64;
         let mut t = SinCosTable {
             step,
             half_step: step / 2,
-            rad_per_count: rad as f32,
+            poly: [
+                rad as f32,
+                (rad * rad * rad / 6.0) as f32,
+                (rad * rad / 2.0) as f32,
+                (rad * rad * rad * rad / 24.0) as f32,
+            ],
             ..SinCosTable::ZERO
         };
         for (k, sc) in t.sin_cos.iter_mut().enumerate() {
@@ -327,23 +337,31 @@ impl SinCosTable {
     }
 
     /// (sin, cos) of the angle `n`·2π/cpr for `n` < cpr (see the module's notes): the nearest
-    /// coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ from the table, the signed remainder
-    /// r = (n − k·step)·2π/cpr, |r| ≤ ⌊step/2⌋·2π/cpr, by polynomials.
+    /// coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63 from the table, the signed remainder
+    /// x = n − k·step counts, |x| ≤ ⌊step/2⌋, by polynomials.
     #[inline]
     pub(crate) fn sincos(&self, n: u32) -> (f32, f32) {
-        // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ 64.
+        // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ (cpr − 1 + ⌊step/2⌋) / step
+        // < 64 since 63·step ≥ cpr.
         let m = n.wrapping_add(self.half_step);
         // The step is odd (set at load), so `| 1` changes nothing but tells the compiler the
         // divisor is not 0 (the zero table, step 0, divides by 1).
         let step = self.step | 1;
         let k = m / step;
         let rem = m - k.wrapping_mul(step);
-        let r = rem.wrapping_sub(self.half_step) as i32 as f32 * self.rad_per_count;
-        let r2 = r * r;
-        let sin_r = r - r * r2 * (1.0 / 6.0);
-        let cos_r = 1.0 - r2 * (0.5 - r2 * (1.0 / 24.0));
-        let [s, c] = self.sin_cos[(k as usize).min(SINCOS_STEPS)];
-        (s * cos_r + c * sin_r, c * cos_r - s * sin_r)
+        // Exact: |x| ≤ ⌊step/2⌋ < 2^24.
+        let x = rem.wrapping_sub(self.half_step) as i32 as f32;
+        let [rho, s3, c2, c4] = self.poly;
+        let x2 = x * x;
+        let sin_r = x * (rho - s3 * x2);
+        let one_minus_cos_r = x2 * (c2 - c4 * x2);
+        // The mask changes nothing for a count within the turn (k < 64, above); it keeps the
+        // index check-free.
+        let [s, c] = self.sin_cos[k as usize % SINCOS_STEPS];
+        (
+            s - s * one_minus_cos_r + c * sin_r,
+            c - c * one_minus_cos_r - s * sin_r,
+        )
     }
 }
 
@@ -394,6 +412,8 @@ pub(crate) struct RotaryStage {
     pub(crate) um_per_count: [f32; 3],
     /// sin/cos tables of the tilt axis and C.
     pub(crate) sincos: [SinCosTable; 2],
+    /// Counts per revolution of the tilt axis and C.
+    pub(crate) counts_per_rev: [u32; 2],
     /// Group slots of X, Y, Z, the tilt axis (A or B), C.
     pub(crate) slot: [u8; 5],
 }
@@ -411,6 +431,7 @@ impl RotaryStage {
         head_length_um: 0.0,
         um_per_count: [0.0; 3],
         sincos: [SinCosTable::ZERO; 2],
+        counts_per_rev: [0; 2],
         slot: [0; 5],
     };
 
@@ -438,17 +459,18 @@ impl RotaryStage {
             head_length_um: if head { spec.tool_length_um } else { 0.0 },
             um_per_count,
             sincos: counts_per_rev.map(SinCosTable::new),
+            counts_per_rev,
             slot,
         }
     }
 
     /// Recompute the angle-dependent terms k and M for the commanded angles (counts within the
-    /// turn) of the tilt axis and C. Not inlined: the cycles without an angle change keep the
+    /// turn) of the tilt axis and C in `cache.turn`. Not inlined: the cycles without an angle change keep the
     /// caller's registers free.
     #[inline(never)]
-    pub(crate) fn refresh(&self, cache: &mut RotaryCache, a_counts: u32, c_counts: u32) {
-        let (st, ct) = self.sincos[0].sincos(a_counts);
-        let (sc, cc) = self.sincos[1].sincos(c_counts);
+    pub(crate) fn refresh(&self, cache: &mut RotaryCache) {
+        let (st, ct) = self.sincos[0].sincos(cache.turn[0]);
+        let (sc, cc) = self.sincos[1].sincos(cache.turn[1]);
         const BC_TRUNNION: u8 = RotaryMachine::BcTrunnion.code();
         const BC_HEAD: u8 = RotaryMachine::BcHead.code();
         match self.machine {
@@ -457,9 +479,6 @@ impl RotaryStage {
             // The AC trunnion (and the zero stage).
             _ => self.refresh_trunnion::<false>(cache, st, ct, sc, cc),
         }
-        cache.a_counts = a_counts;
-        cache.c_counts = c_counts;
-        cache.valid = true;
     }
 
     /// Fold the scales and the tool length into k and M (unscaled M, without its zero
@@ -596,33 +615,47 @@ impl RotaryStage {
     pub(crate) fn counts_from_pivot(&self, commands: [i64; 3]) -> [f32; 3] {
         let mut n = [0.0f32; 3];
         for k in 0..3 {
-            n[k] = saturate_i32(commands[k].wrapping_sub(self.pivot_counts[k])) as f32;
+            // Positions and the pivot within ±2^62 never wrap in the subtraction.
+            let d = commands[k].wrapping_sub(self.pivot_counts[k]);
+            let lo = d as i32;
+            // One compare in the common case (d fits in an i32); the conversion is then one
+            // instruction.
+            n[k] = if (d >> 32) as i32 == lo >> 31 {
+                lo as f32
+            } else {
+                saturate_i32(d) as f32
+            };
         }
         n
     }
 }
 
-/// `d` saturated to i32 (one compare in the common case; the conversion to f32 is then one
-/// instruction). Positions and the pivot within ±2^62 never wrap in the subtraction.
-#[inline(always)]
+/// `d` saturated to i32 (out of line: the per-cycle path tests only whether it fits).
+#[cold]
+#[inline(never)]
 pub(crate) fn saturate_i32(d: i64) -> i32 {
-    if d as i32 as i64 == d {
-        d as i32
-    } else if d < 0 {
+    if d < 0 {
         i32::MIN
-    } else {
+    } else if d > i32::MAX as i64 {
         i32::MAX
+    } else {
+        d as i32
     }
 }
 
-/// Angle-dependent terms of the stage, valid for the commanded angles `a_counts` (the tilt axis,
-/// A or B) and `c_counts`: the deviation is k' + M'·n for the commanded counts n from the pivot
-/// (k + M q with the scales and the tool length folded in).
+/// The commanded angles of the tilt axis (A or B) and C within their turns, tracked from cycle to
+/// cycle, and the angle-dependent terms of the stage for them: the deviation is k' + M'·n for the
+/// commanded counts n from the pivot (k + M q with the scales and the tool length folded in).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RotaryCache {
-    pub(crate) valid: bool,
-    pub(crate) a_counts: u32,
-    pub(crate) c_counts: u32,
+    /// Counts per revolution of the tilt axis and C the turn positions were taken with; 0 until the
+    /// first cycle (and after a reset or a new image): the fast path's range test then fails, so
+    /// that cycle takes the full modulo and recomputes k and M.
+    pub(crate) cpr: [u32; 2],
+    /// Commanded positions within the turn (< `cpr` once primed), the angles k and M are for.
+    pub(crate) turn: [u32; 2],
+    /// The last commanded positions (extended counts).
+    pub(crate) last_cmd: [i64; 2],
     pub(crate) k: [f32; 3],
     /// M' = M·diag(µm per count): its off-diagonal entries M'01, M'02, M'10, M'12, M'20, M'21 (the
     /// diagonal is 0).
@@ -630,14 +663,73 @@ pub struct RotaryCache {
 }
 
 impl RotaryCache {
-    /// Nothing cached yet.
+    /// Nothing cached yet (all zero bytes).
     pub const NEW: RotaryCache = RotaryCache {
-        valid: false,
-        a_counts: 0,
-        c_counts: 0,
+        cpr: [0; 2],
+        turn: [0; 2],
+        last_cmd: [0; 2],
         k: [0.0; 3],
         m: [0.0; 6],
     };
+
+    /// Follow the commanded positions `cmd` of the tilt axis and C (turns of `cpr` counts, as
+    /// loaded) into [`RotaryCache::turn`]; true if a turn position changed or the cache was not
+    /// yet primed (k and M must then be recomputed; a whole turn is no change).
+    ///
+    /// Per axis the fast path is one 64-bit difference to the last command, the test that it fits
+    /// in an i32 and one add and compare: the wrapping u32 sum of a position within the turn and an
+    /// i32 step is below the turn exactly when the true sum is (a negative true sum wraps to
+    /// ≥ 2^31 ≥ cpr). Every turn position stored is below the turn it was taken with (the fast
+    /// path tests it; [`RotaryCache::track_slow`] returns one), so the fast path's position is
+    /// within the turn. Anything else (not primed, a step across 0 or a full turn, a step beyond
+    /// i32) takes [`RotaryCache::track_slow`].
+    #[inline(always)]
+    pub(crate) fn track(&mut self, cmd: [i64; 2], cpr: [u32; 2]) -> bool {
+        let mut moved = 0u32;
+        for k in 0..2 {
+            let delta = cmd[k].wrapping_sub(self.last_cmd[k]);
+            self.last_cmd[k] = cmd[k];
+            let d = delta as i32;
+            let v = self.turn[k].wrapping_add(d as u32);
+            if (delta >> 32) as i32 == d >> 31 && v < self.cpr[k] {
+                self.turn[k] = v;
+                moved |= d as u32;
+            } else {
+                moved |= self.track_slow(k, cmd[k], delta, cpr[k]) as u32;
+            }
+        }
+        moved != 0
+    }
+}
+
+impl RotaryCache {
+    /// The slow path of [`RotaryCache::track`] for axis `k` (0: tilt, 1: C): the position within
+    /// a turn of `cpr` counts after the step `delta` to the command `cmd` — one wrap across 0
+    /// for a step shorter than a turn from a position taken with the same turn, else the full
+    /// modulo of `cmd`. True if it changed or the cache was not primed (a whole turn lands on
+    /// the same angle: no recomputation).
+    #[cold]
+    #[inline(never)]
+    fn track_slow(&mut self, k: usize, cmd: i64, delta: i64, cpr: u32) -> bool {
+        let k = k % 2;
+        let (turn, primed_cpr) = (self.turn[k], self.cpr[k]);
+        let c = cpr as i64;
+        let t = if primed_cpr == cpr && turn < cpr && delta > -c && delta < c {
+            let v = turn as i64 + delta;
+            if v < 0 {
+                (v + c) as u32
+            } else if v >= c {
+                (v - c) as u32
+            } else {
+                v as u32
+            }
+        } else {
+            wrap(cmd, cpr)
+        };
+        self.turn[k] = t;
+        self.cpr[k] = cpr;
+        t != turn || primed_cpr != cpr
+    }
 }
 
 #[cfg(test)]
@@ -762,7 +854,8 @@ mod tests {
                     a as i64,
                     c as i64,
                 ];
-                stage.refresh(&mut cache, a, c as u32);
+                cache.turn = [a, c as u32];
+                stage.refresh(&mut cache);
                 let d =
                     RotaryStage::deviation_um(&cache, stage.counts_from_pivot([n[0], n[1], n[2]]));
                 let r = reference_deviation(&spec, upc as f64, cpr, n);
