@@ -465,19 +465,29 @@ impl RotaryStage {
     }
 
     /// Recompute the angle-dependent terms k and M for the commanded angles (counts within the
-    /// turn) of the tilt axis and C in `cache.turn`. Not inlined: the cycles without an angle change keep the
-    /// caller's registers free.
+    /// turn) of the tilt axis and C in `cache.turn`. Not inlined: the cycles without an angle
+    /// change keep the caller's registers free. The AC trunnion (and the zero stage) inline, the
+    /// other kinds out of line (one compare here; inlined, the compiler predicated the whole AC
+    /// path on the kind test).
     #[inline(never)]
     pub(crate) fn refresh(&self, cache: &mut RotaryCache) {
+        if self.machine > RotaryMachine::AcTrunnion.code() {
+            return self.refresh_other(cache);
+        }
         let (st, ct) = self.sincos[0].sincos(cache.turn[0]);
         let (sc, cc) = self.sincos[1].sincos(cache.turn[1]);
-        const BC_TRUNNION: u8 = RotaryMachine::BcTrunnion.code();
-        const BC_HEAD: u8 = RotaryMachine::BcHead.code();
-        match self.machine {
-            BC_TRUNNION => self.refresh_trunnion::<true>(cache, st, ct, sc, cc),
-            BC_HEAD => self.refresh_head(cache, st, ct, sc, cc),
-            // The AC trunnion (and the zero stage).
-            _ => self.refresh_trunnion::<false>(cache, st, ct, sc, cc),
+        self.refresh_trunnion::<false>(cache, st, ct, sc, cc);
+    }
+
+    /// [`RotaryStage::refresh`] of the BC trunnion and the BC head.
+    #[inline(never)]
+    fn refresh_other(&self, cache: &mut RotaryCache) {
+        let (st, ct) = self.sincos[0].sincos(cache.turn[0]);
+        let (sc, cc) = self.sincos[1].sincos(cache.turn[1]);
+        if self.machine == RotaryMachine::BcTrunnion.code() {
+            self.refresh_trunnion::<true>(cache, st, ct, sc, cc);
+        } else {
+            self.refresh_head(cache, st, ct, sc, cc);
         }
     }
 
