@@ -730,9 +730,12 @@ impl<const POOL: usize> Group<POOL> {
     fn rotary_stage<const XYZAC: bool>(&self, st: &mut GroupState, input: &GroupInput) -> [f32; 3] {
         let g = &self.stage;
         let slot = |k: usize| self.stage_slot::<XYZAC>(k);
-        let cmd = |k: usize| input.axes[slot(k)].command_counts;
+        // Through `black_box`, so that the compiler reads the commands again in the pipelines
+        // instead of keeping the stage's copies live across them (spilled: 4 more per cycle).
+        let axes = core::hint::black_box(&input.axes);
+        let cmd = |k: usize| axes[slot(k)].command_counts;
         let c = &mut st.rotary;
-        if c.track([cmd(3), cmd(4)], g.counts_per_rev) {
+        if c.track([cmd(3), cmd(4)], &g.counts_per_rev) {
             g.refresh(c);
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
         }

@@ -683,7 +683,7 @@ impl RotaryCache {
     };
 
     /// Follow the commanded positions `cmd` of the tilt axis and C (turns of `cpr` counts, as
-    /// loaded) into [`RotaryCache::turn`]; true if a turn position changed or the cache was not
+    /// loaded; read only on the slow path) into [`RotaryCache::turn`]; true if a turn position changed or the cache was not
     /// yet primed (k and M must then be recomputed; a whole turn is no change).
     ///
     /// Per axis the fast path is one 64-bit difference to the last command, the test that it fits
@@ -694,7 +694,7 @@ impl RotaryCache {
     /// within the turn. Anything else (not primed, a step across 0 or a full turn, a step beyond
     /// i32) takes [`RotaryCache::track_slow`].
     #[inline(always)]
-    pub(crate) fn track(&mut self, cmd: [i64; 2], cpr: [u32; 2]) -> bool {
+    pub(crate) fn track(&mut self, cmd: [i64; 2], cpr: &[u32; 2]) -> bool {
         let mut moved = 0u32;
         for k in 0..2 {
             let delta = cmd[k].wrapping_sub(self.last_cmd[k]);
@@ -705,7 +705,7 @@ impl RotaryCache {
                 self.turn[k] = v;
                 moved |= d as u32;
             } else {
-                moved |= self.track_slow(k, cmd[k], delta, cpr[k]) as u32;
+                moved |= self.track_slow(k, cmd[k], delta, cpr) as u32;
             }
         }
         moved != 0
@@ -714,14 +714,15 @@ impl RotaryCache {
 
 impl RotaryCache {
     /// The slow path of [`RotaryCache::track`] for axis `k` (0: tilt, 1: C): the position within
-    /// a turn of `cpr` counts after the step `delta` to the command `cmd` — one wrap across 0
+    /// a turn of `cpr[k]` counts after the step `delta` to the command `cmd` — one wrap across 0
     /// for a step shorter than a turn from a position taken with the same turn, else the full
     /// modulo of `cmd`. True if it changed or the cache was not primed (a whole turn lands on
     /// the same angle: no recomputation).
     #[cold]
     #[inline(never)]
-    fn track_slow(&mut self, k: usize, cmd: i64, delta: i64, cpr: u32) -> bool {
+    fn track_slow(&mut self, k: usize, cmd: i64, delta: i64, cpr: &[u32; 2]) -> bool {
         let k = k % 2;
+        let cpr = cpr[k];
         let (turn, primed_cpr) = (self.turn[k], self.cpr[k]);
         let c = cpr as i64;
         let t = if primed_cpr == cpr && turn < cpr && delta > -c && delta < c {
