@@ -623,20 +623,18 @@ impl RotaryStage {
     /// The commanded positions of X, Y, Z (counts) minus the pivot, saturated to i32, as f32.
     #[inline(always)]
     pub(crate) fn counts_from_pivot(&self, commands: [i64; 3]) -> [f32; 3] {
-        let mut n = [0.0f32; 3];
-        for k in 0..3 {
-            // Positions and the pivot within ±2^62 never wrap in the subtraction.
-            let d = commands[k].wrapping_sub(self.pivot_counts[k]);
-            let lo = d as i32;
-            // One compare in the common case (d fits in an i32); the conversion is then one
-            // instruction.
-            n[k] = if (d >> 32) as i32 == lo >> 31 {
-                lo as f32
-            } else {
-                saturate_i32(d) as f32
-            };
+        // Positions and the pivot within ±2^62 never wrap in the subtraction.
+        let d = [0, 1, 2].map(|k| commands[k].wrapping_sub(self.pivot_counts[k]));
+        // One test for the three in the common case (each fits in an i32: its high word is the
+        // sign of its low word); the conversions are then one instruction each.
+        let outside = d
+            .iter()
+            .fold(0, |acc, &d| acc | ((d >> 32) as i32 ^ (d as i32) >> 31));
+        if outside == 0 {
+            d.map(|d| d as i32 as f32)
+        } else {
+            d.map(|d| saturate_i32(d) as f32)
         }
-        n
     }
 }
 
