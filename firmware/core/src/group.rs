@@ -229,12 +229,15 @@ impl GroupOutput {
 /// Everything that changes while a group runs: each axis's [`State`] and the rotary stage's
 /// commanded angles and angle cache.
 #[derive(Debug, Clone, PartialEq)]
+// The rotary stage's fields first (then within the reach of a load's 8-bit scaled offset: the
+// paired loads and stores of the commanded angles, the angle terms without a base register).
+#[repr(C)]
 pub struct GroupState {
-    /// Per slot.
-    pub axes: [State; MAX_AXES],
     pub(crate) rotary: RotaryCache,
     /// Times the stage's angle terms were recomputed (sin/cos calls / 2).
     pub(crate) angle_refreshes: u32,
+    /// Per slot.
+    pub axes: [State; MAX_AXES],
 }
 
 impl Default for GroupState {
