@@ -291,6 +291,8 @@ pub const SINCOS_STEPS: usize = 64;
 /// its index is below 64), and the remainder polynomials' coefficients with the radians per count
 /// folded in.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// The step and the polynomial first, then the table (all within a load's 8-bit scaled offset).
+#[repr(C)]
 pub(crate) struct SinCosTable {
     /// ⌈cpr/63⌉ made odd (+1 if even), ≥ 1 once built; 0 only in [`SinCosTable::ZERO`], which
     /// keeps a new group all zero bytes, so that a `static` engine lands in `.bss`.
@@ -386,11 +388,12 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 /// positive turn about Y takes Z towards X). The remaining coordinate ("other": X for A, Y for B)
 /// is unchanged.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// In this order (not the compiler's): the pivot and the constants first, within the reach of a
+// load's 8-bit scaled offset from the stage's address (paired loads of the pivot, the angle
+// terms' constants without a base register), then the tables.
+#[repr(C)]
 pub(crate) struct RotaryStage {
-    /// [`RotaryMachine::code`] of the machine kind; 0 in [`RotaryStage::ZERO`] (all zero
-    /// bytes, so that a new group, and a `static` engine holding it, lands in `.bss`; its
-    /// constants are all 0, and it is refreshed as an AC trunnion: a zero deviation).
-    pub(crate) machine: u8,
+    pub(crate) pivot_counts: [i64; 3],
     /// (EX0C, EY0C), µm; negated for a trunnion.
     pub(crate) o_c: [f32; 2],
     /// (EA0C, EB0C), rad.
@@ -403,17 +406,20 @@ pub(crate) struct RotaryStage {
     /// Squareness terms of the deviation: (−EC0Y, EB0Z, −EA0Z), rad: the deviation of the tool
     /// tip gains (sq[0]·q_y + sq[1]·q_z, sq[2]·q_z, 0).
     pub(crate) sq: [f32; 3],
-    pub(crate) pivot_counts: [i64; 3],
     /// Subtracted from the tool tip's Z: the tool length (trunnion) or 0 (head).
     pub(crate) tool_offset_um: f32,
     /// Head: pivot to tool tip, µm (0 for a trunnion).
     pub(crate) head_length_um: f32,
     /// µm per count of X, Y, Z.
     pub(crate) um_per_count: [f32; 3],
-    /// sin/cos tables of the tilt axis and C.
-    pub(crate) sincos: [SinCosTable; 2],
     /// Counts per revolution of the tilt axis and C.
     pub(crate) counts_per_rev: [u32; 2],
+    /// sin/cos tables of the tilt axis and C.
+    pub(crate) sincos: [SinCosTable; 2],
+    /// [`RotaryMachine::code`] of the machine kind; 0 in [`RotaryStage::ZERO`] (all zero
+    /// bytes, so that a new group, and a `static` engine holding it, lands in `.bss`; its
+    /// constants are all 0, and it is refreshed as an AC trunnion: a zero deviation).
+    pub(crate) machine: u8,
     /// Group slots of X, Y, Z, the tilt axis (A or B), C.
     pub(crate) slot: [u8; 5],
 }
