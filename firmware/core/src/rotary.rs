@@ -412,6 +412,11 @@ pub(crate) struct RotaryStage {
     pub(crate) sq: [f32; 3],
     /// Subtracted from the tool tip's Z: the tool length (trunnion) or 0 (head).
     pub(crate) tool_offset_um: f32,
+    /// The same in counts of Z (`tool_offset_um` / µm per count of Z; 0 in the zero stage).
+    pub(crate) tool_offset_counts_z: f32,
+    /// The squareness terms scaled as M' (trunnion): (sq[0]·µm per count of Y, sq[1]·µm per
+    /// count of Z, sq[2]·µm per count of Z).
+    pub(crate) sq_scaled: [f32; 3],
     /// Head: pivot to tool tip, µm (0 for a trunnion).
     pub(crate) head_length_um: f32,
     /// µm per count of X, Y, Z.
@@ -438,6 +443,8 @@ impl RotaryStage {
         sq: [0.0; 3],
         pivot_counts: [0; 3],
         tool_offset_um: 0.0,
+        tool_offset_counts_z: 0.0,
+        sq_scaled: [0.0; 3],
         head_length_um: 0.0,
         um_per_count: [0.0; 3],
         sincos: [SinCosTable::ZERO; 2],
@@ -457,15 +464,21 @@ impl RotaryStage {
         let [ea0z, eb0z, ec0y] = spec.squareness_urad;
         // Trunnions keep the offsets negated (see `refresh_trunnion`).
         let o = if head { 1.0 } else { -1.0 };
+        let sq = [-ec0y * URAD, eb0z * URAD, -ea0z * URAD];
+        let [_, uy, uz] = um_per_count;
+        let tool_offset_um = if head { 0.0 } else { spec.tool_length_um };
         RotaryStage {
             machine: spec.machine.code(),
             o_c: [o * spec.ex0c_um, o * spec.ey0c_um],
             e_c: [spec.ea0c_urad * URAD, spec.eb0c_urad * URAD],
             o_t: [o * spec.ey0a_um, o * spec.ez0a_um],
             e_t: [spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
-            sq: [-ec0y * URAD, eb0z * URAD, -ea0z * URAD],
+            sq,
             pivot_counts: spec.pivot_counts,
-            tool_offset_um: if head { 0.0 } else { spec.tool_length_um },
+            tool_offset_um,
+            // µm per count of a loaded axis is at least 1e-6 (image range check).
+            tool_offset_counts_z: if uz > 0.0 { tool_offset_um / uz } else { 0.0 },
+            sq_scaled: [sq[0] * uy, sq[1] * uz, sq[2] * uz],
             head_length_um: if head { spec.tool_length_um } else { 0.0 },
             um_per_count,
             sincos: counts_per_rev.map(SinCosTable::new),
@@ -533,11 +546,13 @@ impl RotaryStage {
     ) {
         // In the tilt plane (p, Z) the tilt turns by +θ for A and −θ for B.
         let s = if B { -st } else { st };
-        // −u and g (z components 0).
+        // −u and g (z components 0): (I − R_C) v = ((1 − cos)·v_x + sin·v_y, (1 − cos)·v_y −
+        // sin·v_x).
+        let omc = 1.0 - cc;
         let [ox, oy] = self.o_c;
-        let u = [ox - (cc * ox - sc * oy), oy - (sc * ox + cc * oy)];
+        let u = [omc * ox + sc * oy, omc * oy - sc * ox];
         let [ex, ey] = self.e_c;
-        let g = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey)];
+        let g = [omc * ex + sc * ey, omc * ey - sc * ex];
         // −(I − R_T) o_T and h in the tilt plane.
         let [p1, p3] = self.o_t;
         let [e1, e3] = self.e_t;
@@ -558,18 +573,19 @@ impl RotaryStage {
             ([u_o, k_p, k_z], [g_o, w_p, w_z])
         };
         // s(q) − ω × q, off-diagonal entries (the diagonal is 0): M = [sq_y + w_z, sq_z − w_y,
-        // −w_z, sq_yz + w_x, w_y, −w_x], scaled by (uy, uz, ux, uz, ux, uy).
-        let [sq_y, sq_z, sq_yz] = self.sq;
+        // −w_z, sq_yz + w_x, w_y, −w_x], scaled by (uy, uz, ux, uz, ux, uy) (the squareness
+        // terms scaled at load); k' = k − M·(0, 0, L) = k − M'·(0, 0, L/uz).
+        let [sq_y, sq_z, sq_yz] = self.sq_scaled;
         let [ux, uy, uz] = self.um_per_count;
-        let l = self.tool_offset_um;
-        let m1 = sq_z - w[1];
-        let m3 = sq_yz + w[0];
+        let l = self.tool_offset_counts_z;
+        let m1 = sq_z - w[1] * uz;
+        let m3 = sq_yz + w[0] * uz;
         cache.k = [k[0] - m1 * l, k[1] - m3 * l, k[2]];
         cache.m = [
-            (sq_y + w[2]) * uy,
-            m1 * uz,
+            sq_y + w[2] * uy,
+            m1,
             -(w[2] * ux),
-            m3 * uz,
+            m3,
             w[1] * ux,
             -(w[0] * uy),
         ];
