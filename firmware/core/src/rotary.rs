@@ -708,24 +708,24 @@ impl RotaryCache {
     /// loaded; read only on the slow path) into [`RotaryCache::turn`]; true if a turn position changed or the cache was not
     /// yet primed (k and M must then be recomputed; a whole turn is no change).
     ///
-    /// Per axis the fast path is one 64-bit difference to the last command, the test that it fits
-    /// in an i32 and one add and compare: the wrapping u32 sum of a position within the turn and an
-    /// i32 step is below the turn exactly when the true sum is (a negative true sum wraps to
-    /// ≥ 2^31 ≥ cpr). Every turn position stored is below the turn it was taken with (the fast
-    /// path tests it; [`RotaryCache::track_slow`] returns one), so the fast path's position is
-    /// within the turn. Anything else (not primed, a step across 0 or a full turn, a step beyond
-    /// i32) takes [`RotaryCache::track_slow`].
+    /// Per axis the fast path is one 64-bit difference to the last command, its 64-bit sum with
+    /// the position within the turn and one unsigned compare of that sum with the turn: in
+    /// [0, cpr) exactly when the true sum is (a negative sum is ≥ 2^63 as unsigned). Every turn
+    /// position stored is below the turn it was taken with (the fast path tests it;
+    /// [`RotaryCache::track_slow`] returns one). Anything else (not primed, a step across 0 or a
+    /// full turn or more) takes [`RotaryCache::track_slow`].
     #[inline(always)]
     pub(crate) fn track(&mut self, cmd: [i64; 2], cpr: &[u32; 2]) -> bool {
         let mut moved = 0u32;
         for k in 0..2 {
             let delta = cmd[k].wrapping_sub(self.last_cmd[k]);
             self.last_cmd[k] = cmd[k];
-            let d = delta as i32;
-            let v = self.turn[k].wrapping_add(d as u32);
-            if (delta >> 32) as i32 == d >> 31 && v < self.cpr[k] {
-                self.turn[k] = v;
-                moved |= d as u32;
+            // The 64-bit sum: within [0, cpr) exactly when its high word is 0 and its low word
+            // is below the turn.
+            let v = (self.turn[k] as u64).wrapping_add(delta as u64);
+            if v < self.cpr[k] as u64 {
+                self.turn[k] = v as u32;
+                moved |= delta as u32;
             } else {
                 moved |= self.track_slow(k, cmd[k], delta, cpr) as u32;
             }
