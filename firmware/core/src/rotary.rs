@@ -717,6 +717,8 @@ impl RotaryCache {
     #[inline(always)]
     pub(crate) fn track(&mut self, cmd: [i64; 2], cpr: &[u32; 2]) -> bool {
         let mut moved = 0u32;
+        // An index loop (as an iterator over `cmd` it measured 15 instructions more per cycle).
+        #[allow(clippy::needless_range_loop)]
         for k in 0..2 {
             let delta = cmd[k].wrapping_sub(self.last_cmd[k]);
             self.last_cmd[k] = cmd[k];
