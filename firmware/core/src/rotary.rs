@@ -47,39 +47,51 @@
 //!
 //! The neglected terms are products of two errors (|ε|·|o|, |ε|²·|q|, |ε|·|δ|): for each error
 //! ≤ 50 µrad / 50 µm and |q| ≤ 840 mm they stay below 0.03 µm (checked against exact homogeneous
-//! transforms in `tests/group.rs` and `tests/rotary_kinds.rs`).
+//! transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all three kinds)).
 //!
 //! k and M (9 numbers: M's diagonal is 0), with the axes' µm per count and the tool length folded
 //! in, are cached in [`RotaryCache`] and recomputed only when a commanded angle changes; each cycle
-//! then costs the commanded counts from the pivot and 6 multiply-adds.
+//! then costs the commanded counts from the pivot and 6 multiply-adds. The same cache follows the
+//! commanded angles within their turns from cycle to cycle (one 64-bit step and one compare per
+//! axis; the full modulo only when it is primed — first cycle, reset, new image — or a step
+//! crosses 0 or a whole turn), so the angle test is the step itself. What depends only on the
+//! image is done at load: the squareness terms scaled by the axes' µm per count, the tool length
+//! in counts of Z, the radians per count folded into the sin/cos polynomials.
 //!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
 //! software: about 2 400 instructions per call, 5 000 per cycle whenever both angles move. So
-//! `libm::sincos` is called at load only, for the [`SINCOS_STEPS`] + 1 coarse angles k·step per
-//! axis (step = ⌈counts per revolution / 64⌉, made odd, k = 0..=64). Per change of the angle n the cache
-//! takes the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
-//! r = (n − k·step)·2π/cpr, |r| ≤ ⌊step/2⌋·2π/cpr, and
+//! `libm::sincos` is called at load only, for the [`SINCOS_STEPS`] coarse angles k·step per axis
+//! (step = ⌈counts per revolution / 63⌉, made odd, k = 0..64: 63 steps cover the turn with half a
+//! step to spare, so k ≤ 63 and the index is masked, not clamped). Per change of the angle n the
+//! cache takes the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
+//! x = n − k·step counts, |x| ≤ ⌊step/2⌋, r = x·ρ with ρ = 2π/cpr, and
 //! sin θ = s_k·cos r + c_k·sin r, cos θ = c_k·cos r − s_k·sin r with
-//! sin r ≈ r − r³/6, cos r ≈ 1 − r²/2 + r⁴/24: only integer division and `+ − ×`, so host and
-//! target agree bit for bit.
+//! sin r ≈ r − r³/6 = x·(ρ − (ρ³/6)·x²), 1 − cos r ≈ r²/2 − r⁴/24 = x²·(ρ²/2 − (ρ⁴/24)·x²) (the
+//! four coefficients rounded once from f64 at load): only integer division and `+ − ×`, so host
+//! and target agree bit for bit.
 //!
 //! Error analysis (what the cheaper polynomials cost):
-//! - |r| ≤ π/64 + 2π/cpr: below 0.0502 for any turn of 6 400 counts or more, below 0.097 for every
-//!   turn (the worst is a turn of 65 counts, step 3);
-//! - truncation: |sin r − (r − r³/6)| ≤ r⁵/120 ≤ 2.7e-9 (7e-8 at 0.097),
-//!   |cos r − (1 − r²/2 + r⁴/24)| ≤ r⁶/720 ≤ 2e-11;
-//! - rounding: table entries within 2⁻²⁵ ≈ 3e-8 of the exact values, r within about 1e-8 (an
-//!   exact integer times the f32 radians per count), a few f32 roundings of values ≤ 1 in the
-//!   polynomials and the sum: sin θ and cos θ are within δ = 2e-7 of the exact values (tested
-//!   against f64 over turns of 65 … 2³¹ counts);
+//! - |r| ≤ ⌊step/2⌋·ρ ≤ π/63 + 2π/cpr: below 0.0509 for any turn of 6 400 counts or more, below
+//!   0.0982 for every turn (the worst is a turn of 64 counts, step 3);
+//! - truncation: |sin r − (r − r³/6)| ≤ r⁵/120 ≤ 2.8e-9 (7.7e-8 at 0.0982),
+//!   |cos r − (1 − r²/2 + r⁴/24)| ≤ r⁶/720 ≤ 2.5e-11;
+//! - rounding: table entries within 2⁻²⁵ ≈ 3e-8 of the exact values; x is an exact integer
+//!   (|x| < 2²⁴) and the coefficients are within 2⁻²⁴ relative, so sin r and 1 − cos r are within
+//!   a few 2⁻²⁴ relative (≤ 2e-8 absolute); a few f32 roundings of values ≤ 1 in the sum: sin θ
+//!   and cos θ are within δ = 2e-7 of the exact values (tested against f64 over turns of 65 …
+//!   2³¹ counts; worst measured 9.9e-8);
 //! - effect on the deviation: every entry of k and M·q is a sum of (offset or angle × |q|) × (a
 //!   sin/cos or a product of two), so an error δ in each sin/cos moves the deviation by at most
 //!   about 2δ·(|o_C| + |o_T| + (|ε_C| + |ε_T|)·|q|): for offsets ≤ 50 µm and angles ≤ 100 µrad
 //!   at |q| ≤ 1 m, 2·2e-7·(100 µm + 200e-6·1e6 µm) = 1.2e-4 µm — below 0.001 µm by nearly a
-//!   decade and far below the first-order model's neglected terms (0.03 µm). Tested against the
-//!   same model evaluated with f64 sin/cos (tolerance 0.001 µm) in this module, and against exact
-//!   homogeneous transforms in `tests/group.rs` and `tests/rotary_kinds.rs`.
+//!   decade and far below the first-order model's neglected terms (0.03 µm). The scales and the
+//!   tool length folded at load (M' = M·diag(µm per count), k' = k − M'·(0, 0, L/µm per count of
+//!   Z)) add a few f32 roundings relative to the terms (≤ 1e-6 relative: below 1e-4 µm for
+//!   deviations below 100 µm). Tested against the same model evaluated with f64 sin/cos
+//!   (tolerance 0.001 µm; worst measured 3.7e-5 µm) in this module, and against exact
+//!   homogeneous transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all
+//!   three kinds).
 
 use crate::counter::wrap;
 use crate::error::{Field, ImageError};
@@ -705,8 +717,9 @@ impl RotaryCache {
     };
 
     /// Follow the commanded positions `cmd` of the tilt axis and C (turns of `cpr` counts, as
-    /// loaded; read only on the slow path) into [`RotaryCache::turn`]; true if a turn position changed or the cache was not
-    /// yet primed (k and M must then be recomputed; a whole turn is no change).
+    /// loaded; read only on the slow path) into [`RotaryCache::turn`]; true if a turn position
+    /// changed or the cache was not yet primed (k and M must then be recomputed; a whole turn is
+    /// no change).
     ///
     /// Per axis the fast path is one 64-bit difference to the last command, its 64-bit sum with
     /// the position within the turn and one unsigned compare of that sum with the turn: in
