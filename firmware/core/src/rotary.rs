@@ -914,4 +914,57 @@ mod tests {
         }
         assert!(worst < 1e-3, "largest deviation error {worst:e} µm");
     }
+
+    /// Reference: `wrap` (the 64-bit modulo of the command, what the tracker replaces); exact. The
+    /// tracked positions within the turn of both axes equal it after every step — steps within
+    /// the turn, across 0 either way, of exactly ± one turn, beyond a turn, beyond i32 and
+    /// ±2^62 — for turns of 2 … 2^31 counts, a new turn length (a new image) after a reset of the
+    /// cache; and the tracker reports a change exactly when a position changed or it was not
+    /// primed.
+    #[test]
+    fn tracked_turn_positions_equal_the_modulo() {
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let mut checked = 0u32;
+        for cpr in [2u32, 3, 1000, 3_600_000, (1 << 31) - 1, 1 << 31] {
+            let mut cprs = [cpr, cpr / 2 + 1];
+            let mut cache = RotaryCache::NEW;
+            let mut cmd = [next() as i64 >> 20, -(next() as i64 >> 30)];
+            for i in 0..4000u32 {
+                if i == 2000 {
+                    // A new image (other turn lengths) drops the cache.
+                    cache = RotaryCache::NEW;
+                    cprs = [cpr / 3 + 2, cpr];
+                }
+                let before = (cache.cpr, cache.turn);
+                for (k, c) in cmd.iter_mut().enumerate() {
+                    let t = cprs[k] as i64;
+                    let r = next();
+                    let step = match r % 10 {
+                        0 => 0,
+                        1 => t,
+                        2 => -t,
+                        3 => (r >> 8) as i64 % (3 * t),
+                        4 => (r >> 8) as i64 >> 3,
+                        5 => -((r >> 8) as i64 >> 40),
+                        6 => (r >> 8) as i64 % 1000 - 500,
+                        _ => (r >> 8) as i64 % t - t / 2,
+                    };
+                    *c = c.wrapping_add(step).clamp(-(1 << 62), 1 << 62);
+                }
+                let moved = cache.track(cmd, &cprs);
+                let want = [wrap(cmd[0], cprs[0]), wrap(cmd[1], cprs[1])];
+                assert_eq!(cache.turn, want, "turn {cpr}, cycle {i}, commands {cmd:?}");
+                assert_eq!(cache.cpr, cprs);
+                assert_eq!(moved, before != (cprs, want), "turn {cpr}, cycle {i}");
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 6 * 4000);
+    }
 }
