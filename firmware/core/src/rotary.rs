@@ -678,7 +678,7 @@ impl RotaryStage {
 #[cold]
 #[inline(never)]
 pub(crate) fn saturate_i32(d: i64) -> i32 {
-    if d < 0 {
+    if d < i32::MIN as i64 {
         i32::MIN
     } else if d > i32::MAX as i64 {
         i32::MAX
@@ -966,5 +966,37 @@ mod tests {
             }
         }
         assert_eq!(checked, 6 * 4000);
+    }
+
+    /// Reference: the difference to the pivot in i64 saturated to i32, then converted (the rule
+    /// before the one shared fit test); exact, for each axis alone beyond i32 either way, at the
+    /// edges ±2^31, and all three within.
+    #[test]
+    fn counts_from_pivot_saturates_each_axis() {
+        let stage = RotaryStage {
+            pivot_counts: [1 << 40, -(1 << 35), 7],
+            ..RotaryStage::ZERO
+        };
+        let want = |d: i64| d.clamp(i32::MIN as i64, i32::MAX as i64) as i32 as f32;
+        let p = stage.pivot_counts;
+        let offsets = [
+            0i64,
+            12_345,
+            -987_654,
+            i32::MAX as i64,
+            i32::MAX as i64 + 1,
+            i32::MIN as i64,
+            i32::MIN as i64 - 1,
+            1 << 61,
+            -(1 << 61),
+        ];
+        for (i, &a) in offsets.iter().enumerate() {
+            for &b in &offsets {
+                let c = offsets[(i * 5 + 3) % offsets.len()];
+                let d = [a, b, c];
+                let n = stage.counts_from_pivot([p[0] + a, p[1] + b, p[2] + c]);
+                assert_eq!(n, d.map(want), "offsets {d:?}");
+            }
+        }
     }
 }
