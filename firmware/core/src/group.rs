@@ -39,11 +39,10 @@
 
 use crate::MAX_FORCES;
 use crate::compensator::{AxisCompensator, CycleInput, CycleOutput, Flags, State, TableStore};
-use crate::counter::{step_in_turn, wrap};
+use crate::counter::wrap;
 use crate::error::{Field, ImageError};
 use crate::geometric::{GeometricSpec, GeometricStage};
 use crate::image::{self, Layout};
-use crate::limits::cold_path;
 use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryStage};
 use crate::thermo::ProcessParams;
 use crate::trace::{
@@ -216,33 +215,16 @@ impl GroupOutput {
     };
 }
 
-/// The commanded position within the turn of a rotary axis used by the cross-axis stage.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Turn {
-    cmd_primed: bool,
-    last_cmd: i64,
-    cmd_in_turn: u32,
-}
-
-impl Turn {
-    const NEW: Turn = Turn {
-        cmd_primed: false,
-        last_cmd: 0,
-        cmd_in_turn: 0,
-    };
-}
-
-/// Everything that changes while a group runs: each axis's [`State`], the rotary axes' turn
-/// positions and the cross-axis stage's angle cache.
+/// Everything that changes while a group runs: each axis's [`State`] and the rotary stage's
+/// commanded angles and angle cache.
 #[derive(Debug, Clone, PartialEq)]
-// In this order (not the compiler's): the stage's angle cache and turns first, within a float
-// load's reach of the state's address in the cycle's code, then the axes.
+// The rotary stage's fields first (then within the reach of a load's 8-bit scaled offset: the
+// paired loads and stores of the commanded angles, the angle terms without a base register).
 #[repr(C)]
 pub struct GroupState {
     pub(crate) rotary: RotaryCache,
     /// Times the stage's angle terms were recomputed (sin/cos calls / 2).
     pub(crate) angle_refreshes: u32,
-    pub(crate) turns: [Turn; MAX_AXES],
     /// Per slot.
     pub axes: [State; MAX_AXES],
 }
@@ -258,7 +240,6 @@ impl GroupState {
     pub const fn new() -> GroupState {
         GroupState {
             axes: [const { State::new() }; MAX_AXES],
-            turns: [Turn::NEW; MAX_AXES],
             rotary: RotaryCache::NEW,
             angle_refreshes: 0,
         }
@@ -269,7 +250,6 @@ impl GroupState {
         for (s, &r) in self.axes.iter_mut().zip(scale_raw.iter()) {
             s.reset(r);
         }
-        self.turns = [Turn::NEW; MAX_AXES];
         self.rotary = RotaryCache::NEW;
     }
     /// A new group image became active ([`State::on_new_image`] for every axis, angle cache
@@ -740,28 +720,15 @@ impl<const POOL: usize> Group<POOL> {
     fn rotary_stage<const XYZAC: bool>(&self, st: &mut GroupState, input: &GroupInput) -> [f32; 3] {
         let g = &self.stage;
         let slot = |k: usize| self.stage_slot::<XYZAC>(k);
-        let mut angle = [0u32; 2];
-        for (k, a) in angle.iter_mut().enumerate() {
-            let i = slot(3 + k);
-            let cpr = self.counts_per_rev[i];
-            let cmd = input.axes[i].command_counts;
-            let t = &mut st.turns[i];
-            t.cmd_in_turn = if t.cmd_primed {
-                step_in_turn(t.cmd_in_turn, cmd.wrapping_sub(t.last_cmd), cpr, cmd)
-            } else {
-                cold_path();
-                t.cmd_primed = true;
-                wrap(cmd, cpr)
-            };
-            t.last_cmd = cmd;
-            *a = t.cmd_in_turn;
-        }
+        // Through `black_box`, so that the compiler reads the commands again in the pipelines
+        // instead of keeping the stage's copies live across them (spilled: 4 more per cycle).
+        let axes = core::hint::black_box(&input.axes);
+        let cmd = |k: usize| axes[slot(k)].command_counts;
         let c = &mut st.rotary;
-        if !c.valid || c.a_counts != angle[0] || c.c_counts != angle[1] {
-            g.refresh(c, angle[0], angle[1]);
+        if c.track([cmd(3), cmd(4)], &g.counts_per_rev) {
+            g.refresh(c);
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
         }
-        let cmd = |k: usize| input.axes[slot(k)].command_counts;
         let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
         RotaryStage::deviation_um(&st.rotary, n)
     }
@@ -833,7 +800,8 @@ impl<const POOL: usize> Group<POOL> {
         let slot = |k: usize| (g.slot[k] as usize).min(MAX_AXES - 1);
         let angle = |k: usize| wrap(positions_counts[slot(k)], self.counts_per_rev[slot(k)]);
         let mut cache = RotaryCache::NEW;
-        g.refresh(&mut cache, angle(3), angle(4));
+        cache.turn = [angle(3), angle(4)];
+        g.refresh(&mut cache);
         let q = g.counts_from_pivot([
             positions_counts[slot(0)],
             positions_counts[slot(1)],

@@ -47,40 +47,53 @@
 //!
 //! The neglected terms are products of two errors (|ε|·|o|, |ε|²·|q|, |ε|·|δ|): for each error
 //! ≤ 50 µrad / 50 µm and |q| ≤ 840 mm they stay below 0.03 µm (checked against exact homogeneous
-//! transforms in `tests/group.rs` and `tests/rotary_kinds.rs`).
+//! transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all three kinds)).
 //!
 //! k and M (9 numbers: M's diagonal is 0), with the axes' µm per count and the tool length folded
 //! in, are cached in [`RotaryCache`] and recomputed only when a commanded angle changes; each cycle
-//! then costs the commanded counts from the pivot and 6 multiply-adds.
+//! then costs the commanded counts from the pivot and 6 multiply-adds. The same cache follows the
+//! commanded angles within their turns from cycle to cycle (one 64-bit step and one compare per
+//! axis; the full modulo only when it is primed — first cycle, reset, new image — or a step
+//! crosses 0 or a whole turn), so the angle test is the step itself. What depends only on the
+//! image is done at load: the squareness terms scaled by the axes' µm per count, the tool length
+//! in counts of Z, the radians per count folded into the sin/cos polynomials.
 //!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
 //! software: about 2 400 instructions per call, 5 000 per cycle whenever both angles move. So
-//! `libm::sincos` is called at load only, for the [`SINCOS_STEPS`] + 1 coarse angles k·step per
-//! axis (step = ⌈counts per revolution / 64⌉, made odd, k = 0..=64). Per change of the angle n the cache
-//! takes the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
-//! r = (n − k·step)·2π/cpr, |r| ≤ ⌊step/2⌋·2π/cpr, and
+//! `libm::sincos` is called at load only, for the [`SINCOS_STEPS`] coarse angles k·step per axis
+//! (step = ⌈counts per revolution / 63⌉, made odd, k = 0..64: 63 steps cover the turn with half a
+//! step to spare, so k ≤ 63 and the index is masked, not clamped). Per change of the angle n the
+//! cache takes the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
+//! x = n − k·step counts, |x| ≤ ⌊step/2⌋, r = x·ρ with ρ = 2π/cpr, and
 //! sin θ = s_k·cos r + c_k·sin r, cos θ = c_k·cos r − s_k·sin r with
-//! sin r ≈ r − r³/6, cos r ≈ 1 − r²/2 + r⁴/24: only integer division and `+ − ×`, so host and
-//! target agree bit for bit.
+//! sin r ≈ r − r³/6 = x·(ρ − (ρ³/6)·x²), 1 − cos r ≈ r²/2 − r⁴/24 = x²·(ρ²/2 − (ρ⁴/24)·x²) (the
+//! four coefficients rounded once from f64 at load): only integer division and `+ − ×`, so host
+//! and target agree bit for bit.
 //!
 //! Error analysis (what the cheaper polynomials cost):
-//! - |r| ≤ π/64 + 2π/cpr: below 0.0502 for any turn of 6 400 counts or more, below 0.097 for every
-//!   turn (the worst is a turn of 65 counts, step 3);
-//! - truncation: |sin r − (r − r³/6)| ≤ r⁵/120 ≤ 2.7e-9 (7e-8 at 0.097),
-//!   |cos r − (1 − r²/2 + r⁴/24)| ≤ r⁶/720 ≤ 2e-11;
-//! - rounding: table entries within 2⁻²⁵ ≈ 3e-8 of the exact values, r within about 1e-8 (an
-//!   exact integer times the f32 radians per count), a few f32 roundings of values ≤ 1 in the
-//!   polynomials and the sum: sin θ and cos θ are within δ = 2e-7 of the exact values (tested
-//!   against f64 over turns of 65 … 2³¹ counts);
+//! - |r| ≤ ⌊step/2⌋·ρ ≤ π/63 + 2π/cpr: below 0.0509 for any turn of 6 400 counts or more, below
+//!   0.0982 for every turn (the worst is a turn of 64 counts, step 3);
+//! - truncation: |sin r − (r − r³/6)| ≤ r⁵/120 ≤ 2.8e-9 (7.7e-8 at 0.0982),
+//!   |cos r − (1 − r²/2 + r⁴/24)| ≤ r⁶/720 ≤ 2.5e-11;
+//! - rounding: table entries within 2⁻²⁵ ≈ 3e-8 of the exact values; x is an exact integer
+//!   (|x| < 2²⁴) and the coefficients are within 2⁻²⁴ relative, so sin r and 1 − cos r are within
+//!   a few 2⁻²⁴ relative (≤ 2e-8 absolute); a few f32 roundings of values ≤ 1 in the sum: sin θ
+//!   and cos θ are within δ = 2e-7 of the exact values (tested against f64 over turns of 65 …
+//!   2³¹ counts; worst measured 9.9e-8);
 //! - effect on the deviation: every entry of k and M·q is a sum of (offset or angle × |q|) × (a
 //!   sin/cos or a product of two), so an error δ in each sin/cos moves the deviation by at most
 //!   about 2δ·(|o_C| + |o_T| + (|ε_C| + |ε_T|)·|q|): for offsets ≤ 50 µm and angles ≤ 100 µrad
 //!   at |q| ≤ 1 m, 2·2e-7·(100 µm + 200e-6·1e6 µm) = 1.2e-4 µm — below 0.001 µm by nearly a
-//!   decade and far below the first-order model's neglected terms (0.03 µm). Tested against the
-//!   same model evaluated with f64 sin/cos (tolerance 0.001 µm) in this module, and against exact
-//!   homogeneous transforms in `tests/group.rs` and `tests/rotary_kinds.rs`.
+//!   decade and far below the first-order model's neglected terms (0.03 µm). The scales and the
+//!   tool length folded at load (M' = M·diag(µm per count), k' = k − M'·(0, 0, L/µm per count of
+//!   Z)) add a few f32 roundings relative to the terms (≤ 1e-6 relative: below 1e-4 µm for
+//!   deviations below 100 µm). Tested against the same model evaluated with f64 sin/cos
+//!   (tolerance 0.001 µm; worst measured 3.7e-5 µm) in this module, and against exact
+//!   homogeneous transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all
+//!   three kinds).
 
+use crate::counter::wrap;
 use crate::error::{Field, ImageError};
 use crate::group::AxisName;
 
@@ -280,70 +293,93 @@ impl RotaryLocationSpec {
     }
 }
 
-/// Coarse angles per turn of the sin/cos table.
+/// Coarse angles per turn of the sin/cos table (a power of two: the index is masked, not
+/// clamped).
 pub const SINCOS_STEPS: usize = 64;
 
-/// sin/cos of a rotary axis at its [`SINCOS_STEPS`] + 1 coarse angles k·step·2π/cpr, k = 0..=64,
-/// step = ⌈cpr/64⌉ counts made odd (via `libm::sincos`, at load; the last one is 2π, or beyond for a
-/// turn that is not a multiple of 64 counts, so that the nearest coarse angle of any count of the
-/// turn is in the table).
+/// sin/cos of a rotary axis at its [`SINCOS_STEPS`] coarse angles k·step·2π/cpr, k = 0..64,
+/// step = ⌈cpr/63⌉ counts made odd (via `libm::sincos`, at load; 63 steps cover the turn with
+/// half a step to spare, so the nearest coarse angle of any count of the turn is in the table and
+/// its index is below 64), and the remainder polynomials' coefficients with the radians per count
+/// folded in.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// The step and the polynomial first, then the table (all within a load's 8-bit scaled offset).
+#[repr(C)]
 pub(crate) struct SinCosTable {
-    /// ⌈cpr/64⌉ made odd (+1 if even), ≥ 1 once built; 0 only in [`SinCosTable::ZERO`], which
+    /// ⌈cpr/63⌉ made odd (+1 if even), ≥ 1 once built; 0 only in [`SinCosTable::ZERO`], which
     /// keeps a new group all zero bytes, so that a `static` engine lands in `.bss`.
     step: u32,
     /// ⌊step / 2⌋: the offset that makes the integer division round to the nearest coarse angle.
     half_step: u32,
-    rad_per_count: f32,
+    /// For the remainder x (counts) and ρ = 2π/cpr: sin r = x·(ρ − (ρ³/6)·x²),
+    /// 1 − cos r = x²·(ρ²/2 − (ρ⁴/24)·x²): [ρ, ρ³/6, ρ²/2, ρ⁴/24] (each rounded once from f64).
+    poly: [f32; 4],
     /// (sin, cos) of each coarse angle.
-    sin_cos: [[f32; 2]; SINCOS_STEPS + 1],
+    sin_cos: [[f32; 2]; SINCOS_STEPS],
 }
 
 impl SinCosTable {
     pub(crate) const ZERO: SinCosTable = SinCosTable {
         step: 0,
         half_step: 0,
-        rad_per_count: 0.0,
-        sin_cos: [[0.0; 2]; SINCOS_STEPS + 1],
+        poly: [0.0; 4],
+        sin_cos: [[0.0; 2]; SINCOS_STEPS],
     };
 
-    /// For an axis of `cpr` (≥ 1) counts per revolution.
+    /// For an axis of `cpr` (≥ 1) counts per revolution (at load).
     pub(crate) fn new(cpr: u32) -> SinCosTable {
         let cpr = cpr.max(1);
-        // Odd (see `sincos`): ⌈cpr/64⌉, or one more.
-        let step = cpr.div_ceil(SINCOS_STEPS as u32) | 1;
+        // Odd (see `sincos`): ⌈cpr/63⌉, or one more.
+        let step = cpr.div_ceil(SINCOS_STEPS as u32 - 1) | 1;
         let rad = core::f64::consts::TAU / cpr as f64;
         let mut t = SinCosTable {
             step,
             half_step: step / 2,
-            rad_per_count: rad as f32,
+            poly: [
+                rad as f32,
+                (rad * rad * rad / 6.0) as f32,
+                (rad * rad / 2.0) as f32,
+                (rad * rad * rad * rad / 24.0) as f32,
+            ],
             ..SinCosTable::ZERO
         };
         for (k, sc) in t.sin_cos.iter_mut().enumerate() {
-            let (s, c) = libm::sincos((k as u64 * step as u64) as f64 * rad);
+            // Through a function pointer the optimiser cannot see through: `libm::sincos` stays
+            // one out-of-line function at libm's size-optimised level (inlined here it measured
+            // 4.9 KB more code).
+            let sincos: fn(f64) -> (f64, f64) = core::hint::black_box(libm::sincos);
+            let (s, c) = sincos((k as u64 * step as u64) as f64 * rad);
             *sc = [s as f32, c as f32];
         }
         t
     }
 
     /// (sin, cos) of the angle `n`·2π/cpr for `n` < cpr (see the module's notes): the nearest
-    /// coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ from the table, the signed remainder
-    /// r = (n − k·step)·2π/cpr, |r| ≤ ⌊step/2⌋·2π/cpr, by polynomials.
+    /// coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63 from the table, the signed remainder
+    /// x = n − k·step counts, |x| ≤ ⌊step/2⌋, by polynomials.
     #[inline]
     pub(crate) fn sincos(&self, n: u32) -> (f32, f32) {
-        // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ 64.
+        // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ (cpr − 1 + ⌊step/2⌋) / step
+        // < 64 since 63·step ≥ cpr.
         let m = n.wrapping_add(self.half_step);
         // The step is odd (set at load), so `| 1` changes nothing but tells the compiler the
         // divisor is not 0 (the zero table, step 0, divides by 1).
         let step = self.step | 1;
         let k = m / step;
         let rem = m - k.wrapping_mul(step);
-        let r = rem.wrapping_sub(self.half_step) as i32 as f32 * self.rad_per_count;
-        let r2 = r * r;
-        let sin_r = r - r * r2 * (1.0 / 6.0);
-        let cos_r = 1.0 - r2 * (0.5 - r2 * (1.0 / 24.0));
-        let [s, c] = self.sin_cos[(k as usize).min(SINCOS_STEPS)];
-        (s * cos_r + c * sin_r, c * cos_r - s * sin_r)
+        // Exact: |x| ≤ ⌊step/2⌋ < 2^24.
+        let x = rem.wrapping_sub(self.half_step) as i32 as f32;
+        let [rho, s3, c2, c4] = self.poly;
+        let x2 = x * x;
+        let sin_r = x * (rho - s3 * x2);
+        let one_minus_cos_r = x2 * (c2 - c4 * x2);
+        // The mask changes nothing for a count within the turn (k < 64, above); it keeps the
+        // index check-free.
+        let [s, c] = self.sin_cos[k as usize % SINCOS_STEPS];
+        (
+            s - s * one_minus_cos_r + c * sin_r,
+            c - c * one_minus_cos_r - s * sin_r,
+        )
     }
 }
 
@@ -368,11 +404,12 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 /// positive turn about Y takes Z towards X). The remaining coordinate ("other": X for A, Y for B)
 /// is unchanged.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// In this order (not the compiler's): the pivot and the constants first, within the reach of a
+// load's 8-bit scaled offset from the stage's address (paired loads of the pivot, the angle
+// terms' constants without a base register), then the tables.
+#[repr(C)]
 pub(crate) struct RotaryStage {
-    /// [`RotaryMachine::code`] of the machine kind; 0 in [`RotaryStage::ZERO`] (all zero
-    /// bytes, so that a new group, and a `static` engine holding it, lands in `.bss`; its
-    /// constants are all 0, and it is refreshed as an AC trunnion: a zero deviation).
-    pub(crate) machine: u8,
+    pub(crate) pivot_counts: [i64; 3],
     /// (EX0C, EY0C), µm; negated for a trunnion.
     pub(crate) o_c: [f32; 2],
     /// (EA0C, EB0C), rad.
@@ -385,15 +422,25 @@ pub(crate) struct RotaryStage {
     /// Squareness terms of the deviation: (−EC0Y, EB0Z, −EA0Z), rad: the deviation of the tool
     /// tip gains (sq[0]·q_y + sq[1]·q_z, sq[2]·q_z, 0).
     pub(crate) sq: [f32; 3],
-    pub(crate) pivot_counts: [i64; 3],
     /// Subtracted from the tool tip's Z: the tool length (trunnion) or 0 (head).
     pub(crate) tool_offset_um: f32,
+    /// The same in counts of Z (`tool_offset_um` / µm per count of Z; 0 in the zero stage).
+    pub(crate) tool_offset_counts_z: f32,
+    /// The squareness terms scaled as M' (trunnion): (sq[0]·µm per count of Y, sq[1]·µm per
+    /// count of Z, sq[2]·µm per count of Z).
+    pub(crate) sq_scaled: [f32; 3],
     /// Head: pivot to tool tip, µm (0 for a trunnion).
     pub(crate) head_length_um: f32,
     /// µm per count of X, Y, Z.
     pub(crate) um_per_count: [f32; 3],
+    /// Counts per revolution of the tilt axis and C.
+    pub(crate) counts_per_rev: [u32; 2],
     /// sin/cos tables of the tilt axis and C.
     pub(crate) sincos: [SinCosTable; 2],
+    /// [`RotaryMachine::code`] of the machine kind; 0 in [`RotaryStage::ZERO`] (all zero
+    /// bytes, so that a new group, and a `static` engine holding it, lands in `.bss`; its
+    /// constants are all 0, and it is refreshed as an AC trunnion: a zero deviation).
+    pub(crate) machine: u8,
     /// Group slots of X, Y, Z, the tilt axis (A or B), C.
     pub(crate) slot: [u8; 5],
 }
@@ -408,9 +455,12 @@ impl RotaryStage {
         sq: [0.0; 3],
         pivot_counts: [0; 3],
         tool_offset_um: 0.0,
+        tool_offset_counts_z: 0.0,
+        sq_scaled: [0.0; 3],
         head_length_um: 0.0,
         um_per_count: [0.0; 3],
         sincos: [SinCosTable::ZERO; 2],
+        counts_per_rev: [0; 2],
         slot: [0; 5],
     };
 
@@ -426,40 +476,52 @@ impl RotaryStage {
         let [ea0z, eb0z, ec0y] = spec.squareness_urad;
         // Trunnions keep the offsets negated (see `refresh_trunnion`).
         let o = if head { 1.0 } else { -1.0 };
+        let sq = [-ec0y * URAD, eb0z * URAD, -ea0z * URAD];
+        let [_, uy, uz] = um_per_count;
+        let tool_offset_um = if head { 0.0 } else { spec.tool_length_um };
         RotaryStage {
             machine: spec.machine.code(),
             o_c: [o * spec.ex0c_um, o * spec.ey0c_um],
             e_c: [spec.ea0c_urad * URAD, spec.eb0c_urad * URAD],
             o_t: [o * spec.ey0a_um, o * spec.ez0a_um],
             e_t: [spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
-            sq: [-ec0y * URAD, eb0z * URAD, -ea0z * URAD],
+            sq,
             pivot_counts: spec.pivot_counts,
-            tool_offset_um: if head { 0.0 } else { spec.tool_length_um },
+            tool_offset_um,
+            // µm per count of a loaded axis is at least 1e-6 (image range check).
+            tool_offset_counts_z: if uz > 0.0 { tool_offset_um / uz } else { 0.0 },
+            sq_scaled: [sq[0] * uy, sq[1] * uz, sq[2] * uz],
             head_length_um: if head { spec.tool_length_um } else { 0.0 },
             um_per_count,
             sincos: counts_per_rev.map(SinCosTable::new),
+            counts_per_rev,
             slot,
         }
     }
 
     /// Recompute the angle-dependent terms k and M for the commanded angles (counts within the
-    /// turn) of the tilt axis and C. Not inlined: the cycles without an angle change keep the
-    /// caller's registers free.
+    /// turn) of the tilt axis and C in `cache.turn`. Not inlined: the cycles without an angle
+    /// change keep the caller's registers free. The AC trunnion (and the zero stage) inline, the
+    /// other kinds out of line (one compare here; with all three inline, the compiler predicated
+    /// the whole AC path on the kind tests: 15 instructions more).
     #[inline(never)]
-    pub(crate) fn refresh(&self, cache: &mut RotaryCache, a_counts: u32, c_counts: u32) {
-        let (st, ct) = self.sincos[0].sincos(a_counts);
-        let (sc, cc) = self.sincos[1].sincos(c_counts);
-        const BC_TRUNNION: u8 = RotaryMachine::BcTrunnion.code();
-        const BC_HEAD: u8 = RotaryMachine::BcHead.code();
-        match self.machine {
-            BC_TRUNNION => self.refresh_trunnion::<true>(cache, st, ct, sc, cc),
-            BC_HEAD => self.refresh_head(cache, st, ct, sc, cc),
-            // The AC trunnion (and the zero stage).
-            _ => self.refresh_trunnion::<false>(cache, st, ct, sc, cc),
+    pub(crate) fn refresh(&self, cache: &mut RotaryCache) {
+        let (st, ct) = self.sincos[0].sincos(cache.turn[0]);
+        let (sc, cc) = self.sincos[1].sincos(cache.turn[1]);
+        if self.machine > RotaryMachine::AcTrunnion.code() {
+            return self.refresh_other(cache, st, ct, sc, cc);
         }
-        cache.a_counts = a_counts;
-        cache.c_counts = c_counts;
-        cache.valid = true;
+        self.refresh_trunnion::<false>(cache, st, ct, sc, cc);
+    }
+
+    /// [`RotaryStage::refresh`] of the BC trunnion and the BC head.
+    #[inline(never)]
+    fn refresh_other(&self, cache: &mut RotaryCache, st: f32, ct: f32, sc: f32, cc: f32) {
+        if self.machine == RotaryMachine::BcTrunnion.code() {
+            self.refresh_trunnion::<true>(cache, st, ct, sc, cc);
+        } else {
+            self.refresh_head(cache, st, ct, sc, cc);
+        }
     }
 
     /// Fold the scales and the tool length into k and M (unscaled M, without its zero
@@ -496,11 +558,13 @@ impl RotaryStage {
     ) {
         // In the tilt plane (p, Z) the tilt turns by +θ for A and −θ for B.
         let s = if B { -st } else { st };
-        // −u and g (z components 0).
+        // −u and g (z components 0): (I − R_C) v = ((1 − cos)·v_x + sin·v_y, (1 − cos)·v_y −
+        // sin·v_x).
+        let omc = 1.0 - cc;
         let [ox, oy] = self.o_c;
-        let u = [ox - (cc * ox - sc * oy), oy - (sc * ox + cc * oy)];
+        let u = [omc * ox + sc * oy, omc * oy - sc * ox];
         let [ex, ey] = self.e_c;
-        let g = [ex - (cc * ex - sc * ey), ey - (sc * ex + cc * ey)];
+        let g = [omc * ex + sc * ey, omc * ey - sc * ex];
         // −(I − R_T) o_T and h in the tilt plane.
         let [p1, p3] = self.o_t;
         let [e1, e3] = self.e_t;
@@ -521,18 +585,19 @@ impl RotaryStage {
             ([u_o, k_p, k_z], [g_o, w_p, w_z])
         };
         // s(q) − ω × q, off-diagonal entries (the diagonal is 0): M = [sq_y + w_z, sq_z − w_y,
-        // −w_z, sq_yz + w_x, w_y, −w_x], scaled by (uy, uz, ux, uz, ux, uy).
-        let [sq_y, sq_z, sq_yz] = self.sq;
+        // −w_z, sq_yz + w_x, w_y, −w_x], scaled by (uy, uz, ux, uz, ux, uy) (the squareness
+        // terms scaled at load); k' = k − M·(0, 0, L) = k − M'·(0, 0, L/uz).
+        let [sq_y, sq_z, sq_yz] = self.sq_scaled;
         let [ux, uy, uz] = self.um_per_count;
-        let l = self.tool_offset_um;
-        let m1 = sq_z - w[1];
-        let m3 = sq_yz + w[0];
+        let l = self.tool_offset_counts_z;
+        let m1 = sq_z - w[1] * uz;
+        let m3 = sq_yz + w[0] * uz;
         cache.k = [k[0] - m1 * l, k[1] - m3 * l, k[2]];
         cache.m = [
-            (sq_y + w[2]) * uy,
-            m1 * uz,
+            sq_y + w[2] * uy,
+            m1,
             -(w[2] * ux),
-            m3 * uz,
+            m3,
             w[1] * ux,
             -(w[0] * uy),
         ];
@@ -594,35 +659,47 @@ impl RotaryStage {
     /// The commanded positions of X, Y, Z (counts) minus the pivot, saturated to i32, as f32.
     #[inline(always)]
     pub(crate) fn counts_from_pivot(&self, commands: [i64; 3]) -> [f32; 3] {
-        let mut n = [0.0f32; 3];
-        for k in 0..3 {
-            n[k] = saturate_i32(commands[k].wrapping_sub(self.pivot_counts[k])) as f32;
+        // Positions and the pivot within ±2^62 never wrap in the subtraction.
+        let d = [0, 1, 2].map(|k| commands[k].wrapping_sub(self.pivot_counts[k]));
+        // One test for the three in the common case (each fits in an i32: its high word is the
+        // sign of its low word); the conversions are then one instruction each.
+        let outside = d
+            .iter()
+            .fold(0, |acc, &d| acc | ((d >> 32) as i32 ^ (d as i32) >> 31));
+        if outside == 0 {
+            d.map(|d| d as i32 as f32)
+        } else {
+            d.map(|d| saturate_i32(d) as f32)
         }
-        n
     }
 }
 
-/// `d` saturated to i32 (one compare in the common case; the conversion to f32 is then one
-/// instruction). Positions and the pivot within ±2^62 never wrap in the subtraction.
-#[inline(always)]
+/// `d` saturated to i32 (out of line: the per-cycle path tests only whether it fits).
+#[cold]
+#[inline(never)]
 pub(crate) fn saturate_i32(d: i64) -> i32 {
-    if d as i32 as i64 == d {
-        d as i32
-    } else if d < 0 {
+    if d < i32::MIN as i64 {
         i32::MIN
-    } else {
+    } else if d > i32::MAX as i64 {
         i32::MAX
+    } else {
+        d as i32
     }
 }
 
-/// Angle-dependent terms of the stage, valid for the commanded angles `a_counts` (the tilt axis,
-/// A or B) and `c_counts`: the deviation is k' + M'·n for the commanded counts n from the pivot
-/// (k + M q with the scales and the tool length folded in).
+/// The commanded angles of the tilt axis (A or B) and C within their turns, tracked from cycle to
+/// cycle, and the angle-dependent terms of the stage for them: the deviation is k' + M'·n for the
+/// commanded counts n from the pivot (k + M q with the scales and the tool length folded in).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RotaryCache {
-    pub(crate) valid: bool,
-    pub(crate) a_counts: u32,
-    pub(crate) c_counts: u32,
+    /// Counts per revolution of the tilt axis and C the turn positions were taken with; 0 until the
+    /// first cycle (and after a reset or a new image): the fast path's range test then fails, so
+    /// that cycle takes the full modulo and recomputes k and M.
+    pub(crate) cpr: [u32; 2],
+    /// Commanded positions within the turn (< `cpr` once primed), the angles k and M are for.
+    pub(crate) turn: [u32; 2],
+    /// The last commanded positions (extended counts).
+    pub(crate) last_cmd: [i64; 2],
     pub(crate) k: [f32; 3],
     /// M' = M·diag(µm per count): its off-diagonal entries M'01, M'02, M'10, M'12, M'20, M'21 (the
     /// diagonal is 0).
@@ -630,14 +707,77 @@ pub struct RotaryCache {
 }
 
 impl RotaryCache {
-    /// Nothing cached yet.
+    /// Nothing cached yet (all zero bytes).
     pub const NEW: RotaryCache = RotaryCache {
-        valid: false,
-        a_counts: 0,
-        c_counts: 0,
+        cpr: [0; 2],
+        turn: [0; 2],
+        last_cmd: [0; 2],
         k: [0.0; 3],
         m: [0.0; 6],
     };
+
+    /// Follow the commanded positions `cmd` of the tilt axis and C (turns of `cpr` counts, as
+    /// loaded; read only on the slow path) into [`RotaryCache::turn`]; true if a turn position
+    /// changed or the cache was not yet primed (k and M must then be recomputed; a whole turn is
+    /// no change).
+    ///
+    /// Per axis the fast path is one 64-bit difference to the last command, its 64-bit sum with
+    /// the position within the turn and one unsigned compare of that sum with the turn: in
+    /// [0, cpr) exactly when the true sum is (a negative sum is ≥ 2^63 as unsigned). Every turn
+    /// position stored is below the turn it was taken with (the fast path tests it;
+    /// [`RotaryCache::track_slow`] returns one). Anything else (not primed, a step across 0 or a
+    /// full turn or more) takes [`RotaryCache::track_slow`].
+    #[inline(always)]
+    pub(crate) fn track(&mut self, cmd: [i64; 2], cpr: &[u32; 2]) -> bool {
+        let mut moved = 0u32;
+        // An index loop (as an iterator over `cmd` it measured 15 instructions more per cycle).
+        #[allow(clippy::needless_range_loop)]
+        for k in 0..2 {
+            let delta = cmd[k].wrapping_sub(self.last_cmd[k]);
+            self.last_cmd[k] = cmd[k];
+            // The 64-bit sum: within [0, cpr) exactly when its high word is 0 and its low word
+            // is below the turn.
+            let v = (self.turn[k] as u64).wrapping_add(delta as u64);
+            if v < self.cpr[k] as u64 {
+                self.turn[k] = v as u32;
+                moved |= delta as u32;
+            } else {
+                moved |= self.track_slow(k, cmd[k], delta, cpr) as u32;
+            }
+        }
+        moved != 0
+    }
+}
+
+impl RotaryCache {
+    /// The slow path of [`RotaryCache::track`] for axis `k` (0: tilt, 1: C): the position within
+    /// a turn of `cpr[k]` counts after the step `delta` to the command `cmd` — one wrap across 0
+    /// for a step shorter than a turn from a position taken with the same turn, else the full
+    /// modulo of `cmd`. True if it changed or the cache was not primed (a whole turn lands on
+    /// the same angle: no recomputation).
+    #[cold]
+    #[inline(never)]
+    fn track_slow(&mut self, k: usize, cmd: i64, delta: i64, cpr: &[u32; 2]) -> bool {
+        let k = k % 2;
+        let cpr = cpr[k];
+        let (turn, primed_cpr) = (self.turn[k], self.cpr[k]);
+        let c = cpr as i64;
+        let t = if primed_cpr == cpr && turn < cpr && delta > -c && delta < c {
+            let v = turn as i64 + delta;
+            if v < 0 {
+                (v + c) as u32
+            } else if v >= c {
+                (v - c) as u32
+            } else {
+                v as u32
+            }
+        } else {
+            wrap(cmd, cpr)
+        };
+        self.turn[k] = t;
+        self.cpr[k] = cpr;
+        t != turn || primed_cpr != cpr
+    }
 }
 
 #[cfg(test)]
@@ -762,7 +902,8 @@ mod tests {
                     a as i64,
                     c as i64,
                 ];
-                stage.refresh(&mut cache, a, c as u32);
+                cache.turn = [a, c as u32];
+                stage.refresh(&mut cache);
                 let d =
                     RotaryStage::deviation_um(&cache, stage.counts_from_pivot([n[0], n[1], n[2]]));
                 let r = reference_deviation(&spec, upc as f64, cpr, n);
@@ -772,5 +913,90 @@ mod tests {
             }
         }
         assert!(worst < 1e-3, "largest deviation error {worst:e} µm");
+    }
+
+    /// Reference: `wrap` (the 64-bit modulo of the command, what the tracker replaces); exact. The
+    /// tracked positions within the turn of both axes equal it after every step — steps within
+    /// the turn, across 0 either way, of exactly ± one turn, beyond a turn, beyond i32 and
+    /// ±2^62 — for turns of 2 … 2^31 counts, a new turn length (a new image) after a reset of the
+    /// cache; and the tracker reports a change exactly when a position changed or it was not
+    /// primed.
+    #[test]
+    fn tracked_turn_positions_equal_the_modulo() {
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let mut checked = 0u32;
+        for cpr in [2u32, 3, 1000, 3_600_000, (1 << 31) - 1, 1 << 31] {
+            let mut cprs = [cpr, cpr / 2 + 1];
+            let mut cache = RotaryCache::NEW;
+            let mut cmd = [next() as i64 >> 20, -(next() as i64 >> 30)];
+            for i in 0..4000u32 {
+                if i == 2000 {
+                    // A new image (other turn lengths) drops the cache.
+                    cache = RotaryCache::NEW;
+                    cprs = [cpr / 3 + 2, cpr];
+                }
+                let before = (cache.cpr, cache.turn);
+                for (k, c) in cmd.iter_mut().enumerate() {
+                    let t = cprs[k] as i64;
+                    let r = next();
+                    let step = match r % 10 {
+                        0 => 0,
+                        1 => t,
+                        2 => -t,
+                        3 => (r >> 8) as i64 % (3 * t),
+                        4 => (r >> 8) as i64 >> 3,
+                        5 => -((r >> 8) as i64 >> 40),
+                        6 => (r >> 8) as i64 % 1000 - 500,
+                        _ => (r >> 8) as i64 % t - t / 2,
+                    };
+                    *c = c.wrapping_add(step).clamp(-(1 << 62), 1 << 62);
+                }
+                let moved = cache.track(cmd, &cprs);
+                let want = [wrap(cmd[0], cprs[0]), wrap(cmd[1], cprs[1])];
+                assert_eq!(cache.turn, want, "turn {cpr}, cycle {i}, commands {cmd:?}");
+                assert_eq!(cache.cpr, cprs);
+                assert_eq!(moved, before != (cprs, want), "turn {cpr}, cycle {i}");
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 6 * 4000);
+    }
+
+    /// Reference: the difference to the pivot in i64 saturated to i32, then converted (the rule
+    /// before the one shared fit test); exact, for each axis alone beyond i32 either way, at the
+    /// edges ±2^31, and all three within.
+    #[test]
+    fn counts_from_pivot_saturates_each_axis() {
+        let stage = RotaryStage {
+            pivot_counts: [1 << 40, -(1 << 35), 7],
+            ..RotaryStage::ZERO
+        };
+        let want = |d: i64| d.clamp(i32::MIN as i64, i32::MAX as i64) as i32 as f32;
+        let p = stage.pivot_counts;
+        let offsets = [
+            0i64,
+            12_345,
+            -987_654,
+            i32::MAX as i64,
+            i32::MAX as i64 + 1,
+            i32::MIN as i64,
+            i32::MIN as i64 - 1,
+            1 << 61,
+            -(1 << 61),
+        ];
+        for (i, &a) in offsets.iter().enumerate() {
+            for &b in &offsets {
+                let c = offsets[(i * 5 + 3) % offsets.len()];
+                let d = [a, b, c];
+                let n = stage.counts_from_pivot([p[0] + a, p[1] + b, p[2] + c]);
+                assert_eq!(n, d.map(want), "offsets {d:?}");
+            }
+        }
     }
 }
