@@ -245,13 +245,7 @@ mod tests {
     /// and steps of every size (below a turn, exactly a turn, beyond 2^31, ±2^63).
     #[test]
     fn fast_step_equals_the_64_bit_rule() {
-        let mut x = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = crate::test_rng::xorshift(0x9E37_79B9_7F4A_7C15u64);
         let mut checked = 0u32;
         for cpr in [2u32, 3, 1000, 3_600_000, (1 << 31) - 1, 1 << 31] {
             let c = cpr as i64;

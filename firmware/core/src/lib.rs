@@ -82,6 +82,22 @@ mod thermo;
 pub mod trace;
 pub mod wiring;
 
+/// Deterministic random numbers for the unit tests of this crate (the host crates use
+/// `axcomp_numeric`'s test noise).
+#[cfg(test)]
+pub(crate) mod test_rng {
+    /// A xorshift64 generator started at `seed` (non-zero): each call returns the next value.
+    pub(crate) fn xorshift(seed: u64) -> impl FnMut() -> u64 {
+        let mut x = seed;
+        move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        }
+    }
+}
+
 pub use compensator::{
     AxisCompensator, Compensator, CycleInput, CycleOutput, Flags, OwnTable, State, TableStore,
 };

@@ -923,13 +923,7 @@ mod tests {
     /// primed.
     #[test]
     fn tracked_turn_positions_equal_the_modulo() {
-        let mut x = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = crate::test_rng::xorshift(0x2545_F491_4F6C_DD1Du64);
         let mut checked = 0u32;
         for cpr in [2u32, 3, 1000, 3_600_000, (1 << 31) - 1, 1 << 31] {
             let mut cprs = [cpr, cpr / 2 + 1];

@@ -20,6 +20,33 @@ fn boxed_group() -> Box<Group<POOL>> {
     Box::new(Group::new())
 }
 
+/// The single-axis compensator of `img` and a group of two slots running the same image: X
+/// (linear) and C (rotary, `cpr` counts per revolution) — the pair the counter and priming
+/// proptests compare.
+fn single_axis_and_x_c_group(img: &[u8], cpr: u32) -> (Box<Compensator>, Box<Group<POOL>>) {
+    let mut comp = Box::new(Compensator::IDENTITY);
+    comp.load(img).unwrap();
+    let mut group = boxed_group();
+    group
+        .load(
+            &[
+                GroupAxisImage {
+                    name: AxisName::X,
+                    counts_per_rev: 0,
+                    image: img,
+                },
+                GroupAxisImage {
+                    name: AxisName::C,
+                    counts_per_rev: cpr,
+                    image: img,
+                },
+            ],
+            None,
+        )
+        .unwrap();
+    (comp, group)
+}
+
 /// Reference: `Compensator::cycle` on the same image, inputs, temperatures and process parameters;
 /// tolerance: none (every output bit for bit), over 20 000 cycles of the bench workload (table,
 /// 8 lagged sensors, expansion, 3 forces, clamp and slew acting).
@@ -636,18 +663,7 @@ mod counter_extension {
                 thermo: None,
                 limits: LOOSE,
             });
-            let mut comp = Box::new(Compensator::IDENTITY);
-            comp.load(&img).unwrap();
-            let mut group = boxed_group();
-            group
-                .load(
-                    &[
-                        GroupAxisImage { name: AxisName::X, counts_per_rev: 0, image: &img },
-                        GroupAxisImage { name: AxisName::C, counts_per_rev: CPR, image: &img },
-                    ],
-                    None,
-                )
-                .unwrap();
+            let (comp, group) = single_axis_and_x_c_group(&img, CPR);
             let mut st = State::new();
             let mut gst = Box::new(GroupState::new());
             let mut input = GroupInput::ZERO;
@@ -793,18 +809,7 @@ mod priming {
             spec.counter_bits = bits;
             spec.limits.direction_hysteresis_counts = hysteresis;
             let img = image(&spec);
-            let mut comp = Box::new(Compensator::IDENTITY);
-            comp.load(&img).unwrap();
-            let mut group = boxed_group();
-            group
-                .load(
-                    &[
-                        GroupAxisImage { name: AxisName::X, counts_per_rev: 0, image: &img },
-                        GroupAxisImage { name: AxisName::C, counts_per_rev: CPR, image: &img },
-                    ],
-                    None,
-                )
-                .unwrap();
+            let (comp, group) = single_axis_and_x_c_group(&img, CPR);
             let mut st = State::new();
             let mut gst = Box::new(GroupState::new());
             let mut input = GroupInput::ZERO;
