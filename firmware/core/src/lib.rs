@@ -82,22 +82,6 @@ mod thermo;
 pub mod trace;
 pub mod wiring;
 
-/// Deterministic random numbers for the unit tests of this crate (the host crates use
-/// `axcomp_numeric`'s test noise).
-#[cfg(test)]
-pub(crate) mod test_rng {
-    /// A xorshift64 generator started at `seed` (non-zero): each call returns the next value.
-    pub(crate) fn xorshift(seed: u64) -> impl FnMut() -> u64 {
-        let mut x = seed;
-        move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        }
-    }
-}
-
 pub use compensator::{
     AxisCompensator, Compensator, CycleInput, CycleOutput, Flags, OwnTable, State, TableStore,
 };
@@ -135,3 +119,19 @@ pub const STALE_RAMP_MS: u32 = 60_000;
 pub const IMAGE_SLOT_LEN: usize = 128 * 1024;
 /// Largest image this build accepts (one flash slot).
 pub const MAX_IMAGE_LEN: usize = IMAGE_SLOT_LEN;
+
+/// Deterministic random numbers for the unit tests of this crate (the host crates use
+/// `axcomp_numeric`'s test noise).
+#[cfg(test)]
+pub(crate) mod test_rng {
+    /// A xorshift64 generator started at `seed` (non-zero): each call returns the next value.
+    pub(crate) fn xorshift(seed: u64) -> impl FnMut() -> u64 {
+        let mut x = seed;
+        move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        }
+    }
+}

@@ -277,9 +277,9 @@ proptest! {
             prop_assert!(g.load_image(&b).is_ok());
             let mut st = Box::new(GroupState::new());
             let mut input = GroupInput::ZERO;
-            for k in 0..5 {
-                input.axes[k].command_counts = cmd[k];
-                input.axes[k].scale_raw = cmd[k] as u32;
+            for (axis, &c) in input.axes.iter_mut().zip(cmd.iter()) {
+                axis.command_counts = c;
+                axis.scale_raw = c as u32;
             }
             let mut out = GroupOutput::ZERO;
             g.cycle(&mut st, &input, &mut out);
