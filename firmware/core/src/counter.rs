@@ -213,9 +213,10 @@ pub(crate) fn step_in_turn(in_turn: u32, delta: i64, cpr: u32, absolute: i64) ->
     step_in_turn_wide(in_turn, delta, cpr, absolute)
 }
 
-/// [`step_in_turn`] in 64-bit arithmetic (any `in_turn`).
+/// [`step_in_turn`] in 64-bit arithmetic (any `in_turn`); also the rotary stage's slow path of
+/// its commanded angles.
 #[inline(never)]
-fn step_in_turn_wide(in_turn: u32, delta: i64, cpr: u32, absolute: i64) -> u32 {
+pub(crate) fn step_in_turn_wide(in_turn: u32, delta: i64, cpr: u32, absolute: i64) -> u32 {
     let c = cpr as i64;
     if delta > -c && delta < c {
         let v = in_turn as i64 + delta;

@@ -93,7 +93,7 @@
 //!   homogeneous transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all
 //!   three kinds).
 
-use crate::counter::wrap;
+use crate::counter::{step_in_turn_wide, wrap};
 use crate::error::{Field, ImageError};
 use crate::group::AxisName;
 
@@ -761,16 +761,8 @@ impl RotaryCache {
         let k = k % 2;
         let cpr = cpr[k];
         let (turn, primed_cpr) = (self.turn[k], self.cpr[k]);
-        let c = cpr as i64;
-        let t = if primed_cpr == cpr && turn < cpr && delta > -c && delta < c {
-            let v = turn as i64 + delta;
-            if v < 0 {
-                (v + c) as u32
-            } else if v >= c {
-                (v - c) as u32
-            } else {
-                v as u32
-            }
+        let t = if primed_cpr == cpr && turn < cpr {
+            step_in_turn_wide(turn, delta, cpr, cmd)
         } else {
             wrap(cmd, cpr)
         };
