@@ -647,9 +647,7 @@ impl<const POOL: usize> Group<POOL> {
             axis_pipeline::<POOL, false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
             axis_pipeline::<POOL, false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
             axis_pipeline::<POOL, false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
-            axis_pipeline::<POOL, true, false>(&ax[3], pool, &mut s[3], &inp[3], &mut o[3], 0.0);
-            axis_pipeline::<POOL, true, false>(&ax[4], pool, &mut s[4], &inp[4], &mut o[4], 0.0);
-            return;
+            return self.ac_cycle(st, input, out);
         }
         // The deviation by slot: the geometric stage's (X, Y, Z), plus the rotary stage's (X, Y,
         // Z; A, C: none).
@@ -690,6 +688,35 @@ impl<const POOL: usize> Group<POOL> {
         };
         let d = g.deviation_xyz_slots(&self.pool, &input.axes);
         self.xyz_pipelines(st, input, out, d[0], d[1], d[2]);
+    }
+
+    /// Slots 3 and 4 of the X, Y, Z, A, C cycle: [`Group::ac_pipelines`] on their fields.
+    #[inline(always)]
+    fn ac_cycle(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
+        // (Constant chunks of constant-length arrays: the `None` arms are never taken.)
+        let (Some((_, ax)), Some((_, s)), Some((_, inp)), Some((_, o))) = (
+            self.axes.split_last_chunk::<2>(),
+            st.axes.split_last_chunk_mut::<2>(),
+            input.axes.split_last_chunk::<2>(),
+            out.axes.split_last_chunk_mut::<2>(),
+        ) else {
+            return;
+        };
+        Self::ac_pipelines(ax, &self.pool, s, inp, o);
+    }
+
+    /// Slots 3 and 4 of the X, Y, Z, A, C cycle (A and C, rotary), out of line: the addresses of
+    /// their fields are then small offsets from this function's arguments.
+    #[inline(never)]
+    fn ac_pipelines(
+        ax: &[AxisCompensator<PoolTable>; 2],
+        pool: &[[f32; 4]; POOL],
+        s: &mut [State; 2],
+        inp: &[CycleInput; 2],
+        o: &mut [CycleOutput; 2],
+    ) {
+        axis_pipeline::<POOL, true, false>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], 0.0);
+        axis_pipeline::<POOL, true, false>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], 0.0);
     }
 
     /// The geometric stage's deviation by slot (out of line: the rotary stage's code beside it
