@@ -650,9 +650,9 @@ impl RotaryStage {
     pub(crate) fn deviation_um(cache: &RotaryCache, n: [f32; 3]) -> [f32; 3] {
         let (k, m) = (&cache.k, &cache.m);
         [
-            k[0] + (m[0] * n[1] + m[1] * n[2]),
-            k[1] + (m[2] * n[0] + m[3] * n[2]),
-            k[2] + (m[4] * n[0] + m[5] * n[1]),
+            (k[0] + m[0] * n[1]) + m[1] * n[2],
+            (k[1] + m[2] * n[0]) + m[3] * n[2],
+            (k[2] + m[4] * n[0]) + m[5] * n[1],
         ]
     }
 
