@@ -80,16 +80,22 @@
 //!   (|x| < 2²⁴) and the coefficients are within 2⁻²⁴ relative, so sin r and 1 − cos r are within
 //!   a few 2⁻²⁴ relative (≤ 2e-8 absolute); a few f32 roundings of values ≤ 1 in the sum: sin θ
 //!   and cos θ are within δ = 2e-7 of the exact values (tested against f64 over turns of 65 …
-//!   2³¹ counts; worst measured 9.9e-8);
+//!   2³¹ counts; worst measured 9.9e-8). C's table holds (sin, 1 − cos) of the coarse angles
+//!   (its angle terms need only sin θ and 1 − cos θ, which then takes three operations and no
+//!   1 − cos θ from cos θ): sin θ = (s + sin r) − s·(1 − cos r) − d·sin r and
+//!   1 − cos θ = d + (1 − cos r) − d·(1 − cos r) + s·sin r, d = 1 − cos of the coarse angle;
+//!   its roundings are at the magnitude of 1 − cos θ ≤ 2 (half an ulp 1.2e-7 above 1), so for C
+//!   δ = 2.5e-7 (tested; worst measured 1.4e-7 for sin θ, 2.1e-7 for 1 − cos θ, where the former
+//!   1 − cos θ from cos θ measured 1.4e-7);
 //! - effect on the deviation: every entry of k and M·q is a sum of (offset or angle × |q|) × (a
 //!   sin/cos or a product of two), so an error δ in each sin/cos moves the deviation by at most
 //!   about 2δ·(|o_C| + |o_T| + (|ε_C| + |ε_T|)·|q|): for offsets ≤ 50 µm and angles ≤ 100 µrad
-//!   at |q| ≤ 1 m, 2·2e-7·(100 µm + 200e-6·1e6 µm) = 1.2e-4 µm — below 0.001 µm by nearly a
+//!   at |q| ≤ 1 m, 2·2.5e-7·(100 µm + 200e-6·1e6 µm) = 1.5e-4 µm — below 0.001 µm by nearly a
 //!   decade and far below the first-order model's neglected terms (0.03 µm). The scales and the
 //!   tool length folded at load (M' = M·diag(µm per count), k' = k − M'·(0, 0, L/µm per count of
 //!   Z)) add a few f32 roundings relative to the terms (≤ 1e-6 relative: below 1e-4 µm for
 //!   deviations below 100 µm). Tested against the same model evaluated with f64 sin/cos
-//!   (tolerance 0.001 µm; worst measured 3.7e-5 µm) in this module, and against exact
+//!   (tolerance 0.001 µm; worst measured 3.8e-5 µm) in this module, and against exact
 //!   homogeneous transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all
 //!   three kinds).
 
@@ -314,7 +320,8 @@ pub(crate) struct SinCosTable {
     /// For the remainder x (counts) and ρ = 2π/cpr: sin r = x·(ρ − (ρ³/6)·x²),
     /// 1 − cos r = x²·(ρ²/2 − (ρ⁴/24)·x²): [ρ, ρ³/6, ρ²/2, ρ⁴/24] (each rounded once from f64).
     poly: [f32; 4],
-    /// (sin, cos) of each coarse angle.
+    /// (sin, cos) of each coarse angle; (sin, 1 − cos) in a table built by
+    /// [`SinCosTable::new_versine`] (C: its angle terms need only sin and 1 − cos).
     sin_cos: [[f32; 2]; SINCOS_STEPS],
 }
 
@@ -326,8 +333,19 @@ impl SinCosTable {
         sin_cos: [[0.0; 2]; SINCOS_STEPS],
     };
 
-    /// For an axis of `cpr` (≥ 1) counts per revolution (at load).
+    /// For an axis of `cpr` (≥ 1) counts per revolution (at load): (sin, cos) of the coarse
+    /// angles, for [`SinCosTable::sincos`].
     pub(crate) fn new(cpr: u32) -> SinCosTable {
+        SinCosTable::build(cpr, false)
+    }
+
+    /// The same with (sin, 1 − cos) of the coarse angles (1 − cos rounded once from f64), for
+    /// [`SinCosTable::sin_versine`].
+    pub(crate) fn new_versine(cpr: u32) -> SinCosTable {
+        SinCosTable::build(cpr, true)
+    }
+
+    fn build(cpr: u32, versine: bool) -> SinCosTable {
         let cpr = cpr.max(1);
         // Odd (see `sincos`): ⌈cpr/63⌉, or one more.
         let step = cpr.div_ceil(SINCOS_STEPS as u32 - 1) | 1;
@@ -349,7 +367,7 @@ impl SinCosTable {
             // 4.9 KB more code).
             let sincos: fn(f64) -> (f64, f64) = core::hint::black_box(libm::sincos);
             let (s, c) = sincos((k as u64 * step as u64) as f64 * rad);
-            *sc = [s as f32, c as f32];
+            *sc = [s as f32, if versine { 1.0 - c } else { c } as f32];
         }
         t
     }
@@ -357,8 +375,34 @@ impl SinCosTable {
     /// (sin, cos) of the angle `n`·2π/cpr for `n` < cpr (see the module's notes): the nearest
     /// coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63 from the table, the signed remainder
     /// x = n − k·step counts, |x| ≤ ⌊step/2⌋, by polynomials.
+    /// A table from [`SinCosTable::new`].
     #[inline]
     pub(crate) fn sincos(&self, n: u32) -> (f32, f32) {
+        let ([s, c], sin_r, one_minus_cos_r) = self.coarse_and_remainder(n);
+        (
+            s - s * one_minus_cos_r + c * sin_r,
+            c - c * one_minus_cos_r - s * sin_r,
+        )
+    }
+
+    /// (sin, 1 − cos) of the angle `n`·2π/cpr for `n` < cpr, as [`SinCosTable::sincos`], from a
+    /// table of [`SinCosTable::new_versine`]: with d = 1 − cos of the coarse angle,
+    /// sin θ = s·cos r + (1 − d)·sin r = (s + sin r) − s·(1 − cos r) − d·sin r and
+    /// 1 − cos θ = d + (1 − d)·(1 − cos r) + s·sin r (three operations each; 1 − cos θ without
+    /// the cancellation of 1 − cos θ from cos θ).
+    #[inline]
+    pub(crate) fn sin_versine(&self, n: u32) -> (f32, f32) {
+        let ([s, d], sin_r, one_minus_cos_r) = self.coarse_and_remainder(n);
+        (
+            s + sin_r - s * one_minus_cos_r - d * sin_r,
+            d + one_minus_cos_r - d * one_minus_cos_r + s * sin_r,
+        )
+    }
+
+    /// The table's entry of the nearest coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63, and
+    /// sin r, 1 − cos r of the signed remainder x = n − k·step counts, |x| ≤ ⌊step/2⌋.
+    #[inline(always)]
+    fn coarse_and_remainder(&self, n: u32) -> ([f32; 2], f32, f32) {
         // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ (cpr − 1 + ⌊step/2⌋) / step
         // < 64 since 63·step ≥ cpr.
         let m = n.wrapping_add(self.half_step);
@@ -375,10 +419,10 @@ impl SinCosTable {
         let one_minus_cos_r = x2 * (c2 - c4 * x2);
         // The mask changes nothing for a count within the turn (k < 64, above); it keeps the
         // index check-free.
-        let [s, c] = self.sin_cos[k as usize % SINCOS_STEPS];
         (
-            s - s * one_minus_cos_r + c * sin_r,
-            c - c * one_minus_cos_r - s * sin_r,
+            self.sin_cos[k as usize % SINCOS_STEPS],
+            sin_r,
+            one_minus_cos_r,
         )
     }
 }
@@ -435,7 +479,7 @@ pub(crate) struct RotaryStage {
     pub(crate) um_per_count: [f32; 3],
     /// Counts per revolution of the tilt axis and C.
     pub(crate) counts_per_rev: [u32; 2],
-    /// sin/cos tables of the tilt axis and C.
+    /// sin/cos table of the tilt axis, sin/(1 − cos) table of C.
     pub(crate) sincos: [SinCosTable; 2],
     /// [`RotaryMachine::code`] of the machine kind; 0 in [`RotaryStage::ZERO`] (all zero
     /// bytes, so that a new group, and a `static` engine holding it, lands in `.bss`; its
@@ -493,7 +537,10 @@ impl RotaryStage {
             sq_scaled: [sq[0] * uy, sq[1] * uz, sq[2] * uz],
             head_length_um: if head { spec.tool_length_um } else { 0.0 },
             um_per_count,
-            sincos: counts_per_rev.map(SinCosTable::new),
+            sincos: [
+                SinCosTable::new(counts_per_rev[0]),
+                SinCosTable::new_versine(counts_per_rev[1]),
+            ],
             counts_per_rev,
             slot,
         }
@@ -507,20 +554,21 @@ impl RotaryStage {
     #[inline(never)]
     pub(crate) fn refresh(&self, cache: &mut RotaryCache) {
         let (st, ct) = self.sincos[0].sincos(cache.turn[0]);
-        let (sc, cc) = self.sincos[1].sincos(cache.turn[1]);
+        let (sc, omc) = self.sincos[1].sin_versine(cache.turn[1]);
         if self.machine > RotaryMachine::AcTrunnion.code() {
-            return self.refresh_other(cache, st, ct, sc, cc);
+            return self.refresh_other(cache, st, ct, sc, omc);
         }
-        self.refresh_trunnion::<false>(cache, st, ct, sc, cc);
+        self.refresh_trunnion::<false>(cache, st, ct, sc, omc);
     }
 
     /// [`RotaryStage::refresh`] of the BC trunnion and the BC head.
     #[inline(never)]
-    fn refresh_other(&self, cache: &mut RotaryCache, st: f32, ct: f32, sc: f32, cc: f32) {
+    /// `omc` is 1 − cos of C's angle.
+    fn refresh_other(&self, cache: &mut RotaryCache, st: f32, ct: f32, sc: f32, omc: f32) {
         if self.machine == RotaryMachine::BcTrunnion.code() {
-            self.refresh_trunnion::<true>(cache, st, ct, sc, cc);
+            self.refresh_trunnion::<true>(cache, st, ct, sc, omc);
         } else {
-            self.refresh_head(cache, st, ct, sc, cc);
+            self.refresh_head(cache, st, ct, sc, 1.0 - omc);
         }
     }
 
@@ -554,13 +602,12 @@ impl RotaryStage {
         st: f32,
         ct: f32,
         sc: f32,
-        cc: f32,
+        omc: f32,
     ) {
         // In the tilt plane (p, Z) the tilt turns by +θ for A and −θ for B.
         let s = if B { -st } else { st };
         // −u and g (z components 0): (I − R_C) v = ((1 − cos)·v_x + sin·v_y, (1 − cos)·v_y −
-        // sin·v_x).
-        let omc = 1.0 - cc;
+        // sin·v_x), 1 − cos of C from its table (`omc`).
         let [ox, oy] = self.o_c;
         let u = [omc * ox + sc * oy, omc * oy - sc * ox];
         let [ex, ey] = self.e_c;
@@ -650,9 +697,9 @@ impl RotaryStage {
     pub(crate) fn deviation_um(cache: &RotaryCache, n: [f32; 3]) -> [f32; 3] {
         let (k, m) = (&cache.k, &cache.m);
         [
-            k[0] + (m[0] * n[1] + m[1] * n[2]),
-            k[1] + (m[2] * n[0] + m[3] * n[2]),
-            k[2] + (m[4] * n[0] + m[5] * n[1]),
+            (k[0] + m[0] * n[1]) + m[1] * n[2],
+            (k[1] + m[2] * n[0]) + m[3] * n[2],
+            (k[2] + m[4] * n[0]) + m[5] * n[1],
         ]
     }
 
@@ -795,6 +842,25 @@ mod tests {
                     .max((c as f64 - a.cos()).abs());
             }
             assert!(worst < 2e-7, "cpr {cpr}: largest error {worst:e}");
+        }
+    }
+
+    /// The same for C's table of (sin, 1 − cos) (reference: f64 `sin` and `1 − cos`; tolerance
+    /// 2.5e-7, the module's bound for C: roundings at the magnitude of 1 − cos θ ≤ 2).
+    #[test]
+    fn sin_versine_from_table_and_polynomial() {
+        for cpr in [3_600_000u32, 1000, 65, 100, 1 << 31] {
+            let t = SinCosTable::new_versine(cpr);
+            let mut worst = 0.0f64;
+            let stride = if cpr < 10_000 { 1 } else { 997 };
+            for n in (0..cpr).step_by(stride).chain(cpr - 5..cpr) {
+                let (s, omc) = t.sin_versine(n);
+                let a = n as f64 * core::f64::consts::TAU / cpr as f64;
+                worst = worst
+                    .max((s as f64 - a.sin()).abs())
+                    .max((omc as f64 - (1.0 - a.cos())).abs());
+            }
+            assert!(worst < 2.5e-7, "cpr {cpr}: largest error {worst:e}");
         }
     }
 
