@@ -832,15 +832,7 @@ mod tests {
     fn sincos_from_table_and_polynomial() {
         for cpr in [3_600_000u32, 1000, 65, 100, 1 << 31] {
             let t = SinCosTable::new(cpr);
-            let mut worst = 0.0f64;
-            let stride = if cpr < 10_000 { 1 } else { 997 };
-            for n in (0..cpr).step_by(stride).chain(cpr - 5..cpr) {
-                let (s, c) = t.sincos(n);
-                let a = n as f64 * core::f64::consts::TAU / cpr as f64;
-                worst = worst
-                    .max((s as f64 - a.sin()).abs())
-                    .max((c as f64 - a.cos()).abs());
-            }
+            let worst = largest_error(cpr, |n| t.sincos(n), |a| (a.sin(), a.cos()));
             assert!(worst < 2e-7, "cpr {cpr}: largest error {worst:e}");
         }
     }
@@ -851,17 +843,28 @@ mod tests {
     fn sin_versine_from_table_and_polynomial() {
         for cpr in [3_600_000u32, 1000, 65, 100, 1 << 31] {
             let t = SinCosTable::new_versine(cpr);
-            let mut worst = 0.0f64;
-            let stride = if cpr < 10_000 { 1 } else { 997 };
-            for n in (0..cpr).step_by(stride).chain(cpr - 5..cpr) {
-                let (s, omc) = t.sin_versine(n);
-                let a = n as f64 * core::f64::consts::TAU / cpr as f64;
-                worst = worst
-                    .max((s as f64 - a.sin()).abs())
-                    .max((omc as f64 - (1.0 - a.cos())).abs());
-            }
+            let worst = largest_error(cpr, |n| t.sin_versine(n), |a| (a.sin(), 1.0 - a.cos()));
             assert!(worst < 2.5e-7, "cpr {cpr}: largest error {worst:e}");
         }
+    }
+
+    /// The largest difference of both values of `table(n)` from `exact(n·2π/cpr)` over every
+    /// 997th count of a turn of `cpr` counts (every count below 10 000 counts) and its last 5.
+    fn largest_error(
+        cpr: u32,
+        table: impl Fn(u32) -> (f32, f32),
+        exact: impl Fn(f64) -> (f64, f64),
+    ) -> f64 {
+        let mut worst = 0.0f64;
+        let stride = if cpr < 10_000 { 1 } else { 997 };
+        for n in (0..cpr).step_by(stride).chain(cpr - 5..cpr) {
+            let (v0, v1) = table(n);
+            let (e0, e1) = exact(n as f64 * core::f64::consts::TAU / cpr as f64);
+            worst = worst
+                .max((v0 as f64 - e0).abs())
+                .max((v1 as f64 - e1).abs());
+        }
+        worst
     }
 
     /// The first-order trunnion model of the module's docs in f64 with f64 sin/cos (the
