@@ -670,11 +670,19 @@ impl State {
             return None;
         }
         Some(if self.seg_limit != 0 {
-            self.seg_turn_start
-                .wrapping_add((self.position as u32).wrapping_sub(self.seg_start))
+            self.cached_turn(self.position as u32)
         } else {
             self.pos_in_turn
         })
+    }
+
+    /// While the segment cache is valid: the position within the turn of the extended position
+    /// whose low 32 bits are `low` (within the cached segment: its start within the turn + the
+    /// distance from its start, no wrap).
+    #[inline(always)]
+    fn cached_turn(&self, low: u32) -> u32 {
+        self.seg_turn_start
+            .wrapping_add(low.wrapping_sub(self.seg_start))
     }
 
     /// Before the segment cache is voided or refilled: `pos_in_turn` of the last cycle's
@@ -683,9 +691,7 @@ impl State {
     #[inline(always)]
     pub(crate) fn settle_turn(&mut self, last_low: u32) {
         if self.seg_limit != 0 && self.turn_primed {
-            self.pos_in_turn = self
-                .seg_turn_start
-                .wrapping_add(last_low.wrapping_sub(self.seg_start));
+            self.pos_in_turn = self.cached_turn(last_low);
         }
     }
 

@@ -120,6 +120,9 @@ impl<S: TableStore> AxisCompensator<S> {
                 st.seg_turn_start = (table_pos as u32).wrapping_sub(rem);
                 st.seg_limit = seg_counts.get();
                 st.seg_flags = (dir as u16) << 7;
+                // The value from the segment just cached: the same remainder, 1/segment and
+                // coefficients as the full lookup's, so the same bits (no second search).
+                return (self.segment_um_cached(st, rem), false);
             }
         }
         self.table_um_in(pool, st.direction(), table_pos)
