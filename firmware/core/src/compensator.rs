@@ -130,15 +130,17 @@ pub struct AxisCompensator<S> {
     // ---- limits (beside the counter's fields and the table's per-cycle one, `inv_segment`:
     // every field of a group axis's per-cycle path within a few words of each other) ----
     pub(crate) max_correction_um: f32,
-    pub(crate) max_slew_um_per_cycle: f32,
+    /// `max_slew_um_per_cycle` as the cycle's fast path tests it: see [`crate::limits::magnitude_key`].
+    pub(crate) slew_key: u32,
     pub(crate) hysteresis_counts: u32,
     /// `um_per_count / 2` (exact), so that the cycle's quotient is already doubled for the
     /// bounded rounding.
     pub(crate) half_um_per_count: f32,
-    /// `max_correction_um` if every applied correction, in counts, is below 2^29 in magnitude
-    /// (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else −1: the cycle's fast path (within the
-    /// clamp, rounded with `round_half_away_bounded`) is never taken for an unbounded image.
-    pub(crate) fast_max_um: f32,
+    /// [`crate::limits::magnitude_key`] of `max_correction_um` if every applied correction, in counts, is below
+    /// 2^29 in magnitude (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else 0: the cycle's fast path
+    /// (within the clamp, rounded with `round_half_away_bounded`) is never taken for an
+    /// unbounded image (no magnitude's key is below 0).
+    pub(crate) fast_max_key: u32,
     /// 1 / segment length (the table's per-cycle field).
     pub(crate) inv_segment: f32,
     /// Counts per revolution of a rotary group axis (its table is indexed by the position within
@@ -247,10 +249,10 @@ impl<S> AxisCompensator<S> {
             thermo_flags_xor: 0,
             laws: [ZERO_LAW; MAX_FORCES],
             max_correction_um: 0.0,
-            max_slew_um_per_cycle: 0.0,
+            slew_key: 0,
             hysteresis_counts: 0,
             half_um_per_count: 0.0,
-            fast_max_um: 0.0,
+            fast_max_key: 0,
             table,
         }
     }
@@ -317,7 +319,7 @@ impl<S: TableStore> AxisCompensator<S> {
         self.um_per_count = 0.0;
         self.counts_per_rev = 0;
         self.half_um_per_count = 0.0;
-        self.fast_max_um = 0.0;
+        self.fast_max_key = 0;
     }
 
     /// True once an image has been loaded (false for the identity).
@@ -340,7 +342,7 @@ impl<S: TableStore> AxisCompensator<S> {
     pub fn limits(&self) -> LimitSpec {
         LimitSpec {
             max_correction_um: self.max_correction_um,
-            max_slew_um_per_cycle: self.max_slew_um_per_cycle,
+            max_slew_um_per_cycle: self.max_slew_um_per_cycle(),
             direction_hysteresis_counts: self.hysteresis_counts,
         }
     }

@@ -614,14 +614,14 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
 
     let o = l.limits;
     c.max_correction_um = f32_at(b, o);
-    c.max_slew_um_per_cycle = f32_at(b, o + 4);
+    c.slew_key = crate::limits::magnitude_key(f32_at(b, o + 4));
     c.hysteresis_counts = u32_at(b, o + 8);
     // 2^29 leaves a factor 2 of margin below the 2^30 that `round_half_away_bounded` needs.
     c.half_um_per_count = 0.5 * upc;
-    c.fast_max_um = if MAX_LIMIT_UM / upc < 536_870_912.0 {
-        c.max_correction_um
+    c.fast_max_key = if MAX_LIMIT_UM / upc < 536_870_912.0 {
+        crate::limits::magnitude_key(c.max_correction_um)
     } else {
-        -1.0
+        0
     };
     c.loaded = true;
 }

@@ -29,23 +29,27 @@ impl<S: TableStore> AxisCompensator<S> {
         mut flags: Flags,
     ) -> CycleOutput {
         let last = st.last_correction_um;
-        let slew = self.max_slew_um_per_cycle;
-        let (applied, counts) =
-            if libm::fabsf(total) <= self.fast_max_um && libm::fabsf(total - last) <= slew {
-                // |total| ≤ max ≤ MAX_LIMIT_UM and the image is bounded: |counts| < 2^29.
-                (
-                    total,
-                    round_half_away_bounded2(total / self.half_um_per_count),
-                )
-            } else {
-                cold_path();
-                let (applied, limit_flags) = limit(total, last, self.max_correction_um, slew);
-                flags |= limit_flags;
-                // |applied| ≤ MAX_LIMIT_UM always: every image's clamp is validated ≤
-                // MAX_LIMIT_UM, the slew only moves between the last applied value and the
-                // clamped one, and a NaN holds.
-                (applied, round_to_counts(applied / self.um_per_count))
-            };
+        // |total| ≤ max and |total − last| ≤ slew as compares of magnitude keys (see
+        // `magnitude_key`: the same outcome for every value, NaN failing): one integer compare of
+        // a shifted operand each, no `vabs`, `vcmp`, `vmrs`.
+        let (applied, counts) = if magnitude_key_of(total) < self.fast_max_key
+            && magnitude_key_of(total - last) < self.slew_key
+        {
+            // |total| ≤ max ≤ MAX_LIMIT_UM and the image is bounded: |counts| < 2^29.
+            (
+                total,
+                round_half_away_bounded2(total / self.half_um_per_count),
+            )
+        } else {
+            cold_path();
+            let slew = self.max_slew_um_per_cycle();
+            let (applied, limit_flags) = limit(total, last, self.max_correction_um, slew);
+            flags |= limit_flags;
+            // |applied| ≤ MAX_LIMIT_UM always: every image's clamp is validated ≤
+            // MAX_LIMIT_UM, the slew only moves between the last applied value and the
+            // clamped one, and a NaN holds.
+            (applied, round_to_counts(applied / self.um_per_count))
+        };
         st.last_correction_um = applied;
         // command − counts, saturating. |counts| < 2^31, so a command in [−2^62, 2^62) (bits 63
         // and 62 equal, i.e. the high word in [−2^30, 2^30): one add and its sign, the add
@@ -66,6 +70,32 @@ impl<S: TableStore> AxisCompensator<S> {
             flags,
         }
     }
+}
+
+impl<S> AxisCompensator<S> {
+    /// The slew limit, µm per cycle (0 for the identity).
+    #[inline(always)]
+    pub(crate) fn max_slew_um_per_cycle(&self) -> f32 {
+        f32::from_bits(self.slew_key >> 1)
+    }
+}
+
+/// The key of a limit `m` (finite, ≥ 0: validated) for the fast path's magnitude tests:
+/// `magnitude_key_of(x) < magnitude_key(m)` exactly when |x| ≤ m, for every f32 x (NaN fails).
+///
+/// Why: the bits of a non-negative non-NaN f32, as a u32, order as its value; shifting out the
+/// sign bit gives the bits of |x| times 2 (even), so |x| ≤ m ⟺ 2·bits(|x|) ≤ 2·bits(m) ⟺
+/// 2·bits(|x|) < 2·bits(m) + 1 (bits(m) < 2^31: the shift keeps every bit). A NaN's magnitude
+/// bits are above +∞'s, above any finite m's. The limit's bits are `key >> 1`. Equality of the
+/// test with `fabsf(x) <= m` is tested over every magnitude and both signs.
+pub(crate) const fn magnitude_key(m: f32) -> u32 {
+    (m.to_bits() << 1) | 1
+}
+
+/// 2·bits(|x|) (the sign bit shifted out), the left side of the test of [`magnitude_key`].
+#[inline(always)]
+pub(crate) const fn magnitude_key_of(x: f32) -> u32 {
+    x.to_bits() << 1
 }
 
 /// Marks the branch that calls it as rarely taken, so the per-cycle path is laid out as the
