@@ -193,7 +193,7 @@ pub struct AxisCompensator<S> {
 pub trait TableStore {
     /// Segment `seg` (< the axis's segment count, checked by the caller) of half `dir`; `pool` is
     /// the group's coefficient pool (unused by [`OwnTable`]).
-    fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4];
+    fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: Direction, seg: u32) -> &'a [f32; 4];
     /// True if axes with this storage may be rotary (turn tracking compiled in).
     const TURNS: bool = false;
 }
@@ -205,8 +205,11 @@ pub struct OwnTable(pub(crate) [[f32; 4]; 2 * MAX_SEGMENTS]);
 
 impl TableStore for OwnTable {
     #[inline(always)]
-    fn segment<'a>(&'a self, _pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4] {
-        &self.0[(seg as usize + dir * MAX_SEGMENTS) & (2 * MAX_SEGMENTS - 1)]
+    fn segment<'a>(&'a self, _pool: &'a [[f32; 4]], dir: Direction, seg: u32) -> &'a [f32; 4] {
+        // (The direction's byte, 0 or 128, times MAX_SEGMENTS / 128: the backward half's offset.)
+        const _: () = assert!(MAX_SEGMENTS % 128 == 0);
+        let half = dir as u8 as usize * (MAX_SEGMENTS / 128);
+        &self.0[(seg as usize + half) & (2 * MAX_SEGMENTS - 1)]
     }
 }
 
@@ -372,7 +375,7 @@ impl<S: TableStore> AxisCompensator<S> {
                 corrected_command_counts: input.command_counts,
                 correction_counts: 0,
                 correction_um: 0.0,
-                flags: Flags(((st.backward as u16) << 7) | Flags::IDENTITY.0),
+                flags: Flags(st.direction.with_flag(Flags::IDENTITY.0)),
             };
         }
         let (pos, total, flags) = self.axis_error_um(
@@ -430,7 +433,7 @@ impl<S: TableStore> AxisCompensator<S> {
         // on a reversal.)
         let backward = |st: &State| Flags(st.seg_flags);
         let with_outside = |st: &State, (v, outside): (f32, bool)| {
-            (v, Flags(((st.backward as u16) << 7) | outside as u16))
+            (v, Flags(st.direction.with_flag(outside as u16)))
         };
         let (mut total, mut flags) = if !segment_cache {
             if rotary {
@@ -498,7 +501,8 @@ pub struct State {
     pub(crate) pos_in_turn: u32,
     pub(crate) seg_turn_start: u32,
     pub(crate) seg_coef: [f32; 4],
-    pub(crate) backward: bool,
+    /// The approach direction (its byte is the hysteresis's mask: see [`Direction`]).
+    pub(crate) direction: Direction,
     pub(crate) primed: bool,
     pub(crate) raw_pending: bool,
     pub(crate) turn_primed: bool,
@@ -534,7 +538,7 @@ impl PartialEq for State {
             raw_pending,
             last_raw,
             position,
-            backward,
+            direction,
             back_counts,
             last_correction_um,
             sensor_um,
@@ -563,7 +567,7 @@ impl PartialEq for State {
             && *raw_pending == other.raw_pending
             && *last_raw == other.last_raw
             && *position == other.position
-            && *backward == other.backward
+            && *direction == other.direction
             && *back_counts == other.back_counts
             && *last_correction_um == other.last_correction_um
             && *sensor_um == other.sensor_um
@@ -599,7 +603,7 @@ impl State {
             raw_pending: false,
             last_raw: 0,
             position: 0,
-            backward: false,
+            direction: Direction::Forward,
             back_counts: 0,
             last_correction_um: 0.0,
             sensor_um: 0.0,
@@ -703,7 +707,7 @@ impl State {
     #[cold]
     #[inline(never)]
     pub(crate) fn reverse(&mut self, last_low: u32) {
-        self.backward = !self.backward;
+        self.direction = self.direction.reversed();
         self.back_counts = 0;
         self.settle_turn(last_low);
         self.seg_limit = 0;
@@ -723,11 +727,7 @@ impl State {
     }
     /// Current approach direction.
     pub fn direction(&self) -> Direction {
-        if self.backward {
-            Direction::Backward
-        } else {
-            Direction::Forward
-        }
+        self.direction
     }
     /// Applied correction of the last cycle, µm.
     pub fn last_correction_um(&self) -> f32 {

@@ -12,13 +12,54 @@
 //!   `direction_hysteresis_counts` against it (state: distance moved back since the extreme).
 
 /// Approach direction of the axis.
+///
+/// Its byte is [`crate::Flags::BACKWARD`] (bit 7) if backward, else 0, so that what the cycle
+/// needs of a [`crate::State`]'s direction is one operation on its byte with no conversion per
+/// cycle: the flag itself (an `orr`), the table's backward half (bit 7 shifted to the half's
+/// offset) and, from its sign-extending load, the hysteresis's mask (0 forward, −1 backward: the
+/// byte's sign shifted in, an operand shift of the operations that use it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[repr(u8)]
 pub enum Direction {
     /// Increasing scale position (also the initial direction).
     #[default]
-    Forward,
+    Forward = 0,
     /// Decreasing scale position.
-    Backward,
+    Backward = 0x80,
+}
+
+// The byte of `Direction::Backward` is the BACKWARD flag.
+const _: () = assert!(Direction::Backward as u16 == crate::Flags::BACKWARD.0);
+
+impl Direction {
+    /// The other direction.
+    #[inline(always)]
+    pub const fn reversed(self) -> Direction {
+        match self {
+            Direction::Forward => Direction::Backward,
+            Direction::Backward => Direction::Forward,
+        }
+    }
+    /// 0 forward, −1 backward (the byte's bit 7, sign-extended).
+    #[inline(always)]
+    pub(crate) const fn mask(self) -> i32 {
+        (self as u8 as i8 as i32) >> 7
+    }
+    /// The table's direction half: 0 forward, 1 backward.
+    #[inline(always)]
+    pub(crate) const fn half(self) -> usize {
+        (self as u8 >> 7) as usize
+    }
+    /// `bits` with [`crate::Flags::BACKWARD`] if backward.
+    #[inline(always)]
+    pub(crate) const fn with_flag(self, bits: u16) -> u16 {
+        bits | self as u8 as u16
+    }
+    /// [`crate::Flags::BACKWARD`] if backward, else 0.
+    #[inline(always)]
+    pub(crate) const fn flag(self) -> u16 {
+        self as u8 as u16
+    }
 }
 
 use crate::compensator::{AxisCompensator, State, TableStore};
@@ -124,16 +165,17 @@ impl<S: TableStore> AxisCompensator<S> {
         // (= extreme − position going forward), ≥ 0, saturating; hysteresis ≤ i32::MAX (validated).
         // (A delta of exactly −2^31, a half turn of a 32-bit counter, is ambiguous anyway; its
         // wrapping negation keeps it "forward".)
-        // (m = 0 backward, −1 forward: (delta ^ m) − m is delta or its wrapping negation.)
-        let m = (st.backward as i32) - 1;
-        let against = (delta ^ m).wrapping_sub(m);
+        // (m = 0 forward, −1 backward: m − (delta ^ m) is the wrapping negation of delta or
+        // delta itself.)
+        let m = st.direction.mask();
+        let against = m.wrapping_sub(delta ^ m);
         let back = st.back_counts.saturating_add(against);
         if back > self.hysteresis_counts as i32 {
             if S::TURNS {
                 // A group axis (segment cache, turn position): out of line.
                 st.reverse((pos as u32).wrapping_sub(delta as u32));
             } else {
-                st.backward = !st.backward;
+                st.direction = st.direction.reversed();
                 st.back_counts = 0;
                 st.seg_limit = 0;
             }
@@ -155,7 +197,7 @@ impl<S: TableStore> AxisCompensator<S> {
     #[inline(never)]
     pub(crate) fn track_unprimed(&self, st: &mut State, raw: u32, delta: i32) -> (i64, i32) {
         st.last_raw = raw.wrapping_sub(delta as u32);
-        st.backward = false;
+        st.direction = Direction::Forward;
         st.back_counts = 0;
         self.prime(st, raw);
         self.track_primed(st, raw)

@@ -39,7 +39,7 @@
 
 use crate::MAX_FORCES;
 use crate::compensator::{AxisCompensator, CycleInput, CycleOutput, Flags, State, TableStore};
-use crate::counter::wrap;
+use crate::counter::{Direction, wrap};
 use crate::error::{Field, ImageError};
 use crate::geometric::{GeometricSpec, GeometricStage};
 use crate::image::{self, Layout};
@@ -166,11 +166,11 @@ const ZERO_SEGMENT: [f32; 4] = [0.0; 4];
 impl TableStore for PoolTable {
     const TURNS: bool = true;
     #[inline(always)]
-    fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: usize, seg: u32) -> &'a [f32; 4] {
+    fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: Direction, seg: u32) -> &'a [f32; 4] {
         // In range for a loaded group (checked at load). The remainder is a no-op for valid
         // indices; with the pool's length known at the call (a power of two), it is a mask and
         // the bounds check folds away. The fallbacks keep the path panic-free.
-        let i = self.base[dir & 1] as usize + seg as usize;
+        let i = self.base[dir.half()] as usize + seg as usize;
         i.checked_rem(pool.len())
             .and_then(|j| pool.get(j))
             .unwrap_or(&ZERO_SEGMENT)

@@ -180,7 +180,52 @@ pub fn round_to_counts(x: f32) -> i32 {
 
 #[cfg(test)]
 mod tests {
-    use super::{round_half_away_bounded, round_to_counts};
+    use super::{magnitude_key, magnitude_key_of, round_half_away_bounded, round_to_counts};
+
+    /// Reference: `libm::fabsf(x) <= m`, the float test the fast path had; tolerance: exact
+    /// equality of the outcome, for limits m of every kind the images allow (finite, ≥ 0: zero,
+    /// subnormal, around 1, up to `MAX_LIMIT_UM` and beyond) and x over a stride through every
+    /// bit pattern (both signs, subnormals, ±∞, NaNs) plus each limit and its neighbours.
+    #[test]
+    fn magnitude_key_test_equals_the_float_compare() {
+        let limits = [
+            0.0f32,
+            f32::from_bits(1),
+            1.0e-30,
+            0.001,
+            0.5,
+            1.0,
+            3.0,
+            1.0e4,
+            super::MAX_LIMIT_UM,
+            f32::MAX,
+        ];
+        let mut checked = 0u32;
+        for &m in &limits {
+            let key = magnitude_key(m);
+            let mut xs = [m, -m, 0.0, -0.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN].to_vec();
+            for d in [1u32, 2] {
+                xs.push(f32::from_bits(m.to_bits().wrapping_add(d)));
+                xs.push(f32::from_bits(m.to_bits().wrapping_sub(d)));
+                xs.push(-f32::from_bits(m.to_bits().wrapping_add(d)));
+            }
+            let mut bits = 0u32;
+            while bits <= u32::MAX - 65_521 {
+                xs.push(f32::from_bits(bits));
+                bits += 65_521;
+            }
+            for &x in &xs {
+                assert_eq!(
+                    magnitude_key_of(x) < key,
+                    libm::fabsf(x) <= m,
+                    "x = {x:e} ({:#x}), m = {m:e}",
+                    x.to_bits()
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 600_000);
+    }
 
     /// Reference: `round_to_counts` (itself property-tested equal to `libm::roundf` as i32);
     /// tolerance: exact equality, over |x| < 2^30 as `round_half_away_bounded` requires.

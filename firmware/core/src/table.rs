@@ -50,7 +50,7 @@ impl<S: TableStore> AxisCompensator<S> {
             return (0.0, false);
         };
         // A unidirectional table has its forward segments in the backward half too (see `load`).
-        let dir = (direction == Direction::Backward) as usize;
+        let dir = direction;
         // One unsigned compare covers both ends: |start| ≤ 2^62 (validated), so a position below
         // the start wraps to a difference ≥ 2^62 > span.
         let diff = position_counts.wrapping_sub(self.start_counts) as u64;
@@ -113,13 +113,13 @@ impl<S: TableStore> AxisCompensator<S> {
             let offset = diff as u32;
             if (diff >> 32) == 0 && offset < self.span_counts && seg_counts.get() <= 1 << 31 {
                 let seg = offset / seg_counts;
-                let dir = (st.direction() == Direction::Backward) as usize;
+                let dir = st.direction;
                 st.seg_coef = *self.table.segment(pool, dir, seg);
                 let rem = offset - seg.wrapping_mul(seg_counts.get());
                 st.seg_start = pos_low.wrapping_sub(rem);
                 st.seg_turn_start = (table_pos as u32).wrapping_sub(rem);
                 st.seg_limit = seg_counts.get();
-                st.seg_flags = (dir as u16) << 7;
+                st.seg_flags = dir.flag();
                 // The value from the segment just cached: the same remainder, 1/segment and
                 // coefficients as the full lookup's, so the same bits (no second search).
                 return (self.segment_um_cached(st, rem), false);
@@ -158,8 +158,8 @@ impl<S: TableStore> AxisCompensator<S> {
 
     /// Table value beyond the stroke (hold or taper), for direction half `dir`.
     #[inline(always)]
-    fn outside_um(&self, dir: usize, position_counts: i64) -> (f32, bool) {
-        let dir = dir & 1;
+    fn outside_um(&self, dir: Direction, position_counts: i64) -> (f32, bool) {
+        let dir = dir.half();
         // Compare first, then subtract: exact for every i64 without a saturating subtraction.
         let (end, dist) = if position_counts < self.start_counts {
             (
