@@ -701,14 +701,13 @@ impl State {
         }
     }
 
-    /// The direction reverses ([`AxisCompensator::track`]): nothing moved back yet, and the
-    /// segment cache, which holds the other half's coefficients, voided (the turn position of
+    /// The direction reverses ([`AxisCompensator::track`], which also sets the distance moved
+    /// back to 0): the segment cache, which holds the other half's coefficients, voided (the turn position of
     /// the last cycle's extended position, whose low 32 bits are `last_low`, settled first).
     #[cold]
     #[inline(never)]
     pub(crate) fn reverse(&mut self, last_low: u32) {
         self.direction = self.direction.reversed();
-        self.back_counts = 0;
         self.settle_turn(last_low);
         self.seg_limit = 0;
     }

@@ -157,7 +157,6 @@ impl<S: TableStore> AxisCompensator<S> {
     pub(crate) fn track_primed(&self, st: &mut State, raw: u32) -> (i64, i32) {
         let shift = self.sext_shift.get();
         let delta = ((raw.wrapping_sub(st.last_raw)).wrapping_shl(shift) as i32) >> shift;
-        st.last_raw = raw;
         let pos = st.position.wrapping_add(delta as i64);
         st.position = pos;
 
@@ -170,18 +169,24 @@ impl<S: TableStore> AxisCompensator<S> {
         let m = st.direction.mask();
         let against = m.wrapping_sub(delta ^ m);
         let back = st.back_counts.saturating_add(against);
-        if back > self.hysteresis_counts as i32 {
+        let back = if back > self.hysteresis_counts as i32 {
             if S::TURNS {
                 // A group axis (segment cache, turn position): out of line.
                 st.reverse((pos as u32).wrapping_sub(delta as u32));
             } else {
                 st.direction = st.direction.reversed();
-                st.back_counts = 0;
                 st.seg_limit = 0;
             }
+            // Nothing moved back yet in the new direction.
+            0
+        } else if back < 0 {
+            0
         } else {
-            st.back_counts = if back < 0 { 0 } else { back };
-        }
+            back
+        };
+        // The counter value and the distance moved back side by side (one paired store).
+        st.last_raw = raw;
+        st.back_counts = back;
         (pos, delta)
     }
 
