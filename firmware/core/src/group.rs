@@ -52,22 +52,28 @@ use crate::trace::{
 /// Axes in a group.
 pub const MAX_AXES: usize = 5;
 
-/// [`Group`]'s cycle dispatch: no group loaded (identity).
-const MODE_NONE: u8 = 0;
-/// Every axis linear without a thermo-force term, no cross-axis stage.
-const MODE_PLAIN: u8 = 1;
-/// No cross-axis stage, some axis rotary or with a thermo-force term.
-const MODE_MIXED: u8 = 2;
-/// With the cross-axis stage.
-const MODE_STAGE: u8 = 3;
-/// With the rotary stage only, the slots in the order X, Y, Z, A, C, no thermo-force term
-/// (every slot index and axis kind a constant of the cycle's code).
-const MODE_STAGE_XYZAC: u8 = 4;
-/// With the geometric stage only, the group exactly X, Y, Z (linear) without a thermo-force term
-/// (the fast path [`Group::cycle_geometric_plain`]).
-const MODE_GEOMETRIC_PLAIN: u8 = 5;
-/// [`MODE_PLAIN`] with exactly three axes (the fast path [`Group::cycle_plain3`]).
-const MODE_PLAIN3: u8 = 6;
+/// [`Group`]'s cycle dispatch, set at load. An enum of 0..=6, so that its load carries its range
+/// and the dispatch's `match` is a table branch with no range test.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+enum CycleMode {
+    /// No group loaded (identity; 0: a new group is all zero bytes).
+    None = 0,
+    /// Every axis linear without a thermo-force term, no cross-axis stage.
+    Plain = 1,
+    /// No cross-axis stage, some axis rotary or with a thermo-force term.
+    Mixed = 2,
+    /// With the cross-axis stage.
+    Stage = 3,
+    /// With the rotary stage only, the slots in the order X, Y, Z, A, C, no thermo-force term
+    /// (every slot index and axis kind a constant of the cycle's code).
+    StageXyzac = 4,
+    /// With the geometric stage only, the group exactly X, Y, Z (linear) without a thermo-force
+    /// term (the fast path [`Group::cycle_geometric_plain`]).
+    GeometricPlain = 5,
+    /// [`CycleMode::Plain`] with exactly three axes (the fast path [`Group::cycle_plain3`]).
+    Plain3 = 6,
+}
 
 /// Name (and kind) of a group axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
@@ -280,10 +286,10 @@ impl GroupState {
 #[repr(C)]
 pub struct Group<const POOL: usize> {
     axes: [AxisCompensator<PoolTable>; MAX_AXES],
-    /// The cycle's dispatch, set at load: [`MODE_NONE`] (no group: all zero bytes when new),
-    /// [`MODE_PLAIN`], [`MODE_PLAIN3`], [`MODE_MIXED`], [`MODE_STAGE`], [`MODE_STAGE_XYZAC`] or
-    /// [`MODE_GEOMETRIC_PLAIN`] (here: one load with an immediate offset).
-    mode: u8,
+    /// The cycle's dispatch, set at load: [`CycleMode::None`] (no group: all zero bytes when new),
+    /// [`CycleMode::Plain`], [`CycleMode::Plain3`], [`CycleMode::Mixed`], [`CycleMode::Stage`], [`CycleMode::StageXyzac`] or
+    /// [`CycleMode::GeometricPlain`] (here: one load with an immediate offset).
+    mode: CycleMode,
     loaded: bool,
     n_axes: u8,
     has_stage: bool,
@@ -315,7 +321,7 @@ impl<const POOL: usize> Group<POOL> {
             counts_per_rev: [0; MAX_AXES],
             kinds: [0; MAX_AXES],
             has_stage: false,
-            mode: MODE_NONE,
+            mode: CycleMode::None,
             stage: RotaryStage::ZERO,
             geometric: None,
             axes: [const { AxisCompensator::identity_with(PoolTable { base: [0; 2] }) }; MAX_AXES],
@@ -329,7 +335,7 @@ impl<const POOL: usize> Group<POOL> {
         self.n_axes = 0;
         self.has_stage = false;
         self.geometric = None;
-        self.mode = MODE_NONE;
+        self.mode = CycleMode::None;
         for a in self.axes.iter_mut() {
             a.clear();
         }
@@ -420,7 +426,7 @@ impl<const POOL: usize> Group<POOL> {
         let has_geometric = self.geometric.is_some();
         self.mode = if has_geometric && !self.has_stage && self.kinds[..n].iter().all(|&k| k == 0) {
             // X, Y, Z alone (the geometric stage needs all three), no thermo-force term.
-            MODE_GEOMETRIC_PLAIN
+            CycleMode::GeometricPlain
         } else if self.has_stage || has_geometric {
             // The inlined X, Y, Z, A, C cycle knows each axis's kind: none has a thermo-force
             // term (kinds 0 for X, Y, Z and 1 for A, C); anything else takes the general path.
@@ -429,14 +435,18 @@ impl<const POOL: usize> Group<POOL> {
                 && self.stage.slot == [0, 1, 2, 3, 4]
                 && self.kinds == [0, 0, 0, 1, 1]
             {
-                MODE_STAGE_XYZAC
+                CycleMode::StageXyzac
             } else {
-                MODE_STAGE
+                CycleMode::Stage
             }
         } else if self.kinds[..n].iter().all(|&k| k == 0) {
-            if n == 3 { MODE_PLAIN3 } else { MODE_PLAIN }
+            if n == 3 {
+                CycleMode::Plain3
+            } else {
+                CycleMode::Plain
+            }
         } else {
-            MODE_MIXED
+            CycleMode::Mixed
         };
         Ok(())
     }
@@ -537,17 +547,17 @@ impl<const POOL: usize> Group<POOL> {
         match self.mode {
             // Every axis linear without a thermo-force term (the common case): each axis's
             // whole pipeline with both checks compiled out, no per-axis dispatch.
-            MODE_PLAIN3 => self.cycle_plain3(st, input, out),
-            MODE_PLAIN => self.cycle_plain(st, input, out),
-            MODE_MIXED => self.cycle_mixed(st, input, out),
-            MODE_STAGE_XYZAC => self.cycle_with_stage::<true>(st, input, out),
-            MODE_STAGE => self.cycle_with_stage::<false>(st, input, out),
-            MODE_GEOMETRIC_PLAIN => self.cycle_geometric_plain(st, input, out),
-            _ => self.identity_cycle(st, input, out),
+            CycleMode::Plain3 => self.cycle_plain3(st, input, out),
+            CycleMode::Plain => self.cycle_plain(st, input, out),
+            CycleMode::Mixed => self.cycle_mixed(st, input, out),
+            CycleMode::StageXyzac => self.cycle_with_stage::<true>(st, input, out),
+            CycleMode::Stage => self.cycle_with_stage::<false>(st, input, out),
+            CycleMode::GeometricPlain => self.cycle_geometric_plain(st, input, out),
+            CycleMode::None => self.identity_cycle(st, input, out),
         }
     }
 
-    /// [`MODE_PLAIN`] with three axes (the common three-axis machine): [`Group::xyz_pipelines`]
+    /// [`CycleMode::Plain`] with three axes (the common three-axis machine): [`Group::xyz_pipelines`]
     /// with a deviation of −0.0, which leaves every error exactly as it is (x + (−0.0) = x for
     /// every x, −0.0 and +0.0 included; +0.0 would turn a −0.0 error into +0.0).
     #[inline(never)]
@@ -576,7 +586,7 @@ impl<const POOL: usize> Group<POOL> {
         axis_pipeline::<POOL, false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
     }
 
-    /// [`MODE_PLAIN`] with any other number of axes: one pipeline call per axis.
+    /// [`CycleMode::Plain`] with any other number of axes: one pipeline call per axis.
     #[inline(never)]
     fn cycle_plain(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
         let n = (self.n_axes as usize).min(MAX_AXES);
@@ -591,7 +601,7 @@ impl<const POOL: usize> Group<POOL> {
         }
     }
 
-    /// [`MODE_MIXED`]: one pipeline call per axis, chosen by its kind.
+    /// [`CycleMode::Mixed`]: one pipeline call per axis, chosen by its kind.
     #[inline(never)]
     fn cycle_mixed(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
         let n = (self.n_axes as usize).min(MAX_AXES);
@@ -625,7 +635,7 @@ impl<const POOL: usize> Group<POOL> {
     /// error and the limits). A group with the stage is exactly X, Y, Z (linear) and A, C
     /// (rotary). In the order X, Y, Z, A, C (`XYZAC`) the five pipelines are inlined here with
     /// constant slots and the kind of each known (no per-axis call or dispatch); any other slot
-    /// order runs them in slot order through the per-axis calls that [`MODE_MIXED`] uses (one
+    /// order runs them in slot order through the per-axis calls that [`CycleMode::Mixed`] uses (one
     /// inlined copy only, for code size). Each pipeline reads and writes only its own slot, so
     /// the order changes no output.
     #[inline(never)]
