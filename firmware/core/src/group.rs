@@ -752,7 +752,7 @@ impl<const POOL: usize> Group<POOL> {
         let axes = core::hint::black_box(&input.axes);
         let cmd = |k: usize| axes[slot(k)].command_counts;
         let c = &mut st.rotary;
-        if c.track([cmd(3), cmd(4)], &g.counts_per_rev) {
+        if c.track([cmd(3), cmd(4)], g) {
             g.refresh(c);
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
         }
@@ -826,8 +826,7 @@ impl<const POOL: usize> Group<POOL> {
         let g = &self.stage;
         let slot = |k: usize| (g.slot[k] as usize).min(MAX_AXES - 1);
         let angle = |k: usize| wrap(positions_counts[slot(k)], self.counts_per_rev[slot(k)]);
-        let mut cache = RotaryCache::NEW;
-        cache.turn = [angle(3), angle(4)];
+        let mut cache = RotaryCache::at_turns([angle(3), angle(4)], g);
         g.refresh(&mut cache);
         let q = g.counts_from_pivot([
             positions_counts[slot(0)],

@@ -379,7 +379,15 @@ impl SinCosTable {
     /// A table from [`SinCosTable::new`].
     #[inline]
     pub(crate) fn sincos(&self, n: u32) -> (f32, f32) {
-        let ([s, c], sin_r, one_minus_cos_r) = self.coarse_and_remainder(n);
+        let (k, x) = self.coarse(n);
+        self.sincos_at(k, x)
+    }
+
+    /// [`SinCosTable::sincos`] at the coarse angle `k` and remainder `x` of
+    /// [`SinCosTable::coarse`].
+    #[inline(always)]
+    pub(crate) fn sincos_at(&self, k: u32, x: i32) -> (f32, f32) {
+        let ([s, c], sin_r, one_minus_cos_r) = self.at_coarse(k, x);
         (
             s - s * one_minus_cos_r + c * sin_r,
             c - c * one_minus_cos_r - s * sin_r,
@@ -393,17 +401,27 @@ impl SinCosTable {
     /// the cancellation of 1 − cos θ from cos θ).
     #[inline]
     pub(crate) fn sin_versine(&self, n: u32) -> (f32, f32) {
-        let ([s, d], sin_r, one_minus_cos_r) = self.coarse_and_remainder(n);
+        let (k, x) = self.coarse(n);
+        self.sin_versine_at(k, x)
+    }
+
+    /// [`SinCosTable::sin_versine`] at the coarse angle `k` and remainder `x` of
+    /// [`SinCosTable::coarse`].
+    #[inline(always)]
+    pub(crate) fn sin_versine_at(&self, k: u32, x: i32) -> (f32, f32) {
+        let ([s, d], sin_r, one_minus_cos_r) = self.at_coarse(k, x);
         (
             s + sin_r - s * one_minus_cos_r - d * sin_r,
             d + one_minus_cos_r - d * one_minus_cos_r + s * sin_r,
         )
     }
 
-    /// The table's entry of the nearest coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63, and
-    /// sin r, 1 − cos r of the signed remainder x = n − k·step counts, |x| ≤ ⌊step/2⌋.
+    /// The nearest coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63 of the count `n` < cpr and the
+    /// signed remainder x = n − k·step, |x| ≤ ⌊step/2⌋ (the only division of the sin/cos; the
+    /// stage's angle cache tracks k and x from cycle to cycle instead, see
+    /// [`RotaryCache::track`]).
     #[inline(always)]
-    fn coarse_and_remainder(&self, n: u32) -> ([f32; 2], f32, f32) {
+    pub(crate) fn coarse(&self, n: u32) -> (u32, i32) {
         // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ (cpr − 1 + ⌊step/2⌋) / step
         // < 64 since 63·step ≥ cpr.
         let m = n.wrapping_add(self.half_step);
@@ -413,7 +431,14 @@ impl SinCosTable {
         let k = m / step;
         let rem = m - k.wrapping_mul(step);
         // Exact: |x| ≤ ⌊step/2⌋ < 2^24.
-        let x = rem.wrapping_sub(self.half_step) as i32 as f32;
+        (k, rem.wrapping_sub(self.half_step) as i32)
+    }
+
+    /// The table's entry of the coarse angle `k` and sin r, 1 − cos r of the remainder `x`
+    /// counts (as [`SinCosTable::coarse`] gives them).
+    #[inline(always)]
+    fn at_coarse(&self, k: u32, x: i32) -> ([f32; 2], f32, f32) {
+        let x = x as f32;
         let [rho, s3, c2, c4] = self.poly;
         let x2 = x * x;
         let sin_r = x * (rho - s3 * x2);
@@ -548,14 +573,16 @@ impl RotaryStage {
     }
 
     /// Recompute the angle-dependent terms k and M for the commanded angles (counts within the
-    /// turn) of the tilt axis and C in `cache.turn`. Not inlined: the cycles without an angle
+    /// turn) of the tilt axis and C in `cache.cell`. Not inlined: the cycles without an angle
     /// change keep the caller's registers free. The AC trunnion (and the zero stage) inline, the
     /// other kinds out of line (one compare here; with all three inline, the compiler predicated
     /// the whole AC path on the kind tests: 15 instructions more).
     #[inline(never)]
     pub(crate) fn refresh(&self, cache: &mut RotaryCache) {
-        let (st, ct) = self.sincos[0].sincos(cache.turn[0]);
-        let (sc, omc) = self.sincos[1].sin_versine(cache.turn[1]);
+        let (kt, xt) = cache.cell[0].coarse();
+        let (kc, xc) = cache.cell[1].coarse();
+        let (st, ct) = self.sincos[0].sincos_at(kt, xt);
+        let (sc, omc) = self.sincos[1].sin_versine_at(kc, xc);
         if self.machine > RotaryMachine::AcTrunnion.code() {
             return self.refresh_other(cache, st, ct, sc, omc);
         }
@@ -729,62 +756,144 @@ pub(crate) fn saturate_i32(d: i64) -> i32 {
     d.clamp(i32::MIN as i64, i32::MAX as i64) as i32
 }
 
+/// One rotary axis's commanded angle within its turn, as the stage's angle cache follows it: the
+/// **cell** of the angle's nearest coarse angle k (the counts n of the turn with
+/// k = ⌊(n + ⌊step/2⌋) / step⌋, i.e. k·step + [−⌊step/2⌋, ⌊step/2⌋] within [0, cpr)), the
+/// position within that cell, and k with the signed remainder x = n − k·step at the cell's start
+/// ([`SinCosTable::coarse`] of the position, without its division).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+// The cell's length and the position first (one paired load on the fast path), then the position
+// with the packed coarse angle (one paired load in the refresh).
+#[repr(C)]
+pub(crate) struct AngleCell {
+    /// Counts of the cell within the turn (≥ 1 once primed); 0 until the first cycle (and after a
+    /// reset or a new image), so that the fast path's range test fails.
+    len: u32,
+    /// Position within the cell: n − (the cell's first count).
+    in_cell: u32,
+    /// (x0 << 6) | k as a u32: k ≤ 63, x0 = (the cell's first count) − k·step ∈ [−⌊step/2⌋, 0]
+    /// (|x0| < 2^25: x0·64 fits an i32), so that x = `in_cell` + x0 (an add with the shifted
+    /// operand) and k = `coarse_x0` & 63.
+    coarse_x0: u32,
+}
+
+impl AngleCell {
+    const NEW: AngleCell = AngleCell {
+        len: 0,
+        in_cell: 0,
+        coarse_x0: 0,
+    };
+
+    /// The cell of the position `n` < `cpr` of a turn whose sin/cos table is `table` (at load;
+    /// step ≥ 1).
+    fn at(n: u32, cpr: u32, table: &SinCosTable) -> AngleCell {
+        let (k, x) = table.coarse(n);
+        // k·step ≤ n + ⌊step/2⌋ < 2^32: no wrap.
+        let center = n.wrapping_sub(x as u32);
+        let start = center.saturating_sub(table.half_step);
+        let end = center.saturating_add(table.half_step + 1).min(cpr);
+        let x0 = start.wrapping_sub(center) as i32;
+        AngleCell {
+            len: end.saturating_sub(start),
+            in_cell: n - start,
+            coarse_x0: ((x0 << 6) as u32) | (k % SINCOS_STEPS as u32),
+        }
+    }
+
+    /// The coarse angle k and the remainder x of the position (those of [`SinCosTable::coarse`]).
+    #[inline(always)]
+    fn coarse(&self) -> (u32, i32) {
+        let x = self.in_cell.wrapping_add(((self.coarse_x0 as i32) >> 6) as u32);
+        (self.coarse_x0 % SINCOS_STEPS as u32, x as i32)
+    }
+
+    /// The position within the turn (k·step + x).
+    fn turn(&self, table: &SinCosTable) -> u32 {
+        let (k, x) = self.coarse();
+        k.wrapping_mul(table.step).wrapping_add(x as u32)
+    }
+}
+
 /// The commanded angles of the tilt axis (A or B) and C within their turns, tracked from cycle to
-/// cycle, and the angle-dependent terms of the stage for them: the deviation is k' + M'·n for the
-/// commanded counts n from the pivot (k + M q with the scales and the tool length folded in).
+/// cycle (each as its [`AngleCell`]), and the angle-dependent terms of the stage for them: the
+/// deviation is k' + M'·n for the commanded counts n from the pivot (k + M q with the scales and
+/// the tool length folded in).
 #[derive(Debug, Clone, Copy, PartialEq)]
+// The commands and cells first (paired loads and stores), then the angle terms, then what only
+// the slow path reads.
+#[repr(C)]
 pub struct RotaryCache {
-    /// Counts per revolution of the tilt axis and C the turn positions were taken with; 0 until the
-    /// first cycle (and after a reset or a new image): the fast path's range test then fails, so
-    /// that cycle takes the full modulo and recomputes k and M.
-    pub(crate) cpr: [u32; 2],
-    /// Commanded positions within the turn (< `cpr` once primed), the angles k and M are for.
-    pub(crate) turn: [u32; 2],
     /// The last commanded positions (extended counts).
     pub(crate) last_cmd: [i64; 2],
+    /// The commanded positions within their turns (< `cpr` once primed), the angles k and M are
+    /// for.
+    pub(crate) cell: [AngleCell; 2],
     pub(crate) k: [f32; 3],
     /// M' = M·diag(µm per count): its off-diagonal entries M'01, M'02, M'10, M'12, M'20, M'21 (the
     /// diagonal is 0).
     pub(crate) m: [f32; 6],
+    /// Counts per revolution of the tilt axis and C the cells were taken with; 0 until the first
+    /// cycle (and after a reset or a new image).
+    pub(crate) cpr: [u32; 2],
 }
 
 impl RotaryCache {
     /// Nothing cached yet (all zero bytes).
     pub const NEW: RotaryCache = RotaryCache {
-        cpr: [0; 2],
-        turn: [0; 2],
         last_cmd: [0; 2],
+        cell: [AngleCell::NEW; 2],
         k: [0.0; 3],
         m: [0.0; 6],
+        cpr: [0; 2],
     };
 
-    /// Follow the commanded positions `cmd` of the tilt axis and C (turns of `cpr` counts, as
-    /// loaded; read only on the slow path) into [`RotaryCache::turn`]; true if a turn position
+    /// A cache at the positions `turn` within the turns (each below its turn) of the tilt axis and
+    /// C of `stage` (loaded), for [`RotaryStage::refresh`].
+    pub(crate) fn at_turns(turn: [u32; 2], stage: &RotaryStage) -> RotaryCache {
+        let mut c = RotaryCache::NEW;
+        for k in 0..2 {
+            let cpr = stage.counts_per_rev[k];
+            c.cell[k] = AngleCell::at(turn[k], cpr, &stage.sincos[k]);
+            c.cpr[k] = cpr;
+        }
+        c
+    }
+
+    /// The positions within the turns of the tilt axis and C (`stage`'s tables).
+    #[cfg(test)]
+    pub(crate) fn turn(&self, stage: &RotaryStage) -> [u32; 2] {
+        [0, 1].map(|k| self.cell[k].turn(&stage.sincos[k]))
+    }
+
+    /// Follow the commanded positions `cmd` of the tilt axis and C (turns of `stage`'s counts per
+    /// revolution, read only on the slow path) into [`RotaryCache::cell`]; true if a turn position
     /// changed or the cache was not yet primed (k and M must then be recomputed; a whole turn is
     /// no change).
     ///
     /// Per axis the fast path is one 64-bit difference to the last command, its 64-bit sum with
-    /// the position within the turn and one unsigned compare of that sum with the turn: in
-    /// [0, cpr) exactly when the true sum is (a negative sum is ≥ 2^63 as unsigned). Every turn
-    /// position stored is below the turn it was taken with (the fast path tests it;
-    /// [`RotaryCache::track_slow`] returns one). Anything else (not primed, a step across 0 or a
-    /// full turn or more) takes [`RotaryCache::track_slow`].
+    /// the position within the cell and one unsigned compare of that sum with the cell's length:
+    /// in [0, len) exactly when the true sum is (a negative sum is ≥ 2^63 as unsigned), and the
+    /// cell lies within the turn, so the step neither wraps nor changes the coarse angle k, and x
+    /// moves with the position (the sin/cos need no division). Anything else (not primed, a step
+    /// out of the cell: to the next coarse angle, across 0 or a full turn or more) takes
+    /// [`RotaryCache::track_slow`].
     #[inline(always)]
-    pub(crate) fn track(&mut self, cmd: [i64; 2], cpr: &[u32; 2]) -> bool {
+    pub(crate) fn track(&mut self, cmd: [i64; 2], stage: &RotaryStage) -> bool {
         let mut moved = 0u32;
         // An index loop (as an iterator over `cmd` it measured 15 instructions more per cycle).
         #[allow(clippy::needless_range_loop)]
         for k in 0..2 {
             let delta = cmd[k].wrapping_sub(self.last_cmd[k]);
             self.last_cmd[k] = cmd[k];
-            // The 64-bit sum: within [0, cpr) exactly when its high word is 0 and its low word
-            // is below the turn.
-            let v = (self.turn[k] as u64).wrapping_add(delta as u64);
-            if v < self.cpr[k] as u64 {
-                self.turn[k] = v as u32;
+            // The 64-bit sum: within [0, len) exactly when its high word is 0 and its low word
+            // is below the cell's length.
+            let cell = &mut self.cell[k];
+            let v = (cell.in_cell as u64).wrapping_add(delta as u64);
+            if v < cell.len as u64 {
+                cell.in_cell = v as u32;
                 moved |= delta as u32;
             } else {
-                moved |= self.track_slow(k, cmd[k], delta, cpr) as u32;
+                moved |= self.track_slow(k, cmd[k], delta, stage) as u32;
             }
         }
         moved != 0
@@ -793,22 +902,22 @@ impl RotaryCache {
 
 impl RotaryCache {
     /// The slow path of [`RotaryCache::track`] for axis `k` (0: tilt, 1: C): the position within
-    /// a turn of `cpr[k]` counts after the step `delta` to the command `cmd` — one wrap across 0
+    /// a turn of `cpr` counts after the step `delta` to the command `cmd` — one wrap across 0
     /// for a step shorter than a turn from a position taken with the same turn, else the full
-    /// modulo of `cmd`. True if it changed or the cache was not primed (a whole turn lands on
-    /// the same angle: no recomputation).
+    /// modulo of `cmd` — and its cell. True if it changed or the cache was not primed (a whole
+    /// turn lands on the same angle: no recomputation).
     #[cold]
     #[inline(never)]
-    fn track_slow(&mut self, k: usize, cmd: i64, delta: i64, cpr: &[u32; 2]) -> bool {
+    fn track_slow(&mut self, k: usize, cmd: i64, delta: i64, stage: &RotaryStage) -> bool {
         let k = k % 2;
-        let cpr = cpr[k];
-        let (turn, primed_cpr) = (self.turn[k], self.cpr[k]);
+        let (cpr, table) = (stage.counts_per_rev[k], &stage.sincos[k]);
+        let (turn, primed_cpr) = (self.cell[k].turn(table), self.cpr[k]);
         let t = if primed_cpr == cpr && turn < cpr {
             step_in_turn_wide(turn, delta, cpr, cmd)
         } else {
             wrap(cmd, cpr)
         };
-        self.turn[k] = t;
+        self.cell[k] = AngleCell::at(t, cpr, table);
         self.cpr[k] = cpr;
         t != turn || primed_cpr != cpr
     }
@@ -946,7 +1055,6 @@ mod tests {
                 ..RotaryLocationSpec::ZERO_AC
             };
             let stage = RotaryStage::new(&spec, [upc; 3], [cpr; 2], [0, 1, 2, 3, 4]);
-            let mut cache = RotaryCache::NEW;
             let mut i = 0i64;
             for a in (0..cpr).step_by(9973) {
                 i += 1;
@@ -958,7 +1066,7 @@ mod tests {
                     a as i64,
                     c as i64,
                 ];
-                cache.turn = [a, c as u32];
+                let mut cache = RotaryCache::at_turns([a, c as u32], &stage);
                 stage.refresh(&mut cache);
                 let d =
                     RotaryStage::deviation_um(&cache, stage.counts_from_pivot([n[0], n[1], n[2]]));
@@ -976,13 +1084,20 @@ mod tests {
     /// the turn, across 0 either way, of exactly ± one turn, beyond a turn, beyond i32 and
     /// ±2^62 — for turns of 2 … 2^31 counts, a new turn length (a new image) after a reset of the
     /// cache; and the tracker reports a change exactly when a position changed or it was not
-    /// primed.
+    /// primed. The coarse angle and the remainder it tracks for the sin/cos are those of the
+    /// division ([`SinCosTable::coarse`] of the position; exact).
     #[test]
     fn tracked_turn_positions_equal_the_modulo() {
         let mut next = crate::test_rng::xorshift(0x2545_F491_4F6C_DD1Du64);
         let mut checked = 0u32;
+        let stage_for = |cprs: [u32; 2]| RotaryStage {
+            counts_per_rev: cprs,
+            sincos: [SinCosTable::new(cprs[0]), SinCosTable::new_versine(cprs[1])],
+            ..RotaryStage::ZERO
+        };
         for cpr in [2u32, 3, 1000, 3_600_000, (1 << 31) - 1, 1 << 31] {
             let mut cprs = [cpr, cpr / 2 + 1];
+            let mut stage = stage_for(cprs);
             let mut cache = RotaryCache::NEW;
             let mut cmd = [next() as i64 >> 20, -(next() as i64 >> 30)];
             for i in 0..4000u32 {
@@ -990,8 +1105,9 @@ mod tests {
                     // A new image (other turn lengths) drops the cache.
                     cache = RotaryCache::NEW;
                     cprs = [cpr / 3 + 2, cpr];
+                    stage = stage_for(cprs);
                 }
-                let before = (cache.cpr, cache.turn);
+                let before = (cache.cpr, cache.turn(&stage));
                 for (k, c) in cmd.iter_mut().enumerate() {
                     let t = cprs[k] as i64;
                     let r = next();
@@ -1007,10 +1123,14 @@ mod tests {
                     };
                     *c = c.wrapping_add(step).clamp(-(1 << 62), 1 << 62);
                 }
-                let moved = cache.track(cmd, &cprs);
+                let moved = cache.track(cmd, &stage);
                 let want = [wrap(cmd[0], cprs[0]), wrap(cmd[1], cprs[1])];
-                assert_eq!(cache.turn, want, "turn {cpr}, cycle {i}, commands {cmd:?}");
+                assert_eq!(cache.turn(&stage), want, "turn {cpr}, cycle {i}, commands {cmd:?}");
                 assert_eq!(cache.cpr, cprs);
+                for k in 0..2 {
+                    let coarse = stage.sincos[k].coarse(want[k]);
+                    assert_eq!(cache.cell[k].coarse(), coarse, "turn {cpr}, cycle {i}, axis {k}");
+                }
                 assert_eq!(moved, before != (cprs, want), "turn {cpr}, cycle {i}");
                 checked += 1;
             }
