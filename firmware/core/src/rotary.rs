@@ -377,7 +377,7 @@ impl SinCosTable {
     /// coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63 from the table, the signed remainder
     /// x = n − k·step counts, |x| ≤ ⌊step/2⌋, by polynomials.
     /// A table from [`SinCosTable::new`].
-    #[inline]
+    #[cfg(test)]
     pub(crate) fn sincos(&self, n: u32) -> (f32, f32) {
         let (k, x) = self.coarse(n);
         self.sincos_at(k, x)
@@ -399,7 +399,7 @@ impl SinCosTable {
     /// sin θ = s·cos r + (1 − d)·sin r = (s + sin r) − s·(1 − cos r) − d·sin r and
     /// 1 − cos θ = d + (1 − d)·(1 − cos r) + s·sin r (three operations each; 1 − cos θ without
     /// the cancellation of 1 − cos θ from cos θ).
-    #[inline]
+    #[cfg(test)]
     pub(crate) fn sin_versine(&self, n: u32) -> (f32, f32) {
         let (k, x) = self.coarse(n);
         self.sin_versine_at(k, x)
