@@ -752,12 +752,17 @@ impl<const POOL: usize> Group<POOL> {
         let axes = core::hint::black_box(&input.axes);
         let cmd = |k: usize| axes[slot(k)].command_counts;
         let c = &mut st.rotary;
-        if c.track([cmd(3), cmd(4)], g) {
-            g.refresh(c);
-            st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
-        }
+        let moved = c.track([cmd(3), cmd(4)], g);
         let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
-        RotaryStage::deviation_um(&st.rotary, n)
+        if moved {
+            st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
+            let d = g.refresh_deviation(c, n[0], n[1], n[2]);
+            return [d.x, d.y, d.z];
+        }
+        if c.unfolded {
+            g.fold_angles(c);
+        }
+        RotaryStage::deviation_um(c, n)
     }
 }
 

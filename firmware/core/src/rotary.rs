@@ -579,22 +579,75 @@ impl RotaryStage {
     /// the whole AC path on the kind tests: 15 instructions more).
     #[inline(never)]
     pub(crate) fn refresh(&self, cache: &mut RotaryCache) {
+        let [st, ct, sc, omc] = self.angles(cache);
+        if self.machine > RotaryMachine::AcTrunnion.code() {
+            return self.refresh_other(cache, st, ct, sc, omc);
+        }
+        (cache.k, cache.m) = self.trunnion_terms::<false>(st, ct, sc, omc);
+        cache.unfolded = false;
+    }
+
+    /// The cycle's refresh after an angle change: [`RotaryStage::refresh`] and the deviation
+    /// for the commanded counts `n` from the pivot, as [`RotaryStage::deviation_um`] computes
+    /// it. For the AC trunnion the angle terms k' and M' are not stored (nine stores and nine
+    /// loads per moving cycle): the deviation is computed from them in registers and only the
+    /// four sin/cos values are kept, marked `unfolded`; the first cycle without an angle change
+    /// computes k' and M' from them ([`RotaryStage::fold_angles`]; the same operations on the
+    /// same values: the same bits).
+    ///
+    /// With the C calling convention, so that the counts come in and the deviation goes out in
+    /// floating-point registers (the Rust convention passes both arrays through memory).
+    #[inline(never)]
+    pub(crate) extern "C" fn refresh_deviation(
+        &self,
+        cache: &mut RotaryCache,
+        n0: f32,
+        n1: f32,
+        n2: f32,
+    ) -> Deviation {
+        let n = [n0, n1, n2];
+        let angles = self.angles(cache);
+        let [st, ct, sc, omc] = angles;
+        let [x, y, z] = if self.machine > RotaryMachine::AcTrunnion.code() {
+            self.refresh_other(cache, st, ct, sc, omc);
+            RotaryStage::deviation_um(cache, n)
+        } else {
+            let (k, m) = self.trunnion_terms::<false>(st, ct, sc, omc);
+            cache.angles = angles;
+            cache.unfolded = true;
+            deviation(&k, &m, n)
+        };
+        Deviation { x, y, z }
+    }
+
+    /// The angle terms k' and M' from the sin/cos values kept by
+    /// [`RotaryStage::refresh_deviation`] (AC trunnion; for the first cycle without an angle
+    /// change after a moving one).
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn fold_angles(&self, cache: &mut RotaryCache) {
+        let [st, ct, sc, omc] = cache.angles;
+        (cache.k, cache.m) = self.trunnion_terms::<false>(st, ct, sc, omc);
+        cache.unfolded = false;
+    }
+
+    /// sin θ and cos θ of the tilt axis's angle, sin and 1 − cos of C's (their cells in `cache`).
+    #[inline(always)]
+    fn angles(&self, cache: &RotaryCache) -> [f32; 4] {
         let (kt, xt) = cache.cell[0].coarse();
         let (kc, xc) = cache.cell[1].coarse();
         let (st, ct) = self.sincos[0].sincos_at(kt, xt);
         let (sc, omc) = self.sincos[1].sin_versine_at(kc, xc);
-        if self.machine > RotaryMachine::AcTrunnion.code() {
-            return self.refresh_other(cache, st, ct, sc, omc);
-        }
-        self.refresh_trunnion::<false>(cache, st, ct, sc, omc);
+        [st, ct, sc, omc]
     }
 
     /// [`RotaryStage::refresh`] of the BC trunnion and the BC head.
     #[inline(never)]
     /// `omc` is 1 − cos of C's angle.
     fn refresh_other(&self, cache: &mut RotaryCache, st: f32, ct: f32, sc: f32, omc: f32) {
+        cache.unfolded = false;
         if self.machine == RotaryMachine::BcTrunnion.code() {
-            self.refresh_trunnion::<true>(cache, st, ct, sc, omc);
+            (cache.k, cache.m) = self.trunnion_terms::<true>(st, ct, sc, omc);
         } else {
             self.refresh_head(cache, st, ct, sc, 1.0 - omc);
         }
@@ -624,14 +677,13 @@ impl RotaryStage {
     /// s'·(u_p − o_p) + o_z − c·o_z), and likewise for ω. The scales and the tool length are
     /// folded in as in [`RotaryStage::fold`] (M' = M·diag(µm per count), k' = k − M·(0, 0, L)).
     #[inline(always)]
-    fn refresh_trunnion<const B: bool>(
+    fn trunnion_terms<const B: bool>(
         &self,
-        cache: &mut RotaryCache,
         st: f32,
         ct: f32,
         sc: f32,
         omc: f32,
-    ) {
+    ) -> ([f32; 3], [f32; 6]) {
         // In the tilt plane (p, Z) the tilt turns by +θ for A and −θ for B.
         let s = if B { -st } else { st };
         // −u and g (z components 0): (I − R_C) v = ((1 − cos)·v_x + sin·v_y, (1 − cos)·v_y −
@@ -667,15 +719,17 @@ impl RotaryStage {
         let l = self.tool_offset_counts_z;
         let m1 = sq_z - w[1] * uz;
         let m3 = sq_yz + w[0] * uz;
-        cache.k = [k[0] - m1 * l, k[1] - m3 * l, k[2]];
-        cache.m = [
-            sq_y + w[2] * uy,
-            m1,
-            -(w[2] * ux),
-            m3,
-            w[1] * ux,
-            -(w[0] * uy),
-        ];
+        (
+            [k[0] - m1 * l, k[1] - m3 * l, k[2]],
+            [
+                sq_y + w[2] * uy,
+                m1,
+                -(w[2] * ux),
+                m3,
+                w[1] * ux,
+                -(w[0] * uy),
+            ],
+        )
     }
 
     /// BC head: the deviation is the tool tip's displacement δ + s(q) (see
@@ -723,12 +777,7 @@ impl RotaryStage {
     /// zero diagonal).
     #[inline(always)]
     pub(crate) fn deviation_um(cache: &RotaryCache, n: [f32; 3]) -> [f32; 3] {
-        let (k, m) = (&cache.k, &cache.m);
-        [
-            (k[0] + m[0] * n[1]) + m[1] * n[2],
-            (k[1] + m[2] * n[0]) + m[3] * n[2],
-            (k[2] + m[4] * n[0]) + m[5] * n[1],
-        ]
+        deviation(&cache.k, &cache.m, n)
     }
 
     /// The commanded positions of X, Y, Z (counts) minus the pivot, saturated to i32, as f32.
@@ -747,6 +796,25 @@ impl RotaryStage {
             d.map(|d| saturate_i32(d) as f32)
         }
     }
+}
+
+/// A deviation along X, Y, Z (µm) as the C calling convention returns it: in s0–s2.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+pub(crate) struct Deviation {
+    pub(crate) x: f32,
+    pub(crate) y: f32,
+    pub(crate) z: f32,
+}
+
+/// k' + M'·n (M' without its zero diagonal).
+#[inline(always)]
+fn deviation(k: &[f32; 3], m: &[f32; 6], n: [f32; 3]) -> [f32; 3] {
+    [
+        (k[0] + m[0] * n[1]) + m[1] * n[2],
+        (k[1] + m[2] * n[0]) + m[3] * n[2],
+        (k[2] + m[4] * n[0]) + m[5] * n[1],
+    ]
 }
 
 /// `d` saturated to i32 (out of line: the per-cycle path tests only whether it fits).
@@ -832,6 +900,13 @@ pub struct RotaryCache {
     /// M' = M·diag(µm per count): its off-diagonal entries M'01, M'02, M'10, M'12, M'20, M'21 (the
     /// diagonal is 0).
     pub(crate) m: [f32; 6],
+    /// True when `k` and `m` are not yet computed for the angles of the cells: the last angle
+    /// change was a moving cycle's ([`RotaryStage::refresh_deviation`]), which kept only
+    /// `angles`.
+    pub(crate) unfolded: bool,
+    /// sin θ and cos θ of the tilt axis, sin θ and 1 − cos θ of C at the cells' angles while
+    /// `unfolded`.
+    pub(crate) angles: [f32; 4],
     /// Counts per revolution of the tilt axis and C the cells were taken with; 0 until the first
     /// cycle (and after a reset or a new image).
     pub(crate) cpr: [u32; 2],
@@ -844,6 +919,8 @@ impl RotaryCache {
         cell: [AngleCell::NEW; 2],
         k: [0.0; 3],
         m: [0.0; 6],
+        unfolded: false,
+        angles: [0.0; 4],
         cpr: [0; 2],
     };
 
@@ -1077,6 +1154,55 @@ mod tests {
             }
         }
         assert!(worst < 1e-3, "largest deviation error {worst:e} µm");
+    }
+
+    /// Reference: [`RotaryStage::refresh`] then [`RotaryStage::deviation_um`] (the angle terms
+    /// stored, then the deviation from them); exact (bit for bit): the moving cycle's
+    /// [`RotaryStage::refresh_deviation`] gives the same deviation, and the angle terms folded
+    /// later by [`RotaryStage::fold_angles`] are the same bits, for all three kinds (the BC kinds
+    /// store them at once), over whole turns of both angles.
+    #[test]
+    fn deviation_of_the_moving_cycle_equals_the_stored_terms() {
+        let cpr = 3_600_000u32;
+        for machine in [
+            RotaryMachine::AcTrunnion,
+            RotaryMachine::BcTrunnion,
+            RotaryMachine::BcHead,
+        ] {
+            let spec = RotaryLocationSpec {
+                machine,
+                ex0c_um: 50.0,
+                ey0c_um: -45.0,
+                ea0c_urad: 100.0,
+                eb0c_urad: -90.0,
+                ey0a_um: 40.0,
+                ez0a_um: -50.0,
+                eb0a_urad: 80.0,
+                ec0a_urad: -100.0,
+                squareness_urad: [30.0, -20.0, 25.0],
+                pivot_counts: [2_000_000, -1_000_000, 3_000_000],
+                tool_length_um: 200_000.0,
+                ..RotaryLocationSpec::ZERO_AC
+            };
+            let stage = RotaryStage::new(&spec, [0.1, 0.2, 0.05], [cpr, cpr / 2], [0, 1, 2, 3, 4]);
+            for (i, a) in (0..cpr).step_by(19_997).enumerate() {
+                let c = (a as u64 * 7 + 1_234_567) % (cpr / 2) as u64;
+                let n = [i as f32 * 1234.5 - 2.0e6, 3.0e6 - i as f32 * 777.0, i as f32 * 99.0];
+                let mut stored = RotaryCache::at_turns([a, c as u32], &stage);
+                stage.refresh(&mut stored);
+                let want = RotaryStage::deviation_um(&stored, n);
+                let mut moving = RotaryCache::at_turns([a, c as u32], &stage);
+                let d = stage.refresh_deviation(&mut moving, n[0], n[1], n[2]);
+                assert_eq!([d.x, d.y, d.z].map(f32::to_bits), want.map(f32::to_bits));
+                assert_eq!(moving.unfolded, machine == RotaryMachine::AcTrunnion);
+                if moving.unfolded {
+                    stage.fold_angles(&mut moving);
+                }
+                assert!(!moving.unfolded);
+                assert_eq!(moving.k.map(f32::to_bits), stored.k.map(f32::to_bits));
+                assert_eq!(moving.m.map(f32::to_bits), stored.m.map(f32::to_bits));
+            }
+        }
     }
 
     /// Reference: `wrap` (the 64-bit modulo of the command, what the tracker replaces); exact. The
