@@ -623,7 +623,8 @@ impl RotaryStage {
     /// The angle terms k' and M' from the sin/cos values kept by
     /// [`RotaryStage::refresh_deviation`] (AC trunnion; for the first cycle without an angle
     /// change after a moving one).
-    #[cold]
+    // Not `#[cold]`: the call then sits beside the test, which is one compare-and-branch on the
+    // cycles without it (held share −1).
     #[inline(never)]
     pub(crate) fn fold_angles(&self, cache: &mut RotaryCache) {
         let [st, ct, sc, omc] = cache.angles;
