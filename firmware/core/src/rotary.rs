@@ -380,14 +380,14 @@ impl SinCosTable {
     #[cfg(test)]
     pub(crate) fn sincos(&self, n: u32) -> (f32, f32) {
         let (k, x) = self.coarse(n);
-        self.sincos_at(k, x)
+        self.sincos_at(self.entry(k), x)
     }
 
-    /// [`SinCosTable::sincos`] at the coarse angle `k` and remainder `x` of
-    /// [`SinCosTable::coarse`].
+    /// [`SinCosTable::sincos`] from the table's entry of the coarse angle k and the remainder `x`
+    /// of [`SinCosTable::coarse`].
     #[inline(always)]
-    pub(crate) fn sincos_at(&self, k: u32, x: i32) -> (f32, f32) {
-        let ([s, c], sin_r, one_minus_cos_r) = self.at_coarse(k, x);
+    pub(crate) fn sincos_at(&self, [s, c]: [f32; 2], x: i32) -> (f32, f32) {
+        let (sin_r, one_minus_cos_r) = self.remainder(x);
         (
             s - s * one_minus_cos_r + c * sin_r,
             c - c * one_minus_cos_r - s * sin_r,
@@ -402,14 +402,14 @@ impl SinCosTable {
     #[cfg(test)]
     pub(crate) fn sin_versine(&self, n: u32) -> (f32, f32) {
         let (k, x) = self.coarse(n);
-        self.sin_versine_at(k, x)
+        self.sin_versine_at(self.entry(k), x)
     }
 
-    /// [`SinCosTable::sin_versine`] at the coarse angle `k` and remainder `x` of
-    /// [`SinCosTable::coarse`].
+    /// [`SinCosTable::sin_versine`] from the table's entry of the coarse angle k and the
+    /// remainder `x` of [`SinCosTable::coarse`].
     #[inline(always)]
-    pub(crate) fn sin_versine_at(&self, k: u32, x: i32) -> (f32, f32) {
-        let ([s, d], sin_r, one_minus_cos_r) = self.at_coarse(k, x);
+    pub(crate) fn sin_versine_at(&self, [s, d]: [f32; 2], x: i32) -> (f32, f32) {
+        let (sin_r, one_minus_cos_r) = self.remainder(x);
         (
             s + sin_r - s * one_minus_cos_r - d * sin_r,
             d + one_minus_cos_r - d * one_minus_cos_r + s * sin_r,
@@ -434,22 +434,21 @@ impl SinCosTable {
         (k, rem.wrapping_sub(self.half_step) as i32)
     }
 
-    /// The table's entry of the coarse angle `k` and sin r, 1 − cos r of the remainder `x`
-    /// counts (as [`SinCosTable::coarse`] gives them).
+    /// sin r and 1 − cos r of the remainder `x` counts (as [`SinCosTable::coarse`] gives it).
     #[inline(always)]
-    fn at_coarse(&self, k: u32, x: i32) -> ([f32; 2], f32, f32) {
+    fn remainder(&self, x: i32) -> (f32, f32) {
         let x = x as f32;
         let [rho, s3, c2, c4] = self.poly;
         let x2 = x * x;
-        let sin_r = x * (rho - s3 * x2);
-        let one_minus_cos_r = x2 * (c2 - c4 * x2);
-        // The mask changes nothing for a count within the turn (k < 64, above); it keeps the
-        // index check-free.
-        (
-            self.sin_cos[k as usize % SINCOS_STEPS],
-            sin_r,
-            one_minus_cos_r,
-        )
+        (x * (rho - s3 * x2), x2 * (c2 - c4 * x2))
+    }
+
+    /// The table's entry of the coarse angle `k` (as [`SinCosTable::coarse`] gives it).
+    #[inline(always)]
+    fn entry(&self, k: u32) -> [f32; 2] {
+        // The mask changes nothing for a coarse angle of a count within the turn (k < 64); it
+        // keeps the index check-free.
+        self.sin_cos[k as usize % SINCOS_STEPS]
     }
 }
 
@@ -613,7 +612,8 @@ impl RotaryStage {
             RotaryStage::deviation_um(cache, n)
         } else {
             let (k, m) = self.trunnion_terms::<false>(st, ct, sc, omc);
-            cache.angles = angles;
+            let [m0, m1, m2, m3, ..] = &mut cache.m;
+            [*m0, *m1, *m2, *m3] = angles;
             cache.unfolded = true;
             deviation(&k, &m, n)
         };
@@ -627,7 +627,7 @@ impl RotaryStage {
     // cycles without it (held share −1).
     #[inline(never)]
     pub(crate) fn fold_angles(&self, cache: &mut RotaryCache) {
-        let [st, ct, sc, omc] = cache.angles;
+        let [st, ct, sc, omc, ..] = cache.m;
         (cache.k, cache.m) = self.trunnion_terms::<false>(st, ct, sc, omc);
         cache.unfolded = false;
     }
@@ -635,10 +635,10 @@ impl RotaryStage {
     /// sin θ and cos θ of the tilt axis's angle, sin and 1 − cos of C's (their cells in `cache`).
     #[inline(always)]
     fn angles(&self, cache: &RotaryCache) -> [f32; 4] {
-        let (kt, xt) = cache.cell[0].coarse();
-        let (kc, xc) = cache.cell[1].coarse();
-        let (st, ct) = self.sincos[0].sincos_at(kt, xt);
-        let (sc, omc) = self.sincos[1].sin_versine_at(kc, xc);
+        let [t, c] = &cache.cell;
+        let [et, ec] = cache.entry;
+        let (st, ct) = self.sincos[0].sincos_at(et, t.coarse().1);
+        let (sc, omc) = self.sincos[1].sin_versine_at(ec, c.coarse().1);
         [st, ct, sc, omc]
     }
 
@@ -830,7 +830,7 @@ pub(crate) fn saturate_i32(d: i64) -> i32 {
 /// k = ⌊(n + ⌊step/2⌋) / step⌋, i.e. k·step + [−⌊step/2⌋, ⌊step/2⌋] within [0, cpr)), the
 /// position within that cell, and k with the signed remainder x = n − k·step at the cell's start
 /// ([`SinCosTable::coarse`] of the position, without its division).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 // The cell's length and the position first (one paired load on the fast path), then the position
 // with the packed coarse angle (one paired load in the refresh).
 #[repr(C)]
@@ -902,15 +902,16 @@ pub struct RotaryCache {
     /// diagonal is 0).
     pub(crate) m: [f32; 6],
     /// True when `k` and `m` are not yet computed for the angles of the cells: the last angle
-    /// change was a moving cycle's ([`RotaryStage::refresh_deviation`]), which kept only
-    /// `angles`.
+    /// change was a moving cycle's ([`RotaryStage::refresh_deviation`]), which kept only the
+    /// angles' sin θ and cos θ of the tilt axis, sin θ and 1 − cos θ of C, in `m[..4]` (M' is
+    /// not valid then: no separate field for them, 16 B of static RAM per group state).
     pub(crate) unfolded: bool,
-    /// sin θ and cos θ of the tilt axis, sin θ and 1 − cos θ of C at the cells' angles while
-    /// `unfolded`.
-    pub(crate) angles: [f32; 4],
     /// Counts per revolution of the tilt axis and C the cells were taken with; 0 until the first
     /// cycle (and after a reset or a new image).
     pub(crate) cpr: [u32; 2],
+    /// The sin/cos tables' entries of the cells' coarse angles (copied when a cell is taken: the
+    /// refresh reads them here, with no index arithmetic).
+    pub(crate) entry: [[f32; 2]; 2],
 }
 
 impl RotaryCache {
@@ -921,8 +922,8 @@ impl RotaryCache {
         k: [0.0; 3],
         m: [0.0; 6],
         unfolded: false,
-        angles: [0.0; 4],
         cpr: [0; 2],
+        entry: [[0.0; 2]; 2],
     };
 
     /// A cache at the positions `turn` within the turns (each below its turn) of the tilt axis and
@@ -931,8 +932,7 @@ impl RotaryCache {
         let mut c = RotaryCache::NEW;
         for k in 0..2 {
             let cpr = stage.counts_per_rev[k];
-            c.cell[k] = AngleCell::at(turn[k], cpr, &stage.sincos[k]);
-            c.cpr[k] = cpr;
+            c.take_cell(k, turn[k], cpr, &stage.sincos[k]);
         }
         c
     }
@@ -995,9 +995,17 @@ impl RotaryCache {
         } else {
             wrap(cmd, cpr)
         };
-        self.cell[k] = AngleCell::at(t, cpr, table);
-        self.cpr[k] = cpr;
+        self.take_cell(k, t, cpr, table);
         t != turn || primed_cpr != cpr
+    }
+
+    /// Axis `k`'s cell at the position `n` < `cpr` of its turn (table `table`).
+    fn take_cell(&mut self, k: usize, n: u32, cpr: u32, table: &SinCosTable) {
+        let k = k % 2;
+        let cell = AngleCell::at(n, cpr, table);
+        self.cell[k] = cell;
+        self.entry[k] = table.entry(cell.coarse().0);
+        self.cpr[k] = cpr;
     }
 }
 
