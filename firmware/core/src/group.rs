@@ -832,13 +832,13 @@ impl<const POOL: usize> Group<POOL> {
         let slot = |k: usize| (g.slot[k] as usize).min(MAX_AXES - 1);
         let angle = |k: usize| wrap(positions_counts[slot(k)], self.counts_per_rev[slot(k)]);
         let mut cache = RotaryCache::at_turns([angle(3), angle(4)], g);
-        g.refresh(&mut cache);
         let q = g.counts_from_pivot([
             positions_counts[slot(0)],
             positions_counts[slot(1)],
             positions_counts[slot(2)],
         ]);
-        let d = RotaryStage::deviation_um(&cache, q);
+        let d = g.refresh_deviation(&mut cache, q[0], q[1], q[2]);
+        let d = [d.x, d.y, d.z];
         let mut by_slot = [0.0f32; MAX_AXES];
         for (k, dk) in d.into_iter().enumerate() {
             by_slot[slot(k)] = dk;

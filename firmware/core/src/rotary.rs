@@ -571,28 +571,29 @@ impl RotaryStage {
         }
     }
 
-    /// Recompute the angle-dependent terms k and M for the commanded angles (counts within the
-    /// turn) of the tilt axis and C in `cache.cell`. Not inlined: the cycles without an angle
-    /// change keep the caller's registers free. The AC trunnion (and the zero stage) inline, the
-    /// other kinds out of line (one compare here; with all three inline, the compiler predicated
-    /// the whole AC path on the kind tests: 15 instructions more).
-    #[inline(never)]
+    /// Recompute the angle-dependent terms k' and M' for the commanded angles of the tilt axis and
+    /// C in `cache.cell` and store them ([`RotaryStage::refresh_deviation`], then
+    /// [`RotaryStage::fold_angles`]; for the tests: the cycle folds on the first cycle without an
+    /// angle change).
+    #[cfg(test)]
     pub(crate) fn refresh(&self, cache: &mut RotaryCache) {
-        let [st, ct, sc, omc] = self.angles(cache);
-        if self.machine > RotaryMachine::AcTrunnion.code() {
-            return self.refresh_other(cache, st, ct, sc, omc);
+        self.refresh_deviation(cache, 0.0, 0.0, 0.0);
+        if cache.unfolded {
+            self.fold_angles(cache);
         }
-        (cache.k, cache.m) = self.trunnion_terms::<false>(st, ct, sc, omc);
-        cache.unfolded = false;
     }
 
-    /// The cycle's refresh after an angle change: [`RotaryStage::refresh`] and the deviation
-    /// for the commanded counts `n` from the pivot, as [`RotaryStage::deviation_um`] computes
-    /// it. For the AC trunnion the angle terms k' and M' are not stored (nine stores and nine
-    /// loads per moving cycle): the deviation is computed from them in registers and only the
-    /// four sin/cos values are kept, marked `unfolded`; the first cycle without an angle change
-    /// computes k' and M' from them ([`RotaryStage::fold_angles`]; the same operations on the
-    /// same values: the same bits).
+    /// The cycle's refresh after an angle change: the angle-dependent terms k' and M' (the
+    /// deviation is k' + M'·n) for the commanded angles of the tilt axis and C in `cache.cell`,
+    /// and the deviation for the commanded counts `n` from the pivot, as
+    /// [`RotaryStage::deviation_um`] computes it. Not inlined: the cycles without an angle
+    /// change keep the caller's registers free. The AC trunnion (and the zero stage) inline, the
+    /// other kinds out of line, storing k' and M' (one compare here; with all three inline, the
+    /// compiler predicated the whole AC path on the kind tests: 15 instructions more). For the
+    /// AC trunnion k' and M' are not stored (nine stores and nine loads per moving cycle): the
+    /// deviation is computed from them in registers and only the four sin/cos values are kept,
+    /// marked `unfolded`; the first cycle without an angle change computes k' and M' from them
+    /// ([`RotaryStage::fold_angles`]: the same operations on the same values, the same bits).
     ///
     /// With the C calling convention, so that the counts come in and the deviation goes out in
     /// floating-point registers (the Rust convention passes both arrays through memory).
@@ -999,7 +1000,9 @@ impl RotaryCache {
         t != turn || primed_cpr != cpr
     }
 
-    /// Axis `k`'s cell at the position `n` < `cpr` of its turn (table `table`).
+    /// Axis `k`'s cell at the position `n` < `cpr` of its turn (table `table`). One copy for
+    /// the slow path and [`RotaryCache::at_turns`] (code size).
+    #[inline(never)]
     fn take_cell(&mut self, k: usize, n: u32, cpr: u32, table: &SinCosTable) {
         let k = k % 2;
         let cell = AngleCell::at(n, cpr, table);
