@@ -752,8 +752,8 @@ impl<const POOL: usize> Group<POOL> {
         let axes = core::hint::black_box(&input.axes);
         let cmd = |k: usize| axes[slot(k)].command_counts;
         let c = &mut st.rotary;
-        let moved = c.track([cmd(3), cmd(4)], g);
         let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
+        let moved = c.track([cmd(3), cmd(4)], g);
         if moved {
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
             let d = g.refresh_deviation(c, n[0], n[1], n[2]);
