@@ -893,8 +893,9 @@ impl AngleCell {
 // the slow path reads.
 #[repr(C)]
 pub struct RotaryCache {
-    /// The last commanded positions (extended counts).
-    pub(crate) last_cmd: [i64; 2],
+    /// The commands (extended counts) at the cells' first counts: the last command minus its
+    /// position within the cell.
+    pub(crate) cell_cmd: [i64; 2],
     /// The commanded positions within their turns (< `cpr` once primed), the angles k and M are
     /// for.
     pub(crate) cell: [AngleCell; 2],
@@ -918,7 +919,7 @@ pub struct RotaryCache {
 impl RotaryCache {
     /// Nothing cached yet (all zero bytes).
     pub const NEW: RotaryCache = RotaryCache {
-        last_cmd: [0; 2],
+        cell_cmd: [0; 2],
         cell: [AngleCell::NEW; 2],
         k: [0.0; 3],
         m: [0.0; 6],
@@ -949,30 +950,29 @@ impl RotaryCache {
     /// changed or the cache was not yet primed (k and M must then be recomputed; a whole turn is
     /// no change).
     ///
-    /// Per axis the fast path is one 64-bit difference to the last command, its 64-bit sum with
-    /// the position within the cell and one unsigned compare of that sum with the cell's length:
-    /// in [0, len) exactly when the true sum is (a negative sum is ≥ 2^63 as unsigned), and the
-    /// cell lies within the turn, so the step neither wraps nor changes the coarse angle k, and x
-    /// moves with the position (the sin/cos need no division). Anything else (not primed, a step
-    /// out of the cell: to the next coarse angle, across 0 or a full turn or more) takes
-    /// [`RotaryCache::track_slow`].
+    /// Per axis the fast path is one 64-bit difference of the command to the command at the
+    /// cell's first count and one unsigned compare of it with the cell's length: in [0, len)
+    /// exactly when the true difference is (a negative one is ≥ 2^63 as unsigned; commands
+    /// within ±2^62 never wrap). It is then the new position within the cell, which lies within
+    /// the turn, so the step neither wraps nor changes the coarse angle k, and x moves with the
+    /// position (the sin/cos need no division); the angle changed exactly when the position
+    /// within the cell did. Anything else (not primed, a step out of the cell: to the next coarse
+    /// angle, across 0 or a full turn or more) takes [`RotaryCache::track_slow`].
     #[inline(always)]
     pub(crate) fn track(&mut self, cmd: [i64; 2], stage: &RotaryStage) -> bool {
         let mut moved = 0u32;
         // An index loop (as an iterator over `cmd` it measured 15 instructions more per cycle).
         #[allow(clippy::needless_range_loop)]
         for k in 0..2 {
-            let delta = cmd[k].wrapping_sub(self.last_cmd[k]);
-            self.last_cmd[k] = cmd[k];
-            // The 64-bit sum: within [0, len) exactly when its high word is 0 and its low word
-            // is below the cell's length.
+            // Within [0, len) exactly when its high word is 0 and its low word is below the
+            // cell's length.
+            let v = cmd[k].wrapping_sub(self.cell_cmd[k]) as u64;
             let cell = &mut self.cell[k];
-            let v = (cell.in_cell as u64).wrapping_add(delta as u64);
             if v < cell.len as u64 {
+                moved |= v as u32 ^ cell.in_cell;
                 cell.in_cell = v as u32;
-                moved |= delta as u32;
             } else {
-                moved |= self.track_slow(k, cmd[k], delta, stage) as u32;
+                moved |= self.track_slow(k, cmd[k], stage) as u32;
             }
         }
         moved != 0
@@ -981,22 +981,24 @@ impl RotaryCache {
 
 impl RotaryCache {
     /// The slow path of [`RotaryCache::track`] for axis `k` (0: tilt, 1: C): the position within
-    /// a turn of `cpr` counts after the step `delta` to the command `cmd` — one wrap across 0
-    /// for a step shorter than a turn from a position taken with the same turn, else the full
-    /// modulo of `cmd` — and its cell. True if it changed or the cache was not primed (a whole
-    /// turn lands on the same angle: no recomputation).
+    /// a turn of `cpr` counts after the step from the last command to the command `cmd` — one
+    /// wrap across 0 for a step shorter than a turn from a position taken with the same turn,
+    /// else the full modulo of `cmd` — and its cell. True if it changed or the cache was not
+    /// primed (a whole turn lands on the same angle: no recomputation).
     #[cold]
     #[inline(never)]
-    fn track_slow(&mut self, k: usize, cmd: i64, delta: i64, stage: &RotaryStage) -> bool {
+    fn track_slow(&mut self, k: usize, cmd: i64, stage: &RotaryStage) -> bool {
         let k = k % 2;
         let (cpr, table) = (stage.counts_per_rev[k], &stage.sincos[k]);
         let (turn, primed_cpr) = (self.cell[k].turn(table), self.cpr[k]);
+        let last = self.cell_cmd[k].wrapping_add(self.cell[k].in_cell as i64);
         let t = if primed_cpr == cpr && turn < cpr {
-            step_in_turn_wide(turn, delta, cpr, cmd)
+            step_in_turn_wide(turn, cmd.wrapping_sub(last), cpr, cmd)
         } else {
             wrap(cmd, cpr)
         };
         self.take_cell(k, t, cpr, table);
+        self.cell_cmd[k] = cmd.wrapping_sub(self.cell[k].in_cell as i64);
         t != turn || primed_cpr != cpr
     }
 
