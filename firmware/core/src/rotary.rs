@@ -51,21 +51,32 @@
 //!
 //! k and M (9 numbers: M's diagonal is 0), with the axes' µm per count and the tool length folded
 //! in, are cached in [`RotaryCache`] and recomputed only when a commanded angle changes; each cycle
-//! then costs the commanded counts from the pivot and 6 multiply-adds. The same cache follows the
-//! commanded angles within their turns from cycle to cycle (one 64-bit step and one compare per
-//! axis; the full modulo only when it is primed — first cycle, reset, new image — or a step
-//! crosses 0 or a whole turn), so the angle test is the step itself. What depends only on the
-//! image is done at load: the squareness terms scaled by the axes' µm per count, the tool length
-//! in counts of Z, the radians per count folded into the sin/cos polynomials.
+//! without a change then costs the commanded counts from the pivot and 6 multiply-adds. A cycle
+//! with a change computes them and the deviation from them in registers
+//! (`RotaryStage::refresh_deviation`) and keeps only the four sin/cos values; the first cycle
+//! without a change folds those into k and M (`RotaryStage::fold_angles`: the same operations
+//! on the same values, the same bits) — while both angles move, no nine stores and reloads per
+//! cycle. The same cache follows each commanded angle from cycle to cycle within its **cell**,
+//! the counts of the turn that share its nearest coarse angle of the sin/cos below
+//! (`AngleCell`), as the command at the cell's first count and the position within the cell:
+//! one 64-bit difference and one compare per axis, the angle test is the position's change,
+//! and the sin/cos's coarse angle and remainder need no division. Only when it is primed
+//! (first cycle, reset, new image) or a step leaves the cell (to the next coarse angle, across
+//! 0, a whole turn) does it find the position within the turn (one wrap across 0, or the full
+//! modulo) and its cell (one division). What depends only on the image is done at load: the
+//! squareness terms scaled by the axes' µm per count, the tool length in counts of Z, the radians
+//! per count folded into the sin/cos polynomials.
 //!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
 //! software: about 2 400 instructions per call, 5 000 per cycle whenever both angles move. So
 //! `libm::sincos` is called at load only, for the [`SINCOS_STEPS`] coarse angles k·step per axis
 //! (step = ⌈counts per revolution / 63⌉, made odd, k = 0..64: 63 steps cover the turn with half a
-//! step to spare, so k ≤ 63 and the index is masked, not clamped). Per change of the angle n the
-//! cache takes the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
-//! x = n − k·step counts, |x| ≤ ⌊step/2⌋, r = x·ρ with ρ = 2π/cpr, and
+//! step to spare, so k ≤ 63 and the index is masked, not clamped). For the angle n the stage takes
+//! the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
+//! x = n − k·step counts, |x| ≤ ⌊step/2⌋ (both tracked by the angle cache within the cell of k,
+//! the table's entry copied there: the division only when a cell is taken; bit for bit those of
+//! the division, tested), r = x·ρ with ρ = 2π/cpr, and
 //! sin θ = s_k·cos r + c_k·sin r, cos θ = c_k·cos r − s_k·sin r with
 //! sin r ≈ r − r³/6 = x·(ρ − (ρ³/6)·x²), 1 − cos r ≈ r²/2 − r⁴/24 = x²·(ρ²/2 − (ρ⁴/24)·x²) (the
 //! four coefficients rounded once from f64 at load): only integer division and `+ − ×`, so host
@@ -334,13 +345,13 @@ impl SinCosTable {
     };
 
     /// For an axis of `cpr` (≥ 1) counts per revolution (at load): (sin, cos) of the coarse
-    /// angles, for [`SinCosTable::sincos`].
+    /// angles, for [`SinCosTable::sincos_at`].
     pub(crate) fn new(cpr: u32) -> SinCosTable {
         SinCosTable::build(cpr, false)
     }
 
     /// The same with (sin, 1 − cos) of the coarse angles (1 − cos rounded once from f64), for
-    /// [`SinCosTable::sin_versine`].
+    /// [`SinCosTable::sin_versine_at`].
     pub(crate) fn new_versine(cpr: u32) -> SinCosTable {
         SinCosTable::build(cpr, true)
     }
@@ -383,8 +394,8 @@ impl SinCosTable {
         self.sincos_at(self.entry(k), x)
     }
 
-    /// [`SinCosTable::sincos`] from the table's entry of the coarse angle k and the remainder `x`
-    /// of [`SinCosTable::coarse`].
+    /// `sincos` from the table's entry of the coarse angle k and the remainder `x` of
+    /// [`SinCosTable::coarse`].
     #[inline(always)]
     pub(crate) fn sincos_at(&self, [s, c]: [f32; 2], x: i32) -> (f32, f32) {
         let (sin_r, one_minus_cos_r) = self.remainder(x);
@@ -394,7 +405,7 @@ impl SinCosTable {
         )
     }
 
-    /// (sin, 1 − cos) of the angle `n`·2π/cpr for `n` < cpr, as [`SinCosTable::sincos`], from a
+    /// (sin, 1 − cos) of the angle `n`·2π/cpr for `n` < cpr, as `sincos`, from a
     /// table of [`SinCosTable::new_versine`]: with d = 1 − cos of the coarse angle,
     /// sin θ = s·cos r + (1 − d)·sin r = (s + sin r) − s·(1 − cos r) − d·sin r and
     /// 1 − cos θ = d + (1 − d)·(1 − cos r) + s·sin r (three operations each; 1 − cos θ without
@@ -405,8 +416,8 @@ impl SinCosTable {
         self.sin_versine_at(self.entry(k), x)
     }
 
-    /// [`SinCosTable::sin_versine`] from the table's entry of the coarse angle k and the
-    /// remainder `x` of [`SinCosTable::coarse`].
+    /// `sin_versine` from the table's entry of the coarse angle k and the remainder `x` of
+    /// [`SinCosTable::coarse`].
     #[inline(always)]
     pub(crate) fn sin_versine_at(&self, [s, d]: [f32; 2], x: i32) -> (f32, f32) {
         let (sin_r, one_minus_cos_r) = self.remainder(x);
@@ -643,7 +654,7 @@ impl RotaryStage {
         [st, ct, sc, omc]
     }
 
-    /// [`RotaryStage::refresh`] of the BC trunnion and the BC head.
+    /// [`RotaryStage::refresh_deviation`] of the BC trunnion and the BC head (k' and M' stored).
     #[inline(never)]
     /// `omc` is 1 − cos of C's angle.
     fn refresh_other(&self, cache: &mut RotaryCache, st: f32, ct: f32, sc: f32, omc: f32) {
@@ -873,7 +884,9 @@ impl AngleCell {
     /// The coarse angle k and the remainder x of the position (those of [`SinCosTable::coarse`]).
     #[inline(always)]
     fn coarse(&self) -> (u32, i32) {
-        let x = self.in_cell.wrapping_add(((self.coarse_x0 as i32) >> 6) as u32);
+        let x = self
+            .in_cell
+            .wrapping_add(((self.coarse_x0 as i32) >> 6) as u32);
         (self.coarse_x0 % SINCOS_STEPS as u32, x as i32)
     }
 
@@ -885,7 +898,7 @@ impl AngleCell {
 }
 
 /// The commanded angles of the tilt axis (A or B) and C within their turns, tracked from cycle to
-/// cycle (each as its [`AngleCell`]), and the angle-dependent terms of the stage for them: the
+/// cycle (each as its `AngleCell`), and the angle-dependent terms of the stage for them: the
 /// deviation is k' + M'·n for the commanded counts n from the pivot (k + M q with the scales and
 /// the tool length folded in).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -929,7 +942,8 @@ impl RotaryCache {
     };
 
     /// A cache at the positions `turn` within the turns (each below its turn) of the tilt axis and
-    /// C of `stage` (loaded), for [`RotaryStage::refresh`].
+    /// C of `stage` (loaded), for [`RotaryStage::refresh_deviation`] (the cycle's own cache is not
+    /// touched: [`crate::group::Group::error_at`]).
     pub(crate) fn at_turns(turn: [u32; 2], stage: &RotaryStage) -> RotaryCache {
         let mut c = RotaryCache::NEW;
         for k in 0..2 {
@@ -1201,7 +1215,11 @@ mod tests {
             let stage = RotaryStage::new(&spec, [0.1, 0.2, 0.05], [cpr, cpr / 2], [0, 1, 2, 3, 4]);
             for (i, a) in (0..cpr).step_by(19_997).enumerate() {
                 let c = (a as u64 * 7 + 1_234_567) % (cpr / 2) as u64;
-                let n = [i as f32 * 1234.5 - 2.0e6, 3.0e6 - i as f32 * 777.0, i as f32 * 99.0];
+                let n = [
+                    i as f32 * 1234.5 - 2.0e6,
+                    3.0e6 - i as f32 * 777.0,
+                    i as f32 * 99.0,
+                ];
                 let mut stored = RotaryCache::at_turns([a, c as u32], &stage);
                 stage.refresh(&mut stored);
                 let want = RotaryStage::deviation_um(&stored, n);
@@ -1265,11 +1283,19 @@ mod tests {
                 }
                 let moved = cache.track(cmd, &stage);
                 let want = [wrap(cmd[0], cprs[0]), wrap(cmd[1], cprs[1])];
-                assert_eq!(cache.turn(&stage), want, "turn {cpr}, cycle {i}, commands {cmd:?}");
+                assert_eq!(
+                    cache.turn(&stage),
+                    want,
+                    "turn {cpr}, cycle {i}, commands {cmd:?}"
+                );
                 assert_eq!(cache.cpr, cprs);
                 for k in 0..2 {
                     let coarse = stage.sincos[k].coarse(want[k]);
-                    assert_eq!(cache.cell[k].coarse(), coarse, "turn {cpr}, cycle {i}, axis {k}");
+                    assert_eq!(
+                        cache.cell[k].coarse(),
+                        coarse,
+                        "turn {cpr}, cycle {i}, axis {k}"
+                    );
                 }
                 assert_eq!(moved, before != (cprs, want), "turn {cpr}, cycle {i}");
                 checked += 1;
