@@ -946,9 +946,8 @@ impl RotaryCache {
     /// touched: [`crate::group::Group::error_at`]).
     pub(crate) fn at_turns(turn: [u32; 2], stage: &RotaryStage) -> RotaryCache {
         let mut c = RotaryCache::NEW;
-        for k in 0..2 {
-            let cpr = stage.counts_per_rev[k];
-            c.take_cell(k, turn[k], cpr, &stage.sincos[k]);
+        for (k, &n) in turn.iter().enumerate() {
+            c.take_cell(k, n, stage.counts_per_rev[k], &stage.sincos[k]);
         }
         c
     }
@@ -1289,8 +1288,8 @@ mod tests {
                     "turn {cpr}, cycle {i}, commands {cmd:?}"
                 );
                 assert_eq!(cache.cpr, cprs);
-                for k in 0..2 {
-                    let coarse = stage.sincos[k].coarse(want[k]);
+                for (k, &n) in want.iter().enumerate() {
+                    let coarse = stage.sincos[k].coarse(n);
                     assert_eq!(
                         cache.cell[k].coarse(),
                         coarse,
