@@ -1183,11 +1183,13 @@ mod tests {
         assert!(worst < 1e-3, "largest deviation error {worst:e} µm");
     }
 
-    /// Reference: [`RotaryStage::refresh`] then [`RotaryStage::deviation_um`] (the angle terms
-    /// stored, then the deviation from them); exact (bit for bit): the moving cycle's
-    /// [`RotaryStage::refresh_deviation`] gives the same deviation, and the angle terms folded
-    /// later by [`RotaryStage::fold_angles`] are the same bits, for all three kinds (the BC kinds
-    /// store them at once), over whole turns of both angles.
+    /// Reference: the deviation from the stored angle terms, [`RotaryStage::deviation_um`] after
+    /// [`RotaryStage::refresh`] (what a cycle without an angle change computes); exact (bit for
+    /// bit): the moving cycle's deviation from the terms in registers
+    /// ([`RotaryStage::refresh_deviation`]) is the same, and after it the terms are stored (BC
+    /// kinds) or folded from the kept sin/cos ([`RotaryStage::fold_angles`], AC trunnion) to the
+    /// same bits, for all three kinds over whole turns of both angles. (The bits equal those
+    /// before the fold was deferred: the same operations in the same order.)
     #[test]
     fn deviation_of_the_moving_cycle_equals_the_stored_terms() {
         let cpr = 3_600_000u32;
