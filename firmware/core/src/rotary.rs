@@ -489,7 +489,10 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 // terms' constants without a base register), then the tables.
 #[repr(C)]
 pub(crate) struct RotaryStage {
-    pub(crate) pivot_counts: [i64; 3],
+    /// The pivot (counts of X, Y, Z) minus 2^31: a command minus it is in [0, 2^32) exactly when
+    /// the command minus the pivot fits an i32 (one high word to test per axis). 0 in the zero
+    /// stage, which never computes a deviation.
+    pub(crate) pivot_low_counts: [i64; 3],
     /// (EX0C, EY0C), µm; negated for a trunnion.
     pub(crate) o_c: [f32; 2],
     /// (EA0C, EB0C), rad.
@@ -533,7 +536,7 @@ impl RotaryStage {
         o_t: [0.0; 2],
         e_t: [0.0; 2],
         sq: [0.0; 3],
-        pivot_counts: [0; 3],
+        pivot_low_counts: [0; 3],
         tool_offset_um: 0.0,
         tool_offset_counts_z: 0.0,
         sq_scaled: [0.0; 3],
@@ -566,7 +569,8 @@ impl RotaryStage {
             o_t: [o * spec.ey0a_um, o * spec.ez0a_um],
             e_t: [spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
             sq,
-            pivot_counts: spec.pivot_counts,
+            // Within ±2^62 (validated): no wrap.
+            pivot_low_counts: spec.pivot_counts.map(|p| p - (1 << 31)),
             tool_offset_um,
             // µm per count of a loaded axis is at least 1e-6 (image range check).
             tool_offset_counts_z: if uz > 0.0 { tool_offset_um / uz } else { 0.0 },
@@ -796,17 +800,17 @@ impl RotaryStage {
     /// The commanded positions of X, Y, Z (counts) minus the pivot, saturated to i32, as f32.
     #[inline(always)]
     pub(crate) fn counts_from_pivot(&self, commands: [i64; 3]) -> [f32; 3] {
-        // Positions and the pivot within ±2^62 never wrap in the subtraction.
-        let d = [0, 1, 2].map(|k| commands[k].wrapping_sub(self.pivot_counts[k]));
-        // One test for the three in the common case (each fits in an i32: its high word is the
-        // sign of its low word); the conversions are then one instruction each.
-        let outside = d
-            .iter()
-            .fold(0, |acc, &d| acc | ((d >> 32) as i32 ^ (d as i32) >> 31));
+        // Positions and the pivot within ±2^62 never wrap in the subtraction. v = d + 2^31 for the
+        // difference d to the pivot.
+        let v = [0, 1, 2].map(|k| commands[k].wrapping_sub(self.pivot_low_counts[k]));
+        // One test for the three in the common case (each d fits in an i32: v's high word is 0);
+        // d is then v's low word minus 2^31, i.e. with its top bit flipped, and the conversions
+        // are one instruction each.
+        let outside = v.iter().fold(0, |acc, &v| acc | (v >> 32) as i32);
         if outside == 0 {
-            d.map(|d| d as i32 as f32)
+            v.map(|v| (v as u32 ^ 1 << 31) as i32 as f32)
         } else {
-            d.map(|d| saturate_i32(d) as f32)
+            v.map(|v| saturate_i32(v.wrapping_sub(1 << 31)) as f32)
         }
     }
 }
@@ -1310,12 +1314,12 @@ mod tests {
     /// edges ±2^31, and all three within.
     #[test]
     fn counts_from_pivot_saturates_each_axis() {
+        let p = [1i64 << 40, -(1 << 35), 7];
         let stage = RotaryStage {
-            pivot_counts: [1 << 40, -(1 << 35), 7],
+            pivot_low_counts: p.map(|p| p - (1 << 31)),
             ..RotaryStage::ZERO
         };
         let want = |d: i64| d.clamp(i32::MIN as i64, i32::MAX as i64) as i32 as f32;
-        let p = stage.pivot_counts;
         let offsets = [
             0i64,
             12_345,
