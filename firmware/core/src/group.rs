@@ -762,12 +762,17 @@ impl<const POOL: usize> Group<POOL> {
         let axes = core::hint::black_box(&input.axes);
         let cmd = |k: usize| axes[slot(k)].command_counts;
         let c = &mut st.rotary;
-        if c.track([cmd(3), cmd(4)], &g.counts_per_rev) {
-            g.refresh(c);
-            st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
-        }
         let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
-        RotaryStage::deviation_um(&st.rotary, n)
+        let moved = c.track([cmd(3), cmd(4)], g);
+        if moved {
+            st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
+            let d = g.refresh_deviation(c, n[0], n[1], n[2]);
+            return [d.x, d.y, d.z];
+        }
+        if c.unfolded {
+            g.fold_angles(c);
+        }
+        RotaryStage::deviation_um(c, n)
     }
 }
 
@@ -836,15 +841,14 @@ impl<const POOL: usize> Group<POOL> {
         let g = &self.stage;
         let slot = |k: usize| (g.slot[k] as usize).min(MAX_AXES - 1);
         let angle = |k: usize| wrap(positions_counts[slot(k)], self.counts_per_rev[slot(k)]);
-        let mut cache = RotaryCache::NEW;
-        cache.turn = [angle(3), angle(4)];
-        g.refresh(&mut cache);
+        let mut cache = RotaryCache::at_turns([angle(3), angle(4)], g);
         let q = g.counts_from_pivot([
             positions_counts[slot(0)],
             positions_counts[slot(1)],
             positions_counts[slot(2)],
         ]);
-        let d = RotaryStage::deviation_um(&cache, q);
+        let d = g.refresh_deviation(&mut cache, q[0], q[1], q[2]);
+        let d = [d.x, d.y, d.z];
         let mut by_slot = [0.0f32; MAX_AXES];
         for (k, dk) in d.into_iter().enumerate() {
             by_slot[slot(k)] = dk;

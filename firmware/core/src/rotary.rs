@@ -51,21 +51,32 @@
 //!
 //! k and M (9 numbers: M's diagonal is 0), with the axes' µm per count and the tool length folded
 //! in, are cached in [`RotaryCache`] and recomputed only when a commanded angle changes; each cycle
-//! then costs the commanded counts from the pivot and 6 multiply-adds. The same cache follows the
-//! commanded angles within their turns from cycle to cycle (one 64-bit step and one compare per
-//! axis; the full modulo only when it is primed — first cycle, reset, new image — or a step
-//! crosses 0 or a whole turn), so the angle test is the step itself. What depends only on the
-//! image is done at load: the squareness terms scaled by the axes' µm per count, the tool length
-//! in counts of Z, the radians per count folded into the sin/cos polynomials.
+//! without a change then costs the commanded counts from the pivot and 6 multiply-adds. A cycle
+//! with a change computes them and the deviation from them in registers
+//! (`RotaryStage::refresh_deviation`) and keeps only the four sin/cos values; the first cycle
+//! without a change folds those into k and M (`RotaryStage::fold_angles`: the same operations
+//! on the same values, the same bits) — while both angles move, no nine stores and reloads per
+//! cycle. The same cache follows each commanded angle from cycle to cycle within its **cell**,
+//! the counts of the turn that share its nearest coarse angle of the sin/cos below
+//! (`AngleCell`), as the command at the cell's first count and the position within the cell:
+//! one 64-bit difference and one compare per axis, the angle test is the position's change,
+//! and the sin/cos's coarse angle and remainder need no division. Only when it is primed
+//! (first cycle, reset, new image) or a step leaves the cell (to the next coarse angle, across
+//! 0, a whole turn) does it find the position within the turn (one wrap across 0, or the full
+//! modulo) and its cell (one division). What depends only on the image is done at load: the
+//! squareness terms scaled by the axes' µm per count, the tool length in counts of Z, the radians
+//! per count folded into the sin/cos polynomials.
 //!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
 //! software: about 2 400 instructions per call, 5 000 per cycle whenever both angles move. So
 //! `libm::sincos` is called at load only, for the [`SINCOS_STEPS`] coarse angles k·step per axis
 //! (step = ⌈counts per revolution / 63⌉, made odd, k = 0..64: 63 steps cover the turn with half a
-//! step to spare, so k ≤ 63 and the index is masked, not clamped). Per change of the angle n the
-//! cache takes the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
-//! x = n − k·step counts, |x| ≤ ⌊step/2⌋, r = x·ρ with ρ = 2π/cpr, and
+//! step to spare, so k ≤ 63 and the index is masked, not clamped). For the angle n the stage takes
+//! the nearest coarse angle, k = ⌊(n + ⌊step/2⌋)/step⌋, the signed remainder
+//! x = n − k·step counts, |x| ≤ ⌊step/2⌋ (both tracked by the angle cache within the cell of k,
+//! the table's entry copied there: the division only when a cell is taken; bit for bit those of
+//! the division, tested), r = x·ρ with ρ = 2π/cpr, and
 //! sin θ = s_k·cos r + c_k·sin r, cos θ = c_k·cos r − s_k·sin r with
 //! sin r ≈ r − r³/6 = x·(ρ − (ρ³/6)·x²), 1 − cos r ≈ r²/2 − r⁴/24 = x²·(ρ²/2 − (ρ⁴/24)·x²) (the
 //! four coefficients rounded once from f64 at load): only integer division and `+ − ×`, so host
@@ -334,13 +345,13 @@ impl SinCosTable {
     };
 
     /// For an axis of `cpr` (≥ 1) counts per revolution (at load): (sin, cos) of the coarse
-    /// angles, for [`SinCosTable::sincos`].
+    /// angles, for [`SinCosTable::sincos_at`].
     pub(crate) fn new(cpr: u32) -> SinCosTable {
         SinCosTable::build(cpr, false)
     }
 
     /// The same with (sin, 1 − cos) of the coarse angles (1 − cos rounded once from f64), for
-    /// [`SinCosTable::sin_versine`].
+    /// [`SinCosTable::sin_versine_at`].
     pub(crate) fn new_versine(cpr: u32) -> SinCosTable {
         SinCosTable::build(cpr, true)
     }
@@ -377,33 +388,51 @@ impl SinCosTable {
     /// coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63 from the table, the signed remainder
     /// x = n − k·step counts, |x| ≤ ⌊step/2⌋, by polynomials.
     /// A table from [`SinCosTable::new`].
-    #[inline]
+    #[cfg(test)]
     pub(crate) fn sincos(&self, n: u32) -> (f32, f32) {
-        let ([s, c], sin_r, one_minus_cos_r) = self.coarse_and_remainder(n);
+        let (k, x) = self.coarse(n);
+        self.sincos_at(self.entry(k), x)
+    }
+
+    /// `sincos` from the table's entry of the coarse angle k and the remainder `x` of
+    /// [`SinCosTable::coarse`].
+    #[inline(always)]
+    pub(crate) fn sincos_at(&self, [s, c]: [f32; 2], x: i32) -> (f32, f32) {
+        let (sin_r, one_minus_cos_r) = self.remainder(x);
         (
             s - s * one_minus_cos_r + c * sin_r,
             c - c * one_minus_cos_r - s * sin_r,
         )
     }
 
-    /// (sin, 1 − cos) of the angle `n`·2π/cpr for `n` < cpr, as [`SinCosTable::sincos`], from a
+    /// (sin, 1 − cos) of the angle `n`·2π/cpr for `n` < cpr, as `sincos`, from a
     /// table of [`SinCosTable::new_versine`]: with d = 1 − cos of the coarse angle,
     /// sin θ = s·cos r + (1 − d)·sin r = (s + sin r) − s·(1 − cos r) − d·sin r and
     /// 1 − cos θ = d + (1 − d)·(1 − cos r) + s·sin r (three operations each; 1 − cos θ without
     /// the cancellation of 1 − cos θ from cos θ).
-    #[inline]
+    #[cfg(test)]
     pub(crate) fn sin_versine(&self, n: u32) -> (f32, f32) {
-        let ([s, d], sin_r, one_minus_cos_r) = self.coarse_and_remainder(n);
+        let (k, x) = self.coarse(n);
+        self.sin_versine_at(self.entry(k), x)
+    }
+
+    /// `sin_versine` from the table's entry of the coarse angle k and the remainder `x` of
+    /// [`SinCosTable::coarse`].
+    #[inline(always)]
+    pub(crate) fn sin_versine_at(&self, [s, d]: [f32; 2], x: i32) -> (f32, f32) {
+        let (sin_r, one_minus_cos_r) = self.remainder(x);
         (
             s + sin_r - s * one_minus_cos_r - d * sin_r,
             d + one_minus_cos_r - d * one_minus_cos_r + s * sin_r,
         )
     }
 
-    /// The table's entry of the nearest coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63, and
-    /// sin r, 1 − cos r of the signed remainder x = n − k·step counts, |x| ≤ ⌊step/2⌋.
+    /// The nearest coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63 of the count `n` < cpr and the
+    /// signed remainder x = n − k·step, |x| ≤ ⌊step/2⌋ (the only division of the sin/cos; the
+    /// stage's angle cache tracks k and x from cycle to cycle instead, see
+    /// [`RotaryCache::track`]).
     #[inline(always)]
-    fn coarse_and_remainder(&self, n: u32) -> ([f32; 2], f32, f32) {
+    pub(crate) fn coarse(&self, n: u32) -> (u32, i32) {
         // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ (cpr − 1 + ⌊step/2⌋) / step
         // < 64 since 63·step ≥ cpr.
         let m = n.wrapping_add(self.half_step);
@@ -413,18 +442,24 @@ impl SinCosTable {
         let k = m / step;
         let rem = m - k.wrapping_mul(step);
         // Exact: |x| ≤ ⌊step/2⌋ < 2^24.
-        let x = rem.wrapping_sub(self.half_step) as i32 as f32;
+        (k, rem.wrapping_sub(self.half_step) as i32)
+    }
+
+    /// sin r and 1 − cos r of the remainder `x` counts (as [`SinCosTable::coarse`] gives it).
+    #[inline(always)]
+    fn remainder(&self, x: i32) -> (f32, f32) {
+        let x = x as f32;
         let [rho, s3, c2, c4] = self.poly;
         let x2 = x * x;
-        let sin_r = x * (rho - s3 * x2);
-        let one_minus_cos_r = x2 * (c2 - c4 * x2);
-        // The mask changes nothing for a count within the turn (k < 64, above); it keeps the
-        // index check-free.
-        (
-            self.sin_cos[k as usize % SINCOS_STEPS],
-            sin_r,
-            one_minus_cos_r,
-        )
+        (x * (rho - s3 * x2), x2 * (c2 - c4 * x2))
+    }
+
+    /// The table's entry of the coarse angle `k` (as [`SinCosTable::coarse`] gives it).
+    #[inline(always)]
+    fn entry(&self, k: u32) -> [f32; 2] {
+        // The mask changes nothing for a coarse angle of a count within the turn (k < 64); it
+        // keeps the index check-free.
+        self.sin_cos[k as usize % SINCOS_STEPS]
     }
 }
 
@@ -454,7 +489,10 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 // terms' constants without a base register), then the tables.
 #[repr(C)]
 pub(crate) struct RotaryStage {
-    pub(crate) pivot_counts: [i64; 3],
+    /// The pivot (counts of X, Y, Z) minus 2^31: a command minus it is in [0, 2^32) exactly when
+    /// the command minus the pivot fits an i32 (one high word to test per axis). 0 in the zero
+    /// stage, which never computes a deviation.
+    pub(crate) pivot_low_counts: [i64; 3],
     /// (EX0C, EY0C), µm; negated for a trunnion.
     pub(crate) o_c: [f32; 2],
     /// (EA0C, EB0C), rad.
@@ -498,7 +536,7 @@ impl RotaryStage {
         o_t: [0.0; 2],
         e_t: [0.0; 2],
         sq: [0.0; 3],
-        pivot_counts: [0; 3],
+        pivot_low_counts: [0; 3],
         tool_offset_um: 0.0,
         tool_offset_counts_z: 0.0,
         sq_scaled: [0.0; 3],
@@ -531,7 +569,8 @@ impl RotaryStage {
             o_t: [o * spec.ey0a_um, o * spec.ez0a_um],
             e_t: [spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
             sq,
-            pivot_counts: spec.pivot_counts,
+            // Within ±2^62 (validated): no wrap.
+            pivot_low_counts: spec.pivot_counts.map(|p| p - (1 << 31)),
             tool_offset_um,
             // µm per count of a loaded axis is at least 1e-6 (image range check).
             tool_offset_counts_z: if uz > 0.0 { tool_offset_um / uz } else { 0.0 },
@@ -547,27 +586,85 @@ impl RotaryStage {
         }
     }
 
-    /// Recompute the angle-dependent terms k and M for the commanded angles (counts within the
-    /// turn) of the tilt axis and C in `cache.turn`. Not inlined: the cycles without an angle
-    /// change keep the caller's registers free. The AC trunnion (and the zero stage) inline, the
-    /// other kinds out of line (one compare here; with all three inline, the compiler predicated
-    /// the whole AC path on the kind tests: 15 instructions more).
-    #[inline(never)]
+    /// Recompute the angle-dependent terms k' and M' for the commanded angles of the tilt axis and
+    /// C in `cache.cell` and store them ([`RotaryStage::refresh_deviation`], then
+    /// [`RotaryStage::fold_angles`]; for the tests: the cycle folds on the first cycle without an
+    /// angle change).
+    #[cfg(test)]
     pub(crate) fn refresh(&self, cache: &mut RotaryCache) {
-        let (st, ct) = self.sincos[0].sincos(cache.turn[0]);
-        let (sc, omc) = self.sincos[1].sin_versine(cache.turn[1]);
-        if self.machine > RotaryMachine::AcTrunnion.code() {
-            return self.refresh_other(cache, st, ct, sc, omc);
+        self.refresh_deviation(cache, 0.0, 0.0, 0.0);
+        if cache.unfolded {
+            self.fold_angles(cache);
         }
-        self.refresh_trunnion::<false>(cache, st, ct, sc, omc);
     }
 
-    /// [`RotaryStage::refresh`] of the BC trunnion and the BC head.
+    /// The cycle's refresh after an angle change: the angle-dependent terms k' and M' (the
+    /// deviation is k' + M'·n) for the commanded angles of the tilt axis and C in `cache.cell`,
+    /// and the deviation for the commanded counts `n` from the pivot, as
+    /// [`RotaryStage::deviation_um`] computes it. Not inlined: the cycles without an angle
+    /// change keep the caller's registers free. The AC trunnion (and the zero stage) inline, the
+    /// other kinds out of line, storing k' and M' (one compare here; with all three inline, the
+    /// compiler predicated the whole AC path on the kind tests: 15 instructions more). For the
+    /// AC trunnion k' and M' are not stored (nine stores and nine loads per moving cycle): the
+    /// deviation is computed from them in registers and only the four sin/cos values are kept,
+    /// marked `unfolded`; the first cycle without an angle change computes k' and M' from them
+    /// ([`RotaryStage::fold_angles`]: the same operations on the same values, the same bits).
+    ///
+    /// With the C calling convention, so that the counts come in and the deviation goes out in
+    /// floating-point registers (the Rust convention passes both arrays through memory).
+    #[inline(never)]
+    pub(crate) extern "C" fn refresh_deviation(
+        &self,
+        cache: &mut RotaryCache,
+        n0: f32,
+        n1: f32,
+        n2: f32,
+    ) -> Deviation {
+        let n = [n0, n1, n2];
+        let angles = self.angles(cache);
+        let [st, ct, sc, omc] = angles;
+        let [x, y, z] = if self.machine > RotaryMachine::AcTrunnion.code() {
+            self.refresh_other(cache, st, ct, sc, omc);
+            RotaryStage::deviation_um(cache, n)
+        } else {
+            let (k, m) = self.trunnion_terms::<false>(st, ct, sc, omc);
+            let [m0, m1, m2, m3, ..] = &mut cache.m;
+            [*m0, *m1, *m2, *m3] = angles;
+            cache.unfolded = true;
+            deviation(&k, &m, n)
+        };
+        Deviation { x, y, z }
+    }
+
+    /// The angle terms k' and M' from the sin/cos values kept by
+    /// [`RotaryStage::refresh_deviation`] (AC trunnion; for the first cycle without an angle
+    /// change after a moving one).
+    // Not `#[cold]`: the call then sits beside the test, which is one compare-and-branch on the
+    // cycles without it (held share −1).
+    #[inline(never)]
+    pub(crate) fn fold_angles(&self, cache: &mut RotaryCache) {
+        let [st, ct, sc, omc, ..] = cache.m;
+        (cache.k, cache.m) = self.trunnion_terms::<false>(st, ct, sc, omc);
+        cache.unfolded = false;
+    }
+
+    /// sin θ and cos θ of the tilt axis's angle, sin and 1 − cos of C's (their cells in `cache`).
+    #[inline(always)]
+    fn angles(&self, cache: &RotaryCache) -> [f32; 4] {
+        let [t, c] = &cache.cell;
+        let [et, ec] = cache.entry;
+        let (st, ct) = self.sincos[0].sincos_at(et, t.coarse().1);
+        let (sc, omc) = self.sincos[1].sin_versine_at(ec, c.coarse().1);
+        [st, ct, sc, omc]
+    }
+
+    /// [`RotaryStage::refresh_deviation`] of the BC trunnion and the BC head (k' and M' stored).
     #[inline(never)]
     /// `omc` is 1 − cos of C's angle.
     fn refresh_other(&self, cache: &mut RotaryCache, st: f32, ct: f32, sc: f32, omc: f32) {
+        cache.unfolded = false;
         if self.machine == RotaryMachine::BcTrunnion.code() {
-            self.refresh_trunnion::<true>(cache, st, ct, sc, omc);
+            (cache.k, cache.m) = self.trunnion_terms::<true>(st, ct, sc, omc);
         } else {
             self.refresh_head(cache, st, ct, sc, 1.0 - omc);
         }
@@ -597,14 +694,13 @@ impl RotaryStage {
     /// s'·(u_p − o_p) + o_z − c·o_z), and likewise for ω. The scales and the tool length are
     /// folded in as in [`RotaryStage::fold`] (M' = M·diag(µm per count), k' = k − M·(0, 0, L)).
     #[inline(always)]
-    fn refresh_trunnion<const B: bool>(
+    fn trunnion_terms<const B: bool>(
         &self,
-        cache: &mut RotaryCache,
         st: f32,
         ct: f32,
         sc: f32,
         omc: f32,
-    ) {
+    ) -> ([f32; 3], [f32; 6]) {
         // In the tilt plane (p, Z) the tilt turns by +θ for A and −θ for B.
         let s = if B { -st } else { st };
         // −u and g (z components 0): (I − R_C) v = ((1 − cos)·v_x + sin·v_y, (1 − cos)·v_y −
@@ -640,15 +736,17 @@ impl RotaryStage {
         let l = self.tool_offset_counts_z;
         let m1 = sq_z - w[1] * uz;
         let m3 = sq_yz + w[0] * uz;
-        cache.k = [k[0] - m1 * l, k[1] - m3 * l, k[2]];
-        cache.m = [
-            sq_y + w[2] * uy,
-            m1,
-            -(w[2] * ux),
-            m3,
-            w[1] * ux,
-            -(w[0] * uy),
-        ];
+        (
+            [k[0] - m1 * l, k[1] - m3 * l, k[2]],
+            [
+                sq_y + w[2] * uy,
+                m1,
+                -(w[2] * ux),
+                m3,
+                w[1] * ux,
+                -(w[0] * uy),
+            ],
+        )
     }
 
     /// BC head: the deviation is the tool tip's displacement δ + s(q) (see
@@ -696,30 +794,44 @@ impl RotaryStage {
     /// zero diagonal).
     #[inline(always)]
     pub(crate) fn deviation_um(cache: &RotaryCache, n: [f32; 3]) -> [f32; 3] {
-        let (k, m) = (&cache.k, &cache.m);
-        [
-            (k[0] + m[0] * n[1]) + m[1] * n[2],
-            (k[1] + m[2] * n[0]) + m[3] * n[2],
-            (k[2] + m[4] * n[0]) + m[5] * n[1],
-        ]
+        deviation(&cache.k, &cache.m, n)
     }
 
     /// The commanded positions of X, Y, Z (counts) minus the pivot, saturated to i32, as f32.
     #[inline(always)]
     pub(crate) fn counts_from_pivot(&self, commands: [i64; 3]) -> [f32; 3] {
-        // Positions and the pivot within ±2^62 never wrap in the subtraction.
-        let d = [0, 1, 2].map(|k| commands[k].wrapping_sub(self.pivot_counts[k]));
-        // One test for the three in the common case (each fits in an i32: its high word is the
-        // sign of its low word); the conversions are then one instruction each.
-        let outside = d
-            .iter()
-            .fold(0, |acc, &d| acc | ((d >> 32) as i32 ^ (d as i32) >> 31));
+        // Positions and the pivot within ±2^62 never wrap in the subtraction. v = d + 2^31 for the
+        // difference d to the pivot.
+        let v = [0, 1, 2].map(|k| commands[k].wrapping_sub(self.pivot_low_counts[k]));
+        // One test for the three in the common case (each d fits in an i32: v's high word is 0);
+        // d is then v's low word minus 2^31, i.e. with its top bit flipped, and the conversions
+        // are one instruction each.
+        let outside = v.iter().fold(0, |acc, &v| acc | (v >> 32) as i32);
         if outside == 0 {
-            d.map(|d| d as i32 as f32)
+            v.map(|v| (v as u32 ^ 1 << 31) as i32 as f32)
         } else {
-            d.map(|d| saturate_i32(d) as f32)
+            v.map(|v| saturate_i32(v.wrapping_sub(1 << 31)) as f32)
         }
     }
+}
+
+/// A deviation along X, Y, Z (µm) as the C calling convention returns it: in s0–s2.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+pub(crate) struct Deviation {
+    pub(crate) x: f32,
+    pub(crate) y: f32,
+    pub(crate) z: f32,
+}
+
+/// k' + M'·n (M' without its zero diagonal).
+#[inline(always)]
+fn deviation(k: &[f32; 3], m: &[f32; 6], n: [f32; 3]) -> [f32; 3] {
+    [
+        (k[0] + m[0] * n[1]) + m[1] * n[2],
+        (k[1] + m[2] * n[0]) + m[3] * n[2],
+        (k[2] + m[4] * n[0]) + m[5] * n[1],
+    ]
 }
 
 /// `d` saturated to i32 (out of line: the per-cycle path tests only whether it fits).
@@ -729,62 +841,155 @@ pub(crate) fn saturate_i32(d: i64) -> i32 {
     d.clamp(i32::MIN as i64, i32::MAX as i64) as i32
 }
 
-/// The commanded angles of the tilt axis (A or B) and C within their turns, tracked from cycle to
-/// cycle, and the angle-dependent terms of the stage for them: the deviation is k' + M'·n for the
-/// commanded counts n from the pivot (k + M q with the scales and the tool length folded in).
+/// One rotary axis's commanded angle within its turn, as the stage's angle cache follows it: the
+/// **cell** of the angle's nearest coarse angle k (the counts n of the turn with
+/// k = ⌊(n + ⌊step/2⌋) / step⌋, i.e. k·step + [−⌊step/2⌋, ⌊step/2⌋] within [0, cpr)), the
+/// position within that cell, and k with the signed remainder x = n − k·step at the cell's start
+/// ([`SinCosTable::coarse`] of the position, without its division).
 #[derive(Debug, Clone, Copy, PartialEq)]
+// The cell's length and the position first (one paired load on the fast path), then the position
+// with the packed coarse angle (one paired load in the refresh).
+#[repr(C)]
+pub(crate) struct AngleCell {
+    /// Counts of the cell within the turn (≥ 1 once primed); 0 until the first cycle (and after a
+    /// reset or a new image), so that the fast path's range test fails.
+    len: u32,
+    /// Position within the cell: n − (the cell's first count).
+    in_cell: u32,
+    /// (x0 << 6) | k as a u32: k ≤ 63, x0 = (the cell's first count) − k·step ∈ [−⌊step/2⌋, 0]
+    /// (|x0| < 2^25: x0·64 fits an i32), so that x = `in_cell` + x0 (an add with the shifted
+    /// operand) and k = `coarse_x0` & 63.
+    coarse_x0: u32,
+}
+
+impl AngleCell {
+    const NEW: AngleCell = AngleCell {
+        len: 0,
+        in_cell: 0,
+        coarse_x0: 0,
+    };
+
+    /// The cell of the position `n` < `cpr` of a turn whose sin/cos table is `table` (at load;
+    /// step ≥ 1).
+    fn at(n: u32, cpr: u32, table: &SinCosTable) -> AngleCell {
+        let (k, x) = table.coarse(n);
+        // k·step ≤ n + ⌊step/2⌋ < 2^32: no wrap.
+        let center = n.wrapping_sub(x as u32);
+        let start = center.saturating_sub(table.half_step);
+        let end = center.saturating_add(table.half_step + 1).min(cpr);
+        let x0 = start.wrapping_sub(center) as i32;
+        AngleCell {
+            len: end.saturating_sub(start),
+            in_cell: n - start,
+            coarse_x0: ((x0 << 6) as u32) | (k % SINCOS_STEPS as u32),
+        }
+    }
+
+    /// The coarse angle k and the remainder x of the position (those of [`SinCosTable::coarse`]).
+    #[inline(always)]
+    fn coarse(&self) -> (u32, i32) {
+        let x = self
+            .in_cell
+            .wrapping_add(((self.coarse_x0 as i32) >> 6) as u32);
+        (self.coarse_x0 % SINCOS_STEPS as u32, x as i32)
+    }
+
+    /// The position within the turn (k·step + x).
+    fn turn(&self, table: &SinCosTable) -> u32 {
+        let (k, x) = self.coarse();
+        k.wrapping_mul(table.step).wrapping_add(x as u32)
+    }
+}
+
+/// The commanded angles of the tilt axis (A or B) and C within their turns, tracked from cycle to
+/// cycle (each as its `AngleCell`), and the angle-dependent terms of the stage for them: the
+/// deviation is k' + M'·n for the commanded counts n from the pivot (k + M q with the scales and
+/// the tool length folded in).
+#[derive(Debug, Clone, Copy, PartialEq)]
+// The commands and cells first (paired loads and stores), then the angle terms, then what only
+// the slow path reads.
+#[repr(C)]
 pub struct RotaryCache {
-    /// Counts per revolution of the tilt axis and C the turn positions were taken with; 0 until the
-    /// first cycle (and after a reset or a new image): the fast path's range test then fails, so
-    /// that cycle takes the full modulo and recomputes k and M.
-    pub(crate) cpr: [u32; 2],
-    /// Commanded positions within the turn (< `cpr` once primed), the angles k and M are for.
-    pub(crate) turn: [u32; 2],
-    /// The last commanded positions (extended counts).
-    pub(crate) last_cmd: [i64; 2],
+    /// The commands (extended counts) at the cells' first counts: the last command minus its
+    /// position within the cell.
+    pub(crate) cell_cmd: [i64; 2],
+    /// The commanded positions within their turns (< `cpr` once primed), the angles k and M are
+    /// for.
+    pub(crate) cell: [AngleCell; 2],
     pub(crate) k: [f32; 3],
     /// M' = M·diag(µm per count): its off-diagonal entries M'01, M'02, M'10, M'12, M'20, M'21 (the
     /// diagonal is 0).
     pub(crate) m: [f32; 6],
+    /// True when `k` and `m` are not yet computed for the angles of the cells: the last angle
+    /// change was a moving cycle's ([`RotaryStage::refresh_deviation`]), which kept only the
+    /// angles' sin θ and cos θ of the tilt axis, sin θ and 1 − cos θ of C, in `m[..4]` (M' is
+    /// not valid then: no separate field for them, 16 B of static RAM per group state).
+    pub(crate) unfolded: bool,
+    /// Counts per revolution of the tilt axis and C the cells were taken with; 0 until the first
+    /// cycle (and after a reset or a new image).
+    pub(crate) cpr: [u32; 2],
+    /// The sin/cos tables' entries of the cells' coarse angles (copied when a cell is taken: the
+    /// refresh reads them here, with no index arithmetic).
+    pub(crate) entry: [[f32; 2]; 2],
 }
 
 impl RotaryCache {
     /// Nothing cached yet (all zero bytes).
     pub const NEW: RotaryCache = RotaryCache {
-        cpr: [0; 2],
-        turn: [0; 2],
-        last_cmd: [0; 2],
+        cell_cmd: [0; 2],
+        cell: [AngleCell::NEW; 2],
         k: [0.0; 3],
         m: [0.0; 6],
+        unfolded: false,
+        cpr: [0; 2],
+        entry: [[0.0; 2]; 2],
     };
 
-    /// Follow the commanded positions `cmd` of the tilt axis and C (turns of `cpr` counts, as
-    /// loaded; read only on the slow path) into [`RotaryCache::turn`]; true if a turn position
+    /// A cache at the positions `turn` within the turns (each below its turn) of the tilt axis and
+    /// C of `stage` (loaded), for [`RotaryStage::refresh_deviation`] (the cycle's own cache is not
+    /// touched: [`crate::group::Group::error_at`]).
+    pub(crate) fn at_turns(turn: [u32; 2], stage: &RotaryStage) -> RotaryCache {
+        let mut c = RotaryCache::NEW;
+        for (k, &n) in turn.iter().enumerate() {
+            c.take_cell(k, n, stage.counts_per_rev[k], &stage.sincos[k]);
+        }
+        c
+    }
+
+    /// The positions within the turns of the tilt axis and C (`stage`'s tables).
+    #[cfg(test)]
+    pub(crate) fn turn(&self, stage: &RotaryStage) -> [u32; 2] {
+        [0, 1].map(|k| self.cell[k].turn(&stage.sincos[k]))
+    }
+
+    /// Follow the commanded positions `cmd` of the tilt axis and C (turns of `stage`'s counts per
+    /// revolution, read only on the slow path) into [`RotaryCache::cell`]; true if a turn position
     /// changed or the cache was not yet primed (k and M must then be recomputed; a whole turn is
     /// no change).
     ///
-    /// Per axis the fast path is one 64-bit difference to the last command, its 64-bit sum with
-    /// the position within the turn and one unsigned compare of that sum with the turn: in
-    /// [0, cpr) exactly when the true sum is (a negative sum is ≥ 2^63 as unsigned). Every turn
-    /// position stored is below the turn it was taken with (the fast path tests it;
-    /// [`RotaryCache::track_slow`] returns one). Anything else (not primed, a step across 0 or a
-    /// full turn or more) takes [`RotaryCache::track_slow`].
+    /// Per axis the fast path is one 64-bit difference of the command to the command at the
+    /// cell's first count and one unsigned compare of it with the cell's length: in [0, len)
+    /// exactly when the true difference is (a negative one is ≥ 2^63 as unsigned; commands
+    /// within ±2^62 never wrap). It is then the new position within the cell, which lies within
+    /// the turn, so the step neither wraps nor changes the coarse angle k, and x moves with the
+    /// position (the sin/cos need no division); the angle changed exactly when the position
+    /// within the cell did. Anything else (not primed, a step out of the cell: to the next coarse
+    /// angle, across 0 or a full turn or more) takes [`RotaryCache::track_slow`].
     #[inline(always)]
-    pub(crate) fn track(&mut self, cmd: [i64; 2], cpr: &[u32; 2]) -> bool {
+    pub(crate) fn track(&mut self, cmd: [i64; 2], stage: &RotaryStage) -> bool {
         let mut moved = 0u32;
         // An index loop (as an iterator over `cmd` it measured 15 instructions more per cycle).
         #[allow(clippy::needless_range_loop)]
         for k in 0..2 {
-            let delta = cmd[k].wrapping_sub(self.last_cmd[k]);
-            self.last_cmd[k] = cmd[k];
-            // The 64-bit sum: within [0, cpr) exactly when its high word is 0 and its low word
-            // is below the turn.
-            let v = (self.turn[k] as u64).wrapping_add(delta as u64);
-            if v < self.cpr[k] as u64 {
-                self.turn[k] = v as u32;
-                moved |= delta as u32;
+            // Within [0, len) exactly when its high word is 0 and its low word is below the
+            // cell's length.
+            let v = cmd[k].wrapping_sub(self.cell_cmd[k]) as u64;
+            let cell = &mut self.cell[k];
+            if v < cell.len as u64 {
+                moved |= v as u32 ^ cell.in_cell;
+                cell.in_cell = v as u32;
             } else {
-                moved |= self.track_slow(k, cmd[k], delta, cpr) as u32;
+                moved |= self.track_slow(k, cmd[k], stage) as u32;
             }
         }
         moved != 0
@@ -793,24 +998,36 @@ impl RotaryCache {
 
 impl RotaryCache {
     /// The slow path of [`RotaryCache::track`] for axis `k` (0: tilt, 1: C): the position within
-    /// a turn of `cpr[k]` counts after the step `delta` to the command `cmd` — one wrap across 0
-    /// for a step shorter than a turn from a position taken with the same turn, else the full
-    /// modulo of `cmd`. True if it changed or the cache was not primed (a whole turn lands on
-    /// the same angle: no recomputation).
+    /// a turn of `cpr` counts after the step from the last command to the command `cmd` — one
+    /// wrap across 0 for a step shorter than a turn from a position taken with the same turn,
+    /// else the full modulo of `cmd` — and its cell. True if it changed or the cache was not
+    /// primed (a whole turn lands on the same angle: no recomputation).
     #[cold]
     #[inline(never)]
-    fn track_slow(&mut self, k: usize, cmd: i64, delta: i64, cpr: &[u32; 2]) -> bool {
+    fn track_slow(&mut self, k: usize, cmd: i64, stage: &RotaryStage) -> bool {
         let k = k % 2;
-        let cpr = cpr[k];
-        let (turn, primed_cpr) = (self.turn[k], self.cpr[k]);
+        let (cpr, table) = (stage.counts_per_rev[k], &stage.sincos[k]);
+        let (turn, primed_cpr) = (self.cell[k].turn(table), self.cpr[k]);
+        let last = self.cell_cmd[k].wrapping_add(self.cell[k].in_cell as i64);
         let t = if primed_cpr == cpr && turn < cpr {
-            step_in_turn_wide(turn, delta, cpr, cmd)
+            step_in_turn_wide(turn, cmd.wrapping_sub(last), cpr, cmd)
         } else {
             wrap(cmd, cpr)
         };
-        self.turn[k] = t;
-        self.cpr[k] = cpr;
+        self.take_cell(k, t, cpr, table);
+        self.cell_cmd[k] = cmd.wrapping_sub(self.cell[k].in_cell as i64);
         t != turn || primed_cpr != cpr
+    }
+
+    /// Axis `k`'s cell at the position `n` < `cpr` of its turn (table `table`). One copy for
+    /// the slow path and [`RotaryCache::at_turns`] (code size).
+    #[inline(never)]
+    fn take_cell(&mut self, k: usize, n: u32, cpr: u32, table: &SinCosTable) {
+        let k = k % 2;
+        let cell = AngleCell::at(n, cpr, table);
+        self.cell[k] = cell;
+        self.entry[k] = table.entry(cell.coarse().0);
+        self.cpr[k] = cpr;
     }
 }
 
@@ -946,7 +1163,6 @@ mod tests {
                 ..RotaryLocationSpec::ZERO_AC
             };
             let stage = RotaryStage::new(&spec, [upc; 3], [cpr; 2], [0, 1, 2, 3, 4]);
-            let mut cache = RotaryCache::NEW;
             let mut i = 0i64;
             for a in (0..cpr).step_by(9973) {
                 i += 1;
@@ -958,7 +1174,7 @@ mod tests {
                     a as i64,
                     c as i64,
                 ];
-                cache.turn = [a, c as u32];
+                let mut cache = RotaryCache::at_turns([a, c as u32], &stage);
                 stage.refresh(&mut cache);
                 let d =
                     RotaryStage::deviation_um(&cache, stage.counts_from_pivot([n[0], n[1], n[2]]));
@@ -971,18 +1187,80 @@ mod tests {
         assert!(worst < 1e-3, "largest deviation error {worst:e} µm");
     }
 
+    /// Reference: the deviation from the stored angle terms, [`RotaryStage::deviation_um`] after
+    /// [`RotaryStage::refresh`] (what a cycle without an angle change computes); exact (bit for
+    /// bit): the moving cycle's deviation from the terms in registers
+    /// ([`RotaryStage::refresh_deviation`]) is the same, and after it the terms are stored (BC
+    /// kinds) or folded from the kept sin/cos ([`RotaryStage::fold_angles`], AC trunnion) to the
+    /// same bits, for all three kinds over whole turns of both angles. (The bits equal those
+    /// before the fold was deferred: the same operations in the same order.)
+    #[test]
+    fn deviation_of_the_moving_cycle_equals_the_stored_terms() {
+        let cpr = 3_600_000u32;
+        for machine in [
+            RotaryMachine::AcTrunnion,
+            RotaryMachine::BcTrunnion,
+            RotaryMachine::BcHead,
+        ] {
+            let spec = RotaryLocationSpec {
+                machine,
+                ex0c_um: 50.0,
+                ey0c_um: -45.0,
+                ea0c_urad: 100.0,
+                eb0c_urad: -90.0,
+                ey0a_um: 40.0,
+                ez0a_um: -50.0,
+                eb0a_urad: 80.0,
+                ec0a_urad: -100.0,
+                squareness_urad: [30.0, -20.0, 25.0],
+                pivot_counts: [2_000_000, -1_000_000, 3_000_000],
+                tool_length_um: 200_000.0,
+                ..RotaryLocationSpec::ZERO_AC
+            };
+            let stage = RotaryStage::new(&spec, [0.1, 0.2, 0.05], [cpr, cpr / 2], [0, 1, 2, 3, 4]);
+            for (i, a) in (0..cpr).step_by(19_997).enumerate() {
+                let c = (a as u64 * 7 + 1_234_567) % (cpr / 2) as u64;
+                let n = [
+                    i as f32 * 1234.5 - 2.0e6,
+                    3.0e6 - i as f32 * 777.0,
+                    i as f32 * 99.0,
+                ];
+                let mut stored = RotaryCache::at_turns([a, c as u32], &stage);
+                stage.refresh(&mut stored);
+                let want = RotaryStage::deviation_um(&stored, n);
+                let mut moving = RotaryCache::at_turns([a, c as u32], &stage);
+                let d = stage.refresh_deviation(&mut moving, n[0], n[1], n[2]);
+                assert_eq!([d.x, d.y, d.z].map(f32::to_bits), want.map(f32::to_bits));
+                assert_eq!(moving.unfolded, machine == RotaryMachine::AcTrunnion);
+                if moving.unfolded {
+                    stage.fold_angles(&mut moving);
+                }
+                assert!(!moving.unfolded);
+                assert_eq!(moving.k.map(f32::to_bits), stored.k.map(f32::to_bits));
+                assert_eq!(moving.m.map(f32::to_bits), stored.m.map(f32::to_bits));
+            }
+        }
+    }
+
     /// Reference: `wrap` (the 64-bit modulo of the command, what the tracker replaces); exact. The
     /// tracked positions within the turn of both axes equal it after every step — steps within
     /// the turn, across 0 either way, of exactly ± one turn, beyond a turn, beyond i32 and
     /// ±2^62 — for turns of 2 … 2^31 counts, a new turn length (a new image) after a reset of the
     /// cache; and the tracker reports a change exactly when a position changed or it was not
-    /// primed.
+    /// primed. The coarse angle and the remainder it tracks for the sin/cos are those of the
+    /// division ([`SinCosTable::coarse`] of the position; exact).
     #[test]
     fn tracked_turn_positions_equal_the_modulo() {
         let mut next = crate::test_rng::xorshift(0x2545_F491_4F6C_DD1Du64);
         let mut checked = 0u32;
+        let stage_for = |cprs: [u32; 2]| RotaryStage {
+            counts_per_rev: cprs,
+            sincos: [SinCosTable::new(cprs[0]), SinCosTable::new_versine(cprs[1])],
+            ..RotaryStage::ZERO
+        };
         for cpr in [2u32, 3, 1000, 3_600_000, (1 << 31) - 1, 1 << 31] {
             let mut cprs = [cpr, cpr / 2 + 1];
+            let mut stage = stage_for(cprs);
             let mut cache = RotaryCache::NEW;
             let mut cmd = [next() as i64 >> 20, -(next() as i64 >> 30)];
             for i in 0..4000u32 {
@@ -990,8 +1268,9 @@ mod tests {
                     // A new image (other turn lengths) drops the cache.
                     cache = RotaryCache::NEW;
                     cprs = [cpr / 3 + 2, cpr];
+                    stage = stage_for(cprs);
                 }
-                let before = (cache.cpr, cache.turn);
+                let before = (cache.cpr, cache.turn(&stage));
                 for (k, c) in cmd.iter_mut().enumerate() {
                     let t = cprs[k] as i64;
                     let r = next();
@@ -1007,10 +1286,22 @@ mod tests {
                     };
                     *c = c.wrapping_add(step).clamp(-(1 << 62), 1 << 62);
                 }
-                let moved = cache.track(cmd, &cprs);
+                let moved = cache.track(cmd, &stage);
                 let want = [wrap(cmd[0], cprs[0]), wrap(cmd[1], cprs[1])];
-                assert_eq!(cache.turn, want, "turn {cpr}, cycle {i}, commands {cmd:?}");
+                assert_eq!(
+                    cache.turn(&stage),
+                    want,
+                    "turn {cpr}, cycle {i}, commands {cmd:?}"
+                );
                 assert_eq!(cache.cpr, cprs);
+                for (k, &n) in want.iter().enumerate() {
+                    let coarse = stage.sincos[k].coarse(n);
+                    assert_eq!(
+                        cache.cell[k].coarse(),
+                        coarse,
+                        "turn {cpr}, cycle {i}, axis {k}"
+                    );
+                }
                 assert_eq!(moved, before != (cprs, want), "turn {cpr}, cycle {i}");
                 checked += 1;
             }
@@ -1023,12 +1314,12 @@ mod tests {
     /// edges ±2^31, and all three within.
     #[test]
     fn counts_from_pivot_saturates_each_axis() {
+        let p = [1i64 << 40, -(1 << 35), 7];
         let stage = RotaryStage {
-            pivot_counts: [1 << 40, -(1 << 35), 7],
+            pivot_low_counts: p.map(|p| p - (1 << 31)),
             ..RotaryStage::ZERO
         };
         let want = |d: i64| d.clamp(i32::MIN as i64, i32::MAX as i64) as i32 as f32;
-        let p = stage.pivot_counts;
         let offsets = [
             0i64,
             12_345,
