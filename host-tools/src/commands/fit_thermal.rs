@@ -95,7 +95,8 @@ pub struct Args {
     #[arg(long)]
     pub no_forces: bool,
     /// Subtract the mean of the target's first N rows (file order, after --where) so the target is the change
-    /// since the start (e.g. a homing position instead of a deviation).
+    /// since the start (e.g. a homing position instead of a deviation). The model file records that value
+    /// (`target_offset_um`): the firmware corrects the change, `axcomp predict` adds it back.
     #[arg(long, value_name = "N")]
     pub zero_at_start: Option<usize>,
     /// Sensor read period of the firmware (ms), written into the model file.
@@ -383,6 +384,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         let mut file =
             ThermalModelFile::from_fit(&fit, &input, &args.target, args.sensor_period_ms);
+        if args.zero_at_start.is_some() {
+            file.target_offset_um = Some(target_offset);
+        }
         for (col, law) in &laws {
             let f = file
                 .forces

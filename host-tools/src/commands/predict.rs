@@ -3,9 +3,11 @@
 //!
 //! Model kinds, told apart by the file's `format` field:
 //! - positioning table (`axcomp-positioning-table/1`, `axcomp fit positioning --out`): inputs `target_mm`
-//!   (and `direction` for a bidirectional table) → `pred_deviation_um`; a target outside the table's stroke
+//!   (and `direction` for a bidirectional table) → `pred_<target>`, the column the table was fitted on (its
+//!   provenance's `target`; `pred_deviation_um` for a table without provenance); a target outside the table's stroke
 //!   is an error naming the row (the table holds end values there, which is not a prediction).
-//! - thermal model (`axcomp-thermal-model/1`, `axcomp fit thermal --out`): inputs the sensors' `<name>_degC`,
+//! - thermal model (`axcomp-thermal-model/1`, `axcomp fit thermal --out`; a model of `--zero-at-start` adds
+//!   back its `target_offset_um` so that `pred_<target>` predicts the target itself): inputs the sensors' `<name>_degC`,
 //!   `time_s` when a sensor has a lag, the force columns (or `ap_mm`, `fz_mm` and one `*_rpm` column for a
 //!   force given by a law) → `pred_<target>`. The lags run over the rows in file order exactly as in the fit
 //!   (start in equilibrium with the first row, restart where time does not increase). A temperature outside
@@ -20,23 +22,35 @@
 //! - rotary-axis location-error model (`"kind": "rtest"`, `axcomp fit rtest --out`): inputs `x_mm, y_mm,
 //!   z_mm`, `a_deg`|`b_deg`, `c_deg` (and `setup`) → `pred_dx_um, pred_dy_um, pred_dz_um`.
 //!
+//! The common options are those of the fit, but a `--rename`/`--scale` naming a column the file does not
+//! have is skipped with a note (the measured columns may be absent; see [`load_rows`]).
+//!
 //! Nothing is half-written: the output goes to a temporary file beside the target and is renamed.
 
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use axcomp_data::Dataset;
+use axcomp_data::{DataError, Dataset};
 use axcomp_positioning::TableFile;
 use axcomp_probe::{Calibration, Touch};
 use axcomp_thermal::model_file::ThermalModelFile;
 
 use crate::cli::DataArgs;
-use crate::commands::common::load_dataset;
+use crate::commands::common::load_options;
 use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
+#[command(
+    after_help = "The measured columns may be absent: a --rename or --scale naming a column the file \
+does not have (e.g. the fit's rename of the measured column) is skipped with a note. A row the model cannot \
+predict (outside its stroke or range, a missing input) is an error naming the row; nothing is written."
+)]
 pub struct Args {
-    /// A model file written by a `fit` command (positioning table, thermal model, probe calibration).
+    /// A model file written by a `fit` command: positioning table (→ `pred_<target>`, e.g.
+    /// `pred_deviation_um`), thermal model (→ `pred_<target>`), geometry model (→ `pred_ex_um`, `pred_ey_um`,
+    /// `pred_ez_um`, and `pred_deviation_um` when the beams are known), rotary-axis model of `fit rtest` (→
+    /// `pred_dx_um`, `pred_dy_um`, `pred_dz_um`), probe calibration (→ `contact_x_mm`, `contact_y_mm`,
+    /// `contact_z_mm`).
     #[arg(long, value_name = "MODEL")]
     pub model: PathBuf,
     #[command(flatten)]
@@ -87,7 +101,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.planned(&args.out);
     outputs.check()?;
-    let mut ds = load_dataset(&args.data)?;
+    let mut ds = load_rows(&args.data)?;
     let added = match kind {
         ModelKind::Positioning => {
             let table = TableFile::load(&args.model)
@@ -132,11 +146,53 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Loads `--data` with the common options, except that a `--rename` or `--scale` naming a column the file does
+/// not have is skipped with a note on stderr: `predict` needs only the model's inputs (the measured columns
+/// may be absent), and a user passes it the fit's options, whose renames and scales of the measured column
+/// then have nothing to act on. A model input that is still missing (e.g. a typo in its rename) is an error
+/// of the prediction, naming the column.
+fn load_rows(args: &DataArgs) -> anyhow::Result<Dataset> {
+    let mut opts = load_options(args)?;
+    loop {
+        match Dataset::load(&args.data, &opts) {
+            Ok(ds) => return Ok(ds),
+            Err(DataError::MissingColumn {
+                file,
+                name,
+                purpose,
+                ..
+            }) if purpose.contains("--rename") || purpose.contains("--scale") => {
+                let option = if purpose.contains("--rename") {
+                    let k = opts.renames.iter().position(|(old, _)| *old == name);
+                    k.map(|k| {
+                        let (old, new) = opts.renames.remove(k);
+                        format!("--rename {old}={new}")
+                    })
+                } else {
+                    let k = opts.scales.iter().position(|(col, _)| *col == name);
+                    k.map(|k| {
+                        let (col, factor) = opts.scales.remove(k);
+                        format!("--scale {col}={factor}")
+                    })
+                };
+                let Some(option) = option else {
+                    bail!("{file}: missing column `{name}`{purpose}");
+                };
+                eprintln!(
+                    "axcomp: note: {option}: {file} has no column `{name}` (a measured column predict does not \
+                     need?); option skipped"
+                );
+            }
+            Err(e) => return Err(e.into()),
+        }
+    }
+}
+
 fn row_name(ds: &Dataset, row: usize) -> String {
     format!("{}:{} (row {})", ds.source(), ds.line_of_row(row), row + 1)
 }
 
-/// Adds `pred_deviation_um`.
+/// Adds `pred_<target>`: the column the table was fitted on (`pred_deviation_um` by default).
 pub fn predict_positioning(table: &TableFile, ds: &mut Dataset) -> anyhow::Result<Vec<String>> {
     let x = ds.numeric("target_mm")?.to_vec();
     let dir = ds.direction()?;
@@ -163,8 +219,15 @@ pub fn predict_positioning(table: &TableFile, ds: &mut Dataset) -> anyhow::Resul
         let d = dir.as_ref().map_or(0, |d| d[i]);
         pred.push(table.deviation_um(xi, d));
     }
-    ds.add_numeric_column("pred_deviation_um", pred)?;
-    Ok(vec!["pred_deviation_um".into()])
+    let target = table
+        .provenance
+        .as_ref()
+        .map(|p| p.target.as_str())
+        .filter(|t| !t.is_empty())
+        .unwrap_or("deviation_um");
+    let name = format!("pred_{target}");
+    ds.add_numeric_column(&name, pred)?;
+    Ok(vec![name])
 }
 
 /// Adds `pred_<target>`.
@@ -186,7 +249,7 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
     } else {
         vec![0.0; n]
     };
-    let mut pred = vec![m.b0_um; n];
+    let mut pred = vec![m.b0_um + m.target_offset_um.unwrap_or(0.0); n];
     for s in &m.sensors {
         let col = format!("{}_degC", s.name);
         let v = ds.numeric(&col)?.to_vec();

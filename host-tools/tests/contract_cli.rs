@@ -1,0 +1,297 @@
+//! The CLI against the user contract (`../shared/spec/interfaces.md`), through the binary: items an audit of
+//! the contract found the CLI doing differently (one test per item).
+
+use std::path::Path;
+
+mod common;
+use common::{axcomp_in, read_json, scratch};
+
+/// Runs `args` in `dir`: (success, stdout, stderr).
+fn run(args: &[&str], dir: &Path) -> (bool, String, String) {
+    let o = axcomp_in(args, dir);
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn run_ok(args: &[&str], dir: &Path) -> String {
+    let (ok, out, err) = run(args, dir);
+    assert!(ok, "{args:?}:\n{out}\n{err}");
+    out
+}
+
+/// Column `name` of a CSV file (no quoted fields) as numbers.
+fn column(path: &Path, name: &str) -> Vec<f64> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let k = header
+        .iter()
+        .position(|h| *h == name)
+        .unwrap_or_else(|| panic!("no column {name} in {}: {header:?}", path.display()));
+    lines
+        .map(|l| l.split(',').nth(k).unwrap().parse().unwrap())
+        .collect()
+}
+
+fn header(path: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .find(|l| !l.starts_with('#'))
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect()
+}
+
+/// A thermal campaign in the form of the Voron files: a raw position column `pos_steps` (microsteps of
+/// 2.5 µm, far from zero: a homing position), two temperatures `frame_t`, `bed_t` that rise along different
+/// curves, `time_s`, and `phase` (`heat` for the first 150 rows, `cool` after). The position follows
+/// z = 2.5·pos_steps = 50 000 + 3·ΔT_frame − 1.5·ΔT_bed µm exactly (plus a ±0.05 µm deterministic ripple), so
+/// an every-sensor least-squares fit is near exact.
+fn thermal_csv(with_measured: bool) -> String {
+    let mut s = String::from("time_s,frame_t,bed_t,phase");
+    s.push_str(if with_measured { ",pos_steps\n" } else { "\n" });
+    for i in 0..200 {
+        let t = 10.0 * i as f64;
+        let (frame, bed) = if i < 150 {
+            (20.0 + 8.0 * (1.0 - (-t / 600.0).exp()), 20.0 + 0.01 * t)
+        } else {
+            let t0 = 1490.0;
+            let f0 = 20.0 + 8.0 * (1.0 - (-t0 / 600.0f64).exp());
+            (f0 - 0.002 * (t - t0), 20.0 + 0.01 * t0 - 0.008 * (t - t0))
+        };
+        let z =
+            50_000.0 + 3.0 * (frame - 20.0) - 1.5 * (bed - 20.0) + 0.05 * (i as f64 * 1.7).sin();
+        let phase = if i < 150 { "heat" } else { "cool" };
+        s.push_str(&format!("{t},{frame},{bed},{phase}"));
+        if with_measured {
+            s.push_str(&format!(",{}", z / 2.5));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+const THERMAL_RENAMES: [&str; 10] = [
+    "--rename",
+    "pos_steps=z_um",
+    "--scale",
+    "z_um=2.5",
+    "--rename",
+    "frame_t=frame_degC",
+    "--rename",
+    "bed_t=bed_degC",
+    "--target",
+    "z_um",
+];
+
+/// Contract, "Any fitted model": `predict --model MODEL --data F [--where ..] [--rename ..] [--scale ..]`
+/// needs only the model's inputs; the measured columns may be absent. A user (or an outside evaluation)
+/// passes the fit's `--rename`/`--scale` to `predict` on rows without the measured column: the options that
+/// name the absent measured column are skipped (with a note), not an error. A model input that is still
+/// missing (here: a typo in a sensor's rename) stays an error naming the column.
+#[test]
+fn predict_takes_the_fits_rename_and_scale_without_the_measured_column() {
+    let dir = scratch("rename");
+    std::fs::write(dir.join("fit.csv"), thermal_csv(true)).unwrap();
+    std::fs::write(dir.join("rows.csv"), thermal_csv(false)).unwrap();
+    let mut fit = vec![
+        "fit",
+        "thermal",
+        "--data",
+        "fit.csv",
+        "--select",
+        "all",
+        "--holdout",
+        "phase=cool",
+        "--out",
+        "model.json",
+    ];
+    fit.extend(THERMAL_RENAMES);
+    run_ok(&fit, &dir);
+    let mut predict = vec![
+        "predict",
+        "--model",
+        "model.json",
+        "--data",
+        "rows.csv",
+        "--out",
+        "pred.csv",
+    ];
+    predict.extend(&THERMAL_RENAMES[..8]);
+    let (ok, out, err) = run(&predict, &dir);
+    assert!(ok, "{out}\n{err}");
+    assert!(
+        err.contains("pos_steps") && err.contains("--rename"),
+        "the skipped option is named: {err}"
+    );
+    assert_eq!(column(&dir.join("pred.csv"), "pred_z_um").len(), 200);
+    // Same rows with the measured column: the predictions are the same (reference: the run above;
+    // tolerance: none, the same arithmetic).
+    let mut with = predict.clone();
+    with[4] = "fit.csv";
+    with[6] = "pred_with.csv";
+    run_ok(&with, &dir);
+    assert_eq!(
+        column(&dir.join("pred.csv"), "pred_z_um"),
+        column(&dir.join("pred_with.csv"), "pred_z_um")
+    );
+    // A model input missing because of a typo is still an error naming it, and nothing is written.
+    let mut typo = predict.clone();
+    typo[5] = "--out";
+    typo[6] = "pred_typo.csv";
+    let k = typo
+        .iter()
+        .position(|a| *a == "frame_t=frame_degC")
+        .unwrap();
+    typo[k] = "frame_t=frme_degC";
+    let (ok, _, err) = run(&typo, &dir);
+    assert!(!ok && err.contains("frame_degC"), "{err}");
+    assert!(!dir.join("pred_typo.csv").exists());
+}
+
+/// Contract, "Any fitted model": predictions are `pred_<column>`, so that an outside tool can judge the model
+/// on rows it never saw. A thermal model fitted with `--zero-at-start N` models the change since the start;
+/// `pred_z_um` must still be a prediction of `z_um` (the start offset added back), so that the RMS of
+/// `z_um − pred_z_um` on the held-out rows equals the fit's `holdout_rms_um`.
+#[test]
+fn predict_thermal_zero_at_start_predicts_the_target_itself() {
+    let dir = scratch("zero");
+    std::fs::write(dir.join("fit.csv"), thermal_csv(true)).unwrap();
+    let mut fit = vec![
+        "fit",
+        "thermal",
+        "--data",
+        "fit.csv",
+        "--select",
+        "all",
+        "--zero-at-start",
+        "5",
+        "--holdout",
+        "phase=cool",
+        "--out",
+        "model.json",
+        "--json",
+        "fit.json",
+    ];
+    fit.extend(THERMAL_RENAMES);
+    run_ok(&fit, &dir);
+    let mut predict = vec![
+        "predict",
+        "--model",
+        "model.json",
+        "--data",
+        "fit.csv",
+        "--out",
+        "pred.csv",
+    ];
+    predict.extend(&THERMAL_RENAMES[..8]);
+    run_ok(&predict, &dir);
+    let pred = dir.join("pred.csv");
+    let (z, p) = (column(&pred, "z_um"), column(&pred, "pred_z_um"));
+    // Held-out rows: the last 50 (phase=cool).
+    let held: Vec<f64> = (150..200).map(|i| z[i] - p[i]).collect();
+    let rms = (held.iter().map(|r| r * r).sum::<f64>() / held.len() as f64).sqrt();
+    let want = read_json(&dir.join("fit.json"))["holdout_rms_um"]
+        .as_f64()
+        .unwrap();
+    // Reference: the fit's own held-out RMS; tolerance 1e-6 µm (CSV round trip of the values).
+    assert!(
+        (rms - want).abs() < 1e-6,
+        "RMS of z_um − pred_z_um on the held-out rows {rms} µm vs holdout_rms_um {want} µm"
+    );
+}
+
+/// Contract, "Any fitted model": prediction columns are `pred_<column>`. A positioning table fitted with
+/// `--target dev_x_um` predicts `dev_x_um`: `predict` adds `pred_dev_x_um` (not `pred_deviation_um`).
+#[test]
+fn predict_positioning_names_the_column_after_the_fits_target() {
+    let dir = scratch("target");
+    let mut csv = String::from("target_mm,run,direction,dev_x_um\n");
+    for run in 1..=4 {
+        for k in 0..=10 {
+            let x = 10.0 * k as f64;
+            for (d, b) in [("+", 1.0), ("-", -1.0)] {
+                let e = 5.0 * (x / 30.0).sin() + 0.02 * x + b + 0.01 * ((run * 7 + k) as f64).sin();
+                csv.push_str(&format!("{x},{run},{d},{e}\n"));
+            }
+        }
+    }
+    std::fs::write(dir.join("pos.csv"), csv).unwrap();
+    run_ok(
+        &[
+            "fit",
+            "positioning",
+            "--data",
+            "pos.csv",
+            "--target",
+            "dev_x_um",
+            "--out",
+            "table.json",
+        ],
+        &dir,
+    );
+    run_ok(
+        &[
+            "predict",
+            "--model",
+            "table.json",
+            "--data",
+            "pos.csv",
+            "--out",
+            "pred.csv",
+        ],
+        &dir,
+    );
+    let h = header(&dir.join("pred.csv"));
+    assert!(h.contains(&"pred_dev_x_um".to_string()), "{h:?}");
+    assert!(!h.contains(&"pred_deviation_um".to_string()), "{h:?}");
+    // The predictions follow the measured column (reference: the data; tolerance 0.5 µm, the fitted
+    // table's CV RMS is ~0.01 µm on this smooth campaign).
+    let (m, p) = (
+        column(&dir.join("pred.csv"), "dev_x_um"),
+        column(&dir.join("pred.csv"), "pred_dev_x_um"),
+    );
+    for (a, b) in m.iter().zip(&p) {
+        assert!((a - b).abs() < 0.5, "{a} vs {b}");
+    }
+}
+
+/// The help texts say what the CLI does: `predict` takes every model kind the contract lists (its help named
+/// only three), `fit probe --group` reads each group's commanded tool point from `cmd_x_mm, cmd_y_mm,
+/// cmd_z_mm` (its error message sends the user to `--help`, which did not name them), and `diagnose`'s JSON
+/// `where` shares are fractions 0..1 (the help said 0..100 %).
+#[test]
+fn help_texts_agree_with_the_behaviour() {
+    let dir = scratch("help");
+    for args in [&["predict", "--help"][..], &["--help"][..]] {
+        let out = run_ok(args, &dir);
+        for kind in [
+            "positioning table",
+            "thermal model",
+            "geometry model",
+            "rotary-axis model",
+            "probe calibration",
+        ] {
+            assert!(
+                out.contains(kind),
+                "{args:?} does not name `{kind}`:\n{out}"
+            );
+        }
+    }
+    let out = run_ok(&["fit", "probe", "--help"], &dir);
+    for c in ["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"] {
+        assert!(
+            out.contains(c),
+            "fit probe --help does not name {c}:\n{out}"
+        );
+    }
+    let out = run_ok(&["diagnose", "--help"], &dir);
+    assert!(
+        !out.contains("shares are in 0..100 %") && out.contains("0..1"),
+        "diagnose --help on the `where` shares:\n{out}"
+    );
+}
