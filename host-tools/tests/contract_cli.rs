@@ -260,6 +260,53 @@ fn predict_positioning_names_the_column_after_the_fits_target() {
     }
 }
 
+/// Contract, "Any fitted model": `predict` reads any model file that a `fit` command writes; `fit force --out`
+/// writes a force law F = K·ap^x·fz^y·n^z, which `predict` applies to rows without the measured force:
+/// `pred_<force column>`. Reference: the law the noise-free rows were made with, F = 2000·ap·fz^0.75·n^−0.1
+/// (the fit recovers it); tolerance 1e-6 relative.
+#[test]
+fn predict_applies_a_force_law_of_fit_force() {
+    let dir = scratch("force");
+    let law = |ap: f64, fz: f64, n: f64| 2000.0 * ap * fz.powf(0.75) * n.powf(-0.1);
+    let mut fit = String::from("ap_mm,fz_mm,n_rpm,Fc_N\n");
+    let mut rows = String::from("ap_mm,fz_mm,n_rpm\n");
+    for (i, ap) in [0.5, 1.0, 2.0, 3.0].iter().enumerate() {
+        for (j, fz) in [0.05, 0.1, 0.2].iter().enumerate() {
+            let n = 2000.0 + 1000.0 * ((i + 2 * j) % 4) as f64;
+            fit.push_str(&format!("{ap},{fz},{n},{}\n", law(*ap, *fz, n)));
+            let (ap2, fz2) = (ap * 1.1, fz * 0.9);
+            rows.push_str(&format!("{ap2},{fz2},{n}\n"));
+        }
+    }
+    std::fs::write(dir.join("fit.csv"), fit).unwrap();
+    std::fs::write(dir.join("rows.csv"), rows).unwrap();
+    run_ok(
+        &["fit", "force", "--data", "fit.csv", "--out", "law.json"],
+        &dir,
+    );
+    run_ok(
+        &[
+            "predict", "--model", "law.json", "--data", "rows.csv", "--out", "pred.csv",
+        ],
+        &dir,
+    );
+    let pred = dir.join("pred.csv");
+    let (ap, fz, n, f) = (
+        column(&pred, "ap_mm"),
+        column(&pred, "fz_mm"),
+        column(&pred, "n_rpm"),
+        column(&pred, "pred_Fc_N"),
+    );
+    for i in 0..f.len() {
+        let want = law(ap[i], fz[i], n[i]);
+        assert!(
+            ((f[i] - want) / want).abs() < 1e-6,
+            "row {i}: {} N vs {want} N",
+            f[i]
+        );
+    }
+}
+
 /// The help texts say what the CLI does: `predict` takes every model kind the contract lists (its help named
 /// only three), `fit probe --group` reads each group's commanded tool point from `cmd_x_mm, cmd_y_mm,
 /// cmd_z_mm` (its error message sends the user to `--help`, which did not name them), and `diagnose`'s JSON

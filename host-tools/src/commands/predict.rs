@@ -25,6 +25,9 @@
 //! The common options are those of the fit, but a `--rename`/`--scale` naming a column the file does not
 //! have is skipped with a note (the measured columns may be absent; see [`load_rows`]).
 //!
+//! - force law (`axcomp fit force --out`, no `format` field): inputs `ap_mm`, `fz_mm` and one `*_rpm` column
+//!   (none when the law does not depend on the speed) → `pred_<force column>` (e.g. `pred_Fc_N`).
+//!
 //! Nothing is half-written: the output goes to a temporary file beside the target and is renamed.
 
 use std::path::PathBuf;
@@ -33,7 +36,7 @@ use anyhow::{Context, bail};
 use axcomp_data::{DataError, Dataset};
 use axcomp_positioning::TableFile;
 use axcomp_probe::{Calibration, Touch};
-use axcomp_thermal::model_file::ThermalModelFile;
+use axcomp_thermal::model_file::{ModelForceLaw, ThermalModelFile};
 
 use crate::cli::DataArgs;
 use crate::commands::common::load_options;
@@ -50,7 +53,7 @@ pub struct Args {
     /// `pred_deviation_um`), thermal model (→ `pred_<target>`), geometry model (→ `pred_ex_um`, `pred_ey_um`,
     /// `pred_ez_um`, and `pred_deviation_um` when the beams are known), rotary-axis model of `fit rtest` (→
     /// `pred_dx_um`, `pred_dy_um`, `pred_dz_um`), probe calibration (→ `contact_x_mm`, `contact_y_mm`,
-    /// `contact_z_mm`).
+    /// `contact_z_mm`), or a force law of `fit force --out` (→ `pred_<force column>`).
     #[arg(long, value_name = "MODEL")]
     pub model: PathBuf,
     #[command(flatten)]
@@ -68,6 +71,8 @@ pub enum ModelKind {
     Probe,
     Geometry,
     Rtest,
+    /// A force law of `fit force --out` (no `format` field: `k`, `x_ap`, `y_fz`, `z_n`).
+    ForceLaw,
 }
 
 /// Reads the `format` field of a model file.
@@ -80,13 +85,20 @@ pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
     if format.is_empty() && v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
         return Ok(ModelKind::Rtest);
     }
+    if format.is_empty()
+        && ["k", "x_ap", "y_fz", "z_n"]
+            .iter()
+            .all(|k| v[k].is_number())
+    {
+        return Ok(ModelKind::ForceLaw);
+    }
     Ok(match format {
         axcomp_positioning::table_file::FORMAT => ModelKind::Positioning,
         axcomp_thermal::model_file::FORMAT => ModelKind::Thermal,
         axcomp_probe::FORMAT => ModelKind::Probe,
         axcomp_geometry::model::MODEL_FORMAT => ModelKind::Geometry,
         other => bail!(
-            "{}: unknown model format `{other}` (expected {}, {}, {}, {} or an R-test model with \"kind\": \"rtest\")",
+            "{}: unknown model format `{other}` (expected {}, {}, {}, {}, an R-test model with \"kind\": \"rtest\" or a force law of `fit force --out`)",
             path.display(),
             axcomp_positioning::table_file::FORMAT,
             axcomp_thermal::model_file::FORMAT,
@@ -133,6 +145,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let model: axcomp_rtest::RtestModel = serde_json::from_str(&text)
                 .with_context(|| format!("{p}: not an R-test model file"))?;
             predict_rtest(&model, &mut ds)?
+        }
+        ModelKind::ForceLaw => {
+            let p = args.model.display().to_string();
+            let text = std::fs::read_to_string(&args.model)
+                .with_context(|| format!("{p}: cannot read"))?;
+            let law: ModelForceLaw = serde_json::from_str(&text)
+                .with_context(|| format!("{p}: not a force-law file (k, x_ap, y_fz, z_n)"))?;
+            let v: serde_json::Value = serde_json::from_str(&text)?;
+            let column = v["provenance"]["target"].as_str();
+            predict_force_law(&law, column, &mut ds)?
         }
     };
     outputs.file(&args.out, ds.to_csv_string());
@@ -279,47 +301,7 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
                 }
                 v
             }
-            Some(law) => {
-                let ap = ds.numeric("ap_mm")?.to_vec();
-                let fz = ds.numeric("fz_mm")?.to_vec();
-                let rpm_cols: Vec<String> = ds
-                    .column_names()
-                    .into_iter()
-                    .filter(|c| c.ends_with("_rpm"))
-                    .map(str::to_string)
-                    .collect();
-                let nn: Vec<f64> = match rpm_cols.as_slice() {
-                    [c] => ds.numeric(c)?.to_vec(),
-                    [] if law.z_n == 0.0 => vec![1.0; n],
-                    [] => bail!(
-                        "{}: missing a `*_rpm` column: the force law of `{}` depends on the spindle speed",
-                        ds.source(),
-                        f.column
-                    ),
-                    many => bail!(
-                        "{}: several `*_rpm` columns ({}): keep one (e.g. with --rename)",
-                        ds.source(),
-                        many.join(", ")
-                    ),
-                };
-                let mut out = Vec::with_capacity(n);
-                for i in 0..n {
-                    let v =
-                        law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n);
-                    if !v.is_finite() {
-                        bail!(
-                            "{}: the force law of `{}` gives no finite force for ap_mm {}, fz_mm {}, n {}",
-                            row_name(ds, i),
-                            f.column,
-                            ap[i],
-                            fz[i],
-                            nn[i]
-                        );
-                    }
-                    out.push(v);
-                }
-                out
-            }
+            Some(law) => law_force(ds, law, &f.column)?,
         };
         for (p, v) in pred.iter_mut().zip(force) {
             *p += f.chi_um_per_n * v;
@@ -327,6 +309,63 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
     }
     let name = format!("pred_{}", m.target);
     ds.add_numeric_column(&name, pred)?;
+    Ok(vec![name])
+}
+
+/// The force a law `F = k·ap^x·fz^y·n^z` gives on each row, from `ap_mm`, `fz_mm` and the one `*_rpm` column
+/// (none needed when z = 0); `what` names the force in messages. A row without a finite force is an error
+/// naming the row.
+fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Vec<f64>> {
+    let n = ds.n_rows();
+    let ap = ds.numeric("ap_mm")?.to_vec();
+    let fz = ds.numeric("fz_mm")?.to_vec();
+    let rpm_cols: Vec<String> = ds
+        .column_names()
+        .into_iter()
+        .filter(|c| c.ends_with("_rpm"))
+        .map(str::to_string)
+        .collect();
+    let nn: Vec<f64> = match rpm_cols.as_slice() {
+        [c] => ds.numeric(c)?.to_vec(),
+        [] if law.z_n == 0.0 => vec![1.0; n],
+        [] => bail!(
+            "{}: missing a `*_rpm` column: the force law of `{what}` depends on the spindle speed",
+            ds.source()
+        ),
+        many => bail!(
+            "{}: several `*_rpm` columns ({}): keep one (e.g. with --rename)",
+            ds.source(),
+            many.join(", ")
+        ),
+    };
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let v = law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n);
+        if !v.is_finite() {
+            bail!(
+                "{}: the force law of `{what}` gives no finite force for ap_mm {}, fz_mm {}, n {}",
+                row_name(ds, i),
+                ap[i],
+                fz[i],
+                nn[i]
+            );
+        }
+        out.push(v);
+    }
+    Ok(out)
+}
+
+/// Adds `pred_<force column>` (the column the law was fitted on, from its provenance; `pred_force_N` for a
+/// law without provenance).
+pub fn predict_force_law(
+    law: &ModelForceLaw,
+    force_column: Option<&str>,
+    ds: &mut Dataset,
+) -> anyhow::Result<Vec<String>> {
+    let column = force_column.filter(|c| !c.is_empty()).unwrap_or("force_N");
+    let force = law_force(ds, law, column)?;
+    let name = format!("pred_{column}");
+    ds.add_numeric_column(&name, force)?;
     Ok(vec![name])
 }
 
