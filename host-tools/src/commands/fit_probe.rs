@@ -651,6 +651,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+#[allow(clippy::too_many_arguments)] // one call site; the report needs each of them
 fn write_report(
     outputs: &mut OutputSet,
     dir: &std::path::Path,

@@ -452,7 +452,7 @@ fn local_gain(
         .iter()
         .map(|&i| contribution[i].abs())
         .fold(0.0, f64::max);
-    if !(peak > 0.0) {
+    if peak.is_nan() || peak <= 0.0 {
         return None;
     }
     let rows: Vec<usize> = hold
@@ -896,6 +896,7 @@ pub fn judge(
             }
         }
         let mut wins = vec![0usize; effects.len()];
+        #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
         for b in 0..b_count {
             let mut best = (usize::MAX, 0.0f64);
             for &k in &passing {
