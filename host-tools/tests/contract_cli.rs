@@ -307,6 +307,126 @@ fn predict_applies_a_force_law_of_fit_force() {
     }
 }
 
+/// A campaign whose error follows a lagged temperature: z = 5·lag(ΔT_frame, τ = 300 s) − 1.5·ΔT_bed µm, rows
+/// every 10 s, heating then cooling (`phase`). The time is in a column `time` holding seconds (numbers, not
+/// timestamps): the contract reads only a `time` column of timestamps as `time_s`.
+fn lagged_csv() -> String {
+    let mut s = String::from("time,frame_degC,bed_degC,phase,z_um\n");
+    let (mut y, mut prev_t) = (0.0f64, 0.0f64);
+    for i in 0..300 {
+        let t = 10.0 * i as f64;
+        let frame = if i < 200 {
+            8.0 * (1.0 - (-t / 900.0).exp())
+        } else {
+            8.0 * (1.0 - (-1990.0f64 / 900.0).exp()) * (-(t - 1990.0) / 600.0).exp()
+        };
+        let bed = 3.0 * (0.01 * t).sin();
+        let a = 1.0 - (-(t - prev_t) / 300.0).exp();
+        y += a * (frame - y);
+        prev_t = t;
+        let z = 5.0 * y - 1.5 * bed + 0.02 * (i as f64 * 1.3).sin();
+        let phase = if i < 200 { "heat" } else { "cool" };
+        s.push_str(&format!(
+            "{t},{},{},{phase},{z}\n",
+            20.0 + frame,
+            20.0 + bed
+        ));
+    }
+    s
+}
+
+/// Contract, "Measurement CSV": `time_s` is the time since the start, and only a `time` column of timestamps
+/// stands in for it. Without either, `fit thermal` fitted its lags over the row index and wrote the time
+/// constants, in rows, as `tau_s` (seconds: `predict` and the firmware read them so, and `predict` then
+/// refused the same file for want of `time_s`). Now the default choice leaves lagged candidates out and says
+/// why (stderr and `lags_note`), and `--lags` without a time names the `time` column that is not read.
+#[test]
+fn fit_thermal_without_time_has_no_lags_in_rows() {
+    let dir = scratch("notime");
+    std::fs::write(dir.join("c.csv"), lagged_csv()).unwrap();
+    let (ok, out, err) = run(
+        &[
+            "fit",
+            "thermal",
+            "--data",
+            "c.csv",
+            "--target",
+            "z_um",
+            "--holdout",
+            "phase=cool",
+            "--out",
+            "model.json",
+            "--json",
+            "fit.json",
+        ],
+        &dir,
+    );
+    assert!(ok, "{out}\n{err}");
+    let model = read_json(&dir.join("model.json"));
+    for s in model["sensors"].as_array().unwrap() {
+        assert_eq!(s["tau_s"].as_f64(), Some(0.0), "a lag without time: {s}");
+    }
+    let note = read_json(&dir.join("fit.json"))["lags_note"]
+        .as_str()
+        .unwrap_or_default()
+        .to_string();
+    assert!(
+        note.contains("time_s") && note.contains("--rename time=time_s"),
+        "{note}"
+    );
+    assert!(err.contains("lagged candidates left out"), "{err}");
+    // The model applies to the same rows.
+    run_ok(
+        &[
+            "predict",
+            "--model",
+            "model.json",
+            "--data",
+            "c.csv",
+            "--out",
+            "p.csv",
+        ],
+        &dir,
+    );
+    // With the seconds given as `time_s`, the lag is found (reference: τ = 300 s of the data; tolerance
+    // 30 %, the grid and golden-section search of the fit over a 3000 s campaign).
+    run_ok(
+        &[
+            "fit",
+            "thermal",
+            "--data",
+            "c.csv",
+            "--rename",
+            "time=time_s",
+            "--target",
+            "z_um",
+            "--holdout",
+            "phase=cool",
+            "--out",
+            "model_s.json",
+        ],
+        &dir,
+    );
+    let m = read_json(&dir.join("model_s.json"));
+    let frame = m["sensors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "frame")
+        .unwrap()
+        .clone();
+    let tau = frame["tau_s"].as_f64().unwrap();
+    assert!((tau - 300.0).abs() < 90.0, "frame τ {tau} s");
+    // --lags without a time column names the `time` column that is not read.
+    let (ok, _, err) = run(
+        &[
+            "fit", "thermal", "--data", "c.csv", "--target", "z_um", "--select", "all", "--lags",
+        ],
+        &dir,
+    );
+    assert!(!ok && err.contains("--rename time=time_s"), "{err}");
+}
+
 /// The help texts say what the CLI does: `predict` takes every model kind the contract lists (its help named
 /// only three), `fit probe --group` reads each group's commanded tool point from `cmd_x_mm, cmd_y_mm,
 /// cmd_z_mm` (its error message sends the user to `--help`, which did not name them), and `diagnose`'s JSON

@@ -259,8 +259,10 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
     let time: Vec<f64> = if needs_time {
         if !ds.has("time_s") {
             bail!(
-                "{}: missing column `time_s` (or `time`): the model's sensor lags need the time of each row",
-                ds.source()
+                "{}: missing column `time_s` (or a `time` column of timestamps){}: the model's sensor lags need \
+                 the time of each row",
+                ds.source(),
+                crate::commands::common::time_hint(ds)
             );
         }
         let t = ds.numeric("time_s")?.to_vec();
