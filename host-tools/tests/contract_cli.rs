@@ -427,6 +427,73 @@ fn fit_thermal_without_time_has_no_lags_in_rows() {
     assert!(!ok && err.contains("--rename time=time_s"), "{err}");
 }
 
+/// Contract, "Touch probe": `fit probe --json` has `repeatability_2sigma_um`. When the calibration rows
+/// hold no repeated touches (here the twin's run 2 is held out, leaving one run) the figure is `null`, and the
+/// JSON says why instead of leaving a bare null; with both runs it is a number and the note says how it was
+/// measured.
+#[test]
+fn fit_probe_says_why_repeatability_is_null() {
+    let dir = scratch("repeat");
+    run_ok(
+        &[
+            "sim-probe",
+            "--plan",
+            "probe-cal",
+            "--out",
+            "t.csv",
+            "--seed",
+            "3",
+        ],
+        &dir,
+    );
+    run_ok(
+        &[
+            "fit",
+            "probe",
+            "--data",
+            "t.csv",
+            "--sphere-diameter-mm",
+            "25",
+            "--holdout",
+            "run=2",
+            "--json",
+            "h.json",
+        ],
+        &dir,
+    );
+    let j = read_json(&dir.join("h.json"));
+    assert!(
+        j["repeatability_2sigma_um"].is_null(),
+        "{}",
+        j["repeatability_2sigma_um"]
+    );
+    let note = j["repeatability_note"].as_str().unwrap_or_default();
+    assert!(note.contains("no repeated touches"), "{note:?}");
+    run_ok(
+        &[
+            "fit",
+            "probe",
+            "--data",
+            "t.csv",
+            "--sphere-diameter-mm",
+            "25",
+            "--json",
+            "a.json",
+        ],
+        &dir,
+    );
+    let j = read_json(&dir.join("a.json"));
+    // Reference: the twin probe's repeatability 2σ of about 1 µm (README); tolerance: 0.3 … 3 µm.
+    let r = j["repeatability_2sigma_um"].as_f64().unwrap();
+    assert!((0.3..3.0).contains(&r), "{r}");
+    assert!(
+        j["repeatability_note"]
+            .as_str()
+            .unwrap_or_default()
+            .contains("pooled")
+    );
+}
+
 /// The help texts say what the CLI does: `predict` takes every model kind the contract lists (its help named
 /// only three), `fit probe --group` reads each group's commanded tool point from `cmd_x_mm, cmd_y_mm,
 /// cmd_z_mm` (its error message sends the user to `--help`, which did not name them), and `diagnose`'s JSON

@@ -530,6 +530,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "chosen_why": res.why,
         },
         "repeatability_2sigma_um": res.repeatability_2sigma_um,
+        "repeatability_note": if res.repeatability_2sigma_um.is_some() {
+            "pooled standard deviation of the radial distance over repeated touches (same direction and speed) \
+             of the calibration rows, times 2"
+        } else {
+            "null: no repeated touches (same direction and speed) among the calibration rows; the data cannot \
+             determine the repeatability (held-out rows are not used for it)"
+        },
         "repeat_groups": res.repeat_groups,
         "fit_rms_um": cal.fit_rms_um,
         "holdout_rms_um": holdout_rms,
