@@ -37,7 +37,7 @@ pub enum Command {
     Diagnose(commands::diagnose::Args),
     /// Check the diagnosis on many twin campaigns with one effect withheld (detection, attribution, false alarms).
     ValidateDiagnosis(commands::validate_diagnosis::Args),
-    /// Apply a fitted model file (positioning table, thermal model, probe calibration) to the rows of a CSV and write them with the predictions added.
+    /// Apply a fitted model file (positioning table, thermal model, geometry model, rotary-axis model, probe calibration, force law) to the rows of a CSV and write them with the predictions added.
     Predict(commands::predict::Args),
     /// Simulate touches of the twin's touch-trigger probe (calibration sphere, or a sphere, ring gauge and plane) as a touch CSV.
     SimProbe(commands::fit_probe::SimArgs),

@@ -564,6 +564,7 @@ fn twin_compensated_through_the_core_stage() {
             let per_mm = 1000.0 / UPC as f64;
             let core = twin.compensated_volume(lo, hi, 11, tool, |q| {
                 let mut input = GroupInput::ZERO;
+                #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
                 for k in 0..3 {
                     let c = (q[k] * per_mm).round() as i64;
                     input.axes[k].command_counts = c;

@@ -157,6 +157,7 @@ fn thermal_model() -> ThermalModelFile {
         }],
         raw_rms_um: 0.0,
         holdout_rms_um: None,
+        target_offset_um: None,
     }
 }
 

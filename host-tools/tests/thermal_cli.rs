@@ -309,6 +309,7 @@ fn greedy_lags_holdout_rms(
             if used[s] {
                 continue;
             }
+            #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
             for t in 0..taus.len() {
                 let mut cols = chosen.clone();
                 cols.push(lagged[s][t].clone());

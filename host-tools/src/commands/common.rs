@@ -27,6 +27,17 @@ pub fn load_dataset(args: &DataArgs) -> anyhow::Result<Dataset> {
     Ok(Dataset::load(&args.data, &opts)?)
 }
 
+/// For a message about a missing `time_s`: when the file has a `time` column that is not read as timestamps
+/// (numbers, or another date form), says so and how to give seconds.
+pub fn time_hint(ds: &Dataset) -> &'static str {
+    if ds.has("time") {
+        " (its `time` column is not read as timestamps such as `2021-06-13 05:42:16`; if it holds seconds, \
+         give it as `time_s` with --rename time=time_s)"
+    } else {
+        ""
+    }
+}
+
 /// `--holdout` / `--cv` into a [`Split`] (`None` when neither is given; both is an error).
 pub fn split_from(holdout: Option<&str>, cv: Option<&str>) -> anyhow::Result<Option<Split>> {
     Ok(Split::from_args(holdout, cv)?)

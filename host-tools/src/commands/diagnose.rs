@@ -128,12 +128,15 @@ fn run_axis(args: Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
     write_diagnosis(outputs, report, args.json.as_deref(), &d)
 }
 
+/// The report's files: the directory and each file's path and bytes.
+type ReportFiles<'a> = (&'a std::path::Path, Vec<(std::path::PathBuf, Vec<u8>)>);
+
 /// The end of every `diagnose` data kind: the report's files (`--report DIR`, `None` without it) and the
 /// JSON (`--json`) join the planned outputs, everything is written together, and the number of report
 /// files is said.
 pub(super) fn write_diagnosis<T: serde::Serialize>(
     mut outputs: OutputSet,
-    report: Option<(&std::path::Path, Vec<(std::path::PathBuf, Vec<u8>)>)>,
+    report: Option<ReportFiles<'_>>,
     json: Option<&std::path::Path>,
     value: &T,
 ) -> anyhow::Result<()> {

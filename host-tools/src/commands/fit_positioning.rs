@@ -825,6 +825,7 @@ fn drift_model_file(
         forces: vec![],
         raw_rms_um: raw_rms,
         holdout_rms_um: Some(judged_rms),
+        target_offset_um: None,
     };
     m.validate()
         .map_err(|e| anyhow::anyhow!("the warm-up drift model is not usable: {e}"))?;

@@ -39,7 +39,7 @@ How it works: algebraic sphere fit, then Levenberg–Marquardt geometric fits (c
 
 Correction (axcomp predict --model CAL): contact = latched + r_eff(n, v)·approach.
 
-Five-axis poses (--group COL,.. --centres-out F.csv, the probe route of `fit rtest`): the probe is calibrated on the first group (pose); every group's centre is fitted with that calibration (outlier flags iterated about the centre of the kept touches). The R-test rows carry the group columns, `path` and `setup` when the touches have them (constant per group), dx_um, dy_um, dz_um, then the calibration's error every centre shares: zero1_dx_um, zero1_dy_um, zero1_dz_um, zero2_… (the coefficients' covariance from the calibration fit propagated through each centre fit; each triplet one independent standard-uncertainty component, µm; JSON shared_zero), which `fit rtest` propagates into the location errors' standard uncertainties.
+Five-axis poses (--group COL,.. --centres-out F.csv, the probe route of `fit rtest`): the touch CSV also needs cmd_x_mm, cmd_y_mm, cmd_z_mm, the position the linear axes were commanded to at that pose (constant within a group: the tool point at the sphere's nominal centre by the nominal kinematics); the R-test row's x_mm, y_mm, z_mm are that commanded position and dx_um, dy_um, dz_um the fitted centre minus it. The probe is calibrated on the first group (pose); every group's centre is fitted with that calibration (outlier flags iterated about the centre of the kept touches). The R-test rows carry the group columns, `path` and `setup` when the touches have them (constant per group), dx_um, dy_um, dz_um, then the calibration's error every centre shares: zero1_dx_um, zero1_dy_um, zero1_dz_um, zero2_… (the coefficients' covariance from the calibration fit propagated through each centre fit; each triplet one independent standard-uncertainty component, µm; JSON shared_zero), which `fit rtest` propagates into the location errors' standard uncertainties.
 
 diameter_error_um is judged on the held-out rows (--holdout, an artefact of --holdout-diameter-mm); without --holdout it is computed on the calibration rows, where the model fixes the diameter (after ≈ 0 by construction): use a held-out artefact to judge.
 
@@ -70,7 +70,8 @@ pub struct Args {
     /// Outlier threshold in robust standard deviations of the radial residual.
     #[arg(long, default_value_t = 6.0, value_name = "K")]
     pub outlier_mad: f64,
-    /// Columns naming a pose (e.g. a_deg,c_deg): fit one sphere centre per group.
+    /// Columns naming a pose (e.g. a_deg,c_deg): fit one sphere centre per group. Each group's commanded tool
+    /// point is read from the columns cmd_x_mm, cmd_y_mm, cmd_z_mm (constant within the group).
     #[arg(long, value_delimiter = ',', value_name = "COL,..")]
     pub group: Vec<String>,
     /// With --group: write one R-test row per group (x_mm,y_mm,z_mm,<group cols>[,path,setup],dx_um,
@@ -529,6 +530,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "chosen_why": res.why,
         },
         "repeatability_2sigma_um": res.repeatability_2sigma_um,
+        "repeatability_note": if res.repeatability_2sigma_um.is_some() {
+            "pooled standard deviation of the radial distance over repeated touches (same direction and speed) \
+             of the calibration rows, times 2"
+        } else {
+            "null: no repeated touches (same direction and speed) among the calibration rows; the data cannot \
+             determine the repeatability (held-out rows are not used for it)"
+        },
         "repeat_groups": res.repeat_groups,
         "fit_rms_um": cal.fit_rms_um,
         "holdout_rms_um": holdout_rms,
@@ -650,6 +658,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+#[allow(clippy::too_many_arguments)] // one call site; the report needs each of them
 fn write_report(
     outputs: &mut OutputSet,
     dir: &std::path::Path,

@@ -95,7 +95,8 @@ pub struct Args {
     #[arg(long)]
     pub no_forces: bool,
     /// Subtract the mean of the target's first N rows (file order, after --where) so the target is the change
-    /// since the start (e.g. a homing position instead of a deviation).
+    /// since the start (e.g. a homing position instead of a deviation). The model file records that value
+    /// (`target_offset_um`): the firmware corrects the change, `axcomp predict` adds it back.
     #[arg(long, value_name = "N")]
     pub zero_at_start: Option<usize>,
     /// Sensor read period of the firmware (ms), written into the model file.
@@ -131,7 +132,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(0) = args.zero_at_start {
         bail!("--zero-at-start 0: must be at least 1");
     }
-    let opts = ThermalOptions {
+    let mut opts = ThermalOptions {
         // The default choice always compares lagged candidates (unless --no-lags); a forced selection fits
         // lags only with --lags.
         lags: if forced_selection {
@@ -208,6 +209,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         target_offset = target[..k].iter().sum::<f64>() / k as f64;
         target.iter_mut().for_each(|v| *v -= target_offset);
     }
+    // Without the time of each row a lag's time constant would be in rows, not seconds (and `predict` and
+    // the firmware read it as seconds): the default choice then has no lagged candidates.
+    let mut lags_note: Option<String> = None;
     let time_s: Vec<f64> = match ds.time_s() {
         Some(t) => t.to_vec(),
         None if args.lags => {
@@ -215,11 +219,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 ds.numeric("time_s")?;
             }
             bail!(
-                "--lags needs a `time_s` (or `time`) column in {}",
-                args.data.data.display()
+                "--lags needs a `time_s` column (or a `time` column of timestamps) in {}{}",
+                args.data.data.display(),
+                crate::commands::common::time_hint(&ds)
             );
         }
-        None => (0..n).map(|i| i as f64).collect(),
+        None => {
+            if ds.has("time_s") {
+                ds.numeric("time_s")?;
+            }
+            if opts.lags {
+                opts.lags = false;
+                let note = format!(
+                    "{}: no `time_s` column (nor a `time` column of timestamps){}: lagged candidates left out \
+                     (a time constant needs the time of each row)",
+                    args.data.data.display(),
+                    crate::commands::common::time_hint(&ds)
+                );
+                eprintln!("axcomp: note: {note}");
+                lags_note = Some(note);
+            }
+            (0..n).map(|i| i as f64).collect()
+        }
     };
     let mut names = ds.sensors();
     if !args.sensors.is_empty() {
@@ -353,6 +374,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         o.insert("target".into(), args.target.clone().into());
         o.insert("target_offset_um".into(), target_offset.into());
         o.insert("model_written".into(), write_model.into());
+        if let Some(note) = &lags_note {
+            o.insert("lags_note".into(), note.clone().into());
+        }
         let text = serde_json::to_string_pretty(&v)?;
         outputs.file(path, text);
     }
@@ -383,6 +407,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         let mut file =
             ThermalModelFile::from_fit(&fit, &input, &args.target, args.sensor_period_ms);
+        if args.zero_at_start.is_some() {
+            file.target_offset_um = Some(target_offset);
+        }
         for (col, law) in &laws {
             let f = file
                 .forces

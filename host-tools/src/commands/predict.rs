@@ -3,9 +3,11 @@
 //!
 //! Model kinds, told apart by the file's `format` field:
 //! - positioning table (`axcomp-positioning-table/1`, `axcomp fit positioning --out`): inputs `target_mm`
-//!   (and `direction` for a bidirectional table) → `pred_deviation_um`; a target outside the table's stroke
+//!   (and `direction` for a bidirectional table) → `pred_<target>`, the column the table was fitted on (its
+//!   provenance's `target`; `pred_deviation_um` for a table without provenance); a target outside the table's stroke
 //!   is an error naming the row (the table holds end values there, which is not a prediction).
-//! - thermal model (`axcomp-thermal-model/1`, `axcomp fit thermal --out`): inputs the sensors' `<name>_degC`,
+//! - thermal model (`axcomp-thermal-model/1`, `axcomp fit thermal --out`; a model of `--zero-at-start` adds
+//!   back its `target_offset_um` so that `pred_<target>` predicts the target itself): inputs the sensors' `<name>_degC`,
 //!   `time_s` when a sensor has a lag, the force columns (or `ap_mm`, `fz_mm` and one `*_rpm` column for a
 //!   force given by a law) → `pred_<target>`. The lags run over the rows in file order exactly as in the fit
 //!   (start in equilibrium with the first row, restart where time does not increase). A temperature outside
@@ -20,23 +22,38 @@
 //! - rotary-axis location-error model (`"kind": "rtest"`, `axcomp fit rtest --out`): inputs `x_mm, y_mm,
 //!   z_mm`, `a_deg`|`b_deg`, `c_deg` (and `setup`) → `pred_dx_um, pred_dy_um, pred_dz_um`.
 //!
+//! The common options are those of the fit, but a `--rename`/`--scale` naming a column the file does not
+//! have is skipped with a note (the measured columns may be absent; see [`load_rows`]).
+//!
+//! - force law (`axcomp fit force --out`, no `format` field): inputs `ap_mm`, `fz_mm` and one `*_rpm` column
+//!   (none when the law does not depend on the speed) → `pred_<force column>` (e.g. `pred_Fc_N`).
+//!
 //! Nothing is half-written: the output goes to a temporary file beside the target and is renamed.
 
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use axcomp_data::Dataset;
+use axcomp_data::{DataError, Dataset};
 use axcomp_positioning::TableFile;
 use axcomp_probe::{Calibration, Touch};
-use axcomp_thermal::model_file::ThermalModelFile;
+use axcomp_thermal::model_file::{ModelForceLaw, ThermalModelFile};
 
 use crate::cli::DataArgs;
-use crate::commands::common::load_dataset;
+use crate::commands::common::load_options;
 use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
+#[command(
+    after_help = "The measured columns may be absent: a --rename or --scale naming a column the file \
+does not have (e.g. the fit's rename of the measured column) is skipped with a note. A row the model cannot \
+predict (outside its stroke or range, a missing input) is an error naming the row; nothing is written."
+)]
 pub struct Args {
-    /// A model file written by a `fit` command (positioning table, thermal model, probe calibration).
+    /// A model file written by a `fit` command: positioning table (→ `pred_<target>`, e.g.
+    /// `pred_deviation_um`), thermal model (→ `pred_<target>`), geometry model (→ `pred_ex_um`, `pred_ey_um`,
+    /// `pred_ez_um`, and `pred_deviation_um` when the beams are known), rotary-axis model of `fit rtest` (→
+    /// `pred_dx_um`, `pred_dy_um`, `pred_dz_um`), probe calibration (→ `contact_x_mm`, `contact_y_mm`,
+    /// `contact_z_mm`), or a force law of `fit force --out` (→ `pred_<force column>`).
     #[arg(long, value_name = "MODEL")]
     pub model: PathBuf,
     #[command(flatten)]
@@ -54,6 +71,8 @@ pub enum ModelKind {
     Probe,
     Geometry,
     Rtest,
+    /// A force law of `fit force --out` (no `format` field: `k`, `x_ap`, `y_fz`, `z_n`).
+    ForceLaw,
 }
 
 /// Reads the `format` field of a model file.
@@ -66,13 +85,20 @@ pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
     if format.is_empty() && v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
         return Ok(ModelKind::Rtest);
     }
+    if format.is_empty()
+        && ["k", "x_ap", "y_fz", "z_n"]
+            .iter()
+            .all(|k| v[k].is_number())
+    {
+        return Ok(ModelKind::ForceLaw);
+    }
     Ok(match format {
         axcomp_positioning::table_file::FORMAT => ModelKind::Positioning,
         axcomp_thermal::model_file::FORMAT => ModelKind::Thermal,
         axcomp_probe::FORMAT => ModelKind::Probe,
         axcomp_geometry::model::MODEL_FORMAT => ModelKind::Geometry,
         other => bail!(
-            "{}: unknown model format `{other}` (expected {}, {}, {}, {} or an R-test model with \"kind\": \"rtest\")",
+            "{}: unknown model format `{other}` (expected {}, {}, {}, {}, an R-test model with \"kind\": \"rtest\" or a force law of `fit force --out`)",
             path.display(),
             axcomp_positioning::table_file::FORMAT,
             axcomp_thermal::model_file::FORMAT,
@@ -87,7 +113,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.planned(&args.out);
     outputs.check()?;
-    let mut ds = load_dataset(&args.data)?;
+    let mut ds = load_rows(&args.data)?;
     let added = match kind {
         ModelKind::Positioning => {
             let table = TableFile::load(&args.model)
@@ -120,6 +146,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .with_context(|| format!("{p}: not an R-test model file"))?;
             predict_rtest(&model, &mut ds)?
         }
+        ModelKind::ForceLaw => {
+            let p = args.model.display().to_string();
+            let text = std::fs::read_to_string(&args.model)
+                .with_context(|| format!("{p}: cannot read"))?;
+            let law: ModelForceLaw = serde_json::from_str(&text)
+                .with_context(|| format!("{p}: not a force-law file (k, x_ap, y_fz, z_n)"))?;
+            let v: serde_json::Value = serde_json::from_str(&text)?;
+            let column = v["provenance"]["target"].as_str();
+            predict_force_law(&law, column, &mut ds)?
+        }
     };
     outputs.file(&args.out, ds.to_csv_string());
     outputs.commit()?;
@@ -132,11 +168,53 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Loads `--data` with the common options, except that a `--rename` or `--scale` naming a column the file does
+/// not have is skipped with a note on stderr: `predict` needs only the model's inputs (the measured columns
+/// may be absent), and a user passes it the fit's options, whose renames and scales of the measured column
+/// then have nothing to act on. A model input that is still missing (e.g. a typo in its rename) is an error
+/// of the prediction, naming the column.
+fn load_rows(args: &DataArgs) -> anyhow::Result<Dataset> {
+    let mut opts = load_options(args)?;
+    loop {
+        match Dataset::load(&args.data, &opts) {
+            Ok(ds) => return Ok(ds),
+            Err(DataError::MissingColumn {
+                file,
+                name,
+                purpose,
+                ..
+            }) if purpose.contains("--rename") || purpose.contains("--scale") => {
+                let option = if purpose.contains("--rename") {
+                    let k = opts.renames.iter().position(|(old, _)| *old == name);
+                    k.map(|k| {
+                        let (old, new) = opts.renames.remove(k);
+                        format!("--rename {old}={new}")
+                    })
+                } else {
+                    let k = opts.scales.iter().position(|(col, _)| *col == name);
+                    k.map(|k| {
+                        let (col, factor) = opts.scales.remove(k);
+                        format!("--scale {col}={factor}")
+                    })
+                };
+                let Some(option) = option else {
+                    bail!("{file}: missing column `{name}`{purpose}");
+                };
+                eprintln!(
+                    "axcomp: note: {option}: {file} has no column `{name}` (a measured column predict does not \
+                     need?); option skipped"
+                );
+            }
+            Err(e) => return Err(e.into()),
+        }
+    }
+}
+
 fn row_name(ds: &Dataset, row: usize) -> String {
     format!("{}:{} (row {})", ds.source(), ds.line_of_row(row), row + 1)
 }
 
-/// Adds `pred_deviation_um`.
+/// Adds `pred_<target>`: the column the table was fitted on (`pred_deviation_um` by default).
 pub fn predict_positioning(table: &TableFile, ds: &mut Dataset) -> anyhow::Result<Vec<String>> {
     let x = ds.numeric("target_mm")?.to_vec();
     let dir = ds.direction()?;
@@ -163,8 +241,15 @@ pub fn predict_positioning(table: &TableFile, ds: &mut Dataset) -> anyhow::Resul
         let d = dir.as_ref().map_or(0, |d| d[i]);
         pred.push(table.deviation_um(xi, d));
     }
-    ds.add_numeric_column("pred_deviation_um", pred)?;
-    Ok(vec!["pred_deviation_um".into()])
+    let target = table
+        .provenance
+        .as_ref()
+        .map(|p| p.target.as_str())
+        .filter(|t| !t.is_empty())
+        .unwrap_or("deviation_um");
+    let name = format!("pred_{target}");
+    ds.add_numeric_column(&name, pred)?;
+    Ok(vec![name])
 }
 
 /// Adds `pred_<target>`.
@@ -174,8 +259,10 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
     let time: Vec<f64> = if needs_time {
         if !ds.has("time_s") {
             bail!(
-                "{}: missing column `time_s` (or `time`): the model's sensor lags need the time of each row",
-                ds.source()
+                "{}: missing column `time_s` (or a `time` column of timestamps){}: the model's sensor lags need \
+                 the time of each row",
+                ds.source(),
+                crate::commands::common::time_hint(ds)
             );
         }
         let t = ds.numeric("time_s")?.to_vec();
@@ -186,7 +273,7 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
     } else {
         vec![0.0; n]
     };
-    let mut pred = vec![m.b0_um; n];
+    let mut pred = vec![m.b0_um + m.target_offset_um.unwrap_or(0.0); n];
     for s in &m.sensors {
         let col = format!("{}_degC", s.name);
         let v = ds.numeric(&col)?.to_vec();
@@ -216,47 +303,7 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
                 }
                 v
             }
-            Some(law) => {
-                let ap = ds.numeric("ap_mm")?.to_vec();
-                let fz = ds.numeric("fz_mm")?.to_vec();
-                let rpm_cols: Vec<String> = ds
-                    .column_names()
-                    .into_iter()
-                    .filter(|c| c.ends_with("_rpm"))
-                    .map(str::to_string)
-                    .collect();
-                let nn: Vec<f64> = match rpm_cols.as_slice() {
-                    [c] => ds.numeric(c)?.to_vec(),
-                    [] if law.z_n == 0.0 => vec![1.0; n],
-                    [] => bail!(
-                        "{}: missing a `*_rpm` column: the force law of `{}` depends on the spindle speed",
-                        ds.source(),
-                        f.column
-                    ),
-                    many => bail!(
-                        "{}: several `*_rpm` columns ({}): keep one (e.g. with --rename)",
-                        ds.source(),
-                        many.join(", ")
-                    ),
-                };
-                let mut out = Vec::with_capacity(n);
-                for i in 0..n {
-                    let v =
-                        law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n);
-                    if !v.is_finite() {
-                        bail!(
-                            "{}: the force law of `{}` gives no finite force for ap_mm {}, fz_mm {}, n {}",
-                            row_name(ds, i),
-                            f.column,
-                            ap[i],
-                            fz[i],
-                            nn[i]
-                        );
-                    }
-                    out.push(v);
-                }
-                out
-            }
+            Some(law) => law_force(ds, law, &f.column)?,
         };
         for (p, v) in pred.iter_mut().zip(force) {
             *p += f.chi_um_per_n * v;
@@ -264,6 +311,63 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
     }
     let name = format!("pred_{}", m.target);
     ds.add_numeric_column(&name, pred)?;
+    Ok(vec![name])
+}
+
+/// The force a law `F = k·ap^x·fz^y·n^z` gives on each row, from `ap_mm`, `fz_mm` and the one `*_rpm` column
+/// (none needed when z = 0); `what` names the force in messages. A row without a finite force is an error
+/// naming the row.
+fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Vec<f64>> {
+    let n = ds.n_rows();
+    let ap = ds.numeric("ap_mm")?.to_vec();
+    let fz = ds.numeric("fz_mm")?.to_vec();
+    let rpm_cols: Vec<String> = ds
+        .column_names()
+        .into_iter()
+        .filter(|c| c.ends_with("_rpm"))
+        .map(str::to_string)
+        .collect();
+    let nn: Vec<f64> = match rpm_cols.as_slice() {
+        [c] => ds.numeric(c)?.to_vec(),
+        [] if law.z_n == 0.0 => vec![1.0; n],
+        [] => bail!(
+            "{}: missing a `*_rpm` column: the force law of `{what}` depends on the spindle speed",
+            ds.source()
+        ),
+        many => bail!(
+            "{}: several `*_rpm` columns ({}): keep one (e.g. with --rename)",
+            ds.source(),
+            many.join(", ")
+        ),
+    };
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let v = law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n);
+        if !v.is_finite() {
+            bail!(
+                "{}: the force law of `{what}` gives no finite force for ap_mm {}, fz_mm {}, n {}",
+                row_name(ds, i),
+                ap[i],
+                fz[i],
+                nn[i]
+            );
+        }
+        out.push(v);
+    }
+    Ok(out)
+}
+
+/// Adds `pred_<force column>` (the column the law was fitted on, from its provenance; `pred_force_N` for a
+/// law without provenance).
+pub fn predict_force_law(
+    law: &ModelForceLaw,
+    force_column: Option<&str>,
+    ds: &mut Dataset,
+) -> anyhow::Result<Vec<String>> {
+    let column = force_column.filter(|c| !c.is_empty()).unwrap_or("force_N");
+    let force = law_force(ds, law, column)?;
+    let name = format!("pred_{column}");
+    ds.add_numeric_column(&name, force)?;
     Ok(vec![name])
 }
 

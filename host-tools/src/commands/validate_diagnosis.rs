@@ -126,7 +126,7 @@ fn run_rtest(args: &Args) -> anyhow::Result<()> {
     }
     .build()
     .map_err(anyhow::Error::msg)?;
-    let outputs = planned_outputs(&args)?;
+    let outputs = planned_outputs(args)?;
     let total = opts.cases;
     let summary = validate(&opts, |c| {
         eprintln!(
@@ -150,7 +150,7 @@ fn run_rtest(args: &Args) -> anyhow::Result<()> {
         );
     })
     .map_err(anyhow::Error::msg)?;
-    write_summary(&args, outputs, &summary.to_markdown(), &summary)?;
+    write_summary(args, outputs, &summary.to_markdown(), &summary)?;
     Ok(())
 }
 

@@ -97,7 +97,7 @@ pub fn per_target_outliers(
         return None;
     }
     let s = 1.4826 * median(&mut pooled);
-    if !(s > 0.0) {
+    if s.is_nan() || s <= 0.0 {
         return None;
     }
     let flagged: Vec<usize> = (0..n).filter(|&i| resid[i].abs() > OUTLIER_K * s).collect();

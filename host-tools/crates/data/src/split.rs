@@ -217,7 +217,7 @@ pub fn groups(ds: &Dataset, col: &str) -> Result<(Vec<usize>, Vec<String>), Data
     for t in text {
         let t = t.trim();
         let key = match parse_number(t) {
-            Some(v) if v == 0.0 => Key::Number(0),
+            Some(0.0) => Key::Number(0),
             Some(v) => Key::Number(v.to_bits()),
             None => Key::Text(t.to_string()),
         };

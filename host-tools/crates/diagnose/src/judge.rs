@@ -307,7 +307,7 @@ pub const TIE_EVIDENCE: f64 = 2.0;
 pub const VERDICT_RULE: &str = "a candidate explains the gap when (1) the refit of the whole model with it passes the training F-test at alpha, Bonferroni-corrected over every searched variant, and (2) its held-out improvement is material: the held-out RMS falls by at least 5 % of the gap and by at least 0.05 σ (σ: the refit's training residual standard deviation); neither threshold depends on the number of held-out rows. A candidate acting on at most half of the held-out rows (where its fitted contribution reaches 25 % of its peak; at least 20 rows) is also material when, on those rows, the held-out RMS falls by at least 20 % and by at least 0.25 σ (a localised effect such as an end decay cannot move the RMS of the whole campaign by 5 %). Ties between explaining candidates are resolved by held-out evidence: the one with the lowest held-out RMS leads, and a simpler candidate (a physical input before the sensor-free time_drift, then fewer parameters, then thermal_drift before thermal_lag) is preferred unless the leader beats it on the held-out rows significantly (paired t of the squared residuals ≥ 2) and either by a margin (the simpler one removes < 90 % of the held-out squared gap the leader removes) or with positive evidence (held-out ΔBIC ≥ 2); otherwise the two are ties. Shares of `where` are fractions in 0..1.";
 
 /// The verdict rule as `axcomp diagnose --help` prints it.
-pub const VERDICT_HELP: &str = "Verdict rule (also in the JSON as `verdict_rule`, with per candidate `material`, `holdout_gain_um`, `noise_um`): a candidate explains the gap when (1) the refit of the whole model with it passes the training F-test at alpha = 0.01, Bonferroni-corrected over every searched variant, and (2) its held-out improvement is material: the held-out RMS falls by at least 5 % of the gap and by at least 0.05 σ (σ: the refit's training residual standard deviation). Neither threshold depends on the number of held-out rows. A candidate acting on at most half of the held-out rows (where its fitted contribution reaches 25 % of its peak; at least 20 rows) is also material when, on those rows, the held-out RMS falls by at least 20 % and by at least 0.25 σ (a localised effect such as an end decay cannot move the RMS of the whole campaign by 5 %). Ties are resolved by held-out evidence: the lowest held-out RMS leads; a simpler candidate (a physical input before the sensor-free time_drift, then fewer parameters, then thermal_drift before thermal_lag) is preferred unless the leader beats it on the held-out rows significantly (paired t ≥ 2) and either by a margin (the simpler one removes < 90 % of the held-out squared gap the leader removes) or with positive evidence (held-out ΔBIC ≥ 2). `where` shares are in 0..100 %.";
+pub const VERDICT_HELP: &str = "Verdict rule (also in the JSON as `verdict_rule`, with per candidate `material`, `holdout_gain_um`, `noise_um`): a candidate explains the gap when (1) the refit of the whole model with it passes the training F-test at alpha = 0.01, Bonferroni-corrected over every searched variant, and (2) its held-out improvement is material: the held-out RMS falls by at least 5 % of the gap and by at least 0.05 σ (σ: the refit's training residual standard deviation). Neither threshold depends on the number of held-out rows. A candidate acting on at most half of the held-out rows (where its fitted contribution reaches 25 % of its peak; at least 20 rows) is also material when, on those rows, the held-out RMS falls by at least 20 % and by at least 0.25 σ (a localised effect such as an end decay cannot move the RMS of the whole campaign by 5 %). Ties are resolved by held-out evidence: the lowest held-out RMS leads; a simpler candidate (a physical input before the sensor-free time_drift, then fewer parameters, then thermal_drift before thermal_lag) is preferred unless the leader beats it on the held-out rows significantly (paired t ≥ 2) and either by a margin (the simpler one removes < 90 % of the held-out squared gap the leader removes) or with positive evidence (held-out ΔBIC ≥ 2). `where` shares are fractions 0..1 of the held-out gap (the console prints them in %).";
 
 /// Whether a held-out RMS reduction `gain_um` is material next to the gap `gap_um` and the noise `sigma_um`.
 pub fn is_material(gain_um: f64, gap_um: f64, sigma_um: f64) -> bool {
@@ -452,7 +452,7 @@ fn local_gain(
         .iter()
         .map(|&i| contribution[i].abs())
         .fold(0.0, f64::max);
-    if !(peak > 0.0) {
+    if peak.is_nan() || peak <= 0.0 {
         return None;
     }
     let rows: Vec<usize> = hold
@@ -896,6 +896,7 @@ pub fn judge(
             }
         }
         let mut wins = vec![0usize; effects.len()];
+        #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
         for b in 0..b_count {
             let mut best = (usize::MAX, 0.0f64);
             for &k in &passing {

@@ -166,7 +166,7 @@ fn orthonormal(cols: Vec<Vec<f64>>, rows: &[usize]) -> Vec<Vec<f64>> {
     let mut basis: Vec<Vec<f64>> = Vec::new();
     for mut c in cols {
         let s = rms_on(&c, rows);
-        if !(s > 1e-300) {
+        if s.is_nan() || s <= 1e-300 {
             continue;
         }
         for &i in rows {
@@ -309,6 +309,7 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
                 size[i] = 1.0;
             }
             let mut out = vec![size];
+            #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
             for k in 0..3 {
                 let mut c = zero();
                 for &i in &rows {
@@ -327,7 +328,7 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
             for &i in &rows {
                 let q = sub(d.touches[i].position_mm, s.center_mm);
                 let l = norm(q);
-                if !(l > 0.0) {
+                if l.is_nan() || l <= 0.0 {
                     return Err(format!(
                         "{}: the touch is at the fitted sphere centre",
                         d.labels[i]
@@ -341,6 +342,7 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
             let m = rows.len().max(1) as f64;
             let mut pbar = [0.0; 3];
             for &i in &rows {
+                #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
                 for k in 0..3 {
                     pbar[k] += d.touches[i].position_mm[k] / m;
                 }
@@ -634,7 +636,7 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
                 .iter()
                 .map(|&i| dt[i])
                 .fold(0.0f64, |a, x| a.max(x.abs()));
-            if !(spread > 1e-6) {
+            if spread.is_nan() || spread <= 1e-6 {
                 continue;
             }
             let drift: Vec<Vec<f64>> = (0..3)

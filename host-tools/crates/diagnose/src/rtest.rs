@@ -337,6 +337,7 @@ pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<Rtest
     for i in 0..n {
         let m =
             axcomp_rtest::model_displacement(&machine, &data.poses[i], data.setup[i], &fit.theta);
+        #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
         for c in 0..3 {
             y.push(data.d_um[i][c] - m[c]);
         }
@@ -347,6 +348,7 @@ pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<Rtest
     let names = data.param_names();
     let mut base_columns = Vec::new();
     let mut base_names = Vec::new();
+    #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
     for k in 0..j.ncols() {
         if fit.ident.estimated[k] {
             base_columns.push(j.column(k).iter().cloned().collect::<Vec<f64>>());

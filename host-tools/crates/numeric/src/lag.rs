@@ -50,26 +50,6 @@ pub fn lag(time_s: &[f64], u: &[f64], tau_s: f64) -> Vec<f64> {
     out
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn step_response_matches_exponential() {
-        // Step from 0 to 1 at t=0+, sampled irregularly: y(t) = 1 − exp(−t/τ) exactly for the exact
-        // discretisation (reference: analytic step response; tolerance 1e-12).
-        let t = [0.0, 0.5, 1.7, 2.0, 5.0, 11.0, 30.0];
-        let u = [0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0];
-        let y = lag(&t, &u, 4.0);
-        // Input is held at u_k over (t_{k-1}, t_k] in this discretisation.
-        for k in 1..t.len() {
-            let want = 1.0 - (-(t[k]) / 4.0).exp();
-            assert!((y[k] - want).abs() < 1e-12, "k={k}: {} vs {want}", y[k]);
-        }
-        assert_eq!(lag(&t, &u, 0.0), u.to_vec());
-    }
-}
-
 /// First-order lag of `u` with time constant `tau_s`, rows visited in `order` (time order), the
 /// diagnosis's regressor.
 ///
@@ -92,4 +72,24 @@ pub fn lag_ordered(u: &[f64], t: &[f64], order: &[usize], tau_s: f64) -> Vec<f64
         t_prev = t[i];
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn step_response_matches_exponential() {
+        // Step from 0 to 1 at t=0+, sampled irregularly: y(t) = 1 − exp(−t/τ) exactly for the exact
+        // discretisation (reference: analytic step response; tolerance 1e-12).
+        let t = [0.0, 0.5, 1.7, 2.0, 5.0, 11.0, 30.0];
+        let u = [0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+        let y = lag(&t, &u, 4.0);
+        // Input is held at u_k over (t_{k-1}, t_k] in this discretisation.
+        for k in 1..t.len() {
+            let want = 1.0 - (-(t[k]) / 4.0).exp();
+            assert!((y[k] - want).abs() < 1e-12, "k={k}: {} vs {want}", y[k]);
+        }
+        assert_eq!(lag(&t, &u, 0.0), u.to_vec());
+    }
 }

@@ -129,6 +129,9 @@ fn min_of(it: impl Iterator<Item = f64>) -> f64 {
     it.fold(f64::INFINITY, f64::min)
 }
 
+/// One target's deviations: (target mm, positive-approach deviations, negative-approach deviations).
+type TargetGroup = (f64, Vec<f64>, Vec<f64>);
+
 /// The deviations of points `0..n` grouped by target: (target mm, positive-approach deviations,
 /// negative-approach deviations), targets ascending, a target within [`TARGET_TOLERANCE_MM`] of the
 /// previous one merged into it. Errors for no points, a non-finite value or a direction other than ±1
@@ -136,7 +139,7 @@ fn min_of(it: impl Iterator<Item = f64>) -> f64 {
 fn group_by_target(
     n: usize,
     point: impl Fn(usize) -> Point,
-) -> Result<Vec<(f64, Vec<f64>, Vec<f64>)>, Iso230Error> {
+) -> Result<Vec<TargetGroup>, Iso230Error> {
     if n == 0 {
         return Err(Iso230Error::Empty);
     }

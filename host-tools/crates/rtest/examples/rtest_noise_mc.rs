@@ -19,7 +19,7 @@ fn main() {
         let twin = FiveAxisTwin::random(m, seed);
         let mut est: Vec<Vec<f64>> = vec![Vec::new(); N_LOCATION];
         let mut var: Vec<f64> = vec![0.0; N_LOCATION];
-        let mut within = vec![0usize; N_LOCATION];
+        let mut within = [0usize; N_LOCATION];
         for draw in 0..n {
             let f = common::measure_and_fit(&twin, fitted, 100_000 + draw);
             for k in 0..N_LOCATION {

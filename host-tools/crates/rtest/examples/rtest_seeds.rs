@@ -23,6 +23,7 @@ fn main() {
                 let mut twin = FiveAxisTwin::random(m, seed);
                 twin.noise_um = noise;
                 let f = common::measure_and_fit(&twin, fitted, seed);
+                #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
                 for k in 0..N_LOCATION {
                     let e = f.theta[k] - twin.location[k];
                     if noise > 0.0 {

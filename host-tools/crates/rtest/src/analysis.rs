@@ -119,6 +119,7 @@ fn judge(
                 )));
             }
             let mut pred = vec![[0.0; 3]; n];
+            #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
             for g in 0..labels.len() {
                 let train: Vec<usize> = all.iter().copied().filter(|&r| ids[r] != g).collect();
                 let test: Vec<usize> = all.iter().copied().filter(|&r| ids[r] == g).collect();

@@ -250,6 +250,7 @@ impl RtestData {
         // Repeats within one (path, run, set-up) group must agree.
         let mut seen: HashMap<(String, String, usize, [u64; 5]), usize> = HashMap::new();
         let mut path_count: HashMap<(String, String), (usize, usize)> = HashMap::new();
+        #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
         for i in 0..n {
             let p = &self.poses[i];
             let key = [

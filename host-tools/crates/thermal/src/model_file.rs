@@ -62,6 +62,11 @@ pub struct ThermalModelFile {
     /// Held-out figures at fit time (for the record).
     pub raw_rms_um: f64,
     pub holdout_rms_um: Option<f64>,
+    /// The target's value at the start, subtracted before the fit (`fit thermal --zero-at-start N`: the mean
+    /// of the first N rows), µm. The model (and the firmware) predicts the change since the start; `axcomp
+    /// predict` adds this back so that `pred_<target>` predicts the target itself. Absent: 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_offset_um: Option<f64>,
 }
 
 /// Owned storage for a [`axcomp_core::ThermoForceSpec`].
@@ -161,6 +166,7 @@ impl ThermalModelFile {
                 .collect(),
             raw_rms_um: fit.raw_rms_um,
             holdout_rms_um: fit.holdout_rms_um,
+            target_offset_um: None,
         }
     }
 

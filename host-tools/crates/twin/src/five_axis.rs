@@ -303,8 +303,7 @@ impl FiveAxisTwin {
         };
         let (rt, rc) = (rot(tilt_axis, t), rot(2, c));
         let mut extra = [0.0; 3];
-        let lin_q;
-        match self.machine.kind {
+        let lin_q = match self.machine.kind {
             MachineKind::BcHead => {
                 let tool = [0.0, 0.0, -self.machine.pivot_mm];
                 let v_b = mul(rt, tool);
@@ -316,7 +315,7 @@ impl FiveAxisTwin {
                 for i in 0..3 {
                     extra[i] -= cz[i] + wv[i] + r[i] + rc_inner[i];
                 }
-                lin_q = self.machine.linear_positions(pose);
+                self.machine.linear_positions(pose)
             }
             _ => {
                 let s: [f64; 3] = std::array::from_fn(|i| sphere_mm[i] + setup_um[i] * 1e-3);
@@ -330,9 +329,9 @@ impl FiveAxisTwin {
                 for i in 0..3 {
                     extra[i] += outer[i] + tz[i];
                 }
-                lin_q = pose.p_mm;
+                pose.p_mm
             }
-        }
+        };
         for i in 0..3 {
             d[i] += extra[i] * 1e3;
         }
@@ -548,6 +547,7 @@ mod tests {
                     &twin.location,
                     twin.setup_offsets_um[0],
                 );
+                #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
                 for i in 0..3 {
                     assert!((d[i] - r.d_um[i]).abs() < 1e-12);
                 }

@@ -499,6 +499,7 @@ impl MachineErrorField {
         ];
         let qq = [q[0] * q[1], q[0] * q[2], q[1] * q[2]];
         let mut e = [0.0; 3];
+        #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
         for k in 0..3 {
             for j in 0..3 {
                 e[k] += self.linear[k][j] * q[j]
@@ -537,7 +538,7 @@ impl TouchDisturbances {
     /// first-order lag (`sensor_lag_s`).
     pub fn sensed_delta_t_k(&self, t_s: f64) -> f64 {
         let (tau, lag) = (self.warmup_tau_s, self.sensor_lag_s);
-        if !(lag > 0.0) || !(tau > 0.0) {
+        if lag.is_nan() || lag <= 0.0 || tau.is_nan() || tau <= 0.0 {
             return self.delta_t_k(t_s);
         }
         // Response of a first-order lag to A·(1 − e^{−t/τ}) from rest.
@@ -602,6 +603,7 @@ pub fn simulate_disturbed_touches(
             shift_um[k] += extra_um * u[k];
         }
         let mut touch = t;
+        #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
         for k in 0..3 {
             touch.latched_mm[k] += shift_um[k] * 1e-3;
         }

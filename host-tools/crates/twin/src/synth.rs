@@ -322,7 +322,8 @@ pub fn spindle_campaign(seed: u64, dt_s: f64) -> SpindleCampaign {
     };
     let data = simulate(&cfg, &mut rng, time_s, condition, spindle_rpm, ap_mm, fz_mm);
     // Channel truths: (true sensors, µm/K, τ / s, b0 / µm, χ / µm/N).
-    let truths: [([usize; 3], [f64; 3], [f64; 3], f64, f64); 5] = [
+    type ChannelTruth = ([usize; 3], [f64; 3], [f64; 3], f64, f64);
+    let truths: [ChannelTruth; 5] = [
         (
             [1, 6, 11],
             [3.0, -2.0, 1.5],

@@ -400,7 +400,10 @@ pub fn make_case(opts: &ValidateOptions, index: usize) -> Result<CaseData, Strin
         )
         .map_err(|e| format!("case {index}: {e}"))?;
         let left_peak = hold.iter().map(|&i| left[i].abs()).fold(0.0, f64::max);
-        if !(left_peak > MIN_UNABSORBED_FRACTION * raw_peak) {
+        // Not above the bound, or either side NaN.
+        if left_peak.partial_cmp(&(MIN_UNABSORBED_FRACTION * raw_peak))
+            != Some(std::cmp::Ordering::Greater)
+        {
             return Err(format!(
                 "case {index}: the told model absorbs the withheld {w} (its part left over peaks at {left_peak:.3e} of {raw_peak:.3e} µm)"
             ));
@@ -444,7 +447,7 @@ pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, Stri
     let hold = obs.holdout_rows();
     let train = obs.train_rows();
     let t0 = Instant::now();
-    let d = engine::diagnose(&obs, &model, &DiagnoseOptions::default())?;
+    let d = engine::diagnose(obs, model, &DiagnoseOptions::default())?;
     let seconds = t0.elapsed().as_secs_f64();
 
     let expected = withheld.map_or("none", |w| w.name());

@@ -376,7 +376,7 @@ pub fn make_case(opts: &ProbeValidateOptions, index: usize) -> Result<ProbeCase,
     let raw_peak = peak(&contrib);
     let left_peak = peak(&base_residual(&c0, &contrib));
     let p = raw_peak.min(left_peak);
-    if !(p > 1e-9) {
+    if p.is_nan() || p <= 1e-9 {
         return Err(format!(
             "case {index}: withheld {kind} does not show on the held-out touches (peak {p:.3e} µm)"
         ));

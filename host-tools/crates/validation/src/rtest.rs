@@ -275,7 +275,7 @@ pub fn make_case(opts: &RtestValidateOptions, index: usize) -> Result<RtestCase,
             .collect();
         let raw = held_out_peak(&contrib, &obs.held_out);
         let un = held_out_peak(&unabsorbed, &obs.held_out);
-        if !(raw > 0.0) {
+        if raw.is_nan() || raw <= 0.0 {
             return Err(format!(
                 "case {index}: withheld effect {w} is zero on the held-out poses"
             ));
@@ -294,7 +294,7 @@ pub fn make_case(opts: &RtestValidateOptions, index: usize) -> Result<RtestCase,
         snr,
         unabsorbed_peak_ratio,
         contribution,
-        noise_seed: seed ^ 0x6e6f_6973_65,
+        noise_seed: seed ^ 0x006e_6f69_7365,
     })
 }
 
