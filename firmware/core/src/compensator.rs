@@ -120,7 +120,7 @@ pub type Compensator = AxisCompensator<OwnTable>;
 /// coefficient pool of an axis group ([`crate::group`]).
 #[derive(Debug, Clone)]
 #[repr(C)]
-pub struct AxisCompensator<S> {
+pub struct AxisCompensator<S: TableStore> {
     pub(crate) loaded: bool,
     pub(crate) axis_id: u16,
     pub(crate) counter_bits: u8,
@@ -163,7 +163,10 @@ pub struct AxisCompensator<S> {
     pub(crate) has_thermo: bool,
     pub(crate) sensor_period_ms: u32,
     pub(crate) n_sensors: u8,
-    pub(crate) sensors: [SensorRt; MAX_SENSORS],
+    /// The sensors' settings where the storage keeps them with the axis ([`OwnTable`]: all
+    /// [`MAX_SENSORS`]); a group keeps its axes' in an array of their own (`()` here), so that
+    /// the per-cycle fields of all five axes are within short load offsets of the group.
+    pub(crate) sensors: S::Sensors,
     pub(crate) b0_um: f32,
     pub(crate) has_expansion: bool,
     pub(crate) expansion_sensor: u8,
@@ -196,6 +199,10 @@ pub trait TableStore {
     fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: Direction, seg: u32) -> &'a [f32; 4];
     /// True if axes with this storage may be rotary (turn tracking compiled in).
     const TURNS: bool = false;
+    /// The sensors' settings kept in the axis itself (see [`AxisCompensator`]'s field).
+    type Sensors: core::fmt::Debug + Clone;
+    /// [`TableStore::Sensors`] of the identity (all zero bytes).
+    const NO_SENSORS: Self::Sensors;
 }
 
 /// The single-axis table storage: forward segments at `0..n`, backward at
@@ -204,6 +211,8 @@ pub trait TableStore {
 pub struct OwnTable(pub(crate) [[f32; 4]; 2 * MAX_SEGMENTS]);
 
 impl TableStore for OwnTable {
+    type Sensors = [SensorRt; MAX_SENSORS];
+    const NO_SENSORS: Self::Sensors = [SensorRt::ZERO; MAX_SENSORS];
     #[inline(always)]
     fn segment<'a>(&'a self, _pool: &'a [[f32; 4]], dir: Direction, seg: u32) -> &'a [f32; 4] {
         // (The direction's byte, 0 or 128, times MAX_SEGMENTS / 128: the backward half's offset.)
@@ -213,7 +222,7 @@ impl TableStore for OwnTable {
     }
 }
 
-impl<S> AxisCompensator<S> {
+impl<S: TableStore> AxisCompensator<S> {
     /// The identity (zero correction, valid) with table storage `table`.
     pub const fn identity_with(table: S) -> AxisCompensator<S> {
         AxisCompensator {
@@ -236,7 +245,7 @@ impl<S> AxisCompensator<S> {
             has_thermo: false,
             sensor_period_ms: 0,
             n_sensors: 0,
-            sensors: [SensorRt::ZERO; MAX_SENSORS],
+            sensors: S::NO_SENSORS,
             b0_um: 0.0,
             has_expansion: false,
             expansion_sensor: 0,

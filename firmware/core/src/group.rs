@@ -38,13 +38,15 @@
 //! computes (the same functions; tested bit for bit).
 
 use crate::MAX_FORCES;
+use crate::MAX_SENSORS;
 use crate::compensator::{AxisCompensator, CycleInput, CycleOutput, Flags, State, TableStore};
 use crate::counter::{Direction, wrap};
 use crate::error::{Field, ImageError};
 use crate::geometric::{GeometricSpec, GeometricStage};
 use crate::image::{self, Layout};
 use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryStage};
-use crate::thermo::ProcessParams;
+use crate::spec::SensorSpec;
+use crate::thermo::{ProcessParams, SensorRt};
 use crate::trace::{
     OutputRecord, Record, STATUS_IMAGE_ACCEPTED, STATUS_IMAGE_REJECTED, STATUS_NO_IMAGE,
 };
@@ -171,6 +173,9 @@ const ZERO_SEGMENT: [f32; 4] = [0.0; 4];
 
 impl TableStore for PoolTable {
     const TURNS: bool = true;
+    // In `Group::sensors`.
+    type Sensors = ();
+    const NO_SENSORS: () = ();
     #[inline(always)]
     fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: Direction, seg: u32) -> &'a [f32; 4] {
         // In range for a loaded group (checked at load). The remainder is a no-op for valid
@@ -280,9 +285,12 @@ impl GroupState {
 /// One validated group (one A/B slot of a [`GroupEngine`]): up to five axis pipelines, the
 /// cross-axis stage and the coefficient pool of `POOL` segments. All zero bytes when new.
 #[derive(Debug, Clone)]
-// In this order (not the compiler's): the pipelines, the dispatch byte and the small fields (no
-// padding before the stages), then the stages, each within the reach of a load's 12-bit offset
-// from the group's address in the cycle's code, then the pool.
+// In this order (not the compiler's): the pipelines (without their sensors' settings: every
+// axis's per-cycle fields within a float load's 8-bit scaled offset of the group's address), the
+// dispatch byte and the small fields (no padding before the stages), the sensors' settings, then
+// the stages, each within the reach of a load's 12-bit offset from the group's address in the
+// cycle's code (where they were before the sensors moved: the geometric stage measured +4
+// right after the small fields, +5 after the sensors), then the pool.
 #[repr(C)]
 pub struct Group<const POOL: usize> {
     axes: [AxisCompensator<PoolTable>; MAX_AXES],
@@ -297,6 +305,9 @@ pub struct Group<const POOL: usize> {
     /// Per slot: bit 0 rotary, bit 1 has a thermo-force term (the cycle's dispatch).
     kinds: [u8; MAX_AXES],
     counts_per_rev: [u32; MAX_AXES],
+    /// The axes' sensor settings (used at the sensors' rate only), by slot: not in the axes, so
+    /// that their per-cycle fields are within short load offsets of the group's address.
+    sensors: [[SensorRt; MAX_SENSORS]; MAX_AXES],
     /// The volumetric geometric stage, if loaded (its functions follow the tables in the pool).
     /// `None` is all zero bytes (the niche of the stage's non-zero segment lengths), so a new
     /// group, and a `static` engine holding it, is all zero bytes (`.bss`, nothing copied at boot).
@@ -324,6 +335,7 @@ impl<const POOL: usize> Group<POOL> {
             mode: CycleMode::None,
             stage: RotaryStage::ZERO,
             geometric: None,
+            sensors: [[SensorRt::ZERO; MAX_SENSORS]; MAX_AXES],
             axes: [const { AxisCompensator::identity_with(PoolTable { base: [0; 2] }) }; MAX_AXES],
             pool: [[0.0; 4]; POOL],
         }
@@ -374,6 +386,7 @@ impl<const POOL: usize> Group<POOL> {
             let Some(l) = l else { continue };
             let dst = &mut self.axes[i];
             image::copy_params_into(l, a.image, dst);
+            image::copy_sensors_into(l, a.image, &mut self.sensors[i]);
             let n = l.n_segments as u32;
             let halves = if l.bidirectional { 2 } else { 1 };
             for d in 0..halves {
@@ -527,9 +540,26 @@ impl<const POOL: usize> Group<POOL> {
         now_ms: u32,
         readings: &[f32],
     ) {
-        if let (Some(a), Some(s)) = (self.axes.get(i), st.axes.get_mut(i)) {
-            a.update_temperatures(s, now_ms, readings);
+        if let (Some(a), Some(s), Some(cfgs)) =
+            (self.axes.get(i), st.axes.get_mut(i), self.sensors.get(i))
+        {
+            a.update_temperatures_with(cfgs, s, now_ms, readings);
         }
+    }
+    /// Settings of sensor `j` of slot `i` (what [`AxisCompensator::sensor`] is for one axis).
+    pub fn sensor(&self, i: usize, j: usize) -> Option<SensorSpec> {
+        let (a, cfgs) = (self.axes.get(i)?, self.sensors.get(i)?);
+        crate::thermo::sensor_spec(cfgs, a.n_sensors, j)
+    }
+    /// b_j (µm/K) of sensor `j` of slot `i`.
+    pub fn b_um_per_k(&self, i: usize, j: usize) -> Option<f32> {
+        let (a, cfgs) = (self.axes.get(i)?, self.sensors.get(i)?);
+        crate::thermo::sensor_b_alpha(cfgs, a.n_sensors, j).map(|(b, _)| b)
+    }
+    /// Lag coefficient α of sensor `j` of slot `i` (1 = no lag).
+    pub fn lag_alpha(&self, i: usize, j: usize) -> Option<f32> {
+        let (a, cfgs) = (self.axes.get(i)?, self.sensors.get(i)?);
+        crate::thermo::sensor_b_alpha(cfgs, a.n_sensors, j).map(|(_, al)| al)
     }
     /// Process parameters for every axis ([`AxisCompensator::set_process`]).
     pub fn set_process(&self, st: &mut GroupState, p: &ProcessParams) {

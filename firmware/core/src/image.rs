@@ -501,6 +501,29 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
         }
     }
     copy_params_into(l, b, c);
+    copy_sensors_into(l, b, &mut c.sensors);
+}
+
+/// Copy the sensors' settings of a validated image into `cfgs` (the axis's own or its group's
+/// array; all zero beyond the image's sensors).
+pub(crate) fn copy_sensors_into(l: &Layout, b: &[u8], cfgs: &mut [SensorRt; MAX_SENSORS]) {
+    *cfgs = [SensorRt::ZERO; MAX_SENSORS];
+    let Some(o) = l.thermo else { return };
+    let period_s = u32_at(b, o) as f32 * 0.001;
+    for (i, s) in cfgs.iter_mut().enumerate().take(l.n_sensors) {
+        let at = o + THERMO_HEADER_LEN + SENSOR_LEN * i;
+        let tau = f32_at(b, at + 16);
+        *s = SensorRt {
+            reference_degc: f32_at(b, at),
+            min_degc: f32_at(b, at + 4),
+            max_degc: f32_at(b, at + 8),
+            max_rate_degc_per_s: f32_at(b, at + 12),
+            lag_tau_s: tau,
+            stale_timeout_ms: u32_at(b, at + 20),
+            b_um_per_k: f32_at(b, at + 24),
+            alpha: lag_alpha(period_s, tau),
+        };
+    }
 }
 
 /// Copy everything but the table segments of a validated image into `c` (cannot fail).
@@ -563,10 +586,8 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
     c.measured = crate::thermo::MeasuredSet::None;
     c.thermo_flags_xor = 0;
     c.laws = [crate::thermo::ZERO_LAW; MAX_FORCES];
-    c.sensors = [SensorRt::ZERO; MAX_SENSORS];
     if let Some(o) = l.thermo {
         let period = u32_at(b, o);
-        let period_s = period as f32 * 0.001;
         c.sensor_period_ms = period;
         c.n_sensors = l.n_sensors as u8;
         c.b0_um = f32_at(b, o + 8);
@@ -575,20 +596,6 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
         c.c_um_per_mm_k = f32_at(b, o + 12);
         c.x_ref_counts = i64_at(b, o + 16);
         c.expansion_um_per_count_k = c.c_um_per_mm_k * upc * 0.001;
-        for (i, s) in c.sensors.iter_mut().enumerate().take(l.n_sensors) {
-            let at = o + THERMO_HEADER_LEN + SENSOR_LEN * i;
-            let tau = f32_at(b, at + 16);
-            *s = SensorRt {
-                reference_degc: f32_at(b, at),
-                min_degc: f32_at(b, at + 4),
-                max_degc: f32_at(b, at + 8),
-                max_rate_degc_per_s: f32_at(b, at + 12),
-                lag_tau_s: tau,
-                stale_timeout_ms: u32_at(b, at + 20),
-                b_um_per_k: f32_at(b, at + 24),
-                alpha: lag_alpha(period_s, tau),
-            };
-        }
         c.n_forces = l.n_forces as u8;
         if l.n_sensors > 0 {
             c.thermo_flags_xor = crate::Flags::THERMAL_FROZEN.0;

@@ -72,7 +72,7 @@ impl<S: TableStore> AxisCompensator<S> {
     }
 }
 
-impl<S> AxisCompensator<S> {
+impl<S: TableStore> AxisCompensator<S> {
     /// The slew limit, µm per cycle (0 for the identity).
     #[inline(always)]
     pub(crate) fn max_slew_um_per_cycle(&self) -> f32 {

@@ -8,7 +8,7 @@
 //!   the [`State`]; the cycle only adds them (see [`Compensator::cycle`]).
 //! - **stale**: no accepted reading for `stale_timeout_ms`; the thermal contribution freezes.
 
-use crate::compensator::{AxisCompensator, Flags, State, TableStore};
+use crate::compensator::{AxisCompensator, Flags, OwnTable, State, TableStore};
 use crate::spec::{ExpansionSpec, ForceLaw, ForceSpec, SensorSpec};
 use crate::{MAX_FORCE_N, MAX_FORCE_TERM_UM, MAX_FORCES, MAX_SENSORS, RECOVERY_READINGS};
 
@@ -68,7 +68,7 @@ impl MeasuredSet {
 
 /// Validated sensor settings with the derived lag coefficient.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct SensorRt {
+pub struct SensorRt {
     pub(crate) reference_degc: f32,
     pub(crate) min_degc: f32,
     pub(crate) max_degc: f32,
@@ -165,34 +165,6 @@ impl<S: TableStore> AxisCompensator<S> {
     pub fn sensor_count(&self) -> usize {
         self.n_sensors as usize
     }
-    /// Settings of sensor `i`.
-    pub fn sensor(&self, i: usize) -> Option<SensorSpec> {
-        if i >= self.n_sensors as usize {
-            return None;
-        }
-        self.sensors.get(i).map(|s| SensorSpec {
-            reference_degc: s.reference_degc,
-            min_degc: s.min_degc,
-            max_degc: s.max_degc,
-            max_rate_degc_per_s: s.max_rate_degc_per_s,
-            lag_tau_s: s.lag_tau_s,
-            stale_timeout_ms: s.stale_timeout_ms,
-        })
-    }
-    /// b_i of sensor `i`, µm/K.
-    pub fn b_um_per_k(&self, i: usize) -> Option<f32> {
-        if i >= self.n_sensors as usize {
-            return None;
-        }
-        self.sensors.get(i).map(|s| s.b_um_per_k)
-    }
-    /// Lag coefficient α of sensor `i` (1 = no lag).
-    pub fn lag_alpha(&self, i: usize) -> Option<f32> {
-        if i >= self.n_sensors as usize {
-            return None;
-        }
-        self.sensors.get(i).map(|s| s.alpha)
-    }
     /// Constant term b0, µm.
     pub fn b0_um(&self) -> f32 {
         self.b0_um
@@ -231,25 +203,15 @@ impl<S: TableStore> AxisCompensator<S> {
         })
     }
 
-    /// Sensor-rate update: health checks, lags, and the cached thermal contribution.
-    ///
-    /// `readings[i]` is sensor i in °C; NaN (or a missing entry) = no reading. Call it every
-    /// `sensor_period_ms` (the lag coefficients assume that period), also when the image has no
-    /// sensors: the cycle adds a cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted), refreshed here
-    /// and in [`AxisCompensator::set_process`] (a fresh [`State`] contributes 0 until then). Rules:
-    /// - a reading is accepted if finite, within `[min_degc, max_degc]` and, after the first
-    ///   accepted one, within `max_rate_degc_per_s · (now − time of the last accepted reading)` of
-    ///   the last accepted value; otherwise it is rejected (counted) and the last good value held;
-    /// - each lag advances once per call with the last accepted value as input; it starts at the
-    ///   first accepted reading (no transient from 0);
-    /// - a sensor without an accepted reading for more than `stale_timeout_ms` (counted from the
-    ///   first call for a sensor that never reported) is stale; it recovers after
-    ///   [`RECOVERY_READINGS`] consecutive accepted readings;
-    /// - the thermal contribution (Σ b_i·ΔT_i and the expansion coefficient) is recomputed only
-    ///   while every sensor has reported and none is stale; otherwise it stays frozen at the last
-    ///   good value (THERMAL_FROZEN); SENSOR_FAULT while any sensor is stale or its last reading
-    ///   was rejected.
-    pub fn update_temperatures(&self, st: &mut State, now_ms: u32, readings: &[f32]) {
+    /// [`AxisCompensator::update_temperatures`] with the sensors' settings `cfgs` (the axis's
+    /// own, or its group's array: [`crate::group::Group::update_temperatures`]).
+    pub(crate) fn update_temperatures_with(
+        &self,
+        cfgs: &[SensorRt; MAX_SENSORS],
+        st: &mut State,
+        now_ms: u32,
+        readings: &[f32],
+    ) {
         if !self.loaded || !self.has_thermo {
             return;
         }
@@ -263,7 +225,7 @@ impl<S: TableStore> AxisCompensator<S> {
         let mut all_healthy = true;
         let mut any_stale = false;
         let mut fault = false;
-        for (i, (cfg, s)) in self.sensors.iter().zip(st.sensors.iter_mut()).enumerate() {
+        for (i, (cfg, s)) in cfgs.iter().zip(st.sensors.iter_mut()).enumerate() {
             if i >= n {
                 break;
             }
@@ -348,7 +310,7 @@ impl<S: TableStore> AxisCompensator<S> {
         st.thermo_bits = bits ^ self.thermo_flags_xor;
         if all_healthy {
             let mut sum = 0.0f32;
-            for (cfg, s) in self.sensors.iter().zip(st.sensors.iter()).take(n) {
+            for (cfg, s) in cfgs.iter().zip(st.sensors.iter()).take(n) {
                 sum += cfg.b_um_per_k * s.filtered_dt;
             }
             st.sensor_um = sum;
@@ -419,4 +381,67 @@ impl SensorState {
         filtered_dt: 0.0,
         rejected: 0,
     };
+}
+
+/// Sensor settings of one axis: `cfgs` (its own or its group's array) for its `n_sensors`.
+pub(crate) fn sensor_spec(cfgs: &[SensorRt; MAX_SENSORS], n: u8, i: usize) -> Option<SensorSpec> {
+    if i >= n as usize {
+        return None;
+    }
+    cfgs.get(i).map(|s| SensorSpec {
+        reference_degc: s.reference_degc,
+        min_degc: s.min_degc,
+        max_degc: s.max_degc,
+        max_rate_degc_per_s: s.max_rate_degc_per_s,
+        lag_tau_s: s.lag_tau_s,
+        stale_timeout_ms: s.stale_timeout_ms,
+    })
+}
+
+/// b_i (µm/K) and the lag coefficient α of sensor `i` (see [`sensor_spec`]).
+pub(crate) fn sensor_b_alpha(
+    cfgs: &[SensorRt; MAX_SENSORS],
+    n: u8,
+    i: usize,
+) -> Option<(f32, f32)> {
+    if i >= n as usize {
+        return None;
+    }
+    cfgs.get(i).map(|s| (s.b_um_per_k, s.alpha))
+}
+
+impl AxisCompensator<OwnTable> {
+    /// Settings of sensor `i`.
+    pub fn sensor(&self, i: usize) -> Option<SensorSpec> {
+        sensor_spec(&self.sensors, self.n_sensors, i)
+    }
+    /// b_i of sensor `i`, µm/K.
+    pub fn b_um_per_k(&self, i: usize) -> Option<f32> {
+        sensor_b_alpha(&self.sensors, self.n_sensors, i).map(|(b, _)| b)
+    }
+    /// Lag coefficient α of sensor `i` (1 = no lag).
+    pub fn lag_alpha(&self, i: usize) -> Option<f32> {
+        sensor_b_alpha(&self.sensors, self.n_sensors, i).map(|(_, a)| a)
+    }
+    /// Sensor-rate update: health checks, lags, and the cached thermal contribution.
+    ///
+    /// `readings[i]` is sensor i in °C; NaN (or a missing entry) = no reading. Call it every
+    /// `sensor_period_ms` (the lag coefficients assume that period), also when the image has no
+    /// sensors: the cycle adds a cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted), refreshed here
+    /// and in [`AxisCompensator::set_process`] (a fresh [`State`] contributes 0 until then). Rules:
+    /// - a reading is accepted if finite, within `[min_degc, max_degc]` and, after the first
+    ///   accepted one, within `max_rate_degc_per_s · (now − time of the last accepted reading)` of
+    ///   the last accepted value; otherwise it is rejected (counted) and the last good value held;
+    /// - each lag advances once per call with the last accepted value as input; it starts at the
+    ///   first accepted reading (no transient from 0);
+    /// - a sensor without an accepted reading for more than `stale_timeout_ms` (counted from the
+    ///   first call for a sensor that never reported) is stale; it recovers after
+    ///   [`RECOVERY_READINGS`] consecutive accepted readings;
+    /// - the thermal contribution (Σ b_i·ΔT_i and the expansion coefficient) is recomputed only
+    ///   while every sensor has reported and none is stale; otherwise it stays frozen at the last
+    ///   good value (THERMAL_FROZEN); SENSOR_FAULT while any sensor is stale or its last reading
+    ///   was rejected.
+    pub fn update_temperatures(&self, st: &mut State, now_ms: u32, readings: &[f32]) {
+        self.update_temperatures_with(&self.sensors, st, now_ms, readings);
+    }
 }
