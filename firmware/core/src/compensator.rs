@@ -191,6 +191,28 @@ pub struct AxisCompensator<S: TableStore> {
     pub(crate) table: S,
 }
 
+/// Where a pipeline finds its group's coefficient pool: the pool itself, or the group it is a
+/// field of (then its address is formed where it is used, on the cache miss's cold path, and
+/// is not held in a register across the inlined pipelines).
+pub(crate) trait PoolSource: Copy {
+    /// The pool.
+    fn pool(&self) -> &[[f32; 4]];
+}
+
+impl PoolSource for &[[f32; 4]] {
+    #[inline(always)]
+    fn pool(&self) -> &[[f32; 4]] {
+        self
+    }
+}
+
+impl<const N: usize> PoolSource for &[[f32; 4]; N] {
+    #[inline(always)]
+    fn pool(&self) -> &[[f32; 4]] {
+        &self[..]
+    }
+}
+
 /// Where an axis keeps its table segments: `[c0, c1, c2, c3]` per segment and direction half
 /// (0 forward, 1 backward; a unidirectional table has its forward segments in both halves).
 pub trait TableStore {
@@ -413,7 +435,7 @@ impl<S: TableStore> AxisCompensator<S> {
     #[inline(always)]
     pub(crate) fn axis_error_um(
         &self,
-        pool: &[[f32; 4]],
+        pool: impl PoolSource,
         st: &mut State,
         (mut pos, delta): (i64, i32),
         raw: u32,
@@ -447,10 +469,10 @@ impl<S: TableStore> AxisCompensator<S> {
         let (mut total, mut flags) = if !segment_cache {
             if rotary {
                 let turn = self.turn_position(st, pos, delta);
-                let v = self.table_um_in(pool, st.direction(), turn as i64);
+                let v = self.table_um_in(pool.pool(), st.direction(), turn as i64);
                 with_outside(st, v)
             } else {
-                let v = self.table_um_in(pool, st.direction(), pos);
+                let v = self.table_um_in(pool.pool(), st.direction(), pos);
                 with_outside(st, v)
             }
         } else if rotary {
@@ -460,7 +482,7 @@ impl<S: TableStore> AxisCompensator<S> {
                 (self.segment_um_cached(st, r), backward(st))
             } else {
                 crate::limits::cold_path();
-                let v = self.table_um_miss::<true>(pool, st, pos, delta, raw);
+                let v = self.table_um_miss::<true>(pool.pool(), st, pos, delta, raw);
                 // (Redone by the miss path on a state that was not primed.)
                 pos = st.position;
                 with_outside(st, v)
@@ -469,7 +491,7 @@ impl<S: TableStore> AxisCompensator<S> {
             (self.segment_um_cached(st, r), backward(st))
         } else {
             crate::limits::cold_path();
-            let v = self.table_um_miss::<false>(pool, st, pos, delta, raw);
+            let v = self.table_um_miss::<false>(pool.pool(), st, pos, delta, raw);
             pos = st.position;
             with_outside(st, v)
         };

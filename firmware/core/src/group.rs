@@ -39,7 +39,9 @@
 
 use crate::MAX_FORCES;
 use crate::MAX_SENSORS;
-use crate::compensator::{AxisCompensator, CycleInput, CycleOutput, Flags, State, TableStore};
+use crate::compensator::{
+    AxisCompensator, CycleInput, CycleOutput, Flags, PoolSource, State, TableStore,
+};
 use crate::counter::{Direction, wrap};
 use crate::error::{Field, ImageError};
 use crate::geometric::{GeometricSpec, GeometricStage};
@@ -185,6 +187,18 @@ impl TableStore for PoolTable {
         i.checked_rem(pool.len())
             .and_then(|j| pool.get(j))
             .unwrap_or(&ZERO_SEGMENT)
+    }
+}
+
+/// A group as the [`PoolSource`] of its inlined pipelines: the pool's address is formed on the
+/// segment cache's miss path only.
+#[derive(Clone, Copy)]
+struct GroupPool<'a, const POOL: usize>(&'a Group<POOL>);
+
+impl<const POOL: usize> PoolSource for GroupPool<'_, POOL> {
+    #[inline(always)]
+    fn pool(&self) -> &[[f32; 4]] {
+        &self.0.pool
     }
 }
 
@@ -609,11 +623,11 @@ impl<const POOL: usize> Group<POOL> {
         dz: f32,
     ) {
         let d = [dx, dy, dz];
-        let (pool, inp) = (&self.pool, &input.axes);
+        let (pool, inp) = (GroupPool(self), &input.axes);
         let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
-        axis_pipeline::<POOL, false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
-        axis_pipeline::<POOL, false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
-        axis_pipeline::<POOL, false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
+        axis_pipeline::<false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
+        axis_pipeline::<false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
+        axis_pipeline::<false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
     }
 
     /// [`CycleMode::Plain`] with any other number of axes: one pipeline call per axis.
@@ -684,9 +698,10 @@ impl<const POOL: usize> Group<POOL> {
         let (pool, inp) = (&self.pool, &input.axes);
         let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
         if XYZAC {
-            axis_pipeline::<POOL, false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
-            axis_pipeline::<POOL, false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
-            axis_pipeline::<POOL, false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
+            let pool = GroupPool(self);
+            axis_pipeline::<false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
+            axis_pipeline::<false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
+            axis_pipeline::<false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
             return self.ac_cycle(st, input, out);
         }
         // The deviation by slot: the geometric stage's (X, Y, Z), plus the rotary stage's (X, Y,
@@ -755,8 +770,8 @@ impl<const POOL: usize> Group<POOL> {
         inp: &[CycleInput; 2],
         o: &mut [CycleOutput; 2],
     ) {
-        axis_pipeline::<POOL, true, false>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], 0.0);
-        axis_pipeline::<POOL, true, false>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], 0.0);
+        axis_pipeline::<true, false>(&ax[0], &pool[..], &mut s[0], &inp[0], &mut o[0], 0.0);
+        axis_pipeline::<true, false>(&ax[1], &pool[..], &mut s[1], &inp[1], &mut o[1], 0.0);
     }
 
     /// The geometric stage's deviation by slot (out of line: the rotary stage's code beside it
@@ -955,9 +970,9 @@ fn axis_cycle_with<const POOL: usize, const ROTARY: bool, const THERMO: bool>(
 /// (the stage's deviation, linear axes) is added to the axis's error before its limits (without
 /// it nothing is added: `e + 0.0` would turn a −0.0 error into +0.0).
 #[inline(always)]
-fn axis_pipeline<const POOL: usize, const ROTARY: bool, const STAGE: bool>(
+fn axis_pipeline<const ROTARY: bool, const STAGE: bool>(
     ax: &AxisCompensator<PoolTable>,
-    pool: &[[f32; 4]; POOL],
+    pool: impl PoolSource,
     st: &mut State,
     input: &CycleInput,
     out: &mut CycleOutput,
