@@ -757,21 +757,24 @@ impl<const POOL: usize> Group<POOL> {
         ) else {
             return;
         };
-        Self::ac_pipelines(ax, &self.pool, s, inp, o);
+        Self::ac_pipelines(ax, GroupPool(self), s, inp, o);
     }
 
-    /// Slots 3 and 4 of the X, Y, Z, A, C cycle (A and C, rotary), out of line: the addresses of
-    /// their fields are then small offsets from this function's arguments.
-    #[inline(never)]
+    /// Slots 3 and 4 of the X, Y, Z, A, C cycle (A and C, rotary), inlined into the cycle. (Out of
+    /// line while each axis held its sensors' settings: C's fields were then beyond a float
+    /// load's reach of the group's address; with the settings in `Group::sensors` every axis's
+    /// are within it, and the call's entry, exit and argument setup cost more: 542.6 out of line,
+    /// 534.6 inlined.)
+    #[inline(always)]
     fn ac_pipelines(
         ax: &[AxisCompensator<PoolTable>; 2],
-        pool: &[[f32; 4]; POOL],
+        pool: impl PoolSource,
         s: &mut [State; 2],
         inp: &[CycleInput; 2],
         o: &mut [CycleOutput; 2],
     ) {
-        axis_pipeline::<true, false>(&ax[0], &pool[..], &mut s[0], &inp[0], &mut o[0], 0.0);
-        axis_pipeline::<true, false>(&ax[1], &pool[..], &mut s[1], &inp[1], &mut o[1], 0.0);
+        axis_pipeline::<true, false>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], 0.0);
+        axis_pipeline::<true, false>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], 0.0);
     }
 
     /// The geometric stage's deviation by slot (out of line: the rotary stage's code beside it
