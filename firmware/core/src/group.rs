@@ -75,7 +75,8 @@ enum CycleMode {
     /// With the geometric stage only, the group exactly X, Y, Z (linear) without a thermo-force
     /// term (the fast path [`Group::cycle_geometric_plain`]).
     GeometricPlain = 5,
-    /// [`CycleMode::Plain`] with exactly three axes (the fast path [`Group::cycle_plain3`]).
+    /// [`CycleMode::Plain`] with exactly three axes (its fast path: `Group::xyz_pipelines`,
+    /// tail-called from the dispatch).
     Plain3 = 6,
 }
 
@@ -591,7 +592,11 @@ impl<const POOL: usize> Group<POOL> {
         match self.mode {
             // Every axis linear without a thermo-force term (the common case): each axis's
             // whole pipeline with both checks compiled out, no per-axis dispatch.
-            CycleMode::Plain3 => self.cycle_plain3(st, input, out),
+            // Three axes (the common three-axis machine): `xyz_pipelines` with a deviation of
+            // −0.0, which leaves every error exactly as it is (x + (−0.0) = x for every x, −0.0
+            // and +0.0 included; +0.0 would turn a −0.0 error into +0.0). A tail call from here
+            // (no function of its own that loads the −0.0 and tail-calls it: group3 −4).
+            CycleMode::Plain3 => self.xyz_pipelines(st, input, out, -0.0, -0.0, -0.0),
             CycleMode::Plain => self.cycle_plain(st, input, out),
             CycleMode::Mixed => self.cycle_mixed(st, input, out),
             CycleMode::StageXyzac => self.cycle_with_stage::<true>(st, input, out),
@@ -599,14 +604,6 @@ impl<const POOL: usize> Group<POOL> {
             CycleMode::GeometricPlain => self.cycle_geometric_plain(st, input, out),
             CycleMode::None => self.identity_cycle(st, input, out),
         }
-    }
-
-    /// [`CycleMode::Plain`] with three axes (the common three-axis machine): [`Group::xyz_pipelines`]
-    /// with a deviation of −0.0, which leaves every error exactly as it is (x + (−0.0) = x for
-    /// every x, −0.0 and +0.0 included; +0.0 would turn a −0.0 error into +0.0).
-    #[inline(never)]
-    fn cycle_plain3(&self, st: &mut GroupState, input: &GroupInput, out: &mut GroupOutput) {
-        self.xyz_pipelines(st, input, out, -0.0, -0.0, -0.0);
     }
 
     /// Slots 0, 1, 2 linear without a thermo-force term: the three pipelines inlined with
