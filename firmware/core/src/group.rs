@@ -46,7 +46,7 @@ use crate::counter::{Direction, wrap};
 use crate::error::{Field, ImageError};
 use crate::geometric::{GeometricSpec, GeometricStage};
 use crate::image::{self, Layout};
-use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryStage};
+use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryMachine, RotaryStage};
 use crate::spec::SensorSpec;
 use crate::thermo::{ProcessParams, SensorRt};
 use crate::trace::{
@@ -462,6 +462,7 @@ impl<const POOL: usize> Group<POOL> {
                 && !has_geometric
                 && self.stage.slot == [0, 1, 2, 3, 4]
                 && self.kinds == [0, 0, 0, 1, 1]
+                && self.stage.machine == RotaryMachine::AcTrunnion.code()
             {
                 CycleMode::StageXyzac
             } else {
@@ -811,7 +812,12 @@ impl<const POOL: usize> Group<POOL> {
         let moved = c.track([cmd(3), cmd(4)], g);
         if moved {
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
-            let d = g.refresh_deviation(c, n[0], n[1], n[2]);
+            // The X, Y, Z, A, C mode is an AC trunnion's (set at load): no kind test.
+            let d = if XYZAC {
+                g.refresh_deviation_ac(c, n[0], n[1], n[2])
+            } else {
+                g.refresh_deviation(c, n[0], n[1], n[2])
+            };
             return [d.x, d.y, d.z];
         }
         if c.unfolded {

@@ -602,16 +602,11 @@ impl RotaryStage {
     /// deviation is k' + M'·n) for the commanded angles of the tilt axis and C in `cache.cell`,
     /// and the deviation for the commanded counts `n` from the pivot, as
     /// [`RotaryStage::deviation_um`] computes it. Not inlined: the cycles without an angle
-    /// change keep the caller's registers free. The AC trunnion (and the zero stage) inline, the
-    /// other kinds out of line, storing k' and M' (one compare here; with all three inline, the
-    /// compiler predicated the whole AC path on the kind tests: 15 instructions more). For the
-    /// AC trunnion k' and M' are not stored (nine stores and nine loads per moving cycle): the
-    /// deviation is computed from them in registers and only the four sin/cos values are kept,
-    /// marked `unfolded`; the first cycle without an angle change computes k' and M' from them
-    /// ([`RotaryStage::fold_angles`]: the same operations on the same values, the same bits).
-    ///
-    /// With the C calling convention, so that the counts come in and the deviation goes out in
-    /// floating-point registers (the Rust convention passes both arrays through memory).
+    /// change keep the caller's registers free. The AC trunnion (and the zero stage) through
+    /// [`RotaryStage::refresh_deviation_ac`], the other kinds out of line, storing k' and M' (one
+    /// compare here; with all three inline, the compiler predicated the whole AC path on the kind
+    /// tests: 15 instructions more). The X, Y, Z, A, C cycle, an AC trunnion's, calls
+    /// `refresh_deviation_ac` itself.
     #[inline(never)]
     pub(crate) extern "C" fn refresh_deviation(
         &self,
@@ -620,19 +615,41 @@ impl RotaryStage {
         n1: f32,
         n2: f32,
     ) -> Deviation {
-        let n = [n0, n1, n2];
+        if self.machine > RotaryMachine::AcTrunnion.code() {
+            let [st, ct, sc, omc] = self.angles(cache);
+            self.refresh_other(cache, st, ct, sc, omc);
+            let [x, y, z] = RotaryStage::deviation_um(cache, [n0, n1, n2]);
+            Deviation { x, y, z }
+        } else {
+            self.refresh_deviation_ac(cache, n0, n1, n2)
+        }
+    }
+
+    /// [`RotaryStage::refresh_deviation`] of the AC trunnion (and the zero stage): no test of
+    /// the machine kind, no call (the X, Y, Z, A, C cycle's mode is set at load for an AC
+    /// trunnion only, so it calls this directly). k' and M' are not stored (nine stores and nine
+    /// loads per moving cycle): the deviation is computed from them in registers and only the
+    /// four sin/cos values are kept, marked `unfolded`; the first cycle without an angle change
+    /// computes k' and M' from them ([`RotaryStage::fold_angles`]: the same operations on the
+    /// same values, the same bits).
+    ///
+    /// With the C calling convention, so that the counts come in and the deviation goes out in
+    /// floating-point registers (the Rust convention passes both arrays through memory).
+    #[inline(never)]
+    pub(crate) extern "C" fn refresh_deviation_ac(
+        &self,
+        cache: &mut RotaryCache,
+        n0: f32,
+        n1: f32,
+        n2: f32,
+    ) -> Deviation {
         let angles = self.angles(cache);
         let [st, ct, sc, omc] = angles;
-        let [x, y, z] = if self.machine > RotaryMachine::AcTrunnion.code() {
-            self.refresh_other(cache, st, ct, sc, omc);
-            RotaryStage::deviation_um(cache, n)
-        } else {
-            let (k, m) = self.trunnion_terms::<false>(st, ct, sc, omc);
-            let [m0, m1, m2, m3, ..] = &mut cache.m;
-            [*m0, *m1, *m2, *m3] = angles;
-            cache.unfolded = true;
-            deviation(&k, &m, n)
-        };
+        let (k, m) = self.trunnion_terms::<false>(st, ct, sc, omc);
+        let [m0, m1, m2, m3, ..] = &mut cache.m;
+        [*m0, *m1, *m2, *m3] = angles;
+        cache.unfolded = true;
+        let [x, y, z] = deviation(&k, &m, [n0, n1, n2]);
         Deviation { x, y, z }
     }
 
