@@ -1152,6 +1152,27 @@ mod tests {
         sub(s, e)
     }
 
+    /// A stage of `machine` with every location error and squareness at the large end of the
+    /// module's error analysis (offsets ≤ 50 µm, angles ≤ 100 µrad), the pivot off the origin and a
+    /// 200 mm tool.
+    fn large_errors(machine: RotaryMachine) -> RotaryLocationSpec {
+        RotaryLocationSpec {
+            machine,
+            ex0c_um: 50.0,
+            ey0c_um: -45.0,
+            ea0c_urad: 100.0,
+            eb0c_urad: -90.0,
+            ey0a_um: 40.0,
+            ez0a_um: -50.0,
+            eb0a_urad: 80.0,
+            ec0a_urad: -100.0,
+            squareness_urad: [30.0, -20.0, 25.0],
+            pivot_counts: [2_000_000, -1_000_000, 3_000_000],
+            tool_length_um: 200_000.0,
+            ..RotaryLocationSpec::ZERO_AC
+        }
+    }
+
     /// Reference: [`reference_deviation`] (the same first-order model in f64 with exact
     /// sin/cos); tolerance 0.001 µm — the budget the module's error analysis leaves for the
     /// table + polynomial sin/cos (about 1.2e-4 µm at these magnitudes) and the f32 arithmetic.
@@ -1164,21 +1185,7 @@ mod tests {
         let upc = 0.1f32;
         let mut worst = 0.0f64;
         for machine in [RotaryMachine::AcTrunnion, RotaryMachine::BcTrunnion] {
-            let spec = RotaryLocationSpec {
-                machine,
-                ex0c_um: 50.0,
-                ey0c_um: -45.0,
-                ea0c_urad: 100.0,
-                eb0c_urad: -90.0,
-                ey0a_um: 40.0,
-                ez0a_um: -50.0,
-                eb0a_urad: 80.0,
-                ec0a_urad: -100.0,
-                squareness_urad: [30.0, -20.0, 25.0],
-                pivot_counts: [2_000_000, -1_000_000, 3_000_000],
-                tool_length_um: 200_000.0,
-                ..RotaryLocationSpec::ZERO_AC
-            };
+            let spec = large_errors(machine);
             let stage = RotaryStage::new(&spec, [upc; 3], [cpr; 2], [0, 1, 2, 3, 4]);
             let mut i = 0i64;
             for a in (0..cpr).step_by(9973) {
@@ -1219,21 +1226,7 @@ mod tests {
             RotaryMachine::BcTrunnion,
             RotaryMachine::BcHead,
         ] {
-            let spec = RotaryLocationSpec {
-                machine,
-                ex0c_um: 50.0,
-                ey0c_um: -45.0,
-                ea0c_urad: 100.0,
-                eb0c_urad: -90.0,
-                ey0a_um: 40.0,
-                ez0a_um: -50.0,
-                eb0a_urad: 80.0,
-                ec0a_urad: -100.0,
-                squareness_urad: [30.0, -20.0, 25.0],
-                pivot_counts: [2_000_000, -1_000_000, 3_000_000],
-                tool_length_um: 200_000.0,
-                ..RotaryLocationSpec::ZERO_AC
-            };
+            let spec = large_errors(machine);
             let stage = RotaryStage::new(&spec, [0.1, 0.2, 0.05], [cpr, cpr / 2], [0, 1, 2, 3, 4]);
             for (i, a) in (0..cpr).step_by(19_997).enumerate() {
                 let c = (a as u64 * 7 + 1_234_567) % (cpr / 2) as u64;
