@@ -124,25 +124,24 @@ pub struct AxisCompensator<S: TableStore> {
     pub(crate) loaded: bool,
     pub(crate) axis_id: u16,
     pub(crate) counter_bits: u8,
+    // ---- the per-cycle fields of the counter and the limits, in pairs that one paired load
+    // reads (the shift and the hysteresis; the two magnitude keys) ----
     /// 32 − counter_bits (0 for the identity: a 32-bit counter).
     pub(crate) sext_shift: crate::counter::CounterShift,
-    pub(crate) um_per_count: f32,
-    // ---- limits (beside the counter's fields and the table's per-cycle one, `inv_segment`:
-    // every field of a group axis's per-cycle path within a few words of each other) ----
-    pub(crate) max_correction_um: f32,
-    /// `max_slew_um_per_cycle` as the cycle's fast path tests it: see [`crate::limits::magnitude_key`].
-    pub(crate) slew_key: u32,
     pub(crate) hysteresis_counts: u32,
-    /// `um_per_count / 2` (exact), so that the cycle's quotient is already doubled for the
-    /// bounded rounding.
-    pub(crate) half_um_per_count: f32,
     /// [`crate::limits::magnitude_key`] of `max_correction_um` if every applied correction, in counts, is below
     /// 2^29 in magnitude (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else 0: the cycle's fast path
     /// (within the clamp, rounded with `round_half_away_bounded`) is never taken for an
     /// unbounded image (no magnitude's key is below 0).
     pub(crate) fast_max_key: u32,
-    /// 1 / segment length (the table's per-cycle field).
-    pub(crate) inv_segment: f32,
+    /// `max_slew_um_per_cycle` as the cycle's fast path tests it: see [`crate::limits::magnitude_key`].
+    pub(crate) slew_key: u32,
+    /// `um_per_count / 2` (exact), so that the cycle's quotient is already doubled for the
+    /// bounded rounding.
+    pub(crate) half_um_per_count: f32,
+    // ---- read off the per-cycle path ----
+    pub(crate) um_per_count: f32,
+    pub(crate) max_correction_um: f32,
     /// Counts per revolution of a rotary group axis (its table is indexed by the position within
     /// the turn); 0 for a linear axis and always for [`OwnTable`] storage.
     pub(crate) counts_per_rev: u32,
@@ -260,7 +259,6 @@ impl<S: TableStore> AxisCompensator<S> {
             start_counts: 0,
             segment: None,
             span_counts: 0,
-            inv_segment: 0.0,
             taper_counts: 0,
             inv_taper: 0.0,
             edge: [[0.0; 2]; 2],

@@ -68,7 +68,7 @@ use crate::limits::cold_path;
 /// The shift of the counter's sign extension, 32 − `counter_bits` (0..=31): an enum, so that a load
 /// of it carries its range and the shifts by it need no `& 31` (one instruction per axis and cycle).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[repr(u8)]
+#[repr(u32)]
 pub(crate) enum CounterShift {
     /// A 32-bit counter (and the identity).
     #[default]

@@ -407,7 +407,7 @@ impl<const POOL: usize> Group<POOL> {
             for d in 0..halves {
                 for s in 0..l.n_segments {
                     if let Some(seg) = self.pool.get_mut((next + d * n) as usize + s) {
-                        *seg = image::table_segment(l, a.image, d as usize, s);
+                        *seg = image::table_segment_per_count(l, a.image, d as usize, s);
                     }
                 }
             }
@@ -696,11 +696,7 @@ impl<const POOL: usize> Group<POOL> {
         let (pool, inp) = (&self.pool, &input.axes);
         let (ax, s, o) = (&self.axes, &mut st.axes, &mut out.axes);
         if XYZAC {
-            let pool = GroupPool(self);
-            axis_pipeline::<false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
-            axis_pipeline::<false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
-            axis_pipeline::<false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
-            return self.ac_cycle(st, input, out);
+            return self.xyzac_pipelines(st, input, out, d[0], d[1], d[2]);
         }
         // The deviation by slot: the geometric stage's (X, Y, Z), plus the rotary stage's (X, Y,
         // Z; A, C: none).
@@ -741,6 +737,25 @@ impl<const POOL: usize> Group<POOL> {
         };
         let d = g.deviation_xyz_slots(&self.pool, &input.axes);
         self.xyz_pipelines(st, input, out, d[0], d[1], d[2]);
+    }
+
+    #[inline(never)]
+    fn xyzac_pipelines(
+        &self,
+        st: &mut GroupState,
+        input: &GroupInput,
+        out: &mut GroupOutput,
+        dx: f32,
+        dy: f32,
+        dz: f32,
+    ) {
+        let d = [dx, dy, dz];
+        let (inp, ax, s, o) = (&input.axes, &self.axes, &mut st.axes, &mut out.axes);
+        let pool = GroupPool(self);
+        axis_pipeline::<false, true>(&ax[0], pool, &mut s[0], &inp[0], &mut o[0], d[0]);
+        axis_pipeline::<false, true>(&ax[1], pool, &mut s[1], &inp[1], &mut o[1], d[1]);
+        axis_pipeline::<false, true>(&ax[2], pool, &mut s[2], &inp[2], &mut o[2], d[2]);
+        self.ac_cycle(st, input, out)
     }
 
     /// Slots 3 and 4 of the X, Y, Z, A, C cycle: [`Group::ac_pipelines`] on their fields.
@@ -805,12 +820,16 @@ impl<const POOL: usize> Group<POOL> {
         let slot = |k: usize| self.stage_slot::<XYZAC>(k);
         // Through `black_box`, so that the compiler reads the commands again in the pipelines
         // instead of keeping the stage's copies live across them (spilled: 4 more per cycle).
-        let axes = core::hint::black_box(&input.axes);
+        let axes = if XYZAC {
+            &input.axes
+        } else {
+            core::hint::black_box(&input.axes)
+        };
         let cmd = |k: usize| axes[slot(k)].command_counts;
         let c = &mut st.rotary;
-        let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
         let moved = c.track([cmd(3), cmd(4)], g);
         if moved {
+            let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
             // The X, Y, Z, A, C mode is an AC trunnion's (set at load): no kind test.
             let d = if XYZAC {
@@ -823,6 +842,7 @@ impl<const POOL: usize> Group<POOL> {
         if c.unfolded {
             g.fold_angles(c);
         }
+        let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
         RotaryStage::deviation_um(c, n)
     }
 }
@@ -986,6 +1006,7 @@ fn axis_pipeline<const ROTARY: bool, const STAGE: bool>(
 ) {
     // The test of `primed` in the segment cache's miss path (see `axis_error_um`).
     let tracked = ax.track_primed(st, input.scale_raw);
+    out.position_counts = tracked.0;
     // No thermo-force term (checked at load for this path).
     let (pos, mut e, f) = ax.axis_error_um(
         pool,
@@ -997,8 +1018,10 @@ fn axis_pipeline<const ROTARY: bool, const STAGE: bool>(
         Some(false),
         true,
     );
-    // The position out at once: not live across the limits (fewer registers spilled).
-    out.position_counts = pos;
+    if pos != tracked.0 {
+        crate::limits::cold_path();
+        out.position_counts = pos;
+    }
     if STAGE {
         e += stage_um;
     }

@@ -489,6 +489,13 @@ pub(crate) fn table_segment(l: &Layout, b: &[u8], d: usize, s: usize) -> [f32; 4
     ]
 }
 
+/// [`table_segment`] converted to the remainder in counts ([`crate::table::per_count`]): what
+/// the cycle evaluates.
+pub(crate) fn table_segment_per_count(l: &Layout, b: &[u8], d: usize, s: usize) -> [f32; 4] {
+    let seg = l.table.map_or(1, |o| u32_at(b, o + 8));
+    crate::table::per_count(table_segment(l, b, d, s), seg)
+}
+
 /// Copy a validated image into `c` (cannot fail).
 pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
     // A unidirectional table is copied into both halves, so that the cycle selects the half by
@@ -496,7 +503,7 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
     for d in 0..2 {
         for s in 0..l.n_segments.min(MAX_SEGMENTS) {
             if let Some(dst) = c.table.0.get_mut(d * MAX_SEGMENTS + s) {
-                *dst = table_segment(l, b, d, s);
+                *dst = table_segment_per_count(l, b, d, s);
             }
         }
     }
@@ -542,7 +549,6 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
     c.start_counts = 0;
     c.segment = None;
     c.span_counts = 0;
-    c.inv_segment = 0.0;
     c.taper_counts = 0;
     c.inv_taper = 0.0;
     c.edge = [[0.0; 2]; 2];
@@ -554,7 +560,6 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
         c.start_counts = i64_at(b, o);
         c.segment = core::num::NonZeroU32::new(seg);
         c.span_counts = seg.wrapping_mul(n as u32);
-        c.inv_segment = 1.0 / seg as f32;
         c.taper = u8_at(b, o + 15) == 1;
         c.taper_counts = u32_at(b, o + 16);
         c.inv_taper = if c.taper {

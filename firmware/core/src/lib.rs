@@ -94,6 +94,7 @@ pub use spec::{
     ExpansionSpec, ForceLaw, ForceSpec, ImageSpec, LimitSpec, OutsideStroke, SensorSpec, TableSpec,
     ThermoForceSpec,
 };
+pub use table::per_count as segment_per_count;
 pub use thermo::{ForceSource, ProcessParams};
 
 /// Segments per direction of the positioning table.

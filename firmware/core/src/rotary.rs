@@ -49,8 +49,9 @@
 //! ≤ 50 µrad / 50 µm and |q| ≤ 840 mm they stay below 0.03 µm (checked against exact homogeneous
 //! transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all three kinds)).
 //!
-//! k and M (9 numbers: M's diagonal is 0), with the axes' µm per count and the tool length folded
-//! in, are cached in [`RotaryCache`] and recomputed only when a commanded angle changes; each cycle
+//! k and M (9 numbers: M's diagonal is 0), with the axes' µm per count folded in (and a
+//! trunnion's tool length folded into the pivot's Z in whole counts of Z:
+//! `RotaryStage::tool_counts_z`), are cached in [`RotaryCache`] and recomputed only when a commanded angle changes; each cycle
 //! without a change then costs the commanded counts from the pivot and 6 multiply-adds. A cycle
 //! with a change computes them and the deviation from them in registers
 //! (`RotaryStage::refresh_deviation`) and keeps only the four sin/cos values; the first cycle
@@ -489,9 +490,10 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 // terms' constants without a base register), then the tables.
 #[repr(C)]
 pub(crate) struct RotaryStage {
-    /// The pivot (counts of X, Y, Z) minus 2^31: a command minus it is in [0, 2^32) exactly when
-    /// the command minus the pivot fits an i32 (one high word to test per axis). 0 in the zero
-    /// stage, which never computes a deviation.
+    /// The pivot (counts of X, Y, Z), for a trunnion with the tool length added to Z in whole
+    /// counts of Z ([`RotaryStage::tool_counts_z`]), minus 2^31: a command minus it is in
+    /// [0, 2^32) exactly when the command minus the (shifted) pivot fits an i32 (one high word to
+    /// test per axis). 0 in the zero stage, which never computes a deviation.
     pub(crate) pivot_low_counts: [i64; 3],
     /// (EX0C, EY0C), µm; negated for a trunnion.
     pub(crate) o_c: [f32; 2],
@@ -505,10 +507,6 @@ pub(crate) struct RotaryStage {
     /// Squareness terms of the deviation: (−EC0Y, EB0Z, −EA0Z), rad: the deviation of the tool
     /// tip gains (sq[0]·q_y + sq[1]·q_z, sq[2]·q_z, 0).
     pub(crate) sq: [f32; 3],
-    /// Subtracted from the tool tip's Z: the tool length (trunnion) or 0 (head).
-    pub(crate) tool_offset_um: f32,
-    /// The same in counts of Z (`tool_offset_um` / µm per count of Z; 0 in the zero stage).
-    pub(crate) tool_offset_counts_z: f32,
     /// The squareness terms scaled as M' (trunnion): (sq[0]·µm per count of Y, sq[1]·µm per
     /// count of Z, sq[2]·µm per count of Z).
     pub(crate) sq_scaled: [f32; 3],
@@ -537,8 +535,6 @@ impl RotaryStage {
         e_t: [0.0; 2],
         sq: [0.0; 3],
         pivot_low_counts: [0; 3],
-        tool_offset_um: 0.0,
-        tool_offset_counts_z: 0.0,
         sq_scaled: [0.0; 3],
         head_length_um: 0.0,
         um_per_count: [0.0; 3],
@@ -561,7 +557,17 @@ impl RotaryStage {
         let o = if head { 1.0 } else { -1.0 };
         let sq = [-ec0y * URAD, eb0z * URAD, -ea0z * URAD];
         let [_, uy, uz] = um_per_count;
-        let tool_offset_um = if head { 0.0 } else { spec.tool_length_um };
+        let tool_counts = if head {
+            0
+        } else {
+            RotaryStage::tool_counts_z(spec.tool_length_um, uz)
+        };
+        let mut pivot = spec.pivot_counts;
+        // Within ±2^62 (validated), the tool length's counts added and kept within ±2^62: no
+        // wrap in the cycle's subtraction.
+        pivot[2] = pivot[2]
+            .saturating_add(tool_counts)
+            .clamp(-(1 << 62), 1 << 62);
         RotaryStage {
             machine: spec.machine.code(),
             o_c: [o * spec.ex0c_um, o * spec.ey0c_um],
@@ -569,11 +575,7 @@ impl RotaryStage {
             o_t: [o * spec.ey0a_um, o * spec.ez0a_um],
             e_t: [spec.eb0a_urad * URAD, spec.ec0a_urad * URAD],
             sq,
-            // Within ±2^62 (validated): no wrap.
-            pivot_low_counts: spec.pivot_counts.map(|p| p - (1 << 31)),
-            tool_offset_um,
-            // µm per count of a loaded axis is at least 1e-6 (image range check).
-            tool_offset_counts_z: if uz > 0.0 { tool_offset_um / uz } else { 0.0 },
+            pivot_low_counts: pivot.map(|p| p - (1 << 31)),
             sq_scaled: [sq[0] * uy, sq[1] * uz, sq[2] * uz],
             head_length_um: if head { spec.tool_length_um } else { 0.0 },
             um_per_count,
@@ -583,6 +585,20 @@ impl RotaryStage {
             ],
             counts_per_rev,
             slot,
+        }
+    }
+
+    /// A trunnion's tool length L (µm, validated in [0, 1e7]) in whole counts of Z (µm per count
+    /// `uz` ≥ 1e-6 once loaded; 0 for the zero stage's 0): round(L/uz), rounded once from f64.
+    /// The pivot's Z is shifted by it, so the counts from the pivot are those of the tool tip,
+    /// q = diag(µm per count)·n: the angle terms need no k − M·(0, 0, L). The tool length is then
+    /// L to within half a count of Z; the deviation moves by that times M's entries (angles of
+    /// the location errors: 1e−4 rad of error and 0.5 µm per count give 2.5e−5 µm).
+    pub(crate) fn tool_counts_z(tool_length_um: f32, uz: f32) -> i64 {
+        if uz > 0.0 {
+            libm::round(tool_length_um as f64 / uz as f64) as i64
+        } else {
+            0
         }
     }
 
@@ -687,13 +703,12 @@ impl RotaryStage {
         }
     }
 
-    /// Fold the scales and the tool length into k and M (unscaled M, without its zero
-    /// diagonal): the deviation is k' + M'·n for the commanded counts n from the pivot
-    /// (q = diag(µm per count)·n − (0, 0, L)). The trunnion path does the same inline.
+    /// Fold the scales into M (unscaled M, without its zero diagonal) and store k and M' (the
+    /// head: no tool length in q): the deviation is k + M'·n for the commanded counts n from the
+    /// pivot (q = diag(µm per count)·n). The trunnion path does the same inline.
     fn fold(&self, cache: &mut RotaryCache, k: [f32; 3], m: [f32; 6]) {
         let [ux, uy, uz] = self.um_per_count;
-        let l = self.tool_offset_um;
-        cache.k = [k[0] - m[1] * l, k[1] - m[3] * l, k[2]];
+        cache.k = k;
         cache.m = [
             m[0] * uy,
             m[1] * uz,
@@ -747,14 +762,14 @@ impl RotaryStage {
         };
         // s(q) − ω × q, off-diagonal entries (the diagonal is 0): M = [sq_y + w_z, sq_z − w_y,
         // −w_z, sq_yz + w_x, w_y, −w_x], scaled by (uy, uz, ux, uz, ux, uy) (the squareness
-        // terms scaled at load); k' = k − M·(0, 0, L) = k − M'·(0, 0, L/uz).
+        // terms scaled at load). The tool length is in the pivot (the counts n are from the
+        // tool tip's pivot): k' = k.
         let [sq_y, sq_z, sq_yz] = self.sq_scaled;
         let [ux, uy, uz] = self.um_per_count;
-        let l = self.tool_offset_counts_z;
         let m1 = sq_z - w[1] * uz;
         let m3 = sq_yz + w[0] * uz;
         (
-            [k[0] - m1 * l, k[1] - m3 * l, k[2]],
+            k,
             [
                 sq_y + w[2] * uy,
                 m1,
@@ -827,7 +842,10 @@ impl RotaryStage {
         if outside == 0 {
             v.map(|v| (v as u32 ^ 1 << 31) as i32 as f32)
         } else {
-            v.map(|v| saturate_i32(v.wrapping_sub(1 << 31)) as f32)
+            // (Element by element, not through `map`: no array on the stack whose address a
+            // call takes, which would keep the cycle's later calls from being tail calls.)
+            let d = |v: i64| saturate_i32(v.wrapping_sub(1 << 31)) as f32;
+            [d(v[0]), d(v[1]), d(v[2])]
         }
     }
 }

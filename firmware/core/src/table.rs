@@ -4,7 +4,11 @@
 //! # Glossary
 //! - **knot**: a segment boundary; knot k sits at `start_counts + k·segment_counts`.
 //! - **segment**: the interval between two knots, polynomial `[c0, c1, c2, c3]` in Horner form
-//!   evaluated at t = (position − knot)/segment_counts in [0, 1).
+//!   evaluated at t = (position − knot)/segment_counts in [0, 1) (the image's form).
+//! - **remainder**: r = position − knot, counts, in [0, segment_counts). At load each segment's
+//!   coefficients are converted to the remainder, `[c0, c1/L, c2/L², c3/L³]` for L =
+//!   segment_counts ([`per_count`]): the cycle evaluates c0 + r·(c1' + r·(c2' + r·c3')) with no
+//!   multiply by 1/L (work that depends only on the image, done at load).
 //! - **stroke**: `[start_counts, start_counts + n·segment_counts)`; beyond it the end value is
 //!   held or tapered to 0 over `taper_length_counts`.
 
@@ -59,22 +63,18 @@ impl<S: TableStore> AxisCompensator<S> {
         if (diff >> 32) == 0 && offset < self.span_counts {
             let seg = offset / seg_counts;
             let rem = offset - seg.wrapping_mul(seg_counts.get());
-            let t = rem as f32 * self.inv_segment;
             let c = self.table.segment(pool, dir, seg);
-            return (c[0] + t * (c[1] + t * (c[2] + t * c[3])), false);
+            return (cubic(c, rem), false);
         }
         cold_path();
         self.outside_um(dir, position_counts)
     }
 
     /// Value of the segment cached in `st` (by [`AxisCompensator::table_um_refill`]) at the
-    /// remainder `rem` (< the segment length): the Horner cubic of
-    /// [`AxisCompensator::table_um_in`].
+    /// remainder `rem` (< the segment length): the cubic of [`AxisCompensator::table_um_in`].
     #[inline(always)]
     pub(crate) fn segment_um_cached(&self, st: &crate::State, rem: u32) -> f32 {
-        let t = rem as f32 * self.inv_segment;
-        let c = &st.seg_coef;
-        c[0] + t * (c[1] + t * (c[2] + t * c[3]))
+        cubic(&st.seg_coef, rem)
     }
 
     /// The full lookup of the cycle ([`AxisCompensator::table_um_in`] at `table_pos`: the
@@ -120,7 +120,7 @@ impl<S: TableStore> AxisCompensator<S> {
                 st.seg_turn_start = (table_pos as u32).wrapping_sub(rem);
                 st.seg_limit = seg_counts.get();
                 st.seg_flags = dir.flag();
-                // The value from the segment just cached: the same remainder, 1/segment and
+                // The value from the segment just cached: the same remainder and
                 // coefficients as the full lookup's, so the same bits (no second search).
                 return (self.segment_um_cached(st, rem), false);
             }
@@ -185,12 +185,15 @@ impl<S: TableStore> AxisCompensator<S> {
 }
 
 impl Compensator {
-    /// Forward segments (empty without a table).
+    /// Forward segments (empty without a table), as the cycle evaluates them: coefficients in
+    /// the remainder r (counts from the knot), c0 + r·(c1 + r·(c2 + r·c3)) — the image's
+    /// coefficients in t = r/L divided by L^k at load (see the module's glossary).
     pub fn forward_segments(&self) -> &[[f32; 4]] {
         let n = (self.n_segments as usize).min(MAX_SEGMENTS);
         self.table.0.get(..n).unwrap_or(&[])
     }
-    /// Backward segments (empty for a unidirectional table).
+    /// Backward segments (empty for a unidirectional table), in the form of
+    /// [`Compensator::forward_segments`].
     pub fn backward_segments(&self) -> &[[f32; 4]] {
         let n = if self.bidirectional {
             (self.n_segments as usize).min(MAX_SEGMENTS)
@@ -202,4 +205,34 @@ impl Compensator {
             .get(MAX_SEGMENTS..MAX_SEGMENTS + n)
             .unwrap_or(&[])
     }
+}
+
+/// A segment's value at the remainder `rem` (counts from its knot) from its coefficients in the
+/// remainder ([`per_count`]): c0 + r·(c1' + r·(c2' + r·c3')), Horner's scheme. One
+/// implementation for the full lookup and the segment cache, so both give the same bits.
+#[inline(always)]
+pub(crate) fn cubic(c: &[f32; 4], rem: u32) -> f32 {
+    let r = rem as f32;
+    c[0] + r * (c[1] + r * (c[2] + r * c[3]))
+}
+
+/// A segment's coefficients `c` in t = r/L ∈ [0, 1) (the image's form) converted to the
+/// remainder r in counts, for a segment of L = `segment_counts` (≥ 1) counts:
+/// [c0, c1/L, c2/L², c3/L³], each rounded once to f32 from f64 (c_k·(1/L)^k in f64: a relative
+/// error near 1e−16 before that rounding). At load, on host and target alike (the f64
+/// arithmetic is IEEE on both: the same bits).
+///
+/// Why it is as exact as the t form: |r·c_k'| = |t·c_k| term by term, so Horner's scheme in r
+/// adds the same magnitudes as in t; the t form rounded t = r·(1/L) once per cycle, this one
+/// rounds c_k' once per load. The scaled coefficients stay normal f32 for every validated
+/// image: |c_k| ≥ 2^−126·L^k would be needed to reach the subnormals only below
+/// 1.2e−38·L³ µm (L ≤ 2^31: 1e−10 µm), whose contribution is below any count anyway.
+pub fn per_count(c: [f32; 4], segment_counts: u32) -> [f32; 4] {
+    let inv = 1.0 / segment_counts.max(1) as f64;
+    [
+        c[0],
+        (c[1] as f64 * inv) as f32,
+        (c[2] as f64 * (inv * inv)) as f32,
+        (c[3] as f64 * (inv * inv * inv)) as f32,
+    ]
 }

@@ -104,8 +104,20 @@ fn largest_image_fits_one_slot_and_round_trips() {
     assert_eq!(c.axis_id(), 0xA5);
     assert_eq!(c.um_per_count(), 0.05);
     assert_eq!(c.counter_bits(), 24);
-    assert_eq!(c.forward_segments(), &fwd[..]);
-    assert_eq!(c.backward_segments(), &bwd[..]);
+    // Reference: the image's coefficients in t = r/L converted to the remainder r (counts),
+    // c_k·(1/L)^k in f64 rounded once (tolerance 0: the same operations as the load's).
+    let per_count = |c: &[f32; 4]| {
+        let inv = 1.0 / 4000.0f64;
+        [
+            c[0],
+            (c[1] as f64 * inv) as f32,
+            (c[2] as f64 * (inv * inv)) as f32,
+            (c[3] as f64 * (inv * inv * inv)) as f32,
+        ]
+    };
+    let expect = |t: &[[f32; 4]]| t.iter().map(per_count).collect::<Vec<_>>();
+    assert_eq!(c.forward_segments(), &expect(&fwd)[..]);
+    assert_eq!(c.backward_segments(), &expect(&bwd)[..]);
     assert_eq!(c.table_start_counts(), -5_000_000);
     assert_eq!(c.segment_counts(), 4000);
     assert_eq!(

@@ -315,8 +315,11 @@ pub fn describe(bytes: &[u8]) -> anyhow::Result<String> {
                 lo = lo.min(c[0]);
                 hi = hi.max(c[0]);
             }
-            let last = tab[tab.len() - 1];
-            let end = last[0] + last[1] + last[2] + last[3];
+            // The last segment at its end, r = L (the coefficients are in the remainder r,
+            // counts from the knot: c0 + r·(c1 + r·(c2 + r·c3))).
+            let last = tab[tab.len() - 1].map(f64::from);
+            let l = comp.segment_counts() as f64;
+            let end = (last[0] + l * (last[1] + l * (last[2] + l * last[3]))) as f32;
             lo = lo.min(end);
             hi = hi.max(end);
             writeln!(s, "  {name}: deviation at knots {lo:.3} .. {hi:.3} µm")?;
