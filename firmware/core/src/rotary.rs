@@ -603,26 +603,20 @@ impl RotaryStage {
     }
 
     /// Recompute the angle-dependent terms k' and M' for the commanded angles of the tilt axis and
-    /// C in `cache.cell` and store them ([`RotaryStage::refresh_deviation`], then
-    /// [`RotaryStage::fold_angles`]; for the tests: the cycle folds on the first cycle without an
-    /// angle change).
+    /// C in the cells and store them ([`RotaryStage::refresh_deviation`]; for the tests).
     #[cfg(test)]
     pub(crate) fn refresh(&self, cache: &mut RotaryCache) {
         self.refresh_deviation(cache, 0.0, 0.0, 0.0);
-        if cache.unfolded {
-            self.fold_angles(cache);
-        }
     }
 
-    /// The cycle's refresh after an angle change: the angle-dependent terms k' and M' (the
-    /// deviation is k' + M'·n) for the commanded angles of the tilt axis and C in `cache.cell`,
-    /// and the deviation for the commanded counts `n` from the pivot, as
-    /// [`RotaryStage::deviation_um`] computes it. Not inlined: the cycles without an angle
-    /// change keep the caller's registers free. The AC trunnion (and the zero stage) through
-    /// [`RotaryStage::refresh_deviation_ac`], the other kinds out of line, storing k' and M' (one
-    /// compare here; with all three inline, the compiler predicated the whole AC path on the kind
-    /// tests: 15 instructions more). The X, Y, Z, A, C cycle, an AC trunnion's, calls
-    /// `refresh_deviation_ac` itself.
+    /// The general cycle's refresh after an angle change (every kind, any slot order; and
+    /// [`crate::group::Group::error_at`]): the angle-dependent terms k' and M' (the deviation is
+    /// k' + M'·n) for the commanded angles of the tilt axis and C in the cells, stored, and the
+    /// deviation for the commanded counts `n` from the pivot, as [`RotaryStage::deviation_um`]
+    /// computes it. Out of line: the cycles without an angle change keep the caller's registers
+    /// free. The AC trunnion (and the zero stage) through [`RotaryStage::fold_angles`], the
+    /// other kinds through `refresh_other`. The X, Y, Z, A, C cycle, an AC trunnion's, has its
+    /// own refresh inline ([`RotaryStage::refresh_deviation_ac`]: the same bits).
     #[inline(never)]
     pub(crate) extern "C" fn refresh_deviation(
         &self,
@@ -634,49 +628,44 @@ impl RotaryStage {
         if self.machine > RotaryMachine::AcTrunnion.code() {
             let [st, ct, sc, omc] = self.angles(cache);
             self.refresh_other(cache, st, ct, sc, omc);
-            let [x, y, z] = RotaryStage::deviation_um(cache, [n0, n1, n2]);
-            Deviation { x, y, z }
         } else {
-            self.refresh_deviation_ac(cache, n0, n1, n2)
+            self.fold_angles(cache);
         }
+        let [x, y, z] = RotaryStage::deviation_um(cache, [n0, n1, n2]);
+        Deviation { x, y, z }
     }
 
-    /// [`RotaryStage::refresh_deviation`] of the AC trunnion (and the zero stage): no test of
-    /// the machine kind, no call (the X, Y, Z, A, C cycle's mode is set at load for an AC
-    /// trunnion only, so it calls this directly). k' and M' are not stored (nine stores and nine
-    /// loads per moving cycle): the deviation is computed from them in registers and only the
-    /// four sin/cos values are kept, marked `unfolded`; the first cycle without an angle change
-    /// computes k' and M' from them ([`RotaryStage::fold_angles`]: the same operations on the
-    /// same values, the same bits).
-    ///
-    /// With the C calling convention, so that the counts come in and the deviation goes out in
-    /// floating-point registers (the Rust convention passes both arrays through memory).
-    #[inline(never)]
-    pub(crate) extern "C" fn refresh_deviation_ac(
+    /// The X, Y, Z, A, C cycle's refresh after an angle change (an AC trunnion's: no test of
+    /// the machine kind, no call), inlined into its stage: the deviation for the commanded
+    /// counts `n` from the pivot, computed from k' and M' in registers and nothing of them
+    /// stored (nine stores and nine loads per moving cycle), the cache marked `unfolded`; the
+    /// first cycle without an angle change computes k' and M' from the cells
+    /// ([`RotaryStage::fold_angles`]: the same operations on the same values, the same bits as
+    /// [`RotaryStage::refresh_deviation`]). (Inlined since the five pipelines are a function of
+    /// their own: 17 instructions fewer per moving cycle than the call.)
+    #[inline(always)]
+    pub(crate) fn refresh_deviation_ac(
         &self,
         cache: &mut RotaryCache,
         n0: f32,
         n1: f32,
         n2: f32,
     ) -> Deviation {
-        let angles = self.angles(cache);
-        let [st, ct, sc, omc] = angles;
+        let [st, ct, sc, omc] = self.angles(cache);
         let (k, m) = self.trunnion_terms::<false>(st, ct, sc, omc);
-        let [m0, m1, m2, m3, ..] = &mut cache.m;
-        [*m0, *m1, *m2, *m3] = angles;
         cache.unfolded = true;
         let [x, y, z] = deviation(&k, &m, [n0, n1, n2]);
         Deviation { x, y, z }
     }
 
-    /// The angle terms k' and M' from the sin/cos values kept by
-    /// [`RotaryStage::refresh_deviation`] (AC trunnion; for the first cycle without an angle
-    /// change after a moving one).
+    /// The angle terms k' and M' of an AC trunnion (and the zero stage) for the angles of the
+    /// cells, stored: for the first cycle without an angle change after a moving one of the
+    /// X, Y, Z, A, C cycle, and for [`RotaryStage::refresh_deviation`].
     // Not `#[cold]`: the call then sits beside the test, which is one compare-and-branch on the
     // cycles without it (held share −1).
     #[inline(never)]
     pub(crate) fn fold_angles(&self, cache: &mut RotaryCache) {
-        let [st, ct, sc, omc, ..] = cache.m;
+        let [st, ct, sc, omc] = self.angles(cache);
         (cache.k, cache.m) = self.trunnion_terms::<false>(st, ct, sc, omc);
         cache.unfolded = false;
     }
@@ -956,9 +945,10 @@ pub struct RotaryCache {
     /// diagonal is 0).
     pub(crate) m: [f32; 6],
     /// True when `k` and `m` are not yet computed for the angles of the cells: the last angle
-    /// change was a moving cycle's ([`RotaryStage::refresh_deviation`]), which kept only the
-    /// angles' sin θ and cos θ of the tilt axis, sin θ and 1 − cos θ of C, in `m[..4]` (M' is
-    /// not valid then: no separate field for them, 16 B of static RAM per group state).
+    /// change was a moving cycle's ([`RotaryStage::refresh_deviation_ac`]), which computed the
+    /// deviation in registers and stored nothing of them; the first cycle without a change
+    /// computes them from the cells ([`RotaryStage::fold_angles`]: the same operations on the
+    /// same values, the same bits).
     pub(crate) unfolded: bool,
     /// Counts per revolution of the tilt axis and C the cells were taken with; 0 until the first
     /// cycle (and after a reset or a new image).
@@ -1231,11 +1221,11 @@ mod tests {
 
     /// Reference: the deviation from the stored angle terms, [`RotaryStage::deviation_um`] after
     /// [`RotaryStage::refresh`] (what a cycle without an angle change computes); exact (bit for
-    /// bit): the moving cycle's deviation from the terms in registers
-    /// ([`RotaryStage::refresh_deviation`]) is the same, and after it the terms are stored (BC
-    /// kinds) or folded from the kept sin/cos ([`RotaryStage::fold_angles`], AC trunnion) to the
-    /// same bits, for all three kinds over whole turns of both angles. (The bits equal those
-    /// before the fold was deferred: the same operations in the same order.)
+    /// bit): the moving cycle's deviation is the same — from the terms in registers for the AC
+    /// trunnion ([`RotaryStage::refresh_deviation_ac`], the X, Y, Z, A, C cycle's), from the
+    /// stored terms for the BC kinds ([`RotaryStage::refresh_deviation`]) — and after it the
+    /// terms are stored (BC kinds) or computed from the cells ([`RotaryStage::fold_angles`], AC
+    /// trunnion) to the same bits, for all three kinds over whole turns of both angles.
     #[test]
     fn deviation_of_the_moving_cycle_equals_the_stored_terms() {
         let cpr = 3_600_000u32;
@@ -1257,7 +1247,12 @@ mod tests {
                 stage.refresh(&mut stored);
                 let want = RotaryStage::deviation_um(&stored, n);
                 let mut moving = RotaryCache::at_turns([a, c as u32], &stage);
-                let d = stage.refresh_deviation(&mut moving, n[0], n[1], n[2]);
+                // The X, Y, Z, A, C cycle's refresh for the AC trunnion, the general one else.
+                let d = if machine == RotaryMachine::AcTrunnion {
+                    stage.refresh_deviation_ac(&mut moving, n[0], n[1], n[2])
+                } else {
+                    stage.refresh_deviation(&mut moving, n[0], n[1], n[2])
+                };
                 assert_eq!([d.x, d.y, d.z].map(f32::to_bits), want.map(f32::to_bits));
                 assert_eq!(moving.unfolded, machine == RotaryMachine::AcTrunnion);
                 if moving.unfolded {

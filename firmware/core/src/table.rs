@@ -218,21 +218,16 @@ pub(crate) fn cubic(c: &[f32; 4], rem: u32) -> f32 {
 
 /// A segment's coefficients `c` in t = r/L ∈ [0, 1) (the image's form) converted to the
 /// remainder r in counts, for a segment of L = `segment_counts` (≥ 1) counts:
-/// [c0, c1/L, c2/L², c3/L³], each rounded once to f32 from f64 (c_k·(1/L)^k in f64: a relative
-/// error near 1e−16 before that rounding). At load, on host and target alike (the f64
-/// arithmetic is IEEE on both: the same bits).
+/// [c0, c1/L, c2/L/L, c3/L/L/L], f32 divisions (exact L up to 2^24 counts), at load, on host and
+/// target alike (the same IEEE operations: the same bits; no f64 arithmetic in the firmware for
+/// it).
 ///
 /// Why it is as exact as the t form: |r·c_k'| = |t·c_k| term by term, so Horner's scheme in r
 /// adds the same magnitudes as in t; the t form rounded t = r·(1/L) once per cycle, this one
-/// rounds c_k' once per load. The scaled coefficients stay normal f32 for every validated
-/// image: |c_k| ≥ 2^−126·L^k would be needed to reach the subnormals only below
-/// 1.2e−38·L³ µm (L ≤ 2^31: 1e−10 µm), whose contribution is below any count anyway.
+/// rounds c_k' one to three times per load (≤ 2e−7 relative). The scaled coefficients stay
+/// normal f32 unless |c_k| < 1.2e−38·L^k µm (L ≤ 2^31: below 1e−10 µm for c3), whose
+/// contribution is below any count anyway.
 pub fn per_count(c: [f32; 4], segment_counts: u32) -> [f32; 4] {
-    let inv = 1.0 / segment_counts.max(1) as f64;
-    [
-        c[0],
-        (c[1] as f64 * inv) as f32,
-        (c[2] as f64 * (inv * inv)) as f32,
-        (c[3] as f64 * (inv * inv * inv)) as f32,
-    ]
+    let l = segment_counts.max(1) as f32;
+    [c[0], c[1] / l, c[2] / l / l, c[3] / l / l / l]
 }

@@ -105,15 +105,10 @@ fn largest_image_fits_one_slot_and_round_trips() {
     assert_eq!(c.um_per_count(), 0.05);
     assert_eq!(c.counter_bits(), 24);
     // Reference: the image's coefficients in t = r/L converted to the remainder r (counts),
-    // c_k·(1/L)^k in f64 rounded once (tolerance 0: the same operations as the load's).
+    // c_k / L^k by f32 divisions (tolerance 0: the same operations as the load's).
     let per_count = |c: &[f32; 4]| {
-        let inv = 1.0 / 4000.0f64;
-        [
-            c[0],
-            (c[1] as f64 * inv) as f32,
-            (c[2] as f64 * (inv * inv)) as f32,
-            (c[3] as f64 * (inv * inv * inv)) as f32,
-        ]
+        let l = 4000.0f32;
+        [c[0], c[1] / l, c[2] / l / l, c[3] / l / l / l]
     };
     let expect = |t: &[[f32; 4]]| t.iter().map(per_count).collect::<Vec<_>>();
     assert_eq!(c.forward_segments(), &expect(&fwd)[..]);
