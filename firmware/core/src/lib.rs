@@ -8,8 +8,10 @@
 //! - **positioning table**: the predicted deviation (reached − target, µm) along the stroke, as a C2
 //!   cubic spline over uniform segments, one table per approach direction (or one for both).
 //! - **knot**: a segment boundary; knot k sits at `start_counts + k·segment_counts`.
-//! - **segment**: the interval between two knots; its polynomial is stored in Horner form
-//!   `[c0, c1, c2, c3]`, evaluated at t = (position − knot) / segment_counts in [0, 1).
+//! - **segment**: the interval between two knots; its polynomial is stored in the image in Horner
+//!   form `[c0, c1, c2, c3]` in t = (position − knot) / segment_counts in [0, 1), and held by the
+//!   loaded axis converted to the remainder r = position − knot in counts
+//!   ([`segment_per_count`]: evaluated as c0 + r·(c1' + r·(c2' + r·c3'))).
 //! - **reversal**: a change of the approach direction; detected with a hysteresis so that scale
 //!   noise at standstill does not toggle between the forward and backward tables.
 //! - **thermo-force term**: E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
