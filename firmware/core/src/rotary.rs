@@ -644,18 +644,11 @@ impl RotaryStage {
     /// [`RotaryStage::refresh_deviation`]). (Inlined since the five pipelines are a function of
     /// their own: 17 instructions fewer per moving cycle than the call.)
     #[inline(always)]
-    pub(crate) fn refresh_deviation_ac(
-        &self,
-        cache: &mut RotaryCache,
-        n0: f32,
-        n1: f32,
-        n2: f32,
-    ) -> Deviation {
+    pub(crate) fn refresh_deviation_ac(&self, cache: &mut RotaryCache, n: [f32; 3]) -> [f32; 3] {
         let [st, ct, sc, omc] = self.angles(cache);
         let (k, m) = self.trunnion_terms::<false>(st, ct, sc, omc);
         cache.unfolded = true;
-        let [x, y, z] = deviation(&k, &m, [n0, n1, n2]);
-        Deviation { x, y, z }
+        deviation(&k, &m, n)
     }
 
     /// The angle terms k' and M' of an AC trunnion (and the zero stage) for the angles of the
@@ -1249,11 +1242,12 @@ mod tests {
                 let mut moving = RotaryCache::at_turns([a, c as u32], &stage);
                 // The X, Y, Z, A, C cycle's refresh for the AC trunnion, the general one else.
                 let d = if machine == RotaryMachine::AcTrunnion {
-                    stage.refresh_deviation_ac(&mut moving, n[0], n[1], n[2])
+                    stage.refresh_deviation_ac(&mut moving, n)
                 } else {
-                    stage.refresh_deviation(&mut moving, n[0], n[1], n[2])
+                    let d = stage.refresh_deviation(&mut moving, n[0], n[1], n[2]);
+                    [d.x, d.y, d.z]
                 };
-                assert_eq!([d.x, d.y, d.z].map(f32::to_bits), want.map(f32::to_bits));
+                assert_eq!(d.map(f32::to_bits), want.map(f32::to_bits));
                 assert_eq!(moving.unfolded, machine == RotaryMachine::AcTrunnion);
                 if moving.unfolded {
                     stage.fold_angles(&mut moving);
