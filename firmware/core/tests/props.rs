@@ -298,8 +298,8 @@ proptest! {
         let held = |tab: &[[f32; 4]]| -> Vec<[f32; 4]> {
             tab.iter().map(|&c| axcomp_core::segment_per_count(c, t.segment_counts)).collect()
         };
-        prop_assert_eq!(comp.forward_segments(), &held(&t.forward)[..]);
-        prop_assert_eq!(comp.backward_segments(), &held(&t.backward)[..]);
+        prop_assert_eq!(comp.forward_segments(), &held(t.forward)[..]);
+        prop_assert_eq!(comp.backward_segments(), &held(t.backward)[..]);
         prop_assert_eq!(comp.outside(), t.outside);
         let h = spec.thermo.unwrap();
         prop_assert_eq!(comp.sensor_count(), h.sensors.len());
