@@ -15,6 +15,22 @@ pub const EXIT_BAD_INPUT: u8 = 2;
 /// Exit code when a do-no-harm guard refuses to write a model (its JSON and report are still written).
 pub const EXIT_GUARD_REFUSED: u8 = 3;
 
+/// Exit code when standard output was closed before the command finished writing to it (`axcomp … |
+/// head`): the status a shell reports for a process ended by SIGPIPE (128 + 13), without a message. Output
+/// files the command had not yet committed are not written (never half-written: [`output::OutputSet`]).
+pub const EXIT_BROKEN_PIPE: u8 = 141;
+
+/// True if a panic's payload is the standard library's `println!`/`print!` failing on a closed pipe
+/// ("failed printing to stdout: Broken pipe (os error 32)"): what [`EXIT_BROKEN_PIPE`] stands for.
+pub fn is_broken_pipe_panic(payload: &(dyn std::any::Any + Send)) -> bool {
+    let text = payload
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| payload.downcast_ref::<&str>().copied())
+        .unwrap_or("");
+    text.starts_with("failed printing to std") && text.contains("Broken pipe")
+}
+
 /// The exit codes as `--help` and the README state them.
 pub const EXIT_CODES_HELP: &str = "\
 Exit codes (every command):
@@ -22,7 +38,9 @@ Exit codes (every command):
   2  bad input: unreadable or malformed data, a bad option, an output path that cannot be written
      (then no output file is written or changed), or a data warning under --strict
   3  refused by a guard: the model is not clearly better than no compensation; the JSON and report
-     say why and are written, the model file is not (unless --force)";
+     say why and are written, the model file is not (unless --force)
+  141  standard output closed early (e.g. `| head`): stopped quietly; files not yet written are not
+     written";
 
 /// A command finished its analysis but refuses to write its result (e.g. the do-no-harm guard found the
 /// model not clearly better than raw). Carries the process exit code; `main` maps it.

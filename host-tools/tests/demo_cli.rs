@@ -1,7 +1,7 @@
 //! `axcomp demo` end to end: no arguments, in a temporary directory; checks every output file and that the
 //! before/after ISO 230-2 figures show a real improvement.
 
-use std::process::Command;
+use std::process::{Command, Stdio};
 
 mod common;
 use common::scratch;
@@ -178,4 +178,25 @@ fn demo_table_carries_the_provenance_of_its_measurement() {
         "{text}"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `axcomp demo | true`: standard output closed before the demo prints anything. Reference: a process ended
+/// by SIGPIPE, status 141, and nothing about a panic on stderr (it was status 101 with a panic message and a
+/// backtrace: `println!` panics on a broken pipe).
+#[test]
+fn closed_standard_output_stops_quietly() {
+    let dir = scratch("closed-stdout");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_axcomp"))
+        .arg("demo")
+        .current_dir(&dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("running axcomp demo");
+    // The reading end closed right away, long before the demo's first line (after its simulation).
+    drop(child.stdout.take());
+    let o = child.wait_with_output().expect("waiting for axcomp demo");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(141), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
 }
