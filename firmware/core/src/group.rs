@@ -688,8 +688,9 @@ impl<const POOL: usize> Group<POOL> {
     /// commanded positions), then each axis's whole pipeline, the stage's deviation added to the
     /// axis's error before its limits (the same sum, in the same order, as adding it between the
     /// error and the limits). A group with the stage is exactly X, Y, Z (linear) and A, C
-    /// (rotary). In the order X, Y, Z, A, C (`XYZAC`) the five pipelines are inlined here with
-    /// constant slots and the kind of each known (no per-axis call or dispatch); any other slot
+    /// (rotary). In the order X, Y, Z, A, C (`XYZAC`) the stage's refresh is inlined here and the
+    /// five pipelines, with constant slots and the kind of each known (no per-axis call or
+    /// dispatch), are tail-called ([`Group::xyzac_pipelines`]); any other slot
     /// order runs them in slot order through the per-axis calls that [`CycleMode::Mixed`] uses (one
     /// inlined copy only, for code size). Each pipeline reads and writes only its own slot, so
     /// the order changes no output.
@@ -1023,6 +1024,9 @@ fn axis_pipeline<const ROTARY: bool, const STAGE: bool>(
 ) {
     // The test of `primed` in the segment cache's miss path (see `axis_error_um`).
     let tracked = ax.track_primed(st, input.scale_raw);
+    // The position out at once, so that it is not live across the lookup and the limits (its high
+    // word was spilled and reloaded: group5 −6); written again below in the one case it changes,
+    // the cache miss's path redoing the first cycle of an unprimed state.
     out.position_counts = tracked.0;
     // No thermo-force term (checked at load for this path).
     let (pos, mut e, f) = ax.axis_error_um(
