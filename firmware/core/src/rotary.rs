@@ -65,8 +65,8 @@
 //! (first cycle, reset, new image) or a step leaves the cell (to the next coarse angle, across
 //! 0, a whole turn) does it find the position within the turn (one wrap across 0, or the full
 //! modulo) and its cell (one division). What depends only on the image is done at load: the
-//! squareness terms scaled by the axes' µm per count, the tool length in counts of Z, the radians
-//! per count folded into the sin/cos polynomials.
+//! squareness terms scaled by the axes' µm per count, the tool length in whole counts of Z added to
+//! the pivot, the radians per count folded into the sin/cos polynomials.
 //!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
@@ -103,11 +103,14 @@
 //!   sin/cos or a product of two), so an error δ in each sin/cos moves the deviation by at most
 //!   about 2δ·(|o_C| + |o_T| + (|ε_C| + |ε_T|)·|q|): for offsets ≤ 50 µm and angles ≤ 100 µrad
 //!   at |q| ≤ 1 m, 2·2.5e-7·(100 µm + 200e-6·1e6 µm) = 1.5e-4 µm — below 0.001 µm by nearly a
-//!   decade and far below the first-order model's neglected terms (0.03 µm). The scales and the
-//!   tool length folded at load (M' = M·diag(µm per count), k' = k − M'·(0, 0, L/µm per count of
-//!   Z)) add a few f32 roundings relative to the terms (≤ 1e-6 relative: below 1e-4 µm for
-//!   deviations below 100 µm). Tested against the same model evaluated with f64 sin/cos
-//!   (tolerance 0.001 µm; worst measured 3.8e-5 µm) in this module, and against exact
+//!   decade and far below the first-order model's neglected terms (0.03 µm). The scales folded at
+//!   load (M' = M·diag(µm per count)) add a few f32 roundings relative to the terms (≤ 1e-6
+//!   relative: below 1e-4 µm for deviations below 100 µm); the trunnion's tool length, held in
+//!   whole counts of Z in the pivot, is off by at most half a count, which moves the deviation by
+//!   that times the angle errors (1e-4 rad × 0.25 µm = 2.5e-5 µm). Tested against the same model
+//!   evaluated with f64 sin/cos and the exact tool length (tolerance 0.001 µm; worst measured
+//!   4.4e-5 µm, with a tool 0.94 count off whole counts; 3.8e-5 µm before the tool length moved
+//!   into the pivot, for whole counts only) in this module, and against exact
 //!   homogeneous transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all
 //!   three kinds).
 
@@ -705,8 +708,9 @@ impl RotaryStage {
     /// u = (I − R_C) o_C, ω = R_T g + h, g = ε_C − R_C ε_C, h = ε_T − R_T ε_T; the deviation is
     /// s(q) − e. The offsets are stored negated, so k = −(R_T u + (I − R_T) o_T) is a plain sum;
     /// in the tilt plane R_T (u_p, 0) + o_T − R_T o_T = (c·(u_p − o_p) + o_p + s'·o_z,
-    /// s'·(u_p − o_p) + o_z − c·o_z), and likewise for ω. The scales and the tool length are
-    /// folded in as in [`RotaryStage::fold`] (M' = M·diag(µm per count), k' = k − M·(0, 0, L)).
+    /// s'·(u_p − o_p) + o_z − c·o_z), and likewise for ω. The scales are folded in as in
+    /// [`RotaryStage::fold`] (M' = M·diag(µm per count)); the tool length is in the pivot
+    /// ([`RotaryStage::tool_counts_z`]), so k' = k.
     #[inline(always)]
     fn trunnion_terms<const B: bool>(
         &self,
@@ -920,8 +924,8 @@ impl AngleCell {
 
 /// The commanded angles of the tilt axis (A or B) and C within their turns, tracked from cycle to
 /// cycle (each as its `AngleCell`), and the angle-dependent terms of the stage for them: the
-/// deviation is k' + M'·n for the commanded counts n from the pivot (k + M q with the scales and
-/// the tool length folded in).
+/// deviation is k' + M'·n for the commanded counts n from the pivot (k + M q with the scales
+/// folded in; a trunnion's tool length is in the pivot).
 #[derive(Debug, Clone, Copy, PartialEq)]
 // The commands and cells first (paired loads and stores), then the angle terms, then what only
 // the slow path reads.
@@ -1179,14 +1183,24 @@ mod tests {
     /// table + polynomial sin/cos (about 1.2e-4 µm at these magnitudes) and the f32 arithmetic.
     /// Offsets of 50 µm, angles of 100 µrad, squareness 30 µrad, a 200 mm tool, |q| up to about
     /// 0.7 m, A and B trunnions, angles over whole turns (every 9 973rd count of each axis, the
-    /// two axes at unrelated angles).
+    /// two axes at unrelated angles); at 0.1 µm per count with a tool of whole counts, and at
+    /// 0.05 µm per count with a tool of 200 000.046875 µm (4 000 000.94 counts: the stage holds it
+    /// to the nearest count of Z, [`RotaryStage::tool_counts_z`], 0.003 µm long).
     #[test]
     fn stage_with_table_sincos_matches_the_f64_model() {
         let cpr = 3_600_000u32;
-        let upc = 0.1f32;
         let mut worst = 0.0f64;
-        for machine in [RotaryMachine::AcTrunnion, RotaryMachine::BcTrunnion] {
-            let spec = large_errors(machine);
+        let cases = [
+            (RotaryMachine::AcTrunnion, 0.1f32, 200_000.0f32),
+            (RotaryMachine::BcTrunnion, 0.1, 200_000.0),
+            (RotaryMachine::AcTrunnion, 0.05, 200_000.046875),
+            (RotaryMachine::BcTrunnion, 0.05, 200_000.046875),
+        ];
+        for (machine, upc, tool) in cases {
+            let spec = RotaryLocationSpec {
+                tool_length_um: tool,
+                ..large_errors(machine)
+            };
             let stage = RotaryStage::new(&spec, [upc; 3], [cpr; 2], [0, 1, 2, 3, 4]);
             let mut i = 0i64;
             for a in (0..cpr).step_by(9973) {
