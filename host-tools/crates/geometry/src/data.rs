@@ -223,9 +223,14 @@ impl LineData {
                         });
                     }
                 } else {
-                    // direction from the line's first to its last target (file order)
+                    // direction from the line's first target (file order) to its last one: the far end of
+                    // the line as seen from the first (a line measured forward and back ends where it
+                    // started; its file-order last row is not its last target)
                     let first = pts[0];
-                    let last = *pts.last().unwrap();
+                    let last = *pts
+                        .iter()
+                        .max_by(|a, b| norm(sub(**a, first)).total_cmp(&norm(sub(**b, first))))
+                        .unwrap();
                     let fl = sub(last, first);
                     let fln = norm(fl);
                     beams[r] = if fln > 0.0 {
