@@ -34,7 +34,7 @@ pub fn probe_data(ds: &Dataset, holdout: &str) -> anyhow::Result<ProbeData> {
         let v = ds.numeric(&format!("{s}_degC"))?.to_vec();
         temperatures.push((s, v));
     }
-    Ok(ProbeData {
+    let data = ProbeData {
         touches,
         artefact,
         run: ds.run(),
@@ -42,7 +42,105 @@ pub fn probe_data(ds: &Dataset, holdout: &str) -> anyhow::Result<ProbeData> {
         temperatures,
         held_out,
         labels,
-    })
+    };
+    Ok(without_gross_outliers(data))
+}
+
+/// Robust σ threshold of a gross outlier (bounce, false trigger), as `fit probe --outlier-mad`'s default.
+const OUTLIER_ROBUST_SIGMA: f64 = 6.0;
+
+/// Flags of the touches of one sphere: radial residual about the free-radius sphere of the touches kept more
+/// than [`OUTLIER_ROBUST_SIGMA`] robust σ (1.4826·MAD, at least 0.05 µm) from the median, iterated until the
+/// flags no longer change (at most 10 rounds). A glitch of hundreds of µm would otherwise dominate the gap
+/// and hide every effect. `None` when the touches do not determine a sphere (ring gauge, plane).
+fn sphere_outliers(points: &[[f64; 3]]) -> Option<Vec<bool>> {
+    let mut flags = vec![false; points.len()];
+    for _ in 0..10 {
+        let kept: Vec<[f64; 3]> = (0..points.len())
+            .filter(|&i| !flags[i])
+            .map(|i| points[i])
+            .collect();
+        let s = axcomp_probe::geometry::geometric_sphere(&kept, None).ok()?;
+        let r: Vec<f64> = points
+            .iter()
+            .map(|p| {
+                let d = (0..3).map(|k| (p[k] - s.center_mm[k]).powi(2)).sum::<f64>();
+                (d.sqrt() - s.radius_mm) * 1000.0
+            })
+            .collect();
+        let mut sorted = r.clone();
+        sorted.sort_by(f64::total_cmp);
+        let med = sorted[sorted.len() / 2];
+        let mut dev: Vec<f64> = r.iter().map(|e| (e - med).abs()).collect();
+        dev.sort_by(f64::total_cmp);
+        let sigma = (1.4826 * dev[dev.len() / 2]).max(0.05);
+        let next: Vec<bool> = r
+            .iter()
+            .map(|e| (e - med).abs() > OUTLIER_ROBUST_SIGMA * sigma)
+            .collect();
+        if next == flags {
+            break;
+        }
+        flags = next;
+    }
+    Some(flags)
+}
+
+/// `d` without the gross outliers of each sphere artefact ([`sphere_outliers`]), listed on stderr.
+fn without_gross_outliers(d: ProbeData) -> ProbeData {
+    let n = d.touches.len();
+    let mut flagged = vec![false; n];
+    let mut names: Vec<&str> = Vec::new();
+    for a in &d.artefact {
+        if !names.contains(&a.as_str()) {
+            names.push(a);
+        }
+    }
+    for name in names {
+        let rows: Vec<usize> = (0..n).filter(|&i| d.artefact[i] == name).collect();
+        let pts: Vec<[f64; 3]> = rows.iter().map(|&i| d.touches[i].position_mm).collect();
+        let sphere = rows.len() >= 8
+            && axcomp_probe::geometry::check_not_coplanar(&pts, &vec![String::new(); pts.len()])
+                .is_ok();
+        if let Some(f) = sphere.then(|| sphere_outliers(&pts)).flatten() {
+            for (k, &i) in rows.iter().enumerate() {
+                flagged[i] = f[k];
+            }
+        }
+    }
+    if !flagged.iter().any(|f| *f) {
+        return d;
+    }
+    let bad: Vec<&str> = (0..n)
+        .filter(|&i| flagged[i])
+        .map(|i| d.labels[i].as_str())
+        .collect();
+    eprintln!(
+        "axcomp: note: {} touches left out as bounces / false triggers (radial residual more than {} robust σ \
+         from their sphere's, as `fit probe` flags them): {}",
+        bad.len(),
+        OUTLIER_ROBUST_SIGMA,
+        bad.join(", ")
+    );
+    let keep = |i: &usize| !flagged[*i];
+    let pick =
+        |v: &[String]| -> Vec<String> { (0..n).filter(keep).map(|i| v[i].clone()).collect() };
+    ProbeData {
+        touches: (0..n).filter(keep).map(|i| d.touches[i]).collect(),
+        artefact: pick(&d.artefact),
+        run: d.run.as_deref().map(pick),
+        time_s: d
+            .time_s
+            .as_ref()
+            .map(|t| (0..n).filter(keep).map(|i| t[i]).collect()),
+        temperatures: d
+            .temperatures
+            .iter()
+            .map(|(s, v)| (s.clone(), (0..n).filter(keep).map(|i| v[i]).collect()))
+            .collect(),
+        held_out: (0..n).filter(keep).map(|i| d.held_out[i]).collect(),
+        labels: pick(&d.labels),
+    }
 }
 
 pub fn run(args: &Args, ds: Dataset) -> anyhow::Result<()> {
