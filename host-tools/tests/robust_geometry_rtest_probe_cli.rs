@@ -178,3 +178,147 @@ fn probe_diagnosis_leaves_out_false_triggers() {
     assert_eq!(j["verdict"], "speed_pretravel", "{out}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `fit rtest --holdout path=C-circle@-60`: the K4 path is among the fitted rows. The contract's `k4` gives
+/// the ISO 10791-6 ranges before and after "from the held-out prediction where there is one"; here there
+/// is none, so they come from the fit. Before the fix `k4` was null whenever K4 was not held out.
+/// Reference: the same figures with no hold-out (in-sample fit of all rows): the ranges before are equal
+/// exactly (the same measured K4 rows), the ranges after within 0.5 µm (the two fits differ by one circle).
+#[test]
+fn rtest_k4_figures_when_k4_is_fitted() {
+    let dir = scratch("rtest-k4");
+    ok(&axcomp_in(
+        &["sim", "--machine", "ac-trunnion", "--out", "rt.csv"],
+        &dir,
+    ));
+    ok(&axcomp_in(
+        &["fit", "rtest", "--data", "rt.csv", "--json", "all.json"],
+        &dir,
+    ));
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "rtest",
+            "--data",
+            "rt.csv",
+            "--holdout",
+            "path=C-circle@-60",
+            "--json",
+            "held.json",
+        ],
+        &dir,
+    ));
+    let all = read_json(&dir.join("all.json"));
+    let held = read_json(&dir.join("held.json"));
+    assert!(held["holdout_rms_um"].as_f64().is_some());
+    let k = &held["k4"];
+    assert!(k.is_object(), "k4 is {k}");
+    assert_eq!(k["from"], "in-sample fit");
+    assert_eq!(k["rows"], all["k4"]["rows"]);
+    for c in ["dx_um", "dy_um", "dz_um"] {
+        assert_eq!(k["before"][c], all["k4"]["before"][c]);
+        let (a, b) = (
+            k["after"][c].as_f64().unwrap(),
+            all["k4"]["after"][c].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() < 0.5, "{c}: {a} vs {b}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Too few poses for the unknowns: 4 poses give 12 readings for 11 location errors and the sphere's 3
+/// set-up offsets. Before the fix `fit rtest` wrote a model with EA0C "identified" at 117 ± 4 µrad (the
+/// twin's truth: 70.5) and exit code 0. Now a clear error naming the file and the counts, exit code 2, and
+/// nothing written.
+#[test]
+fn rtest_too_few_poses_is_an_error() {
+    let dir = scratch("rtest-few");
+    ok(&axcomp_in(
+        &["sim", "--machine", "ac-trunnion", "--out", "rt.csv"],
+        &dir,
+    ));
+    let text = std::fs::read_to_string(dir.join("rt.csv")).unwrap();
+    let few: Vec<&str> = text.lines().take(6).collect(); // a comment, the header, 4 poses
+    std::fs::write(dir.join("few.csv"), few.join("\n") + "\n").unwrap();
+    let o = axcomp_in(
+        &[
+            "fit", "rtest", "--data", "few.csv", "--json", "f.json", "--out", "m.json", "--report",
+            "rep",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("few.csv") && err.contains("4 poses"), "{err}");
+    for f in ["f.json", "m.json", "rep"] {
+        assert!(!dir.join(f).exists(), "{f} written");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `fit probe --group COL` without `--centres-out`: each group's sphere centre is fitted (contract: "With
+/// `--group COL,...` each group's sphere centre is fitted too"); only the R-test rows of `--centres-out`
+/// need the commanded tool point (`cmd_x_mm`, …). Before the fix `--group` alone refused a touch CSV
+/// without those columns. Reference: both runs of the twin's calibration touch the same sphere (centre
+/// 100, 50, 20 mm): each group's fitted centre within 2 µm of it.
+#[test]
+fn probe_group_without_commanded_point() {
+    let dir = scratch("probe-group");
+    ok(&axcomp_in(
+        &["sim-probe", "--plan", "probe-cal", "--out", "touches.csv"],
+        &dir,
+    ));
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "probe",
+            "--data",
+            "touches.csv",
+            "--sphere-diameter-mm",
+            "25",
+            "--group",
+            "run",
+            "--json",
+            "p.json",
+        ],
+        &dir,
+    ));
+    let j = read_json(&dir.join("p.json"));
+    let groups = j["groups"].as_array().unwrap();
+    assert_eq!(groups.len(), 2, "{groups:?}");
+    for g in groups {
+        assert!(g["commanded_mm"].is_null(), "{g}");
+        assert!(g["dx_um"].is_null(), "{g}");
+        let c: Vec<f64> = g["center_mm"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        for (k, t) in [100.0, 50.0, 20.0].iter().enumerate() {
+            assert!((c[k] - t).abs() < 0.002, "{g}");
+        }
+    }
+    // --centres-out still needs the commanded point: a clear error, nothing written.
+    let o = axcomp_in(
+        &[
+            "fit",
+            "probe",
+            "--data",
+            "touches.csv",
+            "--sphere-diameter-mm",
+            "25",
+            "--group",
+            "run",
+            "--centres-out",
+            "c.csv",
+            "--json",
+            "q.json",
+        ],
+        &dir,
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cmd_x_mm"));
+    assert!(!dir.join("c.csv").exists() && !dir.join("q.json").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -374,17 +374,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 order.push(k.clone());
             }
         }
-        let cmd = ["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"]
-            .iter()
-            .map(|c| {
-                ds.numeric(c).map(<[f64]>::to_vec).with_context(|| {
-                    format!(
-                        "--group: each group's commanded tool point comes from `{c}` (see `axcomp fit probe \
-                         --help`)"
-                    )
-                })
-            })
-            .collect::<anyhow::Result<Vec<_>>>()?;
+        // The commanded tool point: needed for the R-test rows of --centres-out; without it (and without
+        // --centres-out) each group's centre is still fitted and reported.
+        let cmd = if args.centres_out.is_some() || ds.has("cmd_x_mm") {
+            Some(
+                ["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"]
+                    .iter()
+                    .map(|c| {
+                        ds.numeric(c).map(<[f64]>::to_vec).with_context(|| {
+                            format!(
+                                "--group: each group's commanded tool point comes from `{c}` (see `axcomp fit \
+                                 probe --help`)"
+                            )
+                        })
+                    })
+                    .collect::<anyhow::Result<Vec<_>>>()?,
+            )
+        } else {
+            None
+        };
         // Columns an R-test row carries (path, setup), when the touches have them: constant per group (the
         // touch CSV's `run` is a repeat id of touches; an R-test run goes into --group).
         let carried: Vec<&str> = ["path", "setup"]
@@ -398,16 +406,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if rows.is_empty() {
                 continue;
             }
-            let mut point = [0.0; 3];
-            for k in 0..3 {
-                point[k] = cmd[k][rows[0]];
-                if let Some(&bad) = rows.iter().find(|&&i| cmd[k][i] != point[k]) {
-                    bail!(
-                        "{}: the commanded tool point differs within group `{}` (first row {})",
-                        ds.locate(["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"][k], bad),
-                        key.replace('\u{1f}', ","),
-                        labels[rows[0]]
-                    );
+            let mut point = cmd.as_ref().map(|_| [0.0; 3]);
+            if let (Some(cmd), Some(point)) = (&cmd, &mut point) {
+                for k in 0..3 {
+                    point[k] = cmd[k][rows[0]];
+                    if let Some(&bad) = rows.iter().find(|&&i| cmd[k][i] != point[k]) {
+                        bail!(
+                            "{}: the commanded tool point differs within group `{}` (first row {})",
+                            ds.locate(["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"][k], bad),
+                            key.replace('\u{1f}', ","),
+                            labels[rows[0]]
+                        );
+                    }
                 }
             }
             let gt: Vec<Touch> = rows.iter().map(|&i| touches[i]).collect();
@@ -565,8 +575,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "shared_zero": shared_zero.as_ref().map(shared_zero_json),
         "groups": group_rows.iter().map(|(p, v, s, n, flagged, _)| json!({
             "group": &v[..args.group.len()], "touches": n, "outliers": flagged, "commanded_mm": p, "center_mm": s.center_mm, "rms_um": s.rms_um,
-            "dx_um": (s.center_mm[0] - p[0]) * 1000.0, "dy_um": (s.center_mm[1] - p[1]) * 1000.0,
-            "dz_um": (s.center_mm[2] - p[2]) * 1000.0 })).collect::<Vec<_>>(),
+            "dx_um": p.map(|p| (s.center_mm[0] - p[0]) * 1000.0), "dy_um": p.map(|p| (s.center_mm[1] - p[1]) * 1000.0),
+            "dz_um": p.map(|p| (s.center_mm[2] - p[2]) * 1000.0) })).collect::<Vec<_>>(),
     });
 
     let centres_csv = args.centres_out.as_ref().map(|_| {
@@ -586,6 +596,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         s.push('\n');
         for (g, (p, v, c, _, _, _)) in group_rows.iter().enumerate() {
+            let p = p.expect("the commanded point is read whenever --centres-out is given");
             let _ = write!(s, "{},{},{}", p[0], p[1], p[2]);
             for x in v {
                 let _ = write!(s, ",{x}");

@@ -106,6 +106,34 @@ fn parse_head_zero_std(s: &str) -> anyhow::Result<[f64; 3]> {
     Ok(v)
 }
 
+/// The fitted poses' readings (3 per pose) must at least match the unknowns: the 11 location errors and
+/// each set-up's sphere offsets (and head zero with `--free-head-zero`). Fewer is an error, not a model
+/// whose "identified" values fit the noise.
+fn check_enough_poses(
+    ds: &axcomp_data::Dataset,
+    data: &RtestData,
+    split: Option<&axcomp_data::Split>,
+) -> anyhow::Result<()> {
+    let fitted = match split {
+        Some(axcomp_data::Split::Holdout(h)) => h.mask(ds)?.iter().filter(|m| !**m).count(),
+        _ => data.poses.len(),
+    };
+    let per_setup = if data.free_head_zero { 6 } else { 3 };
+    let unknowns = axcomp_kinematics::rotary::N_LOCATION + per_setup * data.setup_names.len();
+    if 3 * fitted < unknowns {
+        bail!(
+            "{}: {fitted} poses to fit give {} readings (dx, dy, dz), fewer than the {unknowns} unknowns \
+             ({} location errors, {per_setup} set-up offsets for each of {} set-ups): need at least {} poses",
+            data.source,
+            3 * fitted,
+            axcomp_kinematics::rotary::N_LOCATION,
+            data.setup_names.len(),
+            unknowns.div_ceil(3)
+        );
+    }
+    Ok(())
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let machine = machine_from(&args.machine, args.pivot_mm)?;
     let head_zero_std_um = args
@@ -126,6 +154,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ds = load_dataset(&args.data)?;
     let mut data = RtestData::from_dataset(&ds, machine, true)?;
     data.free_head_zero = args.free_head_zero;
+    check_enough_poses(&ds, &data, split.as_ref())?;
     let opts = FitOptions { head_zero_std_um };
     // The probe route's centres carry their calibration's shared error (zero1_dx_um, …): used unless
     // --head-zero-std-um overrides it.

@@ -41,6 +41,8 @@ pub struct K4Figures {
     pub rows: usize,
     pub before_um: [f64; 3],
     pub after_um: [f64; 3],
+    /// The K4 rows were fitted, not judged (a hold-out of other paths): "after" is the in-sample fit's.
+    pub in_sample: bool,
 }
 
 /// Rows that belong to the K4 path: `path` equal to `K4` (any case), or every row when no row names a path.
@@ -258,6 +260,7 @@ pub fn analyse_selected(
             .map(|(i, _)| i)
             .collect()
     };
+    let k4_fitted = k4_rows(data, &fit_rows);
     let k4 = if k4_idx.len() >= 2 {
         let b: Vec<[f64; 3]> = k4_idx.iter().map(|&i| meas[i]).collect();
         let a: Vec<[f64; 3]> = k4_idx.iter().map(|&i| resid[i]).collect();
@@ -265,6 +268,22 @@ pub fn analyse_selected(
             rows: k4_idx.len(),
             before_um: ranges(&b),
             after_um: ranges(&a),
+            in_sample: judged_by == "fit",
+        })
+    } else if k4_fitted.len() >= 2 {
+        // K4 among the fitted rows only (a hold-out of other paths): the figures from the fit.
+        let pred = predict_with(&fit, data, &k4_fitted)?;
+        let b: Vec<[f64; 3]> = k4_fitted.iter().map(|&r| data.d_um[r]).collect();
+        let a: Vec<[f64; 3]> = b
+            .iter()
+            .zip(&pred)
+            .map(|(m, p)| [m[0] - p[0], m[1] - p[1], m[2] - p[2]])
+            .collect();
+        Some(K4Figures {
+            rows: k4_fitted.len(),
+            before_um: ranges(&b),
+            after_um: ranges(&a),
+            in_sample: true,
         })
     } else {
         None
@@ -400,7 +419,7 @@ impl Analysis {
             Some(k) => {
                 let red = |i: usize| 100.0 * (1.0 - k.after_um[i] / k.before_um[i]);
                 json!({
-                    "from": match self.judged_by { "holdout" => "held-out prediction", "cv" => "cross-validated prediction", _ => "in-sample fit" },
+                    "from": match (k.in_sample, self.judged_by) { (true, _) => "in-sample fit", (_, "holdout") => "held-out prediction", (_, "cv") => "cross-validated prediction", _ => "in-sample fit" },
                     "rows": k.rows,
                     "before": xyz(k.before_um),
                     "after": xyz(k.after_um),

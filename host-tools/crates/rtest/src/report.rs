@@ -155,7 +155,8 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
     if let Some(k) = &a.k4 {
         md.push_str(&format!(
             "\nISO 10791-6 K4 figures (range of each component over {} K4 poses, {}):\n\n",
-            k.rows, a.judged_by
+            k.rows,
+            if k.in_sample { "fit" } else { a.judged_by }
         ));
         let r = |i: usize| {
             vec![
