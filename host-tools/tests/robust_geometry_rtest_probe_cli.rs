@@ -322,3 +322,62 @@ fn probe_group_without_commanded_point() {
     assert!(!dir.join("c.csv").exists() && !dir.join("q.json").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A touch CSV holding several artefacts (the calibration sphere, a second sphere, a ring gauge, a plane),
+/// calibrated without choosing one: before the fix one sphere was fitted to all of them and the error
+/// blamed row 1's approach vector ("points 89° away from the sphere's centre"). Now the error names the
+/// artefacts and what to do; exit code 2, nothing written. Choosing the sphere with `--where` works.
+#[test]
+fn probe_several_artefacts_is_a_clear_error() {
+    let dir = scratch("probe-artefacts");
+    ok(&axcomp_in(
+        &["sim-probe", "--plan", "probe-cal", "--out", "cal.csv"],
+        &dir,
+    ));
+    ok(&axcomp_in(
+        &["sim-probe", "--plan", "probe-measure", "--out", "meas.csv"],
+        &dir,
+    ));
+    let cal = std::fs::read_to_string(dir.join("cal.csv")).unwrap();
+    let meas = std::fs::read_to_string(dir.join("meas.csv")).unwrap();
+    let mixed = cal + &meas.lines().skip(1).collect::<Vec<_>>().join("\n") + "\n";
+    std::fs::write(dir.join("mixed.csv"), mixed).unwrap();
+    let o = axcomp_in(
+        &[
+            "fit",
+            "probe",
+            "--data",
+            "mixed.csv",
+            "--sphere-diameter-mm",
+            "25",
+            "--json",
+            "p.json",
+            "--out",
+            "cal.json",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("mixed.csv") && err.contains("cal_sphere") && err.contains("--where"),
+        "{err}"
+    );
+    assert!(!dir.join("p.json").exists() && !dir.join("cal.json").exists());
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "probe",
+            "--data",
+            "mixed.csv",
+            "--sphere-diameter-mm",
+            "25",
+            "--where",
+            "artefact=cal_sphere",
+            "--json",
+            "p.json",
+        ],
+        &dir,
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+}

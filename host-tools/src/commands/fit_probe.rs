@@ -304,6 +304,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.holdout.as_deref().unwrap_or("")
         );
     }
+    // One sphere is fitted to the calibration rows and one to the held-out rows: each must be one artefact.
+    if ds.has("artefact") {
+        let names = ds.text("artefact")?;
+        for (rows, what, fix) in [
+            (
+                &train,
+                "calibration",
+                "choose the reference sphere with --where artefact=NAME",
+            ),
+            (&test, "held-out", "hold out one artefact at a time"),
+        ] {
+            let mut seen: Vec<&str> = Vec::new();
+            for &i in rows {
+                let a = names[i].trim();
+                if !seen.contains(&a) {
+                    seen.push(a);
+                }
+            }
+            if seen.len() > 1 {
+                bail!(
+                    "{}: the {what} touches belong to {} artefacts ({}), but one sphere is fitted to them: {fix}",
+                    ds.source(),
+                    seen.len(),
+                    seen.join(", ")
+                );
+            }
+        }
+    }
     let tr_touches: Vec<Touch> = train.iter().map(|&i| touches[i]).collect();
     let tr_labels: Vec<String> = train.iter().map(|&i| labels[i].clone()).collect();
     let opts = CalibrationOptions {
