@@ -381,3 +381,41 @@ fn probe_several_artefacts_is_a_clear_error() {
     ));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `fit geometry --cv line` on a file of one line: leave-one-line-out has nothing to leave out. Before the
+/// fix the command succeeded with "cross-validated RMS NaN µm" and `cv_rms_um: null` in the JSON; now it is
+/// a clear error naming the file and the group (as `fit rtest --cv` does), exit code 2, nothing written.
+#[test]
+fn geometry_cv_over_a_single_line_is_an_error() {
+    let dir = scratch("geo-cv1");
+    ok(&axcomp_in(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--simulate",
+            "lines.csv",
+            "--twin-plan",
+            "seven-line",
+        ],
+        &dir,
+    ));
+    let (h, rows) = table(&dir.join("lines.csv"));
+    let line = h.iter().position(|c| c == "line").unwrap();
+    let one: Vec<Vec<String>> = rows.into_iter().filter(|r| r[line] == "L1").collect();
+    assert!(one.len() >= 10);
+    write_table(&dir.join("one.csv"), &h, &one);
+    let o = axcomp_in(
+        &[
+            "fit", "geometry", "--data", "one.csv", "--cv", "line", "--json", "g.json", "--out",
+            "m.json",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("one.csv") && err.contains("L1"), "{err}");
+    assert!(!dir.join("g.json").exists() && !dir.join("m.json").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

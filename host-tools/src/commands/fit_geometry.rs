@@ -83,7 +83,17 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
             }
             Judge::Holdout(mask)
         }
-        Some(Split::Cv(col)) => Judge::Cv(groups(&ds, &col)?.0),
+        Some(Split::Cv(col)) => {
+            let (ids, labels) = groups(&ds, &col)?;
+            if labels.len() < 2 {
+                bail!(
+                    "--cv {col}: {} has a single group `{}`, nothing to leave out",
+                    ds.source(),
+                    labels.first().cloned().unwrap_or_default()
+                );
+            }
+            Judge::Cv(ids)
+        }
     };
     let opts = FitOptions {
         topology,
