@@ -419,3 +419,60 @@ fn geometry_cv_over_a_single_line_is_an_error() {
     assert!(!dir.join("g.json").exists() && !dir.join("m.json").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `fit probe` with the sphere diameter given too large (28 mm for the twin's Ø25 mm sphere with its
+/// Ø3 mm stylus: the latched tip centres lie 14.0 mm from the centre): before the fix the calibration was
+/// written with an effective stylus radius of −0.0036 mm (−111 mm with 250 mm) and exit code 0, and
+/// `predict` would have put every contact point on the wrong side. Now a clear error naming the file and
+/// the diameter, exit code 2, nothing written. A diameter a little off (26 mm) still calibrates (the data
+/// cannot tell the sphere's radius from the stylus's: r_eff absorbs it, 0.9964 mm instead of 1.4964 mm).
+#[test]
+fn probe_sphere_diameter_too_large_is_an_error() {
+    let dir = scratch("probe-diameter");
+    ok(&axcomp_in(
+        &["sim-probe", "--plan", "probe-cal", "--out", "touches.csv"],
+        &dir,
+    ));
+    for d in ["28", "250"] {
+        let o = axcomp_in(
+            &[
+                "fit",
+                "probe",
+                "--data",
+                "touches.csv",
+                "--sphere-diameter-mm",
+                d,
+                "--json",
+                "p.json",
+                "--out",
+                "cal.json",
+            ],
+            &dir,
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{d}: {err}");
+        assert!(
+            err.contains("touches.csv") && err.contains("--sphere-diameter-mm"),
+            "{err}"
+        );
+        assert!(!dir.join("p.json").exists() && !dir.join("cal.json").exists());
+    }
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "probe",
+            "--data",
+            "touches.csv",
+            "--sphere-diameter-mm",
+            "26",
+            "--json",
+            "p.json",
+        ],
+        &dir,
+    ));
+    let r = read_json(&dir.join("p.json"))["stylus_radius_mm"]
+        .as_f64()
+        .unwrap();
+    assert!((r - 0.9964).abs() < 0.001, "{r}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -341,6 +341,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let res = calibrate(&tr_touches, &tr_labels, &opts)?;
     let cal = &res.calibration;
+    // The latched tip centres lie |p − C| = R + r_eff from the centre: r_eff ≤ 0 means they lie on or
+    // inside the sphere as given, which no stylus does (the diameter is wrong, or the artefact is not a
+    // sphere touched from outside).
+    if !(cal.stylus_radius_mm > 0.0) {
+        bail!(
+            "{}: the latched stylus-tip centres lie {:.4} mm from the fitted centre, not more than the sphere's \
+             radius {:.4} mm (--sphere-diameter-mm {}): the effective stylus radius would be {:.4} mm ≤ 0. \
+             Is the sphere diameter right (the touches fit a sphere of {:.4} mm with a zero-radius stylus)?",
+            ds.source(),
+            args.sphere_diameter_mm / 2.0 + cal.stylus_radius_mm,
+            args.sphere_diameter_mm / 2.0,
+            args.sphere_diameter_mm,
+            cal.stylus_radius_mm,
+            args.sphere_diameter_mm + 2.0 * cal.stylus_radius_mm
+        );
+    }
+    if let Some(d) = args.stylus_diameter_mm {
+        if (cal.stylus_radius_mm - d / 2.0).abs() > 0.1 * d / 2.0 {
+            eprintln!(
+                "axcomp: warning: effective stylus radius {:.4} mm vs the nominal ball's {:.4} mm \
+                 (--stylus-diameter-mm {d}): more than 10 % apart, far beyond a pretravel; is \
+                 --sphere-diameter-mm {} right?",
+                cal.stylus_radius_mm,
+                d / 2.0,
+                args.sphere_diameter_mm
+            );
+        }
+    }
 
     // ---- evaluation: held-out rows, else the calibration inliers ----
     let outlier_idx: Vec<usize> = res.outliers.iter().map(|o| o.index).collect();
