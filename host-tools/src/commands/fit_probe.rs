@@ -344,7 +344,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The latched tip centres lie |p − C| = R + r_eff from the centre: r_eff ≤ 0 means they lie on or
     // inside the sphere as given, which no stylus does (the diameter is wrong, or the artefact is not a
     // sphere touched from outside).
-    if !(cal.stylus_radius_mm > 0.0) {
+    if cal.stylus_radius_mm.is_nan() || cal.stylus_radius_mm <= 0.0 {
         bail!(
             "{}: the latched stylus-tip centres lie {:.4} mm from the fitted centre, not more than the sphere's \
              radius {:.4} mm (--sphere-diameter-mm {}): the effective stylus radius would be {:.4} mm ≤ 0. \
