@@ -476,3 +476,63 @@ fn probe_sphere_diameter_too_large_is_an_error() {
     assert!((r - 0.9964).abs() < 0.001, "{r}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Laser lines with `beam_x` and `beam_y` but no `beam_z` (a tool that drops a column that is zero for lines
+/// in the XY plane): before the fix the two beam columns were silently ignored and each line's direction
+/// from its targets used instead; when the beam points against the travel (a laser set up at the far end)
+/// that flips the sign of every reading without a word. Now a clear error naming the file and the missing
+/// column, exit code 2, nothing written; `predict` refuses it the same way.
+#[test]
+fn geometry_partial_beam_columns_are_an_error() {
+    let dir = scratch("geo-beam2");
+    ok(&axcomp_in(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--simulate",
+            "lines.csv",
+            "--twin-plan",
+            "seven-line",
+        ],
+        &dir,
+    ));
+    let (h, rows) = table(&dir.join("lines.csv"));
+    let (h2, r2) = without(&h, &rows, &["beam_z"]);
+    write_table(&dir.join("two.csv"), &h2, &r2);
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "geometry",
+            "--data",
+            "lines.csv",
+            "--out",
+            "model.json",
+        ],
+        &dir,
+    ));
+    for args in [
+        vec![
+            "fit", "geometry", "--data", "two.csv", "--json", "g.json", "--out", "m.json",
+        ],
+        vec![
+            "predict",
+            "--model",
+            "model.json",
+            "--data",
+            "two.csv",
+            "--out",
+            "p.csv",
+        ],
+    ] {
+        let o = axcomp_in(&args, &dir);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("two.csv") && err.contains("beam_z"), "{err}");
+    }
+    for f in ["g.json", "m.json", "p.csv"] {
+        assert!(!dir.join(f).exists(), "{f} written");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

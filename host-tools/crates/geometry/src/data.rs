@@ -154,6 +154,18 @@ impl LineData {
             line_of.push(i);
         }
         let has_beam = ["beam_x", "beam_y", "beam_z"].iter().all(|c| ds.has(c));
+        let (present, missing): (Vec<&str>, Vec<&str>) = ["beam_x", "beam_y", "beam_z"]
+            .iter()
+            .partition(|c| ds.has(c));
+        if !has_beam && !present.is_empty() {
+            // Ignoring a partial beam would silently take the lines' own directions, whose sign may differ
+            // from the beam's (and so every reading's).
+            return Err(GeometryError::PartialBeam {
+                file: ds.source().to_string(),
+                present: present.join(", "),
+                missing: missing.join(", "),
+            });
+        }
         let mut beams = vec![[0.0; 3]; n];
         if has_beam {
             let b: Vec<Vec<f64>> = ["beam_x", "beam_y", "beam_z"]

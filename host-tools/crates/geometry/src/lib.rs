@@ -69,6 +69,14 @@ pub enum GeometryError {
     NothingIdentifiable,
     #[error("{at}: axis position {q:?} mm lies outside the model's measured range")]
     OutsideModel { at: String, q: [f64; 3] },
+    #[error(
+        "{file}: beam columns {present} without {missing}: give all three of beam_x, beam_y, beam_z (a unit vector), or none (the beam is then the direction from each line's first to its last target)"
+    )]
+    PartialBeam {
+        file: String,
+        present: String,
+        missing: String,
+    },
     #[error("{source_name}: not a geometry model: {reason}")]
     BadModel { source_name: String, reason: String },
     #[error("{0}")]
