@@ -536,3 +536,67 @@ fn geometry_partial_beam_columns_are_an_error() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A probe calibrated on touches without `feed_mm_min` (one unknown speed), applied by `predict` to touches
+/// that carry the column: refused, as before, but the error said "the calibration saw only 0 mm/min", a
+/// speed nobody probed at. Now it says the calibration had no feed column and how to proceed; exit code 2,
+/// nothing written.
+#[test]
+fn probe_predict_without_calibrated_feed_says_why() {
+    let dir = scratch("probe-nofeed");
+    ok(&axcomp_in(
+        &["sim-probe", "--plan", "probe-cal", "--out", "touches.csv"],
+        &dir,
+    ));
+    let (h, rows) = table(&dir.join("touches.csv"));
+    let feed = h.iter().position(|c| c == "feed_mm_min").unwrap();
+    let one: Vec<Vec<String>> = rows.into_iter().filter(|r| r[feed] == "300").collect();
+    write_table(&dir.join("with_feed.csv"), &h, &one);
+    let (h2, r2) = without(&h, &one, &["feed_mm_min"]);
+    write_table(&dir.join("no_feed.csv"), &h2, &r2);
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "probe",
+            "--data",
+            "no_feed.csv",
+            "--sphere-diameter-mm",
+            "25",
+            "--out",
+            "cal.json",
+        ],
+        &dir,
+    ));
+    ok(&axcomp_in(
+        &[
+            "predict",
+            "--model",
+            "cal.json",
+            "--data",
+            "no_feed.csv",
+            "--out",
+            "a.csv",
+        ],
+        &dir,
+    ));
+    let o = axcomp_in(
+        &[
+            "predict",
+            "--model",
+            "cal.json",
+            "--data",
+            "with_feed.csv",
+            "--out",
+            "b.csv",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("with_feed.csv") && err.contains("no feed_mm_min column"),
+        "{err}"
+    );
+    assert!(!dir.join("b.csv").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -177,6 +177,14 @@ impl Calibration {
         let [lo, hi] = self.feed_range_mm_min;
         let f = t.feed_mm_min;
         if hi - lo <= 1e-9 * hi.max(1.0) {
+            if hi == 0.0 && f != 0.0 {
+                return Err(format!(
+                    "feed_mm_min {f}: the calibration's touches had no feed_mm_min column (one speed, not \
+                     known), so it cannot tell the pretravel at a given speed; leave the column out (--rename \
+                     feed_mm_min=feed_unused) if these touches were probed at the calibration's speed, or \
+                     calibrate with feed_mm_min"
+                ));
+            }
             if (f - lo).abs() > 0.01 * lo.max(1.0) {
                 return Err(format!(
                     "feed_mm_min {f}: the calibration saw only {lo} mm/min, so it cannot tell the pretravel at \
