@@ -10,7 +10,7 @@
 //! - **group** (`--group COL,..`): one pose of a five-axis calibration. The probe is calibrated on the first
 //!   group's rows (file order: the reference pose); every group's sphere centre is then fitted with that
 //!   calibration (radius fixed). **Commanded tool point** of a group: the columns `cmd_x_mm, cmd_y_mm,
-//!   cmd_z_mm` (constant within the group): the position the linear axes were commanded to so that, by the
+//!   cmd_z_mm` (constant within the group; needed by `--centres-out` only): the position the linear axes were commanded to so that, by the
 //!   nominal kinematics, the tool point (stylus-tip centre) sits at the sphere's nominal centre. The R-test
 //!   row's `dx_um, dy_um, dz_um` = fitted centre − commanded tool point.
 
@@ -71,7 +71,8 @@ pub struct Args {
     #[arg(long, default_value_t = 6.0, value_name = "K")]
     pub outlier_mad: f64,
     /// Columns naming a pose (e.g. a_deg,c_deg): fit one sphere centre per group. Each group's commanded tool
-    /// point is read from the columns cmd_x_mm, cmd_y_mm, cmd_z_mm (constant within the group).
+    /// point is read from the columns cmd_x_mm, cmd_y_mm, cmd_z_mm (constant within the group; needed by
+    /// --centres-out, optional otherwise).
     #[arg(long, value_delimiter = ',', value_name = "COL,..")]
     pub group: Vec<String>,
     /// With --group: write one R-test row per group (x_mm,y_mm,z_mm,<group cols>[,path,setup],dx_um,
