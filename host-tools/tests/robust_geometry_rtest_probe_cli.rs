@@ -600,3 +600,79 @@ fn probe_predict_without_calibrated_feed_says_why() {
     assert!(!dir.join("b.csv").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Approach vectors a little off unit length (within the accepted ±0.001, e.g. written with 3 decimals or
+/// scaled by 1.0008 here): before the fix they were used as given, so `predict` put each contact point
+/// 0.0008 × the 1.5 mm stylus radius = 1.2 µm off along the approach. Now they are normalised as read.
+/// Reference: the same touches with exactly unit vectors (the twin's); tolerance 0.01 µm on every contact
+/// coordinate.
+#[test]
+fn probe_approach_vectors_are_normalised() {
+    let dir = scratch("probe-unit");
+    ok(&axcomp_in(
+        &[
+            "sim-probe",
+            "--plan",
+            "probe-cal",
+            "--no-glitches",
+            "--out",
+            "unit.csv",
+        ],
+        &dir,
+    ));
+    let (h, rows) = table(&dir.join("unit.csv"));
+    let cols: Vec<usize> = ["approach_x", "approach_y", "approach_z"]
+        .iter()
+        .map(|c| h.iter().position(|x| x == c).unwrap())
+        .collect();
+    let scaled: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| {
+            let mut r = r.clone();
+            for &k in &cols {
+                r[k] = format!("{}", r[k].parse::<f64>().unwrap() * 1.0008);
+            }
+            r
+        })
+        .collect();
+    write_table(&dir.join("scaled.csv"), &h, &scaled);
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "probe",
+            "--data",
+            "unit.csv",
+            "--sphere-diameter-mm",
+            "25",
+            "--out",
+            "cal.json",
+        ],
+        &dir,
+    ));
+    for f in ["unit", "scaled"] {
+        ok(&axcomp_in(
+            &[
+                "predict",
+                "--model",
+                "cal.json",
+                "--data",
+                &format!("{f}.csv"),
+                "--out",
+                &format!("{f}_p.csv"),
+            ],
+            &dir,
+        ));
+    }
+    let (ha, a) = table(&dir.join("unit_p.csv"));
+    let (_, b) = table(&dir.join("scaled_p.csv"));
+    let mut worst: f64 = 0.0;
+    for c in ["contact_x_mm", "contact_y_mm", "contact_z_mm"] {
+        let k = ha.iter().position(|x| x == c).unwrap();
+        for (ra, rb) in a.iter().zip(&b) {
+            let d = (ra[k].parse::<f64>().unwrap() - rb[k].parse::<f64>().unwrap()).abs() * 1000.0;
+            worst = worst.max(d);
+        }
+    }
+    assert!(worst < 0.01, "largest contact difference {worst} µm");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -382,10 +382,20 @@ pub fn read_touches(ds: &Dataset) -> anyhow::Result<(Vec<Touch>, Vec<String>)> {
         vec![0.0; ds.n_rows()]
     };
     let touches = (0..ds.n_rows())
-        .map(|i| Touch {
-            position_mm: [x[i], y[i], z[i]],
-            approach: [ax[i], ay[i], az[i]],
-            feed_mm_min: feed[i],
+        .map(|i| {
+            // A vector within the accepted tolerance of unit length is normalised (its length error would
+            // otherwise move the contact point by r·(|u| − 1), up to 1.5 µm for a Ø3 mm ball); one further
+            // off is left as given for `validate_touches` to refuse, naming the row.
+            let mut approach = [ax[i], ay[i], az[i]];
+            let l = approach.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if (l - 1.0).abs() <= axcomp_probe::UNIT_TOLERANCE {
+                approach = approach.map(|v| v / l);
+            }
+            Touch {
+                position_mm: [x[i], y[i], z[i]],
+                approach,
+                feed_mm_min: feed[i],
+            }
         })
         .collect();
     let labels = (0..ds.n_rows()).map(|i| row_name(ds, i)).collect();
