@@ -676,3 +676,67 @@ fn probe_approach_vectors_are_normalised() {
     assert!(worst < 0.01, "largest contact difference {worst} µm");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Beam vectors a little off unit length (within the accepted ±0.001; scaled by 1.0008 here, as a tool
+/// writing few decimals does): before the fix they were used as given, so every modelled reading was 0.08 %
+/// too large and the fitted squareness 0.03 µrad off (EC0Y 36.005 → 35.976). Now they are normalised as
+/// read. Reference: the twin's unit beams; tolerance 1e-6 µrad.
+#[test]
+fn geometry_beams_are_normalised() {
+    let dir = scratch("geo-unit");
+    ok(&axcomp_in(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--simulate",
+            "lines.csv",
+        ],
+        &dir,
+    ));
+    let (h, rows) = table(&dir.join("lines.csv"));
+    let cols: Vec<usize> = ["beam_x", "beam_y", "beam_z"]
+        .iter()
+        .map(|c| h.iter().position(|x| x == c).unwrap())
+        .collect();
+    let scaled: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| {
+            let mut r = r.clone();
+            for &k in &cols {
+                r[k] = format!("{}", r[k].parse::<f64>().unwrap() * 1.0008);
+            }
+            r
+        })
+        .collect();
+    write_table(&dir.join("scaled.csv"), &h, &scaled);
+    for f in ["lines", "scaled"] {
+        ok(&axcomp_in(
+            &[
+                "fit",
+                "geometry",
+                "--data",
+                &format!("{f}.csv"),
+                "--method",
+                "plain",
+                "--json",
+                &format!("{f}.json"),
+            ],
+            &dir,
+        ));
+    }
+    let a = read_json(&dir.join("lines.json"));
+    let b = read_json(&dir.join("scaled.json"));
+    for name in ["EC0Y", "EB0Z", "EA0Z"] {
+        let (va, vb) = (
+            a["errors"][name]["value"].as_f64().unwrap(),
+            b["errors"][name]["value"].as_f64().unwrap(),
+        );
+        assert!(
+            (va - vb).abs() < 1e-6,
+            "{name}: unit beams {va}, scaled {vb}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -186,6 +186,8 @@ impl LineData {
                         norm: nb,
                     });
                 }
+                // within the tolerance (e.g. written with few decimals): a unit vector, as the reading is
+                *beam = beam.map(|v| v / nb);
             }
         }
         let q_of = |r: usize| {
