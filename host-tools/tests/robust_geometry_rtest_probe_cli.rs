@@ -740,3 +740,66 @@ fn geometry_beams_are_normalised() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Laser lines whose Z positions lie far from Z's zero (machine coordinates 1000 … 1650 mm; the twin's
+/// lines with z + 1000 mm). The components are zero at the axis's zero, so their splines span 0 … 1650 mm
+/// and the coefficients of the unmeasured stretch have no reading at all. Before the fix their all-zero
+/// design columns were normalised as 0/0 = NaN, which hid every null direction: the JSON said rank 153 of
+/// 177 parameters, yet condition number 1.0, `not_separable` empty and all 21 components identified. Now
+/// the null directions are found: what the lines cannot determine is reported not identified (with its
+/// reason) and the condition number is that of the identified part.
+#[test]
+fn geometry_far_from_zero_reports_what_it_cannot_identify() {
+    let dir = scratch("geo-far");
+    ok(&axcomp_in(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--simulate",
+            "lines.csv",
+        ],
+        &dir,
+    ));
+    let (h, rows) = table(&dir.join("lines.csv"));
+    let z = h.iter().position(|c| c == "z_mm").unwrap();
+    let far: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| {
+            let mut r = r.clone();
+            r[z] = format!("{}", r[z].parse::<f64>().unwrap() + 1000.0);
+            r
+        })
+        .collect();
+    write_table(&dir.join("far.csv"), &h, &far);
+    ok(&axcomp_in(
+        &[
+            "fit", "geometry", "--data", "far.csv", "--method", "plain", "--json", "g.json",
+        ],
+        &dir,
+    ));
+    let j = read_json(&dir.join("g.json"));
+    let id = &j["identifiability"];
+    let rank = id["rank"].as_u64().unwrap();
+    let params = id["parameters"].as_u64().unwrap();
+    assert!(rank < params, "{id}");
+    assert!(!id["not_separable"].as_array().unwrap().is_empty(), "{id}");
+    let cond = id["condition_number"].as_f64().unwrap();
+    assert!(cond.is_finite() && cond > 1.5, "condition number {cond}");
+    let unidentified: Vec<&String> = j["errors"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .filter(|(_, v)| v["identified"] == false)
+        .map(|(k, v)| {
+            assert!(!v["reason"].as_str().unwrap().is_empty(), "{k}");
+            k
+        })
+        .collect();
+    assert!(
+        unidentified.iter().any(|k| k.ends_with('Z')),
+        "{unidentified:?}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -367,7 +367,11 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         let mut g = g_full.select_rows(cols.iter()).select_columns(cols.iter());
         for i in 0..cols.len() {
             for j in 0..cols.len() {
-                g[(i, j)] /= col_norm[cols[i]] * col_norm[cols[j]];
+                // a parameter no reading is sensitive to (a B-spline coefficient of a stretch of the axis
+                // between its zero and the measured range) is a null direction: 0, not 0/0 = NaN (NaN
+                // hid every null direction and reported a rank-deficient design as identified)
+                let scale = col_norm[cols[i]] * col_norm[cols[j]];
+                g[(i, j)] = if scale > 0.0 { g[(i, j)] / scale } else { 0.0 };
             }
         }
         g
