@@ -803,3 +803,44 @@ fn geometry_far_from_zero_reports_what_it_cannot_identify() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `fit geometry --intervals 200` (or 0): before the fix 0 was silently taken as 1 and 200 ran for minutes
+/// (3 654 parameters, their eigen-decompositions) before anything was said. Now both are a clear error at
+/// once, exit code 2, nothing written.
+#[test]
+fn geometry_intervals_out_of_range_is_an_error() {
+    let dir = scratch("geo-intervals");
+    ok(&axcomp_in(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--simulate",
+            "lines.csv",
+        ],
+        &dir,
+    ));
+    for n in ["0", "200"] {
+        let t = std::time::Instant::now();
+        let o = axcomp_in(
+            &[
+                "fit",
+                "geometry",
+                "--data",
+                "lines.csv",
+                "--intervals",
+                n,
+                "--json",
+                "g.json",
+            ],
+            &dir,
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{n}: {err}");
+        assert!(err.contains("--intervals"), "{err}");
+        assert!(t.elapsed().as_secs_f64() < 10.0);
+        assert!(!dir.join("g.json").exists());
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

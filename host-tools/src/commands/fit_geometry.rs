@@ -64,11 +64,19 @@ pub struct Args {
     pub export_step: f64,
 }
 
+/// Largest `--intervals`: 18 functions × (N + 3) coefficients; at 200 the fit ran for minutes.
+const MAX_INTERVALS: usize = 64;
+
 /// Runs the fit and returns the analysis (used by the command and the tests).
 pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
     let method = Method::parse(&a.method)
         .with_context(|| format!("--method {}: use auto, plain or seven-line", a.method))?;
     let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
+    if let Some(n) = a.intervals.filter(|n| !(1..=MAX_INTERVALS).contains(n)) {
+        bail!(
+            "--intervals {n}: need 1 … {MAX_INTERVALS} knot intervals per axis (default: distinct positions − 3, at most 12)"
+        );
+    }
     let ds = load_dataset(&a.data)?;
     let data = LineData::from_dataset(&ds, true)?;
     let judge = match split_from(a.holdout.as_deref(), a.cv.as_deref())? {
