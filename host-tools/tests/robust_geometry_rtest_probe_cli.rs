@@ -844,3 +844,77 @@ fn geometry_intervals_out_of_range_is_an_error() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Sign convention of `fit rtest` (AC trunnion) against an independent implementation of the contract's
+/// kinematics, written here without the crate: the nominal sphere position is Rx(a)·Rz(c)·s (s = 150, 0,
+/// 100 mm on the table, the commanded tool point), the C axis is offset by δ = (EX0C, EY0C, 0) in the A
+/// frame, so the sphere actually sits at Rx(a)·(δ + Rz(c)·(s − δ)), and d = actual − commanded. Poses: a
+/// K4-like path and C circles at a = 0° and −60°; no noise. Injected EX0C = +10 µm, EY0C = −6 µm (all else
+/// 0): recovered with the same sign and magnitude, within 0.01 µm; every other location error within
+/// 0.01 µm / µrad of 0. (This passed before the audit; it guards the convention.)
+#[test]
+fn rtest_sign_convention_matches_an_independent_model() {
+    let dir = scratch("rtest-sign");
+    let s = [150.0, 0.0, 100.0];
+    let delta = [10.0e-3, -6.0e-3, 0.0];
+    let rz = |c: f64, v: [f64; 3]| {
+        [
+            c.cos() * v[0] - c.sin() * v[1],
+            c.sin() * v[0] + c.cos() * v[1],
+            v[2],
+        ]
+    };
+    let rx = |a: f64, v: [f64; 3]| {
+        [
+            v[0],
+            a.cos() * v[1] - a.sin() * v[2],
+            a.sin() * v[1] + a.cos() * v[2],
+        ]
+    };
+    let mut poses: Vec<(f64, f64, &str)> = (0..72)
+        .map(|k| {
+            let c = 5.0 * k as f64;
+            (-30.0 * (1.0 - c.to_radians().cos()), c, "K4")
+        })
+        .collect();
+    poses.extend((0..36).map(|k| (0.0, 10.0 * k as f64, "C0")));
+    poses.extend((0..36).map(|k| (-60.0, 10.0 * k as f64 + 5.0, "C60")));
+    let mut csv = String::from("x_mm,y_mm,z_mm,a_deg,c_deg,dx_um,dy_um,dz_um,path\n");
+    for (a_deg, c_deg, path) in poses {
+        let (a, c) = (a_deg.to_radians(), c_deg.to_radians());
+        let p = rx(a, rz(c, s));
+        let w = rz(c, [s[0] - delta[0], s[1] - delta[1], s[2] - delta[2]]);
+        let q = rx(a, [delta[0] + w[0], delta[1] + w[1], delta[2] + w[2]]);
+        let d: Vec<f64> = (0..3).map(|i| (q[i] - p[i]) * 1e3).collect();
+        csv.push_str(&format!(
+            "{:.9},{:.9},{:.9},{a_deg},{c_deg},{:.6},{:.6},{:.6},{path}\n",
+            p[0], p[1], p[2], d[0], d[1], d[2]
+        ));
+    }
+    std::fs::write(dir.join("rt.csv"), csv).unwrap();
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "rtest",
+            "--data",
+            "rt.csv",
+            "--full-model",
+            "--json",
+            "f.json",
+        ],
+        &dir,
+    ));
+    let j = read_json(&dir.join("f.json"));
+    let le = j["location_errors"].as_object().unwrap();
+    for (name, v) in le {
+        let want = match name.as_str() {
+            "EX0C" => 10.0,
+            "EY0C" => -6.0,
+            _ => 0.0,
+        };
+        let got = v["value"].as_f64().unwrap();
+        assert!((got - want).abs() < 0.01, "{name}: {got} (injected {want})");
+        assert_eq!(v["identified"], true, "{name}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
