@@ -918,3 +918,70 @@ fn rtest_sign_convention_matches_an_independent_model() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A line with too few targets to fit (2), or a line of one target to predict without beam columns: the
+/// errors said "line A: …" without the file or the row. Now they name both (file:line:column); exit code 2,
+/// nothing written.
+#[test]
+fn geometry_line_errors_name_file_and_row() {
+    let dir = scratch("geo-where");
+    ok(&axcomp_in(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--simulate",
+            "lines.csv",
+        ],
+        &dir,
+    ));
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "geometry",
+            "--data",
+            "lines.csv",
+            "--method",
+            "plain",
+            "--out",
+            "model.json",
+        ],
+        &dir,
+    ));
+    std::fs::write(
+        dir.join("two.csv"),
+        "x_mm,y_mm,z_mm,line,deviation_um\n0,0,0,A,0\n100,0,0,A,1.5\n0,0,0,B,0\n0,100,0,B,1\n0,200,0,B,2\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("one.csv"),
+        "x_mm,y_mm,z_mm,line\n100,100,100,A\n200,100,100,B\n300,100,100,B\n",
+    )
+    .unwrap();
+    for (args, file) in [
+        (
+            vec!["fit", "geometry", "--data", "two.csv", "--json", "g.json"],
+            "two.csv:2",
+        ),
+        (
+            vec![
+                "predict",
+                "--model",
+                "model.json",
+                "--data",
+                "one.csv",
+                "--out",
+                "p.csv",
+            ],
+            "one.csv:2",
+        ),
+    ] {
+        let o = axcomp_in(&args, &dir);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(file) && err.contains("line A"), "{err}");
+    }
+    assert!(!dir.join("g.json").exists() && !dir.join("p.csv").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -210,12 +210,16 @@ impl LineData {
             if need_deviation && targets < 3 {
                 return Err(GeometryError::TooFewTargets {
                     line: name.clone(),
+                    at: ds.locate("line", rows[0]),
                     targets,
                 });
             }
             if pts.len() < 2 || targets < 2 {
                 if !has_beam {
-                    return Err(GeometryError::NoBeam { line: name.clone() });
+                    return Err(GeometryError::NoBeam {
+                        line: name.clone(),
+                        at: ds.locate("line", rows[0]),
+                    });
                 }
                 continue;
             }

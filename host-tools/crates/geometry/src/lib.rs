@@ -47,8 +47,12 @@ pub enum GeometryError {
     Data(#[from] axcomp_data::DataError),
     #[error("{at}: column {column}: the value is not a finite number")]
     NonFinite { at: String, column: String },
-    #[error("line {line}: only {targets} distinct targets; a line needs at least 3")]
-    TooFewTargets { line: String, targets: usize },
+    #[error("line {line} ({at}): only {targets} distinct targets; a line needs at least 3")]
+    TooFewTargets {
+        line: String,
+        at: String,
+        targets: usize,
+    },
     #[error(
         "line {line} ({at}): the beam (beam_x, beam_y, beam_z) has length {norm:.6}, not a unit vector"
     )]
@@ -61,8 +65,8 @@ pub enum GeometryError {
         at: String,
         angle_deg: f64,
     },
-    #[error("line {line}: a single target and no beam columns: its direction is unknown")]
-    NoBeam { line: String },
+    #[error("line {line} ({at}): a single target and no beam columns: its direction is unknown")]
+    NoBeam { line: String, at: String },
     #[error("no rows to fit (after --where/--holdout)")]
     NoRows,
     #[error("no component can be identified from these lines")]
