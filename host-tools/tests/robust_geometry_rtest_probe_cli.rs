@@ -985,3 +985,37 @@ fn geometry_line_errors_name_file_and_row() {
     assert!(!dir.join("g.json").exists() && !dir.join("p.csv").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Four readings of one diagonal line: nothing can be identified. The error said "no component can be
+/// identified from these lines" without the file; now it names it. Exit code 2, nothing written.
+#[test]
+fn geometry_nothing_identifiable_names_the_file() {
+    let dir = scratch("geo-nothing");
+    ok(&axcomp_in(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--simulate",
+            "lines.csv",
+        ],
+        &dir,
+    ));
+    let (h, rows) = table(&dir.join("lines.csv"));
+    write_table(&dir.join("four.csv"), &h, &rows[..4]);
+    let o = axcomp_in(
+        &[
+            "fit", "geometry", "--data", "four.csv", "--json", "g.json", "--out", "m.json",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("four.csv") && err.contains("no component"),
+        "{err}"
+    );
+    assert!(!dir.join("g.json").exists() && !dir.join("m.json").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use axcomp_data::{Split, groups};
 use axcomp_geometry::analysis::Analysis;
-use axcomp_geometry::{FitOptions, Judge, LineData, Method, analyse};
+use axcomp_geometry::{FitOptions, GeometryError, Judge, LineData, Method, analyse};
 use axcomp_kinematics::Topology;
 
 use crate::cli::DataArgs;
@@ -109,7 +109,13 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
         intervals: a.intervals,
         ..FitOptions::default()
     };
-    let an = analyse(&data, &judge, &opts)?;
+    let an = analyse(&data, &judge, &opts).map_err(|e| match e {
+        // errors about the whole file: say which file
+        GeometryError::NothingIdentifiable | GeometryError::NoRows => {
+            anyhow::anyhow!("{}: {e}", ds.source())
+        }
+        e => e.into(),
+    })?;
     Ok((data, an))
 }
 
