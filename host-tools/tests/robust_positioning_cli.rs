@@ -1,0 +1,330 @@
+//! Robustness of `fit positioning`, `fit thermal`, `diagnose` and `predict` on measurement files that differ
+//! from ours in format details (contract: "Measurement CSV", "Common options"): each test names the
+//! input that once failed, and checks the figures against the same data in the plain form, computed in the
+//! same run (equal to 1e-9 relative: the same rows must give the same numbers, whatever the spelling).
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+mod common;
+use common::{axcomp_in, read_json, scratch};
+
+fn run(args: &[&str], dir: &Path) -> Output {
+    axcomp_in(args, dir)
+}
+
+fn ok(args: &[&str], dir: &Path) -> String {
+    let o = run(args, dir);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{args:?} failed: {err}");
+    err
+}
+
+/// `axcomp sim --plan PLAN` into `dir/NAME` (the twin's contract CSV: `run`, `direction`, `time_s`, sensors,
+/// a `force_N` of zeros where the plan applies no load).
+fn twin(dir: &Path, plan: &str, name: &str) -> PathBuf {
+    let p = dir.join(name);
+    ok(&["sim", "--plan", plan, "--out", p.to_str().unwrap()], dir);
+    p
+}
+
+/// The file's text with every header and data line rewritten by `f` (comment lines kept).
+fn rewrite(src: &Path, dst: &Path, f: impl Fn(&str) -> String) {
+    let text = std::fs::read_to_string(src).unwrap();
+    let out: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with('#') || l.trim().is_empty() {
+                format!("{l}\n")
+            } else {
+                format!("{}\n", f(l))
+            }
+        })
+        .collect();
+    std::fs::write(dst, out).unwrap();
+}
+
+fn num(v: &serde_json::Value, path: &[&str]) -> f64 {
+    let mut x = v;
+    for k in path {
+        x = &x[*k];
+    }
+    x.as_f64()
+        .unwrap_or_else(|| panic!("{path:?} is not a number: {x}"))
+}
+
+fn close(a: f64, b: f64, what: &str) {
+    assert!(
+        (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0),
+        "{what}: {a} vs {b}"
+    );
+}
+
+/// Fails with exit code 2, `needle` in stderr, and none of `outputs` created.
+fn refused(args: &[&str], dir: &Path, needle: &str, outputs: &[&Path]) {
+    let o = run(args, dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains(needle), "{args:?}: must say {needle}: {err}");
+    for p in outputs {
+        assert!(!p.exists(), "{args:?}: {} was written", p.display());
+    }
+}
+
+/// A separator at the end of every line (some loggers and spreadsheets write one) once made an empty
+/// header name, refused: the fit now reads the same rows and gives the same figures.
+#[test]
+fn trailing_separator_on_every_line_gives_the_same_fit() {
+    let dir = scratch("trailing-sep");
+    let plain = twin(&dir, "iso230", "plain.csv");
+    let trailing = dir.join("trailing.csv");
+    rewrite(&plain, &trailing, |l| format!("{l},"));
+    let (a, b) = (dir.join("a.json"), dir.join("b.json"));
+    for (data, json) in [(&plain, &a), (&trailing, &b)] {
+        ok(
+            &[
+                "fit",
+                "positioning",
+                "--data",
+                data.to_str().unwrap(),
+                "--json",
+                json.to_str().unwrap(),
+            ],
+            &dir,
+        );
+    }
+    let (a, b) = (read_json(&a), read_json(&b));
+    for key in [
+        &["raw_rms_um"][..],
+        &["cv_rms_um"],
+        &["iso230_2_before", "B_um"],
+    ] {
+        close(num(&a, key), num(&b, key), &format!("{key:?}"));
+    }
+    assert_eq!(a["model"]["chosen"], b["model"]["chosen"]);
+}
+
+/// `--cv cycle` (the README's spelling) and `--holdout cycle=2` on a file whose run column is `run` once
+/// failed with "missing column `cycle`": either alias name now finds the column.
+#[test]
+fn cycle_names_the_run_column_and_run_the_cycle_column() {
+    let dir = scratch("alias");
+    let data = twin(&dir, "iso230", "iso.csv");
+    let d = data.to_str().unwrap();
+    let fit = |cv: &str, json: &Path| {
+        ok(
+            &[
+                "fit",
+                "positioning",
+                "--data",
+                d,
+                "--cv",
+                cv,
+                "--json",
+                json.to_str().unwrap(),
+            ],
+            &dir,
+        );
+        read_json(json)
+    };
+    let by_run = fit("run", &dir.join("run.json"));
+    let by_cycle = fit("cycle", &dir.join("cycle.json"));
+    close(
+        num(&by_run, &["cv_rms_um"]),
+        num(&by_cycle, &["cv_rms_um"]),
+        "cv_rms_um",
+    );
+    let diag = |holdout: &str, json: &Path| {
+        ok(
+            &[
+                "diagnose",
+                "--data",
+                d,
+                "--model",
+                "pitch_error,reversal",
+                "--holdout",
+                holdout,
+                "--json",
+                json.to_str().unwrap(),
+            ],
+            &dir,
+        );
+        read_json(json)
+    };
+    let a = diag("run=2", &dir.join("d-run.json"));
+    let b = diag("cycle=2", &dir.join("d-cycle.json"));
+    close(
+        num(&a, &["gap", "holdout_rms_um"]),
+        num(&b, &["gap", "holdout_rms_um"]),
+        "gap.holdout_rms_um",
+    );
+    assert_eq!(a["verdict"], b["verdict"]);
+}
+
+/// The twin's thermal record has a `force_N` column of zeros (no load): `fit thermal` once failed on it
+/// with "design matrix is rank deficient". A constant force column is now left out with a note, and the
+/// result equals the fit without forces (`--no-forces`) on the same file.
+#[test]
+fn fit_thermal_leaves_out_a_constant_force_column() {
+    let dir = scratch("const-force");
+    let data = twin(&dir, "thermal", "thermal.csv");
+    let d = data.to_str().unwrap();
+    let (a, b, m) = (
+        dir.join("with.json"),
+        dir.join("without.json"),
+        dir.join("model.json"),
+    );
+    let err = ok(
+        &[
+            "fit",
+            "thermal",
+            "--data",
+            d,
+            "--holdout",
+            "run=3",
+            "--json",
+            a.to_str().unwrap(),
+            "--out",
+            m.to_str().unwrap(),
+        ],
+        &dir,
+    );
+    assert!(err.contains("force column `force_N` is constant"), "{err}");
+    ok(
+        &[
+            "fit",
+            "thermal",
+            "--data",
+            d,
+            "--holdout",
+            "run=3",
+            "--no-forces",
+            "--json",
+            b.to_str().unwrap(),
+        ],
+        &dir,
+    );
+    let (a, b) = (read_json(&a), read_json(&b));
+    assert_eq!(a["excluded_forces"], serde_json::json!(["force_N"]));
+    close(
+        num(&a, &["holdout_rms_um"]),
+        num(&b, &["holdout_rms_um"]),
+        "holdout_rms_um",
+    );
+    // The model predicts the file's rows (its inputs are the sensors only).
+    let p = dir.join("pred.csv");
+    ok(
+        &[
+            "predict",
+            "--model",
+            m.to_str().unwrap(),
+            "--data",
+            d,
+            "--out",
+            p.to_str().unwrap(),
+        ],
+        &dir,
+    );
+    assert!(
+        std::fs::read_to_string(&p)
+            .unwrap()
+            .contains("pred_deviation_um")
+    );
+}
+
+/// A `NaN` cell in a used column was reported as "data row N" without file, line or column by `fit thermal`
+/// and `diagnose`; now it names `file:line:column` and writes nothing.
+#[test]
+fn nan_cells_are_named_by_file_line_and_column() {
+    let dir = scratch("nan");
+    let plain = twin(&dir, "thermal", "plain.csv");
+    let text = std::fs::read_to_string(&plain).unwrap();
+    // Header line number and the sensor column; the 6th data row's `motor_degC` becomes NaN.
+    let lines: Vec<&str> = text.lines().collect();
+    let h = lines
+        .iter()
+        .position(|l| l.starts_with("target_mm"))
+        .unwrap();
+    let col = lines[h].split(',').position(|c| c == "motor_degC").unwrap();
+    let mut out = String::new();
+    for (i, l) in lines.iter().enumerate() {
+        if i == h + 6 {
+            let mut f: Vec<&str> = l.split(',').collect();
+            f[col] = "NaN";
+            out.push_str(&f.join(","));
+        } else {
+            out.push_str(l);
+        }
+        out.push('\n');
+    }
+    std::fs::write(dir.join("nan.csv"), out).unwrap();
+    let at = format!("nan.csv:{}:{} (column `motor_degC`)", h + 7, col + 1);
+    let (j, m) = (dir.join("t.json"), dir.join("t-model.json"));
+    refused(
+        &[
+            "fit",
+            "thermal",
+            "--data",
+            "nan.csv",
+            "--json",
+            "t.json",
+            "--out",
+            "t-model.json",
+        ],
+        &dir,
+        &at,
+        &[&j, &m],
+    );
+    let dj = dir.join("d.json");
+    refused(
+        &[
+            "diagnose",
+            "--data",
+            "nan.csv",
+            "--model",
+            "pitch_error",
+            "--holdout",
+            "run=2",
+            "--json",
+            "d.json",
+        ],
+        &dir,
+        &at,
+        &[&dj],
+    );
+}
+
+/// Files a spreadsheet writes in another locale or encoding: refused saying what the file is (before: a
+/// ragged-row or duplicate-column message about its first line), exit 2, nothing written.
+#[test]
+fn semicolon_and_utf16_files_are_refused_saying_so() {
+    let dir = scratch("encodings");
+    let plain = twin(&dir, "iso230", "plain.csv");
+    rewrite(&plain, &dir.join("semi.csv"), |l| {
+        l.replace(',', ";").replace('.', ",")
+    });
+    let text = std::fs::read_to_string(&plain).unwrap();
+    let mut utf16 = vec![0xff, 0xfe];
+    for u in text.encode_utf16() {
+        utf16.extend(u.to_le_bytes());
+    }
+    std::fs::write(dir.join("utf16.csv"), utf16).unwrap();
+    let (j, t) = (dir.join("f.json"), dir.join("table.json"));
+    for (file, needle) in [("semi.csv", "semicolon-separated"), ("utf16.csv", "UTF-16")] {
+        refused(
+            &[
+                "fit",
+                "positioning",
+                "--data",
+                file,
+                "--json",
+                "f.json",
+                "--out",
+                "table.json",
+            ],
+            &dir,
+            needle,
+            &[&j, &t],
+        );
+    }
+}
