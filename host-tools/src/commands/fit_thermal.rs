@@ -346,7 +346,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let (lo, hi) = train.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
             (lo.min(v), hi.max(v))
         });
-        let constant = !(hi - lo > 1e-9 * hi.abs().max(lo.abs()).max(1.0));
+        let constant = hi - lo <= 1e-9 * hi.abs().max(lo.abs()).max(1.0);
         if constant {
             excluded_forces.push(f.name.clone());
         }
