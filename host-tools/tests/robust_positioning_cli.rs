@@ -328,3 +328,61 @@ fn semicolon_and_utf16_files_are_refused_saying_so() {
         );
     }
 }
+
+/// A blank `run` cell once made its rows a run of its own (label ``) in the cross-validation, silently;
+/// `fit positioning` and `diagnose` now name the cell and write nothing.
+#[test]
+fn blank_run_cell_is_named_not_made_a_run() {
+    let dir = scratch("blank-run");
+    let plain = twin(&dir, "iso230", "plain.csv");
+    let text = std::fs::read_to_string(&plain).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let h = lines
+        .iter()
+        .position(|l| l.starts_with("target_mm"))
+        .unwrap();
+    let col = lines[h].split(',').position(|c| c == "run").unwrap();
+    let mut out = String::new();
+    for (i, l) in lines.iter().enumerate() {
+        if i == h + 3 {
+            let mut f: Vec<&str> = l.split(',').collect();
+            f[col] = "";
+            out.push_str(&f.join(","));
+        } else {
+            out.push_str(l);
+        }
+        out.push('\n');
+    }
+    std::fs::write(dir.join("blank.csv"), out).unwrap();
+    let at = format!("blank.csv:{}:{} (column `run`): empty cell", h + 4, col + 1);
+    let j = dir.join("f.json");
+    refused(
+        &[
+            "fit",
+            "positioning",
+            "--data",
+            "blank.csv",
+            "--json",
+            "f.json",
+        ],
+        &dir,
+        &at,
+        &[&j],
+    );
+    refused(
+        &[
+            "diagnose",
+            "--data",
+            "blank.csv",
+            "--model",
+            "pitch_error",
+            "--holdout",
+            "target_mm>=100",
+            "--json",
+            "f.json",
+        ],
+        &dir,
+        &at,
+        &[&j],
+    );
+}

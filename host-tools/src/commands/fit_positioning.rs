@@ -365,6 +365,13 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
     };
     let (mut run, run_labels): (Vec<i64>, Vec<String>) = match &cv_col {
         Some(c) => {
+            // An empty label would silently make its rows one more run.
+            if let Some(row) = ds.text(c)?.iter().position(|t| t.trim().is_empty()) {
+                bail!(
+                    "{}: empty cell where the row's run (`{c}`) is required: every row needs one",
+                    ds.locate(c, row)
+                );
+            }
             let (ids, labels) = axcomp_data::groups(&ds, c)?;
             (ids.into_iter().map(|g| g as i64 + 1).collect(), labels)
         }

@@ -27,6 +27,13 @@ pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> anyhow::Result
         .map(|d| d.into_iter().map(f64::from).collect());
     // Runs by value, as `fit positioning` groups them (`1` and `1.0` are one run).
     let run = if ds.has("run") {
+        // An empty label would silently make its rows one more run.
+        if let Some(row) = ds.text("run")?.iter().position(|t| t.trim().is_empty()) {
+            anyhow::bail!(
+                "{}: empty cell where the row's run is required: every row needs one",
+                ds.locate("run", row)
+            );
+        }
         Some(axcomp_data::groups(ds, "run")?.0)
     } else {
         None
