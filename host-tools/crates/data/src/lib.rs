@@ -461,7 +461,7 @@ impl Dataset {
         }
         let mut secs = Vec::with_capacity(col.cells().len());
         for (row, t) in col.cells().iter().enumerate() {
-            match timestamp::parse_timestamp(t) {
+            match timestamp::parse_timestamp_parts(t) {
                 Some(s) => secs.push(s),
                 None => {
                     return Err(DataError::BadTimestamp {
@@ -475,9 +475,12 @@ impl Dataset {
             }
         }
         let t0 = first
-            .and_then(timestamp::parse_timestamp)
+            .and_then(timestamp::parse_timestamp_parts)
             .unwrap_or_else(|| secs[0]);
-        let rel = secs.into_iter().map(|s| s - t0).collect();
+        let rel = secs
+            .into_iter()
+            .map(|s| timestamp::seconds_between(t0, s))
+            .collect();
         self.columns.push(Column::from_values("time_s".into(), rel));
         Ok(())
     }

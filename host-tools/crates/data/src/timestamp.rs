@@ -8,6 +8,18 @@
 
 /// Parses one timestamp into epoch seconds; `None` if `s` is not one of the accepted forms.
 pub(crate) fn parse_timestamp(s: &str) -> Option<f64> {
+    parse_timestamp_parts(s).map(|(whole, frac)| whole as f64 + frac)
+}
+
+/// Seconds from timestamp `t0` to `t`, both of [`parse_timestamp_parts`]: whole seconds subtracted as
+/// integers, so that the difference keeps the fraction exactly (epoch seconds as one `f64` near 1.7·10⁹
+/// keep only about 0.2 µs, which made `12.44` read as `12.440000057`).
+pub(crate) fn seconds_between(t0: (i64, f64), t: (i64, f64)) -> f64 {
+    (t.0 - t0.0) as f64 + (t.1 - t0.1)
+}
+
+/// Parses one timestamp into whole epoch seconds and the fraction of a second (`0 ≤ frac < 1`).
+pub(crate) fn parse_timestamp_parts(s: &str) -> Option<(i64, f64)> {
     let s = s.trim();
     let s = s.strip_suffix('Z').unwrap_or(s);
     let b = s.as_bytes();
@@ -50,7 +62,7 @@ pub(crate) fn parse_timestamp(s: &str) -> Option<f64> {
         frac = format!("0.{digits}").parse::<f64>().ok()?;
     }
     let days = days_from_civil(year, month, day);
-    Some((days * 86_400 + hour * 3600 + minute * 60 + second) as f64 + frac)
+    Some((days * 86_400 + hour * 3600 + minute * 60 + second, frac))
 }
 
 fn is_leap(y: i64) -> bool {
@@ -90,6 +102,15 @@ mod tests {
         assert_eq!(parse_timestamp("2021-06-13T05:42:16"), Some(want));
         assert_eq!(parse_timestamp("2021-06-13T05:42:16Z"), Some(want));
         assert_eq!(parse_timestamp("2021-06-13T05:42:16.25"), Some(want + 0.25));
+    }
+
+    #[test]
+    fn differences_keep_the_fraction() {
+        // 12.44 s after 08:00:00 (a `time_s` of 12.44 written as a timestamp): exact to 1e-12 s; the
+        // difference of two f64 epoch seconds was off by 5.7e-8 s.
+        let t0 = parse_timestamp_parts("2024-01-02T08:00:00").unwrap();
+        let t = parse_timestamp_parts("2024-01-02T08:00:12.440").unwrap();
+        assert!((seconds_between(t0, t) - 12.44).abs() < 1e-12);
     }
 
     #[test]
