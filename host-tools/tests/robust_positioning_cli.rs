@@ -502,3 +502,23 @@ fn fit_thermal_does_not_depend_on_the_column_order() {
         }
     }
 }
+
+/// `fit force` once named a zero, negative or NaN value only as "fz_mm, row 2"; now by file, line and
+/// column, with nothing written.
+#[test]
+fn fit_force_names_a_value_a_power_law_cannot_take() {
+    let dir = scratch("force-bad");
+    std::fs::write(
+        dir.join("f.csv"),
+        "# turning\nap_mm,fz_mm,n_rpm,Fc_N\n1,0.1,1000,210\n1,-0.2,1000,370\n2,0.3,1000,1100\n\
+         2,0.4,1200,1400\n",
+    )
+    .unwrap();
+    let j = dir.join("f.json");
+    refused(
+        &["fit", "force", "--data", "f.csv", "--json", "f.json"],
+        &dir,
+        "f.csv:4:2 (column `fz_mm`): -0.2 is not a positive finite number",
+        &[&j],
+    );
+}
