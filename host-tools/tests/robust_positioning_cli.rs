@@ -522,3 +522,59 @@ fn fit_force_names_a_value_a_power_law_cannot_take() {
         &[&j],
     );
 }
+
+/// A thermal model of an absolute position (no `--zero-at-start`: the Voron homing position, b0 ≈ −2.2·10⁵
+/// µm) once failed `image build` with "thermo.b0_um[0] is out of range"; now the message says why and what
+/// to do, and no image is written.
+#[test]
+fn image_build_says_why_an_absolute_position_model_is_refused() {
+    let dir = scratch("b0-range");
+    twin(&dir, "thermal", "t.csv");
+    twin(&dir, "iso230", "iso.csv");
+    // The twin's deviations (a few µm) as if in nm-scaled absolute units: an intercept far beyond 1e5 µm.
+    ok(
+        &[
+            "fit",
+            "thermal",
+            "--data",
+            "t.csv",
+            "--scale",
+            "deviation_um=100000",
+            "--force",
+            "--out",
+            "m.json",
+        ],
+        &dir,
+    );
+    ok(
+        &[
+            "fit",
+            "positioning",
+            "--data",
+            "iso.csv",
+            "--out",
+            "tab.json",
+        ],
+        &dir,
+    );
+    let img = dir.join("img.bin");
+    refused(
+        &[
+            "image",
+            "build",
+            "--table",
+            "tab.json",
+            "--thermal",
+            "m.json",
+            "--axis-id",
+            "1",
+            "--um-per-count",
+            "0.1",
+            "--out",
+            "img.bin",
+        ],
+        &dir,
+        "--zero-at-start",
+        &[&img],
+    );
+}
