@@ -211,6 +211,29 @@ fn power_columns(
     let fz_mm = param("fz_mm", false)?;
     let n_rpm = param("n_rpm", true)?;
     let force_n = ds.numeric(&force_col)?.to_vec();
+    // A power law needs positive values: a bad one is named by file, line and column here (the fit only
+    // knows the data row).
+    let rpm_col = ds
+        .column_names()
+        .into_iter()
+        .find(|c| c.ends_with("_rpm"))
+        .map(str::to_string);
+    for col in ["ap_mm", "fz_mm", force_col.as_str()]
+        .into_iter()
+        .chain(rpm_col.as_deref())
+    {
+        if !ds.has(col) {
+            continue;
+        }
+        let v = ds.numeric(col)?;
+        if let Some(row) = v.iter().position(|x| !(x.is_finite() && *x > 0.0)) {
+            bail!(
+                "{}: {} is not a positive finite number (a power law needs > 0)",
+                ds.locate(col, row),
+                v[row]
+            );
+        }
+    }
     Ok(PowerColumns {
         data: PowerLawData {
             ap_mm,

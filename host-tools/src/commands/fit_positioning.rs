@@ -7,7 +7,8 @@
 //! - *guard*: the do-no-harm rule (see `axcomp_positioning::guard`); when it refuses, no table is written
 //!   (unless `--force`), the JSON says `"table_written": false` and the exit code is 3.
 //!
-//! - *data warnings*: per-target outliers, unit mixes and implausible magnitudes (`axcomp_data::sanity`);
+//! - *data warnings*: per-target outliers, unit mixes and implausible magnitudes (`axcomp_data::sanity`),
+//!   and an approach direction measured over part of the stroke only (its curve would be extrapolated);
 //!   printed on stderr and listed in the JSON (`warnings`); `--strict` refuses the data (exit 2). A file
 //!   holding several `test_id` or `axis` values is always refused: choose one with `--where`.
 //! - *after-figures*: ISO 230-2 of the judged runs with the predicted correction subtracted, as a
@@ -320,6 +321,46 @@ fn data_warnings(
     w
 }
 
+/// A warning when one approach direction's targets, on the rows the table is fitted on (`held`: true =
+/// held out), span less of the stroke than the other's: the table holds that direction's curve there too,
+/// extrapolated from its last targets (tens to hundreds of µm on a curved error), and the firmware would
+/// apply it.
+fn direction_coverage(x: &[f64], dir: &[i8], held: Option<&[bool]>) -> Option<DataWarning> {
+    let range = |want: i8| {
+        x.iter()
+            .zip(dir)
+            .enumerate()
+            .filter(|(i, (_, d))| **d == want && !held.is_some_and(|h| h[*i]))
+            .fold(None, |r: Option<(f64, f64)>, (_, (&v, _))| {
+                Some(r.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
+            })
+    };
+    let (Some(fwd), Some(bwd)) = (range(1), range(-1)) else {
+        return None;
+    };
+    let (lo, hi) = (fwd.0.min(bwd.0), fwd.1.max(bwd.1));
+    let tol = 1e-9 * (hi - lo).abs().max(1.0);
+    let short = [("positive", fwd), ("negative", bwd)]
+        .into_iter()
+        .find(|(_, (a, b))| *a > lo + tol || *b < hi - tol)?;
+    let (name, (a, b)) = short;
+    Some(DataWarning {
+        kind: "direction_coverage",
+        column: "target_mm".into(),
+        message: format!(
+            "the {name}-approach rows{} cover only {a} .. {b} mm of the stroke {lo} .. {hi} mm: the table \
+             extrapolates that direction's curve beyond its last targets; measure both directions over the \
+             stroke, or leave out the targets only one direction reached",
+            if held.is_some() {
+                " fitted on (not held out)"
+            } else {
+                ""
+            }
+        ),
+        lines: Vec::new(),
+    })
+}
+
 /// Rows from which the command reports its steps on stderr (each can take seconds).
 const PROGRESS_ROWS: usize = 200_000;
 
@@ -365,6 +406,13 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
     };
     let (mut run, run_labels): (Vec<i64>, Vec<String>) = match &cv_col {
         Some(c) => {
+            // An empty label would silently make its rows one more run.
+            if let Some(row) = ds.text(c)?.iter().position(|t| t.trim().is_empty()) {
+                bail!(
+                    "{}: empty cell where the row's run (`{c}`) is required: every row needs one",
+                    ds.locate(c, row)
+                );
+            }
             let (ids, labels) = axcomp_data::groups(&ds, c)?;
             (ids.into_iter().map(|g| g as i64 + 1).collect(), labels)
         }
@@ -382,7 +430,12 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
             );
         }
     }
-    let warnings = data_warnings(&ds, &args.target, &x, &dev, &dir);
+    let holdout_mask = match &split {
+        Some(Split::Holdout(h)) => Some(h.mask(&ds)?),
+        _ => None,
+    };
+    let mut warnings = data_warnings(&ds, &args.target, &x, &dev, &dir);
+    warnings.extend(direction_coverage(&x, &dir, holdout_mask.as_deref()));
     for w in &warnings {
         eprintln!("axcomp: warning: {}", w.message);
     }
@@ -426,10 +479,6 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         })
         .collect();
 
-    let holdout_mask = match &split {
-        Some(Split::Holdout(h)) => Some(h.mask(&ds)?),
-        _ => None,
-    };
     let ages = match &args.drift {
         Some(col) => Some(drift_ages(&ds, col, args.run_period_s)?),
         None => None,

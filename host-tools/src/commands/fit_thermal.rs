@@ -311,6 +311,59 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let held = holdout.as_ref().map(|h| h.mask(&ds)).transpose()?;
+    // An explicit NaN or inf is no value the fit can use: named by file, line and column here (the fit
+    // itself only knows the data row).
+    let mut used: Vec<(String, &[f64])> = vec![(args.target.clone(), &target)];
+    if ds.time_s().is_some() {
+        used.push(("time_s".into(), &time_s));
+    }
+    used.extend(
+        sensors
+            .iter()
+            .map(|s| (format!("{}_degC", s.name), s.values.as_slice())),
+    );
+    used.extend(forces.iter().map(|f| (f.name.clone(), f.values.as_slice())));
+    for (col, values) in &used {
+        if let Some(row) = values.iter().position(|v| !v.is_finite()) {
+            bail!(
+                "{}: `{}` is not a finite number; remove the row or fill in the value",
+                ds.locate(col, row),
+                values[row]
+            );
+        }
+    }
+    // A force column that does not vary on the training rows (e.g. a `force_N` of zeros in a record
+    // without load) cannot be told from the intercept: it is left out with a note, as a constant sensor is.
+    let mut excluded_forces: Vec<String> = Vec::new();
+    let mut forces = forces;
+    forces.retain(|f| {
+        let train = f
+            .values
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !held.as_ref().is_some_and(|h| h[*i]))
+            .map(|(_, v)| *v);
+        let (lo, hi) = train.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+        let constant = hi - lo <= 1e-9 * hi.abs().max(lo.abs()).max(1.0);
+        if constant {
+            excluded_forces.push(f.name.clone());
+        }
+        !constant
+    });
+    for name in &excluded_forces {
+        if laws.iter().any(|(col, _)| col == name) {
+            bail!(
+                "--force-law {name}: the force column `{name}` is constant on the training rows, so the \
+                 model has no force term to attach the law to"
+            );
+        }
+        eprintln!(
+            "axcomp: note: {}: force column `{name}` is constant on the training rows: left out of the model",
+            args.data.data.display()
+        );
+    }
     let input = ThermalInput {
         time_s,
         sensors,
@@ -377,6 +430,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some(note) = &lags_note {
             o.insert("lags_note".into(), note.clone().into());
         }
+        o.insert("excluded_forces".into(), excluded_forces.clone().into());
         let text = serde_json::to_string_pretty(&v)?;
         outputs.file(path, text);
     }

@@ -120,6 +120,17 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
         Some(p) => {
             let m = ThermalModelFile::load(p)
                 .with_context(|| format!("reading thermal model {}", p.display()))?;
+            // The firmware takes |b0| ≤ 1e5 µm (`axcomp_core` image check): a larger intercept is a model
+            // of an absolute position (e.g. a homing position), not of a deviation.
+            if m.b0_um.is_nan() || m.b0_um.abs() > 1.0e5 {
+                anyhow::bail!(
+                    "{}: the model's intercept b0 = {} µm is beyond the firmware's ±100000 µm: its target is \
+                     an absolute position, not a deviation; fit it with --zero-at-start N (the change since \
+                     the start)",
+                    p.display(),
+                    m.b0_um
+                );
+            }
             Some(m.to_core())
         }
         None => None,

@@ -7,7 +7,8 @@
 //!   fields are trimmed of surrounding spaces and tabs (so `1, 2` reads as `1` and `2`).
 //! - *comment*: a line starting with `#` before the header (instrument metadata); skipped.
 //!
-//! Blank lines are skipped everywhere. A UTF-8 byte-order mark and `\r\n` line ends are accepted.
+//! Blank lines are skipped everywhere. A UTF-8 byte-order mark and `\r\n` line ends are accepted, and so
+//! is Excel's separator line `sep=,` as the first line.
 
 use std::borrow::Cow;
 
@@ -77,7 +78,9 @@ pub(crate) fn parse_each<'a, E>(
         // Blank line, or comment line before the header: skip the physical line.
         let eol = b[i..].iter().position(|&c| c == b'\n').map_or(n, |k| i + k);
         let physical = &text[i..eol];
-        if physical.trim().is_empty() || (!seen_header && physical.starts_with('#')) {
+        // Excel's separator hint `sep=,` on the first line is not the header.
+        let sep_hint = !seen_header && line == 1 && physical.trim() == "sep=,";
+        if physical.trim().is_empty() || (!seen_header && physical.starts_with('#')) || sep_hint {
             i = eol + 1;
             line += 1;
             continue;

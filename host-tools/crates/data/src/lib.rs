@@ -6,7 +6,8 @@
 //! - *source*: the name used in messages (the path as the user gave it).
 //! - *line*: the physical line (1-based) of the file on which a row starts; *column*: 1-based field index.
 //! - *alias*: a second accepted name of a contract column: `cycle` for `run`, `approach_direction` for
-//!   `direction`. Lookups by the contract name find the alias when the file has no column of that name.
+//!   `direction`. A lookup by either name finds the column the file has under the other (so `--cv cycle`
+//!   works on a file with `run`, `--holdout run=2` on one with `cycle`); a column of the asked name wins.
 //! - *sensor*: a `*_degC` column; its name is the part before the suffix.
 //! - *error channel*: a `*_um` column (`deviation_um`, `ch3_um`, ...).
 //! - *holdout*: rows held out from fitting (`--holdout`), *group*: rows sharing a value of a column (`--cv`).
@@ -14,7 +15,8 @@
 //! Rules:
 //! - `#` comment lines may precede the header; blank lines are skipped; fields follow RFC 4180 quoting.
 //! - A duplicate header, a ragged row or an unterminated quote is an error at load, naming file, line and
-//!   column.
+//!   column. A separator at the end of every line (an empty last header field, empty last cells) adds
+//!   no column. A file separated by `;` or tabs, with CR-only line ends or in UTF-16 is refused saying so.
 //! - Numbers: a cell is numeric if Rust's `f64` parser accepts it after trimming (`1`, `-2.5e-3`, `NaN`,
 //!   `inf`). An explicit `NaN` is a deliberate "no value" and is kept; an **empty cell is not a number**:
 //!   [`Dataset::numeric`] on a column with an empty or non-numeric cell fails naming the first such cell.
@@ -64,6 +66,17 @@ pub enum DataError {
         name: String,
         first: usize,
     },
+    #[error(
+        "{file}:{line}: {what}; a measurement CSV is comma separated, with `.` as the decimal point and LF \
+         or CRLF line ends (export or convert it so)"
+    )]
+    WrongSeparator {
+        file: String,
+        line: usize,
+        what: String,
+    },
+    #[error("{file}: {what}; save the file as UTF-8 text (e.g. \"CSV UTF-8\")")]
+    NotUtf8 { file: String, what: &'static str },
     #[error("{file}:{line}:{column}: empty column name in the header")]
     EmptyColumnName {
         file: String,
@@ -316,7 +329,18 @@ impl Dataset {
         };
         let f = std::fs::File::open(path).map_err(io)?;
         let size = f.metadata().map(|m| m.len()).unwrap_or(0);
-        let reader = std::io::BufReader::with_capacity(1 << 16, f);
+        let mut reader = std::io::BufReader::with_capacity(1 << 16, f);
+        {
+            use std::io::BufRead;
+            let head = reader.fill_buf().map_err(io)?;
+            // UTF-16 (Excel's "Unicode text", some Windows loggers) read as UTF-8 is noise, not CSV.
+            if head.starts_with(&[0xff, 0xfe]) || head.starts_with(&[0xfe, 0xff]) {
+                return Err(DataError::NotUtf8 {
+                    file,
+                    what: "the file is UTF-16 text (it starts with a UTF-16 byte-order mark)",
+                });
+            }
+        }
         let mut builder: Option<Builder> = None;
         let result = csv::read_each(reader, &mut |rec| match &mut builder {
             None => {
@@ -437,7 +461,7 @@ impl Dataset {
         }
         let mut secs = Vec::with_capacity(col.cells().len());
         for (row, t) in col.cells().iter().enumerate() {
-            match timestamp::parse_timestamp(t) {
+            match timestamp::parse_timestamp_parts(t) {
                 Some(s) => secs.push(s),
                 None => {
                     return Err(DataError::BadTimestamp {
@@ -451,9 +475,12 @@ impl Dataset {
             }
         }
         let t0 = first
-            .and_then(timestamp::parse_timestamp)
+            .and_then(timestamp::parse_timestamp_parts)
             .unwrap_or_else(|| secs[0]);
-        let rel = secs.into_iter().map(|s| s - t0).collect();
+        let rel = secs
+            .into_iter()
+            .map(|s| timestamp::seconds_between(t0, s))
+            .collect();
         self.columns.push(Column::from_values("time_s".into(), rel));
         Ok(())
     }
@@ -473,10 +500,8 @@ impl Dataset {
         if let Some(i) = self.columns.iter().position(|c| c.name == name) {
             return Some(i);
         }
-        ALIASES
-            .iter()
-            .filter(|(canon, _)| *canon == name)
-            .find_map(|(_, alias)| self.columns.iter().position(|c| c.name == *alias))
+        let other = other_name(name)?;
+        self.columns.iter().position(|c| c.name == other)
     }
 
     fn missing(&self, name: &str, purpose: &str) -> DataError {
@@ -747,10 +772,23 @@ fn csv_fault(file: &str, f: csv::CsvFault) -> DataError {
 /// Index of `name` (or its alias) among `names`.
 fn resolve(names: &[String], name: &str) -> Option<usize> {
     names.iter().position(|n| n == name).or_else(|| {
-        ALIASES
+        names
             .iter()
-            .filter(|(canon, _)| *canon == name)
-            .find_map(|(_, alias)| names.iter().position(|n| n == alias))
+            .position(|n| Some(n.as_str()) == other_name(name))
+    })
+}
+
+/// The other name of a contract column that has an alias (`run` ↔ `cycle`, `direction` ↔
+/// `approach_direction`): a lookup by either name finds the column a file has under the other.
+fn other_name(name: &str) -> Option<&'static str> {
+    ALIASES.iter().find_map(|&(canon, alias)| {
+        if name == canon {
+            Some(alias)
+        } else if name == alias {
+            Some(canon)
+        } else {
+            None
+        }
     })
 }
 
@@ -780,6 +818,18 @@ impl Builder {
     ) -> Result<Self, DataError> {
         let file = file.to_string();
         let mut names: Vec<String> = header.fields.into_iter().map(String::from).collect();
+        // A separator at the end of every line (some loggers and spreadsheets write one) makes an empty
+        // last header field: it names no column, so it is dropped (the rows' empty last fields with it).
+        while names.len() > 1 && names.last().is_some_and(|n| n.is_empty()) {
+            names.pop();
+        }
+        if let Some(what) = wrong_separator(&names) {
+            return Err(DataError::WrongSeparator {
+                file,
+                line: header.line,
+                what,
+            });
+        }
         // `--rename` before anything else (so a rename can also fix a duplicate).
         for (old, new) in &opts.renames {
             let Some(i) = names.iter().position(|n| n == old) else {
@@ -845,7 +895,10 @@ impl Builder {
 
     fn push(&mut self, rec: csv::Record<'_>) -> Result<(), DataError> {
         let width = self.names.len();
-        if rec.fields.len() != width {
+        // Fields past the header's last column are accepted when empty (a trailing separator).
+        let extra_blank =
+            rec.fields.len() > width && rec.fields[width..].iter().all(|f| f.is_empty());
+        if rec.fields.len() != width && !extra_blank {
             return Err(DataError::RaggedRow {
                 file: self.file.clone(),
                 line: rec.line,
@@ -875,7 +928,7 @@ impl Builder {
         if !keep {
             return Ok(());
         }
-        for (c, f) in rec.fields.iter().enumerate() {
+        for (c, f) in rec.fields.iter().take(width).enumerate() {
             if !self.cells[c].fits(f.len()) {
                 return Err(DataError::BadOption {
                     option: "--data",
@@ -966,6 +1019,33 @@ impl Builder {
             }
         }
         Ok(ds)
+    }
+}
+
+/// What is wrong when the header shows another separator than a comma: a one-column header holding `;` (a
+/// spreadsheet of a locale with a decimal comma) or tabs, or a header running over bare carriage returns
+/// (old Mac line ends make the whole file one line).
+fn wrong_separator(names: &[String]) -> Option<String> {
+    let short = |t: &str| -> String {
+        let t: String = t.chars().take(60).collect();
+        t.replace(['\r', '\t'], " ")
+    };
+    if let Some(n) = names.iter().find(|n| n.contains('\r')) {
+        return Some(format!(
+            "the header runs over a bare carriage return (`{}`…): the lines end in CR alone (old Mac)",
+            short(n)
+        ));
+    }
+    match names {
+        [only] if only.contains(';') => Some(format!(
+            "the header is one column `{}` holding `;`: the file looks semicolon-separated",
+            short(only)
+        )),
+        [only] if only.contains('\t') => Some(format!(
+            "the header is one column `{}` holding tabs: the file looks tab-separated",
+            short(only)
+        )),
+        _ => None,
     }
 }
 

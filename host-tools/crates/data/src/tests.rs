@@ -470,3 +470,105 @@ fn streaming_load_equals_parsing_the_whole_text() {
     assert_eq!(a.text("note").unwrap(), vec!["two\r\nlines", "plain"]);
     std::fs::remove_file(&p).unwrap();
 }
+
+// ---- format details of other tools' files (robustness audit) ----
+
+#[test]
+fn either_alias_name_finds_the_column() {
+    // `--cv cycle` / `--holdout cycle=2` on a file with `run`, `approach_direction` on one with `direction`.
+    let ds =
+        Dataset::from_csv_str("r.csv", "target_mm,run,direction\n0,1,+\n0,2,-\n", &none()).unwrap();
+    assert!(ds.has("cycle") && ds.has("approach_direction"));
+    assert_eq!(ds.text("cycle").unwrap(), vec!["1", "2"]);
+    let (ids, labels) = groups(&ds, "cycle").unwrap();
+    assert_eq!((ids, labels), (vec![0, 1], vec!["1".into(), "2".into()]));
+    let h = HoldoutSpec::parse("cycle=2").unwrap();
+    assert_eq!(h.mask(&ds).unwrap(), vec![false, true]);
+    let kept = Dataset::from_csv_str(
+        "r.csv",
+        "target_mm,run\n0,1\n0,2\n",
+        &opts(&["cycle=2"], &[], &[]),
+    )
+    .unwrap();
+    assert_eq!(kept.n_rows(), 1);
+    // A column of the asked name wins over the alias.
+    let both = Dataset::from_csv_str("b.csv", "run,cycle\n1,7\n", &none()).unwrap();
+    assert_eq!(both.text("cycle").unwrap(), vec!["7"]);
+    assert_eq!(both.text("run").unwrap(), vec!["1"]);
+}
+
+#[test]
+fn a_separator_at_the_end_of_every_line_adds_no_column() {
+    let with = Dataset::from_csv_str("t.csv", "target_mm,deviation_um,\n0,1.5,\n10,2,\n", &none())
+        .unwrap();
+    assert_eq!(with.column_names(), vec!["target_mm", "deviation_um"]);
+    assert_eq!(with.numeric("deviation_um").unwrap(), &[1.5, 2.0]);
+    // Only in the rows, or only in the header: the same.
+    let rows_only =
+        Dataset::from_csv_str("t.csv", "target_mm,deviation_um\n0,1.5,\n10,2, \n", &none())
+            .unwrap();
+    assert_eq!(rows_only.numeric("deviation_um").unwrap(), &[1.5, 2.0]);
+    let header_only =
+        Dataset::from_csv_str("t.csv", "target_mm,deviation_um,\n0,1.5\n", &none()).unwrap();
+    assert_eq!(
+        header_only.column_names(),
+        vec!["target_mm", "deviation_um"]
+    );
+    // A value past the header's last column is still a ragged row, and an empty name inside the header
+    // still an error.
+    let e = Dataset::from_csv_str("t.csv", "a,b\n1,2,3\n", &none())
+        .unwrap_err()
+        .to_string();
+    assert_eq!(e, "t.csv:2:3: row has 3 fields but the header has 2");
+    let e = Dataset::from_csv_str("t.csv", "a,,b\n1,2,3\n", &none())
+        .unwrap_err()
+        .to_string();
+    assert_eq!(e, "t.csv:1:2: empty column name in the header");
+}
+
+#[test]
+fn semicolon_tab_and_cr_only_files_are_named_as_such() {
+    let e = Dataset::from_csv_str("s.csv", "target_mm;deviation_um\n0;1,5\n", &none())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("s.csv:1: the header is one column `target_mm;deviation_um` holding `;`"),
+        "{e}"
+    );
+    let e = Dataset::from_csv_str("t.csv", "# x\ntarget_mm\tdeviation_um\n0\t1.5\n", &none())
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("t.csv:2: the header is one column"), "{e}");
+    assert!(e.contains("tab-separated"), "{e}");
+    let e = Dataset::from_csv_str("c.csv", "target_mm,deviation_um\r0,1.5\r10,2\r", &none())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("CR alone"), "{e}");
+    // A genuine one-column file is fine.
+    let one = Dataset::from_csv_str("o.csv", "target_mm\n0\n5\n", &none()).unwrap();
+    assert_eq!(one.numeric("target_mm").unwrap(), &[0.0, 5.0]);
+}
+
+#[test]
+fn excel_separator_line_is_skipped() {
+    let ds =
+        Dataset::from_csv_str("x.csv", "sep=,\ntarget_mm,deviation_um\n0,1.5\n", &none()).unwrap();
+    assert_eq!(ds.column_names(), vec!["target_mm", "deviation_um"]);
+    assert_eq!(ds.line_of_row(0), 3);
+}
+
+#[test]
+fn utf16_file_is_refused_naming_the_encoding() {
+    let p = std::env::temp_dir().join(format!("axcomp-utf16-{}.csv", std::process::id()));
+    let mut bytes = vec![0xff, 0xfe];
+    for u in "target_mm,deviation_um\r\n0,1.5\r\n".encode_utf16() {
+        bytes.extend(u.to_le_bytes());
+    }
+    std::fs::write(&p, bytes).unwrap();
+    let e = Dataset::load(&p, &none()).unwrap_err().to_string();
+    std::fs::remove_file(&p).unwrap();
+    assert!(
+        e.contains("UTF-16") && e.contains("save the file as UTF-8"),
+        "{e}"
+    );
+}

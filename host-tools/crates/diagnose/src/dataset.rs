@@ -25,19 +25,19 @@ pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> anyhow::Result
     let direction = ds
         .direction()?
         .map(|d| d.into_iter().map(f64::from).collect());
-    let run = ds.run().map(|labels| {
-        let mut uniq: Vec<String> = Vec::new();
-        labels
-            .iter()
-            .map(|l| match uniq.iter().position(|u| u == l) {
-                Some(k) => k,
-                None => {
-                    uniq.push(l.clone());
-                    uniq.len() - 1
-                }
-            })
-            .collect()
-    });
+    // Runs by value, as `fit positioning` groups them (`1` and `1.0` are one run).
+    let run = if ds.has("run") {
+        // An empty label would silently make its rows one more run.
+        if let Some(row) = ds.text("run")?.iter().position(|t| t.trim().is_empty()) {
+            anyhow::bail!(
+                "{}: empty cell where the row's run is required: every row needs one",
+                ds.locate("run", row)
+            );
+        }
+        Some(axcomp_data::groups(ds, "run")?.0)
+    } else {
+        None
+    };
     let time_s = if ds.has("time_s") {
         Some(ds.numeric("time_s")?.to_vec())
     } else {
@@ -74,6 +74,36 @@ pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> anyhow::Result
         accel_mm_s2: optional(ds, "accel_mm_s2")?,
         offset_mm: optional(ds, "offset_mm")?,
     };
+    // An explicit NaN or inf is named by file, line and column (the check below knows only the data row).
+    let mut used: Vec<(String, &[f64])> = vec![(target.to_string(), &obs.target)];
+    used.extend(obs.time_s.as_deref().map(|t| ("time_s".to_string(), t)));
+    used.extend(
+        obs.temperatures
+            .iter()
+            .map(|t| (format!("{}_degC", t.name), t.values.as_slice())),
+    );
+    used.extend(
+        obs.forces
+            .iter()
+            .map(|f| (format!("{}_N", f.name), f.values.as_slice())),
+    );
+    for (col, v) in [
+        ("target_mm", &obs.position_mm),
+        ("velocity_mm_s", &obs.velocity_mm_s),
+        ("accel_mm_s2", &obs.accel_mm_s2),
+        ("offset_mm", &obs.offset_mm),
+    ] {
+        used.extend(v.as_deref().map(|v| (col.to_string(), v)));
+    }
+    for (col, values) in &used {
+        if let Some(row) = values.iter().position(|v| !v.is_finite()) {
+            anyhow::bail!(
+                "{}: `{}` is not a finite number; remove the row or fill in the value",
+                ds.locate(col, row),
+                values[row]
+            );
+        }
+    }
     obs.validate()
         .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
     Ok(obs)

@@ -47,11 +47,14 @@ pub enum DynoWareError {
         column: usize,
         text: String,
     },
-    #[error("{path}:{line}: expected 4 fields (Time,Fx,Fy,Fz), found {found}")]
+    #[error(
+        "{path}:{line}: expected {expected} fields (as the Time,Fx,Fy,Fz header), found {found}"
+    )]
     Fields {
         path: String,
         line: usize,
         found: usize,
+        expected: usize,
     },
     #[error("{path}: no data rows")]
     Empty { path: String },
@@ -68,46 +71,72 @@ impl DynoWare {
         Self::parse(&p, &text)
     }
 
-    /// Parses DynoWare text (`path` is used in messages).
+    /// Parses DynoWare text (`path` is used in messages). Tolerated, as exports of other versions and
+    /// re-saved files have them: a UTF-8 byte-order mark, CRLF, quoted cells, a separator at the end of every
+    /// line, units in the header (`Time [s],Fx [N],...`) and channels after Fz (e.g. `Mz`, ignored).
     pub fn parse(path: &str, text: &str) -> Result<DynoWare, DynoWareError> {
+        /// The line's cells: trimmed, surrounding quotes removed, trailing empty cells dropped.
+        fn cells(line: &str) -> Vec<&str> {
+            let mut f: Vec<&str> = line
+                .split(',')
+                .map(|c| {
+                    let c = c.trim();
+                    c.strip_prefix('"')
+                        .and_then(|c| c.strip_suffix('"'))
+                        .unwrap_or(c)
+                        .trim()
+                })
+                .collect();
+            while f.len() > 1 && f.last().is_some_and(|c| c.is_empty()) {
+                f.pop();
+            }
+            f
+        }
+        /// A header name without its unit (`Fx [N]` → `fx`), lower case.
+        fn bare(name: &str) -> String {
+            let n = name.split('[').next().unwrap_or(name).trim();
+            n.to_ascii_lowercase()
+        }
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut rate = None;
         let mut lines = text.lines().enumerate();
-        let mut found = false;
+        let mut width = None;
         for (_, l) in lines.by_ref() {
-            let l = l.trim();
-            if let Some(v) = l.strip_prefix("Sampling rate [Hz]:,") {
-                rate = v.trim().parse::<f64>().ok();
+            let f = cells(l);
+            if f.len() >= 2 && f[0].eq_ignore_ascii_case("Sampling rate [Hz]:") {
+                rate = f[1].parse::<f64>().ok();
             }
-            if l.replace(' ', "").eq_ignore_ascii_case("Time,Fx,Fy,Fz") {
-                found = true;
+            let names: Vec<String> = f.iter().map(|c| bare(c)).collect();
+            if names.len() >= 4 && names[..4] == ["time", "fx", "fy", "fz"] {
+                width = Some(names.len());
                 break;
             }
         }
-        if !found {
+        let Some(width) = width else {
             return Err(DynoWareError::NoHeader { path: path.into() });
-        }
+        };
         let sampling_hz = rate.ok_or(DynoWareError::NoRate { path: path.into() })?;
         let (mut fx, mut fy, mut fz) = (vec![], vec![], vec![]);
         let mut units_seen = false;
         for (i, l) in lines {
-            let l = l.trim();
-            if l.is_empty() {
+            if l.trim().is_empty() {
                 continue;
             }
-            let f: Vec<&str> = l.split(',').map(str::trim).collect();
-            if !units_seen && f.first().is_some_and(|s| *s == "s") {
+            let f = cells(l);
+            if !units_seen && f.first().is_some_and(|s| *s == "s" || *s == "[s]") {
                 units_seen = true;
                 continue;
             }
-            if f.len() != 4 {
+            if f.len() != width {
                 return Err(DynoWareError::Fields {
                     path: path.into(),
                     line: i + 1,
                     found: f.len(),
+                    expected: width,
                 });
             }
             let mut v = [0.0; 4];
-            for (c, s) in f.iter().enumerate() {
+            for (c, s) in f.iter().take(4).enumerate() {
                 v[c] = s
                     .parse::<f64>()
                     .ok()
@@ -430,5 +459,40 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.to_string(), "t.csv:4:4: `x` is not a number");
+    }
+
+    #[test]
+    fn dynoware_format_variants_read_the_same_samples() {
+        // The same two samples written as DynoWare 2.5 does, and as re-saved or other exports write them.
+        let plain = "DynoWare,Version 2.5.1.2\nSampling rate [Hz]:,10000\nTime,Fx,Fy,Fz\ns,N,N,N\n\
+                     8,72.6,-209.4,82.6\n8.0001,78.0,-192.7,76.5\n";
+        let variants = [
+            plain.replace('\n', "\r\n"),
+            format!("\u{feff}{plain}"),
+            "\"Sampling rate [Hz]:\",\"10000\"\n\"Time\",\"Fx\",\"Fy\",\"Fz\"\n\"s\",\"N\",\"N\",\"N\"\n\
+             \"8\",\"72.6\",\"-209.4\",\"82.6\"\n\"8.0001\",\"78.0\",\"-192.7\",\"76.5\"\n"
+                .to_string(),
+            "Sampling rate [Hz]:,10000,\nTime,Fx,Fy,Fz,\ns,N,N,N,\n8,72.6,-209.4,82.6,\n8.0001,78.0,-192.7,76.5,\n"
+                .to_string(),
+            "Sampling rate [Hz]:,10000\nTime [s],Fx [N],Fy [N],Fz [N],Mz [N·m]\n8,72.6,-209.4,82.6,1.0\n\
+             8.0001,78.0,-192.7,76.5,1.1\n"
+                .to_string(),
+        ];
+        let want = DynoWare::parse("p.csv", plain).unwrap();
+        for v in &variants {
+            let got = DynoWare::parse("v.csv", v).unwrap_or_else(|e| panic!("{e}\n{v}"));
+            assert_eq!(
+                (got.sampling_hz, &got.fx, &got.fy, &got.fz),
+                (want.sampling_hz, &want.fx, &want.fy, &want.fz),
+                "{v}"
+            );
+        }
+        // A row with a missing channel is still named.
+        let e =
+            DynoWare::parse("t.csv", "Sampling rate [Hz]:,10\nTime,Fx,Fy,Fz\n0,1,2\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "t.csv:3: expected 4 fields (as the Time,Fx,Fy,Fz header), found 3"
+        );
     }
 }

@@ -375,8 +375,10 @@ pub fn forward(
     }
 }
 
-/// Coordinate search over the lag grid: for each sensor term, try the sensor's other lag candidates and keep
-/// the one with the lowest CV RMS. Returns the new CV RMS.
+/// Search over the lag grid: every sensor term's other lag candidates are tried, and the one change that
+/// lowers the CV RMS most is kept; repeated while a change helps (at most 2 changes per sensor term). Taking
+/// the best change over all terms, not the first term's first, makes the result independent of the order
+/// of the sensor columns in the file (an exact tie keeps the change found first). Returns the new CV RMS.
 pub fn improve_lags(
     gs: &GramSet,
     cands: &[Candidate],
@@ -384,32 +386,38 @@ pub fn improve_lags(
     groups: &[usize],
     mut cur: f64,
 ) -> f64 {
-    for _sweep in 0..2 {
-        let mut changed = false;
+    let sensor_terms = terms
+        .iter()
+        .filter(|&&t| matches!(cands[t], Candidate::Sensor { .. }))
+        .count();
+    for _change in 0..2 * sensor_terms {
+        let mut best: Option<(usize, usize, f64)> = None;
         for pos in 0..terms.len() {
             let Candidate::Sensor { sensor, .. } = cands[terms[pos]] else {
                 continue;
             };
+            let old = terms[pos];
             for (ci, c) in cands.iter().enumerate() {
                 let Candidate::Sensor { sensor: s2, .. } = *c else {
                     continue;
                 };
-                if s2 != sensor || ci == terms[pos] {
+                if s2 != sensor || ci == old {
                     continue;
                 }
-                let old = terms[pos];
                 terms[pos] = ci;
                 let r = gs.cv_rms(terms, groups, 0.0);
-                if r < cur * (1.0 - 1e-9) {
-                    cur = r;
-                    changed = true;
-                } else {
-                    terms[pos] = old;
+                if r < best.map_or(cur * (1.0 - 1e-9), |(_, _, b)| b) {
+                    best = Some((pos, ci, r));
                 }
             }
+            terms[pos] = old;
         }
-        if !changed {
-            break;
+        match best {
+            Some((pos, ci, r)) => {
+                terms[pos] = ci;
+                cur = r;
+            }
+            None => break,
         }
     }
     cur

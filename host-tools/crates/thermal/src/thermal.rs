@@ -946,23 +946,35 @@ pub fn fit_thermal(
                 Some((lo, hi))
             })
             .collect();
-        // Many terms: one sweep with fewer steps keeps the fit fast.
+        // Many terms: fewer changes and steps keep the fit fast. Each round searches every τ given the
+        // others and keeps the one change that helps most, so the result does not depend on the order of
+        // the sensor columns in the file (a sweep in file order did: up to 4× the held-out RMS on the
+        // Voron cooling phase with the sensor columns reversed).
         let (sweeps, steps) = if sel.len() > 6 { (1, 12) } else { (2, 20) };
-        for _ in 0..sweeps {
+        let mut cur = small_cv(&sel, rl);
+        for _ in 0..sweeps * sel.len() {
+            let mut best: Option<(usize, f64, f64)> = None;
             for j in 0..sel.len() {
                 let Some((lo, hi)) = brackets[j] else {
                     continue;
                 };
-                let tau = sel[j].1;
                 let mut f = |lt: f64| {
                     let mut s2 = sel.clone();
                     s2[j].1 = lt.exp();
                     small_cv(&s2, rl)
                 };
-                let best = golden_min(&mut f, lo.ln(), hi.ln(), steps);
-                if f(best) < f(tau.ln()) {
-                    sel[j].1 = best.exp();
+                let t = golden_min(&mut f, lo.ln(), hi.ln(), steps);
+                let r = f(t);
+                if r < best.map_or(cur, |b| b.2) {
+                    best = Some((j, t.exp(), r));
                 }
+            }
+            match best {
+                Some((j, tau, r)) => {
+                    sel[j].1 = tau;
+                    cur = r;
+                }
+                None => break,
             }
         }
     }
