@@ -141,6 +141,8 @@ pub fn analyse(
         _ => (0..n).collect(),
     };
     let f = fit(data, &train, opts)?;
+    // the RMS figures sum in the fit's row order (independent of the file's)
+    let all = data.canonical_order(&(0..n).collect::<Vec<_>>());
     let fitted_pred = predict_readings(&f.model, data);
     let mut judged_pred: Vec<Option<f64>> = vec![None; n];
     let mut holdout_rms_um = None;
@@ -149,7 +151,7 @@ pub fn analyse(
     let raw_rms_um;
     match judge {
         Judge::Holdout(mask) => {
-            let held: Vec<usize> = (0..n).filter(|&i| mask[i]).collect();
+            let held: Vec<usize> = all.iter().copied().filter(|&i| mask[i]).collect();
             for &i in &held {
                 judged_pred[i] = Some(fitted_pred[i]);
             }
@@ -178,14 +180,14 @@ pub fn analyse(
                     judged_pred[i] = Some(p[i]);
                 }
             }
-            raw_rms_um = rms(data.readings.iter().map(|r| r.deviation_um));
-            cv_rms_um = Some(rms((0..n).filter_map(|i| {
+            raw_rms_um = rms(all.iter().map(|&i| data.readings[i].deviation_um));
+            cv_rms_um = Some(rms(all.iter().filter_map(|&i| {
                 judged_pred[i].map(|p| data.readings[i].deviation_um - p)
             })));
             basis = "cv";
         }
         Judge::None => {
-            raw_rms_um = rms(data.readings.iter().map(|r| r.deviation_um));
+            raw_rms_um = rms(all.iter().map(|&i| data.readings[i].deviation_um));
         }
     }
     // ISO 230-6: body diagonals (beam with all three components ≥ 0.3 in magnitude)

@@ -89,6 +89,30 @@ fn distinct(points: &[[f64; 3]]) -> usize {
 }
 
 impl LineData {
+    /// `rows` (indices into [`LineData::readings`]) in an order that does not depend on the file's row
+    /// order: by line label, then axis position, tool offset, beam and deviation (rows equal in all of
+    /// these are the same reading, so their order does not matter). The fit sums its normal equations in
+    /// this order, so the same measurements give the same model bit for bit whatever order another tool
+    /// wrote them in.
+    pub fn canonical_order(&self, rows: &[usize]) -> Vec<usize> {
+        let cmp3 = |a: [f64; 3], b: [f64; 3]| {
+            a[0].total_cmp(&b[0])
+                .then(a[1].total_cmp(&b[1]))
+                .then(a[2].total_cmp(&b[2]))
+        };
+        let mut v = rows.to_vec();
+        v.sort_by(|&i, &j| {
+            let (a, b) = (&self.readings[i], &self.readings[j]);
+            self.lines[a.line]
+                .cmp(&self.lines[b.line])
+                .then_with(|| cmp3(a.q, b.q))
+                .then_with(|| cmp3(a.tool, b.tool))
+                .then_with(|| cmp3(a.beam, b.beam))
+                .then_with(|| a.deviation_um.total_cmp(&b.deviation_um))
+        });
+        v
+    }
+
     /// Readings (deviation 0) of planned lines, for design and planning.
     pub fn from_specs(specs: &[axcomp_kinematics::LineSpec]) -> LineData {
         let mut readings = Vec::new();

@@ -271,6 +271,8 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
     if train.is_empty() {
         return Err(GeometryError::NoRows);
     }
+    // the design's rows, and so every floating-point sum below, in an order independent of the file's
+    let train = &data.canonical_order(train)[..];
     let topo = &opts.topology;
     let layout = Layout::new(data, opts.intervals);
     let p = layout.p;
@@ -344,9 +346,13 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         v
     };
     // normal equations per line (the folds of the cross-validation) and in total, computed once
-    let mut line_rows: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    // (keyed by the line's label, not its order of first appearance in the file)
+    let mut line_rows: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
     for (i, &ri) in train.iter().enumerate() {
-        line_rows.entry(data.readings[ri].line).or_default().push(i);
+        line_rows
+            .entry(data.lines[data.readings[ri].line].as_str())
+            .or_default()
+            .push(i);
     }
     let fold_full: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)> = line_rows
         .values()
