@@ -68,11 +68,19 @@ pub fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
 
 /// Runs `args` in `dir`: exit 2, `needle` named, no temporary named, the directory exactly as before.
 pub fn fails_untouched(args: &[&str], dir: &Path, needle: &str) {
+    fails_untouched_naming(args, dir, &[needle]);
+}
+
+/// Runs `args` in `dir`: exit 2, every one of `needles` named, no temporary named, the directory exactly as
+/// before (nothing written, nothing half-written).
+pub fn fails_untouched_naming(args: &[&str], dir: &Path, needles: &[&str]) {
     let before = snapshot(dir);
     let o = axcomp_in(args, dir);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
-    assert!(err.contains(needle), "{args:?}: must name {needle}: {err}");
+    for needle in needles {
+        assert!(err.contains(needle), "{args:?}: must name {needle}: {err}");
+    }
     assert!(
         !err.contains("axcomp-tmp"),
         "{args:?}: names a temporary: {err}"
