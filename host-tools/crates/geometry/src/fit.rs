@@ -537,6 +537,10 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
 
     // --- λ by leave-one-line-out cross-validation -----------------------------------------------
     let mut lambda_cv = Vec::new();
+    // Set when no fold is informative: every line's removal leaves some parameter undetermined, so the
+    // held-out readings of every fold fall on directions the other lines do not reach, and the scores differ
+    // by rounding only. λ is then not chosen by them: no smoothing, the plain reference's solution.
+    let mut cv_cannot_choose = false;
     let lambda = match opts.method {
         Method::Auto if line_rows.len() >= 3 && opts.lambdas.len() > 1 => {
             let folds: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)> = fold_full
@@ -583,7 +587,12 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
                     best = (rms, lam);
                 }
             }
-            best.1
+            if any {
+                best.1
+            } else {
+                cv_cannot_choose = true;
+                0.0
+            }
         }
         Method::Auto if opts.lambdas.len() == 1 => opts.lambdas[0],
         _ => 0.0,
@@ -687,6 +696,10 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         });
     }
     let method = match opts.method {
+        Method::Auto if cv_cannot_choose => format!(
+            "general least squares on cubic B-splines (knot intervals X {}, Y {}, Z {}), no smoothing (λ = 0, as the plain reference): leave-one-line-out cross-validation cannot choose λ on these lines, since removing any one of them leaves parameters undetermined (the scores in lambda_cv_rms_um differ by rounding only)",
+            layout.grids[0].intervals, layout.grids[1].intervals, layout.grids[2].intervals
+        ),
         Method::Auto => format!(
             "general least squares on cubic B-splines (knot intervals X {}, Y {}, Z {}), smoothing λ = {} chosen by leave-one-line-out cross-validation",
             layout.grids[0].intervals, layout.grids[1].intervals, layout.grids[2].intervals, lambda
