@@ -798,8 +798,8 @@ struct Builder {
     names: Vec<String>,
     lines: Vec<usize>,
     cells: Vec<Cells>,
-    /// `--where` filters applied while reading: (column index, wanted text, wanted number).
-    early: Vec<(usize, String, Option<f64>)>,
+    /// `--where` filters applied while reading: (column index, wanted value).
+    early: Vec<(usize, WantedCell)>,
     /// The first data row's `time` cell (before any filter): `time_s` is relative to it.
     first_time: Option<String>,
     time_col: Option<usize>,
@@ -870,7 +870,7 @@ impl Builder {
             .iter()
             .filter_map(|(c, v)| {
                 let i = resolve(&names, c)?;
-                (!scaled.contains(&i)).then(|| (i, v.clone(), parse_number(v)))
+                (!scaled.contains(&i)).then(|| (i, WantedCell::new(&names[i], v)))
             })
             .collect();
         let time_col = if names.iter().any(|n| n == "time_s") {
@@ -918,13 +918,10 @@ impl Builder {
         if self.records == 1024 {
             self.reserve();
         }
-        let keep = self.early.iter().all(|(c, value, want_num)| {
-            let t = &rec.fields[*c];
-            match (*want_num, parse_number(t)) {
-                (Some(a), Some(b)) => a == b,
-                _ => t.trim() == value,
-            }
-        });
+        let keep = self
+            .early
+            .iter()
+            .all(|(c, want)| want.matches(&rec.fields[*c]));
         if !keep {
             return Ok(());
         }
@@ -994,13 +991,9 @@ impl Builder {
             let mut keep = vec![true; ds.n_rows()];
             for (col, value) in &opts.filters {
                 let c = ds.column(col, " (named by --where)")?;
-                let want_num = parse_number(value);
+                let want = WantedCell::new(col, value);
                 for (k, t) in keep.iter_mut().zip(c.cells().iter()) {
-                    let hit = match (want_num, parse_number(t)) {
-                        (Some(a), Some(b)) => a == b,
-                        _ => t.trim() == value,
-                    };
-                    *k &= hit;
+                    *k &= want.matches(t);
                 }
             }
             if keep.iter().any(|k| !k) || ds.n_rows() == 0 {
@@ -1055,6 +1048,42 @@ fn parse_direction(t: &str) -> Option<i8> {
         "+" | "1" | "+1" | "1.0" | "+1.0" | "positive" | "pos" | "forward" | "fwd" => Some(1),
         "-" | "-1" | "-1.0" | "negative" | "neg" | "backward" | "bwd" | "reverse" => Some(-1),
         _ => None,
+    }
+}
+
+/// A value that `--where COL=VALUE` or `--holdout COL=V1,V2` asks for, as matched against a column's cells:
+/// in the approach-direction column any spelling of the same direction (`+` matches `positive` and `1`),
+/// else the same number (`2` matches `2.0`), else the same text.
+pub(crate) struct WantedCell {
+    text: String,
+    number: Option<f64>,
+    direction: Option<i8>,
+}
+
+impl WantedCell {
+    pub(crate) fn new(column: &str, text: &str) -> Self {
+        let is_direction = ALIASES
+            .iter()
+            .any(|(a, b)| *a == "direction" && (column == *a || column == *b));
+        WantedCell {
+            text: text.to_string(),
+            number: parse_number(text),
+            direction: if is_direction {
+                parse_direction(text)
+            } else {
+                None
+            },
+        }
+    }
+
+    pub(crate) fn matches(&self, cell: &str) -> bool {
+        if let (Some(want), Some(got)) = (self.direction, parse_direction(cell)) {
+            return want == got;
+        }
+        match (self.number, parse_number(cell)) {
+            (Some(a), Some(b)) => a == b,
+            _ => cell.trim() == self.text,
+        }
     }
 }
 

@@ -6,7 +6,7 @@
 //!   `COL<=X`, `COL<X` hold out rows by a numeric threshold.
 //! - *group*: rows sharing one value of a column; `--cv COL` leaves one group out at a time.
 
-use crate::{DataError, Dataset, parse_number};
+use crate::{DataError, Dataset, WantedCell, parse_number};
 
 /// How a command splits its rows into fitting and judging.
 #[derive(Debug, Clone, PartialEq)]
@@ -128,20 +128,14 @@ impl HoldoutSpec {
     pub fn mask(&self, ds: &Dataset) -> Result<Vec<bool>, DataError> {
         let mask: Vec<bool> = match &self.rule {
             HoldoutRule::OneOf(values) => {
-                let want: Vec<(Option<f64>, &str)> = values
+                let want: Vec<WantedCell> = values
                     .iter()
-                    .map(|v| (parse_number(v), v.as_str()))
+                    .map(|v| WantedCell::new(&self.column, v))
                     .collect();
                 ds.text(&self.column)
                     .map_err(|e| with_purpose(e, " (named by --holdout)"))?
                     .iter()
-                    .map(|t| {
-                        let got = parse_number(t);
-                        want.iter().any(|(wn, wt)| match (wn, got) {
-                            (Some(a), Some(b)) => *a == b,
-                            _ => t.trim() == *wt,
-                        })
-                    })
+                    .map(|t| want.iter().any(|w| w.matches(t)))
                     .collect()
             }
             rule => {

@@ -572,3 +572,37 @@ fn utf16_file_is_refused_naming_the_encoding() {
         "{e}"
     );
 }
+
+/// The contract lets a file spell the approach direction `+`/`-`, `1`/`-1` or `positive`/`negative`; a
+/// `--where` or `--holdout` on the direction column takes any spelling of the same direction (before, the
+/// text was compared: `direction=+` kept none of the `positive` rows). Other columns still compare as
+/// numbers, then as text.
+#[test]
+fn where_and_holdout_on_the_direction_take_any_spelling() {
+    // ISO's approach_direction cells: positive, negative, +, -.
+    for (want, rows) in [("+", 2), ("positive", 2), ("1", 2), ("-1.0", 2), ("NEG", 2)] {
+        let o = opts(&[&format!("direction={want}")], &[], &[]);
+        let ds = Dataset::from_csv_str("iso.csv", ISO, &o).unwrap();
+        assert_eq!(ds.n_rows(), rows, "direction={want}");
+        let signs = ds.direction().unwrap().unwrap();
+        let sign = if want.starts_with('-') || want == "NEG" {
+            -1
+        } else {
+            1
+        };
+        assert!(
+            signs.iter().all(|s| *s == sign),
+            "direction={want}: {signs:?}"
+        );
+    }
+    let ds = Dataset::from_csv_str("iso.csv", ISO, &none()).unwrap();
+    let m = HoldoutSpec::parse("approach_direction=-")
+        .unwrap()
+        .mask(&ds)
+        .unwrap();
+    assert_eq!(m, vec![false, true, false, true]);
+    // A note column holding `+` is text: it does not match `positive`.
+    let text = "note,v\n+,1\npositive,2\n";
+    let ds = Dataset::from_csv_str("n.csv", text, &opts(&["note=+"], &[], &[])).unwrap();
+    assert_eq!(ds.n_rows(), 1);
+}
