@@ -582,7 +582,8 @@ fn image_build_says_why_an_absolute_position_model_is_refused() {
 /// One approach direction measured over part of the stroke only: the table once held that direction's
 /// curve extrapolated over the rest without a word (−581 µm at 20 mm on the B02 X runs held out by time,
 /// where the data are within ±53 µm). Now a `direction_coverage` data warning says so (stderr, JSON;
-/// `--strict` refuses).
+/// `--strict` refuses), and the table holds that direction's end value there (tested in
+/// `axcomp_positioning::fit`, `a_direction_reaching_part_of_the_stroke_is_held_beyond_its_targets`).
 #[test]
 fn a_direction_covering_part_of_the_stroke_is_a_data_warning() {
     let dir = scratch("coverage");

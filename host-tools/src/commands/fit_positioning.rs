@@ -322,9 +322,8 @@ fn data_warnings(
 }
 
 /// A warning when one approach direction's targets, on the rows the table is fitted on (`held`: true =
-/// held out), span less of the stroke than the other's: the table holds that direction's curve there too,
-/// extrapolated from its last targets (tens to hundreds of µm on a curved error), and the firmware would
-/// apply it.
+/// held out), span less of the stroke than the other's: beyond its last targets the table holds that
+/// direction's end value (`axcomp_positioning::fit`), a guess the data do not support.
 fn direction_coverage(x: &[f64], dir: &[i8], held: Option<&[bool]>) -> Option<DataWarning> {
     let range = |want: i8| {
         x.iter()
@@ -349,8 +348,8 @@ fn direction_coverage(x: &[f64], dir: &[i8], held: Option<&[bool]>) -> Option<Da
         column: "target_mm".into(),
         message: format!(
             "the {name}-approach rows{} cover only {a} .. {b} mm of the stroke {lo} .. {hi} mm: the table \
-             extrapolates that direction's curve beyond its last targets; measure both directions over the \
-             stroke, or leave out the targets only one direction reached",
+             holds that direction's value at its last targets beyond them, which no reading supports; \
+             measure both directions over the stroke, or leave out the targets only one direction reached",
             if held.is_some() {
                 " fitted on (not held out)"
             } else {

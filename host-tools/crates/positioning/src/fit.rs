@@ -490,8 +490,10 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
         &split.method,
     );
 
+    // Each direction's curve holds its end value beyond the targets that direction reached (when one
+    // direction covers less of the stroke than the other), rather than extrapolating its last pieces.
+    let curves = hold_beyond_each_direction(chosen.final_curves.clone(), obs, lo, hi);
     // Resample to the uniform table.
-    let curves = chosen.final_curves.clone();
     let (segments, segment_mm) = table_grid(&curves, lo, hi, opts)?;
     let fwd = spline::resample_uniform(&curves.forward, lo, segment_mm, segments)?;
     let bwd = match &curves.backward {
@@ -537,6 +539,37 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
         resampling_max_um: resampling_max,
         guard: verdict,
     })
+}
+
+/// The targets each approach direction reached, `(forward, backward)` as `(min, max)` mm.
+fn direction_ranges(obs: &[Observation]) -> [Option<(f64, f64)>; 2] {
+    let range = |want: i8| {
+        obs.iter()
+            .filter(|o| o.direction == want)
+            .fold(None, |r: Option<(f64, f64)>, o| {
+                let v = o.target_mm;
+                Some(r.map_or((v, v), |(a, b)| (a.min(v), b.max(v))))
+            })
+    };
+    [range(1), range(-1)]
+}
+
+/// Bidirectional curves with each direction's curve held at its end values beyond the targets that
+/// direction reached, where that is less than the stroke `[lo, hi]` (else unchanged).
+fn hold_beyond_each_direction(curves: Curves, obs: &[Observation], lo: f64, hi: f64) -> Curves {
+    let Some(backward) = curves.backward else {
+        return curves;
+    };
+    let tol = 1e-9 * (hi - lo).abs().max(1.0);
+    let hold = |c: PiecewiseCubic, r: Option<(f64, f64)>| match r {
+        Some((a, b)) if a > lo + tol || b < hi - tol => c.held_beyond(a, b, lo, hi),
+        _ => c,
+    };
+    let [fwd, bwd] = direction_ranges(obs);
+    Curves {
+        forward: hold(curves.forward, fwd),
+        backward: Some(hold(backward, bwd)),
+    }
 }
 
 /// Fold index per row: leave-one-run-out when there are 3 ..= `max_folds` runs, consecutive runs grouped
@@ -1386,6 +1419,54 @@ pub(crate) mod tests {
         // CV RMS near the noise σ = 1 (reference: σ; tolerance 10 %).
         assert!(r.cv_rms_um < 1.1, "cv {}", r.cv_rms_um);
         assert!(r.guard.passed);
+    }
+
+    #[test]
+    fn a_direction_reaching_part_of_the_stroke_is_held_beyond_its_targets() {
+        // ISO 230-2 style runs over 0 … 200 mm; the negative approach reached only 0 … 100 mm. Truth: a
+        // curved pitch error (cubic, 0 at 0, +64 µm at 200 mm) plus a 4 µm reversal, σ = 0.3 µm noise.
+        // Before, the backward curve beyond 100 mm was its last pieces extrapolated (hundreds of µm on
+        // the real B02 X case); now the backward curve holds the value reached at 100 mm (reference: that
+        // value; exactly), and the table follows it within the resampling error it reports (the uniform C2
+        // table rounds the corner at 100 mm; below 0.2 µm here). The forward direction, measured over the
+        // whole stroke, is unchanged: within 0.5 µm of the truth there.
+        let mut noise = Noise(5);
+        let truth = |x: f64, d: i8| 8e-6 * x * x * x + 2.0 * d as f64;
+        let mut obs = Vec::new();
+        for run in 0..5 {
+            for t in 0..=20 {
+                let x = 10.0 * t as f64;
+                for d in [1i8, -1] {
+                    if d < 0 && x > 100.0 {
+                        continue;
+                    }
+                    obs.push(Observation {
+                        target_mm: x,
+                        direction: d,
+                        run,
+                        deviation_um: truth(x, d) + 0.3 * noise.normal(),
+                    });
+                }
+            }
+        }
+        let r = fit(&obs, &FitOptions::default()).unwrap();
+        let held = r.curves.predict(100.0, -1);
+        assert!((held - truth(100.0, -1)).abs() < 1.0, "{held}");
+        assert!(r.resampling_max_um < 0.2, "{}", r.resampling_max_um);
+        for k in 0..=100 {
+            let x = 100.0 + k as f64;
+            assert_eq!(r.curves.predict(x, -1), held, "backward curve at {x} mm");
+            let t = r.table.deviation_um(x, -1);
+            assert!(
+                (t - held).abs() <= r.resampling_max_um + 1e-9,
+                "backward table at {x} mm: {t} µm, held {held} µm"
+            );
+        }
+        for k in 0..=200 {
+            let x = k as f64;
+            let e = r.table.deviation_um(x, 1) - truth(x, 1);
+            assert!(e.abs() < 0.5, "forward at {x} mm: {e} µm off the truth");
+        }
     }
 
     #[test]

@@ -119,6 +119,45 @@ impl PiecewiseCubic {
         (x - self.knots[i], &self.coeffs[i])
     }
 
+    /// The curve over `[lo, hi]`: equal to this one on `[a, b]` (clamped into this curve's own range) and
+    /// to its value at `a` before, at `b` after (the end values held beyond `[a, b]`, e.g. beyond the
+    /// targets one approach direction reached), so that nothing is extrapolated from an end piece.
+    pub fn held_beyond(&self, a: f64, b: f64, lo: f64, hi: f64) -> PiecewiseCubic {
+        let a = a.clamp(self.start(), self.end()).max(lo);
+        let b = b.clamp(a, self.end()).min(hi);
+        let mut pieces: Vec<(f64, [f64; 4])> = Vec::new();
+        if a > lo {
+            pieces.push((lo, [self.eval(a), 0.0, 0.0, 0.0]));
+        }
+        for (i, c) in self.coeffs.iter().enumerate() {
+            let (k0, k1) = (self.knots[i], self.knots[i + 1]);
+            if k1 <= a || k0 >= b {
+                continue;
+            }
+            // The piece re-based from k0 to its first point inside [a, b] (Taylor shift by d).
+            let s = k0.max(a);
+            let d = s - k0;
+            pieces.push((
+                s,
+                [
+                    c[0] + d * (c[1] + d * (c[2] + d * c[3])),
+                    c[1] + d * (2.0 * c[2] + 3.0 * c[3] * d),
+                    c[2] + 3.0 * c[3] * d,
+                    c[3],
+                ],
+            ));
+        }
+        if b < hi {
+            pieces.push((b, [self.eval(b), 0.0, 0.0, 0.0]));
+        }
+        let mut knots: Vec<f64> = pieces.iter().map(|p| p.0).collect();
+        knots.push(hi);
+        PiecewiseCubic {
+            knots,
+            coeffs: pieces.into_iter().map(|p| p.1).collect(),
+        }
+    }
+
     /// Pointwise linear combination `a·self + b·other` on the union of both knot sets.
     pub fn combine(&self, a: f64, other: &PiecewiseCubic, b: f64) -> PiecewiseCubic {
         let mut knots: Vec<f64> = self
