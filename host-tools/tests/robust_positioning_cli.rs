@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 mod common;
-use common::{axcomp_in, read_json, scratch};
+use common::{axcomp_in, fails_untouched, fails_untouched_naming, read_json, scratch};
 
 fn run(args: &[&str], dir: &Path) -> Output {
     axcomp_in(args, dir)
@@ -62,10 +62,7 @@ fn close(a: f64, b: f64, what: &str) {
 
 /// Fails with exit code 2, `needle` in stderr, and none of `outputs` created.
 fn refused(args: &[&str], dir: &Path, needle: &str, outputs: &[&Path]) {
-    let o = run(args, dir);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
-    assert!(err.contains(needle), "{args:?}: must say {needle}: {err}");
+    fails_untouched(args, dir, needle);
     for p in outputs {
         assert!(!p.exists(), "{args:?}: {} was written", p.display());
     }
@@ -651,4 +648,53 @@ fn a_direction_covering_part_of_the_stroke_is_a_data_warning() {
     // Both directions over the whole stroke: no such warning.
     let err = ok(&["fit", "positioning", "--data", "plain.csv"], &dir);
     assert!(!err.contains("cover only"), "{err}");
+}
+
+/// A fit that cannot start (every target at one position; too few rows left once the holdout is taken
+/// out) said what was wrong but not in which file. Now the message names the file; exit code 2, nothing
+/// written.
+#[test]
+fn a_fit_that_cannot_start_names_the_file() {
+    let dir = scratch("cannot-start");
+    std::fs::write(
+        dir.join("one.csv"),
+        "target_mm,deviation_um\n5,1\n5,2\n5,3\n5,1\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("two.csv"),
+        "target_mm,deviation_um,run\n5,1,1\n6,2,1\n5,3,2\n6,1,2\n",
+    )
+    .unwrap();
+    fails_untouched_naming(
+        &[
+            "fit",
+            "positioning",
+            "--data",
+            "one.csv",
+            "--out",
+            "t.json",
+            "--json",
+            "f.json",
+        ],
+        &dir,
+        &["one.csv", "same position"],
+    );
+    fails_untouched_naming(
+        &[
+            "fit",
+            "positioning",
+            "--data",
+            "two.csv",
+            "--holdout",
+            "run=2",
+            "--out",
+            "t.json",
+            "--json",
+            "f.json",
+        ],
+        &dir,
+        &["two.csv", "need at least 4 points"],
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

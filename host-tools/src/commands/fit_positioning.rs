@@ -490,7 +490,8 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
     progress("fitting the candidates (cross-validated)");
     let (mut fit, judged, verdict, judged_rms, method) = match &holdout_mask {
         None => {
-            let static_fit = axcomp_positioning::fit(&obs, &opts)?;
+            let static_fit = axcomp_positioning::fit(&obs, &opts)
+                .with_context(|| args.data.data.display().to_string())?;
             let (mut fit, kept, wj) = with_warmup(args, &obs, ages.as_deref(), &opts, static_fit)?;
             warm_json = wj;
             let (predicted, verdict, cv) = match &kept {
@@ -516,8 +517,12 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         Some(mask) => {
             let train_rows: Vec<usize> = (0..obs.len()).filter(|&i| !mask[i]).collect();
             let train: Vec<Observation> = train_rows.iter().map(|&i| obs[i]).collect();
-            let static_fit = axcomp_positioning::fit(&train, &opts)
-                .context("fitting on the rows not held out")?;
+            let static_fit = axcomp_positioning::fit(&train, &opts).with_context(|| {
+                format!(
+                    "{}: fitting on the rows not held out",
+                    args.data.data.display()
+                )
+            })?;
             let train_ages: Option<Vec<f64>> = ages
                 .as_ref()
                 .map(|a| train_rows.iter().map(|&i| a[i]).collect());
