@@ -60,6 +60,32 @@ fn close(a: f64, b: f64, what: &str) {
     );
 }
 
+/// Copies the CSV `from` (header starting `target_mm`) to `to` with the cell of `column` in the `row`-th data
+/// row (1-based) replaced by `value`. Returns the header's index among the file's lines and the column's
+/// index, from which a test forms the `file:line:column` the error must name.
+fn with_cell(from: &Path, to: &Path, column: &str, row: usize, value: &str) -> (usize, usize) {
+    let text = std::fs::read_to_string(from).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let h = lines
+        .iter()
+        .position(|l| l.starts_with("target_mm"))
+        .unwrap();
+    let col = lines[h].split(',').position(|c| c == column).unwrap();
+    let mut out = String::new();
+    for (i, l) in lines.iter().enumerate() {
+        if i == h + row {
+            let mut f: Vec<&str> = l.split(',').collect();
+            f[col] = value;
+            out.push_str(&f.join(","));
+        } else {
+            out.push_str(l);
+        }
+        out.push('\n');
+    }
+    std::fs::write(to, out).unwrap();
+    (h, col)
+}
+
 /// Fails with exit code 2, `needle` in stderr, and none of `outputs` created.
 fn refused(args: &[&str], dir: &Path, needle: &str, outputs: &[&Path]) {
     fails_untouched(args, dir, needle);
@@ -235,26 +261,8 @@ fn fit_thermal_leaves_out_a_constant_force_column() {
 fn nan_cells_are_named_by_file_line_and_column() {
     let dir = scratch("nan");
     let plain = twin(&dir, "thermal", "plain.csv");
-    let text = std::fs::read_to_string(&plain).unwrap();
-    // Header line number and the sensor column; the 6th data row's `motor_degC` becomes NaN.
-    let lines: Vec<&str> = text.lines().collect();
-    let h = lines
-        .iter()
-        .position(|l| l.starts_with("target_mm"))
-        .unwrap();
-    let col = lines[h].split(',').position(|c| c == "motor_degC").unwrap();
-    let mut out = String::new();
-    for (i, l) in lines.iter().enumerate() {
-        if i == h + 6 {
-            let mut f: Vec<&str> = l.split(',').collect();
-            f[col] = "NaN";
-            out.push_str(&f.join(","));
-        } else {
-            out.push_str(l);
-        }
-        out.push('\n');
-    }
-    std::fs::write(dir.join("nan.csv"), out).unwrap();
+    // The 6th data row's `motor_degC` becomes NaN.
+    let (h, col) = with_cell(&plain, &dir.join("nan.csv"), "motor_degC", 6, "NaN");
     let at = format!("nan.csv:{}:{} (column `motor_degC`)", h + 7, col + 1);
     let (j, m) = (dir.join("t.json"), dir.join("t-model.json"));
     refused(
@@ -332,25 +340,7 @@ fn semicolon_and_utf16_files_are_refused_saying_so() {
 fn blank_run_cell_is_named_not_made_a_run() {
     let dir = scratch("blank-run");
     let plain = twin(&dir, "iso230", "plain.csv");
-    let text = std::fs::read_to_string(&plain).unwrap();
-    let lines: Vec<&str> = text.lines().collect();
-    let h = lines
-        .iter()
-        .position(|l| l.starts_with("target_mm"))
-        .unwrap();
-    let col = lines[h].split(',').position(|c| c == "run").unwrap();
-    let mut out = String::new();
-    for (i, l) in lines.iter().enumerate() {
-        if i == h + 3 {
-            let mut f: Vec<&str> = l.split(',').collect();
-            f[col] = "";
-            out.push_str(&f.join(","));
-        } else {
-            out.push_str(l);
-        }
-        out.push('\n');
-    }
-    std::fs::write(dir.join("blank.csv"), out).unwrap();
+    let (h, col) = with_cell(&plain, &dir.join("blank.csv"), "run", 3, "");
     let at = format!("blank.csv:{}:{} (column `run`): empty cell", h + 4, col + 1);
     let j = dir.join("f.json");
     refused(

@@ -46,8 +46,8 @@ pub fn probe_data(ds: &Dataset, holdout: &str) -> anyhow::Result<ProbeData> {
     Ok(without_gross_outliers(data))
 }
 
-/// Robust σ threshold of a gross outlier (bounce, false trigger), as `fit probe --outlier-mad`'s default.
-const OUTLIER_ROBUST_SIGMA: f64 = 6.0;
+/// Robust σ threshold of a gross outlier (bounce, false trigger): `fit probe --outlier-mad`'s default.
+const OUTLIER_ROBUST_SIGMA: f64 = super::fit_probe::DEFAULT_OUTLIER_MAD;
 
 /// Flags of the touches of one sphere: radial residual about the free-radius sphere of the touches kept more
 /// than [`OUTLIER_ROBUST_SIGMA`] robust σ (1.4826·MAD, at least 0.05 µm) from the median, iterated until the
@@ -68,16 +68,7 @@ fn sphere_outliers(points: &[[f64; 3]]) -> Option<Vec<bool>> {
                 (d.sqrt() - s.radius_mm) * 1000.0
             })
             .collect();
-        let mut sorted = r.clone();
-        sorted.sort_by(f64::total_cmp);
-        let med = sorted[sorted.len() / 2];
-        let mut dev: Vec<f64> = r.iter().map(|e| (e - med).abs()).collect();
-        dev.sort_by(f64::total_cmp);
-        let sigma = (1.4826 * dev[dev.len() / 2]).max(0.05);
-        let next: Vec<bool> = r
-            .iter()
-            .map(|e| (e - med).abs() > OUTLIER_ROBUST_SIGMA * sigma)
-            .collect();
+        let next = super::fit_probe::robust_flags(&r, OUTLIER_ROBUST_SIGMA);
         if next == flags {
             break;
         }

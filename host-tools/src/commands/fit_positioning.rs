@@ -324,17 +324,12 @@ fn data_warnings(
 /// A warning when one approach direction's targets, on the rows the table is fitted on (`held`: true =
 /// held out), span less of the stroke than the other's: beyond its last targets the table holds that
 /// direction's end value (`axcomp_positioning::fit`), a guess the data do not support.
-fn direction_coverage(x: &[f64], dir: &[i8], held: Option<&[bool]>) -> Option<DataWarning> {
-    let range = |want: i8| {
-        x.iter()
-            .zip(dir)
-            .enumerate()
-            .filter(|(i, (_, d))| **d == want && !held.is_some_and(|h| h[*i]))
-            .fold(None, |r: Option<(f64, f64)>, (_, (&v, _))| {
-                Some(r.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
-            })
+fn direction_coverage(obs: &[Observation], held: Option<&[bool]>) -> Option<DataWarning> {
+    let fitted: Vec<Observation> = match held {
+        Some(h) => (0..obs.len()).filter(|&i| !h[i]).map(|i| obs[i]).collect(),
+        None => obs.to_vec(),
     };
-    let (Some(fwd), Some(bwd)) = (range(1), range(-1)) else {
+    let [Some(fwd), Some(bwd)] = axcomp_positioning::fit::direction_ranges(&fitted) else {
         return None;
     };
     let (lo, hi) = (fwd.0.min(bwd.0), fwd.1.max(bwd.1));
@@ -433,8 +428,16 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         Some(Split::Holdout(h)) => Some(h.mask(&ds)?),
         _ => None,
     };
+    let obs: Vec<Observation> = (0..ds.n_rows())
+        .map(|i| Observation {
+            target_mm: x[i],
+            direction: dir[i],
+            run: run[i],
+            deviation_um: dev[i],
+        })
+        .collect();
     let mut warnings = data_warnings(&ds, &args.target, &x, &dev, &dir);
-    warnings.extend(direction_coverage(&x, &dir, holdout_mask.as_deref()));
+    warnings.extend(direction_coverage(&obs, holdout_mask.as_deref()));
     for w in &warnings {
         eprintln!("axcomp: warning: {}", w.message);
     }
@@ -469,14 +472,6 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
     if args.max_folds < 3 {
         bail!("--max-folds {}: needs at least 3", args.max_folds);
     }
-    let obs: Vec<Observation> = (0..ds.n_rows())
-        .map(|i| Observation {
-            target_mm: x[i],
-            direction: dir[i],
-            run: run[i],
-            deviation_um: dev[i],
-        })
-        .collect();
 
     let ages = match &args.drift {
         Some(col) => Some(drift_ages(&ds, col, args.run_period_s)?),

@@ -68,7 +68,7 @@ pub struct Args {
     #[arg(long, default_value = "auto", value_name = "MODEL")]
     pub pretravel_model: String,
     /// Outlier threshold in robust standard deviations of the radial residual.
-    #[arg(long, default_value_t = 6.0, value_name = "K")]
+    #[arg(long, default_value_t = DEFAULT_OUTLIER_MAD, value_name = "K")]
     pub outlier_mad: f64,
     /// Columns naming a pose (e.g. a_deg,c_deg): fit one sphere centre per group. Each group's commanded tool
     /// point is read from the columns cmd_x_mm, cmd_y_mm, cmd_z_mm (constant within the group; needed by
@@ -135,8 +135,11 @@ fn radial_residuals_um(
         .collect()
 }
 
+/// Default of `--outlier-mad`: a gross outlier lies more than this many robust σ from the median.
+pub(crate) const DEFAULT_OUTLIER_MAD: f64 = 6.0;
+
 /// |e − median| > k·max(1.4826·MAD, 0.05 µm), as in the calibration.
-fn robust_flags(r: &[f64], k: f64) -> Vec<bool> {
+pub(crate) fn robust_flags(r: &[f64], k: f64) -> Vec<bool> {
     if r.is_empty() {
         return Vec::new();
     }

@@ -541,8 +541,9 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     })
 }
 
-/// The targets each approach direction reached, `(forward, backward)` as `(min, max)` mm.
-fn direction_ranges(obs: &[Observation]) -> [Option<(f64, f64)>; 2] {
+/// The targets each approach direction reached, `[forward, backward]` as `(min, max)` mm (`None` for a
+/// direction without rows).
+pub fn direction_ranges(obs: &[Observation]) -> [Option<(f64, f64)>; 2] {
     let range = |want: i8| {
         obs.iter()
             .filter(|o| o.direction == want)
