@@ -1,7 +1,9 @@
 //! `axcomp plan geometry` and `axcomp fit geometry` end to end on the three-axis twin: the contract's JSON,
 //! model file, exports, report; bad input leaves nothing written.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::scratch;
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn axcomp(args: &[&str], dir: &Path) -> Output {
@@ -10,13 +12,6 @@ fn axcomp(args: &[&str], dir: &Path) -> Output {
         .current_dir(dir)
         .output()
         .expect("run axcomp")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("axcomp-geometry-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 fn ok(o: &Output) -> String {
@@ -33,7 +28,7 @@ fn ok(o: &Output) -> String {
 /// model must be within 1.1 σ (issue figure), and the JSON must carry the contract's fields.
 #[test]
 fn plan_simulate_fit_export_report() {
-    let d = tmp("e2e");
+    let d = scratch("e2e");
     let out = ok(&axcomp(
         &[
             "plan",
@@ -161,7 +156,7 @@ fn plan_simulate_fit_export_report() {
 /// identified; with --cv line a cross-validated RMS is given.
 #[test]
 fn seven_line_set_reports_the_four_it_cannot_identify() {
-    let d = tmp("seven");
+    let d = scratch("seven");
     ok(&axcomp(
         &[
             "plan",
@@ -215,7 +210,7 @@ fn seven_line_set_reports_the_four_it_cannot_identify() {
 
 #[test]
 fn bad_input_writes_nothing() {
-    let d = tmp("bad");
+    let d = scratch("bad");
     std::fs::write(
         d.join("bad.csv"),
         "x_mm,y_mm,z_mm,line,deviation_um,beam_x,beam_y,beam_z\n0,0,0,A,0,1,0,0\n100,0,0,A,1,1,0,0\n200,0,0,A,2,0.5,0,0\n",

@@ -3,6 +3,8 @@
 //! the core's f32 stage reproduces the host's f64 prediction (`GeometryModel::error_at`, the
 //! `axcomp-kinematics` linearised chain that `axcomp predict` uses) at random positions.
 
+mod common;
+use common::scratch;
 use std::path::{Path, PathBuf};
 
 use axcomp::commands::image::{
@@ -154,13 +156,6 @@ fn axis_image_correcting(k: usize, table_start_counts: i64, offset_um: f32) -> V
 
 fn start_counts(k: usize) -> i64 {
     (grids()[k].lo * 1000.0 / UPC as f64).round() as i64
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("axcomp-geoimg-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// Writes the model and X, Y, Z images into `dir`; the `--axis` arguments in slot order `order`.

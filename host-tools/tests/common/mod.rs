@@ -18,8 +18,9 @@ pub fn shared() -> Option<PathBuf> {
     }
 }
 
-/// A fresh empty directory for one test, named after the test file, the process and `name`.
-pub fn scratch(name: &str) -> PathBuf {
+/// A fresh empty directory for one test, named after the test file, the process and `name`; see
+/// [`Scratch`] for when it is removed.
+pub fn scratch(name: &str) -> Scratch {
     let d = std::env::temp_dir().join(format!(
         "axcomp-{}-{}-{name}",
         env!("CARGO_CRATE_NAME"),
@@ -27,7 +28,38 @@ pub fn scratch(name: &str) -> PathBuf {
     ));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    Scratch(d)
+}
+
+/// A test's scratch directory. It is removed when the test passes (dropped without a panic in flight) and
+/// kept when the test fails, so the files the failing command saw can be looked at; before, every run left
+/// its directories in the system temp dir (gigabytes after a day of runs). Derefs to its `Path`.
+pub struct Scratch(PathBuf);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!(
+                "kept the failing test's scratch directory {}",
+                self.0.display()
+            );
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 /// Parses a JSON file written by the CLI.

@@ -53,6 +53,7 @@ fn round_trip_and_validation() {
             .to_string()
             .contains("not a thermal model file")
     );
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
