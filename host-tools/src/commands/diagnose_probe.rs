@@ -68,7 +68,7 @@ fn sphere_outliers(points: &[[f64; 3]]) -> Option<Vec<bool>> {
                 (d.sqrt() - s.radius_mm) * 1000.0
             })
             .collect();
-        let next = super::fit_probe::robust_flags(&r, OUTLIER_ROBUST_SIGMA);
+        let next = axcomp_probe::flag_outliers(&r, OUTLIER_ROBUST_SIGMA);
         if next == flags {
             break;
         }

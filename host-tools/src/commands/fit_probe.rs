@@ -138,20 +138,6 @@ fn radial_residuals_um(
 /// Default of `--outlier-mad`: a gross outlier lies more than this many robust σ from the median.
 pub(crate) const DEFAULT_OUTLIER_MAD: f64 = 6.0;
 
-/// |e − median| > k·max(1.4826·MAD, 0.05 µm), as in the calibration.
-pub(crate) fn robust_flags(r: &[f64], k: f64) -> Vec<bool> {
-    if r.is_empty() {
-        return Vec::new();
-    }
-    let mut sorted = r.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let med = sorted[sorted.len() / 2];
-    let mut dev: Vec<f64> = r.iter().map(|e| (e - med).abs()).collect();
-    dev.sort_by(f64::total_cmp);
-    let s = (1.4826 * dev[dev.len() / 2]).max(0.05);
-    r.iter().map(|e| (e - med).abs() > k * s).collect()
-}
-
 /// Outlier flags of one sphere's touches, iterated: the centre is refitted on the touches kept and every
 /// touch's residual recomputed about it until the flags no longer change (at most 10 rounds). One pass about
 /// a centre fitted with the glitches in it misses the smaller glitches: a 400 µm false trigger moves that
@@ -164,7 +150,7 @@ fn iterated_flags(
     k: f64,
 ) -> anyhow::Result<Vec<bool>> {
     let (_, r) = radial_about_fitted_centre(cal, touches, radius_mm)?;
-    let mut flags = robust_flags(&r, k);
+    let mut flags = axcomp_probe::flag_outliers(&r, k);
     for _ in 0..10 {
         let kept: Vec<Touch> = (0..touches.len())
             .filter(|&i| !flags[i])
@@ -175,7 +161,7 @@ fn iterated_flags(
         }
         let s = fit_center(cal, &kept, radius_mm)?;
         let r = radial_residuals_um(cal, touches, &s, radius_mm);
-        let next = robust_flags(&r, k);
+        let next = axcomp_probe::flag_outliers(&r, k);
         if next == flags {
             break;
         }
@@ -391,7 +377,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         // Flag glitches of the held-out touches the same way (robust, reported, not used).
         let (_, r) = radial_about_fitted_centre(cal, &t, d / 2.0)?;
-        let flags = robust_flags(&r, args.outlier_mad);
+        let flags = axcomp_probe::flag_outliers(&r, args.outlier_mad);
         let mut keep = Vec::new();
         let mut flagged = Vec::new();
         for (k, e) in r.iter().enumerate() {

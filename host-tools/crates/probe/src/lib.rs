@@ -345,8 +345,10 @@ pub struct CalibrationResult {
 
 use axcomp_numeric::stats::median;
 
-/// Robust outlier flags on residuals (µm): |e − median| > k·max(1.4826·MAD, 0.05 µm).
-fn flag_outliers(res_um: &[f64], k: f64) -> Vec<bool> {
+/// Robust outlier flags on residuals (µm): |e − median| > k·max(1.4826·MAD, 0.05 µm), the median of an even
+/// count being the mean of its two middle values ([`median`]). The one rule for gross outliers among
+/// touches: the calibration here, and `axcomp fit probe`'s and `axcomp diagnose`'s per-sphere screening.
+pub fn flag_outliers(res_um: &[f64], k: f64) -> Vec<bool> {
     let mut v = res_um.to_vec();
     let med = median(&mut v);
     let mut dev: Vec<f64> = res_um.iter().map(|e| (e - med).abs()).collect();
