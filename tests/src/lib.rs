@@ -87,11 +87,8 @@ pub fn scratch_dir(tag: &str) -> PathBuf {
 /// the nested cargo does not wait on the outer one's lock; returns the ELF path.
 ///
 /// Builds run one at a time within a test binary, and each bin is built once per test binary: the tests
-/// of a file run on parallel threads and several ask for the same bin. The nested cargo gets no standard
-/// input and none of the outer cargo's jobserver variables. A failure of cargo's own toolchain probe
-/// ("failed to run `rustc` to learn about target-specific information", seen once in CI with text that no
-/// build of ours writes on that probe's input) is printed and retried twice with the probe cache removed;
-/// any other build failure, or a probe failure that persists, fails the test with cargo's message.
+/// of a file run on parallel threads and several ask for the same bin. The nested cargo gets `/dev/null`
+/// as standard input and none of the outer cargo's jobserver variables.
 pub fn build_qemu_firmware(bin: &str) -> PathBuf {
     static BUILT: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
     let root = workspace_root();
@@ -100,34 +97,22 @@ pub fn build_qemu_firmware(bin: &str) -> PathBuf {
         None => root.join("target/qemu-equivalence"),
     };
     let elf = target_dir.join("thumbv7em-none-eabihf/release").join(bin);
-    // A test that panicked while holding the lock leaves nothing half-done here: the list is only pushed
-    // to after a successful build.
+    // A test that panicked while holding the lock leaves nothing half-done here: a bin is only listed
+    // after a successful build.
     let mut built = BUILT
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner());
     if built.iter().any(|b| b == bin) {
         return elf;
     }
-    const PROBE_FAILURE: &str = "to learn about target-specific information";
-    const ATTEMPTS: usize = 3;
-    for attempt in 1..=ATTEMPTS {
-        let out = cargo_build_qemu(&root, &target_dir, bin);
-        if out.status.success() {
-            built.push(bin.to_string());
-            return elf;
-        }
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        if !stderr.contains(PROBE_FAILURE) || attempt == ATTEMPTS {
-            panic!("building {bin} for QEMU failed (attempt {attempt} of {ATTEMPTS}):\n{stderr}");
-        }
-        eprintln!(
-            "building {bin} for QEMU: cargo's toolchain probe failed (attempt {attempt} of {ATTEMPTS}); \
-             retrying with {}/.rustc_info.json removed:\n{stderr}",
-            target_dir.display()
-        );
-        let _ = std::fs::remove_file(target_dir.join(".rustc_info.json"));
-    }
-    unreachable!("the last attempt returns or panics")
+    let out = cargo_build_qemu(&root, &target_dir, bin);
+    assert!(
+        out.status.success(),
+        "building {bin} for QEMU failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    built.push(bin.to_string());
+    elf
 }
 
 /// One `cargo build` of a QEMU firmware bin into `target_dir`, with its output captured.
