@@ -9,7 +9,12 @@
 //! 2. *stage*: each file is written to a temporary beside its target (`.NAME.axcomp-tmp-PID-K`); declared
 //!    directories are created first;
 //! 3. *swap*: the temporaries are renamed over their targets, an existing target being kept aside
-//!    (hard link) until every rename succeeded.
+//!    (hard link) until every rename succeeded;
+//! 4. *in place*: a target that is a device, FIFO or socket (`/dev/null`, `/dev/stdout`, a named pipe) is
+//!    written into, after every swap and before the replaced files are let go, as
+//!    [`axcomp_files::destination`] decides (a rename would put a regular file where the device was); a
+//!    symbolic link to a regular file is followed, so the link stays and its file is replaced. Several
+//!    outputs may go to the same device (`--json /dev/null --out /dev/null`).
 //!
 //! On any error the temporaries are removed, replaced targets are put back, directories created by the set
 //! are removed again, and the error names the user's path (never a temporary). Commands should call
@@ -19,6 +24,8 @@
 use std::collections::HashSet;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
+
+use axcomp_files::{Destination, destination};
 
 /// One planned output file.
 #[derive(Debug, Clone)]
@@ -232,6 +239,9 @@ impl OutputSet {
                     other: p.clone(),
                 });
             }
+            if destination(p) == Destination::InPlace {
+                continue;
+            }
             let id = identity(p);
             if let Some((_, other)) = seen.iter().find(|(k, _)| *k == id) {
                 return Err(OutputError::Duplicate {
@@ -267,14 +277,27 @@ impl OutputSet {
                 created.push(d.clone());
             }
         }
+        // Where each file goes: the regular file to replace (a link's file), or `None` for in place.
+        let replaced: Vec<Option<PathBuf>> = self
+            .files
+            .iter()
+            .map(|f| match destination(&f.path) {
+                Destination::Replace(real) => Some(real),
+                Destination::InPlace => None,
+            })
+            .collect();
         // Stage.
-        let mut staged: Vec<PathBuf> = Vec::new();
+        let mut staged: Vec<Option<PathBuf>> = Vec::new();
         for (k, f) in self.files.iter().enumerate() {
-            let tmp = sibling(&f.path, "tmp", k);
+            let Some(real) = &replaced[k] else {
+                staged.push(None);
+                continue;
+            };
+            let tmp = sibling(real, "tmp", k);
             let bytes = f.bytes.as_deref().unwrap_or_default();
             if let Err(cause) = std::fs::write(&tmp, bytes) {
                 let _ = std::fs::remove_file(&tmp);
-                for t in &staged {
+                for t in staged.iter().flatten() {
                     let _ = std::fs::remove_file(t);
                 }
                 undo_dirs(&created);
@@ -283,25 +306,49 @@ impl OutputSet {
                     cause,
                 });
             }
-            staged.push(tmp);
+            staged.push(Some(tmp));
         }
+        // Puts the replaced files back and removes new ones (for the swaps in `done`), drops the
+        // temporaries not yet renamed and the directories the set created.
+        let roll_back = |done: &[(usize, Option<PathBuf>)], from: usize| {
+            for (j, old) in done.iter().rev() {
+                let Some(target) = &replaced[*j] else {
+                    continue;
+                };
+                match old {
+                    Some(old) => {
+                        let _ = std::fs::rename(old, target);
+                    }
+                    None => {
+                        let _ = std::fs::remove_file(target);
+                    }
+                }
+            }
+            for t in staged[from..].iter().flatten() {
+                let _ = std::fs::remove_file(t);
+            }
+            undo_dirs(&created);
+        };
         // Swap, keeping replaced targets aside until every rename succeeded.
         let mut done: Vec<(usize, Option<PathBuf>)> = Vec::new();
         for (k, f) in self.files.iter().enumerate() {
+            let (Some(target), Some(tmp)) = (&replaced[k], &staged[k]) else {
+                continue;
+            };
             let mut kept = None;
             let mut failure = None;
-            if f.path.exists() {
-                let old = sibling(&f.path, "old", k);
+            if target.exists() {
+                let old = sibling(target, "old", k);
                 let _ = std::fs::remove_file(&old);
-                match std::fs::hard_link(&f.path, &old)
-                    .or_else(|_| std::fs::copy(&f.path, &old).map(|_| ()))
+                match std::fs::hard_link(target, &old)
+                    .or_else(|_| std::fs::copy(target, &old).map(|_| ()))
                 {
                     Ok(()) => kept = Some(old),
                     Err(cause) => failure = Some(cause),
                 }
             }
             if failure.is_none() {
-                if let Err(cause) = std::fs::rename(&staged[k], &f.path) {
+                if let Err(cause) = std::fs::rename(tmp, target) {
                     failure = Some(cause);
                     if let Some(old) = kept.take() {
                         let _ = std::fs::remove_file(old);
@@ -309,28 +356,27 @@ impl OutputSet {
                 }
             }
             if let Some(cause) = failure {
-                // Roll back: put the old files back, remove new ones, drop the rest of the temporaries.
-                for (j, old) in done.iter().rev() {
-                    let target = &self.files[*j].path;
-                    match old {
-                        Some(old) => {
-                            let _ = std::fs::rename(old, target);
-                        }
-                        None => {
-                            let _ = std::fs::remove_file(target);
-                        }
-                    }
-                }
-                for t in &staged[k..] {
-                    let _ = std::fs::remove_file(t);
-                }
-                undo_dirs(&created);
+                roll_back(&done, k);
                 return Err(OutputError::Io {
                     path: f.path.clone(),
                     cause,
                 });
             }
             done.push((k, kept));
+        }
+        // In place, last: a device cannot be rolled back, so every replaced file is already in place.
+        for (k, f) in self.files.iter().enumerate() {
+            if replaced[k].is_some() {
+                continue;
+            }
+            let bytes = f.bytes.as_deref().unwrap_or_default();
+            if let Err(cause) = axcomp_files::write_in_place(&f.path, bytes) {
+                roll_back(&done, self.files.len());
+                return Err(OutputError::Io {
+                    path: f.path.clone(),
+                    cause,
+                });
+            }
         }
         for (_, old) in done {
             if let Some(old) = old {
@@ -407,6 +453,51 @@ mod tests {
             "report"
         );
         assert_eq!(listing(&d), ["a.txt", "rep"]); // no temporary or kept-aside file left
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    /// A link to a regular file stays a link (its file replaced); a named pipe stays a pipe and gets its
+    /// bytes; two outputs may name the same pipe or device.
+    #[cfg(unix)]
+    #[test]
+    fn links_are_followed_and_pipes_written_in_place() {
+        use std::os::unix::fs::FileTypeExt;
+        let d = scratch("inplace");
+        std::fs::write(d.join("real.json"), "old").unwrap();
+        std::os::unix::fs::symlink("real.json", d.join("link.json")).unwrap();
+        let fifo = d.join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            println!("skipped: mkfifo not available");
+            return;
+        }
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read_to_string(&fifo).unwrap())
+        };
+        // Two outputs naming the same pipe pass the check (a regular file twice does not).
+        let mut twice = OutputSet::new();
+        twice.file(&fifo, "one").file(d.join("./pipe"), "two");
+        twice.check().unwrap();
+        let mut s = OutputSet::new();
+        s.file(d.join("link.json"), "new")
+            .file(&fifo, "through the pipe");
+        s.commit().unwrap();
+        assert_eq!(reader.join().unwrap(), "through the pipe");
+        assert!(
+            std::fs::symlink_metadata(d.join("link.json"))
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(std::fs::read_to_string(d.join("real.json")).unwrap(), "new");
+        assert!(
+            std::fs::symlink_metadata(&fifo)
+                .unwrap()
+                .file_type()
+                .is_fifo()
+        );
+        assert_eq!(listing(&d), ["link.json", "pipe", "real.json"]);
         std::fs::remove_dir_all(&d).unwrap();
     }
 

@@ -272,3 +272,56 @@ fn help_documents_exit_codes() {
         assert!(text.contains(needle), "{needle}: {text}");
     }
 }
+
+/// `--json /dev/null` run as root used to rename a regular file over `/dev/null` (the all-or-nothing
+/// swap), turning the machine's `/dev/null` into a file that every later `> /dev/null` wrote into and every
+/// read of it returned (seen: a CI run whose nested cargo read a compiler message from its "empty" standard
+/// input). Here a character device 1,3 (the same device as `/dev/null`) is made in the scratch directory,
+/// so the test never touches the real one: every output given as that device must leave it a device, and
+/// the other outputs must be written as usual. Making a device needs root (CI runs as root); elsewhere the
+/// test says it is skipped. The same path without root is covered by a named pipe in `output.rs`.
+#[cfg(target_os = "linux")]
+#[test]
+fn an_output_that_is_a_device_stays_a_device() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = scratch("device");
+    let null = dir.join("null");
+    let made = Command::new("mknod")
+        .args(["-m", "666"])
+        .arg(&null)
+        .args(["c", "1", "3"])
+        .output();
+    if !made.is_ok_and(|o| o.status.success()) {
+        if std::env::var_os("CI").is_some() {
+            panic!("CI runs as root, where mknod must work");
+        }
+        println!("skipped: mknod needs root");
+        return;
+    }
+    positioning_csv(&dir.join("d.csv"));
+    let o = axcomp(
+        &[
+            "fit",
+            "positioning",
+            "--data",
+            "d.csv",
+            "--out",
+            "null",
+            "--json",
+            "./null",
+            "--report",
+            "rep",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let kind = std::fs::symlink_metadata(&null).unwrap().file_type();
+    assert!(kind.is_char_device(), "the device became {kind:?}");
+    assert!(dir.join("rep/report.md").is_file());
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("axcomp-"))
+        .collect();
+    assert!(names.is_empty(), "temporaries left: {names:?}");
+}

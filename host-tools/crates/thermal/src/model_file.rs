@@ -249,13 +249,11 @@ impl ThermalModelFile {
         Ok(m)
     }
 
-    /// Writes the file atomically (temporary file, then rename).
+    /// Writes the file atomically ([`axcomp_files::write_atomic`]).
     pub fn save(&self, path: &std::path::Path) -> Result<(), ModelFileError> {
         let p = path.display().to_string();
         let text = serde_json::to_string_pretty(self).expect("model file serializes");
-        let tmp = path.with_extension("json.tmp");
-        std::fs::write(&tmp, text)
-            .and_then(|_| std::fs::rename(&tmp, path))
+        axcomp_files::write_atomic(path, text.as_bytes())
             .map_err(|cause| ModelFileError::Io { path: p, cause })
     }
 

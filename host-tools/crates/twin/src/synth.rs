@@ -527,11 +527,9 @@ impl SynthData {
         s
     }
 
-    /// Writes the contract CSV atomically (temporary file, then rename).
+    /// Writes the contract CSV atomically ([`axcomp_files::write_atomic`]).
     pub fn write_csv(&self, path: &std::path::Path) -> std::io::Result<()> {
-        let tmp = path.with_extension("csv.tmp");
-        std::fs::write(&tmp, self.to_csv())?;
-        std::fs::rename(&tmp, path)
+        axcomp_files::write_atomic(path, self.to_csv().as_bytes())
     }
 }
 
