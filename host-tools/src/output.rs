@@ -40,6 +40,8 @@ struct Planned {
 pub struct OutputSet {
     files: Vec<Planned>,
     dirs: Vec<PathBuf>,
+    /// Files the command reads ([`OutputSet::input`]); no output may be one of them.
+    inputs: Vec<PathBuf>,
 }
 
 /// Why an output cannot be written; always names the user's path.
@@ -57,6 +59,8 @@ pub enum OutputError {
     CannotCreateDir { dir: PathBuf, why: String },
     /// Two outputs name the same file.
     Duplicate { path: PathBuf, other: PathBuf },
+    /// An output is a file the command reads (writing it would destroy the input).
+    IsAnInput { path: PathBuf, input: PathBuf },
     /// Creating, writing or renaming failed.
     Io {
         path: PathBuf,
@@ -94,6 +98,12 @@ impl std::fmt::Display for OutputError {
                 "output {} and {} name the same file",
                 path.display(),
                 other.display()
+            ),
+            OutputError::IsAnInput { path, input } => write!(
+                f,
+                "output {} is the input {} (it would be overwritten; give another output path)",
+                path.display(),
+                input.display()
             ),
             OutputError::Io { path, cause } => {
                 write!(f, "cannot write {}: {cause}", path.display())
@@ -145,25 +155,38 @@ impl OutputSet {
         self
     }
 
-    /// Adds (or replaces) a file.
+    /// Adds (or replaces) a file: fills the first planned entry of that path still without content,
+    /// else replaces the content of the first entry of that path.
     pub fn file(&mut self, path: impl Into<PathBuf>, bytes: impl Into<Vec<u8>>) -> &mut Self {
         let path = path.into();
         let bytes = Some(bytes.into());
-        match self.files.iter_mut().find(|f| f.path == path) {
-            Some(f) => f.bytes = bytes,
+        let at = self
+            .files
+            .iter()
+            .position(|f| f.path == path && f.bytes.is_none())
+            .or_else(|| self.files.iter().position(|f| f.path == path));
+        match at {
+            Some(k) => self.files[k].bytes = bytes,
             None => self.files.push(Planned { path, bytes }),
         }
         self
     }
 
+    /// Declares a file the command reads: [`OutputSet::check`] refuses an output that is the same file
+    /// (by any spelling, link or hard link), so that `--out` never overwrites an input.
+    pub fn input(&mut self, path: impl Into<PathBuf>) -> &mut Self {
+        self.inputs.push(path.into());
+        self
+    }
+
     /// Declares a file whose content is not known yet, so that [`OutputSet::check`] can test its path
     /// before the work; give the content later with [`OutputSet::file`]. A planned file that never gets
-    /// content is not written (e.g. a table the guard refused).
+    /// content is not written (e.g. a table the guard refused). Planning one path twice (two options
+    /// naming the same file, e.g. `--out x --csv x`) is an error at [`OutputSet::check`], as for two
+    /// spellings of one file.
     pub fn planned(&mut self, path: impl Into<PathBuf>) -> &mut Self {
         let path = path.into();
-        if !self.files.iter().any(|f| f.path == path) {
-            self.files.push(Planned { path, bytes: None });
-        }
+        self.files.push(Planned { path, bytes: None });
         self
     }
 
@@ -241,6 +264,12 @@ impl OutputSet {
             }
             if destination(p) == Destination::InPlace {
                 continue;
+            }
+            if let Some(input) = self.inputs.iter().find(|i| same_file(p, i)) {
+                return Err(OutputError::IsAnInput {
+                    path: p.clone(),
+                    input: input.clone(),
+                });
             }
             let id = identity(p);
             if let Some((_, other)) = seen.iter().find(|(k, _)| *k == id) {
@@ -388,6 +417,25 @@ impl OutputSet {
 }
 
 /// Like [`identity`] for a directory path itself.
+/// Whether `a` and `b` are one existing file (the same path after links, or the same inode).
+fn same_file(a: &Path, b: &Path) -> bool {
+    let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) else {
+        return false;
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if ma.dev() == mb.dev() && ma.ino() == mb.ino() {
+            return true;
+        }
+    }
+    let _ = (ma, mb);
+    matches!(
+        (std::fs::canonicalize(a), std::fs::canonicalize(b)),
+        (Ok(x), Ok(y)) if x == y
+    )
+}
+
 fn identity_dir(dir: &Path) -> PathBuf {
     std::fs::canonicalize(dir).unwrap_or_else(|_| {
         if dir.file_name().is_some() {

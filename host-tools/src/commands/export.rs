@@ -34,7 +34,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let format: ExportFormat = args.format.parse()?;
     let mut output = OutputSet::new();
-    output.planned(&args.out);
+    output.planned(&args.out).input(&args.table);
     output.check()?;
     let table = TableFile::load(&args.table)
         .with_context(|| format!("reading table {}", args.table.display()))?;

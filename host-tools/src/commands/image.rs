@@ -116,10 +116,12 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
         }
         None => None,
     };
+    let mut model_sensors = Vec::new();
     let thermo = match &args.thermal {
         Some(p) => {
             let m = ThermalModelFile::load(p)
                 .with_context(|| format!("reading thermal model {}", p.display()))?;
+            model_sensors = m.sensors.iter().map(|s| s.name.clone()).collect();
             // The firmware takes |b0| ≤ 1e5 µm (`axcomp_core` image check): a larger intercept is a model
             // of an absolute position (e.g. a homing position), not of a deviation.
             if m.b0_um.is_nan() || m.b0_um.abs() > 1.0e5 {
@@ -148,7 +150,7 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
         },
     };
     let mut buf = vec![0u8; image_len(&spec)];
-    let n = write_image(&spec, &mut buf).context("the image spec is not valid")?;
+    let n = write_image(&spec, &mut buf).map_err(|e| spec_error(e, args, &model_sensors))?;
     buf.truncate(n);
     // The header extension: sensor names (the thermal model's, or --sensor-input) and provenance.
     let names = match &args.thermal {
@@ -177,6 +179,89 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
         }
     }
     with_extension(buf, &records, &names)
+}
+
+/// `write_image`'s refusal of the spec `image build` made, as a message naming where the value came
+/// from (the table or thermal model file, or the option) and the firmware's range for it
+/// (`axcomp_core` image, "Validation ranges").
+fn spec_error(
+    e: axcomp_core::ImageError,
+    args: &BuildArgs,
+    sensor_names: &[String],
+) -> anyhow::Error {
+    use axcomp_core::{Field, ImageError};
+    let field = match e {
+        ImageError::NonFinite { field, .. } | ImageError::OutOfRange { field, .. } => field,
+        _ => return anyhow::anyhow!("the image spec is not valid: {e}"),
+    };
+    let file = |p: &Option<PathBuf>| {
+        p.as_ref()
+            .map_or_else(String::new, |p| p.display().to_string())
+    };
+    let (source, range) = match field {
+        Field::ForwardCoefficient | Field::BackwardCoefficient => (
+            file(&args.table),
+            "a segment's deviation must stay within ±10 000 µm (f32 in the image)",
+        ),
+        Field::StartCounts | Field::SegmentCounts | Field::Outside => (
+            file(&args.table),
+            "in counts at this --um-per-count the table must start within ±2^62 counts and span at \
+             most 4 294 967 295 counts",
+        ),
+        Field::UmPerCount => (
+            format!("--um-per-count {}", args.um_per_count),
+            "µm per count must be in [1e-6, 1e4]",
+        ),
+        Field::CounterBits => (
+            format!("--counter-bits {}", args.counter_bits),
+            "the counter has 16 to 32 bits",
+        ),
+        Field::MaxCorrection => (
+            format!("--max-correction-um {}", args.max_correction_um),
+            "must be in (0, 100000] µm",
+        ),
+        Field::MaxSlew => (
+            format!("--max-slew-um {}", args.max_slew_um),
+            "must be in (0, 100000] µm",
+        ),
+        Field::Hysteresis => (
+            format!("--hysteresis-counts {}", args.hysteresis_counts),
+            "at most 2147483647 counts",
+        ),
+        _ => {
+            let (key, range) = match field {
+                Field::ReferenceDegc | Field::SensorRange => (
+                    "sensors",
+                    "temperatures must be in [−273.15, 2000] °C, min < max",
+                ),
+                Field::MaxRate => ("sensors", "max_rate_degc_per_s must be in (0, 1e6] K/s"),
+                Field::LagTau => ("sensors", "tau_s must be in [0, 1e7] s"),
+                Field::StaleTimeout => ("sensors", "stale_timeout_ms must be ≥ 1 ms"),
+                Field::BUmPerK => ("sensors", "|coef_um_per_k| must be ≤ 1e4 µm/K"),
+                Field::Chi => ("forces", "|chi_um_per_n| must be ≤ 1e3 µm/N"),
+                Field::ForceLaw => ("forces", "a force law needs |k| ≤ 1e9 and |exponents| ≤ 10"),
+                Field::B0 => ("", "|b0_um| must be ≤ 1e5 µm"),
+                Field::SensorPeriod => ("", "sensor_period_ms must be ≥ 1 ms"),
+                _ => ("", "outside the firmware's range"),
+            };
+            let at = match (key, e) {
+                (
+                    "sensors",
+                    ImageError::NonFinite { index, .. } | ImageError::OutOfRange { index, .. },
+                ) => match sensor_names.get(usize::from(index)) {
+                    Some(n) => format!(" (sensors[{index}], `{n}`)"),
+                    None => format!(" (sensors[{index}])"),
+                },
+                (
+                    "forces",
+                    ImageError::NonFinite { index, .. } | ImageError::OutOfRange { index, .. },
+                ) => format!(" (forces[{index}])"),
+                _ => String::new(),
+            };
+            (format!("{}{at}", file(&args.thermal)), range)
+        }
+    };
+    anyhow::anyhow!("{source}: {e}: {range}")
 }
 
 /// A schema-1 image with its header extension: the provenance block (tool, date, `records`) and, if
@@ -211,10 +296,17 @@ fn sensor_names(
     renames: &[String],
 ) -> anyhow::Result<Vec<String>> {
     let mut names: Vec<String> = model.sensors.iter().map(|s| s.name.clone()).collect();
+    let mut given: Vec<(&str, &str)> = Vec::new();
     for r in renames {
         let (from, to) = r
             .split_once('=')
             .with_context(|| format!("--sensor-input `{r}`: expected SENSOR=INPUT"))?;
+        if let Some((_, before)) = given.iter().find(|(f, t)| *f == from && *t != to) {
+            anyhow::bail!(
+                "--sensor-input `{r}`: sensor `{from}` is already given input `{before}` (one input per sensor)"
+            );
+        }
+        given.push((from, to));
         let Some(k) = model.sensors.iter().position(|s| s.name == from) else {
             anyhow::bail!(
                 "--sensor-input `{r}`: `{from}` is not a sensor of {} (have: {})",
@@ -223,6 +315,26 @@ fn sensor_names(
             );
         };
         names[k] = to.to_string();
+    }
+    // The firmware wires each sensor to the board input of its name: two sensors of one name would
+    // read one input, each with its own coefficient.
+    for (j, n) in names.iter().enumerate() {
+        if let Some(i) = names[..j].iter().position(|m| m == n) {
+            let (a, b) = (&model.sensors[i].name, &model.sensors[j].name);
+            if a == b {
+                anyhow::bail!(
+                    "{}: sensors[{i}] and sensors[{j}] are both named `{n}`; the image wires sensors by \
+                     name, so both would read one input (rename one in the model, or wire it with \
+                     --sensor-input)",
+                    path.display()
+                );
+            }
+            anyhow::bail!(
+                "--sensor-input: sensors `{a}` and `{b}` of {} would both read input `{n}` (one input per \
+                 sensor)",
+                path.display()
+            );
+        }
     }
     for n in &names {
         anyhow::ensure!(
@@ -239,6 +351,9 @@ fn sensor_names(
 pub fn build(args: BuildArgs) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.planned(&args.out);
+    for p in [&args.table, &args.thermal].into_iter().flatten() {
+        outputs.input(p);
+    }
     outputs.check()?;
     let bytes = build_bytes(&args)?;
     // Check what was built loads, before writing it.
@@ -1519,6 +1634,14 @@ pub fn with_provenance_section(
 pub fn group(args: GroupArgs) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.planned(&args.out);
+    for a in &args.axes {
+        if let Ok((_, _, path)) = parse_axis_arg(a) {
+            outputs.input(path);
+        }
+    }
+    for p in [&args.rotary, &args.geometry].into_iter().flatten() {
+        outputs.input(p);
+    }
     outputs.check()?;
     let bytes = group_bytes_with_provenance(&args)?;
     outputs.file(&args.out, bytes.as_slice());

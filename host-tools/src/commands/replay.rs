@@ -264,6 +264,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(p) = &args.csv {
         outputs.planned(p);
     }
+    outputs.input(&args.trace);
+    if let Some(p) = &args.image {
+        outputs.input(p);
+    }
     outputs.check()?;
     let image = match &args.image {
         Some(p) => {

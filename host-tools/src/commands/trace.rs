@@ -85,9 +85,13 @@ fn validate(args: Args) -> anyhow::Result<Config> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let image_path = args.image.clone();
     let cfg = validate(args)?;
     let mut outputs = OutputSet::new();
     outputs.planned(&cfg.out);
+    if let Some(p) = &image_path {
+        outputs.input(p);
+    }
     outputs.check()?;
     let bytes = scenario::generate(&cfg.scenario, cfg.cycles, cfg.image.as_deref())
         .map_err(|e| anyhow::anyhow!("--scenario {}: {e}", cfg.scenario))?;

@@ -1,0 +1,296 @@
+//! Robustness of `image build`, `image inspect`, `trace`, `replay` and `export` on inputs an outside
+//! evaluation may send: model files of other spellings, the wrong kind or out of range, repeated or
+//! conflicting flags, outputs that name an input or each other. Refusals: exit 2, a message naming the file
+//! (or option) and what is wrong, nothing written (`common::fails_untouched_naming`). Each test names the
+//! input that once failed.
+
+use std::path::{Path, PathBuf};
+
+mod common;
+use common::{axcomp_in, fails_untouched_naming, ok_in, scratch};
+
+/// A positioning table file (`fit positioning --out` form) over 0..100 mm in 10 segments: forward
+/// deviation c0 = 2·i µm rising linearly inside each segment, backward 1 µm below it.
+fn table_json() -> serde_json::Value {
+    let fwd: Vec<[f64; 4]> = (0..10).map(|i| [2.0 * i as f64, 2.0, 0.0, 0.0]).collect();
+    let bwd: Vec<[f64; 4]> = fwd.iter().map(|c| [c[0] - 1.0, c[1], 0.0, 0.0]).collect();
+    serde_json::json!({
+        "format": "axcomp-positioning-table/1",
+        "axis": "X",
+        "start_mm": 0.0,
+        "segment_mm": 10.0,
+        "forward": fwd,
+        "backward": bwd,
+        "model": "hand-written",
+        "cv_rms_um": 0.5,
+        "raw_rms_um": 5.0,
+        "cv_method": "leave-one-run-out"
+    })
+}
+
+/// A thermal model file (`fit thermal --out` form) with two sensors, `frame` and `motor`.
+fn thermal_json() -> serde_json::Value {
+    let sensor = |name: &str, coef: f64| {
+        serde_json::json!({
+            "name": name, "reference_degc": 20.0, "tau_s": 0.0, "coef_um_per_k": coef,
+            "min_degc": 0.0, "max_degc": 60.0, "max_rate_degc_per_s": 1.0, "stale_timeout_ms": 10000
+        })
+    };
+    serde_json::json!({
+        "format": "axcomp-thermal-model/1",
+        "target": "deviation_um",
+        "sensor_period_ms": 1000,
+        "b0_um": 1.5,
+        "sensors": [sensor("frame", 0.8), sensor("motor", -0.2)],
+        "forces": [],
+        "raw_rms_um": 3.0,
+        "holdout_rms_um": null
+    })
+}
+
+fn write_json(dir: &Path, name: &str, v: &serde_json::Value) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, serde_json::to_string_pretty(v).unwrap()).unwrap();
+    p
+}
+
+fn build_args<'a>(extra: &[&'a str], out: &'a str) -> Vec<&'a str> {
+    let mut a = vec!["image", "build", "--axis-id", "1", "--um-per-count", "0.1"];
+    a.extend_from_slice(extra);
+    a.extend_from_slice(&["--out", out]);
+    a
+}
+
+/// `image build --out T` with `--table T` used to replace the fitted table with the image; `export --out`
+/// the table it read, `replay --out` the trace, `trace --out` the `--image`: an output that is an input is
+/// refused (by any spelling), the input left as it was.
+#[test]
+fn an_output_that_is_an_input_is_refused() {
+    let dir = scratch("out-is-input");
+    write_json(&dir, "table.json", &table_json());
+    fails_untouched_naming(
+        &build_args(&["--table", "table.json"], "table.json"),
+        &dir,
+        &["table.json", "input"],
+    );
+    fails_untouched_naming(
+        &[
+            "export",
+            "--table",
+            "table.json",
+            "--format",
+            "linuxcnc1",
+            "--step",
+            "10",
+            "--out",
+            "./table.json",
+        ],
+        &dir,
+        &["./table.json", "input"],
+    );
+    ok_in(&build_args(&["--table", "table.json"], "image.bin"), &dir);
+    fails_untouched_naming(
+        &["trace", "--image", "image.bin", "--out", "image.bin"],
+        &dir,
+        &["image.bin", "input"],
+    );
+    ok_in(
+        &[
+            "trace",
+            "--scenario",
+            "group3",
+            "--cycles",
+            "6000",
+            "--out",
+            "trace.bin",
+        ],
+        &dir,
+    );
+    fails_untouched_naming(
+        &["replay", "--trace", "trace.bin", "--out", "trace.bin"],
+        &dir,
+        &["trace.bin", "input"],
+    );
+    fails_untouched_naming(
+        &[
+            "replay",
+            "--trace",
+            "trace.bin",
+            "--image",
+            "image.bin",
+            "--out",
+            "out.bin",
+            "--csv",
+            "image.bin",
+        ],
+        &dir,
+        &["image.bin", "input"],
+    );
+}
+
+/// `replay --out x --csv x` wrote the CSV alone into `x` and said it wrote the records there: two outputs
+/// spelled the same are refused, as two spellings of one file were.
+#[test]
+fn two_outputs_spelled_alike_are_refused() {
+    let dir = scratch("same-spelling");
+    ok_in(
+        &[
+            "trace",
+            "--scenario",
+            "group3",
+            "--cycles",
+            "6000",
+            "--out",
+            "trace.bin",
+        ],
+        &dir,
+    );
+    fails_untouched_naming(
+        &[
+            "replay",
+            "--trace",
+            "trace.bin",
+            "--out",
+            "x.bin",
+            "--csv",
+            "x.bin",
+        ],
+        &dir,
+        &["x.bin", "same file"],
+    );
+    // Two spellings of one device still both go there.
+    ok_in(
+        &[
+            "replay",
+            "--trace",
+            "trace.bin",
+            "--out",
+            "/dev/null",
+            "--csv",
+            "/dev/null",
+        ],
+        &dir,
+    );
+}
+
+/// A table or thermal model whose value is beyond what the image holds (a coefficient of 5e6 µm, 1e300
+/// µm/K, a reference temperature of 1e6 °C) was refused as "the image spec is not valid:
+/// table.forward[0] is out of range", naming neither the file nor the limit; an option out of range named
+/// `counter_bits[0]` instead of the option.
+#[test]
+fn an_out_of_range_value_names_its_file_or_option_and_the_limit() {
+    let dir = scratch("out-of-range");
+    let mut t = table_json();
+    t["forward"][3][0] = serde_json::json!(5.0e6);
+    write_json(&dir, "big table.json", &t);
+    fails_untouched_naming(
+        &build_args(&["--table", "big table.json"], "x.bin"),
+        &dir,
+        &["big table.json", "10 000 µm"],
+    );
+    let mut m = thermal_json();
+    m["sensors"][1]["coef_um_per_k"] = serde_json::json!(1.0e300);
+    write_json(&dir, "modèle.json", &m);
+    fails_untouched_naming(
+        &build_args(&["--thermal", "modèle.json"], "x.bin"),
+        &dir,
+        &["modèle.json", "sensors[1]", "motor", "1e4 µm/K"],
+    );
+    let mut m = thermal_json();
+    m["sensors"][0]["reference_degc"] = serde_json::json!(1.0e6);
+    write_json(&dir, "hot.json", &m);
+    fails_untouched_naming(
+        &build_args(&["--thermal", "hot.json"], "x.bin"),
+        &dir,
+        &["hot.json", "frame", "2000] °C"],
+    );
+    write_json(&dir, "table.json", &table_json());
+    fails_untouched_naming(
+        &build_args(&["--table", "table.json", "--counter-bits", "8"], "x.bin"),
+        &dir,
+        &["--counter-bits 8", "16 to 32"],
+    );
+    fails_untouched_naming(
+        &build_args(&["--table", "table.json", "--max-slew-um", "0"], "x.bin"),
+        &dir,
+        &["--max-slew-um 0", "100000"],
+    );
+}
+
+/// The image wires each sensor to the board input of its name. Two sensors given one input
+/// (`--sensor-input frame=rtd0 --sensor-input motor=rtd0`, or a rename onto another sensor's name, or a
+/// model with two sensors of one name) were built into an image whose two coefficients read one
+/// temperature; one sensor given two inputs silently took the last. Both are refused.
+#[test]
+fn sensors_sharing_an_input_or_one_sensor_given_two_are_refused() {
+    let dir = scratch("sensor-inputs");
+    write_json(&dir, "thermal.json", &thermal_json());
+    let th = ["--thermal", "thermal.json"];
+    let with = |extra: &[&'static str]| {
+        let mut a: Vec<&str> = th.to_vec();
+        a.extend_from_slice(extra);
+        a
+    };
+    fails_untouched_naming(
+        &build_args(
+            &with(&[
+                "--sensor-input",
+                "frame=rtd0",
+                "--sensor-input",
+                "motor=rtd0",
+            ]),
+            "x.bin",
+        ),
+        &dir,
+        &["frame", "motor", "rtd0"],
+    );
+    fails_untouched_naming(
+        &build_args(&with(&["--sensor-input", "frame=motor"]), "x.bin"),
+        &dir,
+        &["frame", "motor", "thermal.json"],
+    );
+    fails_untouched_naming(
+        &build_args(
+            &with(&[
+                "--sensor-input",
+                "frame=rtd0",
+                "--sensor-input",
+                "frame=rtd1",
+            ]),
+            "x.bin",
+        ),
+        &dir,
+        &["frame=rtd1", "rtd0"],
+    );
+    let mut m = thermal_json();
+    m["sensors"][1]["name"] = serde_json::json!("frame");
+    write_json(&dir, "twice.json", &m);
+    fails_untouched_naming(
+        &build_args(&["--thermal", "twice.json"], "x.bin"),
+        &dir,
+        &["twice.json", "sensors[0]", "sensors[1]", "frame"],
+    );
+    // The same pair given twice, and a swap of two names, are fine; the image names the inputs.
+    ok_in(
+        &build_args(
+            &with(&[
+                "--sensor-input",
+                "frame=rtd0",
+                "--sensor-input",
+                "frame=rtd0",
+                "--sensor-input",
+                "motor=rtd1",
+            ]),
+            "ok.bin",
+        ),
+        &dir,
+    );
+    let o = axcomp_in(&["image", "inspect", "ok.bin"], &dir);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("sensor 0 rtd0 -> board input 0 rtd0")
+            && text.contains("sensor 1 rtd1 -> board input 1 rtd1"),
+        "{text}"
+    );
+}
