@@ -294,3 +294,133 @@ fn sensors_sharing_an_input_or_one_sensor_given_two_are_refused() {
         "{text}"
     );
 }
+
+/// A model file of the wrong kind failed on serde's first missing field (`missing field `axis``), a binary
+/// image or trace given as a model on "stream did not contain valid UTF-8": the message now says what the
+/// file is. Nothing is written.
+#[test]
+fn a_model_of_the_wrong_kind_says_what_it_is() {
+    let dir = scratch("wrong-kind");
+    write_json(&dir, "table.json", &table_json());
+    write_json(&dir, "thermal.json", &thermal_json());
+    ok_in(&build_args(&["--table", "table.json"], "image.bin"), &dir);
+    ok_in(
+        &[
+            "trace",
+            "--scenario",
+            "group3",
+            "--cycles",
+            "6000",
+            "--out",
+            "trace.bin",
+        ],
+        &dir,
+    );
+    fails_untouched_naming(
+        &build_args(&["--table", "thermal.json"], "x.bin"),
+        &dir,
+        &["thermal.json", "a thermal model", "not a positioning table"],
+    );
+    fails_untouched_naming(
+        &build_args(&["--thermal", "table.json"], "x.bin"),
+        &dir,
+        &["table.json", "a positioning table", "not a thermal model"],
+    );
+    fails_untouched_naming(
+        &build_args(&["--table", "image.bin"], "x.bin"),
+        &dir,
+        &["image.bin", "firmware image"],
+    );
+    fails_untouched_naming(
+        &build_args(&["--thermal", "trace.bin"], "x.bin"),
+        &dir,
+        &["trace.bin", "firmware trace"],
+    );
+    fails_untouched_naming(
+        &[
+            "export",
+            "--table",
+            "image.bin",
+            "--format",
+            "csv",
+            "--step",
+            "1",
+            "--out",
+            "x.csv",
+        ],
+        &dir,
+        &["image.bin", "firmware image"],
+    );
+    let mut t = table_json();
+    t["format"] = serde_json::json!("axcomp-positioning-table/2");
+    write_json(&dir, "v2.json", &t);
+    fails_untouched_naming(
+        &build_args(&["--table", "v2.json"], "x.bin"),
+        &dir,
+        &["v2.json", "another version"],
+    );
+}
+
+/// Model files as other tools and editors write them: keys in another order with extra keys, a UTF-8
+/// byte-order mark (Windows editors; was "expected value at line 1 column 1"), a thermal model without the
+/// optional `forces` and `raw_rms_um` (was "missing field `forces`"). Each builds, and `image inspect`
+/// reports what was put in (reference: the hand-written files above; the table's knots are exact in f32).
+#[test]
+fn other_spellings_of_model_files_build_and_inspect_reports_them() {
+    let dir = scratch("spellings");
+    // Keys reversed, extra keys, BOM.
+    let t = table_json();
+    let mut rev = serde_json::Map::new();
+    for (k, v) in t.as_object().unwrap().iter().rev() {
+        rev.insert(k.clone(), v.clone());
+    }
+    rev.insert("comment".into(), serde_json::json!({"by": "another tool"}));
+    let text = format!(
+        "\u{feff}{}",
+        serde_json::to_string(&serde_json::Value::Object(rev)).unwrap()
+    );
+    std::fs::write(dir.join("tablé bom.json"), text).unwrap();
+    let mut m = thermal_json();
+    let o = m.as_object_mut().unwrap();
+    o.remove("forces");
+    o.remove("raw_rms_um");
+    o.remove("holdout_rms_um");
+    o.insert("fitted_by".into(), serde_json::json!("spreadsheet"));
+    write_json(&dir, "thermal min.json", &m);
+    ok_in(
+        &build_args(
+            &[
+                "--table",
+                "tablé bom.json",
+                "--thermal",
+                "thermal min.json",
+                "--sensor-input",
+                "frame=rtd0",
+                "--sensor-input",
+                "motor=rtd1",
+            ],
+            "image ü.bin",
+        ),
+        &dir,
+    );
+    let o = axcomp_in(&["image", "inspect", "image ü.bin"], &dir);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{text}");
+    for needle in [
+        "axis id: 1",
+        "scale: 0.1 µm/count",
+        "table: 10 segments per direction of 100000 counts (10.0000 mm), 0 .. 1000000 counts (0.0000 .. 100.0000 mm)",
+        "forward: deviation at knots 0.000 .. 20.000 µm",
+        "backward: deviation at knots -1.000 .. 19.000 µm",
+        "thermo-force: 2 sensors (period 1000 ms), b0 = 1.5 µm, 0 force terms",
+        "sensor 0: ref 20 °C, range 0 .. 60 °C, b = 0.8 µm/K, lag τ = 0 s",
+        "sensor 1: ref 20 °C, range 0 .. 60 °C, b = -0.2 µm/K, lag τ = 0 s",
+        "sensor 0 rtd0 -> board input 0 rtd0",
+        "sensor 1 rtd1 -> board input 1 rtd1",
+    ] {
+        assert!(
+            text.contains(needle),
+            "inspect must report `{needle}`:\n{text}"
+        );
+    }
+}

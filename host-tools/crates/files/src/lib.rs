@@ -141,6 +141,55 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     result
 }
 
+/// The text of a JSON model file (a positioning table, a thermal model, ...) from its bytes: a UTF-8
+/// byte-order mark (some Windows editors write one) is dropped; a binary file is an error that says
+/// what it looks like (a firmware image of `axcomp image build`, a trace of `axcomp trace`) instead of
+/// a UTF-8 decoding error.
+pub fn model_text(bytes: &[u8]) -> Result<&str, String> {
+    if bytes.starts_with(b"AXCI") {
+        return Err(
+            "is a firmware image (binary, `axcomp image build`), not a JSON model file".into(),
+        );
+    }
+    if bytes.starts_with(b"AXTR") {
+        return Err("is a firmware trace (binary, `axcomp trace`), not a JSON model file".into());
+    }
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    std::str::from_utf8(bytes).map_err(|e| {
+        format!(
+            "is not a text file (invalid UTF-8 at byte {}), not a JSON model file",
+            e.valid_up_to()
+        )
+    })
+}
+
+/// What a model file's `format` value says it is (`axcomp-thermal-model/1` → a thermal model of
+/// `fit thermal --out`), for a message when a file of one kind is given where another is expected.
+pub fn model_kind(format: &str) -> Option<&'static str> {
+    let kinds = [
+        (
+            "axcomp-positioning-table",
+            "a positioning table (`fit positioning --out`)",
+        ),
+        (
+            "axcomp-thermal-model",
+            "a thermal model (`fit thermal --out`)",
+        ),
+        (
+            "axcomp-geometry-model",
+            "a geometry model (`fit geometry --out`)",
+        ),
+        (
+            "axcomp-probe-calibration",
+            "a probe calibration (`fit probe --out`)",
+        ),
+    ];
+    kinds
+        .iter()
+        .find(|(prefix, _)| format.starts_with(prefix))
+        .map(|(_, kind)| *kind)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -58,8 +58,11 @@ pub struct ThermalModelFile {
     pub sensor_period_ms: u32,
     pub b0_um: f64,
     pub sensors: Vec<ModelSensor>,
+    /// Force terms; absent in a file: none.
+    #[serde(default)]
     pub forces: Vec<ModelForce>,
-    /// Held-out figures at fit time (for the record).
+    /// Held-out figures at fit time (for the record; absent in a file: 0).
+    #[serde(default)]
     pub raw_rms_um: f64,
     pub holdout_rms_um: Option<f64>,
     /// The target's value at the start, subtracted before the fit (`fit thermal --zero-at-start N`: the mean
@@ -235,12 +238,38 @@ impl ThermalModelFile {
     /// Reads and validates a model file.
     pub fn load(path: &std::path::Path) -> Result<Self, ModelFileError> {
         let p = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|cause| ModelFileError::Io {
+        let bytes = std::fs::read(path).map_err(|cause| ModelFileError::Io {
             path: p.clone(),
             cause,
         })?;
+        let text = axcomp_files::model_text(&bytes).map_err(|what| ModelFileError::Invalid {
+            path: p.clone(),
+            what,
+        })?;
+        // Another kind of model file: say so before serde's first missing field does.
+        let format = match serde_json::from_str(text) {
+            Ok(serde_json::Value::Object(o)) => {
+                o.get("format").and_then(|f| f.as_str()).map(str::to_string)
+            }
+            _ => None,
+        };
+        if let Some(f) = format.filter(|f| f != FORMAT) {
+            return Err(ModelFileError::Invalid {
+                path: p,
+                what: format!(
+                    "format is `{f}`, expected `{FORMAT}`{}",
+                    match axcomp_files::model_kind(&f) {
+                        _ if f.split('/').next() == FORMAT.split('/').next() => {
+                            ": another version of the thermal model format".to_string()
+                        }
+                        Some(k) => format!(": {k}, not a thermal model"),
+                        None => String::new(),
+                    }
+                ),
+            });
+        }
         let m: ThermalModelFile =
-            serde_json::from_str(&text).map_err(|cause| ModelFileError::Json {
+            serde_json::from_str(text).map_err(|cause| ModelFileError::Json {
                 path: p.clone(),
                 cause,
             })?;
