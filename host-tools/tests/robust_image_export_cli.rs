@@ -424,3 +424,144 @@ fn other_spellings_of_model_files_build_and_inspect_reports_them() {
         );
     }
 }
+
+/// `image group --axis X=FILE` with a table JSON, a group image or a trace was refused as "the group is not
+/// valid: bad magic" / "unsupported image schema version 2", naming neither the option nor the file;
+/// `--rotary` given a geometry model said the hand-written form carries its pivot itself.
+#[test]
+fn image_group_names_the_axis_file_that_is_no_axis_image() {
+    let dir = scratch("group-kind");
+    write_json(&dir, "table.json", &table_json());
+    ok_in(
+        &build_args(&["--table", "table.json", "--counter-bits", "32"], "x.bin"),
+        &dir,
+    );
+    ok_in(
+        &["image", "group", "--axis", "X=x.bin", "--out", "group.bin"],
+        &dir,
+    );
+    fails_untouched_naming(
+        &["image", "group", "--axis", "X=table.json", "--out", "g.bin"],
+        &dir,
+        &["--axis X=table.json", "not a firmware image"],
+    );
+    fails_untouched_naming(
+        &["image", "group", "--axis", "Y=group.bin", "--out", "g.bin"],
+        &dir,
+        &["--axis Y=group.bin", "group image", "single-axis"],
+    );
+    let mut bytes = std::fs::read(dir.join("x.bin")).unwrap();
+    bytes.extend_from_slice(&[0; 8]);
+    std::fs::write(dir.join("long.bin"), bytes).unwrap();
+    fails_untouched_naming(
+        &["image", "group", "--axis", "X=long.bin", "--out", "g.bin"],
+        &dir,
+        &["--axis X=long.bin", "bytes follow"],
+    );
+    let mut geo = serde_json::json!({"format": "axcomp-geometry-model", "version": 1});
+    geo["note"] = serde_json::json!("a geometry model, cut short");
+    write_json(&dir, "geo.json", &geo);
+    fails_untouched_naming(
+        &[
+            "image",
+            "group",
+            "--axis",
+            "X=x.bin",
+            "--rotary",
+            "geo.json",
+            "--pivot-counts",
+            "0,0,0",
+            "--tool-length-mm",
+            "100",
+            "--out",
+            "g.bin",
+        ],
+        &dir,
+        &[
+            "--rotary geo.json",
+            "geometry model",
+            "not a rotary-axis model",
+        ],
+    );
+}
+
+/// `image group --sensor-names X=rtd0,rtd0,rtd1` built a group whose two sensors read one input, a
+/// second `--sensor-names X=...` was silently ignored, and a wrong count was "the group is not valid:
+/// axis X: sensor names must be one non-empty UTF-8 name per sensor" without the option or the count.
+#[test]
+fn image_group_sensor_names_one_per_sensor_none_twice() {
+    let dir = scratch("group-names");
+    write_json(&dir, "thermal.json", &thermal_json());
+    ok_in(
+        &build_args(
+            &["--thermal", "thermal.json", "--counter-bits", "32"],
+            "x.bin",
+        ),
+        &dir,
+    );
+    fails_untouched_naming(
+        &[
+            "image",
+            "group",
+            "--axis",
+            "X=x.bin",
+            "--sensor-names",
+            "X=rtd0,rtd0",
+            "--out",
+            "g.bin",
+        ],
+        &dir,
+        &["--axis X=x.bin", "rtd0", "two sensors"],
+    );
+    fails_untouched_naming(
+        &[
+            "image",
+            "group",
+            "--axis",
+            "X=x.bin",
+            "--sensor-names",
+            "X=rtd0,rtd1",
+            "--sensor-names",
+            "X=a,b",
+            "--out",
+            "g.bin",
+        ],
+        &dir,
+        &["X=a,b", "twice"],
+    );
+    fails_untouched_naming(
+        &[
+            "image",
+            "group",
+            "--axis",
+            "X=x.bin",
+            "--sensor-names",
+            "X=rtd0",
+            "--out",
+            "g.bin",
+        ],
+        &dir,
+        &["--sensor-names X=rtd0", "1 names", "2 sensors"],
+    );
+    ok_in(
+        &[
+            "image",
+            "group",
+            "--axis",
+            "X=x.bin",
+            "--sensor-names",
+            "X=rtd1,rtd0",
+            "--out",
+            "g.bin",
+        ],
+        &dir,
+    );
+    let o = axcomp_in(&["image", "inspect", "g.bin"], &dir);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("sensor 0 rtd1 -> board input 1 rtd1")
+            && text.contains("sensor 1 rtd0 -> board input 0 rtd0"),
+        "{text}"
+    );
+}

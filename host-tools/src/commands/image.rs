@@ -1075,10 +1075,23 @@ fn rotary_from_args(args: &GroupArgs) -> anyhow::Result<Option<RotaryLocationSpe
         );
         return Ok(None);
     };
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("--rotary {}: cannot read", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&text)
+    let bytes =
+        std::fs::read(path).with_context(|| format!("--rotary {}: cannot read", path.display()))?;
+    let text = axcomp_files::model_text(&bytes)
+        .map_err(|why| anyhow::anyhow!("--rotary {} {why}", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(text)
         .with_context(|| format!("--rotary {}: not JSON", path.display()))?;
+    if let Some(kind) = v
+        .get("format")
+        .and_then(|f| f.as_str())
+        .and_then(axcomp_files::model_kind)
+    {
+        anyhow::bail!(
+            "--rotary {}: {kind}, not a rotary-axis model (give the model of `fit rtest --out`, or the \
+             hand-written AC-trunnion form)",
+            path.display()
+        );
+    }
     if v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
         let model: RtestModel = serde_json::from_value(v).with_context(|| {
             format!(
@@ -1454,6 +1467,7 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
         let (name, cpr, path) = parse_axis_arg(a)?;
         let bytes = std::fs::read(&path)
             .with_context(|| format!("--axis {a}: cannot read {}", path.display()))?;
+        check_axis_image(a, &path, &bytes)?;
         axes.push((name, cpr, bytes));
     }
     let mut names: Vec<(AxisName, Vec<String>)> = Vec::new();
@@ -1467,6 +1481,11 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
             .and_then(AxisName::from_letter)
             .filter(|_| n.len() == 1)
             .with_context(|| format!("--sensor-names {arg}: unknown axis `{n}`"))?;
+        anyhow::ensure!(
+            !names.iter().any(|(m, _)| *m == name),
+            "--sensor-names {arg}: axis {} is given names twice",
+            name.letter()
+        );
         names.push((name, list.split(',').map(str::to_string).collect()));
     }
     let rotary = rotary_from_args(args)?;
@@ -1492,6 +1511,30 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
             "--sensor-names: axis {} is not one of the --axis",
             n.letter()
         );
+    }
+    // One name per sensor, no name twice: the firmware wires each sensor to the board input of its name.
+    for (((name, _, bytes), list), arg) in axes.iter().zip(&name_refs).zip(&args.axes) {
+        let sensors = usize::from(inspect_image(bytes)?.n_sensors);
+        let given = names.iter().any(|(n, _)| n == name);
+        if given {
+            anyhow::ensure!(
+                list.len() == sensors,
+                "--sensor-names {}={}: {} names, but axis {} (--axis {arg}) has {sensors} sensors",
+                name.letter(),
+                list.join(","),
+                list.len(),
+                name.letter()
+            );
+        }
+        for (j, n) in list.iter().enumerate() {
+            anyhow::ensure!(
+                !list[..j].contains(n),
+                "axis {} (--axis {arg}{}): two sensors are named `{n}`; the firmware wires sensors by \
+                 name, so both would read one input",
+                name.letter(),
+                if given { ", --sensor-names" } else { "" }
+            );
+        }
     }
     anyhow::ensure!(
         args.exclude_geometric.is_empty() || args.geometry.is_some(),
@@ -1548,6 +1591,35 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
     .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
     buf.truncate(n);
     Ok(buf)
+}
+
+/// An `--axis` file must be one single-axis image of `image build`: a group image, another file or an
+/// image with bytes after its end is refused naming the option and the file (the group writer's own
+/// check named neither).
+fn check_axis_image(arg: &str, path: &std::path::Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let shown = path.display();
+    if bytes.starts_with(b"AXCI") && bytes.get(4..6) == Some(&2u16.to_le_bytes()[..]) {
+        anyhow::bail!(
+            "--axis {arg}: {shown} is a group image (`image group`); an axis takes a single-axis image \
+             of `image build`"
+        );
+    }
+    if !bytes.starts_with(b"AXCI") {
+        let what = match axcomp_files::model_text(bytes) {
+            Err(why) => why,
+            Ok(_) => "is not a firmware image (a text file; build one with `image build`)".into(),
+        };
+        anyhow::bail!("--axis {arg}: {shown} {what}");
+    }
+    let info = inspect_image(bytes)
+        .map_err(|e| anyhow::anyhow!("--axis {arg}: {shown} is not a valid image: {e}"))?;
+    anyhow::ensure!(
+        bytes.len() == info.len,
+        "--axis {arg}: {shown} has {} bytes, its image header says {} (bytes after the image)",
+        bytes.len(),
+        info.len
+    );
+    Ok(())
 }
 
 /// What `image group` writes: [`group_bytes`] with the provenance section (every axis image's model
