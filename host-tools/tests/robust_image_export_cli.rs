@@ -565,3 +565,85 @@ fn image_group_sensor_names_one_per_sensor_none_twice() {
         "{text}"
     );
 }
+
+/// The nominal positions of an exported LinuxCNC file, parsed as LinuxCNC's `usrmotLoadComp` reads them
+/// (`%lf %lf %lf` per line, stopping at the first line that is not three numbers).
+fn linuxcnc_rows(text: &str) -> Vec<[f64; 3]> {
+    let mut rows = Vec::new();
+    for line in text.lines() {
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .map_while(|w| w.parse().ok())
+            .collect();
+        if v.len() < 3 {
+            break;
+        }
+        rows.push([v[0], v[1], v[2]]);
+    }
+    rows
+}
+
+/// A table ending a fraction of a nanometre-scale beyond a whole number of steps (data max 200.0000004 mm,
+/// `--step 20`) was exported with a last regular entry and the end both printed as `200.000000`;
+/// LinuxCNC refuses a nominal that does not increase ("compensation values must increase", motion's
+/// `EMCMOT_SET_JOINT_COMP`). The end now takes the last regular entry's place; every exported line is
+/// read back (LinuxCNC's reading) with increasing nominals and the table's values (reference: the
+/// hand-written table, deviation 2·x/10 µm forward; tolerance 1e-7 mm, the file's printed resolution).
+/// A table shorter than the printed resolution is refused, naming the file.
+#[test]
+fn linuxcnc_nominals_increase_when_the_stroke_ends_just_past_a_step() {
+    let dir = scratch("linuxcnc-nominals");
+    let mut t = table_json();
+    t["segment_mm"] = serde_json::json!(20.00000004);
+    write_json(&dir, "table.json", &t);
+    for (format, kind) in [("linuxcnc0", 0), ("linuxcnc1", 1)] {
+        let out = format!("{format}.comp");
+        ok_in(
+            &[
+                "export",
+                "--table",
+                "table.json",
+                "--format",
+                format,
+                "--step",
+                "20",
+                "--out",
+                &out,
+            ],
+            &dir,
+        );
+        let rows = linuxcnc_rows(&std::fs::read_to_string(dir.join(&out)).unwrap());
+        assert_eq!(rows.len(), 11, "{format}: {rows:?}");
+        for w in rows.windows(2) {
+            assert!(
+                w[1][0] > w[0][0],
+                "{format}: nominals must increase: {rows:?}"
+            );
+        }
+        assert!((rows[10][0] - 200.0).abs() < 1e-6, "{rows:?}");
+        for r in &rows {
+            // Forward deviation of the hand-written table at x: c0 + c1·s = 2·x/segment µm.
+            let dev_mm = 2.0 * r[0] / 20.00000004 / 1000.0;
+            let trim = if kind == 0 { r[0] - r[1] } else { r[1] };
+            assert!((trim + dev_mm).abs() < 1e-7, "{format}: {r:?}");
+        }
+    }
+    let mut t = table_json();
+    t["segment_mm"] = serde_json::json!(1e-8);
+    write_json(&dir, "tiny.json", &t);
+    fails_untouched_naming(
+        &[
+            "export",
+            "--table",
+            "tiny.json",
+            "--format",
+            "linuxcnc1",
+            "--step",
+            "1",
+            "--out",
+            "t.comp",
+        ],
+        &dir,
+        &["tiny.json", "resolution"],
+    );
+}

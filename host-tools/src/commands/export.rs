@@ -38,7 +38,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     output.check()?;
     let table = TableFile::load(&args.table)
         .with_context(|| format!("reading table {}", args.table.display()))?;
-    let text = export(&table, format, args.step)?;
+    let text = export(&table, format, args.step)
+        .with_context(|| format!("exporting {}", args.table.display()))?;
     output.file(&args.out, text.as_bytes());
     output.commit()?;
     let lines = text.lines().count() - usize::from(format == ExportFormat::Csv);

@@ -25,6 +25,9 @@ use crate::table_file::TableFile;
 /// Most entries LinuxCNC keeps per joint (`EMCMOT_COMP_SIZE`).
 pub const LINUXCNC_MAX_ENTRIES: usize = 256;
 
+/// Resolution of the exported positions (printed with 6 decimals, mm).
+pub const NOMINAL_RESOLUTION_MM: f64 = 1e-6;
+
 /// Most samples of any export (guards against a tiny `--step`).
 pub const MAX_SAMPLES: usize = 1_000_000;
 
@@ -68,6 +71,10 @@ pub enum ExportError {
         max: usize,
         format: &'static str,
     },
+    #[error(
+        "the table spans {stroke_mm} mm, less than the exported positions' resolution of 1e-6 mm: its start and end would be one position"
+    )]
+    StrokeTooShort { stroke_mm: f64 },
     #[error(transparent)]
     Table(#[from] crate::table_file::TableError),
 }
@@ -92,7 +99,16 @@ pub fn sample_table(
     }
     let stroke = table.end_mm() - table.start_mm;
     // Steps that fit, tolerating rounding (a 0.1 mm step over 10 mm gives 100 steps, not 101).
-    let steps = ((stroke / step_mm) - 1e-9).ceil().max(1.0);
+    let mut steps = ((stroke / step_mm) - 1e-9).ceil().max(1.0);
+    // A last regular sample within the files' resolution (NOMINAL_RESOLUTION_MM) of the end would print
+    // as a second entry at the end, and LinuxCNC refuses nominals that do not increase ("compensation
+    // values must increase"): the end takes its place.
+    if steps >= 2.0 && stroke - (steps - 1.0) * step_mm < NOMINAL_RESOLUTION_MM {
+        steps -= 1.0;
+    }
+    if stroke < NOMINAL_RESOLUTION_MM {
+        return Err(ExportError::StrokeTooShort { stroke_mm: stroke });
+    }
     let count = steps + 1.0;
     if count > max as f64 {
         return Err(ExportError::TooManyEntries {
@@ -139,9 +155,13 @@ pub fn render(format: ExportFormat, samples: &[Sample]) -> String {
         }
         ExportFormat::LinuxCnc0 => {
             for s in samples {
-                let fwd = s.position_mm + s.forward_um / 1000.0;
-                let rev = s.position_mm + s.backward_um / 1000.0;
-                out.push_str(&format!("{:.6} {:.7} {:.7}\n", s.position_mm, fwd, rev));
+                // Reached positions from the nominal as printed, so that LinuxCNC's trim
+                // `nominal − forward` is −deviation to the file's last digit.
+                let nominal = format!("{:.6}", s.position_mm);
+                let at: f64 = nominal.parse().unwrap_or(s.position_mm);
+                let fwd = at + s.forward_um / 1000.0;
+                let rev = at + s.backward_um / 1000.0;
+                out.push_str(&format!("{nominal} {fwd:.7} {rev:.7}\n"));
             }
         }
         ExportFormat::LinuxCnc1 => {
