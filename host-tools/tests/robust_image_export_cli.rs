@@ -647,3 +647,23 @@ fn linuxcnc_nominals_increase_when_the_stroke_ends_just_past_a_step() {
         &["tiny.json", "resolution"],
     );
 }
+
+/// `image inspect --board-inputs rtd0:degC,rtd0:degC` described a board with two inputs of one name (the
+/// firmware wires a sensor to the input of its name, so such a board cannot be wired): refused.
+#[test]
+fn inspect_refuses_a_board_input_named_twice() {
+    let dir = scratch("board-inputs");
+    write_json(&dir, "thermal.json", &thermal_json());
+    ok_in(&build_args(&["--thermal", "thermal.json"], "x.bin"), &dir);
+    fails_untouched_naming(
+        &[
+            "image",
+            "inspect",
+            "x.bin",
+            "--board-inputs",
+            "rtd0:degC,rtd0:degC",
+        ],
+        &dir,
+        &["--board-inputs", "rtd0", "twice"],
+    );
+}

@@ -509,7 +509,17 @@ pub fn parse_board_inputs(list: &str) -> anyhow::Result<Vec<(String, InputUnit)>
             };
             Ok((name.to_string(), unit))
         })
-        .collect()
+        .collect::<anyhow::Result<Vec<_>>>()
+        .and_then(|inputs| {
+            // The firmware wires a sensor to the input of its name: a name given twice is ambiguous.
+            for (k, (name, _)) in inputs.iter().enumerate() {
+                anyhow::ensure!(
+                    !inputs[..k].iter().any(|(n, _)| n == name),
+                    "--board-inputs `{list}`: input `{name}` is named twice"
+                );
+            }
+            Ok(inputs)
+        })
 }
 
 /// Provenance, sensor names and their wiring onto `board` (the part of `image inspect` after the axes).
