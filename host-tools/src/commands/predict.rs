@@ -319,8 +319,8 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
 /// naming the row.
 fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Vec<f64>> {
     let n = ds.n_rows();
-    let ap = ds.numeric("ap_mm")?.to_vec();
-    let fz = ds.numeric("fz_mm")?.to_vec();
+    let ap = process_column(ds, "ap_mm")?;
+    let fz = process_column(ds, "fz_mm")?;
     let rpm_cols: Vec<String> = ds
         .column_names()
         .into_iter()
@@ -328,6 +328,7 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Ve
         .map(str::to_string)
         .collect();
     let nn: Vec<f64> = match rpm_cols.as_slice() {
+        [c] if law.z_n != 0.0 => process_column(ds, c)?,
         [c] => ds.numeric(c)?.to_vec(),
         [] if law.z_n == 0.0 => vec![1.0; n],
         [] => bail!(
@@ -355,6 +356,22 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Ve
         out.push(v);
     }
     Ok(out)
+}
+
+/// A process parameter of a force law (`ap_mm`, `fz_mm`, the speed): a negative or non-finite value is an
+/// error naming the cell, as in `fit force` (with an exponent of 1, fixed as in Kienzle's law, a negative
+/// depth of cut once gave a negative force instead). Zero (no cut) stays the law's value.
+fn process_column(ds: &Dataset, col: &str) -> anyhow::Result<Vec<f64>> {
+    let v = ds.numeric(col)?.to_vec();
+    if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+        bail!(
+            "{}: {} is not a finite number ≥ 0 (a process parameter of the force law); the model cannot \
+             predict this row",
+            ds.locate(col, i),
+            v[i]
+        );
+    }
+    Ok(v)
 }
 
 /// Adds `pred_<force column>` (the column the law was fitted on, from its provenance; `pred_force_N` for a
