@@ -107,11 +107,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         bail!("--sigma-um {}: must be positive", a.sigma_um);
     }
     if a.lines == Some(0) {
-        bail!("--lines 0: ask for at least one line (or leave --lines out for the fewest that identify all 21)");
+        bail!(
+            "--lines 0: ask for at least one line (or leave --lines out for the fewest that identify all 21)"
+        );
     }
     if a.targets > MAX_TARGETS {
         // The plan's cost grows with the cube of the readings: 200 targets take seconds, 1000 took 6 minutes.
-        bail!("--targets {}: at most {MAX_TARGETS} targets per line", a.targets);
+        bail!(
+            "--targets {}: at most {MAX_TARGETS} targets per line",
+            a.targets
+        );
     }
     if a.simulate.is_some() && a.runs == 0 {
         bail!("--runs 0: ask for at least one run");
