@@ -119,8 +119,7 @@ fn rtest_model_of_several_setups_needs_the_setup_column() {
 
 /// A force law with x_ap = 1 (fixed, as in Kienzle's law F = kc1.1·b·h^(1−mc): the README's example) gave a
 /// negative force for a negative depth of cut, silently (`fit force` refuses such a value, a power law
-/// needs > 0). Now an error naming file, line and column, nothing written. Zero (no cut) stays the law's
-/// value, 0 N.
+/// needs > 0). Now an error naming file, line and column, nothing written. Zero (no cut) is 0 N.
 #[test]
 fn force_law_refuses_a_negative_process_parameter() {
     let dir = scratch("law-negative");
@@ -324,5 +323,56 @@ fn sim_counts_beyond_memory_are_refused() {
         ],
         &dir,
         &["--repeats 1000000", "at most"],
+    );
+}
+
+/// `sim --plan spindle` writes a thermo-force campaign with idle periods (ap_mm, fz_mm, spindle_rpm and
+/// force_N all 0; 1800 of 5400 rows). `fit force` refused the file ("0 is not a positive finite number"),
+/// so the twin's output could not be read back without editing it; `predict` refused the idle rows of a law
+/// with z_n < 0 (0^z infinite). Now the fit leaves the rows without a cut out with a note, and `predict`
+/// gives them 0 N (what the firmware outputs) and reproduces the fit's residual RMS on the cutting rows.
+#[test]
+fn spindle_campaign_is_read_back_by_fit_force_and_predicted() {
+    let dir = scratch("spindle-force");
+    ok_in(&["sim", "--plan", "spindle", "--out", "s.csv"], &dir);
+    ok_in(
+        &[
+            "fit", "force", "--data", "s.csv", "--out", "law.json", "--json", "fit.json",
+        ],
+        &dir,
+    );
+    let fit = common::read_json(&dir.join("fit.json"));
+    let notes = fit["notes"].to_string();
+    assert!(notes.contains("1800 rows without a cut"), "{notes}");
+    ok_in(
+        &[
+            "predict", "--model", "law.json", "--data", "s.csv", "--out", "p.csv",
+        ],
+        &dir,
+    );
+    let (header, rows) = table(&dir.join("p.csv"));
+    let (ap, f, p) = (
+        col(&header, "ap_mm"),
+        col(&header, "force_N"),
+        col(&header, "pred_force_N"),
+    );
+    let num = |r: &[String], k: usize| -> f64 { r[k].parse().unwrap() };
+    let (mut sum, mut cut) = (0.0, 0usize);
+    for r in &rows {
+        if num(r, ap) == 0.0 {
+            assert_eq!(num(r, p), 0.0, "an idle row predicts 0 N");
+        } else {
+            sum += (num(r, f) - num(r, p)).powi(2);
+            cut += 1;
+        }
+    }
+    let rms = (sum / cut as f64).sqrt();
+    // Reference: the fit's own residual RMS on the same rows (law.rms_n); tolerance 1e-6 relative (the
+    // CSV's printed force values).
+    let want = fit["law"]["rms_n"].as_f64().unwrap();
+    assert_eq!(cut, 3600);
+    assert!(
+        (rms - want).abs() <= 1e-6 * want,
+        "predict {rms} vs fit {want}"
     );
 }

@@ -343,7 +343,14 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Ve
     };
     let mut out = Vec::with_capacity(n);
     for i in 0..n {
-        let v = law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n);
+        // No cut (depth, feed or a speed the law depends on is 0: an idle period) is no force, 0 N, as the
+        // firmware outputs (a law with z_n < 0 once made the idle rows of a spindle campaign an error).
+        let idle = ap[i] == 0.0 || fz[i] == 0.0 || (law.z_n != 0.0 && nn[i] == 0.0);
+        let v = if idle {
+            0.0
+        } else {
+            law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n)
+        };
         if !v.is_finite() {
             bail!(
                 "{}: the force law of `{what}` gives no finite force for ap_mm {}, fz_mm {}, n {}",
@@ -360,7 +367,7 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Ve
 
 /// A process parameter of a force law (`ap_mm`, `fz_mm`, the speed): a negative or non-finite value is an
 /// error naming the cell, as in `fit force` (with an exponent of 1, fixed as in Kienzle's law, a negative
-/// depth of cut once gave a negative force instead). Zero (no cut) stays the law's value.
+/// depth of cut once gave a negative force instead). Zero is a row without a cut: 0 N (see [`law_force`]).
 fn process_column(ds: &Dataset, col: &str) -> anyhow::Result<Vec<f64>> {
     let v = ds.numeric(col)?.to_vec();
     if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
