@@ -20,7 +20,8 @@
 //!   `tool_*_mm`, `beam_*` or `line`) → `pred_ex_um, pred_ey_um, pred_ez_um`, plus `pred_deviation_um` when
 //!   the rows' beams are known; a position outside the model's grid is an error naming the row.
 //! - rotary-axis location-error model (`"kind": "rtest"`, `axcomp fit rtest --out`): inputs `x_mm, y_mm,
-//!   z_mm`, `a_deg`|`b_deg`, `c_deg` (and `setup`) → `pred_dx_um, pred_dy_um, pred_dz_um`.
+//!   z_mm`, `a_deg`|`b_deg`, `c_deg` (and `setup`, required when the model has several set-ups) →
+//!   `pred_dx_um, pred_dy_um, pred_dz_um`.
 //!
 //! The common options are those of the fit, but a `--rename`/`--scale` naming a column the file does not
 //! have is skipped with a note (the measured columns may be absent; see [`load_rows`]).
