@@ -376,3 +376,100 @@ fn spindle_campaign_is_read_back_by_fit_force_and_predicted() {
         "predict {rms} vs fit {want}"
     );
 }
+
+/// A geometry model predicted on a row whose Y is outside the model's grid named column `x_mm` whatever
+/// the axis ("c.csv:3:1 (column `x_mm`): axis position [100, -1, 100] …"). Now the column of the axis that
+/// is outside, and its range.
+#[test]
+fn geometry_predict_names_the_axis_outside_the_model() {
+    let dir = scratch("geometry-axis");
+    ok_in(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "400,300,200",
+            "--simulate",
+            "lines.csv",
+        ],
+        &dir,
+    );
+    ok_in(
+        &[
+            "fit",
+            "geometry",
+            "--data",
+            "lines.csv",
+            "--out",
+            "model.json",
+        ],
+        &dir,
+    );
+    std::fs::write(
+        dir.join("rows.csv"),
+        "x_mm,y_mm,z_mm\n100,100,100\n100,-1,100\n",
+    )
+    .unwrap();
+    fails_untouched_naming(
+        &[
+            "predict",
+            "--model",
+            "model.json",
+            "--data",
+            "rows.csv",
+            "--out",
+            "p.csv",
+        ],
+        &dir,
+        &["rows.csv:3:2 (column `y_mm`)", "Y 0 … 300 mm"],
+    );
+}
+
+/// A thermal model with sensor lags restarts its lags (in equilibrium with the row) where time does not
+/// increase, as the fit does; rows sent in another order (reversed here, or shuffled) silently lost their
+/// lags. Now `predict` says how many rows restart and where the first is (the predictions stay those of
+/// the fit's rule); rows in time order get no note.
+#[test]
+fn thermal_lags_say_where_time_does_not_increase() {
+    let dir = scratch("thermal-order");
+    ok_in(&["sim", "--plan", "thermal", "--out", "t.csv"], &dir);
+    ok_in(
+        &[
+            "fit", "thermal", "--data", "t.csv", "--select", "all", "--lags", "--out", "m.json",
+        ],
+        &dir,
+    );
+    let m = common::read_json(&dir.join("m.json"));
+    assert!(
+        m["sensors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|s| s["tau_s"].as_f64().unwrap() > 0.0),
+        "the model has a lag: {m}"
+    );
+    let (header, mut rows) = table(&dir.join("t.csv"));
+    rows.reverse();
+    write_table(&dir.join("rev.csv"), &header, &rows);
+    let o = axcomp_in(
+        &[
+            "predict", "--model", "m.json", "--data", "t.csv", "--out", "p.csv",
+        ],
+        &dir,
+    );
+    assert!(o.status.success());
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("does not increase"));
+    let o = axcomp_in(
+        &[
+            "predict", "--model", "m.json", "--data", "rev.csv", "--out", "p.csv",
+        ],
+        &dir,
+    );
+    assert!(o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    let want = format!(
+        "time_s does not increase at {} row(s) (first rev.csv:3:",
+        rows.len() - 1
+    );
+    assert!(err.contains(&want), "{err}");
+}

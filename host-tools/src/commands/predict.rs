@@ -270,6 +270,19 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
         if let Some(i) = t.iter().position(|v| !v.is_finite()) {
             bail!("{}: time_s is {}", ds.locate("time_s", i), t[i]);
         }
+        // The lags restart (in equilibrium with that row) where time does not increase, as in the fit; rows
+        // out of time order (e.g. shuffled) would silently lose their lags, so say where it happens.
+        let restarts: Vec<usize> = (1..n).filter(|&k| t[k] <= t[k - 1]).collect();
+        if let Some(&first) = restarts.first() {
+            eprintln!(
+                "axcomp: note: {}: time_s does not increase at {} row(s) (first {}): the model's sensor lags \
+                 restart there, in equilibrium with that row, as in the fit (a new recording); sort the rows \
+                 by time if they are one recording",
+                ds.source(),
+                restarts.len(),
+                ds.locate("time_s", first)
+            );
+        }
         t
     } else {
         vec![0.0; n]
