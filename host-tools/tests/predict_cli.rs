@@ -254,6 +254,7 @@ fn probe_calibration_refuses_speeds_and_directions_it_cannot_tell() {
         coef_mm: vec![1.496],
         feed_range_mm_min: [100.0, 100.0],
         elevation_range_deg: [0.0, 90.0],
+        azimuth_gap_deg: None,
         fit_rms_um: 0.5,
     };
     let model = dir.join("cal.json");

@@ -982,6 +982,15 @@ pub struct SimArgs {
 /// Runs `axcomp sim-probe`.
 pub fn sim_probe(args: SimArgs) -> anyhow::Result<()> {
     use axcomp_twin::probe::{ProbeModel, ProbePlan, TouchKind, simulate_touches, touches_csv};
+    /// Most repeats of a plan (the calibration plan's 584 touches × 1000; more once aborted the process
+    /// when memory ran out instead of saying so).
+    const MAX_REPEATS: u32 = 1000;
+    if args.repeats.is_some_and(|r| r > MAX_REPEATS) {
+        bail!(
+            "--repeats {}: at most {MAX_REPEATS} repeats of the plan",
+            args.repeats.unwrap_or_default()
+        );
+    }
     let plan = match args.plan.as_str() {
         "probe-cal" | "cal" => {
             let mut p = ProbePlan::standard_calibration();

@@ -24,9 +24,14 @@ pub struct Args {
     #[arg(long = "tool-offsets", value_name = "X,Y,Z")]
     pub tool_offsets: Vec<String>,
     /// Reading noise σ (µm) for the predicted uncertainties.
-    #[arg(long, default_value_t = 1.0, value_name = "S")]
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
     pub sigma_um: f64,
-    /// Targets per line.
+    /// Targets per line (4 ..= 200).
     #[arg(long, default_value_t = 11, value_name = "N")]
     pub targets: usize,
     #[arg(long, default_value = "YX", value_name = "AXES")]
@@ -41,18 +46,27 @@ pub struct Args {
     pub simulate: Option<PathBuf>,
     /// With --simulate: measure a named twin plan instead (seven-line, step-diagonal, axis-lines,
     /// face-diagonals, tool-offsets, complete), plus the planned lines when both are wanted (`+plan`).
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, value_name = "NAME", requires = "simulate")]
     pub twin_plan: Option<String>,
-    /// Twin seed.
-    #[arg(long, default_value_t = 1)]
+    /// Twin seed (with --simulate).
+    #[arg(long, default_value_t = 1, requires = "simulate")]
     pub seed: u64,
-    /// Twin measurement runs.
-    #[arg(long, default_value_t = 2)]
+    /// Twin measurement runs (with --simulate).
+    #[arg(long, default_value_t = 2, requires = "simulate")]
     pub runs: usize,
-    /// Twin drift (µm/h along X, Y, Z).
-    #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z")]
+    /// Twin drift (µm/h along X, Y, Z; with --simulate).
+    #[arg(
+        long,
+        default_value = "0,0,0",
+        value_name = "X,Y,Z",
+        requires = "simulate",
+        allow_hyphen_values = true
+    )]
     pub drift_um_per_h: String,
 }
+
+/// Most targets per line `--targets` takes.
+const MAX_TARGETS: usize = 200;
 
 fn triple(s: &str, what: &str) -> anyhow::Result<[f64; 3]> {
     let v: Vec<f64> = s
@@ -92,6 +106,35 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if !a.sigma_um.is_finite() || a.sigma_um <= 0.0 {
         bail!("--sigma-um {}: must be positive", a.sigma_um);
     }
+    if a.lines == Some(0) {
+        bail!(
+            "--lines 0: ask for at least one line (or leave --lines out for the fewest that identify all 21)"
+        );
+    }
+    if a.targets > MAX_TARGETS {
+        // The plan's cost grows with the cube of the readings: 200 targets take seconds, 1000 took 6 minutes.
+        bail!(
+            "--targets {}: at most {MAX_TARGETS} targets per line",
+            a.targets
+        );
+    }
+    if a.simulate.is_some() && a.runs == 0 {
+        bail!("--runs 0: ask for at least one run");
+    }
+    let drift = triple(&a.drift_um_per_h, "--drift-um-per-h")?;
+    // A named twin plan is checked before anything is printed.
+    let twin_lines = match a.twin_plan.as_deref() {
+        None => None,
+        Some(name) => {
+            let (name, with_plan) = match name.strip_suffix("+plan") {
+                Some(n) => (n, true),
+                None => (name, false),
+            };
+            let v = plan_by_name(name, stroke, a.targets)
+                .with_context(|| format!("--twin-plan {name}: unknown plan"))?;
+            Some((v, with_plan))
+        }
+    };
     let p = plan(&PlanOptions {
         stroke_mm: stroke,
         max_lines: a.lines,
@@ -124,7 +167,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.sigma_um
     );
     for (name, unit, u) in &p.uncertainty {
-        println!("  {name:5} {u:8.3} {unit}");
+        if u.is_finite() {
+            println!("  {name:5} {u:8.3} {unit}");
+        } else {
+            println!("  {name:5} not identifiable");
+        }
     }
     if let Some(path) = &a.json {
         let v = serde_json::json!({
@@ -144,16 +191,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(path) = &a.simulate {
         let mut twin = GeometryTwin::random(stroke, topology, a.seed);
         twin.noise_um = a.sigma_um;
-        twin.drift_um_per_h = triple(&a.drift_um_per_h, "--drift-um-per-h")?;
-        let lines = match a.twin_plan.as_deref() {
+        twin.drift_um_per_h = drift;
+        let lines = match twin_lines {
             None => p.lines.clone(),
-            Some(name) => {
-                let (name, with_plan) = match name.strip_suffix("+plan") {
-                    Some(n) => (n, true),
-                    None => (name, false),
-                };
-                let mut v = plan_by_name(name, stroke, a.targets)
-                    .with_context(|| format!("--twin-plan {name}: unknown plan"))?;
+            Some((mut v, with_plan)) => {
                 if with_plan {
                     v.extend(p.lines.iter().cloned());
                 }

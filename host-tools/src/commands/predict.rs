@@ -20,7 +20,8 @@
 //!   `tool_*_mm`, `beam_*` or `line`) → `pred_ex_um, pred_ey_um, pred_ez_um`, plus `pred_deviation_um` when
 //!   the rows' beams are known; a position outside the model's grid is an error naming the row.
 //! - rotary-axis location-error model (`"kind": "rtest"`, `axcomp fit rtest --out`): inputs `x_mm, y_mm,
-//!   z_mm`, `a_deg`|`b_deg`, `c_deg` (and `setup`) → `pred_dx_um, pred_dy_um, pred_dz_um`.
+//!   z_mm`, `a_deg`|`b_deg`, `c_deg` (and `setup`, required when the model has several set-ups) →
+//!   `pred_dx_um, pred_dy_um, pred_dz_um`.
 //!
 //! The common options are those of the fit, but a `--rename`/`--scale` naming a column the file does not
 //! have is skipped with a note (the measured columns may be absent; see [`load_rows`]).
@@ -269,6 +270,19 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
         if let Some(i) = t.iter().position(|v| !v.is_finite()) {
             bail!("{}: time_s is {}", ds.locate("time_s", i), t[i]);
         }
+        // The lags restart (in equilibrium with that row) where time does not increase, as in the fit; rows
+        // out of time order (e.g. shuffled) would silently lose their lags, so say where it happens.
+        let restarts: Vec<usize> = (1..n).filter(|&k| t[k] <= t[k - 1]).collect();
+        if let Some(&first) = restarts.first() {
+            eprintln!(
+                "axcomp: note: {}: time_s does not increase at {} row(s) (first {}): the model's sensor lags \
+                 restart there, in equilibrium with that row, as in the fit (a new recording); sort the rows \
+                 by time if they are one recording",
+                ds.source(),
+                restarts.len(),
+                ds.locate("time_s", first)
+            );
+        }
         t
     } else {
         vec![0.0; n]
@@ -319,8 +333,8 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
 /// naming the row.
 fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Vec<f64>> {
     let n = ds.n_rows();
-    let ap = ds.numeric("ap_mm")?.to_vec();
-    let fz = ds.numeric("fz_mm")?.to_vec();
+    let ap = process_column(ds, "ap_mm")?;
+    let fz = process_column(ds, "fz_mm")?;
     let rpm_cols: Vec<String> = ds
         .column_names()
         .into_iter()
@@ -328,6 +342,7 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Ve
         .map(str::to_string)
         .collect();
     let nn: Vec<f64> = match rpm_cols.as_slice() {
+        [c] if law.z_n != 0.0 => process_column(ds, c)?,
         [c] => ds.numeric(c)?.to_vec(),
         [] if law.z_n == 0.0 => vec![1.0; n],
         [] => bail!(
@@ -342,7 +357,14 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Ve
     };
     let mut out = Vec::with_capacity(n);
     for i in 0..n {
-        let v = law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n);
+        // No cut (depth, feed or a speed the law depends on is 0: an idle period) is no force, 0 N, as the
+        // firmware outputs (a law with z_n < 0 once made the idle rows of a spindle campaign an error).
+        let idle = ap[i] == 0.0 || fz[i] == 0.0 || (law.z_n != 0.0 && nn[i] == 0.0);
+        let v = if idle {
+            0.0
+        } else {
+            law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n)
+        };
         if !v.is_finite() {
             bail!(
                 "{}: the force law of `{what}` gives no finite force for ap_mm {}, fz_mm {}, n {}",
@@ -355,6 +377,22 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Ve
         out.push(v);
     }
     Ok(out)
+}
+
+/// A process parameter of a force law (`ap_mm`, `fz_mm`, the speed): a negative or non-finite value is an
+/// error naming the cell, as in `fit force` (with an exponent of 1, fixed as in Kienzle's law, a negative
+/// depth of cut once gave a negative force instead). Zero is a row without a cut: 0 N (see [`law_force`]).
+fn process_column(ds: &Dataset, col: &str) -> anyhow::Result<Vec<f64>> {
+    let v = ds.numeric(col)?.to_vec();
+    if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+        bail!(
+            "{}: {} is not a finite number ≥ 0 (a process parameter of the force law); the model cannot \
+             predict this row",
+            ds.locate(col, i),
+            v[i]
+        );
+    }
+    Ok(v)
 }
 
 /// Adds `pred_<force column>` (the column the law was fitted on, from its provenance; `pred_force_N` for a

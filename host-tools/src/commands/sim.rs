@@ -102,6 +102,9 @@ pub struct Args {
     pub k4_poses: Option<usize>,
 }
 
+/// Most rows `--rows` asks for.
+const MAX_ROWS: usize = 10_000_000;
+
 /// A standard twin plan, or a spindle campaign from the thermal generator (held at mid-stroke).
 enum PlanChoice {
     Standard(Plan),
@@ -191,6 +194,10 @@ impl Config {
         axis.validate().context("the simulated axis")?;
         if a.rows == Some(0) {
             bail!("--rows 0: ask for at least one row");
+        }
+        if let Some(n) = a.rows.filter(|&n| n > MAX_ROWS) {
+            // A billion rows once aborted the process when the allocation failed (72 GB) instead of saying so.
+            bail!("--rows {n}: at most {MAX_ROWS} rows (about 1 GB of CSV)");
         }
         let plan = if a.plan == "spindle" {
             if a.image.is_some() {

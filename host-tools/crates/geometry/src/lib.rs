@@ -71,8 +71,13 @@ pub enum GeometryError {
     NoRows,
     #[error("no component can be identified from these lines")]
     NothingIdentifiable,
-    #[error("{at}: axis position {q:?} mm lies outside the model's measured range")]
-    OutsideModel { at: String, q: [f64; 3] },
+    #[error("{at}: axis position {q:?} mm lies outside the model's measured range ({range})")]
+    OutsideModel {
+        at: String,
+        q: [f64; 3],
+        /// The axis outside and its range, e.g. `Y 0 … 300 mm`.
+        range: String,
+    },
     #[error(
         "{file}: beam columns {present} without {missing}: give all three of beam_x, beam_y, beam_z (a unit vector), or none (the beam is then the direction from each line's first to its last target)"
     )]

@@ -118,12 +118,18 @@ pub fn predict_rows(
     let data = LineData::from_dataset(ds, false)?;
     let mut out = Vec::with_capacity(data.readings.len());
     for r in &data.readings {
-        let e = model
-            .error_at(r.q, r.tool)
-            .ok_or_else(|| GeometryError::OutsideModel {
-                at: ds.locate("x_mm", r.row),
+        let e = model.error_at(r.q, r.tool).ok_or_else(|| {
+            // Name the column of the axis that is outside (it was always `x_mm`).
+            let k = (0..3)
+                .find(|&k| !model.grids[k].contains(r.q[k]))
+                .unwrap_or(0);
+            let g = &model.grids[k];
+            GeometryError::OutsideModel {
+                at: ds.locate(["x_mm", "y_mm", "z_mm"][k], r.row),
                 q: r.q,
-            })?;
+                range: format!("{} {} … {} mm", ["X", "Y", "Z"][k], g.lo, g.hi),
+            }
+        })?;
         out.push(RowPrediction {
             e_um: e,
             deviation_um: beam_known.then(|| dot(e, r.beam)),

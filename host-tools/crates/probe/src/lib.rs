@@ -128,6 +128,35 @@ pub fn validate_touches(touches: &[Touch], labels: &[String]) -> Result<(), Prob
     Ok(())
 }
 
+/// Elevation (degrees) from which a normal's azimuth is not told apart (touches near the pole).
+pub const AZIMUTH_POLE_DEG: f64 = 80.0;
+
+/// The widest azimuth arc without calibration touches that still counts as covered: the spacing of the
+/// four-direction shop-floor routine. A wider one is recorded and its inside refused.
+pub const AZIMUTH_GAP_COVERED_DEG: f64 = 90.0;
+
+/// How far (degrees) beyond the calibrated directions a touch is still corrected (as for the elevation).
+pub const DIRECTION_MARGIN_DEG: f64 = 10.0;
+
+/// The widest arc of azimuths without a touch below [`AZIMUTH_POLE_DEG`], as `[from, to]` (counter-clockwise),
+/// when wider than [`AZIMUTH_GAP_COVERED_DEG`]; `None` otherwise or without such touches.
+pub fn azimuth_gap(dirs: &[DirSpeed]) -> Option<[f64; 2]> {
+    let mut az: Vec<f64> = dirs
+        .iter()
+        .filter(|d| d.elevation_deg() < AZIMUTH_POLE_DEG)
+        .map(|d| d.azimuth_deg())
+        .collect();
+    az.sort_by(f64::total_cmp);
+    let (&first, &last) = (az.first()?, az.last()?);
+    let mut widest = (first + 360.0 - last, last, first);
+    for w in az.windows(2) {
+        if w[1] - w[0] > widest.0 {
+            widest = (w[1] - w[0], w[0], w[1]);
+        }
+    }
+    (widest.0 > AZIMUTH_GAP_COVERED_DEG).then_some([widest.1, widest.2])
+}
+
 /// A probe calibration: the file `axcomp fit probe --out CAL` writes and `axcomp predict` reads.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Calibration {
@@ -145,6 +174,11 @@ pub struct Calibration {
     pub feed_range_mm_min: [f64; 2],
     /// Elevations (of the normal) seen in calibration, degrees.
     pub elevation_range_deg: [f64; 2],
+    /// The widest azimuth arc `[from, to]` (degrees, counter-clockwise from `from`) without calibration
+    /// touches below [`AZIMUTH_POLE_DEG`], when it is wider than [`AZIMUTH_GAP_COVERED_DEG`] (e.g. a sphere
+    /// probed from one side only); `None` when the touches go round (and in files written before it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub azimuth_gap_deg: Option<[f64; 2]>,
     /// RMS radial residual of the calibration touches (inliers), µm.
     pub fit_rms_um: f64,
 }
@@ -199,6 +233,24 @@ impl Calibration {
             ));
         }
         let el = t.dir_speed().elevation_deg();
+        if let Some([from, to]) = self.azimuth_gap_deg
+            && el < AZIMUTH_POLE_DEG
+        {
+            let az = t.dir_speed().azimuth_deg();
+            let width = match (to - from).rem_euclid(360.0) {
+                0.0 => 360.0,
+                w => w,
+            };
+            let inside = (az - from).rem_euclid(360.0);
+            if inside > DIRECTION_MARGIN_DEG && inside < width - DIRECTION_MARGIN_DEG {
+                return Err(format!(
+                    "the surface normal's azimuth {az:.1}° lies in the arc {from:.1}° … {to:.1}° \
+                     (counter-clockwise) where the calibration has no touches, more than \
+                     {DIRECTION_MARGIN_DEG}° from the nearest calibrated azimuth: it cannot tell the \
+                     pretravel there"
+                ));
+            }
+        }
         if el < self.elevation_range_deg[0] - 10.0 {
             return Err(format!(
                 "the surface normal's elevation {el:.1}° is more than 10° below the lowest calibrated \
@@ -822,6 +874,7 @@ pub fn calibrate(
     let el_range = ds.iter().fold([90.0f64, -90.0f64], |a, d| {
         [a[0].min(d.elevation_deg()), a[1].max(d.elevation_deg())]
     });
+    let az_gap = azimuth_gap(&ds);
     let make = |s: &Structure, c: [f64; 3], coef: Vec<f64>, rows: &[usize]| -> Calibration {
         // Stylus radius: mean effective radius over the calibration directions at zero speed.
         let r0 = rows
@@ -839,6 +892,7 @@ pub fn calibrate(
             coef_mm: coef,
             feed_range_mm_min: feed_range,
             elevation_range_deg: el_range,
+            azimuth_gap_deg: az_gap,
             fit_rms_um: rms(rows.iter().map(|&i| res[i])),
         }
     };

@@ -1007,6 +1007,23 @@ impl RtestModel {
 /// the model knows). Readings are not needed. For `axcomp predict`.
 pub fn predict_rows(model: &RtestModel, ds: &Dataset) -> Result<Vec<[f64; 3]>, RtestError> {
     let data = RtestData::from_dataset(ds, model.five_axis(), false)?;
+    if model.setup_offsets_um.len() > 1 && !ds.has("setup") {
+        // Each set-up has its own sphere and head offsets (tens of µm apart): taking the first one for
+        // rows that do not say theirs would be a silent guess.
+        let names: Vec<&str> = model
+            .setup_offsets_um
+            .iter()
+            .map(|(n, _)| n.as_str())
+            .collect();
+        return Err(RtestError::BadValue {
+            at: ds.source().to_string(),
+            what: format!(
+                "missing column `setup`: the model was fitted on several set-ups ({}), each with its own \
+                 sphere offsets, so every row must say which one it was measured in",
+                names.join(", ")
+            ),
+        });
+    }
     let mut out = Vec::with_capacity(data.poses.len());
     for (i, pose) in data.poses.iter().enumerate() {
         let setup = if model.setup_offsets_um.len() == 1 && !ds.has("setup") {
