@@ -325,3 +325,40 @@ fn an_output_that_is_a_device_stays_a_device() {
         .collect();
     assert!(names.is_empty(), "temporaries left: {names:?}");
 }
+
+/// A fit or predict output that names its own data or model is refused before anything is
+/// written (before, `fit positioning --data d.csv --out d.csv` replaced the measurements by the table).
+#[test]
+fn an_output_that_is_the_data_or_the_model_is_refused() {
+    let dir = scratch("own-input");
+    positioning_csv(&dir.join("d.csv"));
+    let o = axcomp(
+        &["fit", "positioning", "--data", "d.csv", "--out", "t.json"],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    fails_untouched(
+        &["fit", "positioning", "--data", "d.csv", "--out", "./d.csv"],
+        &dir,
+        "d.csv",
+    );
+    fails_untouched(
+        &["fit", "positioning", "--data", "d.csv", "--json", "d.csv"],
+        &dir,
+        "d.csv",
+    );
+    fails_untouched(
+        &[
+            "predict", "--model", "t.json", "--data", "d.csv", "--out", "t.json",
+        ],
+        &dir,
+        "t.json",
+    );
+    fails_untouched(
+        &[
+            "predict", "--model", "t.json", "--data", "d.csv", "--out", "d.csv",
+        ],
+        &dir,
+        "d.csv",
+    );
+}

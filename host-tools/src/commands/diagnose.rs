@@ -67,6 +67,7 @@ fn run_axis(args: Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
     let model = EffectKind::parse_list(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
     // The outputs are planned and checked before the search; written together at the end.
     let mut outputs = OutputSet::new();
+    outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
         outputs.dir(dir).planned(dir.join("diagnosis.md"));
     }

@@ -63,6 +63,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
     let model = lines::parse_model(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
     let topology = Topology::parse(&args.work_axes, &args.tool_axes)?;
     let mut outputs = OutputSet::new();
+    outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
         outputs.dir(dir).planned(dir.join("diagnosis.md"));
     }

@@ -145,6 +145,7 @@ pub fn run(args: &Args, ds: Dataset) -> anyhow::Result<()> {
     }
     // The outputs are planned and checked before the search; written together at the end.
     let mut outputs = OutputSet::new();
+    outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
         outputs.dir(dir).planned(dir.join("diagnosis.md"));
     }

@@ -23,6 +23,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
     let model = rtest::parse_model(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
     // The outputs are planned and checked before the fit; written together at the end.
     let mut outputs = OutputSet::new();
+    outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
         outputs.dir(dir).planned(dir.join("diagnosis.md"));
     }

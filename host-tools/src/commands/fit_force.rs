@@ -99,6 +99,9 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Every output path is checked before the work; all are written together at the end, or none.
     let mut outputs = OutputSet::new();
+    if let Some(p) = &args.data {
+        outputs.input(p);
+    }
     for p in [&args.out, &args.json].into_iter().flatten() {
         outputs.planned(p);
     }

@@ -122,6 +122,7 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
 pub fn run(a: Args) -> anyhow::Result<()> {
     // Every output path is checked before the fit; all files are written together at the end.
     let mut outputs = OutputSet::new();
+    outputs.input(&a.data.data);
     for p in [&a.json, &a.out].into_iter().flatten() {
         outputs.planned(p);
     }

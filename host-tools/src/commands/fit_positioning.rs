@@ -124,6 +124,7 @@ struct Judged {
 /// The output files, declared before the work so that a bad path fails first.
 fn planned_outputs(args: &Args) -> OutputSet {
     let mut set = OutputSet::new();
+    set.input(&args.data.data);
     if let Some(p) = &args.out {
         set.planned(p);
     }

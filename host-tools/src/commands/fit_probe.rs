@@ -242,6 +242,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .transpose()?;
     // Every output is planned and checked before the fit; written together at the end.
     let mut outputs = OutputSet::new();
+    outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
         outputs.dir(dir);
         for name in [

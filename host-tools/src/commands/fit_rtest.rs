@@ -144,6 +144,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let split = split_from(args.holdout.as_deref(), args.cv.as_deref())?;
     // Every output path is checked before the fit; all files are written together at the end.
     let mut outputs = OutputSet::new();
+    outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
         outputs.dir(dir);
     }

@@ -178,6 +178,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Every output is planned and checked before the fit; written together at the end (the model is
     // dropped from the set when the guard refuses it).
     let mut outputs = OutputSet::new();
+    outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
         outputs.dir(dir);
         for name in [

@@ -112,6 +112,7 @@ pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let kind = model_kind(&args.model)?;
     let mut outputs = OutputSet::new();
+    outputs.input(&args.data.data).input(&args.model);
     outputs.planned(&args.out);
     outputs.check()?;
     let mut ds = load_rows(&args.data)?;
