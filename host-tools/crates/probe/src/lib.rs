@@ -131,9 +131,11 @@ pub fn validate_touches(touches: &[Touch], labels: &[String]) -> Result<(), Prob
 /// Elevation (degrees) from which a normal's azimuth is not told apart (touches near the pole).
 pub const AZIMUTH_POLE_DEG: f64 = 80.0;
 
-/// The widest azimuth arc without calibration touches that still counts as covered: the spacing of the
-/// four-direction shop-floor routine. A wider one is recorded and its inside refused.
-pub const AZIMUTH_GAP_COVERED_DEG: f64 = 90.0;
+/// The widest azimuth arc without calibration touches that still counts as covered. A wider one is recorded
+/// and its inside refused. 135°, not 90°: the four-direction shop-floor routine leaves arcs of 90° that
+/// rounding or a slightly tilted artefact makes 90.000…1°, and a three-direction routine leaves 120°; a
+/// sphere probed from one side leaves about 180°.
+pub const AZIMUTH_GAP_COVERED_DEG: f64 = 135.0;
 
 /// How far (degrees) beyond the calibrated directions a touch is still corrected (as for the elevation).
 pub const DIRECTION_MARGIN_DEG: f64 = 10.0;
@@ -1205,6 +1207,30 @@ pub fn measured_diameter_mm(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Reference: the arcs between the azimuths given (degrees). Four directions (90° arcs, one of them
+    /// 90° + 1e-9 as a tilted artefact gives) and three (120°) count as going round; one side of the sphere
+    /// (azimuths −90° … 90° every 15°, an empty arc of 180°) is recorded as that arc.
+    #[test]
+    fn the_uncovered_azimuth_arc_is_recorded_only_beyond_routine_spacings() {
+        let dirs = |az: &[f64]| -> Vec<DirSpeed> {
+            az.iter()
+                .map(|a: &f64| DirSpeed {
+                    t: 0.0,
+                    theta: a.to_radians(),
+                    v: 1.0,
+                })
+                .collect()
+        };
+        assert_eq!(azimuth_gap(&dirs(&[0.0, 90.0, 180.0 + 1e-9, 270.0])), None);
+        assert_eq!(azimuth_gap(&dirs(&[0.0, 120.0, 240.0])), None);
+        let one_side: Vec<f64> = (-6..=6).map(|k| 15.0 * k as f64).collect();
+        let [from, to] = azimuth_gap(&dirs(&one_side)).expect("an arc of 180° is recorded");
+        assert!(
+            (from - 90.0).abs() < 1e-9 && (to - 270.0).abs() < 1e-9,
+            "{from} … {to}"
+        );
+    }
 
     fn exact(n_az: usize, els: &[f64], r_eff: f64) -> Vec<Touch> {
         let mut v = Vec::new();
