@@ -132,8 +132,40 @@ impl HoldoutSpec {
                     .iter()
                     .map(|v| WantedCell::new(&self.column, v))
                     .collect();
-                ds.text(&self.column)
-                    .map_err(|e| with_purpose(e, " (named by --holdout)"))?
+                let cells = ds
+                    .text(&self.column)
+                    .map_err(|e| with_purpose(e, " (named by --holdout)"))?;
+                // A listed value that matches no row is a typo or another file's label: holding out the
+                // others alone would report the model as judged on rows it was fitted on.
+                let unmatched: Vec<&str> = values
+                    .iter()
+                    .zip(&want)
+                    .filter(|(_, w)| !cells.iter().any(|t| w.matches(t)))
+                    .map(|(v, _)| v.as_str())
+                    .collect();
+                if !unmatched.is_empty() && unmatched.len() < values.len() {
+                    let mut present: Vec<&str> = Vec::new();
+                    for t in &cells {
+                        if !present.contains(t) {
+                            present.push(t);
+                        }
+                    }
+                    let shown = present.len().min(12);
+                    return Err(DataError::BadOption {
+                        option: "--holdout",
+                        text: self.text.clone(),
+                        reason: format!(
+                            "{} {} in no row of {} (column `{}` has {}{})",
+                            unmatched.join(", "),
+                            if unmatched.len() == 1 { "is" } else { "are" },
+                            ds.source(),
+                            self.column,
+                            present[..shown].join(", "),
+                            if present.len() > shown { ", …" } else { "" }
+                        ),
+                    });
+                }
+                cells
                     .iter()
                     .map(|t| want.iter().any(|w| w.matches(t)))
                     .collect()

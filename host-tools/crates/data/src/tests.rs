@@ -265,6 +265,24 @@ fn in_memory_columns() {
     assert_eq!(back.numeric("target_mm").unwrap(), &[0.0, 1.0]);
 }
 
+/// `--holdout line=FD1,X2` without a line FD1 held out X2 alone, and the JSON said FD1 was held out too.
+#[test]
+fn a_holdout_value_that_matches_no_row_is_an_error_naming_it() {
+    let ds = Dataset::from_csv_str("iso.csv", ISO, &none()).unwrap();
+    let e = HoldoutSpec::parse("run=2,7")
+        .unwrap()
+        .mask(&ds)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("7 is in no row of iso.csv") && e.contains("column `run` has 1, 2"),
+        "{e}"
+    );
+    // Numerically equal spellings still match (`2.0` is run 2).
+    let m = HoldoutSpec::parse("run=2.0").unwrap().mask(&ds).unwrap();
+    assert_eq!(m, vec![false, false, true, true]);
+}
+
 #[test]
 fn holdout_specs() {
     let ds = Dataset::from_csv_str("iso.csv", ISO, &none()).unwrap();
