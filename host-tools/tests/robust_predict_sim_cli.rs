@@ -7,7 +7,7 @@
 use std::path::Path;
 
 mod common;
-use common::{axcomp_in, fails_untouched_naming, ok_in, scratch};
+use common::{axcomp_in, fails_untouched_naming, ok_in, scratch, table, write_table};
 
 fn stdout_of(args: &[&str], dir: &Path) -> String {
     let o = axcomp_in(args, dir);
@@ -17,32 +17,6 @@ fn stdout_of(args: &[&str], dir: &Path) -> String {
         String::from_utf8_lossy(&o.stderr)
     );
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// Splits a CSV (no quoting) into its header and rows, comment lines dropped.
-fn table(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
-    let header: Vec<String> = lines
-        .next()
-        .unwrap()
-        .split(',')
-        .map(str::to_string)
-        .collect();
-    let rows = lines
-        .map(|l| l.split(',').map(str::to_string).collect())
-        .collect();
-    (header, rows)
-}
-
-fn write_table(path: &Path, header: &[String], rows: &[Vec<String>]) {
-    let mut s = header.join(",");
-    s.push('\n');
-    for r in rows {
-        s.push_str(&r.join(","));
-        s.push('\n');
-    }
-    std::fs::write(path, s).unwrap();
 }
 
 fn col(header: &[String], name: &str) -> usize {

@@ -62,6 +62,33 @@ impl Drop for Scratch {
     }
 }
 
+/// Splits a CSV (no quoting) into its header and rows, comment lines dropped.
+pub fn table(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    (header, rows)
+}
+
+/// Writes a header and rows as a CSV (no quoting), one line each.
+pub fn write_table(path: &Path, header: &[String], rows: &[Vec<String>]) {
+    let mut s = header.join(",");
+    s.push('\n');
+    for r in rows {
+        s.push_str(&r.join(","));
+        s.push('\n');
+    }
+    std::fs::write(path, s).unwrap();
+}
+
 /// Parses a JSON file written by the CLI.
 pub fn read_json(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path)
