@@ -190,6 +190,29 @@ pub fn model_kind(format: &str) -> Option<&'static str> {
         .map(|(_, kind)| *kind)
 }
 
+/// The message for a model file whose `format` is not `expected` (`what`: "positioning table", "thermal
+/// model"), or `None` when it is (or the text has no `format`, left to the loader's own parse error): said
+/// before serde's first missing field would be, naming another version of the same format or the kind of
+/// model the file is ([`model_kind`]).
+pub fn wrong_format(text: &str, expected: &str, what: &str) -> Option<String> {
+    let value: serde_json::Value = serde_json::from_str(text).ok()?;
+    let format = value.get("format")?.as_str()?;
+    if format == expected {
+        return None;
+    }
+    let family = |f: &str| f.split('/').next().unwrap_or_default().to_string();
+    let why = if family(format) == family(expected) {
+        format!(": another version of the {what} format")
+    } else if let Some(kind) = model_kind(format) {
+        format!(": {kind}, not a {what}")
+    } else {
+        String::new()
+    };
+    Some(format!(
+        "format is \"{format}\", expected \"{expected}\"{why}"
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

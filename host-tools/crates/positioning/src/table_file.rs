@@ -276,23 +276,8 @@ impl TableFile {
         let bytes = std::fs::read(path).map_err(|e| io(e.to_string()))?;
         let text = axcomp_files::model_text(&bytes).map_err(io)?;
         // Another kind of model file: say so before serde's first missing field does.
-        let format = match serde_json::from_str(text) {
-            Ok(serde_json::Value::Object(o)) => {
-                o.get("format").and_then(|f| f.as_str()).map(str::to_string)
-            }
-            _ => None,
-        };
-        if let Some(f) = format.filter(|f| f != FORMAT) {
-            return Err(io(format!(
-                "format is {f:?}, expected \"{FORMAT}\"{}",
-                match axcomp_files::model_kind(&f) {
-                    _ if f.split('/').next() == FORMAT.split('/').next() => {
-                        ": another version of the positioning table format".to_string()
-                    }
-                    Some(k) => format!(": {k}, not a positioning table"),
-                    None => String::new(),
-                }
-            )));
+        if let Some(why) = axcomp_files::wrong_format(text, FORMAT, "positioning table") {
+            return Err(io(why));
         }
         let t: TableFile =
             serde_json::from_str(text).map_err(|e| io(format!("not a table file: {e}")))?;

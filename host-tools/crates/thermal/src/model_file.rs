@@ -247,26 +247,8 @@ impl ThermalModelFile {
             what,
         })?;
         // Another kind of model file: say so before serde's first missing field does.
-        let format = match serde_json::from_str(text) {
-            Ok(serde_json::Value::Object(o)) => {
-                o.get("format").and_then(|f| f.as_str()).map(str::to_string)
-            }
-            _ => None,
-        };
-        if let Some(f) = format.filter(|f| f != FORMAT) {
-            return Err(ModelFileError::Invalid {
-                path: p,
-                what: format!(
-                    "format is `{f}`, expected `{FORMAT}`{}",
-                    match axcomp_files::model_kind(&f) {
-                        _ if f.split('/').next() == FORMAT.split('/').next() => {
-                            ": another version of the thermal model format".to_string()
-                        }
-                        Some(k) => format!(": {k}, not a thermal model"),
-                        None => String::new(),
-                    }
-                ),
-            });
+        if let Some(what) = axcomp_files::wrong_format(text, FORMAT, "thermal model") {
+            return Err(ModelFileError::Invalid { path: p, what });
         }
         let m: ThermalModelFile =
             serde_json::from_str(text).map_err(|cause| ModelFileError::Json {
