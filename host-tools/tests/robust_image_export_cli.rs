@@ -667,3 +667,29 @@ fn inspect_refuses_a_board_input_named_twice() {
         &["--board-inputs", "rtd0", "twice"],
     );
 }
+
+/// `predict` reads a model file with a UTF-8 byte-order mark as `image build` does (it said "not a JSON
+/// model file"). Reference: the hand-written table is 0 µm at 0 mm and 20 µm at 100 mm forward with knots
+/// every 10 mm; at a knot (10 mm) the prediction is the knot's value within 1e-9 µm.
+#[test]
+fn predict_reads_a_model_with_a_byte_order_mark() {
+    let dir = scratch("predict-bom");
+    let text = format!("\u{feff}{}", serde_json::to_string(&table_json()).unwrap());
+    std::fs::write(dir.join("bom.json"), text).unwrap();
+    std::fs::write(dir.join("d.csv"), "target_mm,direction\n10,+\n").unwrap();
+    ok_in(
+        &[
+            "predict", "--model", "bom.json", "--data", "d.csv", "--out", "p.csv",
+        ],
+        &dir,
+    );
+    let out = std::fs::read_to_string(dir.join("p.csv")).unwrap();
+    let row = out.lines().nth(1).unwrap();
+    let pred: f64 = row.rsplit(',').next().unwrap().parse().unwrap();
+    let knot = table_json()["forward"].as_array().unwrap()[1]
+        .as_array()
+        .unwrap()[0]
+        .as_f64()
+        .unwrap();
+    assert!((pred - knot).abs() < 1e-9, "{out}");
+}

@@ -78,9 +78,10 @@ pub enum ModelKind {
 
 /// Reads the `format` field of a model file.
 pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("{}: cannot read", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&text)
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = axcomp_files::model_text(&bytes)
+        .map_err(|why| anyhow::anyhow!("{} {why}", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(text)
         .with_context(|| format!("{}: not a JSON model file", path.display()))?;
     let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
     if format.is_empty() && v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
