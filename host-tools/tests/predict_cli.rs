@@ -138,6 +138,8 @@ fn thermal_model() -> ThermalModelFile {
                 max_degc: 60.0,
                 max_rate_degc_per_s: 1.0,
                 stale_timeout_ms: 10_000,
+                rise_min_k: None,
+                rise_max_k: None,
             },
             ModelSensor {
                 name: "ambient".into(),
@@ -148,6 +150,8 @@ fn thermal_model() -> ThermalModelFile {
                 max_degc: 50.0,
                 max_rate_degc_per_s: 1.0,
                 stale_timeout_ms: 10_000,
+                rise_min_k: None,
+                rise_max_k: None,
             },
         ],
         forces: vec![ModelForce {
@@ -158,6 +162,7 @@ fn thermal_model() -> ThermalModelFile {
         raw_rms_um: 0.0,
         holdout_rms_um: None,
         target_offset_um: None,
+        runs_column: None,
     }
 }
 

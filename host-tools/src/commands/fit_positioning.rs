@@ -870,11 +870,14 @@ fn drift_model_file(
             max_degc: 1.5,
             max_rate_degc_per_s: 1.0e6,
             stale_timeout_ms: (10 * args.drift_period_ms).max(10_000),
+            rise_min_k: None,
+            rise_max_k: None,
         }],
         forces: vec![],
         raw_rms_um: raw_rms,
         holdout_rms_um: Some(judged_rms),
         target_offset_um: None,
+        runs_column: None,
     };
     m.validate()
         .map_err(|e| anyhow::anyhow!("the warm-up drift model is not usable: {e}"))?;

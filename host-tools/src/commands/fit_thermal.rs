@@ -53,6 +53,11 @@ pub struct Args {
     /// Rows held out from fitting and used only to judge: COL=V1,V2 | COL>=X | COL<X.
     #[arg(long, value_name = "SPEC")]
     pub holdout: Option<String>,
+    /// The file holds several runs (e.g. one per day, each from a cold machine), told apart by COL: each
+    /// run's temperatures and target are taken relative to its first row, lags restart per run, and the
+    /// model is judged forward over the runs.
+    #[arg(long, value_name = "COL")]
+    pub runs: Option<String>,
     /// Leave-one-group-out over the values of COL (operating conditions): inner CV groups and `cv_rms_um`.
     #[arg(long, value_name = "COL")]
     pub cv: Option<String>,
@@ -312,6 +317,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let held = holdout.as_ref().map(|h| h.mask(&ds)).transpose()?;
+    let runs = match &args.runs {
+        Some(col) => {
+            let (ids, labels) = groups(&ds, col)?;
+            Some(
+                ids.into_iter()
+                    .map(|i| labels[i].clone())
+                    .collect::<Vec<_>>(),
+            )
+        }
+        None => None,
+    };
     // An explicit NaN or inf is no value the fit can use: named by file, line and column here (the fit
     // itself only knows the data row).
     let mut used: Vec<(String, &[f64])> = vec![(args.target.clone(), &target)];
@@ -372,6 +388,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         target,
         conditions,
         holdout: held,
+        runs,
     };
 
     // ---- fit ----
@@ -465,6 +482,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if args.zero_at_start.is_some() {
             file.target_offset_um = Some(target_offset);
         }
+        file.runs_column = args.runs.clone();
         for (col, law) in &laws {
             let f = file
                 .forces

@@ -122,6 +122,17 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
             let m = ThermalModelFile::load(p)
                 .with_context(|| format!("reading thermal model {}", p.display()))?;
             model_sensors = m.sensors.iter().map(|s| s.name.clone()).collect();
+            // The firmware's references are fixed in the image; a multi-run model takes each run's
+            // references at its start, which this image format cannot express yet.
+            if let Some(col) = &m.runs_column {
+                anyhow::bail!(
+                    "{}: a multi-run model (fitted with --runs {col}) takes its references at each switch-on; \
+                     this firmware's images hold fixed references, so the image would be wrong on any day that \
+                     starts at another temperature. Fit without --runs for an image, or use the model with \
+                     `axcomp predict`",
+                    p.display()
+                );
+            }
             // The firmware takes |b0| ≤ 1e5 µm (`axcomp_core` image check): a larger intercept is a model
             // of an absolute position (e.g. a homing position), not of a deviation.
             if m.b0_um.is_nan() || m.b0_um.abs() > 1.0e5 {

@@ -290,6 +290,7 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
         vec![0.0; n]
     };
     let mut pred = vec![m.b0_um + m.target_offset_um.unwrap_or(0.0); n];
+    let mut sensors = Vec::with_capacity(m.sensors.len());
     for s in &m.sensors {
         let col = format!("{}_degC", s.name);
         let v = ds.numeric(&col)?.to_vec();
@@ -305,9 +306,77 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
                 );
             }
         }
-        let l = axcomp_thermal::lag::lag(&time, &v, s.tau_s);
-        for (p, y) in pred.iter_mut().zip(l) {
-            *p += s.coef_um_per_k * (y - s.reference_degc);
+        sensors.push(axcomp_thermal::Series {
+            name: s.name.clone(),
+            values: v,
+        });
+    }
+    // A multi-run model: each run's references are its first row (the readings at switch-on); a file
+    // without the runs column is one run.
+    let runs = match &m.runs_column {
+        Some(col) if ds.has(col) => {
+            let (ids, labels) = axcomp_data::groups(ds, col)?;
+            let l: Vec<String> = ids.into_iter().map(|i| labels[i].clone()).collect();
+            Some(axcomp_thermal::runs::RunIndex::new(Some(&l), n))
+        }
+        Some(col) => {
+            eprintln!(
+                "axcomp: note: {}: no `{col}` column: the rows are one run, referenced to its first row",
+                ds.source()
+            );
+            Some(axcomp_thermal::runs::RunIndex::new(
+                Some(&vec![String::new(); n]),
+                n,
+            ))
+        }
+        None => None,
+    };
+    let thermal = axcomp_thermal::ThermalModel {
+        b0_um: 0.0,
+        terms: m
+            .sensors
+            .iter()
+            .map(|s| axcomp_thermal::SensorTerm {
+                sensor: s.name.clone(),
+                reference_degc: s.reference_degc,
+                tau_s: s.tau_s,
+                coef_um_per_k: s.coef_um_per_k,
+            })
+            .collect(),
+        forces: vec![],
+    };
+    let bounds: Option<Vec<(f64, f64)>> = m
+        .sensors
+        .iter()
+        .map(|s| Some((s.rise_min_k?, s.rise_max_k?)))
+        .collect();
+    let (terms, guarded) = axcomp_thermal::runs::predict_campaign(
+        &thermal,
+        bounds.as_deref(),
+        &time,
+        &sensors,
+        &[],
+        runs.as_ref(),
+    )
+    .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
+    for (p, t) in pred.iter_mut().zip(terms) {
+        *p += t;
+    }
+    if let Some(first) = guarded.iter().position(|g| *g) {
+        eprintln!(
+            "axcomp: note: {}: on {} row(s) (first: data row {}) a model sensor has risen beyond the range it \
+             was fitted on by more than that range: no thermal term there (the firmware rejects such a reading \
+             and ramps its term out)",
+            ds.source(),
+            guarded.iter().filter(|g| **g).count(),
+            first + 1
+        );
+    }
+    if let (Some(r), true) = (&runs, ds.has(&m.target)) {
+        // The model predicts the change since each run's first row; the run's first reading is added back.
+        let target = ds.numeric(&m.target)?.to_vec();
+        for (p, r0) in pred.iter_mut().zip(r.reference(&target)) {
+            *p += r0;
         }
     }
     for f in &m.forces {

@@ -45,6 +45,7 @@ fn main() {
         target: d.error_um[..n].to_vec(),
         conditions: Some(d.condition[..n].iter().map(|c| c.to_string()).collect()),
         holdout: Some(d.condition[..n].iter().map(|&c| c == 2).collect()),
+        runs: None,
     };
     for (name, opts) in [
         (

@@ -28,6 +28,7 @@ fn main() {
             target: d.error_um.clone(),
             conditions: Some(d.condition.iter().map(|c| c.to_string()).collect()),
             holdout: Some(d.condition.iter().map(|&c| c == held).collect()),
+            runs: None,
         };
         let mut opts = ThermalOptions {
             lags: true,
@@ -54,6 +55,14 @@ fn main() {
             fit.chosen_method,
             fit.sensors
         );
+        for c in &fit.candidates {
+            println!(
+                "      {:<13} validation {:.3} held-out {:.3}",
+                c.name,
+                c.validation_rms_um,
+                c.holdout_rms_um.unwrap_or(f64::NAN)
+            );
+        }
     }
     ratios.sort_by(|a, b| a.total_cmp(b));
     println!(

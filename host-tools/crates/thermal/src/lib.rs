@@ -13,6 +13,7 @@
 //! - **twin data**: synthetic temperatures, forces and errors with known truth ([`synth`], the twin's).
 
 pub mod blocks;
+pub mod choice;
 pub mod fcm;
 pub mod force;
 pub mod gra;
@@ -20,7 +21,9 @@ pub mod lag;
 pub mod linalg;
 pub mod milling;
 pub mod model_file;
+mod prepare;
 pub mod report;
+pub mod runs;
 pub mod select;
 pub mod stats;
 /// The synthetic campaign generator now lives in the twin ([`axcomp_twin::synth`]); re-exported here.
@@ -28,6 +31,6 @@ pub use axcomp_twin::synth;
 pub mod thermal;
 
 pub use thermal::{
-    CandidateReport, ForceTerm, Ridge, Selection, SensorTerm, Series, ThermalError, ThermalFit,
-    ThermalInput, ThermalModel, ThermalOptions, ValidationReport, fit_thermal,
+    CandidateReport, ForceTerm, Reference, Ridge, Selection, SensorTerm, Series, ThermalError,
+    ThermalFit, ThermalInput, ThermalModel, ThermalOptions, ValidationReport, fit_thermal,
 };

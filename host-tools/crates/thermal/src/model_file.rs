@@ -29,6 +29,12 @@ pub struct ModelSensor {
     pub max_degc: f64,
     pub max_rate_degc_per_s: f64,
     pub stale_timeout_ms: u32,
+    /// Range guard: the rise (K, against the reference reading) beyond which the model drops its thermal
+    /// terms (a linear model is not extrapolated far beyond the rises it was fitted on). Absent: no guard.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rise_min_k: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rise_max_k: Option<f64>,
 }
 
 /// A force law `F = k·ap^x·fz^y·n^z`.
@@ -70,6 +76,11 @@ pub struct ThermalModelFile {
     /// predict` adds this back so that `pred_<target>` predicts the target itself. Absent: 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target_offset_um: Option<f64>,
+    /// The runs column of a multi-run campaign (`fit thermal --runs COL`): each run's references (sensors
+    /// and target) are its first row, as the firmware's are its readings at switch-on. Absent: one recording
+    /// with the fixed `reference_degc`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub runs_column: Option<String>,
 }
 
 /// Owned storage for a [`axcomp_core::ThermoForceSpec`].
@@ -124,7 +135,8 @@ impl ThermalModelFile {
             .model
             .terms
             .iter()
-            .map(|t| {
+            .zip(&fit.rise_bounds_k)
+            .map(|(t, &(rise_lo, rise_hi))| {
                 let s = input
                     .sensors
                     .iter()
@@ -148,6 +160,8 @@ impl ThermalModelFile {
                     max_degc: max + 30.0,
                     max_rate_degc_per_s: (5.0 * rate).max(1.0),
                     stale_timeout_ms: ((10.0 * period_s).max(10.0) * 1000.0) as u32,
+                    rise_min_k: Some(rise_lo),
+                    rise_max_k: Some(rise_hi),
                 }
             })
             .collect();
@@ -170,6 +184,7 @@ impl ThermalModelFile {
             raw_rms_um: fit.raw_rms_um,
             holdout_rms_um: fit.holdout_rms_um,
             target_offset_um: None,
+            runs_column: None,
         }
     }
 

@@ -232,14 +232,34 @@ impl GramSet {
     }
 
     /// Leave-one-group-out CV over `groups`: (sum of squared prediction errors, rows). Infinite if a fit is
-    /// singular.
+    /// singular. The normal equations of all groups are summed once and each group's part subtracted.
     pub fn cv(&self, terms: &[usize], groups: &[usize], lambda: f64) -> (f64, usize) {
+        let s = Self::idx(terms);
+        let p = s.len();
+        let (a_all, b_all) = self.normal_equations(&s, groups);
+        let n_all: usize = groups.iter().map(|&g| self.rows[g]).sum();
+        let y = self.k + 1;
         let mut sse = 0.0;
         let mut n = 0;
         for &g in groups {
-            let rest: Vec<usize> = groups.iter().cloned().filter(|&h| h != g).collect();
-            match self.fit(terms, &rest, lambda) {
-                Some(beta) => sse += self.sse(terms, &beta, g),
+            let n_fit = n_all - self.rows[g];
+            if n_fit < p {
+                return (f64::INFINITY, 1);
+            }
+            let m = &self.grams[g];
+            let mut a = a_all.clone();
+            let mut b = b_all.clone();
+            for (r, &i) in s.iter().enumerate() {
+                b[r] -= m[(i, y)];
+                for (c, &j) in s.iter().enumerate() {
+                    a[(r, c)] -= m[(i, j)];
+                }
+            }
+            for r in 1..p {
+                a[(r, r)] += (lambda + 1e-10) * n_fit as f64;
+            }
+            match a.cholesky() {
+                Some(ch) => sse += self.sse(terms, &ch.solve(&b), g),
                 None => return (f64::INFINITY, 1),
             }
             n += self.rows[g];

@@ -1,37 +1,32 @@
-//! Thermal (thermo-force) error model: selection, lags, fitting, validation, do-no-harm guard.
+//! Thermal (thermo-force) error model: per-run references, lags, the model choice, the fit and the
+//! do-no-harm guard.
 //!
 //! Glossary:
 //! - **sensor**: a temperature column `NAME_degC`; its **rise** is `ΔT = lag(T, τ) − T_ref`, `T_ref` = the
-//!   sensor's first reading.
+//!   reference reading: the first row of the file, or with runs ([`crate::runs`]) the first row of each run.
 //! - **term**: `b · ΔT` (µm/K) per selected sensor; **force term**: `χ · F` (µm/N) per force column, fitted
 //!   jointly with the thermal terms (coupled thermo-force model).
 //! - **model**: `e = b0 + Σ b_s ΔT_s + Σ χ_f F_f`, the predicted error (µm), which the firmware subtracts.
 //! - **training / held-out rows**: `--holdout` rows are never used for fitting or selection, only to judge.
-//! - **raw**: the target minus its reference value (the mean of its first `reference_rows` rows, i.e. the
-//!   state where every ΔT = 0); every raw figure (held-out, training, per condition, validation) uses it.
-//! - **blocks**: the training rows cut by operating condition / thermal regime ([`crate::blocks`]); the inner
-//!   CV (lag grid, ridge and elastic-net λ, forward selection) leaves one block out at a time.
-//! - **transfer validation** (the default's model choice): every candidate procedure — plain least squares on
-//!   every sensor, every sensor with one lag per sensor, ridge, elastic net, greedy forward selection with
-//!   lags, FCM + GRA — is re-run without each block (all its own choices included) and predicts that block;
-//!   the default is the candidate with the lowest RMS over the blocks among those that beat plain least
-//!   squares by more than one standard error of the per-block paired difference (else plain least squares).
-//!   With a single regime among the training rows only plain least squares and every-sensor-with-lags are
-//!   eligible (the others are reported): these rows cannot show how dropping or shrinking collinear sensors
-//!   transfers to another regime.
-//! - **lag support**: a sensor whose training trace shows one episode of change (a step, a single rise) gets
-//!   lags only up to a third of that episode ([`LAG_CAP_FRACTION`]); with two or more episodes, any lag on the
-//!   grid.
+//! - **raw**: the target minus its reference value (one run: the mean of its first `reference_rows` rows;
+//!   several runs: each run's first row); every raw figure uses it.
+//! - **model choice**: candidates judged by forward validation over runs or regime blocks, the plain
+//!   references beside them, and the rule ([`crate::choice`]).
+//! - **lag support**: in a single recording, a sensor whose training trace shows one episode of change gets
+//!   lags only up to a third of it ([`LAG_CAP_FRACTION`]); lags never exceed a third of the longest run.
+//! - **range guard**: rows where a model sensor leaves the range it was fitted on by more than that range
+//!   get no thermal term ([`crate::choice`]).
 //! - **do-no-harm guard**: with held-out rows, the model's RMS on them must not exceed raw; without, the
-//!   default's validation RMS must not exceed raw over the same blocks (no candidate beats raw → refused), a
-//!   forced selection's leave-one-block-out RMS must not exceed raw on the training rows.
+//!   default's validation RMS must not exceed raw over the same groups.
 
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use crate::lag::lag;
+use crate::choice::rank_correlation;
+use crate::choice::{self, Design, Kind, Structure};
 use crate::linalg::{condition_number, lstsq, vif};
-use crate::select::{self, Candidate, GramSet};
+use crate::prepare::{Prepared, refine_lags};
+use crate::select::{self, Candidate};
 use crate::stats::rms;
 
 /// What the fit reads (already filtered, renamed and scaled).
@@ -48,6 +43,8 @@ pub struct ThermalInput {
     pub conditions: Option<Vec<String>>,
     /// Held-out rows (true = judge only).
     pub holdout: Option<Vec<bool>>,
+    /// Run of each row (`--runs`): per-run references, lag restarts, validation over runs.
+    pub runs: Option<Vec<String>>,
 }
 
 /// Ridge setting.
@@ -165,7 +162,7 @@ pub struct MethodReport {
 /// One candidate of the default model choice and its transfer-validation score.
 #[derive(Debug, Clone, Serialize)]
 pub struct CandidateReport {
-    /// `plain_ls`, `all_lags`, `ridge`, `elastic_net`, `forward_lags` / `forward`, `fcm_gra`.
+    /// `plain_ls`, `greedy_lags`, `forward_lags`, `fcm_gra`, `ridge`.
     pub name: String,
     pub what: String,
     /// Structure chosen on all training rows.
@@ -178,12 +175,25 @@ pub struct CandidateReport {
     pub validation_block_rms_um: Vec<f64>,
     /// The candidate as fitted on all training rows, on the held-out rows (reported, never used to choose).
     pub holdout_rms_um: Option<f64>,
-    /// False for the sensor-dropping candidates when the training rows hold a single regime.
+    /// Sensors of the structure chosen on all training rows.
+    pub n_sensors: usize,
+    /// False when the firmware cannot take it (more sensors than its limit).
     pub eligible: bool,
-    /// Lower mean squared error than the reference (the first candidate, plain least squares) by more than
-    /// one standard error of the per-block paired difference.
+    /// Lower validation RMS than plain least squares.
     pub beats_reference: bool,
     pub chosen: bool,
+}
+
+/// A plain reference judged by the same validation in the same run (the `references` of the JSON).
+#[derive(Debug, Clone, Serialize)]
+pub struct Reference {
+    pub name: String,
+    pub what: String,
+    pub sensors: Vec<String>,
+    pub tau_s: Vec<f64>,
+    pub validation_rms_um: f64,
+    /// Fitted on all training rows, on the held-out rows.
+    pub holdout_rms_um: Option<f64>,
 }
 
 /// How the candidates were judged.
@@ -198,97 +208,15 @@ pub struct ValidationReport {
     pub predicted_blocks: Vec<String>,
     /// RMS of the raw (zeroed) target over the predicted blocks.
     pub raw_rms_um: f64,
+    /// Spearman rank correlation between the candidates' validation RMS and their held-out RMS (with
+    /// held-out rows and at least 3 candidates).
+    pub rank_correlation: Option<f64>,
 }
 
 /// With one episode of change in the training rows (a step, a single rise), a sensor's lag is tried only up
 /// to this fraction of that episode's duration: a longer lag of it is, on these rows, only a function of the
 /// time since the start.
 pub const LAG_CAP_FRACTION: f64 = 1.0 / 3.0;
-
-/// Elastic-net mixing α (0.5: half LASSO, half ridge).
-pub const ENET_ALPHA: f64 = 0.5;
-
-/// A candidate procedure of the default model choice.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
-    PlainLs,
-    AllLags,
-    Ridge,
-    ElasticNet,
-    Forward,
-    FcmGra,
-}
-
-impl Kind {
-    fn name(self) -> &'static str {
-        match self {
-            Kind::PlainLs => "plain_ls",
-            Kind::AllLags => "all_lags",
-            Kind::Ridge => "ridge",
-            Kind::ElasticNet => "elastic_net",
-            Kind::Forward => "forward_lags",
-            Kind::FcmGra => "fcm_gra",
-        }
-    }
-    /// The `chosen_method` value (kept from the earlier contract: `all`, `forward_cv`, `fcm_gra`).
-    fn method_name(self) -> &'static str {
-        match self {
-            Kind::PlainLs | Kind::AllLags => "all",
-            Kind::Ridge => "ridge",
-            Kind::ElasticNet => "elastic_net",
-            Kind::Forward => "forward_cv",
-            Kind::FcmGra => "fcm_gra",
-        }
-    }
-    fn what(self) -> &'static str {
-        match self {
-            Kind::PlainLs => "every sensor, no lag, least squares",
-            Kind::AllLags => {
-                "every sensor, one first-order lag per sensor (grid, inner CV), least squares"
-            }
-            Kind::Ridge => "every sensor with its lag, ridge penalty chosen by inner CV",
-            Kind::ElasticNet => {
-                "every sensor with its lag, elastic net (α = 0.5), λ chosen by inner CV"
-            }
-            Kind::Forward => "greedy forward selection of sensors and lags by inner CV",
-            Kind::FcmGra => {
-                "fuzzy c-means + grey relational analysis (reference method), lags by inner CV"
-            }
-        }
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Shrink {
-    None,
-    Ridge(f64),
-    ElasticNet(f64),
-}
-
-impl Shrink {
-    fn describe(self) -> String {
-        match self {
-            Shrink::None => "none".into(),
-            Shrink::Ridge(l) => format!("ridge λ = {l:e}"),
-            Shrink::ElasticNet(l) => format!("elastic net α = {ENET_ALPHA}, λ = {l:.4e}"),
-        }
-    }
-}
-
-#[derive(Debug, Clone)]
-struct Structure {
-    terms: Vec<usize>,
-    shrink: Shrink,
-}
-
-impl Structure {
-    fn ls(terms: Vec<usize>) -> Self {
-        Structure {
-            terms,
-            shrink: Shrink::None,
-        }
-    }
-}
 
 /// Everything a thermal fit reports (serialized into the `--json` file).
 #[derive(Debug, Clone, Serialize)]
@@ -316,8 +244,16 @@ pub struct ThermalFit {
     pub fcm_gra_detail: Option<select::FcmGra>,
     /// The target's reference value (µm): raw figures are the target minus it.
     pub raw_reference_um: f64,
-    /// The default's candidates with their transfer-validation scores (empty for a forced selection).
+    /// The default's candidates with their validation scores (empty for a forced selection).
     pub candidates: Vec<CandidateReport>,
+    /// The plain references judged the same way (empty for a forced selection).
+    pub references: Vec<Reference>,
+    /// The runs (`--runs`) in order; empty for a single recording.
+    pub runs: Vec<String>,
+    /// Per model sensor (same order as `model.terms`): the allowed rise (K) of the range guard.
+    pub rise_bounds_k: Vec<(f64, f64)>,
+    /// Held-out rows on which the range guard dropped the thermal terms.
+    pub guarded_rows: usize,
     pub validation: ValidationReport,
     /// Forward selection path: (term added, inner CV RMS after it).
     pub forward_path: Vec<(String, f64)>,
@@ -388,6 +324,7 @@ fn check(input: &ThermalInput) -> Result<(), ThermalError> {
     for (what, len) in [
         ("conditions", input.conditions.as_ref().map(|c| c.len())),
         ("holdout", input.holdout.as_ref().map(|c| c.len())),
+        ("runs", input.runs.as_ref().map(|c| c.len())),
     ] {
         if let Some(l) = len
             && l != n
@@ -402,662 +339,270 @@ fn check(input: &ThermalInput) -> Result<(), ThermalError> {
     Ok(())
 }
 
-/// Fits a thermo-force model (see the module docs for the procedure).
-pub fn fit_thermal(
-    input: &ThermalInput,
-    opts: &ThermalOptions,
-) -> Result<ThermalFit, ThermalError> {
-    let opts = opts.build()?;
-    check(input)?;
-    let n = input.time_s.len();
-    let held: Vec<bool> = input.holdout.clone().unwrap_or_else(|| vec![false; n]);
-    if input.holdout.is_some() && !held.iter().any(|h| *h) {
-        return Err(ThermalError::EmptyHoldout);
-    }
-    let train_idx: Vec<usize> = (0..n).filter(|&i| !held[i]).collect();
-    if train_idx.len() < 10 {
-        return Err(ThermalError::TooFewRows(train_idx.len()));
-    }
-
-    // ---- usable sensors ----
-    let mut excluded = vec![];
-    let mut sens: Vec<usize> = vec![];
-    for (i, s) in input.sensors.iter().enumerate() {
-        let v: Vec<f64> = train_idx.iter().map(|&r| s.values[r]).collect();
-        let sd = crate::stats::std_dev(&v);
-        if sd <= 1e-9 {
-            excluded.push((s.name.clone(), "constant on the training rows".to_string()));
-        } else {
-            sens.push(i);
-        }
-    }
-    if sens.is_empty() {
-        return Err(ThermalError::NoSensors);
-    }
-    let sname = |k: usize| input.sensors[sens[k]].name.clone();
-    let reference: Vec<f64> = sens.iter().map(|&i| input.sensors[i].values[0]).collect();
-
-    // ---- target reference: the raw figures are the target minus it (the state where every ΔT = 0) ----
-    let k0 = opts.reference_rows.clamp(1, n);
-    let target_ref = input.target[..k0].iter().sum::<f64>() / k0 as f64;
-    let zeroed: Vec<f64> = input.target.iter().map(|v| v - target_ref).collect();
-
-    // ---- validation blocks (inner CV groups and the transfer validation) ----
-    let sens_cols: Vec<&[f64]> = sens
-        .iter()
-        .map(|&i| input.sensors[i].values.as_slice())
-        .collect();
-    let blocks = crate::blocks::transfer_blocks(
-        &input.time_s,
-        &sens_cols,
-        input.conditions.as_deref(),
-        &train_idx,
-        opts.time_blocks,
-    );
-    let group_of_row = blocks.group_of_row.clone();
-    let cond_groups_ok = blocks.by_condition;
-    let inner_groups = blocks.rule.clone();
-    let n_groups = blocks.names.len();
-    let all_groups: Vec<usize> = (0..n_groups).collect();
-
-    // ---- lag grid and candidate columns ----
-    let t_train: Vec<f64> = train_idx.iter().map(|&i| input.time_s[i]).collect();
-    let duration = t_train.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-        - t_train.iter().cloned().fold(f64::INFINITY, f64::min);
-    let mut dts: Vec<f64> = input
-        .time_s
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .filter(|d| *d > 0.0)
-        .collect();
-    let med_dt = axcomp_numeric::stats::upper_median(&mut dts);
-    let mut grid = vec![0.0];
-    if opts.lags && duration > 0.0 && med_dt.is_finite() {
-        let lo = (2.0 * med_dt).max(duration / 300.0);
-        let hi = (duration / 2.0).max(lo * 2.0);
-        let m = opts.lag_grid.max(2);
-        for k in 0..m {
-            grid.push(lo * (hi / lo).powf(k as f64 / (m - 1) as f64));
-        }
-    }
-    let mut cands: Vec<Candidate> = vec![];
-    let mut cols: Vec<Vec<f64>> = vec![];
-    // A lag per sensor only where the training rows support one (see `blocks::lag_supported`).
-    let lag_cap: Vec<f64> = sens
-        .iter()
-        .map(|&si| {
-            let v: Vec<f64> = train_idx
-                .iter()
-                .map(|&i| input.sensors[si].values[i])
-                .collect();
-            let (episodes, longest_s) = crate::blocks::lag_support(&t_train, &v);
-            if episodes >= 2 {
-                f64::INFINITY
-            } else {
-                LAG_CAP_FRACTION * longest_s
-            }
-        })
-        .collect();
-    let lag_ok: Vec<bool> = lag_cap
-        .iter()
-        .map(|c| *c >= grid.get(1).copied().unwrap_or(f64::INFINITY))
-        .collect();
-    for (k, &si) in sens.iter().enumerate() {
-        for &tau in &grid {
-            if tau > lag_cap[k] {
-                continue;
-            }
-            let l = lag(&input.time_s, &input.sensors[si].values, tau);
-            cols.push(l.iter().map(|v| v - reference[k]).collect());
-            cands.push(Candidate::Sensor {
-                sensor: k,
-                tau_s: tau,
-            });
-        }
-    }
-    let forced: Vec<usize> = (0..input.forces.len())
-        .map(|f| {
-            cols.push(input.forces[f].values.clone());
-            cands.push(Candidate::Force { force: f });
-            cands.len() - 1
-        })
-        .collect();
-    let col_refs: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
-    let gs = GramSet::new(&col_refs, &input.target, &group_of_row, n_groups);
-    drop(cols);
-    let cand_of = |sensor: usize, tau: f64| {
-        cands
-            .iter()
-            .position(|c| *c == Candidate::Sensor { sensor, tau_s: tau })
-            .unwrap()
-    };
-    let max_sensors = opts.max_sensors.min(sens.len());
-    let all_allowed = sens.len() <= axcomp_core::MAX_SENSORS;
-
-    // ---- the candidate procedures: each makes all its own choices on the groups it is given ----
-    let plain_terms = || -> Vec<usize> {
-        let mut t = forced.clone();
-        t.extend((0..sens.len()).map(|s| cand_of(s, 0.0)));
-        t
-    };
-    let all_lags = |groups: &[usize]| -> Vec<usize> {
-        let mut t = plain_terms();
-        if opts.lags {
-            let cur = gs.cv_rms(&t, groups, 0.0);
-            select::improve_lags(&gs, &cands, &mut t, groups, cur);
-        }
-        t
-    };
-    let run_fcm = |groups: &[usize]| -> (select::FcmGra, Vec<usize>) {
-        let rows: Vec<usize> = train_idx
-            .iter()
-            .cloned()
-            .filter(|&i| group_of_row[i].is_some_and(|g| groups.contains(&g)))
-            .collect();
-        let series: Vec<Vec<f64>> = sens
-            .iter()
-            .map(|&si| rows.iter().map(|&r| input.sensors[si].values[r]).collect())
-            .collect();
-        let target: Vec<f64> = rows.iter().map(|&r| input.target[r]).collect();
-        let fg = select::fcm_gra(&series, &target, 6.min(max_sensors.max(2)));
-        let mut terms: Vec<usize> = forced.clone();
-        terms.extend(fg.selected.iter().map(|&s| cand_of(s, 0.0)));
-        if opts.lags {
-            let cur = gs.cv_rms(&terms, groups, 0.0);
-            select::improve_lags(&gs, &cands, &mut terms, groups, cur);
-        }
-        (fg, terms)
-    };
-    let run_forward =
-        |groups: &[usize]| select::forward(&gs, &cands, &forced, groups, max_sensors, 0.01);
-    let ridge_grid: Vec<f64> = (-6..=1).map(|e| 10f64.powi(e)).collect();
-    let choose_ridge = |terms: &[usize], groups: &[usize]| -> f64 {
-        let mut best = (ridge_grid[0], f64::INFINITY);
-        for &l in &ridge_grid {
-            let r = gs.cv_rms(terms, groups, l);
-            if r < best.1 {
-                best = (l, r);
-            }
-        }
-        best.0
-    };
-    let choose_enet = |terms: &[usize], groups: &[usize]| -> f64 {
-        let lmax = gs.enet_lambda_max(terms, groups, ENET_ALPHA);
-        let mut best = (lmax * 1e-4, f64::INFINITY);
-        for k in 1..=16 {
-            let l = lmax * 10f64.powf(-(k as f64) / 4.0);
-            let r = gs.cv_rms_enet(terms, groups, l, ENET_ALPHA);
-            if r < best.1 {
-                best = (l, r);
-            }
-        }
-        best.0
-    };
-    // One candidate's structure chosen on `groups`; `lagged` caches the all-sensors-with-lags terms.
-    let structure = |kind: Kind, groups: &[usize], lagged: &mut Option<Vec<usize>>| -> Structure {
-        let mut base = || lagged.get_or_insert_with(|| all_lags(groups)).clone();
-        match kind {
-            Kind::PlainLs => Structure::ls(plain_terms()),
-            Kind::AllLags => Structure::ls(base()),
-            Kind::Forward => Structure::ls(run_forward(groups).terms),
-            Kind::FcmGra => Structure::ls(run_fcm(groups).1),
-            Kind::Ridge => {
-                let t = base();
-                let l = choose_ridge(&t, groups);
-                Structure {
-                    terms: t,
-                    shrink: Shrink::Ridge(l),
-                }
-            }
-            Kind::ElasticNet => {
-                let t = base();
-                let l = choose_enet(&t, groups);
-                Structure {
-                    terms: t,
-                    shrink: Shrink::ElasticNet(l),
-                }
-            }
-        }
-    };
-    let sse_of = |s: &Structure, fit_groups: &[usize], g: usize| -> f64 {
-        let beta = match s.shrink {
-            Shrink::None => gs.fit(&s.terms, fit_groups, 0.0),
-            Shrink::Ridge(l) => gs.fit(&s.terms, fit_groups, l),
-            Shrink::ElasticNet(l) => gs.fit_enet(&s.terms, fit_groups, l, ENET_ALPHA),
-        };
-        beta.map_or(f64::INFINITY, |b| gs.sse(&s.terms, &b, g))
-    };
-
-    // ---- which candidates ----
-    let requested = opts.selection != Selection::Auto;
-    let kinds: Vec<Kind> = match opts.selection {
+/// The candidates of the default choice (or the one forced selection), and the reference kinds.
+fn kinds_for(opts: &ThermalOptions, d: &Design) -> Result<Vec<Kind>, ThermalError> {
+    let too_many = d.names.len() > d.sensor_limit;
+    Ok(match opts.selection {
         Selection::Auto => {
-            let mut k = vec![];
-            if all_allowed {
-                k.push(Kind::PlainLs);
-                if opts.lags {
-                    k.push(Kind::AllLags);
-                }
-                if opts.ridge == Ridge::Auto {
-                    k.push(Kind::Ridge);
-                    k.push(Kind::ElasticNet);
-                }
+            let mut k = vec![
+                Kind::PlainLs,
+                Kind::GreedyLags,
+                Kind::ForwardLags,
+                Kind::FcmGra,
+            ];
+            if opts.lags {
+                k.push(Kind::AllLags);
             }
-            k.push(Kind::Forward);
-            k.push(Kind::FcmGra);
+            if opts.ridge == Ridge::Auto {
+                k.push(Kind::Ridge);
+            }
+            if too_many {
+                k.push(Kind::PlainAll);
+            }
             k
         }
-        Selection::All if opts.lags => vec![Kind::AllLags],
+        Selection::All if too_many => {
+            return Err(ThermalError::Option(
+                "--select all: more usable sensors than the firmware takes (16)",
+            ));
+        }
         Selection::All => vec![Kind::PlainLs],
-        Selection::Forward => vec![Kind::Forward],
+        Selection::Forward => vec![Kind::ForwardLags],
         Selection::FcmGra => vec![Kind::FcmGra],
-    };
-    if requested && opts.selection == Selection::All && !all_allowed {
-        return Err(ThermalError::Option(
-            "--select all: more usable sensors than the firmware takes (16)",
-        ));
-    }
+    })
+}
 
-    // ---- transfer validation: each block predicted by candidates chosen and fitted without it ----
-    // Leave one block out: every block (a condition, or a heating / cooling run, or a part of one) is
-    // predicted by each candidate chosen and fitted on the other blocks only.
-    let folds: Vec<(Vec<usize>, usize)> = if requested {
-        vec![]
-    } else {
-        all_groups
-            .iter()
-            .map(|&g| (all_groups.iter().cloned().filter(|&h| h != g).collect(), g))
-            .collect()
-    };
-    let mut block_sse = vec![vec![0.0; folds.len()]; kinds.len()];
-    for (fi, (fit_groups, g)) in folds.iter().enumerate() {
-        let mut lagged = None;
-        for (ki, &kind) in kinds.iter().enumerate() {
-            let s = structure(kind, fit_groups, &mut lagged);
-            block_sse[ki][fi] = sse_of(&s, fit_groups, *g);
+/// The candidates, their validation, references and the decision.
+struct Chosen {
+    kinds: Vec<Kind>,
+    finals: Vec<Structure>,
+    validation: choice::Validation,
+    holdout: Vec<Option<f64>>,
+    chosen: usize,
+    why: String,
+}
+
+fn holdout_rms(d: &Design, s: &Structure, all: &[usize], held: &[usize]) -> Option<f64> {
+    if held.is_empty() {
+        return None;
+    }
+    let f = d.fit(s, all)?;
+    let sse: f64 = held
+        .iter()
+        .map(|&i| (d.y[i] - d.predict_row(s, &f, i)).powi(2))
+        .sum();
+    Some((sse / held.len() as f64).sqrt())
+}
+
+fn choose(p: &Prepared, d: &Design, opts: &ThermalOptions) -> Result<Chosen, ThermalError> {
+    let kinds = kinds_for(opts, d)?;
+    let all: Vec<usize> = d.order.clone();
+    let requested = opts.selection != Selection::Auto;
+    let validation = if requested {
+        choice::Validation {
+            folds: vec![],
+            sse: vec![vec![]; kinds.len()],
+            rows: vec![],
         }
-    }
-    let zeroed_sq = |g: usize| -> f64 {
-        train_idx
-            .iter()
-            .filter(|&&i| group_of_row[i] == Some(g))
-            .map(|&i| zeroed[i] * zeroed[i])
-            .sum()
-    };
-    let val_rows: usize = folds.iter().map(|(_, g)| gs.rows[*g]).sum();
-    let val_raw = if folds.is_empty() {
-        f64::NAN
     } else {
-        (folds.iter().map(|(_, g)| zeroed_sq(*g)).sum::<f64>() / val_rows as f64).sqrt()
+        d.validate(&kinds)
     };
-    let val_score: Vec<f64> = block_sse
+    let finals: Vec<Structure> = kinds.iter().map(|&k| d.structure(k, &all)).collect();
+    let held_idx: Vec<usize> = (0..p.n).filter(|&i| p.held[i]).collect();
+    let holdout = finals
         .iter()
-        .map(|v| {
-            if folds.is_empty() {
-                f64::NAN
-            } else {
-                (v.iter().sum::<f64>() / val_rows as f64).sqrt()
-            }
-        })
+        .map(|s| holdout_rms(d, s, &all, &held_idx))
         .collect();
-
-    // ---- every candidate's structure on all training rows ----
-    let mut lagged_all = None;
-    let finals: Vec<Structure> = kinds
-        .iter()
-        .map(|&k| structure(k, &all_groups, &mut lagged_all))
-        .collect();
-    let fg_detail = kinds
-        .contains(&Kind::FcmGra)
-        .then(|| run_fcm(&all_groups).0);
-    let fwd_final = kinds
-        .contains(&Kind::Forward)
-        .then(|| run_forward(&all_groups));
-    let describe = |terms: &[usize]| -> (Vec<String>, Vec<f64>) {
-        terms
+    let (chosen, why) = if requested {
+        (
+            0,
+            format!(
+                "requested {} (a forced selection: no comparison of candidates was run)",
+                kinds[0].name()
+            ),
+        )
+    } else {
+        // One regime among the training rows of a single recording: they cannot show how dropping
+        // collinear sensors transfers to another regime; plain least squares is the only eligible one.
+        let single_regime = !p.runs.per_run && !p.blocks.by_condition && p.blocks.regimes < 2;
+        let eligible: Vec<bool> = kinds
             .iter()
-            .filter_map(|&t| match cands[t] {
-                Candidate::Sensor { sensor, tau_s } => Some((sname(sensor), tau_s)),
-                _ => None,
+            .zip(&finals)
+            .map(|(&k, s)| {
+                k != Kind::PlainAll
+                    && d.sensors_in(s) <= d.sensor_limit
+                    && (!single_regime || matches!(k, Kind::PlainLs | Kind::AllLags))
             })
-            .unzip()
-    };
-    // Held-out RMS of each candidate as fitted on all training rows (reported, never used to choose).
-    let held_idx: Vec<usize> = (0..n).filter(|&i| held[i]).collect();
-    let cand_holdout = |s: &Structure| -> Option<f64> {
-        if held_idx.is_empty() {
-            return None;
-        }
-        let beta = match s.shrink {
-            Shrink::None => gs.fit(&s.terms, &all_groups, 0.0),
-            Shrink::Ridge(l) => gs.fit(&s.terms, &all_groups, l),
-            Shrink::ElasticNet(l) => gs.fit_enet(&s.terms, &all_groups, l, ENET_ALPHA),
-        }?;
-        let mut pred = vec![gs.y_mean + beta[0]; n];
-        for (j, &t) in s.terms.iter().enumerate() {
-            let (m, sd) = gs.col_stats[t];
-            let col: Vec<f64> = match cands[t] {
-                Candidate::Sensor { sensor, tau_s } => {
-                    lag(&input.time_s, &input.sensors[sens[sensor]].values, tau_s)
-                        .into_iter()
-                        .map(|v| v - reference[sensor])
-                        .collect()
-                }
-                Candidate::Force { force } => input.forces[force].values.clone(),
-            };
-            for &i in &held_idx {
-                pred[i] += beta[j + 1] * (col[i] - m) / sd;
-            }
-        }
-        let sse: f64 = held_idx
-            .iter()
-            .map(|&i| (input.target[i] - pred[i]).powi(2))
-            .sum();
-        Some((sse / held_idx.len() as f64).sqrt())
-    };
-    let mut candidates: Vec<CandidateReport> = kinds
-        .iter()
-        .zip(&finals)
-        .enumerate()
-        .map(|(ki, (&kind, s))| {
-            let (ss, ts) = describe(&s.terms);
-            CandidateReport {
-                name: kind.name().into(),
-                what: kind.what().into(),
-                sensors: ss,
-                tau_s: ts,
-                penalty: s.shrink.describe(),
-                validation_rms_um: val_score[ki],
-                validation_block_rms_um: folds
-                    .iter()
-                    .enumerate()
-                    .map(|(fi, (_, g))| (block_sse[ki][fi] / gs.rows[*g].max(1) as f64).sqrt())
-                    .collect(),
-                holdout_rms_um: cand_holdout(s),
-                eligible: true,
-                beats_reference: false,
-                chosen: false,
-            }
-        })
-        .collect();
-    // ---- the choice ----
-    // Eligibility: with a single regime among the training rows the validation cannot judge how a candidate
-    // transfers to another regime; the default then stays with the reference structure (every sensor, least
-    // squares, lags where the data support them) and the other candidates are reported only.
-    let single_regime = blocks.regimes < 2;
-    let eligible: Vec<bool> = kinds
-        .iter()
-        .map(|k| !single_regime || matches!(k, Kind::PlainLs | Kind::AllLags))
-        .collect();
-    // One-standard-error rule against the reference (plain least squares, the first candidate): another
-    // candidate is chosen only if its mean squared error over the predicted blocks is lower by more than one
-    // standard error of the per-block paired difference; then the lowest validation RMS among those wins.
-    let beats_reference = |k: usize| -> bool {
-        if k == 0 || folds.is_empty() {
-            return k == 0;
-        }
-        let d: Vec<f64> = folds
-            .iter()
-            .enumerate()
-            .map(|(fi, (_, g))| (block_sse[k][fi] - block_sse[0][fi]) / gs.rows[*g].max(1) as f64)
             .collect();
-        let b = d.len() as f64;
-        let mean = d.iter().sum::<f64>() / b;
-        let sd = if d.len() > 1 {
-            (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (b - 1.0)).sqrt()
-        } else {
-            f64::INFINITY
-        };
-        val_score[k] < val_score[0] && mean + sd / b.sqrt() < 0.0
-    };
-    let chosen_idx = if requested {
-        0
-    } else {
-        let mut best = 0;
-        for k in 1..kinds.len() {
-            if eligible[k] && beats_reference(k) && val_score[k] < val_score[best] {
-                best = k;
-            }
-        }
-        best
-    };
-    for (k, c) in candidates.iter_mut().enumerate() {
-        c.eligible = eligible[k];
-        c.beats_reference = beats_reference(k) && k != 0;
-    }
-    candidates[chosen_idx].chosen = true;
-    if requested {
-        // A forced selection compares nothing: no candidate table.
-        candidates.clear();
-    }
-    let chosen_kind = kinds[chosen_idx];
-    let chosen = finals[chosen_idx].clone();
-    let table = candidates
-        .iter()
-        .map(|c| format!("{} {:.4} µm", c.name, c.validation_rms_um))
-        .collect::<Vec<_>>()
-        .join(", ");
-    let why = if requested {
-        format!(
-            "requested {} (a forced selection: no comparison of candidates was run)",
-            chosen_kind.name()
-        )
-    } else {
-        format!(
-            "leave-one-block-out validation ({}; raw {val_raw:.4} µm): {table} → {}",
-            inner_groups,
-            chosen_kind.name()
-        )
-    };
-    let method_report = |kind: Kind, method: &str| -> MethodReport {
-        match kinds.iter().position(|&k| k == kind) {
-            Some(k) => {
-                let (sensors, tau_s) = describe(&finals[k].terms);
-                MethodReport {
-                    method: method.into(),
-                    sensors,
-                    tau_s,
-                    inner_cv_rms_um: gs.cv_rms(&finals[k].terms, &all_groups, 0.0),
-                    nested_cv_rms_um: val_score[k],
-                    ran: true,
-                }
-            }
-            None => MethodReport {
-                method: method.into(),
-                sensors: vec![],
-                tau_s: vec![],
-                inner_cv_rms_um: f64::NAN,
-                nested_cv_rms_um: f64::NAN,
-                ran: false,
+        let simple: Vec<bool> = kinds
+            .iter()
+            .map(|k| matches!(k, Kind::PlainLs | Kind::GreedyLags))
+            .collect();
+        let dec = choice::decide(&kinds, &validation, &eligible, &simple, 0);
+        let table = (0..kinds.len())
+            .map(|k| format!("{} {:.4} µm", kinds[k].name(), validation.rms(k)))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let why = format!(
+            "{} validation ({}): {table} → {}: {}",
+            if d.forward {
+                "forward"
+            } else {
+                "leave-one-condition-out"
             },
-        }
+            p.blocks.rule,
+            kinds[dec.chosen].name(),
+            dec.why
+        );
+        (dec.chosen, why)
     };
-    let rep_a = method_report(Kind::FcmGra, "fcm_gra");
-    let rep_b = method_report(Kind::Forward, "forward_cv");
-    let rep_c = all_allowed.then(|| {
-        if kinds.contains(&Kind::AllLags) {
-            method_report(Kind::AllLags, "all")
-        } else {
-            method_report(Kind::PlainLs, "all")
-        }
-    });
-    let forward_path = fwd_final
-        .as_ref()
-        .map(|fb| {
-            fb.steps
-                .iter()
-                .map(|s| match cands[s.candidate] {
-                    Candidate::Sensor { sensor, tau_s } => {
-                        (format!("{} (τ={:.0} s)", sname(sensor), tau_s), s.cv_rms)
-                    }
-                    Candidate::Force { force } => (input.forces[force].name.clone(), s.cv_rms),
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    let chosen_method = chosen_kind.method_name();
-    let terms = chosen.terms.clone();
+    Ok(Chosen {
+        kinds,
+        finals,
+        validation,
+        holdout,
+        chosen,
+        why,
+    })
+}
 
-    // ---- chosen structure: sensors + τ, refined ----
-    let mut sel: Vec<(usize, f64)> = terms
+fn describe(d: &Design, terms: &[usize]) -> (Vec<String>, Vec<f64>) {
+    terms
         .iter()
-        .filter_map(|&t| match cands[t] {
+        .filter_map(|&t| match d.cands[t] {
+            Candidate::Sensor { sensor, tau_s } => Some((d.names[sensor].clone(), tau_s)),
+            _ => None,
+        })
+        .unzip()
+}
+
+fn candidate_reports(d: &Design, c: &Chosen) -> Vec<CandidateReport> {
+    let plain = c.validation.rms(0);
+    (0..c.kinds.len())
+        .filter(|&k| c.kinds[k] != Kind::PlainAll)
+        .map(|k| {
+            let (sensors, tau_s) = describe(d, &c.finals[k].terms);
+            let n_sensors = sensors.len();
+            CandidateReport {
+                name: c.kinds[k].name().into(),
+                what: c.kinds[k].what().into(),
+                sensors,
+                tau_s,
+                penalty: if c.finals[k].ridge > 0.0 {
+                    format!("ridge λ = {:e}", c.finals[k].ridge)
+                } else {
+                    "none".into()
+                },
+                validation_rms_um: c.validation.rms(k),
+                validation_block_rms_um: c.validation.fold_rms(k),
+                holdout_rms_um: c.holdout[k],
+                n_sensors,
+                eligible: n_sensors <= d.sensor_limit,
+                beats_reference: k != 0 && c.validation.rms(k) < plain,
+                chosen: k == c.chosen,
+            }
+        })
+        .collect()
+}
+
+fn references(d: &Design, c: &Chosen) -> Vec<Reference> {
+    let pick = |kind: Kind| c.kinds.iter().position(|&k| k == kind);
+    let plain = pick(Kind::PlainAll).or(pick(Kind::PlainLs));
+    [(plain, "plain_ls"), (pick(Kind::GreedyLags), "greedy_lags")]
+        .into_iter()
+        .filter_map(|(k, name)| {
+            let k = k?;
+            let (sensors, tau_s) = describe(d, &c.finals[k].terms);
+            Some(Reference {
+                name: name.into(),
+                what: Kind::what(c.kinds[k]).into(),
+                sensors,
+                tau_s,
+                validation_rms_um: c.validation.rms(k),
+                holdout_rms_um: c.holdout[k],
+            })
+        })
+        .collect()
+}
+
+fn method_report(d: &Design, c: &Chosen, kind: Kind, method: &str) -> MethodReport {
+    match c.kinds.iter().position(|&k| k == kind) {
+        Some(k) => {
+            let (sensors, tau_s) = describe(d, &c.finals[k].terms);
+            MethodReport {
+                method: method.into(),
+                sensors,
+                tau_s,
+                inner_cv_rms_um: d.gs.cv_rms(&c.finals[k].terms, &d.order, 0.0),
+                nested_cv_rms_um: c.validation.rms(k),
+                ran: true,
+            }
+        }
+        None => MethodReport {
+            method: method.into(),
+            sensors: vec![],
+            tau_s: vec![],
+            inner_cv_rms_um: f64::NAN,
+            nested_cv_rms_um: f64::NAN,
+            ran: false,
+        },
+    }
+}
+
+/// The final model: the chosen structure, its lags refined, coefficients by least squares on the training
+/// rows. Returns the model, the design matrix's condition number and the VIFs.
+fn final_model(
+    p: &Prepared,
+    input: &ThermalInput,
+    d: &Design,
+    s: &Structure,
+    refine: bool,
+) -> Result<(ThermalModel, f64, Vec<(String, f64)>), ThermalError> {
+    let mut sel: Vec<(usize, f64)> = s
+        .terms
+        .iter()
+        .filter_map(|&t| match d.cands[t] {
             Candidate::Sensor { sensor, tau_s } => Some((sensor, tau_s)),
             _ => None,
         })
         .collect();
-    let column = |sensor: usize, tau: f64| -> Vec<f64> {
-        lag(&input.time_s, &input.sensors[sens[sensor]].values, tau)
-            .into_iter()
-            .map(|v| v - reference[sensor])
-            .collect()
-    };
-    let small_cv = |sel: &[(usize, f64)], lambda: f64| -> f64 {
-        let mut cs: Vec<Vec<f64>> = sel.iter().map(|&(s, t)| column(s, t)).collect();
-        for f in &input.forces {
-            cs.push(f.values.clone());
-        }
-        let refs: Vec<&[f64]> = cs.iter().map(|c| c.as_slice()).collect();
-        let g = GramSet::new(&refs, &input.target, &group_of_row, n_groups);
-        let all: Vec<usize> = (0..cs.len()).collect();
-        g.cv_rms(&all, &all_groups, lambda)
-    };
-    let refine_lambda = match chosen.shrink {
-        Shrink::Ridge(l) => Some(l),
-        Shrink::None => Some(0.0),
-        Shrink::ElasticNet(_) => None,
-    };
-    if let (true, Some(rl)) = (opts.lags, refine_lambda) {
-        // Golden-section search on log τ between the grid neighbours of each selected τ (> 0), objective the
-        // inner CV RMS; two coordinate sweeps (one sweep of 12 steps with more than 6 terms).
-        let brackets: Vec<Option<(f64, f64)>> = sel
-            .iter()
-            .map(|&(_, tau)| {
-                let pos = grid.iter().position(|g| *g == tau)?;
-                if tau <= 0.0 {
-                    return None;
-                }
-                let lo = if pos >= 2 { grid[pos - 1] } else { tau / 2.0 };
-                let hi = if pos + 1 < grid.len() {
-                    grid[pos + 1]
-                } else {
-                    tau * 2.0
-                };
-                Some((lo, hi))
-            })
-            .collect();
-        // Many terms: fewer changes and steps keep the fit fast. Each round searches every τ given the
-        // others and keeps the one change that helps most, so the result does not depend on the order of
-        // the sensor columns in the file (a sweep in file order did: up to 4× the held-out RMS on the
-        // Voron cooling phase with the sensor columns reversed).
-        let (sweeps, steps) = if sel.len() > 6 { (1, 12) } else { (2, 20) };
-        let mut cur = small_cv(&sel, rl);
-        for _ in 0..sweeps * sel.len() {
-            let mut best: Option<(usize, f64, f64)> = None;
-            for j in 0..sel.len() {
-                let Some((lo, hi)) = brackets[j] else {
-                    continue;
-                };
-                let mut f = |lt: f64| {
-                    let mut s2 = sel.clone();
-                    s2[j].1 = lt.exp();
-                    small_cv(&s2, rl)
-                };
-                let t = golden_min(&mut f, lo.ln(), hi.ln(), steps);
-                let r = f(t);
-                if r < best.map_or(cur, |b| b.2) {
-                    best = Some((j, t.exp(), r));
-                }
-            }
-            match best {
-                Some((j, tau, r)) => {
-                    sel[j].1 = tau;
-                    cur = r;
-                }
-                None => break,
-            }
-        }
+    if refine && p.grid.len() > 1 && sel.len() <= 8 {
+        refine_lags(p, input, &mut sel, s.ridge);
     }
-
-    // ---- ridge: the chosen candidate's own penalty; a forced selection takes --ridge as before ----
-    let lambda = match (chosen.shrink, opts.ridge) {
-        (Shrink::Ridge(l), _) => l,
-        (Shrink::ElasticNet(_), _) => 0.0,
-        (Shrink::None, Ridge::Off) => 0.0,
-        (Shrink::None, Ridge::Fixed(l)) => l,
-        (Shrink::None, Ridge::Auto) if !requested => 0.0,
-        (Shrink::None, Ridge::Auto) => {
-            let mut best = (0.0, small_cv(&sel, 0.0));
-            for e in -6..=1 {
-                let l = 10f64.powi(e);
-                let r = small_cv(&sel, l);
-                if r < best.1 {
-                    best = (l, r);
-                }
-            }
-            best.0
-        }
-    };
-
-    // ---- final coefficients by QR on the training rows ----
-    let full_cols: Vec<Vec<f64>> = sel
+    let cols: Vec<Vec<f64>> = sel
         .iter()
-        .map(|&(s, t)| column(s, t))
+        .map(|&(k, t)| p.sensor_rise(input, k, t))
         .chain(input.forces.iter().map(|f| f.values.clone()))
         .collect();
-    let p = full_cols.len() + 1;
-    let x = DMatrix::from_fn(train_idx.len(), p, |r, c| {
+    let x = DMatrix::from_fn(p.train_idx.len(), cols.len() + 1, |r, c| {
         if c == 0 {
             1.0
         } else {
-            full_cols[c - 1][train_idx[r]]
+            cols[c - 1][p.train_idx[r]]
         }
     });
-    let y_train: Vec<f64> = train_idx.iter().map(|&i| input.target[i]).collect();
-    let mut ls = lstsq(&x, &y_train, lambda, Some(0))?;
-    if let Shrink::ElasticNet(l) = chosen.shrink {
-        // Elastic-net coefficients on the same columns (standardized over the training rows).
-        let refs: Vec<&[f64]> = full_cols.iter().map(|c| c.as_slice()).collect();
-        let g = GramSet::new(&refs, &input.target, &group_of_row, n_groups);
-        let all: Vec<usize> = (0..full_cols.len()).collect();
-        if let Some(beta) = g.fit_enet(&all, &all_groups, l, ENET_ALPHA) {
-            let mut b0 = g.y_mean + beta[0];
-            for j in 0..full_cols.len() {
-                let (m, sd) = g.col_stats[j];
-                ls.coef[j + 1] = beta[j + 1] / sd;
-                b0 -= beta[j + 1] * m / sd;
-            }
-            ls.coef[0] = b0;
-        }
-    }
+    let y: Vec<f64> = p.train_idx.iter().map(|&i| p.y_fit[i]).collect();
+    let ls = lstsq(&x, &y, s.ridge, Some(0))?;
     let cond = condition_number(&x);
     let vifs = vif(&(0..sel.len())
         .map(|j| {
-            train_idx
+            p.train_idx
                 .iter()
-                .map(|&i| full_cols[j][i])
+                .map(|&i| cols[j][i])
                 .collect::<Vec<f64>>()
         })
         .collect::<Vec<_>>());
-    let vif_named: Vec<(String, f64)> = sel
-        .iter()
-        .enumerate()
-        .filter(|(j, _)| ls.coef[j + 1] != 0.0)
-        .map(|(j, &(s, _))| (sname(s), vifs[j]))
-        .collect();
     let model = ThermalModel {
         b0_um: ls.coef[0],
         terms: sel
             .iter()
             .enumerate()
-            .map(|(j, &(s, t))| SensorTerm {
-                sensor: sname(s),
-                reference_degc: reference[s],
+            .map(|(j, &(k, t))| SensorTerm {
+                sensor: d.names[k].clone(),
+                reference_degc: input.sensors[p.sens[k]].values[0],
                 tau_s: t,
                 coef_um_per_k: ls.coef[j + 1],
             })
-            // The elastic net can set a term exactly to 0: the firmware need not read that sensor.
-            .filter(|t| t.coef_um_per_k != 0.0)
             .collect(),
         forces: input
             .forces
@@ -1069,127 +614,225 @@ pub fn fit_thermal(
             })
             .collect(),
     };
-    let prediction = model
-        .predict(&input.time_s, &input.sensors, &input.forces)
-        .expect("model built from these columns");
-    let resid: Vec<f64> = input
-        .target
+    let vif_named = sel
         .iter()
-        .zip(&prediction)
-        .map(|(y, p)| y - p)
+        .enumerate()
+        .map(|(j, &(k, _))| (d.names[k].clone(), vifs[j]))
         .collect();
-    let pick = |v: &[f64], want_held: bool| -> Vec<f64> {
-        (0..n)
-            .filter(|&i| held[i] == want_held)
-            .map(|i| v[i])
-            .collect()
-    };
-    // Raw figures: the target minus its reference value (see `raw_reference_um`), one definition everywhere.
-    let train_raw = rms(&pick(&zeroed, false));
-    let train_rms = rms(&pick(&resid, false));
-    let (raw_rms, holdout_rms) = if input.holdout.is_some() {
-        (rms(&pick(&zeroed, true)), Some(rms(&pick(&resid, true))))
-    } else {
-        (rms(&zeroed), None)
-    };
-    let cv_rms = if cond_groups_ok {
-        Some(small_cv(&sel, lambda))
-    } else {
-        None
-    };
+    Ok((model, cond, vif_named))
+}
 
-    // ---- per condition ----
-    let mut per_condition = vec![];
-    match &input.conditions {
-        Some(c) => {
-            let mut labels: Vec<&String> = vec![];
-            for l in c {
-                if !labels.contains(&l) {
-                    labels.push(l);
-                }
-            }
-            for l in labels {
-                let rows: Vec<usize> = (0..n).filter(|&i| &c[i] == l).collect();
-                per_condition.push(ConditionResidual {
-                    condition: l.clone(),
-                    rows: rows.len(),
-                    held_out: rows.iter().all(|&i| held[i]),
-                    raw_rms_um: rms(&rows.iter().map(|&i| zeroed[i]).collect::<Vec<_>>()),
-                    rms_um: rms(&rows.iter().map(|&i| resid[i]).collect::<Vec<_>>()),
-                });
-            }
-        }
-        None => {
-            for (name, h) in [("training rows", false), ("held-out rows", true)] {
-                let r = pick(&resid, h);
-                if r.is_empty() {
-                    continue;
-                }
-                per_condition.push(ConditionResidual {
-                    condition: name.into(),
-                    rows: r.len(),
-                    held_out: h,
-                    raw_rms_um: rms(&pick(&zeroed, h)),
-                    rms_um: rms(&r),
-                });
-            }
+/// RMS per `--cv` condition, per run, or per training / held-out part.
+fn per_condition(input: &ThermalInput, p: &Prepared, resid: &[f64]) -> Vec<ConditionResidual> {
+    let labels: Vec<String> = match (&input.conditions, p.runs.per_run) {
+        (Some(c), _) => c.clone(),
+        (None, true) => p
+            .runs
+            .of_row
+            .iter()
+            .map(|&r| format!("run {}", p.runs.names[r]))
+            .collect(),
+        (None, false) => p
+            .held
+            .iter()
+            .map(|&h| if h { "held-out rows" } else { "training rows" }.to_string())
+            .collect(),
+    };
+    let mut order: Vec<&String> = vec![];
+    for l in &labels {
+        if !order.contains(&l) {
+            order.push(l);
         }
     }
+    order
+        .into_iter()
+        .map(|l| {
+            let rows: Vec<usize> = (0..p.n).filter(|&i| &labels[i] == l).collect();
+            ConditionResidual {
+                condition: l.clone(),
+                rows: rows.len(),
+                held_out: rows.iter().all(|&i| p.held[i]),
+                raw_rms_um: rms(&rows.iter().map(|&i| p.zeroed[i]).collect::<Vec<_>>()),
+                rms_um: rms(&rows.iter().map(|&i| resid[i]).collect::<Vec<_>>()),
+            }
+        })
+        .collect()
+}
 
-    // ---- do-no-harm guard ----
-    // Rule: with held-out rows, the model's RMS on them must be <= raw (the target minus its reference
-    // value) on them. Without held-out rows: the default's leave-one-block-out validation RMS must be <= raw
-    // over the same blocks (no candidate beats raw → refused); a forced selection's own leave-one-block-out
-    // RMS (structure fixed, coefficients refitted) must be <= raw on the training rows.
-    let val_note = if requested || folds.is_empty() {
-        String::new()
-    } else {
-        format!(
-            "; leave-one-block-out validation RMS {:.3} µm vs raw {val_raw:.3} µm",
-            val_score[chosen_idx]
-        )
-    };
-    let guard = match holdout_rms {
-        Some(h) => Guard {
-            passed: h <= raw_rms,
-            basis: "held-out rows".into(),
-            reason: if h <= raw_rms {
-                format!("held-out RMS {h:.3} µm <= raw {raw_rms:.3} µm{val_note}")
-            } else {
-                format!(
-                    "held-out RMS {h:.3} µm is worse than raw {raw_rms:.3} µm (no compensation){val_note}"
-                )
-            },
+/// The do-no-harm guard (module docs).
+fn do_no_harm(
+    holdout: Option<(f64, f64)>,
+    validation: Option<(f64, f64)>,
+    cv: Option<(f64, f64)>,
+    basis: &str,
+) -> Guard {
+    let verdict = |what: &str, got: f64, raw: f64, basis: String| Guard {
+        passed: got <= raw,
+        basis,
+        reason: if got <= raw {
+            format!("{what} RMS {got:.3} µm <= raw {raw:.3} µm")
+        } else {
+            format!("{what} RMS {got:.3} µm is worse than raw {raw:.3} µm (no compensation)")
         },
-        None if !requested && !folds.is_empty() => {
-            let v = val_score[chosen_idx];
-            Guard {
-                passed: v <= val_raw,
-                basis: format!("leave-one-block-out validation over {inner_groups}"),
-                reason: if v <= val_raw {
-                    format!("validation RMS {v:.3} µm <= raw {val_raw:.3} µm")
-                } else {
-                    format!(
-                        "no candidate beats raw in the leave-one-block-out validation (best {v:.3} µm, raw \
-                         {val_raw:.3} µm)"
-                    )
-                },
-            }
-        }
-        None => {
-            let cvr = cv_rms.unwrap_or_else(|| small_cv(&sel, lambda));
-            Guard {
-                passed: cvr <= train_raw,
-                basis: inner_groups.clone(),
-                reason: if cvr <= train_raw {
-                    format!("cross-validated RMS {cvr:.3} µm <= raw {train_raw:.3} µm")
-                } else {
-                    format!("cross-validated RMS {cvr:.3} µm is worse than raw {train_raw:.3} µm")
-                },
-            }
-        }
     };
+    match (holdout, validation, cv) {
+        (Some((h, raw)), v, _) => {
+            let mut g = verdict("held-out", h, raw, "held-out rows".into());
+            if let Some((v, vr)) = v {
+                g.reason += &format!("; forward-validation RMS {v:.3} µm vs raw {vr:.3} µm");
+            }
+            g
+        }
+        (None, Some((v, raw)), _) => verdict(
+            "forward-validation",
+            v,
+            raw,
+            format!("forward validation over {basis}"),
+        ),
+        (None, None, Some((c, raw))) => verdict("cross-validated", c, raw, basis.into()),
+        (None, None, None) => Guard {
+            passed: true,
+            basis: "none".into(),
+            reason: "nothing to judge the model on (too few groups and no held-out rows)".into(),
+        },
+    }
+}
 
+/// Fits a thermo-force model (see the module docs and [`crate::choice`] for the procedure).
+pub fn fit_thermal(
+    input: &ThermalInput,
+    opts: &ThermalOptions,
+) -> Result<ThermalFit, ThermalError> {
+    let opts = opts.build()?;
+    check(input)?;
+    let p = Prepared::new(input, &opts)?;
+    let d = p.design(input, &opts);
+    let c = choose(&p, &d, &opts)?;
+    let requested = opts.selection != Selection::Auto;
+    let mut chosen = c.finals[c.chosen].clone();
+    // A fixed --ridge λ applies to the chosen structure.
+    if let Ridge::Fixed(l) = opts.ridge {
+        chosen.ridge = l;
+    }
+    let chosen = &chosen;
+    // Lags are refined between grid points only in a single recording: with runs, the validated structure
+    // (grid lags) is the model.
+    let (model, cond, vif_named) = final_model(&p, input, &d, chosen, !p.runs.per_run)?;
+    let all: Vec<usize> = d.order.clone();
+    let bounds_all = d.bounds(&all);
+    let rise_bounds_k: Vec<(f64, f64)> = model
+        .terms
+        .iter()
+        .map(|t| {
+            bounds_all[d
+                .names
+                .iter()
+                .position(|n| *n == t.sensor)
+                .expect("model sensor")]
+        })
+        .collect();
+    let runs = if p.runs.per_run { Some(&p.runs) } else { None };
+    let (prediction, guarded) = crate::runs::predict_campaign(
+        &model,
+        Some(&rise_bounds_k),
+        &input.time_s,
+        &input.sensors,
+        &input.forces,
+        runs,
+    )
+    .expect("model built from these columns");
+    let resid: Vec<f64> = p
+        .y_fit
+        .iter()
+        .zip(&prediction)
+        .map(|(y, q)| y - q)
+        .collect();
+    let pick = |v: &[f64], h: bool| -> Vec<f64> {
+        (0..p.n).filter(|&i| p.held[i] == h).map(|i| v[i]).collect()
+    };
+    let train_raw = rms(&pick(&p.zeroed, false));
+    let train_rms = rms(&pick(&resid, false));
+    let (raw_rms, holdout_rms) = if input.holdout.is_some() {
+        (rms(&pick(&p.zeroed, true)), Some(rms(&pick(&resid, true))))
+    } else {
+        (rms(&p.zeroed), None)
+    };
+    let guarded_rows = (0..p.n).filter(|&i| p.held[i] && guarded[i]).count();
+    let val_rows: usize = c.validation.rows.iter().sum();
+    let val_raw = if val_rows == 0 {
+        f64::NAN
+    } else {
+        let sq: f64 = c
+            .validation
+            .folds
+            .iter()
+            .flat_map(|(_, g)| d.group_rows[*g].iter())
+            .map(|&i| p.zeroed[i].powi(2))
+            .sum();
+        (sq / val_rows as f64).sqrt()
+    };
+    let cv_rms = p
+        .blocks
+        .by_condition
+        .then(|| d.gs.cv_rms(&chosen.terms, &all, chosen.ridge));
+    let validation = (!requested && val_rows > 0).then(|| (c.validation.rms(c.chosen), val_raw));
+    let guard = do_no_harm(
+        holdout_rms.map(|h| (h, raw_rms)),
+        validation,
+        cv_rms
+            .or_else(|| Some(d.gs.cv_rms(&chosen.terms, &all, chosen.ridge)))
+            .map(|v| (v, train_raw)),
+        &p.blocks.rule,
+    );
+    let single_regime = !p.runs.per_run && !p.blocks.by_condition && p.blocks.regimes < 2;
+    let mut candidates = if requested {
+        vec![]
+    } else {
+        candidate_reports(&d, &c)
+    };
+    if single_regime {
+        candidates.iter_mut().for_each(|k| {
+            k.eligible &= k.name == Kind::PlainLs.name() || k.name == Kind::AllLags.name()
+        });
+    }
+    let references = if requested {
+        vec![]
+    } else {
+        references(&d, &c)
+    };
+    let rank_correlation = {
+        let pairs: Vec<(f64, f64)> = candidates
+            .iter()
+            .filter_map(|k| Some((k.validation_rms_um, k.holdout_rms_um?)))
+            .collect();
+        let (a, b): (Vec<f64>, Vec<f64>) = pairs.into_iter().unzip();
+        rank_correlation(&a, &b)
+    };
+    candidates
+        .iter_mut()
+        .for_each(|k| k.eligible &= k.name != Kind::PlainAll.name());
+    let fwd_final = c
+        .kinds
+        .contains(&Kind::ForwardLags)
+        .then(|| select::forward(&d.gs, &d.cands, &d.forced, &all, d.max_sensors, 0.01));
+    let forward_path = fwd_final
+        .map(|fb| {
+            fb.steps
+                .iter()
+                .map(|s| match d.cands[s.candidate] {
+                    Candidate::Sensor { sensor, tau_s } => {
+                        (format!("{} (τ={:.0} s)", d.names[sensor], tau_s), s.cv_rms)
+                    }
+                    Candidate::Force { force } => (input.forces[force].name.clone(), s.cv_rms),
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let lag_ok: Vec<bool> = p
+        .lag_cap
+        .iter()
+        .map(|cap| *cap >= p.grid.get(1).copied().unwrap_or(f64::INFINITY))
+        .collect();
     Ok(ThermalFit {
         sensors: model.terms.iter().map(|t| t.sensor.clone()).collect(),
         raw_rms_um: raw_rms,
@@ -1199,46 +842,56 @@ pub fn fit_thermal(
         train_rms_um: train_rms,
         formula: model.formula(),
         vif: vif_named,
-        model,
-        chosen_method: chosen_method.into(),
-        why,
-        fcm_gra: rep_a,
-        forward: rep_b,
-        all_sensors: rep_c,
-        fcm_gra_detail: fg_detail,
-        raw_reference_um: target_ref,
+        chosen_method: c.kinds[c.chosen].method_name().into(),
+        why: c.why.clone(),
+        fcm_gra: method_report(&d, &c, Kind::FcmGra, "fcm_gra"),
+        forward: method_report(&d, &c, Kind::ForwardLags, "forward_cv"),
+        all_sensors: (d.names.len() <= d.sensor_limit)
+            .then(|| method_report(&d, &c, Kind::PlainLs, "all")),
+        fcm_gra_detail: c.kinds.contains(&Kind::FcmGra).then(|| d.fcm_detail(&all)),
+        raw_reference_um: p.target_ref,
         candidates,
+        references,
+        runs: if p.runs.per_run {
+            p.runs.names.clone()
+        } else {
+            vec![]
+        },
+        rise_bounds_k,
+        guarded_rows,
         validation: ValidationReport {
             scheme: if requested {
                 "none (forced selection)".into()
+            } else if d.forward {
+                "forward in time".into()
             } else {
-                "leave one block out".into()
+                "leave one condition out".into()
             },
-            blocks: blocks.names.clone(),
-            rule: inner_groups.clone(),
-            predicted_blocks: folds
+            rule: p.blocks.rule.clone(),
+            blocks: p.blocks.names.clone(),
+            predicted_blocks: c
+                .validation
+                .folds
                 .iter()
-                .map(|(_, g)| blocks.names[*g].clone())
+                .map(|(_, g)| p.blocks.names[*g].clone())
                 .collect(),
             raw_rms_um: val_raw,
+            rank_correlation,
         },
         forward_path,
         condition_number: cond,
-        ridge_lambda: lambda,
+        ridge_lambda: chosen.ridge,
         lags: opts.lags,
-        lag_grid_s: grid,
-        lag_cap_s: lag_cap.clone(),
-        lag_supported: sens
-            .iter()
-            .map(|&si| input.sensors[si].name.clone())
-            .zip(lag_ok)
-            .collect(),
-        inner_groups,
-        per_condition,
-        excluded_sensors: excluded,
-        training_rows: train_idx.len(),
-        holdout_rows: n - train_idx.len(),
+        lag_grid_s: p.grid.clone(),
+        lag_cap_s: p.lag_cap.clone(),
+        lag_supported: d.names.iter().cloned().zip(lag_ok).collect(),
+        inner_groups: p.blocks.rule.clone(),
+        per_condition: per_condition(input, &p, &resid),
+        excluded_sensors: p.excluded.clone(),
+        training_rows: p.train_idx.len(),
+        holdout_rows: p.n - p.train_idx.len(),
         guard,
+        model,
         prediction,
     })
 }

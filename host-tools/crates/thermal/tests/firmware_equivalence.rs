@@ -20,6 +20,7 @@ fn firmware_replays_the_host_prediction() {
         target: d.error_um.clone(),
         conditions: Some(d.condition.iter().map(|c| c.to_string()).collect()),
         holdout: None,
+        runs: None,
     };
     let fit = fit_thermal(
         &input,

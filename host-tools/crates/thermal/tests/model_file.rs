@@ -16,6 +16,7 @@ fn input() -> ThermalInput {
         target: d.error_um.clone(),
         conditions: Some(d.condition.iter().map(|c| c.to_string()).collect()),
         holdout: Some(d.condition.iter().map(|&c| c == 1).collect()),
+        runs: None,
     }
 }
 

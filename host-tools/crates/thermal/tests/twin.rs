@@ -12,6 +12,7 @@ fn input(d: &axcomp_thermal::synth::SynthData, held_condition: usize) -> Thermal
         target: d.error_um.clone(),
         conditions: Some(d.condition.iter().map(|c| c.to_string()).collect()),
         holdout: Some(d.condition.iter().map(|&c| c == held_condition).collect()),
+        runs: None,
     }
 }
 
