@@ -778,3 +778,138 @@ fn guard_refusal_exits_3_and_a_forced_selection_runs_only_itself() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
 }
+
+const LATHE: &str = "data/real/thermal-lathe-imbd2025/runs.csv";
+
+/// The lathe campaign's spindle-on rows: (run per row, time_s, sensor columns, disp_x_um, disp_z_um).
+#[allow(clippy::type_complexity)]
+fn lathe_rows(path: &Path) -> (Vec<String>, Vec<f64>, Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
+    let (header, rows) = common::table(path);
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let on = col("spindle_on");
+    let rows: Vec<&Vec<String>> = rows.iter().filter(|r| r[on] == "1").collect();
+    let num = |r: &Vec<String>, c: usize| r[c].parse::<f64>().unwrap();
+    let sensor_cols: Vec<usize> = (0..header.len())
+        .filter(|&c| header[c].ends_with("_degC"))
+        .collect();
+    let run: Vec<String> = rows.iter().map(|r| r[col("run")].clone()).collect();
+    let time: Vec<f64> = rows.iter().map(|r| num(r, col("time_s"))).collect();
+    let sensors = sensor_cols
+        .iter()
+        .map(|&c| rows.iter().map(|r| num(r, c)).collect())
+        .collect();
+    let x = rows.iter().map(|r| num(r, col("disp_x_um"))).collect();
+    let z = rows.iter().map(|r| num(r, col("disp_z_um"))).collect();
+    (run, time, sensors, x, z)
+}
+
+/// `values` minus each run's first value.
+fn per_run_zeroed(run: &[String], values: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(values.len());
+    let mut v0 = 0.0;
+    for i in 0..values.len() {
+        if i == 0 || run[i] != run[i - 1] {
+            v0 = values[i];
+        }
+        out.push(values[i] - v0);
+    }
+    out
+}
+
+#[test]
+fn lathe_forward_split_default_below_raw_and_at_or_below_both_plain_references() {
+    // The real lathe campaign (25 runs from a cold start, 24 temperatures): fitted on the runs up to
+    // 20200730 (--runs run, spindle-on rows), judged on the later 9 runs. References computed here, in the
+    // same run: plain least squares on all 24 sensors' per-run rises (no lag, no guard) and greedy 4 sensors
+    // + lags, each fitted on the same rows. Each run's target and rises are zeroed at its first row; the lags
+    // restart at each run (its time restarts).
+    let Some(shared) = shared() else { return };
+    let dir = tmp_dir("lathe-forward");
+    let data = shared.join(LATHE);
+    let (run, time, sensors, x, z) = lathe_rows(&data);
+    let held: Vec<bool> = run.iter().map(|r| r.as_str() > "20200730").collect();
+    let rises: Vec<Vec<f64>> = sensors.iter().map(|s| per_run_zeroed(&run, s)).collect();
+    for (target, values) in [("disp_x_um", &x), ("disp_z_um", &z)] {
+        let y = per_run_zeroed(&run, values);
+        let j = dir.join(format!("{target}.json"));
+        let m = dir.join(format!("{target}.model.json"));
+        let (ok, out, err) = run_args(&[
+            "fit",
+            "thermal",
+            "--data",
+            data.to_str().unwrap(),
+            "--target",
+            target,
+            "--runs",
+            "run",
+            "--where",
+            "spindle_on=1",
+            "--holdout",
+            "run>=20200805",
+            "--json",
+            j.to_str().unwrap(),
+            "--out",
+            m.to_str().unwrap(),
+        ]);
+        assert!(ok, "{out}\n{err}");
+        let v = json(&j);
+        let h = v["holdout_rms_um"].as_f64().unwrap();
+        let raw = v["raw_rms_um"].as_f64().unwrap();
+        let plain = ls_holdout_rms(&rises, &y, &held);
+        let greedy = greedy_lags_holdout_rms(&time, &rises, &[], &y, &held);
+        println!(
+            "lathe forward split {target}: raw {raw:.2} µm, default {h:.2} µm ({}), plain LS {plain:.2}, \
+             greedy 4 + lags {greedy:.2}",
+            v["chosen_method"]
+        );
+        // Raw is the per-run zeroed target on the held-out rows (tolerance 1e-9 µm).
+        let raw_here = axcomp_thermal::stats::rms_masked(&y, &held);
+        assert!((raw - raw_here).abs() < 1e-9, "raw {raw} vs {raw_here}");
+        assert!(
+            h < 0.75 * raw,
+            "{target}: default {h} not well below raw {raw}"
+        );
+        assert!(h <= plain, "{target}: default {h} > plain LS {plain}");
+        assert!(
+            h <= greedy,
+            "{target}: default {h} > greedy + lags {greedy}"
+        );
+        assert_eq!(v["runs"].as_array().map(|r| r.len()), Some(25));
+        assert!(v["references"].as_array().is_some_and(|r| r.len() == 2));
+        // predict applies the model file's per-run references: its RMS on the held-out runs is the fit's.
+        let p = dir.join(format!("{target}.pred.csv"));
+        let (ok, out, err) = run_args(&[
+            "predict",
+            "--model",
+            m.to_str().unwrap(),
+            "--data",
+            data.to_str().unwrap(),
+            "--where",
+            "spindle_on=1",
+            "--out",
+            p.to_str().unwrap(),
+        ]);
+        assert!(ok, "{out}\n{err}");
+        let (hdr, rows) = common::table(&p);
+        let pc = hdr
+            .iter()
+            .position(|c| *c == format!("pred_{target}"))
+            .unwrap();
+        let tc = hdr.iter().position(|c| c == target).unwrap();
+        let rc = hdr.iter().position(|c| c == "run").unwrap();
+        let res: Vec<f64> = rows
+            .iter()
+            .filter(|r| r[rc].as_str() > "20200730")
+            .map(|r| r[tc].parse::<f64>().unwrap() - r[pc].parse::<f64>().unwrap())
+            .collect();
+        let pr = axcomp_thermal::stats::rms(&res);
+        assert!(
+            (pr - h).abs() < 1e-6,
+            "{target}: predict {pr} vs fit {h} (tolerance 1e-6 µm)"
+        );
+    }
+}
+
+fn run_args(args: &[&str]) -> (bool, String, String) {
+    run(args)
+}
