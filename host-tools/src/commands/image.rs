@@ -1103,12 +1103,7 @@ fn rotary_from_args(args: &GroupArgs) -> anyhow::Result<Option<RotaryLocationSpe
         );
     }
     if v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
-        let model: RtestModel = serde_json::from_value(v).with_context(|| {
-            format!(
-                "--rotary {}: not a valid `fit rtest` model file",
-                path.display()
-            )
-        })?;
+        let model = RtestModel::from_json(text, &format!("--rotary {}", path.display()))?;
         let pivot = args.pivot_counts.as_deref().with_context(|| {
             format!(
                 "--rotary {}: a `fit rtest` model needs --pivot-counts X,Y,Z (the counts of the R-test frame's origin)",

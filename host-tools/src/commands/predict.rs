@@ -145,8 +145,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let p = args.model.display().to_string();
             let text = std::fs::read_to_string(&args.model)
                 .with_context(|| format!("{p}: cannot read"))?;
-            let model: axcomp_rtest::RtestModel = serde_json::from_str(&text)
-                .with_context(|| format!("{p}: not an R-test model file"))?;
+            let model = axcomp_rtest::RtestModel::from_json(&text, &p)?;
             predict_rtest(&model, &mut ds)?
         }
         ModelKind::ForceLaw => {
@@ -155,6 +154,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .with_context(|| format!("{p}: cannot read"))?;
             let law: ModelForceLaw = serde_json::from_str(&text)
                 .with_context(|| format!("{p}: not a force-law file (k, x_ap, y_fz, z_n)"))?;
+            check_force_law(&law).map_err(|why| anyhow::anyhow!("{p}: {why}"))?;
             let v: serde_json::Value = serde_json::from_str(&text)?;
             let column = v["provenance"]["target"].as_str();
             predict_force_law(&law, column, &mut ds)?
@@ -379,6 +379,26 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Ve
         out.push(v);
     }
     Ok(out)
+}
+
+/// A force law's terms are finite, `k` of plausible size and the exponents within ±100 (a fitted law
+/// has exponents near 1; beyond, the power overflows on ordinary process values).
+fn check_force_law(law: &ModelForceLaw) -> Result<(), String> {
+    let terms = [
+        ("k", law.k, 1e12),
+        ("x_ap", law.x_ap, 100.0),
+        ("y_fz", law.y_fz, 100.0),
+        ("z_n", law.z_n, 100.0),
+    ];
+    match terms
+        .iter()
+        .find(|(_, v, max)| !(v.is_finite() && v.abs() <= *max))
+    {
+        Some((name, v, max)) => Err(format!(
+            "force law term `{name}` is {v}, not a finite number within ±{max}"
+        )),
+        None => Ok(()),
+    }
 }
 
 /// A process parameter of a force law (`ap_mm`, `fz_mm`, the speed): a negative or non-finite value is an

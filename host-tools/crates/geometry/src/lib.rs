@@ -88,6 +88,12 @@ pub enum GeometryError {
     },
     #[error("{source_name}: not a geometry model: {reason}")]
     BadModel { source_name: String, reason: String },
+    #[error("{source_name}: not a valid geometry model: {entry}: {reason}")]
+    BadModelEntry {
+        source_name: String,
+        entry: String,
+        reason: String,
+    },
     #[error("{0}")]
     Kinematics(#[from] axcomp_kinematics::KinematicsError),
     #[error("{what}: {cause}")]
