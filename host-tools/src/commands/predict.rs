@@ -84,8 +84,13 @@ pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
     let v: serde_json::Value = serde_json::from_str(text)
         .with_context(|| format!("{}: not a JSON model file", path.display()))?;
     let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
-    if format.is_empty() && v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
-        return Ok(ModelKind::Rtest);
+    match v.get("kind").and_then(|k| k.as_str()) {
+        Some("rtest") if format.is_empty() => return Ok(ModelKind::Rtest),
+        Some(kind) if format.is_empty() => bail!(
+            "{}: model kind `{kind}` is not one this reader knows (an R-test model has \"kind\": \"rtest\")",
+            path.display()
+        ),
+        _ => {}
     }
     if format.is_empty()
         && ["k", "x_ap", "y_fz", "z_n"]

@@ -1,0 +1,202 @@
+//! Hostile inputs to the R-test system (`fit rtest`, `predict` and `image group --rotary` on its model
+//! file; contract: `shared/spec/interfaces.md`, "Location errors of a five-axis machine's rotary axes").
+//! Each test failed before its fix. The data are the twin's (`axcomp sim --machine`).
+
+use std::path::Path;
+
+use proptest::prelude::*;
+use serde_json::Value;
+
+mod common;
+use common::{axcomp_in, fails_untouched_naming, read_json, scratch};
+
+fn ok(o: &std::process::Output) -> String {
+    assert!(
+        o.status.success(),
+        "axcomp failed: {}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The twin's AC-trunnion R-test rows (`dir/rt.csv`) and the fit's model (`dir/rm.json`).
+fn rows_and_model(dir: &Path) {
+    ok(&axcomp_in(
+        &["sim", "--machine", "ac-trunnion", "--out", "rt.csv"],
+        dir,
+    ));
+    ok(&axcomp_in(
+        &["fit", "rtest", "--data", "rt.csv", "--out", "rm.json"],
+        dir,
+    ));
+}
+
+fn write_json(path: &Path, v: &Value) {
+    std::fs::write(path, serde_json::to_string_pretty(v).unwrap()).unwrap();
+}
+
+fn entry(model: &Value, name: &str) -> usize {
+    model["location_errors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|e| e[0] == name)
+        .unwrap()
+}
+
+/// Two location errors swapped, each keeping its name with its value: before the fix `predict` took
+/// them by position (EY0C's value as EX0C's, predictions off by tens of µm) and exited 0. Now the
+/// prediction is the unswapped model's, to the byte.
+#[test]
+fn swapped_location_errors_are_read_by_name() {
+    let dir = scratch("swap");
+    rows_and_model(&dir);
+    let mut m = read_json(&dir.join("rm.json"));
+    let (a, b) = (entry(&m, "EX0C"), entry(&m, "EA0C"));
+    m["location_errors"].as_array_mut().unwrap().swap(a, b);
+    write_json(&dir.join("swapped.json"), &m);
+    for (model, out) in [("rm.json", "p0.csv"), ("swapped.json", "p1.csv")] {
+        ok(&axcomp_in(
+            &[
+                "predict", "--model", model, "--data", "rt.csv", "--out", out,
+            ],
+            &dir,
+        ));
+    }
+    let p0 = std::fs::read(dir.join("p0.csv")).unwrap();
+    let p1 = std::fs::read(dir.join("p1.csv")).unwrap();
+    assert!(p0 == p1, "the swapped model predicts differently");
+}
+
+/// A name twice, a name of another machine kind (EX0B on an AC trunnion), a 1e300 value, a missing
+/// entry and a kind the reader does not know: before the fix `predict` accepted each (the first two
+/// by position, 1e300 as a prediction of 1e300). Now exit 2 naming the file and the entry.
+#[test]
+fn malformed_location_errors_are_refused_naming_the_entry() {
+    let dir = scratch("entries");
+    rows_and_model(&dir);
+    let m = read_json(&dir.join("rm.json"));
+    let a = entry(&m, "EX0C");
+    let b = entry(&m, "EY0C");
+    let mut twice = m.clone();
+    twice["location_errors"][a] = m["location_errors"][b].clone();
+    let mut other = m.clone();
+    other["location_errors"][a][0] = "EX0B".into();
+    let mut huge = m.clone();
+    huge["location_errors"][a][1]["value"] = serde_json::json!(1e300);
+    let mut missing = m.clone();
+    missing["location_errors"].as_array_mut().unwrap().remove(a);
+    let mut kind = m.clone();
+    kind["kind"] = "rtest2".into();
+    let cases = [
+        ("twice.json", twice, vec!["EY0C", "twice"]),
+        ("other.json", other, vec!["EX0B", "ac-trunnion"]),
+        ("huge.json", huge, vec!["EX0C", "1e300"]),
+        ("missing.json", missing, vec!["missing EX0C"]),
+        ("kind.json", kind, vec!["rtest2"]),
+    ];
+    for (name, v, mut needles) in cases {
+        write_json(&dir.join(name), &v);
+        needles.push(name);
+        fails_untouched_naming(
+            &[
+                "predict", "--model", name, "--data", "rt.csv", "--out", "p.csv",
+            ],
+            &dir,
+            &needles,
+        );
+    }
+}
+
+/// A mutation of a model file's `location_errors`.
+#[derive(Debug, Clone)]
+enum Mutation {
+    Swap(usize, usize),
+    Duplicate(usize, usize),
+    Drop(usize),
+    Poison(usize, f64),
+    Rename(usize, usize),
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    let i = 0usize..11;
+    prop_oneof![
+        (i.clone(), i.clone()).prop_map(|(a, b)| Mutation::Swap(a, b)),
+        (i.clone(), i.clone()).prop_map(|(a, b)| Mutation::Duplicate(a, b)),
+        i.clone().prop_map(Mutation::Drop),
+        (
+            i.clone(),
+            prop_oneof![Just(1e300), Just(-1e300), Just(1e12), Just(f64::NAN)]
+        )
+            .prop_map(|(a, v)| Mutation::Poison(a, v)),
+        (i.clone(), i).prop_map(|(a, b)| Mutation::Rename(a, b)),
+    ]
+}
+
+/// Applies `m` (indices wrap round the entries left); true when the result is a pure reordering.
+fn apply(model: &mut Value, m: &Mutation) -> bool {
+    let e = model["location_errors"].as_array_mut().unwrap();
+    let n = e.len();
+    match *m {
+        Mutation::Swap(a, b) => {
+            e.swap(a % n, b % n);
+            true
+        }
+        Mutation::Duplicate(a, b) => {
+            e[b % n] = e[a % n].clone();
+            a % n == b % n
+        }
+        Mutation::Drop(a) => {
+            e.remove(a % n);
+            false
+        }
+        Mutation::Poison(a, v) => {
+            e[a % n][1]["value"] = if v.is_nan() {
+                Value::Null
+            } else {
+                serde_json::json!(v)
+            };
+            false
+        }
+        Mutation::Rename(a, b) => {
+            let name = e[b % n][0].clone();
+            e[a % n][0] = name;
+            a % n == b % n
+        }
+    }
+}
+
+fn predictions(text: &str, rows: &axcomp_data::Dataset) -> Option<Vec<[f64; 3]>> {
+    let model = axcomp_rtest::RtestModel::from_json(text, "rm.json").ok()?;
+    Some(axcomp_rtest::predict_rows(&model, rows).expect("the rows predict"))
+}
+
+/// Model files mutated (location errors swapped, duplicated, dropped, renamed; 1e300, 1e12 or null
+/// values): the reader never panics, and a model it accepts predicts exactly what the unmutated one
+/// does (only a pure reordering may be accepted). Before the fix a swap changed the predictions.
+#[test]
+fn mutated_models_never_panic_nor_predict_differently() {
+    let dir = scratch("prop");
+    rows_and_model(&dir);
+    let text = std::fs::read_to_string(dir.join("rm.json")).unwrap();
+    let original: Value = serde_json::from_str(&text).unwrap();
+    let rows = axcomp_data::Dataset::load(&dir.join("rt.csv"), &Default::default()).unwrap();
+    let reference = predictions(&text, &rows).expect("the fitted model reads");
+    let config = ProptestConfig {
+        cases: 128,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    };
+    proptest!(config, |(ms in proptest::collection::vec(mutation(), 1..4))| {
+        let mut v = original.clone();
+        let mut reordering = true;
+        for m in &ms {
+            reordering &= apply(&mut v, m);
+        }
+        match predictions(&v.to_string(), &rows) {
+            Some(p) => prop_assert!(p == reference, "{ms:?} accepted with other predictions"),
+            None => prop_assert!(!reordering, "{ms:?} is a reordering and was refused"),
+        }
+    });
+}
