@@ -296,3 +296,123 @@ fn mutated_models_never_panic_nor_predict_differently() {
         }
     });
 }
+
+/// `--out model.json --json fit.json` where model.json is a link to fit.json: before the fix both
+/// outputs passed the check (different names) and fit.json ended up holding the model, exit 0. Now
+/// exit 2 naming both, nothing written.
+#[cfg(unix)]
+#[test]
+fn two_outputs_that_are_one_file_through_a_link_are_refused() {
+    let dir = scratch("link");
+    lines_and_model(&dir);
+    std::fs::write(dir.join("fit.json"), "{}\n").unwrap();
+    std::os::unix::fs::symlink("fit.json", dir.join("m.json")).unwrap();
+    fails_untouched_naming(
+        &[
+            "fit",
+            "geometry",
+            "--data",
+            "lines.csv",
+            "--out",
+            "m.json",
+            "--json",
+            "fit.json",
+        ],
+        &dir,
+        &["m.json", "fit.json", "same file"],
+    );
+}
+
+/// An output inside a folder the command writes whole: `--report rep --out rep/report.md` (before:
+/// the report overwrote the model, exit 0), `--export tab --json tab/EXX.csv` (the table overwrote
+/// the JSON) and an output reaching the folder through a link. Now exit 2 naming the output and the
+/// folder's option, nothing written.
+#[cfg(unix)]
+#[test]
+fn an_output_inside_a_folder_the_command_writes_is_refused() {
+    let dir = scratch("inside");
+    lines_and_model(&dir);
+    std::fs::create_dir(dir.join("tab")).unwrap();
+    std::os::unix::fs::symlink("tab", dir.join("alias")).unwrap();
+    let cases: [(&[&str], &str); 3] = [
+        (
+            &["--report", "rep", "--out", "rep/report.md"],
+            "rep/report.md",
+        ),
+        (&["--export", "tab", "--json", "tab/EXX.csv"], "tab/EXX.csv"),
+        (
+            &["--export", "tab", "--out", "alias/m.json"],
+            "alias/m.json",
+        ),
+    ];
+    for (extra, path) in cases {
+        let mut args = vec!["fit", "geometry", "--data", "lines.csv"];
+        args.extend_from_slice(extra);
+        fails_untouched_naming(&args, &dir, &[path, extra[0]]);
+    }
+}
+
+/// A second `--export` into the same folder: before the fix the first fit's component tables that the
+/// second fit does not write (the four components the seven-line plan cannot identify) stayed, and
+/// the folder held a mix of two models. Now the folder holds the second export only; a file of the
+/// user's in it stays.
+#[test]
+fn a_second_export_leaves_no_table_of_the_first() {
+    let dir = scratch("stale");
+    lines_and_model(&dir);
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "geometry",
+            "--data",
+            "lines.csv",
+            "--method",
+            "plain",
+            "--export",
+            "tables",
+        ],
+        &dir,
+    ));
+    assert!(
+        dir.join("tables/ECZ.csv").is_file(),
+        "the full plan identifies ECZ"
+    );
+    std::fs::write(dir.join("tables/notes.txt"), "mine").unwrap();
+    ok(&axcomp_in(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--simulate",
+            "seven.csv",
+            "--twin-plan",
+            "seven-line",
+        ],
+        &dir,
+    ));
+    ok(&axcomp_in(
+        &[
+            "fit",
+            "geometry",
+            "--data",
+            "seven.csv",
+            "--method",
+            "plain",
+            "--export",
+            "tables",
+        ],
+        &dir,
+    ));
+    for gone in ["ECY.csv", "EAZ.csv", "EBZ.csv", "ECZ.csv"] {
+        assert!(
+            !dir.join("tables").join(gone).exists(),
+            "{gone} of the first export left"
+        );
+    }
+    assert!(dir.join("tables/EXX.csv").is_file());
+    assert_eq!(
+        std::fs::read_to_string(dir.join("tables/notes.txt")).unwrap(),
+        "mine"
+    );
+}

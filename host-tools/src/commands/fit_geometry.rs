@@ -126,8 +126,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for p in [&a.json, &a.out].into_iter().flatten() {
         outputs.planned(p);
     }
-    for d in [&a.export, &a.report].into_iter().flatten() {
-        outputs.dir(d);
+    if let Some(d) = &a.export {
+        outputs.folder(d, "--export");
+    }
+    if let Some(d) = &a.report {
+        outputs.folder(d, "--report");
     }
     outputs.check()?;
     let (data, an) = analyse_args(&a)?;
@@ -151,12 +154,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     if let Some(dir) = &a.export {
         for (name, text) in axcomp_geometry::export::export_files(&an.fit.model, a.export_step) {
-            outputs.file(dir.join(name), text);
+            outputs.folder_file(dir, &name, text);
         }
     }
     if let Some(dir) = &a.report {
         for (name, text) in axcomp_geometry::report::report_files(&data, &an) {
-            outputs.file(dir.join(name), text);
+            outputs.folder_file(dir, &name, text);
         }
     }
     outputs.commit()?;

@@ -132,9 +132,9 @@ fn planned_outputs(args: &Args) -> OutputSet {
         set.planned(p);
     }
     if let Some(dir) = &args.report {
-        set.dir(dir);
+        set.folder(dir, "--report");
         for name in REPORT_FILES {
-            set.planned(dir.join(name));
+            set.planned_in(dir, name);
         }
     }
     if let Some(p) = &args.json {
@@ -184,7 +184,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         for (name, bytes) in report_files(&args, &outcome) {
-            outputs.file(dir.join(name), bytes);
+            outputs.folder_file(dir, name, bytes);
         }
     }
     if let Some(path) = &args.json {

@@ -244,7 +244,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
-        outputs.dir(dir);
+        outputs.folder(dir, "--report");
         for name in [
             "residual_map.svg",
             "residual_map_plain.svg",
@@ -252,7 +252,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "diameter_error.svg",
             "report.md",
         ] {
-            outputs.planned(dir.join(name));
+            outputs.planned_in(dir, name);
         }
     }
     for p in [&args.centres_out, &args.out, &args.json]
@@ -768,8 +768,8 @@ fn write_report(
     }
     after.hline(0.0, "");
     before.hline(0.0, "");
-    outputs.file(dir.join("residual_map.svg"), after.to_svg());
-    outputs.file(dir.join("residual_map_plain.svg"), before.to_svg());
+    outputs.folder_file(dir, "residual_map.svg", after.to_svg());
+    outputs.folder_file(dir, "residual_map_plain.svg", before.to_svg());
 
     // Pretravel versus speed: measured (stylus radius − |p − C| + R) per touch, model at a few directions.
     let mut pv = Figure::new(
@@ -809,7 +809,7 @@ fn write_report(
             .collect();
         pv.dashed(&format!("model az {az}° el {el}°"), &feeds, &ys);
     }
-    outputs.file(dir.join("pretravel_speed.svg"), pv.to_svg());
+    outputs.folder_file(dir, "pretravel_speed.svg", pv.to_svg());
 
     // Diameter error by speed on the evaluation rows: before, reference, after.
     let mut speeds: Vec<f64> = eval_touches.iter().map(|t| t.feed_mm_min).collect();
@@ -860,7 +860,7 @@ fn write_report(
         dfig.line(name, &xs, ys);
     }
     dfig.hline(0.0, "");
-    outputs.file(dir.join("diameter_error.svg"), dfig.to_svg());
+    outputs.folder_file(dir, "diameter_error.svg", dfig.to_svg());
 
     let de = &report["diameter_error_um"];
     let num = |v: &serde_json::Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:+.3}"));
@@ -949,7 +949,7 @@ fn write_report(
          the azimuth of its surface normal, one series per elevation ring.\n\n![after](residual_map.svg)\n\n\
          ![plain](residual_map_plain.svg)\n\n## Pretravel versus speed\n\n![pretravel](pretravel_speed.svg)"
     );
-    outputs.file(dir.join("report.md"), md);
+    outputs.folder_file(dir, "report.md", md);
     Ok(())
 }
 

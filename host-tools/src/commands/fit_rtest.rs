@@ -146,7 +146,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
-        outputs.dir(dir);
+        outputs.folder(dir, "--report");
     }
     for p in [&args.json, &args.out].into_iter().flatten() {
         outputs.planned(p);
@@ -172,7 +172,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let model = RtestModel::from_fit(&data, &a.fit);
     if let Some(dir) = &args.report {
         for (name, text) in report_files(&a, &data) {
-            outputs.file(dir.join(name), text);
+            outputs.folder_file(dir, &name, text);
         }
     }
     if let Some(p) = &args.json {
