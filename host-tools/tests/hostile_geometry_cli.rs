@@ -416,3 +416,91 @@ fn a_second_export_leaves_no_table_of_the_first() {
         "mine"
     );
 }
+
+/// Rewrites `dir/lines.csv` into `dir/NAME` with `f(row index, deviation)` as each deviation.
+fn rewrite_deviations(dir: &Path, name: &str, f: impl Fn(usize, f64) -> String) {
+    let (header, mut rows) = common::table(&dir.join("lines.csv"));
+    let i = header.iter().position(|h| h == "deviation_um").unwrap();
+    for (k, r) in rows.iter_mut().enumerate() {
+        r[i] = f(k, r[i].parse().unwrap());
+    }
+    common::write_table(&dir.join(name), &header, &rows);
+}
+
+/// One typed-in 5000 µm reading among laser lines, and every reading ×1000 (nm taken for µm): before
+/// the fix both were fitted silently (volumetric error ×8, "after" figures worse than before). Now a
+/// warning naming the file and the line of the reading (the fit goes on), and `--strict` refuses the
+/// data (exit 2, nothing written).
+#[test]
+fn implausible_readings_warn_and_strict_refuses() {
+    let dir = scratch("plausible");
+    lines_and_model(&dir);
+    rewrite_deviations(&dir, "typo.csv", |k, v| {
+        if k == 40 {
+            "5000".into()
+        } else {
+            v.to_string()
+        }
+    });
+    rewrite_deviations(&dir, "nm.csv", |_, v| (v * 1000.0).to_string());
+    // Row 40 is on file line 42 (the header is line 1).
+    let cases = [
+        ("typo.csv", vec!["typo.csv", "line 42", "neighbours"]),
+        ("nm.csv", vec!["nm.csv", "nm"]),
+    ];
+    for (file, needles) in cases {
+        let o = axcomp_in(
+            &["fit", "geometry", "--data", file, "--method", "plain"],
+            &dir,
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        for n in &needles {
+            assert!(
+                err.contains("warning") && err.contains(n),
+                "{file}: must name {n}: {err}"
+            );
+        }
+        fails_untouched_naming(
+            &[
+                "fit", "geometry", "--data", file, "--method", "plain", "--strict", "--out",
+                "s.json",
+            ],
+            &dir,
+            &[file, "--strict"],
+        );
+    }
+    // The twin's own lines raise no warning.
+    let o = axcomp_in(
+        &[
+            "fit",
+            "geometry",
+            "--data",
+            "lines.csv",
+            "--method",
+            "plain",
+        ],
+        &dir,
+    );
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("warning"));
+}
+
+/// A single 1e300 reading: before the fix fitted (the model held 1e299 and `null`s, and then the tool
+/// refused its own model). Now exit 2 naming file, line and column.
+#[test]
+fn an_absurd_reading_is_an_error_naming_the_cell() {
+    let dir = scratch("absurd");
+    lines_and_model(&dir);
+    rewrite_deviations(&dir, "huge.csv", |k, v| {
+        if k == 7 {
+            "1e300".into()
+        } else {
+            v.to_string()
+        }
+    });
+    fails_untouched_naming(
+        &["fit", "geometry", "--data", "huge.csv", "--out", "m.json"],
+        &dir,
+        &["huge.csv:9:", "deviation_um"],
+    );
+}

@@ -187,3 +187,51 @@ fn positioning_and_replay_outputs_that_are_one_file_are_refused() {
         &["table.json", "fit.json", "same file"],
     );
 }
+
+/// Touch positions logged in µm (×1000) and a 1e300 position: before the fix the first was fitted
+/// silently and the second gave contact points of 1e300. Now the first warns naming the columns and
+/// `--strict` refuses it; the second is an error naming file, line and column (exit 2).
+#[test]
+fn implausible_touches_warn_or_fail() {
+    let dir = scratch("plausible");
+    touches_and_calibration(&dir);
+    let (header, rows) = common::table(&dir.join("touches.csv"));
+    let cols: Vec<usize> = (0..3).collect(); // x_mm, y_mm, z_mm
+    assert_eq!(&header[..3], ["x_mm", "y_mm", "z_mm"]);
+    let mut um = rows.clone();
+    for r in &mut um {
+        for &c in &cols {
+            r[c] = (r[c].parse::<f64>().unwrap() * 1000.0).to_string();
+        }
+    }
+    common::write_table(&dir.join("um.csv"), &header, &um);
+    let fit = |data: &str, strict: bool| {
+        let mut a = vec!["fit", "probe", "--data", data, "--sphere-diameter-mm", "25"];
+        if strict {
+            a.extend_from_slice(&["--strict", "--out", "s.json"]);
+        }
+        a.into_iter().map(str::to_string).collect::<Vec<_>>()
+    };
+    let args = fit("um.csv", false);
+    let o = axcomp_in(&args.iter().map(String::as_str).collect::<Vec<_>>(), &dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("warning") && err.contains("x_mm") && err.contains("µm?"),
+        "{err}"
+    );
+    let args = fit("um.csv", true);
+    fails_untouched_naming(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        &dir,
+        &["um.csv", "--strict"],
+    );
+    let mut huge = rows.clone();
+    huge[3][1] = "1e300".into();
+    common::write_table(&dir.join("huge.csv"), &header, &huge);
+    let args = fit("huge.csv", false);
+    fails_untouched_naming(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        &dir,
+        &["huge.csv:5:2", "y_mm"],
+    );
+}

@@ -240,3 +240,119 @@ fn two_outputs_that_are_one_file_through_a_link_are_refused() {
         &["m.json", "fit.json", "same file"],
     );
 }
+
+/// Copies `dir/FROM` to `dir/TO` with each cell of `cols` replaced by `f(row index, value)`, comment
+/// lines kept.
+fn rewrite(dir: &Path, from: &str, to: &str, cols: &[&str], f: impl Fn(usize, f64) -> f64) {
+    let text = std::fs::read_to_string(dir.join(from)).unwrap();
+    let mut lines = text.lines();
+    let mut out = String::new();
+    let mut header: Vec<String> = Vec::new();
+    for l in lines.by_ref() {
+        out.push_str(l);
+        out.push('\n');
+        if !l.starts_with('#') {
+            header = l.split(',').map(str::to_string).collect();
+            break;
+        }
+    }
+    let idx: Vec<usize> = cols
+        .iter()
+        .map(|c| header.iter().position(|h| h == c).unwrap())
+        .collect();
+    for (k, l) in lines.enumerate() {
+        let mut cells: Vec<String> = l.split(',').map(str::to_string).collect();
+        for &i in &idx {
+            cells[i] = f(k, cells[i].parse().unwrap()).to_string();
+        }
+        out.push_str(&cells.join(","));
+        out.push('\n');
+    }
+    std::fs::write(dir.join(to), out).unwrap();
+}
+
+/// R-test data whose own header names its machine kind (`# … machine bc-head`) fitted as another
+/// (`--machine bc-trunnion`), angles in radians, displacements ×1000 (nm for µm): before the fix each
+/// was fitted silently. Now a warning naming the file (and the header's line), and `--strict`
+/// refuses (exit 2, nothing written). The twin's own data raise none.
+#[test]
+fn implausible_rtest_data_warns_and_strict_refuses() {
+    let dir = scratch("plausible");
+    rows_and_model(&dir);
+    ok(&axcomp_in(
+        &[
+            "sim",
+            "--machine",
+            "bc-head",
+            "--pivot-mm",
+            "200",
+            "--out",
+            "bh.csv",
+        ],
+        &dir,
+    ));
+    let rad = std::f64::consts::PI / 180.0;
+    rewrite(&dir, "rt.csv", "rad.csv", &["a_deg", "c_deg"], |_, v| {
+        v * rad
+    });
+    rewrite(
+        &dir,
+        "rt.csv",
+        "nm.csv",
+        &["dx_um", "dy_um", "dz_um"],
+        |_, v| v * 1000.0,
+    );
+    let cases: [(&[&str], &[&str]); 3] = [
+        (
+            &["--data", "bh.csv", "--machine", "bc-trunnion"],
+            &["bh.csv:1", "bc-head", "bc-trunnion"],
+        ),
+        (&["--data", "rad.csv"], &["rad.csv", "radians", "c_deg"]),
+        (&["--data", "nm.csv"], &["nm.csv", "dx_um", "nm"]),
+    ];
+    for (extra, needles) in cases {
+        let mut args = vec!["fit", "rtest"];
+        args.extend_from_slice(extra);
+        let o = axcomp_in(&args, &dir);
+        let err = String::from_utf8_lossy(&o.stderr);
+        for n in needles {
+            assert!(
+                err.contains("warning") && err.contains(n),
+                "{extra:?}: must name {n}: {err}"
+            );
+        }
+        args.extend_from_slice(&["--strict", "--out", "s.json"]);
+        let mut needles = needles.to_vec();
+        needles.push("--strict");
+        fails_untouched_naming(&args, &dir, &needles);
+    }
+    for (data, machine) in [("rt.csv", "ac-trunnion"), ("bh.csv", "bc-head")] {
+        let mut args = vec!["fit", "rtest", "--data", data, "--machine", machine];
+        if machine == "bc-head" {
+            args.extend_from_slice(&["--pivot-mm", "200"]);
+        }
+        let o = axcomp_in(&args, &dir);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            o.status.success() && !err.contains("warning"),
+            "{data}: {err}"
+        );
+    }
+}
+
+/// A 1e300 displacement: before the fix fitted into a model of 1e299 values. Now exit 2 naming file,
+/// line and column.
+#[test]
+fn an_absurd_reading_is_an_error_naming_the_cell() {
+    let dir = scratch("absurd");
+    rows_and_model(&dir);
+    rewrite(&dir, "rt.csv", "huge.csv", &["dy_um"], |k, v| {
+        if k == 5 { 1e300 } else { v }
+    });
+    // Row 5 is on line 8: a comment line, the header, then rows 0 … 5.
+    fails_untouched_naming(
+        &["fit", "rtest", "--data", "huge.csv", "--out", "m.json"],
+        &dir,
+        &["huge.csv:8:", "dy_um"],
+    );
+}

@@ -85,3 +85,21 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
+
+/// Prints each data warning on stderr (`axcomp: warning: …`); with `strict` (`--strict`) any warning is
+/// an error (exit 2) after they are all printed.
+pub fn report_warnings(
+    warnings: &[axcomp_data::sanity::DataWarning],
+    strict: bool,
+) -> anyhow::Result<()> {
+    for w in warnings {
+        eprintln!("axcomp: warning: {}", w.message);
+    }
+    if strict && !warnings.is_empty() {
+        anyhow::bail!(
+            "--strict: {} data warning(s) (above); fix the data or drop --strict",
+            warnings.len()
+        );
+    }
+    Ok(())
+}

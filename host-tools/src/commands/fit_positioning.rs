@@ -439,15 +439,7 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         .collect();
     let mut warnings = data_warnings(&ds, &args.target, &x, &dev, &dir);
     warnings.extend(direction_coverage(&obs, holdout_mask.as_deref()));
-    for w in &warnings {
-        eprintln!("axcomp: warning: {}", w.message);
-    }
-    if args.strict && !warnings.is_empty() {
-        bail!(
-            "--strict: {} data warning(s) (above); fix the data or drop --strict",
-            warnings.len()
-        );
-    }
+    crate::commands::common::report_warnings(&warnings, args.strict)?;
     let provenance = crate::provenance::of_data(
         &args.data,
         args.holdout.as_deref(),

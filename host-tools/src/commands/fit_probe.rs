@@ -88,6 +88,28 @@ pub struct Args {
     /// Write report.md and SVG plots into DIR.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// Refuse the data (exit 2) when a plausibility check warns (units, magnitudes).
+    #[arg(long)]
+    pub strict: bool,
+}
+
+/// Plausibility of touches (see `axcomp_data::sanity`): positions beyond 10 m or of mixed magnitudes
+/// (µm taken for mm).
+fn touch_warnings(ds: &Dataset, touches: &[Touch]) -> Vec<axcomp_data::sanity::DataWarning> {
+    use axcomp_data::sanity;
+    let mut w = Vec::new();
+    for (k, c) in ["x_mm", "y_mm", "z_mm"].into_iter().enumerate() {
+        let v: Vec<f64> = touches.iter().map(|t| t.position_mm[k]).collect();
+        w.extend(sanity::unit_mix(ds, c, &v, None));
+        w.extend(sanity::implausible_magnitude(
+            ds,
+            c,
+            &v,
+            1.0e4,
+            "touch positions beyond 10 m are not plausible in mm: µm?",
+        ));
+    }
+    w
 }
 
 /// Evaluation rows, the artefact's diameter, which rows (`holdout` / `calibration`), flagged held-out rows.
@@ -267,6 +289,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ds = load_dataset(&args.data)?;
     let (touches, labels) = read_touches(&ds)?;
     axcomp_probe::validate_touches(&touches, &labels)?;
+    crate::commands::common::report_warnings(&touch_warnings(&ds, &touches), args.strict)?;
     let held: Vec<bool> = match &holdout {
         Some(h) => h.mask(&ds)?,
         None => vec![false; ds.n_rows()],

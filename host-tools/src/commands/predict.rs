@@ -438,6 +438,18 @@ pub fn predict_force_law(
 
 /// Reads the touch columns (names the cell of a non-numeric value). `feed_mm_min` is 0 when absent.
 pub fn read_touches(ds: &Dataset) -> anyhow::Result<(Vec<Touch>, Vec<String>)> {
+    axcomp_data::sanity::absurd_values(
+        ds,
+        &[
+            "x_mm",
+            "y_mm",
+            "z_mm",
+            "approach_x",
+            "approach_y",
+            "approach_z",
+            "feed_mm_min",
+        ],
+    )?;
     let col = |c: &str| -> anyhow::Result<Vec<f64>> { Ok(ds.numeric(c)?.to_vec()) };
     let (x, y, z) = (col("x_mm")?, col("y_mm")?, col("z_mm")?);
     let (ax, ay, az) = (col("approach_x")?, col("approach_y")?, col("approach_z")?);

@@ -46,6 +46,10 @@ pub enum DataError {
     Io { file: String, cause: std::io::Error },
     #[error("{file}: no header row (the file is empty or holds only `#` comments)")]
     NoHeader { file: String },
+    #[error(
+        "{at}: {value:e} is not a plausible measurement (a finite number below 1e12 in magnitude expected)"
+    )]
+    Implausible { at: String, value: f64 },
     #[error("{file}:{line}:{column}: quoted field is never closed")]
     UnterminatedQuote {
         file: String,

@@ -108,10 +108,16 @@ pub struct RtestData {
 
 fn finite_column(ds: &Dataset, col: &str) -> Result<Vec<f64>, RtestError> {
     let v = ds.numeric(col)?.to_vec();
-    if let Some(r) = v.iter().position(|x| !x.is_finite()) {
+    if let Some(r) = v
+        .iter()
+        .position(|x| !axcomp_data::sanity::plausible_number(*x))
+    {
         return Err(RtestError::BadValue {
             at: ds.locate(col, r),
-            what: format!("`{col}` is {} (need a finite number)", v[r]),
+            what: format!(
+                "`{col}` is {:e} (need a finite number below 1e12 in magnitude)",
+                v[r]
+            ),
         });
     }
     Ok(v)
