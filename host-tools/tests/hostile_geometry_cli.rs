@@ -504,3 +504,41 @@ fn an_absurd_reading_is_an_error_naming_the_cell() {
         &["huge.csv:9:", "deviation_um"],
     );
 }
+
+/// Numeric options out of range: `--export-step 1e-9` (before: the export exhausted the memory and
+/// the process aborted), `--export-step NaN` (before: accepted), `plan geometry --stroke 1e300,…`
+/// (before: a plan over 1e300 mm) and `--runs 1000000000` (before: ran until memory ran out). Now
+/// each is exit 2 naming the option, nothing written.
+#[test]
+fn out_of_range_options_are_refused_naming_them() {
+    let dir = scratch("options");
+    lines_and_model(&dir);
+    let fit = [
+        "fit",
+        "geometry",
+        "--data",
+        "lines.csv",
+        "--method",
+        "plain",
+        "--export",
+        "t",
+    ];
+    for step in ["1e-9", "NaN"] {
+        let mut args = fit.to_vec();
+        args.extend_from_slice(&["--export-step", step]);
+        fails_untouched_naming(&args, &dir, &["--export-step"]);
+    }
+    let plan = ["plan", "geometry", "--simulate", "s.csv"];
+    let cases: [(&[&str], &str); 2] = [
+        (&["--stroke", "1e300,600,500"], "--stroke"),
+        (
+            &["--stroke", "800,600,500", "--runs", "1000000000"],
+            "--runs",
+        ),
+    ];
+    for (extra, needle) in cases {
+        let mut args = plan.to_vec();
+        args.extend_from_slice(extra);
+        fails_untouched_naming(&args, &dir, &[needle]);
+    }
+}

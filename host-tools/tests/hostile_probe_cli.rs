@@ -235,3 +235,25 @@ fn implausible_touches_warn_or_fail() {
         &["huge.csv:5:2", "y_mm"],
     );
 }
+
+/// `sim-probe --feed NaN` and `--feed 1e300`: before the fix both wrote touches (feed_mm_min NaN or
+/// 1e300). Now exit 2 naming the option, nothing written.
+#[test]
+fn an_absurd_feed_is_refused() {
+    let dir = scratch("feed");
+    for feed in ["NaN", "1e300"] {
+        fails_untouched_naming(
+            &[
+                "sim-probe",
+                "--plan",
+                "probe-measure",
+                "--feed",
+                feed,
+                "--out",
+                "t.csv",
+            ],
+            &dir,
+            &["--feed"],
+        );
+    }
+}

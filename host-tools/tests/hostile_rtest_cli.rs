@@ -356,3 +356,67 @@ fn an_absurd_reading_is_an_error_naming_the_cell() {
         &["huge.csv:8:", "dy_um"],
     );
 }
+
+/// Options: `plan rtest --circle-poses 1000000000` (before: the process aborted when memory ran out),
+/// `--pivot-mm 1e300` (before: a bc-head of 1e300 mm fitted and planned), one column scaled twice
+/// (before: the last factor silently won) and a repeated `--machine` (refused by the parser: kept as
+/// a guard). Now each is exit 2 naming the option, nothing written.
+#[test]
+fn out_of_range_and_repeated_options_are_refused() {
+    let dir = scratch("options");
+    rows_and_model(&dir);
+    let cases: [(&[&str], &[&str]); 5] = [
+        (
+            &["plan", "rtest", "--circle-poses", "1000000000"],
+            &["--circle-poses"],
+        ),
+        (
+            &[
+                "plan",
+                "rtest",
+                "--machine",
+                "bc-head",
+                "--pivot-mm",
+                "1e300",
+            ],
+            &["--pivot-mm"],
+        ),
+        (
+            &[
+                "fit",
+                "rtest",
+                "--data",
+                "rt.csv",
+                "--machine",
+                "bc-head",
+                "--pivot-mm",
+                "1e300",
+            ],
+            &["--pivot-mm"],
+        ),
+        (
+            &[
+                "fit", "rtest", "--data", "rt.csv", "--scale", "dx_um=2", "--scale", "dx_um=3",
+            ],
+            &["--scale", "dx_um", "twice"],
+        ),
+        (
+            &[
+                "fit",
+                "rtest",
+                "--data",
+                "rt.csv",
+                "--machine",
+                "ac-trunnion",
+                "--machine",
+                "bc-head",
+            ],
+            &["--machine"],
+        ),
+    ];
+    for (args, needles) in cases {
+        let mut args = args.to_vec();
+        args.extend_from_slice(&["--json", "out.json"]);
+        fails_untouched_naming(&args, &dir, needles);
+    }
+}

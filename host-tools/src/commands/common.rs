@@ -103,3 +103,20 @@ pub fn report_warnings(
     }
     Ok(())
 }
+
+/// A numeric option is a finite number in `lo … hi` (a size bound keeps the work and memory in
+/// check); the error names the option and the range.
+pub fn check_range(option: &str, v: f64, lo: f64, hi: f64) -> anyhow::Result<()> {
+    if !(v.is_finite() && v >= lo && v <= hi) {
+        anyhow::bail!("{option} {v}: need a finite number in {lo} … {hi}");
+    }
+    Ok(())
+}
+
+/// A count option lies in `lo … hi`; the error names the option and the range.
+pub fn check_count(option: &str, n: usize, lo: usize, hi: usize) -> anyhow::Result<()> {
+    if !(lo..=hi).contains(&n) {
+        anyhow::bail!("{option} {n}: need {lo} … {hi}");
+    }
+    Ok(())
+}

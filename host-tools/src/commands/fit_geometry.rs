@@ -13,7 +13,7 @@ use axcomp_geometry::{FitOptions, GeometryError, Judge, LineData, Method, analys
 use axcomp_kinematics::Topology;
 
 use crate::cli::DataArgs;
-use crate::commands::common::{load_dataset, report_warnings, split_from};
+use crate::commands::common::{check_range, load_dataset, report_warnings, split_from};
 use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
@@ -126,6 +126,26 @@ pub fn line_warnings(ds: &Dataset, data: &LineData) -> anyhow::Result<Vec<DataWa
     Ok(w)
 }
 
+/// Most exported positions per axis (`--export-step` over the axis's range).
+const MAX_EXPORT_POSITIONS: f64 = 100_000.0;
+
+/// `--export-step` gives at most [`MAX_EXPORT_POSITIONS`] positions on every axis (a step of 1e-9 mm
+/// once exhausted the memory).
+fn check_export_step(model: &axcomp_geometry::GeometryModel, step: f64) -> anyhow::Result<()> {
+    for (k, g) in model.grids.iter().enumerate() {
+        if step > 0.0 && (g.hi - g.lo) / step > MAX_EXPORT_POSITIONS {
+            bail!(
+                "--export-step {step}: {} positions over axis {}'s {} mm; at most {MAX_EXPORT_POSITIONS} \
+                 (give a larger step)",
+                ((g.hi - g.lo) / step).ceil(),
+                ["X", "Y", "Z"][k],
+                g.hi - g.lo
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Largest `--intervals`: 18 functions × (N + 3) coefficients; at 200 the fit ran for minutes.
 const MAX_INTERVALS: usize = 64;
 
@@ -196,6 +216,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         outputs.folder(d, "--report");
     }
     outputs.check()?;
+    check_range("--export-step", a.export_step, 0.0, 1e5)?;
     let (data, an) = analyse_args(&a)?;
     let rep = &an.report;
     // everything is computed; now write
@@ -216,6 +237,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(dir) = &a.export {
+        check_export_step(&an.fit.model, a.export_step)?;
         for (name, text) in axcomp_geometry::export::export_files(&an.fit.model, a.export_step) {
             outputs.folder_file(dir, &name, text);
         }

@@ -1015,6 +1015,7 @@ pub fn sim_probe(args: SimArgs) -> anyhow::Result<()> {
             args.repeats.unwrap_or_default()
         );
     }
+    crate::commands::common::check_range("--feed", args.feed, 1e-3, 1e5)?;
     let plan = match args.plan.as_str() {
         "probe-cal" | "cal" => {
             let mut p = ProbePlan::standard_calibration();

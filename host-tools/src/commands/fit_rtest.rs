@@ -163,6 +163,9 @@ fn header_machine(path: &std::path::Path, kind: MachineKind) -> Option<DataWarni
     })
 }
 
+/// Longest `--pivot-mm` (10 m): beyond, no spindle head.
+const MAX_PIVOT_MM: f64 = 1.0e4;
+
 /// `--machine` and `--pivot-mm` into the nominal kinematics.
 pub fn machine_from(kind: &str, pivot_mm: Option<f64>) -> anyhow::Result<FiveAxis> {
     let Some(k) = MachineKind::parse(kind) else {
@@ -172,8 +175,8 @@ pub fn machine_from(kind: &str, pivot_mm: Option<f64>) -> anyhow::Result<FiveAxi
         (MachineKind::BcHead, None) => {
             bail!("--machine bc-head needs --pivot-mm L (B axis to tool point, mm)")
         }
-        (MachineKind::BcHead, Some(l)) if !(l.is_finite() && l > 0.0) => {
-            bail!("--pivot-mm {l}: need a length > 0 mm")
+        (MachineKind::BcHead, Some(l)) if !(l.is_finite() && l > 0.0 && l <= MAX_PIVOT_MM) => {
+            bail!("--pivot-mm {l}: need a length > 0 mm, at most {MAX_PIVOT_MM} mm")
         }
         (MachineKind::BcHead, Some(l)) => Ok(FiveAxis::new(k, l)),
         (_, Some(_)) => bail!("--pivot-mm is for --machine bc-head only"),

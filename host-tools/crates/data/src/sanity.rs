@@ -498,6 +498,42 @@ mod tests {
         assert!(unit_mix(&ds, "deviation_um", &v, Some((&x, &d))).is_some());
     }
 
+    /// A smooth line of 20 readings with a little scatter; `spike` replaces one reading.
+    fn line(spike: Option<(usize, f64)>) -> (Dataset, Vec<f64>) {
+        let mut s = String::from("x_mm,deviation_um\n");
+        for k in 0..20 {
+            let x = 10.0 * k as f64;
+            let mut v = 5.0 * (x / 60.0).sin() + ((k * 7 % 5) as f64 - 2.0) * 0.05;
+            if let Some((_, w)) = spike.filter(|s| s.0 == k) {
+                v = w;
+            }
+            s.push_str(&format!("{x},{v}\n"));
+        }
+        let ds = Dataset::from_csv_str("l.csv", &s, &LoadOptions::default()).unwrap();
+        let v = ds.numeric("deviation_um").unwrap().to_vec();
+        (ds, v)
+    }
+
+    #[test]
+    fn a_spike_along_a_line_is_flagged_with_its_line_and_a_smooth_line_is_not() {
+        let seq = vec![(0..20).collect::<Vec<usize>>()];
+        let (ds, v) = line(None);
+        assert!(neighbour_outliers(&ds, "deviation_um", &v, &seq).is_none());
+        let (ds, v) = line(Some((9, 5000.0)));
+        let w = neighbour_outliers(&ds, "deviation_um", &v, &seq).expect("flagged");
+        assert_eq!(w.lines, vec![11], "{}", w.message); // row 9 → line 11
+    }
+
+    #[test]
+    fn angles_within_two_pi_look_like_radians() {
+        let ds = Dataset::from_csv_str("a.csv", "c_deg\n0\n", &LoadOptions::default()).unwrap();
+        let radians: Vec<f64> = (0..36).map(|k| f64::from(k) * 10f64.to_radians()).collect();
+        let degrees: Vec<f64> = (0..36).map(|k| f64::from(k) * 10.0).collect();
+        assert!(radians_for_degrees(&ds, "c_deg", &radians).is_some());
+        assert!(radians_for_degrees(&ds, "c_deg", &degrees).is_none());
+        assert!(radians_for_degrees(&ds, "c_deg", &[0.0; 5]).is_none());
+    }
+
     #[test]
     fn several_test_ids_are_an_error_listing_them() {
         let ds = Dataset::from_csv_str(
