@@ -617,6 +617,8 @@ pub fn describe_any(bytes: &[u8]) -> anyhow::Result<String> {
     if view.version == 1 {
         return describe(bytes);
     }
+    view.check_axis_ids()
+        .map_err(|e| anyhow::anyhow!("the group is not valid (every board refuses it): {e}"))?;
     let mut s = String::new();
     writeln!(
         s,
@@ -1595,6 +1597,10 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
     )
     .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
     buf.truncate(n);
+    // What a board refuses of any group (one axis id on two axes), from the firmware's own check.
+    group_image::parse(&buf)
+        .and_then(|v| v.check_axis_ids())
+        .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
     Ok(buf)
 }
 
