@@ -57,35 +57,6 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> anyhow::Result
     write_atomic(path, text.as_bytes())
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn atomic_write_replaces_and_leaves_no_temp_file() {
-        let dir = std::env::temp_dir().join(format!("axcomp-common-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let f = dir.join("out.txt");
-        write_atomic(&f, b"one").unwrap();
-        write_atomic(&f, b"two").unwrap();
-        assert_eq!(std::fs::read(&f).unwrap(), b"two");
-        let names: Vec<_> = std::fs::read_dir(&dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
-        assert_eq!(names.len(), 1, "{names:?}");
-        // A missing directory is an error naming the path, and nothing is created.
-        let bad = dir.join("no/such/dir/out.txt");
-        assert!(
-            write_atomic(&bad, b"x")
-                .unwrap_err()
-                .to_string()
-                .contains("no/such/dir")
-        );
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
-}
-
 /// Prints each data warning on stderr (`axcomp: warning: …`); with `strict` (`--strict`) any warning is
 /// an error (exit 2) after they are all printed.
 pub fn report_warnings(
@@ -119,4 +90,33 @@ pub fn check_count(option: &str, n: usize, lo: usize, hi: usize) -> anyhow::Resu
         anyhow::bail!("{option} {n}: need {lo} … {hi}");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn atomic_write_replaces_and_leaves_no_temp_file() {
+        let dir = std::env::temp_dir().join(format!("axcomp-common-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("out.txt");
+        write_atomic(&f, b"one").unwrap();
+        write_atomic(&f, b"two").unwrap();
+        assert_eq!(std::fs::read(&f).unwrap(), b"two");
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 1, "{names:?}");
+        // A missing directory is an error naming the path, and nothing is created.
+        let bad = dir.join("no/such/dir/out.txt");
+        assert!(
+            write_atomic(&bad, b"x")
+                .unwrap_err()
+                .to_string()
+                .contains("no/such/dir")
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -81,7 +81,9 @@ pub fn line_warnings(ds: &Dataset, data: &LineData) -> anyhow::Result<Vec<DataWa
         })
     };
     let (run, dir) = (text("run")?, text("direction")?);
-    let mut sequences: Vec<((usize, String, String), Vec<(f64, usize)>)> = Vec::new();
+    // (line, run, direction) → (position along the beam, row) of its readings.
+    type Sequence = ((usize, String, String), Vec<(f64, usize)>);
+    let mut sequences: Vec<Sequence> = Vec::new();
     for r in &data.readings {
         let key = (r.line, run[r.row].clone(), dir[r.row].clone());
         let along = axcomp_kinematics::dot(r.q, r.beam);

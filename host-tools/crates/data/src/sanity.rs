@@ -379,12 +379,15 @@ pub fn neighbour_outliers(
         return None;
     }
     let s = 1.4826 * median(&mut pooled);
-    if !(s > 0.0) {
+    if s.is_nan() || s <= 0.0 {
         return None;
     }
     let isolated = |seq: &[(usize, f64, f64, f64)], k: usize| {
         let r = seq[k].1.abs();
-        let quiet = |j: usize| seq.get(j).is_none_or(|n| !(n.1.abs() * 4.0 >= r));
+        let quiet = |j: usize| {
+            seq.get(j)
+                .is_none_or(|n| n.1.is_nan() || n.1.abs() * 4.0 < r)
+        };
         let interior = k > 0 && k + 1 < seq.len();
         interior && r > OUTLIER_K * s && r > seq[k].3 && quiet(k - 1) && quiet(k + 1)
     };
