@@ -60,8 +60,6 @@ pub enum ImageRefusal {
     AxisNotWired { axis_id: u16 },
     /// The image needs more temperature sensors than the board has (its thermal term would stay frozen).
     SensorsNotWired { image: u16, board: u16 },
-    /// Two axes of a group image have the same axis id (one scale input cannot feed both).
-    AxisIdTwice { axis_id: u16 },
     /// A sensor of the image cannot be fed by the board's inputs (by name, see
     /// `axcomp_core::wiring`): e.g. a `warmup` input on a board that only has RTDs (°C).
     SensorNotOnBoard {
@@ -90,9 +88,6 @@ impl core::fmt::Display for ImageRefusal {
                 f,
                 "image needs {image} temperature sensors, the board wires {board}"
             ),
-            ImageRefusal::AxisIdTwice { axis_id } => {
-                write!(f, "group image has axis id {axis_id} on two axes")
-            }
             ImageRefusal::SensorNotOnBoard { axis_id, why } => {
                 write!(f, "image for axis {axis_id}: {why}")
             }

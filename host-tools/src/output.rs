@@ -4,8 +4,10 @@
 //! [`OutputSet::commit`]. Nothing on disk changes unless every file can be written:
 //!
 //! 1. *check*: every path is checked before anything is written: it names a file (not a directory), its
-//!    directory exists (or is declared with [`OutputSet::dir`] and its own parent exists), and no two
-//!    outputs name the same file;
+//!    directory exists (or is declared with [`OutputSet::dir`] and its own parent exists), no two
+//!    outputs name the same file (after links: a link and the file it points to are one file, as are
+//!    two hard links), and no output lies inside a folder declared with [`OutputSet::folder`] unless it
+//!    is that folder's own content ([`OutputSet::folder_file`]);
 //! 2. *stage*: each file is written to a temporary beside its target (`.NAME.axcomp-tmp-PID-K`); declared
 //!    directories are created first;
 //! 3. *swap*: the temporaries are renamed over their targets, an existing target being kept aside
@@ -15,6 +17,11 @@
 //!    [`axcomp_files::destination`] decides (a rename would put a regular file where the device was); a
 //!    symbolic link to a regular file is followed, so the link stays and its file is replaced. Several
 //!    outputs may go to the same device (`--json /dev/null --out /dev/null`).
+//!
+//! A *folder* ([`OutputSet::folder`], e.g. `--export DIR`, `--report DIR`) is written whole: it keeps a
+//! list of the files the tool wrote into it ([`WRITTEN_LIST`]), and a later commit into the same folder
+//! removes the files of that list it does not write again, so the folder never holds a mix of two runs.
+//! Other files in the folder (the user's) are left alone.
 //!
 //! On any error the temporaries are removed, replaced targets are put back, directories created by the set
 //! are removed again, and the error names the user's path (never a temporary). Commands should call
@@ -33,13 +40,20 @@ struct Planned {
     path: PathBuf,
     /// `None`: declared with [`OutputSet::planned`] and not filled; checked but not written.
     bytes: Option<Vec<u8>>,
+    /// The folder ([`OutputSet::folder`]) this file is the content of.
+    folder: Option<PathBuf>,
 }
+
+/// The list of files the tool wrote into a folder ([`OutputSet::folder`]), one name a line.
+pub const WRITTEN_LIST: &str = ".written-by-axcomp";
 
 /// Output files written all together or not at all (see the module docs).
 #[derive(Debug, Clone, Default)]
 pub struct OutputSet {
     files: Vec<Planned>,
     dirs: Vec<PathBuf>,
+    /// Folders written whole, with the option that names each (`--export`).
+    folders: Vec<(PathBuf, String)>,
     /// Files the command reads ([`OutputSet::input`]); no output may be one of them.
     inputs: Vec<PathBuf>,
 }
@@ -61,6 +75,12 @@ pub enum OutputError {
     Duplicate { path: PathBuf, other: PathBuf },
     /// An output is a file the command reads (writing it would destroy the input).
     IsAnInput { path: PathBuf, input: PathBuf },
+    /// An output lies inside a folder that another output writes whole.
+    InsideFolder {
+        path: PathBuf,
+        folder: PathBuf,
+        option: String,
+    },
     /// Creating, writing or renaming failed.
     Io {
         path: PathBuf,
@@ -104,6 +124,17 @@ impl std::fmt::Display for OutputError {
                 "output {} is the input {} (it would be overwritten; give another output path)",
                 path.display(),
                 input.display()
+            ),
+            OutputError::InsideFolder {
+                path,
+                folder,
+                option,
+            } => write!(
+                f,
+                "output {} lies inside {} {}, a folder the command writes whole (give a path outside it)",
+                path.display(),
+                option,
+                folder.display()
             ),
             OutputError::Io { path, cause } => {
                 write!(f, "cannot write {}: {cause}", path.display())
@@ -155,19 +186,41 @@ impl OutputSet {
         self
     }
 
-    /// Adds (or replaces) a file: fills the first planned entry of that path still without content,
-    /// else replaces the content of the first entry of that path.
+    /// Declares a folder written whole (see the module docs), named by `option` in messages: like
+    /// [`OutputSet::dir`], and every other output inside it is refused; its files are given with
+    /// [`OutputSet::folder_file`].
+    pub fn folder(&mut self, dir: impl Into<PathBuf>, option: &str) -> &mut Self {
+        let dir = dir.into();
+        self.dir(dir.clone());
+        if !self.folders.iter().any(|(d, _)| *d == dir) {
+            self.folders.push((dir, option.to_string()));
+        }
+        self
+    }
+
+    /// Adds file `name` of folder `dir` (declared with [`OutputSet::folder`]).
+    pub fn folder_file(&mut self, dir: &Path, name: &str, bytes: impl Into<Vec<u8>>) -> &mut Self {
+        self.add(dir.join(name), Some(bytes.into()), Some(dir.to_path_buf()))
+    }
+
+    /// Adds a file: fills the first planned entry of that path still without content; a path that
+    /// already has content is added again (and refused by the check as two outputs naming one file).
     pub fn file(&mut self, path: impl Into<PathBuf>, bytes: impl Into<Vec<u8>>) -> &mut Self {
-        let path = path.into();
-        let bytes = Some(bytes.into());
+        self.add(path.into(), Some(bytes.into()), None)
+    }
+
+    fn add(&mut self, path: PathBuf, bytes: Option<Vec<u8>>, folder: Option<PathBuf>) -> &mut Self {
         let at = self
             .files
             .iter()
-            .position(|f| f.path == path && f.bytes.is_none())
-            .or_else(|| self.files.iter().position(|f| f.path == path));
+            .position(|f| f.path == path && f.bytes.is_none() && f.folder == folder);
         match at {
-            Some(k) => self.files[k].bytes = bytes,
-            None => self.files.push(Planned { path, bytes }),
+            Some(k) if bytes.is_some() => self.files[k].bytes = bytes,
+            _ => self.files.push(Planned {
+                path,
+                bytes,
+                folder,
+            }),
         }
         self
     }
@@ -186,8 +239,17 @@ impl OutputSet {
     /// spellings of one file.
     pub fn planned(&mut self, path: impl Into<PathBuf>) -> &mut Self {
         let path = path.into();
-        self.files.push(Planned { path, bytes: None });
+        self.files.push(Planned {
+            path,
+            bytes: None,
+            folder: None,
+        });
         self
+    }
+
+    /// [`OutputSet::planned`] for file `name` of folder `dir` (declared with [`OutputSet::folder`]).
+    pub fn planned_in(&mut self, dir: &Path, name: &str) -> &mut Self {
+        self.add(dir.join(name), None, Some(dir.to_path_buf()))
     }
 
     /// Removes a planned file (e.g. a table the guard refused).
@@ -262,17 +324,22 @@ impl OutputSet {
                     other: p.clone(),
                 });
             }
-            if destination(p) == Destination::InPlace {
-                continue;
-            }
+            let real = match destination(p) {
+                Destination::InPlace => continue,
+                Destination::Replace(real) => real,
+            };
+            self.check_folder(f, &real)?;
             if let Some(input) = self.inputs.iter().find(|i| same_file(p, i)) {
                 return Err(OutputError::IsAnInput {
                     path: p.clone(),
                     input: input.clone(),
                 });
             }
-            let id = identity(p);
-            if let Some((_, other)) = seen.iter().find(|(k, _)| *k == id) {
+            let id = identity(&real);
+            if let Some((_, other)) = seen
+                .iter()
+                .find(|(k, other)| *k == id || same_file(p, other))
+            {
                 return Err(OutputError::Duplicate {
                     path: p.clone(),
                     other: other.to_path_buf(),
@@ -283,10 +350,64 @@ impl OutputSet {
         Ok(())
     }
 
+    /// An output that is not the content of a folder must not lie inside one (`real`: where it is
+    /// written, after links).
+    fn check_folder(&self, f: &Planned, real: &Path) -> Result<(), OutputError> {
+        if f.folder.is_some() {
+            return Ok(());
+        }
+        let dir = identity_dir(&parent_of(real));
+        match self
+            .folders
+            .iter()
+            .find(|(d, _)| dir.starts_with(identity_dir(d)))
+        {
+            Some((folder, option)) => Err(OutputError::InsideFolder {
+                path: f.path.clone(),
+                folder: folder.clone(),
+                option: option.clone(),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Adds each folder's [`WRITTEN_LIST`] to the set and returns the files of the earlier lists that
+    /// this commit does not write again (removed once everything is written).
+    fn list_folders(&mut self) -> Vec<PathBuf> {
+        let mut stale = Vec::new();
+        for (dir, _) in self.folders.clone() {
+            let names: Vec<String> = self
+                .files
+                .iter()
+                .filter(|f| f.folder.as_ref() == Some(&dir) && f.bytes.is_some())
+                .filter_map(|f| f.path.file_name())
+                .map(|n| n.to_string_lossy().into_owned())
+                .collect();
+            let earlier = std::fs::read_to_string(dir.join(WRITTEN_LIST)).unwrap_or_default();
+            for old in earlier.lines().filter(|l| !l.starts_with('#')) {
+                // Only plain names of this folder: a list edited to name `../x` removes nothing.
+                let plain = Path::new(old).file_name() == Some(std::ffi::OsStr::new(old));
+                if plain && old != WRITTEN_LIST && !names.iter().any(|n| n == old) {
+                    stale.push(dir.join(old));
+                }
+            }
+            let mut list = String::from(
+                "# files axcomp wrote here; the next run removes those it does not write again\n",
+            );
+            for n in &names {
+                list.push_str(n);
+                list.push('\n');
+            }
+            self.folder_file(&dir, WRITTEN_LIST, list);
+        }
+        stale
+    }
+
     /// Writes every file or none (steps 1–3 of the module docs). Returns the paths written.
     pub fn commit(mut self) -> Result<Vec<PathBuf>, OutputError> {
         self.check()?;
         self.files.retain(|f| f.bytes.is_some());
+        let stale = self.list_folders();
         // Directories, outermost first.
         let mut created: Vec<PathBuf> = Vec::new();
         let undo_dirs = |created: &[PathBuf]| {
@@ -412,7 +533,17 @@ impl OutputSet {
                 let _ = std::fs::remove_file(old);
             }
         }
-        Ok(self.files.into_iter().map(|f| f.path).collect())
+        for f in stale {
+            if std::fs::symlink_metadata(&f).is_ok_and(|m| m.is_file()) {
+                let _ = std::fs::remove_file(f);
+            }
+        }
+        Ok(self
+            .files
+            .into_iter()
+            .filter(|f| f.path.file_name() != Some(std::ffi::OsStr::new(WRITTEN_LIST)))
+            .map(|f| f.path)
+            .collect())
     }
 }
 

@@ -30,9 +30,9 @@ const LOOSE: LimitSpec = LimitSpec {
 };
 
 /// An axis image without table or thermo term (the stage alone), loose limits.
-fn bare(um_per_count: f32) -> Vec<u8> {
+fn bare(axis_id: u16, um_per_count: f32) -> Vec<u8> {
     let spec = ImageSpec {
-        axis_id: 1,
+        axis_id,
         um_per_count,
         counter_bits: 32,
         table: None,
@@ -52,15 +52,15 @@ fn tilt_name(kind: MachineKind) -> AxisName {
     }
 }
 
-/// X, Y, Z, tilt, C axis images.
+/// X, Y, Z, tilt, C axis images (axis ids 1 … 5: a board refuses one id on two axes).
 fn axis_images(kind: MachineKind) -> Vec<(AxisName, u32, Vec<u8>)> {
-    let rot = bare((1_296_000.0 / CPR as f64) as f32);
+    let rot = |id| bare(id, (1_296_000.0 / CPR as f64) as f32);
     vec![
-        (AxisName::X, 0, bare(UPC[0] as f32)),
-        (AxisName::Y, 0, bare(UPC[1] as f32)),
-        (AxisName::Z, 0, bare(UPC[2] as f32)),
-        (tilt_name(kind), CPR, rot.clone()),
-        (AxisName::C, CPR, rot),
+        (AxisName::X, 0, bare(1, UPC[0] as f32)),
+        (AxisName::Y, 0, bare(2, UPC[1] as f32)),
+        (AxisName::Z, 0, bare(3, UPC[2] as f32)),
+        (tilt_name(kind), CPR, rot(4)),
+        (AxisName::C, CPR, rot(5)),
     ]
 }
 
@@ -552,7 +552,8 @@ fn image_group_takes_the_fit_rtest_model_and_inspect_names_the_unidentified() {
         ],
         "three integers",
     );
-    // A parameter the stage does not have (renamed): refused, not dropped.
+    // A parameter the model's machine kind does not have (renamed): refused by the model reader, not
+    // dropped.
     let renamed = std::fs::read_to_string(dir.join("model.json"))
         .unwrap()
         .replace("\"EC0Y\"", "\"EC0X\"");
@@ -566,7 +567,7 @@ fn image_group_takes_the_fit_rtest_model_and_inspect_names_the_unidentified() {
             "--tool-length-mm",
             "100",
         ],
-        "refusing rather than dropping",
+        "location_errors[10] (EC0X): not a location error of the ac-trunnion machine",
     );
     // A B-axis model for a group with an A axis: the stage's axes are named.
     let bc = std::fs::read_to_string(dir.join("model.json"))

@@ -228,6 +228,11 @@ pub enum ImageError {
         /// The axis ([`crate::group::AxisName`] code).
         axis: u8,
     } = 27,
+    /// Two axes of a group image carry the same axis id: one scale input cannot feed both.
+    AxisIdTwice {
+        /// The axis id.
+        axis_id: u16,
+    } = 28,
     /// A provenance block (group section kind 6, or the `PROV`/`SNAM` header extension of a
     /// schema-1 image) is malformed ([`crate::provenance`]).
     Provenance = 40,
@@ -313,6 +318,10 @@ impl fmt::Display for ImageError {
             ImageError::TooFewSensorInputs { needed, wired } => write!(
                 f,
                 "the image needs {needed} temperature inputs, the board has {wired} wired"
+            ),
+            ImageError::AxisIdTwice { axis_id } => write!(
+                f,
+                "axis id {axis_id} is on two axes of the group (one scale input cannot feed both)"
             ),
             ImageError::SensorNames { axis } => write!(
                 f,

@@ -206,10 +206,27 @@ impl<'a> GroupImageView<'a> {
         (out, self.n_axes)
     }
 
+    /// Refuse a group whose axes do not carry distinct axis ids: a board feeds each id from one
+    /// scale input, so two axes with one id would both follow that input.
+    pub fn check_axis_ids(&self) -> Result<(), ImageError> {
+        let mut seen = [0u16; MAX_AXES];
+        for (i, a) in self.axes().enumerate() {
+            let id = image::inspect_image(a.axis.image)?.axis_id;
+            if seen[..i.min(MAX_AXES)].contains(&id) {
+                return Err(ImageError::AxisIdTwice { axis_id: id });
+            }
+            if let Some(s) = seen.get_mut(i) {
+                *s = id;
+            }
+        }
+        Ok(())
+    }
+
     /// Refuse the image if the board cannot run it: every axis's counter width must be the
     /// board's, every axis id one the board drives, and no axis may need more temperature inputs
     /// than the board has wired.
     pub fn check_against(&self, caps: &BoardCaps) -> Result<(), ImageError> {
+        self.check_axis_ids()?;
         for a in self.axes() {
             let info = image::inspect_image(a.axis.image)?;
             caps.check(info.counter_bits, info.axis_id, info.n_sensors)?;

@@ -297,6 +297,35 @@ fn board_capabilities_are_checked() {
     );
 }
 
+/// One axis id on two axes: the image itself is valid (the core loads it), but no board can feed
+/// both axes from one scale input, so the board check (and the host's `image group` / `inspect`,
+/// which call `GroupImageView::check_axis_ids`) refuse it naming the id.
+#[test]
+fn one_axis_id_on_two_axes_is_refused_by_the_board_check() {
+    let mut im = images();
+    im.lin[1] = linear_image(1, 0);
+    let bytes = write(&five_axes(&im), Some(&STAGE));
+    let view = group_image::parse(&bytes).unwrap();
+    assert_eq!(
+        view.check_axis_ids(),
+        Err(ImageError::AxisIdTwice { axis_id: 1 })
+    );
+    let board = BoardCaps {
+        counter_bits: 16,
+        axis_ids: [1, 2, 3, 4, 6],
+        n_axes: 5,
+        sensor_inputs: 2,
+    };
+    assert_eq!(
+        view.check_against(&board),
+        Err(ImageError::AxisIdTwice { axis_id: 1 })
+    );
+    group_image::parse(&good_image())
+        .unwrap()
+        .check_axis_ids()
+        .unwrap();
+}
+
 /// Reference: the documented rule — a stale sensor's frozen Σ b_i·ΔT_i is held for
 /// STALE_HOLD_MS, then ramps linearly to 0 over STALE_RAMP_MS, leaving b0; exact values at the
 /// hold's end, mid-ramp (±1e-4 µm: one f32 division) and after the ramp.

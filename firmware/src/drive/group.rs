@@ -60,6 +60,7 @@ pub fn check_group_image_wired(
     image: &[u8],
 ) -> Result<(AxisInputs, [SensorWiring; MAX_AXES]), ImageRefusal> {
     let view = group_image::parse(image).map_err(ImageRefusal::Invalid)?;
+    view.check_axis_ids().map_err(ImageRefusal::Invalid)?;
     let mut inputs = [0u8; MAX_AXES];
     let mut wirings = [wiring::POSITIONAL; MAX_AXES];
     let mut n = 0;
@@ -76,11 +77,6 @@ pub fn check_group_image_wired(
             })?,
             None => wiring::POSITIONAL,
         };
-        if inputs[..n].contains(&(input as u8)) {
-            return Err(ImageRefusal::AxisIdTwice {
-                axis_id: info.axis_id,
-            });
-        }
         if n >= MAX_AXES {
             return Err(ImageRefusal::Invalid(axcomp_core::ImageError::AxisCount));
         }

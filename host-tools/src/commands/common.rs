@@ -57,6 +57,41 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> anyhow::Result
     write_atomic(path, text.as_bytes())
 }
 
+/// Prints each data warning on stderr (`axcomp: warning: …`); with `strict` (`--strict`) any warning is
+/// an error (exit 2) after they are all printed.
+pub fn report_warnings(
+    warnings: &[axcomp_data::sanity::DataWarning],
+    strict: bool,
+) -> anyhow::Result<()> {
+    for w in warnings {
+        eprintln!("axcomp: warning: {}", w.message);
+    }
+    if strict && !warnings.is_empty() {
+        anyhow::bail!(
+            "--strict: {} data warning(s) (above); fix the data or drop --strict",
+            warnings.len()
+        );
+    }
+    Ok(())
+}
+
+/// A numeric option is a finite number in `lo … hi` (a size bound keeps the work and memory in
+/// check); the error names the option and the range.
+pub fn check_range(option: &str, v: f64, lo: f64, hi: f64) -> anyhow::Result<()> {
+    if !(v.is_finite() && v >= lo && v <= hi) {
+        anyhow::bail!("{option} {v}: need a finite number in {lo} … {hi}");
+    }
+    Ok(())
+}
+
+/// A count option lies in `lo … hi`; the error names the option and the range.
+pub fn check_count(option: &str, n: usize, lo: usize, hi: usize) -> anyhow::Result<()> {
+    if !(lo..=hi).contains(&n) {
+        anyhow::bail!("{option} {n}: need {lo} … {hi}");
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,13 +6,14 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use axcomp_data::{Split, groups};
+use axcomp_data::sanity::{self, DataWarning};
+use axcomp_data::{Dataset, Split, groups};
 use axcomp_geometry::analysis::Analysis;
 use axcomp_geometry::{FitOptions, GeometryError, Judge, LineData, Method, analyse};
 use axcomp_kinematics::Topology;
 
 use crate::cli::DataArgs;
-use crate::commands::common::{load_dataset, split_from};
+use crate::commands::common::{check_range, load_dataset, report_warnings, split_from};
 use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
@@ -62,6 +63,89 @@ pub struct Args {
     /// Position step of the exported tables (mm; default 40 steps per axis).
     #[arg(long, default_value_t = 0.0, value_name = "MM")]
     pub export_step: f64,
+    /// Refuse the data (exit 2) when a plausibility check warns (outliers, units, magnitudes).
+    #[arg(long)]
+    pub strict: bool,
+}
+
+/// Plausibility of laser line readings (see `axcomp_data::sanity`): a reading far from its neighbours
+/// along its line (per line, run and direction, ordered along the beam), a unit mix or an implausible
+/// median in `deviation_um` (nm taken for µm), positions beyond 10 m (µm taken for mm).
+pub fn line_warnings(ds: &Dataset, data: &LineData) -> anyhow::Result<Vec<DataWarning>> {
+    let dev = ds.numeric("deviation_um")?;
+    let text = |c: &str| -> anyhow::Result<Vec<String>> {
+        Ok(if ds.has(c) {
+            ds.text(c)?.into_iter().map(str::to_string).collect()
+        } else {
+            vec![String::new(); ds.n_rows()]
+        })
+    };
+    let (run, dir) = (text("run")?, text("direction")?);
+    // (line, run, direction) → (position along the beam, row) of its readings.
+    type Sequence = ((usize, String, String), Vec<(f64, usize)>);
+    let mut sequences: Vec<Sequence> = Vec::new();
+    for r in &data.readings {
+        let key = (r.line, run[r.row].clone(), dir[r.row].clone());
+        let along = axcomp_kinematics::dot(r.q, r.beam);
+        match sequences.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, s)) => s.push((along, r.row)),
+            None => sequences.push((key, vec![(along, r.row)])),
+        }
+    }
+    let sequences: Vec<Vec<usize>> = sequences
+        .into_iter()
+        .map(|(_, mut s)| {
+            s.sort_by(|a, b| a.0.total_cmp(&b.0));
+            s.into_iter().map(|(_, row)| row).collect()
+        })
+        .collect();
+    let mut w = Vec::new();
+    w.extend(sanity::unit_mix(ds, "deviation_um", dev, None));
+    if w.is_empty() {
+        w.extend(sanity::neighbour_outliers(
+            ds,
+            "deviation_um",
+            dev,
+            &sequences,
+        ));
+    }
+    w.extend(sanity::implausible_magnitude(
+        ds,
+        "deviation_um",
+        dev,
+        1000.0,
+        "a geometric error of more than 1 mm is not plausible in µm: nm, or not a deviation column?",
+    ));
+    for c in ["x_mm", "y_mm", "z_mm"] {
+        w.extend(sanity::implausible_magnitude(
+            ds,
+            c,
+            ds.numeric(c)?,
+            1.0e4,
+            "axis positions beyond 10 m are not plausible in mm: µm?",
+        ));
+    }
+    Ok(w)
+}
+
+/// Most exported positions per axis (`--export-step` over the axis's range).
+const MAX_EXPORT_POSITIONS: f64 = 100_000.0;
+
+/// `--export-step` gives at most [`MAX_EXPORT_POSITIONS`] positions on every axis (a step of 1e-9 mm
+/// once exhausted the memory).
+fn check_export_step(model: &axcomp_geometry::GeometryModel, step: f64) -> anyhow::Result<()> {
+    for (k, g) in model.grids.iter().enumerate() {
+        if step > 0.0 && (g.hi - g.lo) / step > MAX_EXPORT_POSITIONS {
+            bail!(
+                "--export-step {step}: {} positions over axis {}'s {} mm; at most {MAX_EXPORT_POSITIONS} \
+                 (give a larger step)",
+                ((g.hi - g.lo) / step).ceil(),
+                ["X", "Y", "Z"][k],
+                g.hi - g.lo
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Largest `--intervals`: 18 functions × (N + 3) coefficients; at 200 the fit ran for minutes.
@@ -79,6 +163,7 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
     }
     let ds = load_dataset(&a.data)?;
     let data = LineData::from_dataset(&ds, true)?;
+    report_warnings(&line_warnings(&ds, &data)?, a.strict)?;
     let judge = match split_from(a.holdout.as_deref(), a.cv.as_deref())? {
         None => Judge::None,
         Some(Split::Holdout(spec)) => {
@@ -126,10 +211,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for p in [&a.json, &a.out].into_iter().flatten() {
         outputs.planned(p);
     }
-    for d in [&a.export, &a.report].into_iter().flatten() {
-        outputs.dir(d);
+    if let Some(d) = &a.export {
+        outputs.folder(d, "--export");
+    }
+    if let Some(d) = &a.report {
+        outputs.folder(d, "--report");
     }
     outputs.check()?;
+    check_range("--export-step", a.export_step, 0.0, 1e5)?;
     let (data, an) = analyse_args(&a)?;
     let rep = &an.report;
     // everything is computed; now write
@@ -150,13 +239,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(dir) = &a.export {
+        check_export_step(&an.fit.model, a.export_step)?;
         for (name, text) in axcomp_geometry::export::export_files(&an.fit.model, a.export_step) {
-            outputs.file(dir.join(name), text);
+            outputs.folder_file(dir, &name, text);
         }
     }
     if let Some(dir) = &a.report {
         for (name, text) in axcomp_geometry::report::report_files(&data, &an) {
-            outputs.file(dir.join(name), text);
+            outputs.folder_file(dir, &name, text);
         }
     }
     outputs.commit()?;

@@ -132,9 +132,9 @@ fn planned_outputs(args: &Args) -> OutputSet {
         set.planned(p);
     }
     if let Some(dir) = &args.report {
-        set.dir(dir);
+        set.folder(dir, "--report");
         for name in REPORT_FILES {
-            set.planned(dir.join(name));
+            set.planned_in(dir, name);
         }
     }
     if let Some(p) = &args.json {
@@ -184,7 +184,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         for (name, bytes) in report_files(&args, &outcome) {
-            outputs.file(dir.join(name), bytes);
+            outputs.folder_file(dir, name, bytes);
         }
     }
     if let Some(path) = &args.json {
@@ -439,15 +439,7 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         .collect();
     let mut warnings = data_warnings(&ds, &args.target, &x, &dev, &dir);
     warnings.extend(direction_coverage(&obs, holdout_mask.as_deref()));
-    for w in &warnings {
-        eprintln!("axcomp: warning: {}", w.message);
-    }
-    if args.strict && !warnings.is_empty() {
-        bail!(
-            "--strict: {} data warning(s) (above); fix the data or drop --strict",
-            warnings.len()
-        );
-    }
+    crate::commands::common::report_warnings(&warnings, args.strict)?;
     let provenance = crate::provenance::of_data(
         &args.data,
         args.holdout.as_deref(),

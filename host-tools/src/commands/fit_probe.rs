@@ -88,6 +88,28 @@ pub struct Args {
     /// Write report.md and SVG plots into DIR.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// Refuse the data (exit 2) when a plausibility check warns (units, magnitudes).
+    #[arg(long)]
+    pub strict: bool,
+}
+
+/// Plausibility of touches (see `axcomp_data::sanity`): positions beyond 10 m or of mixed magnitudes
+/// (µm taken for mm).
+fn touch_warnings(ds: &Dataset, touches: &[Touch]) -> Vec<axcomp_data::sanity::DataWarning> {
+    use axcomp_data::sanity;
+    let mut w = Vec::new();
+    for (k, c) in ["x_mm", "y_mm", "z_mm"].into_iter().enumerate() {
+        let v: Vec<f64> = touches.iter().map(|t| t.position_mm[k]).collect();
+        w.extend(sanity::unit_mix(ds, c, &v, None));
+        w.extend(sanity::implausible_magnitude(
+            ds,
+            c,
+            &v,
+            1.0e4,
+            "touch positions beyond 10 m are not plausible in mm: µm?",
+        ));
+    }
+    w
 }
 
 /// Evaluation rows, the artefact's diameter, which rows (`holdout` / `calibration`), flagged held-out rows.
@@ -244,7 +266,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
-        outputs.dir(dir);
+        outputs.folder(dir, "--report");
         for name in [
             "residual_map.svg",
             "residual_map_plain.svg",
@@ -252,7 +274,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "diameter_error.svg",
             "report.md",
         ] {
-            outputs.planned(dir.join(name));
+            outputs.planned_in(dir, name);
         }
     }
     for p in [&args.centres_out, &args.out, &args.json]
@@ -267,6 +289,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ds = load_dataset(&args.data)?;
     let (touches, labels) = read_touches(&ds)?;
     axcomp_probe::validate_touches(&touches, &labels)?;
+    crate::commands::common::report_warnings(&touch_warnings(&ds, &touches), args.strict)?;
     let held: Vec<bool> = match &holdout {
         Some(h) => h.mask(&ds)?,
         None => vec![false; ds.n_rows()],
@@ -768,8 +791,8 @@ fn write_report(
     }
     after.hline(0.0, "");
     before.hline(0.0, "");
-    outputs.file(dir.join("residual_map.svg"), after.to_svg());
-    outputs.file(dir.join("residual_map_plain.svg"), before.to_svg());
+    outputs.folder_file(dir, "residual_map.svg", after.to_svg());
+    outputs.folder_file(dir, "residual_map_plain.svg", before.to_svg());
 
     // Pretravel versus speed: measured (stylus radius − |p − C| + R) per touch, model at a few directions.
     let mut pv = Figure::new(
@@ -809,7 +832,7 @@ fn write_report(
             .collect();
         pv.dashed(&format!("model az {az}° el {el}°"), &feeds, &ys);
     }
-    outputs.file(dir.join("pretravel_speed.svg"), pv.to_svg());
+    outputs.folder_file(dir, "pretravel_speed.svg", pv.to_svg());
 
     // Diameter error by speed on the evaluation rows: before, reference, after.
     let mut speeds: Vec<f64> = eval_touches.iter().map(|t| t.feed_mm_min).collect();
@@ -860,7 +883,7 @@ fn write_report(
         dfig.line(name, &xs, ys);
     }
     dfig.hline(0.0, "");
-    outputs.file(dir.join("diameter_error.svg"), dfig.to_svg());
+    outputs.folder_file(dir, "diameter_error.svg", dfig.to_svg());
 
     let de = &report["diameter_error_um"];
     let num = |v: &serde_json::Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:+.3}"));
@@ -949,7 +972,7 @@ fn write_report(
          the azimuth of its surface normal, one series per elevation ring.\n\n![after](residual_map.svg)\n\n\
          ![plain](residual_map_plain.svg)\n\n## Pretravel versus speed\n\n![pretravel](pretravel_speed.svg)"
     );
-    outputs.file(dir.join("report.md"), md);
+    outputs.folder_file(dir, "report.md", md);
     Ok(())
 }
 
@@ -992,6 +1015,7 @@ pub fn sim_probe(args: SimArgs) -> anyhow::Result<()> {
             args.repeats.unwrap_or_default()
         );
     }
+    crate::commands::common::check_range("--feed", args.feed, 1e-3, 1e5)?;
     let plan = match args.plan.as_str() {
         "probe-cal" | "cal" => {
             let mut p = ProbePlan::standard_calibration();

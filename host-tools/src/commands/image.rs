@@ -628,6 +628,8 @@ pub fn describe_any(bytes: &[u8]) -> anyhow::Result<String> {
     if view.version == 1 {
         return describe(bytes);
     }
+    view.check_axis_ids()
+        .map_err(|e| anyhow::anyhow!("the group is not valid (every board refuses it): {e}"))?;
     let mut s = String::new();
     writeln!(
         s,
@@ -1114,12 +1116,7 @@ fn rotary_from_args(args: &GroupArgs) -> anyhow::Result<Option<RotaryLocationSpe
         );
     }
     if v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
-        let model: RtestModel = serde_json::from_value(v).with_context(|| {
-            format!(
-                "--rotary {}: not a valid `fit rtest` model file",
-                path.display()
-            )
-        })?;
+        let model = RtestModel::from_json(text, &format!("--rotary {}", path.display()))?;
         let pivot = args.pivot_counts.as_deref().with_context(|| {
             format!(
                 "--rotary {}: a `fit rtest` model needs --pivot-counts X,Y,Z (the counts of the R-test frame's origin)",
@@ -1611,6 +1608,10 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
     )
     .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
     buf.truncate(n);
+    // What a board refuses of any group (one axis id on two axes), from the firmware's own check.
+    group_image::parse(&buf)
+        .and_then(|v| v.check_axis_ids())
+        .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
     Ok(buf)
 }
 

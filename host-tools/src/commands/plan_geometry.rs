@@ -10,6 +10,7 @@ use axcomp_geometry::plan::{PlanOptions, plan};
 use axcomp_kinematics::Topology;
 use axcomp_twin::geometry::{GeometryTwin, plan_by_name};
 
+use crate::commands::common::{check_count, check_range};
 use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
@@ -65,6 +66,9 @@ pub struct Args {
     pub drift_um_per_h: String,
 }
 
+/// Most runs `--runs` takes (each run repeats every line; a billion ran out of memory).
+const MAX_RUNS: usize = 1000;
+
 /// Most targets per line `--targets` takes.
 const MAX_TARGETS: usize = 200;
 
@@ -88,6 +92,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     outputs.check()?;
     let stroke = triple(&a.stroke, "--stroke")?;
+    for s in stroke {
+        // 100 m: no machine axis is longer.
+        check_range("--stroke", s, 1e-3, 1e5)?;
+    }
     let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
     let mut offsets = Vec::new();
     for s in &a.tool_offsets {
@@ -121,6 +129,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.simulate.is_some() && a.runs == 0 {
         bail!("--runs 0: ask for at least one run");
     }
+    check_count("--runs", a.runs, 0, MAX_RUNS)?;
     let drift = triple(&a.drift_um_per_h, "--drift-um-per-h")?;
     // A named twin plan is checked before anything is printed.
     let twin_lines = match a.twin_plan.as_deref() {

@@ -56,9 +56,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !(args.sigma_um.is_finite() && args.sigma_um > 0.0) {
         anyhow::bail!("--sigma-um {}: need a noise > 0 µm", args.sigma_um);
     }
-    if args.k4_poses < 8 || args.circle_poses < 4 {
-        anyhow::bail!("--k4-poses needs ≥ 8 and --circle-poses ≥ 4");
-    }
+    use crate::commands::common::{check_count, check_range};
+    // Bounds: a pose per 0.1° of a circle at most; the sphere within 10 m of the axes.
+    check_count("--k4-poses", args.k4_poses, 8, 3600)?;
+    check_count("--circle-poses", args.circle_poses, 4, 3600)?;
+    check_range("--sphere-radius-mm", args.sphere_radius_mm, -1e4, 1e4)?;
+    check_range("--sphere-height-mm", args.sphere_height_mm, -1e4, 1e4)?;
+    check_range("--second-height-mm", args.second_height_mm, -1e4, 1e4)?;
     if !(args.tilt_max_deg.abs() > 0.0 && args.tilt_max_deg.abs() <= 150.0) {
         anyhow::bail!("--tilt-max-deg {}: need 0 < |T| ≤ 150", args.tilt_max_deg);
     }

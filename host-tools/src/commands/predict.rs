@@ -84,8 +84,13 @@ pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
     let v: serde_json::Value = serde_json::from_str(text)
         .with_context(|| format!("{}: not a JSON model file", path.display()))?;
     let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
-    if format.is_empty() && v.get("kind").and_then(|k| k.as_str()) == Some("rtest") {
-        return Ok(ModelKind::Rtest);
+    match v.get("kind").and_then(|k| k.as_str()) {
+        Some("rtest") if format.is_empty() => return Ok(ModelKind::Rtest),
+        Some(kind) if format.is_empty() => bail!(
+            "{}: model kind `{kind}` is not one this reader knows (an R-test model has \"kind\": \"rtest\")",
+            path.display()
+        ),
+        _ => {}
     }
     if format.is_empty()
         && ["k", "x_ap", "y_fz", "z_n"]
@@ -145,8 +150,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let p = args.model.display().to_string();
             let text = std::fs::read_to_string(&args.model)
                 .with_context(|| format!("{p}: cannot read"))?;
-            let model: axcomp_rtest::RtestModel = serde_json::from_str(&text)
-                .with_context(|| format!("{p}: not an R-test model file"))?;
+            let model = axcomp_rtest::RtestModel::from_json(&text, &p)?;
             predict_rtest(&model, &mut ds)?
         }
         ModelKind::ForceLaw => {
@@ -155,6 +159,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .with_context(|| format!("{p}: cannot read"))?;
             let law: ModelForceLaw = serde_json::from_str(&text)
                 .with_context(|| format!("{p}: not a force-law file (k, x_ap, y_fz, z_n)"))?;
+            check_force_law(&law).map_err(|why| anyhow::anyhow!("{p}: {why}"))?;
             let v: serde_json::Value = serde_json::from_str(&text)?;
             let column = v["provenance"]["target"].as_str();
             predict_force_law(&law, column, &mut ds)?
@@ -450,6 +455,26 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Ve
     Ok(out)
 }
 
+/// A force law's terms are finite, `k` of plausible size and the exponents within ±100 (a fitted law
+/// has exponents near 1; beyond, the power overflows on ordinary process values).
+fn check_force_law(law: &ModelForceLaw) -> Result<(), String> {
+    let terms = [
+        ("k", law.k, 1e12),
+        ("x_ap", law.x_ap, 100.0),
+        ("y_fz", law.y_fz, 100.0),
+        ("z_n", law.z_n, 100.0),
+    ];
+    match terms
+        .iter()
+        .find(|(_, v, max)| !(v.is_finite() && v.abs() <= *max))
+    {
+        Some((name, v, max)) => Err(format!(
+            "force law term `{name}` is {v}, not a finite number within ±{max}"
+        )),
+        None => Ok(()),
+    }
+}
+
 /// A process parameter of a force law (`ap_mm`, `fz_mm`, the speed): a negative or non-finite value is an
 /// error naming the cell, as in `fit force` (with an exponent of 1, fixed as in Kienzle's law, a negative
 /// depth of cut once gave a negative force instead). Zero is a row without a cut: 0 N (see [`law_force`]).
@@ -482,6 +507,18 @@ pub fn predict_force_law(
 
 /// Reads the touch columns (names the cell of a non-numeric value). `feed_mm_min` is 0 when absent.
 pub fn read_touches(ds: &Dataset) -> anyhow::Result<(Vec<Touch>, Vec<String>)> {
+    axcomp_data::sanity::absurd_values(
+        ds,
+        &[
+            "x_mm",
+            "y_mm",
+            "z_mm",
+            "approach_x",
+            "approach_y",
+            "approach_z",
+            "feed_mm_min",
+        ],
+    )?;
     let col = |c: &str| -> anyhow::Result<Vec<f64>> { Ok(ds.numeric(c)?.to_vec()) };
     let (x, y, z) = (col("x_mm")?, col("y_mm")?, col("z_mm")?);
     let (ax, ay, az) = (col("approach_x")?, col("approach_y")?, col("approach_z")?);

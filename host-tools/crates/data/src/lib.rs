@@ -46,6 +46,10 @@ pub enum DataError {
     Io { file: String, cause: std::io::Error },
     #[error("{file}: no header row (the file is empty or holds only `#` comments)")]
     NoHeader { file: String },
+    #[error(
+        "{at}: {value:e} is not a plausible measurement (a finite number below 1e12 in magnitude expected)"
+    )]
+    Implausible { at: String, value: f64 },
     #[error("{file}:{line}:{column}: quoted field is never closed")]
     UnterminatedQuote {
         file: String,
@@ -217,15 +221,34 @@ impl LoadOptions {
             .map(|s| {
                 let (k, v) = pair("--scale", s)?;
                 match v.parse::<f64>() {
-                    Ok(f) if f.is_finite() => Ok((k, f)),
+                    Ok(f) if f != 0.0 && sanity::plausible_number(f) => Ok((k, f)),
                     _ => Err(DataError::BadOption {
                         option: "--scale",
                         text: s.clone(),
-                        reason: format!("`{v}` is not a finite number"),
+                        reason: format!(
+                            "`{v}` is not a finite number (a non-zero factor below 1e12 expected)"
+                        ),
                     }),
                 }
             })
             .collect::<Result<Vec<_>, _>>()?;
+        // One column renamed or scaled twice: which one was meant is a guess (the last used to win).
+        for (option, keys, given) in [
+            (
+                "--rename",
+                renames.iter().map(|r| &r.0).collect::<Vec<_>>(),
+                rename,
+            ),
+            ("--scale", scales.iter().map(|r| &r.0).collect(), scale),
+        ] {
+            if let Some(k) = (1..keys.len()).find(|&k| keys[..k].contains(&keys[k])) {
+                return Err(DataError::BadOption {
+                    option,
+                    text: given[k].clone(),
+                    reason: format!("column `{}` is named by {option} twice", keys[k]),
+                });
+            }
+        }
         Ok(Self {
             filters,
             renames,

@@ -28,7 +28,7 @@ pub const UNIT_GAP_DECADES: f64 = 2.0;
 /// One plausibility finding.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DataWarning {
-    /// `outlier`, `unit_mix` or `implausible_magnitude`.
+    /// `outlier`, `unit_mix`, `unit`, `implausible_magnitude` or `machine_kind`.
     pub kind: &'static str,
     /// The column concerned.
     pub column: String,
@@ -307,6 +307,144 @@ pub fn implausible_magnitude(
     })
 }
 
+/// Largest magnitude a measured value may have in any unit the tool reads (µm, mm, degrees, mm/min):
+/// beyond it (1e300, `inf`) the cell is corrupt, not a measurement.
+pub const ABSURD: f64 = 1e12;
+
+/// A finite number below [`ABSURD`] in magnitude.
+pub fn plausible_number(v: f64) -> bool {
+    v.is_finite() && v.abs() < ABSURD
+}
+
+/// Fails at the first cell of `cols` (those `ds` has) that is infinite or at least [`ABSURD`] in
+/// magnitude, naming file, line and column. `NaN` and text cells are left to the column's reader.
+pub fn absurd_values(ds: &Dataset, cols: &[&str]) -> Result<(), DataError> {
+    for &col in cols.iter().filter(|c| ds.has(c)) {
+        let v = ds.numeric_or_nan(col)?;
+        if let Some(i) = v.iter().position(|x| !x.is_nan() && !plausible_number(*x)) {
+            return Err(DataError::Implausible {
+                at: ds.locate(col, i),
+                value: v[i],
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Per-point outliers along sequences of rows (the readings of one laser line along the beam, the poses
+/// of one R-test path in measuring order): each value's residual r from the median of its up to two
+/// neighbours on each side. A value is flagged when |r| > [`OUTLIER_K`] · s (s the robust σ, 1.4826 ·
+/// median |r|, pooled over every sequence), |r| exceeds the range its neighbours span, and its adjacent
+/// values' residuals are below a quarter of its own: an isolated spike, not a step or a turn of the
+/// path. The first and last value of a sequence (neighbours on one side only, where a curved path's
+/// trend alone makes a residual) and sequences of fewer than 4 rows are not judged. `None` when
+/// nothing is flagged.
+pub fn neighbour_outliers(
+    ds: &Dataset,
+    column: &str,
+    values: &[f64],
+    sequences: &[Vec<usize>],
+) -> Option<DataWarning> {
+    // Per sequence: (row, residual, neighbours' median, their range), NaN where not judged.
+    let resid: Vec<Vec<(usize, f64, f64, f64)>> = sequences
+        .iter()
+        .filter(|s| s.len() >= 4)
+        .map(|seq| {
+            (0..seq.len())
+                .map(|k| {
+                    let mut near: Vec<f64> = (k.saturating_sub(2)..(k + 3).min(seq.len()))
+                        .filter(|&j| j != k)
+                        .map(|j| values[seq[j]])
+                        .filter(|v| v.is_finite())
+                        .collect();
+                    let span = near.iter().fold(f64::NEG_INFINITY, |a, v| a.max(*v))
+                        - near.iter().fold(f64::INFINITY, |a, v| a.min(*v));
+                    let m = if near.len() >= 2 {
+                        median(&mut near)
+                    } else {
+                        f64::NAN
+                    };
+                    (seq[k], values[seq[k]] - m, m, span)
+                })
+                .collect()
+        })
+        .collect();
+    let mut pooled: Vec<f64> = resid
+        .iter()
+        .flatten()
+        .map(|r| r.1.abs())
+        .filter(|r| r.is_finite())
+        .collect();
+    if pooled.len() < 8 {
+        return None;
+    }
+    let s = 1.4826 * median(&mut pooled);
+    if s.is_nan() || s <= 0.0 {
+        return None;
+    }
+    let isolated = |seq: &[(usize, f64, f64, f64)], k: usize| {
+        let r = seq[k].1.abs();
+        let quiet = |j: usize| {
+            seq.get(j)
+                .is_none_or(|n| n.1.is_nan() || n.1.abs() * 4.0 < r)
+        };
+        let interior = k > 0 && k + 1 < seq.len();
+        interior && r > OUTLIER_K * s && r > seq[k].3 && quiet(k - 1) && quiet(k + 1)
+    };
+    let flagged: Vec<(usize, f64)> = resid
+        .iter()
+        .flat_map(|seq| {
+            (0..seq.len())
+                .filter(|&k| isolated(seq, k))
+                .map(|k| (seq[k].0, seq[k].2))
+        })
+        .collect();
+    let show: Vec<String> = flagged
+        .iter()
+        .take(5)
+        .map(|&(i, m)| {
+            format!(
+                "line {} ({column} {:.4} vs its neighbours' {m:.4})",
+                ds.line_of_row(i),
+                values[i]
+            )
+        })
+        .collect();
+    (!flagged.is_empty()).then(|| DataWarning {
+        kind: "outlier",
+        column: column.to_string(),
+        message: format!(
+            "{}: {} value(s) of `{column}` lie more than {OUTLIER_K} robust σ (σ = {s:.4}) from their \
+             neighbours in measuring order: {}{} — a typo or a bad reading? They are kept in the fit",
+            ds.source(),
+            flagged.len(),
+            show.join("; "),
+            if flagged.len() > 5 { "; …" } else { "" }
+        ),
+        lines: flagged.iter().take(20).map(|r| ds.line_of_row(r.0)).collect(),
+    })
+}
+
+/// An angle column (degrees) that looks like radians: it varies, and every value lies within ±2π
+/// (a rotary campaign in degrees sweeps well beyond 6.3°). `None` otherwise.
+pub fn radians_for_degrees(ds: &Dataset, column: &str, values: &[f64]) -> Option<DataWarning> {
+    let finite = values.iter().filter(|v| v.is_finite());
+    let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+        (lo.min(*v), hi.max(*v))
+    });
+    let limit = std::f64::consts::TAU * 1.001;
+    (hi - lo > 0.5 && lo >= -limit && hi <= limit).then(|| DataWarning {
+        kind: "unit",
+        column: column.to_string(),
+        message: format!(
+            "{}: `{column}` spans only {lo:.4} … {hi:.4}: degrees expected, these look like radians \
+             (convert with --scale {column}=57.29577951308232)",
+            ds.source()
+        ),
+        lines: Vec::new(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -361,6 +499,42 @@ mod tests {
         // Every fourth row in mm.
         let (ds, v, x, d) = campaign(|k, v| if k % 4 == 0 { v / 1000.0 } else { v });
         assert!(unit_mix(&ds, "deviation_um", &v, Some((&x, &d))).is_some());
+    }
+
+    /// A smooth line of 20 readings with a little scatter; `spike` replaces one reading.
+    fn line(spike: Option<(usize, f64)>) -> (Dataset, Vec<f64>) {
+        let mut s = String::from("x_mm,deviation_um\n");
+        for k in 0..20 {
+            let x = 10.0 * k as f64;
+            let mut v = 5.0 * (x / 60.0).sin() + ((k * 7 % 5) as f64 - 2.0) * 0.05;
+            if let Some((_, w)) = spike.filter(|s| s.0 == k) {
+                v = w;
+            }
+            s.push_str(&format!("{x},{v}\n"));
+        }
+        let ds = Dataset::from_csv_str("l.csv", &s, &LoadOptions::default()).unwrap();
+        let v = ds.numeric("deviation_um").unwrap().to_vec();
+        (ds, v)
+    }
+
+    #[test]
+    fn a_spike_along_a_line_is_flagged_with_its_line_and_a_smooth_line_is_not() {
+        let seq = vec![(0..20).collect::<Vec<usize>>()];
+        let (ds, v) = line(None);
+        assert!(neighbour_outliers(&ds, "deviation_um", &v, &seq).is_none());
+        let (ds, v) = line(Some((9, 5000.0)));
+        let w = neighbour_outliers(&ds, "deviation_um", &v, &seq).expect("flagged");
+        assert_eq!(w.lines, vec![11], "{}", w.message); // row 9 → line 11
+    }
+
+    #[test]
+    fn angles_within_two_pi_look_like_radians() {
+        let ds = Dataset::from_csv_str("a.csv", "c_deg\n0\n", &LoadOptions::default()).unwrap();
+        let radians: Vec<f64> = (0..36).map(|k| f64::from(k) * 10f64.to_radians()).collect();
+        let degrees: Vec<f64> = (0..36).map(|k| f64::from(k) * 10.0).collect();
+        assert!(radians_for_degrees(&ds, "c_deg", &radians).is_some());
+        assert!(radians_for_degrees(&ds, "c_deg", &degrees).is_none());
+        assert!(radians_for_degrees(&ds, "c_deg", &[0.0; 5]).is_none());
     }
 
     #[test]

@@ -204,7 +204,25 @@ fn bad_option_syntax() {
     let e = LoadOptions::from_args(&[], &[], &["a=x".into()])
         .unwrap_err()
         .to_string();
-    assert_eq!(e, "--scale `a=x`: `x` is not a finite number");
+    assert_eq!(
+        e,
+        "--scale `a=x`: `x` is not a finite number (a non-zero factor below 1e12 expected)"
+    );
+    for bad in ["a=1e300", "a=0"] {
+        assert!(
+            LoadOptions::from_args(&[], &[], &[bad.into()]).is_err(),
+            "{bad}"
+        );
+    }
+    // One column scaled (or renamed) twice: the last used to win silently.
+    let e = LoadOptions::from_args(&[], &[], &["a=2".into(), "a=3".into()])
+        .unwrap_err()
+        .to_string();
+    assert_eq!(e, "--scale `a=3`: column `a` is named by --scale twice");
+    let e = LoadOptions::from_args(&[], &["a=b".into(), "a=c".into()], &[])
+        .unwrap_err()
+        .to_string();
+    assert_eq!(e, "--rename `a=c`: column `a` is named by --rename twice");
 }
 
 #[test]

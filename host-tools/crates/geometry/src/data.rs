@@ -41,7 +41,10 @@ fn col_or_zero(ds: &Dataset, name: &str) -> Result<Vec<f64>, GeometryError> {
 }
 
 fn finite(ds: &Dataset, name: &str, v: &[f64]) -> Result<(), GeometryError> {
-    if let Some(row) = v.iter().position(|x| !x.is_finite()) {
+    if let Some(row) = v
+        .iter()
+        .position(|x| !axcomp_data::sanity::plausible_number(*x))
+    {
         return Err(GeometryError::NonFinite {
             at: ds.locate(name, row),
             column: name.to_string(),

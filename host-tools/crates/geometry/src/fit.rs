@@ -709,7 +709,7 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
     };
     let model = GeometryModel {
         format: MODEL_FORMAT.to_string(),
-        version: 1,
+        version: crate::model::MODEL_VERSION,
         topology: topo.clone(),
         grids: layout.grids,
         components,

@@ -45,7 +45,9 @@ pub use model::{GeometryModel, RowPrediction, predict_rows};
 pub enum GeometryError {
     #[error(transparent)]
     Data(#[from] axcomp_data::DataError),
-    #[error("{at}: column {column}: the value is not a finite number")]
+    #[error(
+        "{at}: column {column}: the value is not a finite number below 1e12 in magnitude (a corrupt cell?)"
+    )]
     NonFinite { at: String, column: String },
     #[error("line {line} ({at}): only {targets} distinct targets; a line needs at least 3")]
     TooFewTargets {
@@ -88,6 +90,12 @@ pub enum GeometryError {
     },
     #[error("{source_name}: not a geometry model: {reason}")]
     BadModel { source_name: String, reason: String },
+    #[error("{source_name}: not a valid geometry model: {entry}: {reason}")]
+    BadModelEntry {
+        source_name: String,
+        entry: String,
+        reason: String,
+    },
     #[error("{0}")]
     Kinematics(#[from] axcomp_kinematics::KinematicsError),
     #[error("{what}: {cause}")]

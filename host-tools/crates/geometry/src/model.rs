@@ -11,6 +11,100 @@ use crate::spline::AxisGrid;
 /// Format tag of the model file.
 pub const MODEL_FORMAT: &str = "axcomp-geometry-model";
 
+/// The model file version this reader knows (and the fit writes).
+pub const MODEL_VERSION: u32 = 1;
+
+/// Largest magnitude a model value may have (µm, µrad, mm): beyond it a value is a corrupted file, not
+/// a machine's error.
+pub const ABSURD: f64 = 1e12;
+
+/// Most knot intervals an axis grid may have in a model file (the fit uses tens).
+pub const MAX_INTERVALS: usize = 100_000;
+
+fn plausible(v: f64) -> bool {
+    v.is_finite() && v.abs() < ABSURD
+}
+
+/// A grid is usable: finite ends in order, at least one and at most [`MAX_INTERVALS`] intervals.
+fn check_grid(g: &AxisGrid) -> Result<(), String> {
+    if !(plausible(g.lo) && plausible(g.hi) && g.lo < g.hi) {
+        return Err(format!(
+            "range {} … {} mm is not an increasing finite range",
+            g.lo, g.hi
+        ));
+    }
+    if g.intervals == 0 || g.intervals > MAX_INTERVALS {
+        return Err(format!(
+            "{} knot intervals (need 1 … {MAX_INTERVALS})",
+            g.intervals
+        ));
+    }
+    Ok(())
+}
+
+/// The components of a model file in ISO order, each found by its name; the error names the entry
+/// (`components[3] (EYX)`) and why.
+fn components_by_name(
+    entries: Vec<ComponentModel>,
+    grids: &[AxisGrid; 3],
+) -> Result<Vec<ComponentModel>, (String, String)> {
+    let mut slots: Vec<Option<ComponentModel>> = vec![None; Component::ALL.len()];
+    for (i, e) in entries.into_iter().enumerate() {
+        let entry = format!("components[{i}] ({})", e.name);
+        let Some(c) = Component::ALL.iter().copied().find(|c| c.name() == e.name) else {
+            return Err((
+                entry,
+                "unknown component name (expected an ISO 230-1 name EXX … EA0Z)".into(),
+            ));
+        };
+        check_component(c, &e, grids).map_err(|why| (entry.clone(), why))?;
+        if slots[c.index()].is_some() {
+            return Err((entry, format!("{} appears twice", c.name())));
+        }
+        slots[c.index()] = Some(e);
+    }
+    let missing: Vec<&str> = Component::ALL
+        .iter()
+        .filter(|c| slots[c.index()].is_none())
+        .map(|c| c.name())
+        .collect();
+    if !missing.is_empty() {
+        return Err((
+            "components".into(),
+            format!("missing {}", missing.join(", ")),
+        ));
+    }
+    Ok(slots.into_iter().flatten().collect())
+}
+
+/// One component entry fits its kind: its unit, as many coefficients as its axis's grid has basis
+/// functions (none for squareness), every value finite and of plausible size.
+fn check_component(c: Component, e: &ComponentModel, grids: &[AxisGrid; 3]) -> Result<(), String> {
+    if e.unit != c.unit() {
+        return Err(format!("unit `{}`, expected `{}`", e.unit, c.unit()));
+    }
+    let want = c.axis().map_or(0, |a| grids[a.index()].n_basis());
+    if e.coefficients.len() != want {
+        return Err(format!(
+            "{} coefficients, expected {want}{}",
+            e.coefficients.len(),
+            if want == 0 {
+                " (a squareness has a value, no coefficients)"
+            } else {
+                " (its axis grid's basis functions)"
+            }
+        ));
+    }
+    let values = e.coefficients.iter().chain([&e.value]);
+    let unc = e.uncertainty.iter().flatten();
+    if let Some(v) = values.chain(unc).find(|v| !plausible(**v)) {
+        return Err(format!(
+            "value {v:e} is not a finite number of plausible size (|v| < {ABSURD:e})"
+        ));
+    }
+    Ok(())
+}
+
 /// One component in the model file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ComponentModel {
@@ -76,18 +170,52 @@ impl GeometryModel {
         Some(linear_error(&self.topology, q, t, &self.values_at(q)))
     }
 
-    /// Reads a model file (JSON), checking its format tag.
+    /// Reads a model file (JSON): the format tag and version, the grids, and the components read by
+    /// name (each of the 21 exactly once, in any order; stored in ISO order), each with as many
+    /// coefficients as its axis's grid has basis functions and only finite values of plausible size.
     pub fn from_json(text: &str, source: &str) -> Result<GeometryModel, GeometryError> {
-        let m: GeometryModel = serde_json::from_str(text).map_err(|e| GeometryError::BadModel {
+        let bad = |reason: String| GeometryError::BadModel {
             source_name: source.to_string(),
-            reason: e.to_string(),
-        })?;
-        if m.format != MODEL_FORMAT || m.components.len() != 21 {
-            return Err(GeometryError::BadModel {
-                source_name: source.to_string(),
-                reason: format!("not an {MODEL_FORMAT} file with 21 components"),
-            });
+            reason,
+        };
+        let mut m: GeometryModel = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+        if m.format != MODEL_FORMAT {
+            return Err(bad(format!(
+                "format is `{}`, expected `{MODEL_FORMAT}`",
+                m.format
+            )));
         }
+        if m.version != MODEL_VERSION {
+            return Err(bad(format!(
+                "version {} is not one this reader knows ({MODEL_VERSION})",
+                m.version
+            )));
+        }
+        for (k, g) in m.grids.iter().enumerate() {
+            check_grid(g)
+                .map_err(|why| bad(format!("grids[{k}] ({} axis): {why}", ["X", "Y", "Z"][k])))?;
+        }
+        let scalars = [
+            ("smoothing_lambda", m.smoothing_lambda),
+            ("sigma_um", m.sigma_um),
+        ];
+        let volume = m.volume_min_mm.iter().chain(&m.volume_max_mm);
+        if let Some((what, v)) = scalars
+            .into_iter()
+            .chain(volume.map(|v| ("volume_min_mm/volume_max_mm", *v)))
+            .find(|(_, v)| !plausible(*v))
+        {
+            return Err(bad(format!(
+                "{what}: {v} is not a finite number of plausible size"
+            )));
+        }
+        m.components = components_by_name(std::mem::take(&mut m.components), &m.grids).map_err(
+            |(entry, reason)| GeometryError::BadModelEntry {
+                source_name: source.to_string(),
+                entry,
+                reason,
+            },
+        )?;
         Ok(m)
     }
 

@@ -282,6 +282,35 @@ impl Calibration {
         {
             return Err("non-finite coefficient, stylus radius or diameter".into());
         }
+        let gap = self.azimuth_gap_deg.unwrap_or_default();
+        let values = [
+            ("sphere_center_mm", &self.sphere_center_mm[..]),
+            ("sphere_diameter_mm", &[self.sphere_diameter_mm][..]),
+            ("stylus_radius_mm", &[self.stylus_radius_mm][..]),
+            ("coef_mm", &self.coef_mm[..]),
+            ("feed_range_mm_min", &self.feed_range_mm_min[..]),
+            ("elevation_range_deg", &self.elevation_range_deg[..]),
+            ("azimuth_gap_deg", &gap[..]),
+            ("fit_rms_um", &[self.fit_rms_um][..]),
+        ];
+        for (name, v) in values {
+            if let Some((i, x)) = v
+                .iter()
+                .enumerate()
+                .find(|(_, x)| !(x.is_finite() && x.abs() < 1e12))
+            {
+                return Err(format!(
+                    "{name}[{i}] is {x:e}, not a finite number of plausible size"
+                ));
+            }
+        }
+        if self.feed_range_mm_min[0] > self.feed_range_mm_min[1]
+            || self.elevation_range_deg[0] > self.elevation_range_deg[1]
+        {
+            return Err(
+                "feed_range_mm_min / elevation_range_deg: lower end above upper end".into(),
+            );
+        }
         Ok(())
     }
 

@@ -82,6 +82,8 @@ pub enum RtestError {
     },
     #[error("{0}")]
     Fit(String),
+    #[error("{file}: not a valid R-test model: {what}")]
+    BadModel { file: String, what: String },
 }
 
 /// R-test rows, validated.
@@ -106,10 +108,16 @@ pub struct RtestData {
 
 fn finite_column(ds: &Dataset, col: &str) -> Result<Vec<f64>, RtestError> {
     let v = ds.numeric(col)?.to_vec();
-    if let Some(r) = v.iter().position(|x| !x.is_finite()) {
+    if let Some(r) = v
+        .iter()
+        .position(|x| !axcomp_data::sanity::plausible_number(*x))
+    {
         return Err(RtestError::BadValue {
             at: ds.locate(col, r),
-            what: format!("`{col}` is {} (need a finite number)", v[r]),
+            what: format!(
+                "`{col}` is {:e} (need a finite number below 1e12 in magnitude)",
+                v[r]
+            ),
         });
     }
     Ok(v)
@@ -946,6 +954,103 @@ pub struct RtestModel {
 
 /// The sign convention, stated in the JSON, the model file and the report.
 pub const SIGN_CONVENTION: &str = "d = sphere centre − R-test head (tool point), µm along machine X, Y, Z (probe route: fitted centre − commanded tool point). Location errors give the actual average line of each rotary axis: C through (EX0C, EY0C, 0) with direction ≈ (EB0C, −EA0C, 1) in the frame the tilt axis carries; A through (0, EY0A, EZ0A) with direction ≈ (1, EC0A, −EB0A); B through (EX0B, 0, EZ0B) with direction ≈ (−EC0B, 1, EA0B); origin at the nominal intersection of the rotary axes. Squareness: Y along ≈ (−EC0Y, 1, 0), Z along ≈ (EB0Z, −EA0Z, 1). Angles positive right-handed, µrad; offsets µm.";
+
+impl RtestModel {
+    /// Reads a model file of `fit rtest --out` (JSON): `kind` must be `rtest`, the location errors are
+    /// read by name (each of the machine kind's 11 exactly once, in any order; stored in parameter order)
+    /// with their units, set-up names unique, every value finite and of plausible size. The error names
+    /// the file and the entry.
+    pub fn from_json(text: &str, source: &str) -> Result<RtestModel, RtestError> {
+        let bad = |what: String| RtestError::BadModel {
+            file: source.to_string(),
+            what,
+        };
+        let mut m: RtestModel = serde_json::from_str(text)
+            .map_err(|e| bad(format!("not an R-test model file: {e}")))?;
+        if m.kind != "rtest" {
+            return Err(bad(format!("kind `{}`, expected `rtest`", m.kind)));
+        }
+        if !(m.pivot_mm.is_finite() && m.pivot_mm.abs() < MODEL_ABSURD) {
+            return Err(bad(format!(
+                "pivot_mm {} is not a finite length",
+                m.pivot_mm
+            )));
+        }
+        m.location_errors =
+            location_by_name(m.machine, std::mem::take(&mut m.location_errors)).map_err(&bad)?;
+        if m.setup_offsets_um.is_empty() {
+            return Err(bad("setup_offsets_um: no set-up".into()));
+        }
+        for (i, (name, v)) in m.setup_offsets_um.iter().enumerate() {
+            if m.setup_offsets_um[..i].iter().any(|(n, _)| n == name) {
+                return Err(bad(format!(
+                    "setup_offsets_um[{i}] ({name}): set-up named twice"
+                )));
+            }
+            if let Some(x) = v
+                .iter()
+                .find(|x| !(x.is_finite() && x.abs() < MODEL_ABSURD))
+            {
+                return Err(bad(format!(
+                    "setup_offsets_um[{i}] ({name}): {x:e} is not a finite number of plausible size"
+                )));
+            }
+        }
+        Ok(m)
+    }
+}
+
+/// Largest magnitude a value of a model file may have (µm, µrad, mm): beyond it the file is corrupt.
+pub const MODEL_ABSURD: f64 = 1e12;
+
+/// The location errors of a model file in `kind`'s parameter order, each found by its name; the error
+/// names the entry (`location_errors[2] (EA0C)`) and why.
+fn location_by_name(
+    kind: MachineKind,
+    entries: Vec<(String, ParamValue)>,
+) -> Result<Vec<(String, ParamValue)>, String> {
+    let names = kind.location_names();
+    let mut slots: Vec<Option<(String, ParamValue)>> = vec![None; N_LOCATION];
+    for (i, (name, p)) in entries.into_iter().enumerate() {
+        let entry = format!("location_errors[{i}] ({name})");
+        let Some(k) = names.iter().position(|n| *n == name) else {
+            return Err(format!(
+                "{entry}: not a location error of the {} machine ({})",
+                kind.name(),
+                names.join(", ")
+            ));
+        };
+        if p.unit != location_unit(k) {
+            return Err(format!(
+                "{entry}: unit `{}`, expected `{}`",
+                p.unit,
+                location_unit(k)
+            ));
+        }
+        let values = [Some(p.value), p.std];
+        if let Some(v) = values
+            .into_iter()
+            .flatten()
+            .find(|v| !(v.is_finite() && v.abs() < MODEL_ABSURD))
+        {
+            return Err(format!(
+                "{entry}: {v:e} is not a finite number of plausible size"
+            ));
+        }
+        if slots[k].is_some() {
+            return Err(format!("{entry}: {name} appears twice"));
+        }
+        slots[k] = Some((name, p));
+    }
+    let missing: Vec<&str> = (0..N_LOCATION)
+        .filter(|&k| slots[k].is_none())
+        .map(|k| names[k])
+        .collect();
+    if !missing.is_empty() {
+        return Err(format!("location_errors: missing {}", missing.join(", ")));
+    }
+    Ok(slots.into_iter().flatten().collect())
+}
 
 impl RtestModel {
     /// From a fit.

@@ -1,0 +1,91 @@
+//! Hostile inputs to group images (`image group`, `image inspect`; contract: `shared/spec/interfaces.md`,
+//! the image sections): what the firmware refuses, the host refuses with the firmware's own reason
+//! (`axcomp_core::group_image`). Each test failed before its fix.
+
+use std::path::Path;
+
+use axcomp_core::group::AxisName;
+use axcomp_core::group_image::{self, AxisSectionSpec};
+use axcomp_core::{ImageSpec, LimitSpec, image_len, write_image};
+
+mod common;
+use common::{axcomp_in, fails_untouched_naming, scratch};
+
+/// A bare axis image (no table, no thermal term) for axis id `axis_id`.
+fn bare(axis_id: u16) -> Vec<u8> {
+    let spec = ImageSpec {
+        axis_id,
+        um_per_count: 0.1,
+        counter_bits: 32,
+        table: None,
+        thermo: None,
+        limits: LimitSpec {
+            max_correction_um: 100.0,
+            max_slew_um_per_cycle: 10.0,
+            direction_hysteresis_counts: 0,
+        },
+    };
+    let mut buf = vec![0u8; image_len(&spec)];
+    write_image(&spec, &mut buf).unwrap();
+    buf
+}
+
+/// A group image of X and Y with the given axis ids, written by the core's own writer.
+fn group_of(dir: &Path, name: &str, ids: [u16; 2]) {
+    let imgs = [bare(ids[0]), bare(ids[1])];
+    let specs: Vec<AxisSectionSpec> = [AxisName::X, AxisName::Y]
+        .into_iter()
+        .zip(&imgs)
+        .map(|(name, img)| AxisSectionSpec {
+            name,
+            counts_per_rev: 0,
+            stroke_counts: None,
+            image: img,
+            sensor_names: &[],
+        })
+        .collect();
+    let mut buf = vec![0u8; group_image::group_image_len(&specs, None)];
+    let n = group_image::write_group_image(&specs, None, &mut buf).unwrap();
+    std::fs::write(dir.join(name), &buf[..n]).unwrap();
+}
+
+/// `image group` of two axis images that carry one axis id: before the fix written (exit 0), although
+/// every board refuses it (one scale input cannot feed two axes). Now exit 2 with the firmware's
+/// reason, nothing written; distinct ids still group.
+#[test]
+fn image_group_refuses_one_axis_id_on_two_axes() {
+    let dir = scratch("group-ids");
+    std::fs::write(dir.join("x.bin"), bare(1)).unwrap();
+    std::fs::write(dir.join("y.bin"), bare(1)).unwrap();
+    std::fs::write(dir.join("y2.bin"), bare(2)).unwrap();
+    fails_untouched_naming(
+        &[
+            "image", "group", "--axis", "X=x.bin", "--axis", "Y=y.bin", "--out", "g.bin",
+        ],
+        &dir,
+        &["axis id 1 is on two axes"],
+    );
+    let o = axcomp_in(
+        &[
+            "image", "group", "--axis", "X=x.bin", "--axis", "Y=y2.bin", "--out", "g.bin",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// `image inspect` of a group image with one axis id on two axes (written by another tool): before the
+/// fix "ok". Now exit 2 with the firmware's reason.
+#[test]
+fn image_inspect_refuses_one_axis_id_on_two_axes() {
+    let dir = scratch("inspect-ids");
+    group_of(&dir, "twice.bin", [3, 3]);
+    group_of(&dir, "fine.bin", [3, 4]);
+    fails_untouched_naming(
+        &["image", "inspect", "twice.bin"],
+        &dir,
+        &["axis id 3 is on two axes"],
+    );
+    let o = axcomp_in(&["image", "inspect", "fine.bin"], &dir);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
