@@ -25,7 +25,11 @@ How it works: sensors are the `*_degC` columns (or the --sensors subset), forces
 
 Raw figures: the target minus its reference value, the mean of its first N rows (N = 1, or --zero-at-start N), the rows where every sensor's rise ΔT is zero. `raw_rms_um`, `train_raw_rms_um`, the per-condition and the validation raw figures all use it (`raw_reference_um` in the JSON).
 
-Model choice (default): the training rows are cut into blocks: the --cv conditions when there are at least 3, otherwise contiguous runs of one thermal regime (heating or cooling: the sign of the sensors' smoothed mean rate), the longest cut in halves until there are 5. Each candidate is re-run without each block, with all its own choices (sensors, lags, penalty) made on the other blocks, and predicts that block: plain least squares on every sensor (the reference), every sensor with one first-order lag per sensor, ridge and elastic net (α = 0.5) on those, greedy forward selection with lags, and fuzzy c-means + grey relational analysis (the reference method of the literature). The default is the candidate with the lowest RMS over the blocks among those that beat plain least squares by more than one standard error of the per-block paired difference; otherwise plain least squares. With a single regime among the training rows only plain least squares and every-sensor-with-lags can be chosen (the rows cannot show how dropping or shrinking collinear sensors transfers to another regime); the others are still reported. All candidates' scores are in the JSON (`candidates`, `validation`) and the report.
+Runs (--runs COL): each run's temperatures and target are taken relative to its first row (the readings at switch-on), lags restart per run, and the candidates are judged over runs. The model file records the column; `axcomp predict` applies the same per-run references.
+
+Model choice (default): candidates (plain least squares on every sensor the firmware takes, greedy selection of up to 4 sensors with lags, every sensor with one lag each, forward selection by inner CV, FCM + grey relational analysis, ridge) are each re-run with all their own choices on the data before each judged group and predict it: with --runs, each run of the later half from the runs before it; in one recording, each regime block (heating / cooling) of the later half from the blocks before it; with --cv conditions, each condition left out in turn. The lowest validation RMS wins if it is a simple procedure (plain least squares, greedy with lags); a more elaborate one must beat the better simple procedure by more than one standard error of the per-group paired difference. With one regime among a single recording's training rows only plain least squares and every-sensor-with-lags can be chosen. The plain references (plain least squares on every sensor, greedy + lags) are in the JSON (`references`) with their validation and held-out RMS.
+
+Range guard: a row where a model sensor has risen beyond the range it was fitted on by more than that range (at least 1 K) gets no thermal term (the model file holds the bounds; predict applies them).
 
 Lags: y += α(u − y), α = 1 − exp(−Δt/τ) from the actual sample interval, exactly as the firmware runs it; τ per sensor on a grid by inner CV, refined by golden-section search. A sensor whose training trace shows a single episode of change (a heater switched on once, one monotone rise) gets lags only up to a third of that episode: a longer lag of it is only a function of the time since the start. --no-lags leaves lags out.
 
@@ -410,15 +414,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c.name,
             c.validation_rms_um,
             if !c.eligible {
-                "  (reported only: one regime)"
+                "  (reported only)"
             } else if c.beats_reference {
-                "  (beats plain LS by > 1 SE)"
+                "  (below plain LS)"
             } else {
                 ""
             },
             c.holdout_rms_um
                 .map_or(String::new(), |h| format!("  (held-out {h:.4} µm)")),
             if c.chosen { "  ← chosen" } else { "" }
+        );
+    }
+    for r in &fit.references {
+        println!(
+            "  reference {:<13} validation RMS {:>10.4} µm{}",
+            r.name,
+            r.validation_rms_um,
+            r.holdout_rms_um
+                .map_or(String::new(), |h| format!("  (held-out {h:.4} µm)"))
         );
     }
     match fit.holdout_rms_um {
@@ -432,7 +445,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ),
     }
     if let Some(cv) = fit.cv_rms_um {
-        println!("leave-one-condition-out CV RMS: {cv:.3} µm");
+        println!("leave-one-group-out CV RMS (conditions or runs): {cv:.3} µm");
     }
     println!(
         "condition number {:.1}; guard: {}",
