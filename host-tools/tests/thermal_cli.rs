@@ -907,6 +907,24 @@ fn lathe_forward_split_default_below_raw_and_at_or_below_both_plain_references()
             (pr - h).abs() < 1e-6,
             "{target}: predict {pr} vs fit {h} (tolerance 1e-6 µm)"
         );
+        // The firmware's images hold fixed references: a multi-run model is refused, saying why.
+        let img = dir.join(format!("{target}.img"));
+        let (ok, _, err) = run_args(&[
+            "image",
+            "build",
+            "--thermal",
+            m.to_str().unwrap(),
+            "--axis-id",
+            "1",
+            "--um-per-count",
+            "0.1",
+            "--out",
+            img.to_str().unwrap(),
+        ]);
+        assert!(
+            !ok && err.contains("multi-run model") && !img.exists(),
+            "{err}"
+        );
     }
 }
 

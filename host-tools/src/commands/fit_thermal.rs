@@ -297,17 +297,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             forces.len()
         );
     }
-    let conditions = match &args.cv {
-        Some(col) => {
-            let (ids, labels) = groups(&ds, col)?;
-            Some(
-                ids.into_iter()
-                    .map(|i| labels[i].clone())
-                    .collect::<Vec<_>>(),
-            )
-        }
-        None => None,
+    // The label of each row in a grouping column (`--cv`, `--runs`).
+    let labels_of = |col: &Option<String>| -> anyhow::Result<Option<Vec<String>>> {
+        let Some(col) = col else { return Ok(None) };
+        let (ids, labels) = groups(&ds, col)?;
+        Ok(Some(ids.into_iter().map(|i| labels[i].clone()).collect()))
     };
+    let conditions = labels_of(&args.cv)?;
     for (col, _) in &laws {
         if !forces.iter().any(|f| &f.name == col) {
             bail!(
@@ -321,17 +317,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let held = holdout.as_ref().map(|h| h.mask(&ds)).transpose()?;
-    let runs = match &args.runs {
-        Some(col) => {
-            let (ids, labels) = groups(&ds, col)?;
-            Some(
-                ids.into_iter()
-                    .map(|i| labels[i].clone())
-                    .collect::<Vec<_>>(),
-            )
-        }
-        None => None,
-    };
+    let runs = labels_of(&args.runs)?;
     // An explicit NaN or inf is no value the fit can use: named by file, line and column here (the fit
     // itself only knows the data row).
     let mut used: Vec<(String, &[f64])> = vec![(args.target.clone(), &target)];

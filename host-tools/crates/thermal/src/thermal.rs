@@ -366,6 +366,7 @@ fn kinds_for(opts: &ThermalOptions, d: &Design) -> Result<Vec<Kind>, ThermalErro
                 "--select all: more usable sensors than the firmware takes (16)",
             ));
         }
+        Selection::All if opts.lags => vec![Kind::AllLags],
         Selection::All => vec![Kind::PlainLs],
         Selection::Forward => vec![Kind::ForwardLags],
         Selection::FcmGra => vec![Kind::FcmGra],
