@@ -381,6 +381,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         runs,
     };
 
+    // ---- row quality: glitches and stopped measurements, reported (the fit keeps every row) ----
+    let quality_runs = axcomp_thermal::runs::RunIndex::new(input.runs.as_deref(), n);
+    let mut quality_cols: Vec<(&str, &[f64])> = vec![(args.target.as_str(), &input.target)];
+    quality_cols.extend(
+        input
+            .sensors
+            .iter()
+            .map(|s| (s.name.as_str(), s.values.as_slice())),
+    );
+    let glitches = axcomp_thermal::quality::glitches(&quality_cols, &quality_runs);
+    for g in &glitches {
+        eprintln!(
+            "axcomp: warning: {}: `{}` has {} single-sample glitch(es) (first: {})",
+            args.data.data.display(),
+            g.column,
+            g.rows.len(),
+            ds.locate(
+                if g.column == args.target {
+                    g.column.clone()
+                } else {
+                    format!("{}_degC", g.column)
+                }
+                .as_str(),
+                g.rows[0] - 1
+            )
+        );
+    }
+    let sensor_refs: Vec<&[f64]> = input.sensors.iter().map(|s| s.values.as_slice()).collect();
+    let stopped =
+        axcomp_thermal::quality::stopped(&input.target, &sensor_refs, &input.time_s, &quality_runs);
+    if let Some(s) = stopped.first() {
+        eprintln!(
+            "axcomp: warning: {}: `{}` holds still while the temperatures move on {} stretch(es) (first: \
+             data rows {}–{}, {:.0} s, a sensor moved {:.1} K): a stopped measurement? (e.g. --where to keep \
+             the rows where the machine runs)",
+            args.data.data.display(),
+            args.target,
+            stopped.len(),
+            s.from_row,
+            s.to_row,
+            s.duration_s,
+            s.sensor_change_k
+        );
+    }
+
     // ---- fit ----
     let fit = fit_thermal(&input, &opts)
         .with_context(|| format!("fitting {}", args.data.data.display()))?;
@@ -448,6 +493,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             o.insert("lags_note".into(), note.clone().into());
         }
         o.insert("excluded_forces".into(), excluded_forces.clone().into());
+        o.insert(
+            "row_quality".into(),
+            serde_json::json!({ "glitches": glitches, "stopped_target": stopped }),
+        );
         let text = serde_json::to_string_pretty(&v)?;
         outputs.file(path, text);
     }

@@ -22,6 +22,7 @@ pub mod linalg;
 pub mod milling;
 pub mod model_file;
 mod prepare;
+pub mod quality;
 pub mod report;
 pub mod runs;
 pub mod select;
