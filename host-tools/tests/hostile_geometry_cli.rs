@@ -8,17 +8,7 @@ use proptest::prelude::*;
 use serde_json::Value;
 
 mod common;
-use common::{axcomp_in, fails_untouched_naming, read_json, scratch};
-
-fn ok(o: &std::process::Output) -> String {
-    assert!(
-        o.status.success(),
-        "axcomp failed: {}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
+use common::{axcomp_in, fails_untouched_naming, ok, read_json, scratch};
 
 /// The twin's laser lines (`dir/lines.csv`) and the plain fit's model (`dir/model.json`).
 fn lines_and_model(dir: &Path) {

@@ -7,17 +7,7 @@
 use std::path::Path;
 
 mod common;
-use common::{axcomp_in, fails_untouched_naming, read_json, scratch, table, write_table};
-
-fn ok(o: &std::process::Output) -> String {
-    assert!(
-        o.status.success(),
-        "axcomp failed: {}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
+use common::{axcomp_in, fails_untouched_naming, ok, read_json, scratch, table, write_table};
 
 /// The twin's laser lines of an 800 × 600 × 500 mm machine (`plan geometry --simulate`), written to
 /// `dir/lines.csv`; `extra` adds options (e.g. `--twin-plan seven-line`).

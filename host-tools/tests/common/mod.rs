@@ -154,6 +154,17 @@ pub fn fails_untouched_naming(args: &[&str], dir: &Path, needles: &[&str]) {
 }
 
 /// Runs `args` in `dir` and requires success.
+/// The standard output of a command that must have succeeded (both streams shown when it did not).
+pub fn ok(o: &Output) -> String {
+    assert!(
+        o.status.success(),
+        "axcomp failed: {}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
 pub fn ok_in(args: &[&str], dir: &Path) {
     let o = axcomp_in(args, dir);
     assert!(
