@@ -370,8 +370,7 @@ pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result
     if let Some(first) = guarded.iter().position(|g| *g) {
         eprintln!(
             "axcomp: note: {}: on {} row(s) (first: data row {}) a model sensor has risen beyond the range it \
-             was fitted on by more than that range: no thermal term there (the firmware rejects such a reading \
-             and ramps its term out)",
+             was fitted on by more than that range: that sensor's term is dropped there (as the firmware does)",
             ds.source(),
             guarded.iter().filter(|g| **g).count(),
             first + 1

@@ -29,8 +29,8 @@ pub struct ModelSensor {
     pub max_degc: f64,
     pub max_rate_degc_per_s: f64,
     pub stale_timeout_ms: u32,
-    /// Range guard: the rise (K, against the reference reading) beyond which the model drops its thermal
-    /// terms (a linear model is not extrapolated far beyond the rises it was fitted on). Absent: no guard.
+    /// Range guard: the rise (K, against the reference reading) beyond which the model drops this sensor's
+    /// term (a linear model is not extrapolated far beyond the rises it was fitted on). Absent: no guard.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rise_min_k: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]

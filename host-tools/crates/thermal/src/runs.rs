@@ -128,8 +128,9 @@ impl RunIndex {
 
 /// Predicts a campaign with a fitted model: each term's rise taken against the model's fixed reference
 /// (`runs` = `None`, one recording) or against each run's first reading (`runs`), lagged as the firmware
-/// does; rows where a model sensor's unlagged rise leaves `bounds` (per term, see the range guard of
-/// [`crate::choice`]) get no thermal term. Returns the predictions and which rows were guarded.
+/// does; on a row where a model sensor's unlagged rise leaves its `bounds` (per term, see the range guard
+/// of [`crate::choice`]) that sensor's term is dropped. Returns the predictions and which rows had a
+/// term dropped.
 pub fn predict_campaign(
     model: &ThermalModel,
     bounds: Option<&[(f64, f64)]>,
@@ -139,7 +140,7 @@ pub fn predict_campaign(
     runs: Option<&RunIndex>,
 ) -> Result<(Vec<f64>, Vec<bool>), String> {
     let n = time_s.len();
-    let mut rises = Vec::with_capacity(model.terms.len());
+    let mut out = vec![model.b0_um; n];
     let mut guarded = vec![false; n];
     for (j, t) in model.terms.iter().enumerate() {
         let s = sensors
@@ -162,18 +163,14 @@ pub fn predict_campaign(
                     .collect::<Vec<f64>>(),
             ),
         };
-        if let Some(&(lo, hi)) = bounds.and_then(|b| b.get(j)) {
-            for (g, v) in guarded.iter_mut().zip(&raw) {
-                *g |= *v < lo || *v > hi;
-            }
-        }
-        rises.push(lagged);
-    }
-    let mut out = vec![model.b0_um; n];
-    for (t, r) in model.terms.iter().zip(&rises) {
+        let (lo, hi) = bounds
+            .and_then(|b| b.get(j).copied())
+            .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
         for i in 0..n {
-            if !guarded[i] {
-                out[i] += t.coef_um_per_k * r[i];
+            if raw[i] < lo || raw[i] > hi {
+                guarded[i] = true;
+            } else {
+                out[i] += t.coef_um_per_k * lagged[i];
             }
         }
     }

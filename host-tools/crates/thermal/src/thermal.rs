@@ -14,8 +14,8 @@
 //!   references beside them, and the rule ([`crate::choice`]).
 //! - **lag support**: in a single recording, a sensor whose training trace shows one episode of change gets
 //!   lags only up to a third of it ([`LAG_CAP_FRACTION`]); lags never exceed a third of the longest run.
-//! - **range guard**: rows where a model sensor leaves the range it was fitted on by more than that range
-//!   get no thermal term ([`crate::choice`]).
+//! - **range guard**: on rows where a model sensor leaves the range it was fitted on by more than that
+//!   range, that sensor's term is dropped ([`crate::choice`]).
 //! - **do-no-harm guard**: with held-out rows, the model's RMS on them must not exceed raw; without, the
 //!   default's validation RMS must not exceed raw over the same groups.
 
@@ -252,7 +252,7 @@ pub struct ThermalFit {
     pub runs: Vec<String>,
     /// Per model sensor (same order as `model.terms`): the allowed rise (K) of the range guard.
     pub rise_bounds_k: Vec<(f64, f64)>,
-    /// Held-out rows on which the range guard dropped the thermal terms.
+    /// Held-out rows on which the range guard dropped a sensor's term.
     pub guarded_rows: usize,
     pub validation: ValidationReport,
     /// Forward selection path: (term added, inner CV RMS after it).
