@@ -720,18 +720,7 @@ pub fn fit_thermal(
     // (grid lags) is the model.
     let (model, cond, vif_named) = final_model(&p, input, &d, chosen, !p.runs.per_run)?;
     let all: Vec<usize> = d.order.clone();
-    let bounds_all = d.bounds(&all);
-    let rise_bounds_k: Vec<(f64, f64)> = model
-        .terms
-        .iter()
-        .map(|t| {
-            bounds_all[d
-                .names
-                .iter()
-                .position(|n| *n == t.sensor)
-                .expect("model sensor")]
-        })
-        .collect();
+    let rise_bounds_k = rise_bounds_of(&d, &model);
     let runs = if p.runs.per_run { Some(&p.runs) } else { None };
     let (prediction, guarded) = crate::runs::predict_campaign(
         &model,
@@ -742,36 +731,10 @@ pub fn fit_thermal(
         runs,
     )
     .expect("model built from these columns");
-    let resid: Vec<f64> = p
-        .y_fit
-        .iter()
-        .zip(&prediction)
-        .map(|(y, q)| y - q)
-        .collect();
-    let pick = |v: &[f64], h: bool| -> Vec<f64> {
-        (0..p.n).filter(|&i| p.held[i] == h).map(|i| v[i]).collect()
-    };
-    let train_raw = rms(&pick(&p.zeroed, false));
-    let train_rms = rms(&pick(&resid, false));
-    let (raw_rms, holdout_rms) = if input.holdout.is_some() {
-        (rms(&pick(&p.zeroed, true)), Some(rms(&pick(&resid, true))))
-    } else {
-        (rms(&p.zeroed), None)
-    };
-    let guarded_rows = (0..p.n).filter(|&i| p.held[i] && guarded[i]).count();
+    let f = residual_figures(&p, input.holdout.is_some(), &prediction, &guarded);
+    let (train_raw, raw_rms, holdout_rms) = (f.train_raw, f.raw_rms, f.holdout_rms);
     let val_rows: usize = c.validation.rows.iter().sum();
-    let val_raw = if val_rows == 0 {
-        f64::NAN
-    } else {
-        let sq: f64 = c
-            .validation
-            .folds
-            .iter()
-            .flat_map(|(_, g)| d.group_rows[*g].iter())
-            .map(|&i| p.zeroed[i].powi(2))
-            .sum();
-        (sq / val_rows as f64).sqrt()
-    };
+    let val_raw = validation_raw_rms(&p, &d, &c);
     let cv_rms = p
         .blocks
         .by_condition
@@ -785,62 +748,18 @@ pub fn fit_thermal(
             .map(|v| (v, train_raw)),
         &p.blocks.rule,
     );
-    let single_regime = !p.runs.per_run && !p.blocks.by_condition && p.blocks.regimes < 2;
-    let mut candidates = if requested {
-        vec![]
+    let (candidates, references, rank_correlation) = if requested {
+        (vec![], vec![], None)
     } else {
-        candidate_reports(&d, &c)
+        ranked_reports(&p, &d, &c)
     };
-    if single_regime {
-        candidates.iter_mut().for_each(|k| {
-            k.eligible &= k.name == Kind::PlainLs.name() || k.name == Kind::AllLags.name()
-        });
-    }
-    let references = if requested {
-        vec![]
-    } else {
-        references(&d, &c)
-    };
-    let rank_correlation = {
-        let pairs: Vec<(f64, f64)> = candidates
-            .iter()
-            .filter_map(|k| Some((k.validation_rms_um, k.holdout_rms_um?)))
-            .collect();
-        let (a, b): (Vec<f64>, Vec<f64>) = pairs.into_iter().unzip();
-        rank_correlation(&a, &b)
-    };
-    candidates
-        .iter_mut()
-        .for_each(|k| k.eligible &= k.name != Kind::PlainAll.name());
-    let fwd_final = c
-        .kinds
-        .contains(&Kind::ForwardLags)
-        .then(|| select::forward(&d.gs, &d.cands, &d.forced, &all, d.max_sensors, 0.01));
-    let forward_path = fwd_final
-        .map(|fb| {
-            fb.steps
-                .iter()
-                .map(|s| match d.cands[s.candidate] {
-                    Candidate::Sensor { sensor, tau_s } => {
-                        (format!("{} (τ={:.0} s)", d.names[sensor], tau_s), s.cv_rms)
-                    }
-                    Candidate::Force { force } => (input.forces[force].name.clone(), s.cv_rms),
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    let lag_ok: Vec<bool> = p
-        .lag_cap
-        .iter()
-        .map(|cap| *cap >= p.grid.get(1).copied().unwrap_or(f64::INFINITY))
-        .collect();
     Ok(ThermalFit {
         sensors: model.terms.iter().map(|t| t.sensor.clone()).collect(),
         raw_rms_um: raw_rms,
         holdout_rms_um: holdout_rms,
         cv_rms_um: cv_rms,
         train_raw_rms_um: train_raw,
-        train_rms_um: train_rms,
+        train_rms_um: f.train_rms,
         formula: model.formula(),
         vif: vif_named,
         chosen_method: c.kinds[c.chosen].method_name().into(),
@@ -859,35 +778,26 @@ pub fn fit_thermal(
             vec![]
         },
         rise_bounds_k,
-        guarded_rows,
-        validation: ValidationReport {
-            scheme: if requested {
-                "none (forced selection)".into()
-            } else if d.forward {
-                "forward in time".into()
-            } else {
-                "leave one condition out".into()
-            },
-            rule: p.blocks.rule.clone(),
-            blocks: p.blocks.names.clone(),
-            predicted_blocks: c
-                .validation
-                .folds
-                .iter()
-                .map(|(_, g)| p.blocks.names[*g].clone())
-                .collect(),
-            raw_rms_um: val_raw,
-            rank_correlation,
-        },
-        forward_path,
+        guarded_rows: f.guarded_rows,
+        validation: validation_report(&p, &d, &c, requested, val_raw, rank_correlation),
+        forward_path: forward_path(input, &d, &c),
         condition_number: cond,
         ridge_lambda: chosen.ridge,
         lags: opts.lags,
         lag_grid_s: p.grid.clone(),
         lag_cap_s: p.lag_cap.clone(),
-        lag_supported: d.names.iter().cloned().zip(lag_ok).collect(),
+        lag_supported: d
+            .names
+            .iter()
+            .map(|n| n.clone())
+            .zip(
+                p.lag_cap
+                    .iter()
+                    .map(|cap| *cap >= p.grid.get(1).copied().unwrap_or(f64::INFINITY)),
+            )
+            .collect(),
         inner_groups: p.blocks.rule.clone(),
-        per_condition: per_condition(input, &p, &resid),
+        per_condition: per_condition(input, &p, &f.resid),
         excluded_sensors: p.excluded.clone(),
         training_rows: p.train_idx.len(),
         holdout_rows: p.n - p.train_idx.len(),
@@ -895,6 +805,147 @@ pub fn fit_thermal(
         model,
         prediction,
     })
+}
+
+/// The fitted model's residuals and RMS figures on the training and held-out rows.
+struct Figures {
+    resid: Vec<f64>,
+    train_raw: f64,
+    train_rms: f64,
+    /// Raw RMS on the held-out rows (on every row without a holdout).
+    raw_rms: f64,
+    holdout_rms: Option<f64>,
+    /// Held-out rows on which the range guard dropped a term.
+    guarded_rows: usize,
+}
+
+fn residual_figures(
+    p: &Prepared,
+    has_holdout: bool,
+    prediction: &[f64],
+    guarded: &[bool],
+) -> Figures {
+    let resid: Vec<f64> = p.y_fit.iter().zip(prediction).map(|(y, q)| y - q).collect();
+    let pick = |v: &[f64], h: bool| -> Vec<f64> {
+        (0..p.n).filter(|&i| p.held[i] == h).map(|i| v[i]).collect()
+    };
+    let (raw_rms, holdout_rms) = if has_holdout {
+        (rms(&pick(&p.zeroed, true)), Some(rms(&pick(&resid, true))))
+    } else {
+        (rms(&p.zeroed), None)
+    };
+    Figures {
+        train_raw: rms(&pick(&p.zeroed, false)),
+        train_rms: rms(&pick(&resid, false)),
+        raw_rms,
+        holdout_rms,
+        guarded_rows: (0..p.n).filter(|&i| p.held[i] && guarded[i]).count(),
+        resid,
+    }
+}
+
+/// How the candidates were judged (scheme, groups, the raw RMS over the predicted groups, rank correlation).
+fn validation_report(
+    p: &Prepared,
+    d: &Design,
+    c: &Chosen,
+    requested: bool,
+    val_raw: f64,
+    rank_correlation: Option<f64>,
+) -> ValidationReport {
+    ValidationReport {
+        scheme: if requested {
+            "none (forced selection)".into()
+        } else if d.forward {
+            "forward in time".into()
+        } else {
+            "leave one condition out".into()
+        },
+        rule: p.blocks.rule.clone(),
+        blocks: p.blocks.names.clone(),
+        predicted_blocks: c
+            .validation
+            .folds
+            .iter()
+            .map(|(_, g)| p.blocks.names[*g].clone())
+            .collect(),
+        raw_rms_um: val_raw,
+        rank_correlation,
+    }
+}
+
+/// Per model term: the range guard's bounds of its sensor after fitting on every group.
+fn rise_bounds_of(d: &Design, model: &ThermalModel) -> Vec<(f64, f64)> {
+    let bounds_all = d.bounds(&d.order);
+    model
+        .terms
+        .iter()
+        .map(|t| {
+            bounds_all[d
+                .names
+                .iter()
+                .position(|n| *n == t.sensor)
+                .expect("model sensor")]
+        })
+        .collect()
+}
+
+/// RMS of the raw (zeroed) target over the validation's predicted groups (NaN without folds).
+fn validation_raw_rms(p: &Prepared, d: &Design, c: &Chosen) -> f64 {
+    let rows: usize = c.validation.rows.iter().sum();
+    if rows == 0 {
+        return f64::NAN;
+    }
+    let sq: f64 = c
+        .validation
+        .folds
+        .iter()
+        .flat_map(|(_, g)| d.group_rows[*g].iter())
+        .map(|&i| p.zeroed[i].powi(2))
+        .sum();
+    (sq / rows as f64).sqrt()
+}
+
+/// The candidates' reports (eligibility as the rule saw it), the plain references and the rank
+/// correlation between the candidates' validation and held-out RMS.
+fn ranked_reports(
+    p: &Prepared,
+    d: &Design,
+    c: &Chosen,
+) -> (Vec<CandidateReport>, Vec<Reference>, Option<f64>) {
+    let single_regime = !p.runs.per_run && !p.blocks.by_condition && p.blocks.regimes < 2;
+    let mut candidates = candidate_reports(d, c);
+    if single_regime {
+        candidates.iter_mut().for_each(|k| {
+            k.eligible &= k.name == Kind::PlainLs.name() || k.name == Kind::AllLags.name()
+        });
+    }
+    let (a, b): (Vec<f64>, Vec<f64>) = candidates
+        .iter()
+        .filter_map(|k| Some((k.validation_rms_um, k.holdout_rms_um?)))
+        .unzip();
+    let rank = rank_correlation(&a, &b);
+    candidates
+        .iter_mut()
+        .for_each(|k| k.eligible &= k.name != Kind::PlainAll.name());
+    (candidates, references(d, c), rank)
+}
+
+/// The forward-selection path on every group (sensor or force, inner CV RMS after adding it).
+fn forward_path(input: &ThermalInput, d: &Design, c: &Chosen) -> Vec<(String, f64)> {
+    if !c.kinds.contains(&Kind::ForwardLags) {
+        return vec![];
+    }
+    let fb = select::forward(&d.gs, &d.cands, &d.forced, &d.order, d.max_sensors, 0.01);
+    fb.steps
+        .iter()
+        .map(|s| match d.cands[s.candidate] {
+            Candidate::Sensor { sensor, tau_s } => {
+                (format!("{} (τ={:.0} s)", d.names[sensor], tau_s), s.cv_rms)
+            }
+            Candidate::Force { force } => (input.forces[force].name.clone(), s.cv_rms),
+        })
+        .collect()
 }
 
 /// Golden-section minimisation of `f` on `[a, b]`, `iters` steps; returns the abscissa of the minimum.
