@@ -33,7 +33,7 @@ Range guard: on a row where a model sensor has risen beyond the range it was fit
 
 Lags: y += α(u − y), α = 1 − exp(−Δt/τ) from the actual sample interval, exactly as the firmware runs it; τ per sensor on a grid by inner CV, refined by golden-section search. A sensor whose training trace shows a single episode of change (a heater switched on once, one monotone rise) gets lags only up to a third of that episode: a longer lag of it is only a function of the time since the start. --no-lags leaves lags out.
 
---select all | forward | fcm-gra is a forced selection: only that structure is fitted (no comparison; --select all without --lags is plain least squares; FCM runs only for fcm-gra).
+--select all | greedy | forward | fcm-gra is a forced selection: only that structure is fitted (no comparison; --select all without --lags is plain least squares; greedy is up to 4 sensors each with its lag; FCM runs only for fcm-gra). A refusal by the do-no-harm guard names the plain references that do better than no model and the --select that fits each.
 
 Do-no-harm guard: with --holdout, the model's RMS on the held-out rows must be <= raw on them; without, the default's validation RMS must be <= raw over the same blocks (a forced selection: its leave-one-block-out RMS <= raw on the training rows). When it fails, the JSON and report are still written, no model is written, and the command exits 3, unless --force.
 
@@ -91,7 +91,8 @@ pub struct Args {
     #[arg(long, value_name = "λ|auto")]
     pub ridge: Option<String>,
     /// Model choice: auto (the candidate with the lowest transfer-validation RMS), or a forced selection that
-    /// runs only itself: fcm-gra, forward, all (every sensor; plain least squares, with --lags per-sensor lags).
+    /// runs only itself: fcm-gra, forward, greedy (up to 4 sensors, each with its lag), all (every sensor;
+    /// plain least squares, with --lags per-sensor lags).
     #[arg(long = "select", default_value = "auto", value_name = "METHOD")]
     pub select: String,
     /// Most sensors in the model (1..=16).
@@ -133,7 +134,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "fcm-gra" | "fcm_gra" => Selection::FcmGra,
         "forward" => Selection::Forward,
         "all" => Selection::All,
-        s => bail!("--select `{s}`: expected auto, fcm-gra, forward or all"),
+        "greedy" => Selection::Greedy,
+        s => bail!("--select `{s}`: expected auto, fcm-gra, forward, greedy or all"),
     };
     if args.sensor_period_ms == 0 {
         bail!("--sensor-period-ms must be > 0");
@@ -142,9 +144,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--zero-at-start 0: must be at least 1");
     }
     let mut opts = ThermalOptions {
-        // The default choice always compares lagged candidates (unless --no-lags); a forced selection fits
-        // lags only with --lags.
-        lags: if forced_selection {
+        // The default choice always compares lagged candidates (unless --no-lags), and so does greedy (the
+        // reference with lags); another forced selection fits lags only with --lags.
+        lags: if forced_selection && selection != Selection::Greedy {
             args.lags
         } else {
             !args.no_lags

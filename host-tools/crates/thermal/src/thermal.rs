@@ -67,6 +67,8 @@ pub enum Selection {
     Forward,
     /// Every usable sensor (no selection; a baseline).
     All,
+    /// Greedy selection of up to 4 sensors, each with its lag (the plain reference with lags).
+    Greedy,
 }
 
 /// Fit settings (validated by [`ThermalOptions::build`]).
@@ -370,6 +372,7 @@ fn kinds_for(opts: &ThermalOptions, d: &Design) -> Result<Vec<Kind>, ThermalErro
         Selection::All => vec![Kind::PlainLs],
         Selection::Forward => vec![Kind::ForwardLags],
         Selection::FcmGra => vec![Kind::FcmGra],
+        Selection::Greedy => vec![Kind::GreedyLags],
     })
 }
 
@@ -753,6 +756,10 @@ pub fn fit_thermal(
     } else {
         ranked_reports(&p, &d, &c)
     };
+    let mut guard = guard;
+    if !guard.passed {
+        guard.reason += &helpful_references(&references, holdout_rms.map(|_| raw_rms), val_raw);
+    }
     Ok(ThermalFit {
         sensors: model.terms.iter().map(|t| t.sensor.clone()).collect(),
         raw_rms_um: raw_rms,
@@ -841,6 +848,36 @@ fn residual_figures(
         holdout_rms,
         guarded_rows: (0..p.n).filter(|&i| p.held[i] && guarded[i]).count(),
         resid,
+    }
+}
+
+/// For a refusal: the plain references that are better than no model (on the held-out rows when there
+/// are, else in validation), with the option that fits each.
+fn helpful_references(references: &[Reference], holdout_raw: Option<f64>, val_raw: f64) -> String {
+    let helpful: Vec<String> = references
+        .iter()
+        .filter_map(|r| {
+            let (what, got, raw) = match (holdout_raw, r.holdout_rms_um) {
+                (Some(raw), Some(h)) => ("held-out", h, raw),
+                _ => ("validation", r.validation_rms_um, val_raw),
+            };
+            let how = match r.name.as_str() {
+                "greedy_lags" => "--select greedy",
+                _ if r.sensors.len() <= axcomp_core::MAX_SENSORS => "--select all",
+                _ => "--select all --sensors with at most 16 of them",
+            };
+            (got < raw).then(|| {
+                format!(
+                    "{} ({how}): {what} RMS {got:.3} µm < raw {raw:.3} µm",
+                    r.name
+                )
+            })
+        })
+        .collect();
+    if helpful.is_empty() {
+        "; no plain reference is better than no model either".into()
+    } else {
+        format!("; better than no model: {}", helpful.join(", "))
     }
 }
 
