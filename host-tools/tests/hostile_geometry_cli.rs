@@ -440,7 +440,9 @@ fn implausible_readings_warn_and_strict_refuses() {
     ];
     for (file, needles) in cases {
         let o = axcomp_in(
-            &["fit", "geometry", "--data", file, "--method", "plain"],
+            &[
+                "fit", "geometry", "--data", file, "--method", "plain", "--json", "w.json",
+            ],
             &dir,
         );
         let err = String::from_utf8_lossy(&o.stderr);
@@ -449,6 +451,20 @@ fn implausible_readings_warn_and_strict_refuses() {
             assert!(
                 err.contains("warning") && err.contains(n),
                 "{file}: must name {n}: {err}"
+            );
+        }
+        // The same findings are in the JSON (`warnings`: kind, column, message, lines).
+        let v: Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("w.json")).unwrap()).unwrap();
+        let w = v["warnings"].as_array().expect("warnings in the JSON");
+        assert!(
+            !w.is_empty() && w.iter().all(|w| w["column"] == "deviation_um"),
+            "{w:?}"
+        );
+        if file == "typo.csv" {
+            assert!(
+                w.iter()
+                    .any(|w| w["lines"].as_array().unwrap().contains(&42.into()))
             );
         }
         fails_untouched_naming(
@@ -473,6 +489,39 @@ fn implausible_readings_warn_and_strict_refuses() {
         &dir,
     );
     assert!(!String::from_utf8_lossy(&o.stderr).contains("warning"));
+}
+
+/// The R-test and probe fits carry their data warnings in the JSON too (`warnings`, `[]` when none).
+#[test]
+fn rtest_and_probe_json_carry_warnings() {
+    let dir = scratch("json-warnings");
+    for (sim, fit) in [
+        (
+            vec!["sim", "--machine", "ac-trunnion", "--out", "r.csv"],
+            vec!["fit", "rtest", "--data", "r.csv", "--json", "r.json"],
+        ),
+        (
+            vec!["sim-probe", "--plan", "probe-cal", "--out", "p.csv"],
+            vec![
+                "fit",
+                "probe",
+                "--data",
+                "p.csv",
+                "--sphere-diameter-mm",
+                "25",
+                "--json",
+                "p.json",
+            ],
+        ),
+    ] {
+        let o = axcomp_in(&sim, &dir);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let o = axcomp_in(&fit, &dir);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let j = dir.join(fit.last().unwrap());
+        let v: Value = serde_json::from_str(&std::fs::read_to_string(j).unwrap()).unwrap();
+        assert_eq!(v["warnings"], serde_json::json!([]), "{}", fit[1]);
+    }
 }
 
 /// A single 1e300 reading: before the fix fitted (the model held 1e299 and `null`s, and then the tool

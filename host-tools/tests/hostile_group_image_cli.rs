@@ -89,3 +89,79 @@ fn image_inspect_refuses_one_axis_id_on_two_axes() {
     let o = axcomp_in(&["image", "inspect", "fine.bin"], &dir);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// An axis image for `axis_id` whose table spans 0..100,000 counts (10 mm at 0.1 µm per count).
+fn with_table(axis_id: u16) -> Vec<u8> {
+    let seg = [[0.0f32; 4]; 10];
+    let spec = ImageSpec {
+        axis_id,
+        um_per_count: 0.1,
+        counter_bits: 32,
+        table: Some(axcomp_core::TableSpec {
+            start_counts: 0,
+            segment_counts: 10_000,
+            forward: &seg,
+            backward: &[],
+            outside: axcomp_core::OutsideStroke::Hold,
+        }),
+        thermo: None,
+        limits: LimitSpec {
+            max_correction_um: 100.0,
+            max_slew_um_per_cycle: 10.0,
+            direction_hysteresis_counts: 0,
+        },
+    };
+    let mut buf = vec![0u8; image_len(&spec)];
+    let n = write_image(&spec, &mut buf).unwrap();
+    buf.truncate(n);
+    buf
+}
+
+/// `image group --rotary` with the pivot's X 1e10 counts away (mm typed where counts belong, ×10^4):
+/// before the fix written (the firmware loaded it and corrected about a pivot 1 km off). Now exit 2 with
+/// the firmware's reason (`GroupImageView::check_pivot`: X's table spans 0..100,000 counts, so the
+/// pivot's X may lie in −100,000..200,000), nothing written; a pivot inside still groups.
+#[test]
+fn image_group_refuses_a_pivot_far_outside_the_strokes() {
+    let dir = scratch("group-pivot");
+    std::fs::write(dir.join("x.bin"), with_table(1)).unwrap();
+    for (f, id) in [("y.bin", 2), ("z.bin", 3), ("a.bin", 4), ("c.bin", 5)] {
+        std::fs::write(dir.join(f), bare(id)).unwrap();
+    }
+    let rotary = |x: i64| {
+        format!(
+            "{{\"ex0c_um\": 0, \"ey0c_um\": 0, \"ea0c_urad\": 0, \"eb0c_urad\": 0, \"ey0a_um\": 0, \
+             \"ez0a_um\": 0, \"eb0a_urad\": 0, \"ec0a_urad\": 0, \"pivot_counts\": [{x}, 0, 0], \
+             \"tool_length_um\": 0}}"
+        )
+    };
+    std::fs::write(dir.join("far.json"), rotary(10_000_000_000)).unwrap();
+    std::fs::write(dir.join("near.json"), rotary(150_000)).unwrap();
+    let args = |model: &'static str| {
+        [
+            "image",
+            "group",
+            "--axis",
+            "X=x.bin",
+            "--axis",
+            "Y=y.bin",
+            "--axis",
+            "Z=z.bin",
+            "--axis",
+            "A:3600000=a.bin",
+            "--axis",
+            "C:3600000=c.bin",
+            "--rotary",
+            model,
+            "--out",
+            "g.bin",
+        ]
+    };
+    fails_untouched_naming(
+        &args("far.json"),
+        &dir,
+        &["rotary pivot's X lies outside the X stroke"],
+    );
+    let o = axcomp_in(&args("near.json"), &dir);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

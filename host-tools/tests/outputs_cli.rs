@@ -197,6 +197,11 @@ fn fit_force_bad_last_output_touches_nothing() {
     );
     assert_ne!(std::fs::read(dir.join("law.json")).unwrap(), b"old law");
     assert!(dir.join("rep/force_fit.svg").is_file() && dir.join("j.json").is_file());
+    // The report folder is written whole: the JSON inside it is refused (before: written into it,
+    // where the next report would mix with it), nothing touched; the folder records what it holds.
+    good[11] = "rep/j.json";
+    fails_untouched(&good, &dir, "a folder the command writes whole");
+    assert!(dir.join("rep/.written-by-axcomp").is_file());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

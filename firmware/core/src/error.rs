@@ -233,6 +233,12 @@ pub enum ImageError {
         /// The axis id.
         axis_id: u16,
     } = 28,
+    /// The rotary model's pivot lies outside a linear axis's stroke by more than that stroke's
+    /// length: a unit or sign error (a pivot is on the machine, near its travel).
+    PivotOutsideStroke {
+        /// The linear axis's code (0 X, 1 Y, 2 Z).
+        axis: u8,
+    } = 29,
     /// A provenance block (group section kind 6, or the `PROV`/`SNAM` header extension of a
     /// schema-1 image) is malformed ([`crate::provenance`]).
     Provenance = 40,
@@ -322,6 +328,13 @@ impl fmt::Display for ImageError {
             ImageError::AxisIdTwice { axis_id } => write!(
                 f,
                 "axis id {axis_id} is on two axes of the group (one scale input cannot feed both)"
+            ),
+            ImageError::PivotOutsideStroke { axis } => write!(
+                f,
+                "the rotary pivot's {} lies outside the {} stroke by more than the stroke's length (a unit or \
+                 sign error?)",
+                axis_letter(axis),
+                axis_letter(axis)
             ),
             ImageError::SensorNames { axis } => write!(
                 f,

@@ -222,11 +222,44 @@ impl<'a> GroupImageView<'a> {
         Ok(())
     }
 
+    /// Refuse a rotary pivot far outside the strokes: on each linear axis with a stated stroke
+    /// (else the span of its table), the pivot's coordinate must lie within the stroke widened by the stroke's length on each
+    /// side (a head's gauge origin just off the travel is accepted; a pivot kilometres away, mm
+    /// taken for counts or a sign error, is not).
+    pub fn check_pivot(&self) -> Result<(), ImageError> {
+        let Some(r) = &self.rotary else {
+            return Ok(());
+        };
+        for a in self.axes() {
+            let k = a.axis.name as usize;
+            // The stated stroke, else the span of the axis's own table.
+            let stroke = a.stroke_counts.or_else(|| {
+                let (start, seg, n) = image::table_grid_of(a.axis.image)?;
+                Some((start, start.saturating_add(seg as i64 * n as i64)))
+            });
+            let (Some(&p), Some((lo, hi))) = (r.pivot_counts.get(k), stroke) else {
+                continue;
+            };
+            let w = hi.saturating_sub(lo).max(0);
+            if k <= 2 && (p < lo.saturating_sub(w) || p > hi.saturating_add(w)) {
+                return Err(ImageError::PivotOutsideStroke { axis: k as u8 });
+            }
+        }
+        Ok(())
+    }
+
+    /// What the firmware checks of a group beyond each section's own validation: distinct axis
+    /// ids ([`Self::check_axis_ids`]) and a pivot near the strokes ([`Self::check_pivot`]).
+    pub fn check_group(&self) -> Result<(), ImageError> {
+        self.check_axis_ids()?;
+        self.check_pivot()
+    }
+
     /// Refuse the image if the board cannot run it: every axis's counter width must be the
     /// board's, every axis id one the board drives, and no axis may need more temperature inputs
     /// than the board has wired.
     pub fn check_against(&self, caps: &BoardCaps) -> Result<(), ImageError> {
-        self.check_axis_ids()?;
+        self.check_group()?;
         for a in self.axes() {
             let info = image::inspect_image(a.axis.image)?;
             caps.check(info.counter_bits, info.axis_id, info.n_sensors)?;

@@ -299,7 +299,7 @@ fn board_capabilities_are_checked() {
 
 /// One axis id on two axes: the image itself is valid (the core loads it), but no board can feed
 /// both axes from one scale input, so the board check (and the host's `image group` / `inspect`,
-/// which call `GroupImageView::check_axis_ids`) refuse it naming the id.
+/// which call `GroupImageView::check_group`) refuse it naming the id.
 #[test]
 fn one_axis_id_on_two_axes_is_refused_by_the_board_check() {
     let mut im = images();
@@ -324,6 +324,52 @@ fn one_axis_id_on_two_axes_is_refused_by_the_board_check() {
         .unwrap()
         .check_axis_ids()
         .unwrap();
+}
+
+/// A rotary pivot far outside the strokes (mm taken for counts, a sign error): the board check
+/// (and `image group` / `inspect`, which call `GroupImageView::check_group`) refuse it naming the
+/// axis. X's stated stroke is −4000..4000 counts (8000 long): the pivot's X may lie in
+/// −12000..12000. Y and Z state no stroke: their tables' spans are used (a pivot at 1e10 counts
+/// on Y is refused naming Y).
+#[test]
+fn a_pivot_far_outside_the_strokes_is_refused_by_the_board_check() {
+    let im = images();
+    let board = BoardCaps {
+        counter_bits: 16,
+        axis_ids: [1, 2, 3, 4, 6],
+        n_axes: 5,
+        sensor_inputs: 2,
+    };
+    for (x, ok) in [
+        (12_000, true),
+        (-12_000, true),
+        (12_001, false),
+        (-12_001, false),
+        (4_000_000_000, false),
+    ] {
+        let stage = RotaryLocationSpec {
+            pivot_counts: [x, 0, 0],
+            ..STAGE
+        };
+        let bytes = write(&five_axes(&im), Some(&stage));
+        let view = group_image::parse(&bytes).unwrap();
+        let want = if ok {
+            Ok(())
+        } else {
+            Err(ImageError::PivotOutsideStroke { axis: 0 })
+        };
+        assert_eq!(view.check_pivot(), want, "pivot X {x}");
+        assert_eq!(view.check_against(&board), want, "pivot X {x}");
+    }
+    let stage = RotaryLocationSpec {
+        pivot_counts: [0, 10_000_000_000, 0],
+        ..STAGE
+    };
+    let bytes = write(&five_axes(&im), Some(&stage));
+    assert_eq!(
+        group_image::parse(&bytes).unwrap().check_pivot(),
+        Err(ImageError::PivotOutsideStroke { axis: 1 })
+    );
 }
 
 /// Reference: the documented rule — a stale sensor's frozen Σ b_i·ΔT_i is held for

@@ -75,6 +75,25 @@ pub fn report_warnings(
     Ok(())
 }
 
+/// The file name of a path inside a report folder (`report.md` of `rep/report.md`).
+pub fn file_name(path: &std::path::Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// A fit's JSON report with its data warnings added as `warnings` (the same findings as on stderr: kind,
+/// column, message, file lines), `[]` when there are none.
+pub fn with_warnings(
+    mut report: serde_json::Value,
+    warnings: &[axcomp_data::sanity::DataWarning],
+) -> anyhow::Result<serde_json::Value> {
+    if let Some(o) = report.as_object_mut() {
+        o.insert("warnings".into(), serde_json::to_value(warnings)?);
+    }
+    Ok(report)
+}
+
 /// A numeric option is a finite number in `lo … hi` (a size bound keeps the work and memory in
 /// check); the error names the option and the range.
 pub fn check_range(option: &str, v: f64, lo: f64, hi: f64) -> anyhow::Result<()> {

@@ -116,9 +116,9 @@ impl Outputs {
     /// Declares `dir` and every file, and checks the paths before any work.
     fn new(dir: &Path) -> anyhow::Result<Self> {
         let mut set = OutputSet::new();
-        set.dir(dir);
+        set.folder(dir, "--out");
         for name in FILES {
-            set.planned(dir.join(name));
+            set.planned_in(dir, name);
         }
         set.check()?;
         Ok(Outputs {
@@ -128,7 +128,7 @@ impl Outputs {
     }
     fn add(&mut self, name: &'static str, bytes: impl Into<Vec<u8>>) {
         debug_assert!(FILES.contains(&name), "{name} not in FILES");
-        self.set.file(self.dir.join(name), bytes);
+        self.set.folder_file(&self.dir, name, bytes);
     }
     fn write_all(self) -> anyhow::Result<()> {
         self.set.commit()?;

@@ -69,7 +69,9 @@ fn run_axis(args: Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
-        outputs.dir(dir).planned(dir.join("diagnosis.md"));
+        outputs
+            .folder(dir, "--report")
+            .planned_in(dir, "diagnosis.md");
     }
     if let Some(path) = &args.json {
         outputs.planned(path);
@@ -144,7 +146,7 @@ pub(super) fn write_diagnosis<T: serde::Serialize>(
     let mut report_files = 0;
     let report_dir = report.map(|(dir, files)| {
         for (path, bytes) in files {
-            outputs.file(path, bytes);
+            outputs.folder_file(dir, &crate::commands::common::file_name(&path), bytes);
             report_files += 1;
         }
         dir

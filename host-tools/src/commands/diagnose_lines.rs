@@ -65,7 +65,9 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
-        outputs.dir(dir).planned(dir.join("diagnosis.md"));
+        outputs
+            .folder(dir, "--report")
+            .planned_in(dir, "diagnosis.md");
     }
     if let Some(path) = &args.json {
         outputs.planned(path);

@@ -106,8 +106,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outputs.planned(p);
     }
     if let Some(dir) = &args.report {
-        outputs.dir(dir);
-        outputs.planned(dir.join("report.md"));
+        outputs.folder(dir, "--report");
+        outputs.planned_in(dir, "report.md");
     }
     outputs.check()?;
     match args.kind.as_str() {
@@ -414,7 +414,7 @@ fn run_power(args: &Args, outputs: &mut OutputSet) -> anyhow::Result<()> {
     }
     if let Some(dir) = &args.report {
         for (name, bytes) in power_report(&fit, &cols.data, &out) {
-            outputs.file(dir.join(name), bytes);
+            outputs.folder_file(dir, &name, bytes);
         }
     }
     Ok(())
@@ -591,7 +591,7 @@ fn run_milling(args: &Args, outputs: &mut OutputSet) -> anyhow::Result<()> {
                 .collect();
             f.line(&format!("{name} line"), &c, &fit);
         }
-        outputs.file(dir.join("mean_forces.svg"), f.to_svg());
+        outputs.folder_file(dir, "mean_forces.svg", f.to_svg());
         let mut md = String::from(
             "# Milling force coefficients (slotting, Altintas average-force method)\n\n",
         );
@@ -620,7 +620,7 @@ fn run_milling(args: &Args, outputs: &mut OutputSet) -> anyhow::Result<()> {
         .collect();
         md += &markdown_table(&["coefficient", "value", "± 95 %", "unit"], &rows);
         md += "\n![mean forces](mean_forces.svg)\n";
-        outputs.file(dir.join("report.md"), md);
+        outputs.folder_file(dir, "report.md", md);
     }
     Ok(())
 }

@@ -13,7 +13,9 @@ use axcomp_geometry::{FitOptions, GeometryError, Judge, LineData, Method, analys
 use axcomp_kinematics::Topology;
 
 use crate::cli::DataArgs;
-use crate::commands::common::{check_range, load_dataset, report_warnings, split_from};
+use crate::commands::common::{
+    check_range, load_dataset, report_warnings, split_from, with_warnings,
+};
 use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
@@ -152,7 +154,8 @@ fn check_export_step(model: &axcomp_geometry::GeometryModel, step: f64) -> anyho
 const MAX_INTERVALS: usize = 64;
 
 /// Runs the fit and returns the analysis (used by the command and the tests).
-pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
+/// The data, its plausibility warnings (already reported) and the analysis.
+pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Vec<DataWarning>, Analysis)> {
     let method = Method::parse(&a.method)
         .with_context(|| format!("--method {}: use auto, plain or seven-line", a.method))?;
     let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
@@ -163,7 +166,8 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
     }
     let ds = load_dataset(&a.data)?;
     let data = LineData::from_dataset(&ds, true)?;
-    report_warnings(&line_warnings(&ds, &data)?, a.strict)?;
+    let warnings = line_warnings(&ds, &data)?;
+    report_warnings(&warnings, a.strict)?;
     let judge = match split_from(a.holdout.as_deref(), a.cv.as_deref())? {
         None => Judge::None,
         Some(Split::Holdout(spec)) => {
@@ -201,7 +205,7 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Analysis)> {
         }
         e => e.into(),
     })?;
-    Ok((data, an))
+    Ok((data, warnings, an))
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -219,11 +223,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     outputs.check()?;
     check_range("--export-step", a.export_step, 0.0, 1e5)?;
-    let (data, an) = analyse_args(&a)?;
+    let (data, warnings, an) = analyse_args(&a)?;
     let rep = &an.report;
     // everything is computed; now write
     if let Some(p) = &a.json {
-        outputs.json(p, rep)?;
+        outputs.json(p, &with_warnings(serde_json::to_value(rep)?, &warnings)?)?;
     }
     if let Some(p) = &a.out {
         let provenance = crate::provenance::of_data(

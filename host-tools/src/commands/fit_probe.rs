@@ -289,7 +289,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ds = load_dataset(&args.data)?;
     let (touches, labels) = read_touches(&ds)?;
     axcomp_probe::validate_touches(&touches, &labels)?;
-    crate::commands::common::report_warnings(&touch_warnings(&ds, &touches), args.strict)?;
+    let warnings = touch_warnings(&ds, &touches);
+    crate::commands::common::report_warnings(&warnings, args.strict)?;
     let held: Vec<bool> = match &holdout {
         Some(h) => h.mask(&ds)?,
         None => vec![false; ds.n_rows()],
@@ -712,7 +713,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(p) = &args.json {
-        outputs.json(p, &report)?;
+        outputs.json(
+            p,
+            &crate::commands::common::with_warnings(serde_json::to_value(&report)?, &warnings)?,
+        )?;
     }
     // Everything together or nothing (the report folder included).
     outputs.commit()?;

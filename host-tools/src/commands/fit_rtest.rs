@@ -13,7 +13,7 @@ use axcomp_rtest::report::report_files;
 use axcomp_rtest::{FitOptions, RtestData, RtestModel, read_shared_error};
 
 use crate::cli::DataArgs;
-use crate::commands::common::{load_dataset, report_warnings, split_from};
+use crate::commands::common::{load_dataset, report_warnings, split_from, with_warnings};
 use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
@@ -250,7 +250,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     outputs.check()?;
     let ds = load_dataset(&args.data)?;
     let mut data = RtestData::from_dataset(&ds, machine, true)?;
-    report_warnings(&rtest_warnings(&args.data.data, &ds, &data)?, args.strict)?;
+    let warnings = rtest_warnings(&args.data.data, &ds, &data)?;
+    report_warnings(&warnings, args.strict)?;
     data.free_head_zero = args.free_head_zero;
     check_enough_poses(&ds, &data, split.as_ref())?;
     let opts = FitOptions { head_zero_std_um };
@@ -273,7 +274,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     if let Some(p) = &args.json {
-        outputs.json(p, &json)?;
+        outputs.json(p, &with_warnings(json.clone(), &warnings)?)?;
     }
     if let Some(p) = &args.out {
         let provenance = crate::provenance::of_data(

@@ -191,14 +191,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut outputs = OutputSet::new();
     outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
-        outputs.dir(dir);
+        outputs.folder(dir, "--report");
         for name in [
             "prediction.svg",
             "residual_per_condition.svg",
             "sensors.svg",
             "report.md",
         ] {
-            outputs.planned(dir.join(name));
+            outputs.planned_in(dir, name);
         }
     }
     for p in [&args.json, &args.out].into_iter().flatten() {
@@ -504,7 +504,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(dir) = &args.report {
         for (path, bytes) in thermal_report_files(dir, &fit, &input, &args.target) {
-            outputs.file(path, bytes);
+            outputs.folder_file(dir, &crate::commands::common::file_name(&path), bytes);
         }
     }
     if !fit.guard.passed && !args.force {

@@ -628,7 +628,7 @@ pub fn describe_any(bytes: &[u8]) -> anyhow::Result<String> {
     if view.version == 1 {
         return describe(bytes);
     }
-    view.check_axis_ids()
+    view.check_group()
         .map_err(|e| anyhow::anyhow!("the group is not valid (every board refuses it): {e}"))?;
     let mut s = String::new();
     writeln!(
@@ -1608,9 +1608,10 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
     )
     .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
     buf.truncate(n);
-    // What a board refuses of any group (one axis id on two axes), from the firmware's own check.
+    // What a board refuses of any group (one axis id on two axes, a pivot far outside the strokes), from
+    // the firmware's own check.
     group_image::parse(&buf)
-        .and_then(|v| v.check_axis_ids())
+        .and_then(|v| v.check_group())
         .map_err(|e| anyhow::anyhow!("the group is not valid: {e}"))?;
     Ok(buf)
 }
