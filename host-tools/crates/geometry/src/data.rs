@@ -29,8 +29,6 @@ pub struct LineData {
 
 /// Largest allowed |‖beam‖ − 1|.
 pub const BEAM_NORM_TOL: f64 = 1e-3;
-/// Largest allowed angle (rad) between a line's direction (its two farthest-apart targets) and its beam.
-pub const BEAM_ANGLE_TOL: f64 = 0.01;
 
 fn col_or_zero(ds: &Dataset, name: &str) -> Result<Vec<f64>, GeometryError> {
     if ds.has(name) {
@@ -255,19 +253,10 @@ impl LineData {
             let dn = norm(d);
             let dir = [d[0] / dn, d[1] / dn, d[2] / dn];
             for &r in &rows {
-                if has_beam {
-                    let c = (dir[0] * beams[r][0] + dir[1] * beams[r][1] + dir[2] * beams[r][2])
-                        .abs()
-                        .min(1.0);
-                    let angle = c.acos();
-                    if angle > BEAM_ANGLE_TOL {
-                        return Err(GeometryError::BeamOffLine {
-                            line: name.clone(),
-                            at: ds.locate("beam_x", r),
-                            angle_deg: angle.to_degrees(),
-                        });
-                    }
-                } else {
+                // A row's own beam is the direction its reading was taken along (a straightness
+                // optic across the line, a tracking interferometer's beam to each point): it is
+                // used as given, whatever the line's direction.
+                if !has_beam {
                     // direction from the line's first target (file order) to its last one: the far end of
                     // the line as seen from the first (a line measured forward and back ends where it
                     // started; its file-order last row is not its last target)

@@ -59,14 +59,6 @@ pub enum GeometryError {
         "line {line} ({at}): the beam (beam_x, beam_y, beam_z) has length {norm:.6}, not a unit vector"
     )]
     BeamNotUnit { line: String, at: String, norm: f64 },
-    #[error(
-        "line {line} ({at}): the beam is {angle_deg:.2}° off the line's direction (its two farthest-apart targets)"
-    )]
-    BeamOffLine {
-        line: String,
-        at: String,
-        angle_deg: f64,
-    },
     #[error("line {line} ({at}): a single target and no beam columns: its direction is unknown")]
     NoBeam { line: String, at: String },
     #[error("no rows to fit (after --where/--holdout)")]

@@ -50,14 +50,44 @@ fn beam_not_a_unit_vector_is_named() {
     );
 }
 
+/// A row's beam is taken as given, whatever the line's direction (contract: rows whose beam is given are
+/// judged along it): a straightness reading across an X line (beam +Y), and points each read along its
+/// own beam from a station (a tracking interferometer). Before: "the beam is 90° off the line's
+/// direction".
 #[test]
-fn beam_disagreeing_with_the_line_is_named() {
+fn a_beam_across_the_line_or_per_point_is_taken_as_given() {
     let text = format!("{HEADER}{}", x_line("A", 5, "0,1,0"));
-    let e = parse(&text).unwrap_err();
-    assert!(
-        e.contains("line A") && e.contains("off the line's direction"),
-        "{e}"
-    );
+    let d = parse(&text).unwrap();
+    assert!(d.readings.iter().all(|r| r.beam == [0.0, 1.0, 0.0]));
+    // Five points, each with the unit beam from a station at (0, -500, 0) (exact to 1e-12).
+    let mut text = String::from(HEADER);
+    for i in 0..5 {
+        let p = [100.0 * i as f64, 50.0, 20.0];
+        let v = [p[0], p[1] + 500.0, p[2]];
+        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        text += &format!(
+            "{},{},{},P,{:.2},{},{},{}\n",
+            p[0],
+            p[1],
+            p[2],
+            0.1 * i as f64,
+            v[0] / n,
+            v[1] / n,
+            v[2] / n
+        );
+    }
+    let d = parse(&text).unwrap();
+    for (i, r) in d.readings.iter().enumerate() {
+        let v = [100.0 * i as f64, 550.0, 20.0];
+        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        for k in 0..3 {
+            assert!(
+                (r.beam[k] - v[k] / n).abs() < 1e-12,
+                "row {i}: {:?}",
+                r.beam
+            );
+        }
+    }
 }
 
 #[test]
