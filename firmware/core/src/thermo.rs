@@ -78,6 +78,10 @@ pub struct SensorRt {
     pub(crate) b_um_per_k: f32,
     /// α = 1 − exp(−period/τ), 1 without lag.
     pub(crate) alpha: f32,
+    /// Range guard: the term b_i·ΔT_i counts while the unlagged rise is within these bounds
+    /// (K; −∞, +∞ without the guard).
+    pub(crate) rise_min_k: f32,
+    pub(crate) rise_max_k: f32,
 }
 
 impl SensorRt {
@@ -90,6 +94,8 @@ impl SensorRt {
         stale_timeout_ms: 0,
         b_um_per_k: 0.0,
         alpha: 0.0,
+        rise_min_k: 0.0,
+        rise_max_k: 0.0,
     };
 }
 
@@ -177,6 +183,18 @@ impl<S: TableStore> AxisCompensator<S> {
             c_um_per_mm_k: self.c_um_per_mm_k,
         })
     }
+    /// What each ΔT is taken against.
+    pub fn thermo_reference(&self) -> crate::spec::ThermoReference {
+        if self.reference_at_switch_on {
+            crate::spec::ThermoReference::SwitchOn
+        } else {
+            crate::spec::ThermoReference::Fixed
+        }
+    }
+    /// True if the image has the range guard (per-sensor rise bounds).
+    pub fn has_rise_guard(&self) -> bool {
+        self.rise_guard
+    }
     /// Number of force terms.
     pub fn force_count(&self) -> usize {
         self.n_forces as usize
@@ -240,7 +258,12 @@ impl<S: TableStore> AxisCompensator<S> {
             if plausible {
                 if !s.seen {
                     s.seen = true;
-                    s.filtered_dt = r - cfg.reference_degc;
+                    s.reference_degc = if self.reference_at_switch_on {
+                        r
+                    } else {
+                        cfg.reference_degc
+                    };
+                    s.filtered_dt = r - s.reference_degc;
                 }
                 s.last_good_degc = r;
                 s.last_good_ms = now_ms;
@@ -254,7 +277,7 @@ impl<S: TableStore> AxisCompensator<S> {
                 }
             }
             if s.seen {
-                let u = s.last_good_degc - cfg.reference_degc;
+                let u = s.last_good_degc - s.reference_degc;
                 s.filtered_dt += cfg.alpha * (u - s.filtered_dt);
             }
             if now_ms.wrapping_sub(s.last_good_ms) > cfg.stale_timeout_ms {
@@ -309,10 +332,20 @@ impl<S: TableStore> AxisCompensator<S> {
         }
         st.thermo_bits = bits ^ self.thermo_flags_xor;
         if all_healthy {
-            let mut sum = 0.0f32;
-            for (cfg, s) in cfgs.iter().zip(st.sensors.iter()).take(n) {
-                sum += cfg.b_um_per_k * s.filtered_dt;
-            }
+            let sum = if self.rise_guard {
+                let (sum, guarded) = guarded_sum(cfgs, &st.sensors, n);
+                st.thermo_bits &= !Flags::THERMAL_GUARDED.0;
+                if guarded {
+                    st.thermo_bits |= Flags::THERMAL_GUARDED.0;
+                }
+                sum
+            } else {
+                let mut sum = 0.0f32;
+                for (cfg, s) in cfgs.iter().zip(st.sensors.iter()).take(n) {
+                    sum += cfg.b_um_per_k * s.filtered_dt;
+                }
+                sum
+            };
             st.sensor_um = sum;
             st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
             st.expansion_um_per_count = if self.has_expansion {
@@ -356,6 +389,27 @@ impl<S: TableStore> AxisCompensator<S> {
     }
 }
 
+/// Σ b_i·ΔT_i over the first `n` sensors leaving out each sensor whose unlagged rise (last
+/// accepted reading − its reference) is outside its bounds (the range guard), and whether any was
+/// left out.
+fn guarded_sum(
+    cfgs: &[SensorRt; MAX_SENSORS],
+    sensors: &[SensorState; MAX_SENSORS],
+    n: usize,
+) -> (f32, bool) {
+    let mut sum = 0.0f32;
+    let mut guarded = false;
+    for (cfg, s) in cfgs.iter().zip(sensors.iter()).take(n) {
+        let rise = s.last_good_degc - s.reference_degc;
+        if rise >= cfg.rise_min_k && rise <= cfg.rise_max_k {
+            sum += cfg.b_um_per_k * s.filtered_dt;
+        } else {
+            guarded = true;
+        }
+    }
+    (sum, guarded)
+}
+
 /// Per-sensor health and lag state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SensorState {
@@ -367,6 +421,9 @@ pub(crate) struct SensorState {
     pub(crate) last_good_ms: u32,
     /// Lagged ΔT, kelvin.
     pub(crate) filtered_dt: f32,
+    /// What ΔT is taken against, °C: the image's `reference_degc`, or with the reference at
+    /// switch-on the first accepted reading (set at that reading).
+    pub(crate) reference_degc: f32,
     pub(crate) rejected: u32,
 }
 
@@ -379,6 +436,7 @@ impl SensorState {
         last_good_degc: 0.0,
         last_good_ms: 0,
         filtered_dt: 0.0,
+        reference_degc: 0.0,
         rejected: 0,
     };
 }
@@ -419,6 +477,14 @@ impl AxisCompensator<OwnTable> {
     pub fn b_um_per_k(&self, i: usize) -> Option<f32> {
         sensor_b_alpha(&self.sensors, self.n_sensors, i).map(|(b, _)| b)
     }
+    /// Rise bounds `(rise_min_k, rise_max_k)` of sensor `i`'s range guard (None without the
+    /// guard or sensor).
+    pub fn rise_bounds_k(&self, i: usize) -> Option<(f32, f32)> {
+        if !self.rise_guard || i >= self.n_sensors as usize {
+            return None;
+        }
+        self.sensors.get(i).map(|s| (s.rise_min_k, s.rise_max_k))
+    }
     /// Lag coefficient α of sensor `i` (1 = no lag).
     pub fn lag_alpha(&self, i: usize) -> Option<f32> {
         sensor_b_alpha(&self.sensors, self.n_sensors, i).map(|(_, a)| a)
@@ -432,8 +498,14 @@ impl AxisCompensator<OwnTable> {
     /// - a reading is accepted if finite, within `[min_degc, max_degc]` and, after the first
     ///   accepted one, within `max_rate_degc_per_s · (now − time of the last accepted reading)` of
     ///   the last accepted value; otherwise it is rejected (counted) and the last good value held;
+    /// - ΔT is taken against the sensor's `reference_degc`, or, with the reference at switch-on
+    ///   ([`crate::ThermoReference::SwitchOn`]), against its first accepted reading since the
+    ///   image was loaded or the state reset (ΔT then starts at 0);
     /// - each lag advances once per call with the last accepted value as input; it starts at the
     ///   first accepted reading (no transient from 0);
+    /// - with the range guard, a sensor whose unlagged rise (last accepted value − its reference)
+    ///   is outside its rise bounds is left out of Σ b_i·ΔT_i ([`Flags::THERMAL_GUARDED`]); it
+    ///   stays healthy and its lag keeps running;
     /// - a sensor without an accepted reading for more than `stale_timeout_ms` (counted from the
     ///   first call for a sensor that never reported) is stale; it recovers after
     ///   [`RECOVERY_READINGS`] consecutive accepted readings;
