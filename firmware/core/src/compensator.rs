@@ -790,15 +790,15 @@ impl State {
     pub fn filtered_delta_t(&self, i: usize) -> Option<f32> {
         self.sensors
             .get(i)
-            .and_then(|s| s.seen.then_some(s.filtered_dt))
+            .and_then(|s| s.seen().then_some(s.filtered_dt))
     }
     /// True if sensor `i` is stale (or recovering).
     pub fn sensor_stale(&self, i: usize) -> bool {
-        self.sensors.get(i).is_some_and(|s| s.stale)
+        self.sensors.get(i).is_some_and(|s| s.stale())
     }
-    /// Number of rejected readings of sensor `i`.
+    /// Number of rejected readings of sensor `i` (saturating at 2^24 − 1 = 16 777 215).
     pub fn rejected_readings(&self, i: usize) -> u32 {
-        self.sensors.get(i).map_or(0, |s| s.rejected)
+        self.sensors.get(i).map_or(0, |s| s.rejected())
     }
     /// Cached Σ χ_j·F_j of the predicted forces, µm.
     pub fn predicted_term_um(&self) -> f32 {

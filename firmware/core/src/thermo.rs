@@ -249,15 +249,17 @@ impl<S: TableStore> AxisCompensator<S> {
             }
             let r = readings.get(i).copied().unwrap_or(f32::NAN);
             let since_good_ms = now_ms.wrapping_sub(s.last_good_ms);
+            let mut w = s.health;
             let plausible = r.is_finite()
                 && r >= cfg.min_degc
                 && r <= cfg.max_degc
-                && (!s.seen
+                && (w & SEEN == 0
                     || libm::fabsf(r - s.last_good_degc)
                         <= cfg.max_rate_degc_per_s * (since_good_ms as f32 * 0.001));
+            let rejected_now;
             if plausible {
-                if !s.seen {
-                    s.seen = true;
+                if w & SEEN == 0 {
+                    w |= SEEN;
                     s.reference_degc = if self.reference_at_switch_on {
                         r
                     } else {
@@ -267,30 +269,34 @@ impl<S: TableStore> AxisCompensator<S> {
                 }
                 s.last_good_degc = r;
                 s.last_good_ms = now_ms;
-                s.streak = s.streak.saturating_add(1);
-                s.last_rejected = false;
+                if w < STREAK_MAX {
+                    w += STREAK_ONE;
+                }
+                rejected_now = false;
             } else {
-                s.streak = 0;
-                s.last_rejected = !r.is_nan();
-                if s.last_rejected {
-                    s.rejected = s.rejected.saturating_add(1);
+                w &= !STREAK_MASK;
+                rejected_now = !r.is_nan();
+                if rejected_now && w & REJECTED_MASK != REJECTED_MASK {
+                    w += 1;
                 }
             }
-            if s.seen {
+            if w & SEEN != 0 {
                 let u = s.last_good_degc - s.reference_degc;
                 s.filtered_dt += cfg.alpha * (u - s.filtered_dt);
             }
             if now_ms.wrapping_sub(s.last_good_ms) > cfg.stale_timeout_ms {
-                s.stale = true;
+                w |= STALE;
             }
-            if s.stale && s.streak >= RECOVERY_READINGS {
-                s.stale = false;
+            if w & STALE != 0 && w >= RECOVERY_READINGS as u32 * STREAK_ONE {
+                w &= !STALE;
             }
-            if !s.seen || s.stale {
+            s.health = w;
+            let stale = w & STALE != 0;
+            if w & SEEN == 0 || stale {
                 all_healthy = false;
             }
-            any_stale |= s.stale;
-            if s.stale || s.last_rejected {
+            any_stale |= stale;
+            if stale || rejected_now {
                 fault = true;
             }
         }
@@ -410,13 +416,24 @@ fn guarded_sum(
     (sum, guarded)
 }
 
+/// [`SensorState::health`]: rejected readings (bits 0..24, saturating), seen (bit 24), stale
+/// (bit 25) and the consecutive accepted readings (bits 26..32, saturating at 63; a stale sensor
+/// recovers at [`RECOVERY_READINGS`]). One word, so that a sensor's state stays 20 bytes and an
+/// axis's [`State`] (five of them in a group's state) keeps its size.
+const REJECTED_MASK: u32 = (1 << 24) - 1;
+const SEEN: u32 = 1 << 24;
+const STALE: u32 = 1 << 25;
+const STREAK_ONE: u32 = 1 << 26;
+const STREAK_MASK: u32 = 63 * STREAK_ONE;
+/// A streak of 63 (with any other bits below it): no further increment.
+const STREAK_MAX: u32 = STREAK_MASK;
+const _: () = assert!((RECOVERY_READINGS as u32) < 63);
+
 /// Per-sensor health and lag state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SensorState {
-    pub(crate) seen: bool,
-    pub(crate) stale: bool,
-    pub(crate) last_rejected: bool,
-    pub(crate) streak: u8,
+    /// Rejected-reading count, seen, stale and streak (see [`REJECTED_MASK`] and the bits after it).
+    pub(crate) health: u32,
     pub(crate) last_good_degc: f32,
     pub(crate) last_good_ms: u32,
     /// Lagged ΔT, kelvin.
@@ -424,21 +441,28 @@ pub(crate) struct SensorState {
     /// What ΔT is taken against, °C: the image's `reference_degc`, or with the reference at
     /// switch-on the first accepted reading (set at that reading).
     pub(crate) reference_degc: f32,
-    pub(crate) rejected: u32,
 }
 
 impl SensorState {
     pub(crate) const NEW: SensorState = SensorState {
-        seen: false,
-        stale: false,
-        last_rejected: false,
-        streak: 0,
+        health: 0,
         last_good_degc: 0.0,
         last_good_ms: 0,
         filtered_dt: 0.0,
         reference_degc: 0.0,
-        rejected: 0,
     };
+    /// An accepted reading has been seen.
+    pub(crate) fn seen(&self) -> bool {
+        self.health & SEEN != 0
+    }
+    /// Stale (or recovering).
+    pub(crate) fn stale(&self) -> bool {
+        self.health & STALE != 0
+    }
+    /// Rejected readings (saturating at 2^24 − 1).
+    pub(crate) fn rejected(&self) -> u32 {
+        self.health & REJECTED_MASK
+    }
 }
 
 /// Sensor settings of one axis: `cfgs` (its own or its group's array) for its `n_sensors`.
