@@ -439,71 +439,7 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
 
     // ---- thermo-force ----
     if let Some(o) = layout.thermo {
-        let period = u32_at(b, o);
-        check(period >= 1, Field::SensorPeriod, 0)?;
-        let has_exp = u8_at(b, o + 6);
-        let exp_sensor = u8_at(b, o + 7) as usize;
-        ranged(f32_at(b, o + 8), -1.0e5, 1.0e5, Field::B0, 0)?;
-        let c = ranged(f32_at(b, o + 12), -1.0e3, 1.0e3, Field::Expansion, 0)?;
-        let x_ref = i64_at(b, o + 16);
-        check(u32_at(b, o + 28) == 0, Field::Reserved, 0)?;
-        match has_exp {
-            0 => check(
-                exp_sensor == 0 && c == 0.0 && x_ref == 0,
-                Field::Expansion,
-                0,
-            )?,
-            1 => {
-                check(exp_sensor < layout.n_sensors, Field::ExpansionSensor, 0)?;
-                check(
-                    (-MAX_ABS_POSITION..=MAX_ABS_POSITION).contains(&x_ref),
-                    Field::Expansion,
-                    0,
-                )?;
-            }
-            _ => {
-                return Err(ImageError::OutOfRange {
-                    field: Field::Expansion,
-                    index: 0,
-                });
-            }
-        }
-        for i in 0..layout.n_sensors {
-            let at = o + THERMO_HEADER_LEN + SENSOR_LEN * i;
-            ranged(f32_at(b, at), MIN_DEGC, MAX_DEGC, Field::ReferenceDegc, i)?;
-            let lo = ranged(f32_at(b, at + 4), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
-            let hi = ranged(f32_at(b, at + 8), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
-            check(lo < hi, Field::SensorRange, i)?;
-            positive(f32_at(b, at + 12), 1.0e6, Field::MaxRate, i)?;
-            ranged(f32_at(b, at + 16), 0.0, 1.0e7, Field::LagTau, i)?;
-            check(u32_at(b, at + 20) >= 1, Field::StaleTimeout, i)?;
-            ranged(f32_at(b, at + 24), -1.0e4, 1.0e4, Field::BUmPerK, i)?;
-            if let Some(r) = rise_bounds_at(&layout, o, i) {
-                let lo = ranged(f32_at(b, r), -MAX_RISE_K, MAX_RISE_K, Field::RiseBounds, i)?;
-                let hi = ranged(
-                    f32_at(b, r + 4),
-                    -MAX_RISE_K,
-                    MAX_RISE_K,
-                    Field::RiseBounds,
-                    i,
-                )?;
-                check(lo < hi, Field::RiseBounds, i)?;
-            }
-        }
-        for j in 0..layout.n_forces {
-            let at = o + THERMO_HEADER_LEN + SENSOR_LEN * layout.n_sensors + FORCE_LEN * j;
-            ranged(f32_at(b, at), -1.0e3, 1.0e3, Field::Chi, j)?;
-            let has_law = u32_at(b, at + 4);
-            check(has_law <= 1, Field::ForceLaw, j)?;
-            let k = ranged(f32_at(b, at + 8), -1.0e9, 1.0e9, Field::ForceLaw, j)?;
-            let mut e = [0.0f32; 3];
-            for (m, v) in e.iter_mut().enumerate() {
-                *v = ranged(f32_at(b, at + 12 + 4 * m), -10.0, 10.0, Field::ForceLaw, j)?;
-            }
-            if has_law == 0 {
-                check(k == 0.0 && e == [0.0; 3], Field::ForceLaw, j)?;
-            }
-        }
+        validate_thermo(b, &layout, o)?;
     }
 
     // ---- limits ----
@@ -513,6 +449,76 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
     check(u32_at(b, o + 8) <= i32::MAX as u32, Field::Hysteresis, 0)?;
     check(u32_at(b, o + 12) == 0, Field::Reserved, 0)?;
     Ok(layout)
+}
+
+/// The values of a thermo section at `o` whose structure `l` has been checked.
+fn validate_thermo(b: &[u8], l: &Layout, o: usize) -> Result<(), ImageError> {
+    let period = u32_at(b, o);
+    check(period >= 1, Field::SensorPeriod, 0)?;
+    let has_exp = u8_at(b, o + 6);
+    let exp_sensor = u8_at(b, o + 7) as usize;
+    ranged(f32_at(b, o + 8), -1.0e5, 1.0e5, Field::B0, 0)?;
+    let c = ranged(f32_at(b, o + 12), -1.0e3, 1.0e3, Field::Expansion, 0)?;
+    let x_ref = i64_at(b, o + 16);
+    check(u32_at(b, o + 28) == 0, Field::Reserved, 0)?;
+    match has_exp {
+        0 => check(
+            exp_sensor == 0 && c == 0.0 && x_ref == 0,
+            Field::Expansion,
+            0,
+        )?,
+        1 => {
+            check(exp_sensor < l.n_sensors, Field::ExpansionSensor, 0)?;
+            check(
+                (-MAX_ABS_POSITION..=MAX_ABS_POSITION).contains(&x_ref),
+                Field::Expansion,
+                0,
+            )?;
+        }
+        _ => {
+            return Err(ImageError::OutOfRange {
+                field: Field::Expansion,
+                index: 0,
+            });
+        }
+    }
+    for i in 0..l.n_sensors {
+        let at = o + THERMO_HEADER_LEN + SENSOR_LEN * i;
+        ranged(f32_at(b, at), MIN_DEGC, MAX_DEGC, Field::ReferenceDegc, i)?;
+        let lo = ranged(f32_at(b, at + 4), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
+        let hi = ranged(f32_at(b, at + 8), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
+        check(lo < hi, Field::SensorRange, i)?;
+        positive(f32_at(b, at + 12), 1.0e6, Field::MaxRate, i)?;
+        ranged(f32_at(b, at + 16), 0.0, 1.0e7, Field::LagTau, i)?;
+        check(u32_at(b, at + 20) >= 1, Field::StaleTimeout, i)?;
+        ranged(f32_at(b, at + 24), -1.0e4, 1.0e4, Field::BUmPerK, i)?;
+        if let Some(r) = rise_bounds_at(l, o, i) {
+            let lo = ranged(f32_at(b, r), -MAX_RISE_K, MAX_RISE_K, Field::RiseBounds, i)?;
+            let hi = ranged(
+                f32_at(b, r + 4),
+                -MAX_RISE_K,
+                MAX_RISE_K,
+                Field::RiseBounds,
+                i,
+            )?;
+            check(lo < hi, Field::RiseBounds, i)?;
+        }
+    }
+    for j in 0..l.n_forces {
+        let at = o + THERMO_HEADER_LEN + SENSOR_LEN * l.n_sensors + FORCE_LEN * j;
+        ranged(f32_at(b, at), -1.0e3, 1.0e3, Field::Chi, j)?;
+        let has_law = u32_at(b, at + 4);
+        check(has_law <= 1, Field::ForceLaw, j)?;
+        let k = ranged(f32_at(b, at + 8), -1.0e9, 1.0e9, Field::ForceLaw, j)?;
+        let mut e = [0.0f32; 3];
+        for (m, v) in e.iter_mut().enumerate() {
+            *v = ranged(f32_at(b, at + 12 + 4 * m), -10.0, 10.0, Field::ForceLaw, j)?;
+        }
+        if has_law == 0 {
+            check(k == 0.0 && e == [0.0; 3], Field::ForceLaw, j)?;
+        }
+    }
+    Ok(())
 }
 
 /// `(start_counts, segment_counts, n_segments)` of a validated image's table.

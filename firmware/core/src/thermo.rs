@@ -310,60 +310,72 @@ impl<S: TableStore> AxisCompensator<S> {
         if !all_healthy {
             bits |= Flags::THERMAL_FROZEN.0;
         }
-        // Stale ramp-out: a frozen term is held for STALE_HOLD_MS after a sensor went stale, then
-        // Σ b_i·ΔT_i and c·ΔT_s ramp linearly to 0 over STALE_RAMP_MS, leaving the safe value
-        // b0 + predicted forces (which need no sensor).
-        if any_stale {
-            if !st.stale_ramp {
-                st.stale_ramp = true;
-                st.stale_since_ms = now_ms;
-                st.frozen_sensor_um = st.sensor_um;
-                st.frozen_expansion_um_per_count = st.expansion_um_per_count;
-            }
-            let since = now_ms.wrapping_sub(st.stale_since_ms);
-            if since > crate::STALE_HOLD_MS {
-                let into = since - crate::STALE_HOLD_MS;
-                let k = if into >= crate::STALE_RAMP_MS {
-                    0.0
-                } else {
-                    1.0 - into as f32 / crate::STALE_RAMP_MS as f32
-                };
-                st.sensor_um = st.frozen_sensor_um * k;
-                st.expansion_um_per_count = st.frozen_expansion_um_per_count * k;
-                st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
-                bits |= Flags::THERMAL_RAMP_OUT.0;
-            }
-        } else {
-            st.stale_ramp = false;
-        }
+        self.stale_ramp_out(st, now_ms, any_stale, &mut bits);
         st.thermo_bits = bits ^ self.thermo_flags_xor;
         if all_healthy {
-            let sum = if self.rise_guard {
-                let (sum, guarded) = guarded_sum(cfgs, &st.sensors, n);
-                st.thermo_bits &= !Flags::THERMAL_GUARDED.0;
-                if guarded {
-                    st.thermo_bits |= Flags::THERMAL_GUARDED.0;
-                }
-                sum
-            } else {
-                let mut sum = 0.0f32;
-                for (cfg, s) in cfgs.iter().zip(st.sensors.iter()).take(n) {
-                    sum += cfg.b_um_per_k * s.filtered_dt;
-                }
-                sum
-            };
-            st.sensor_um = sum;
-            st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
-            st.expansion_um_per_count = if self.has_expansion {
-                let dt = st
-                    .sensors
-                    .get(self.expansion_sensor as usize)
-                    .map_or(0.0, |s| s.filtered_dt);
-                self.expansion_um_per_count_k * dt
-            } else {
-                0.0
-            };
+            self.refresh_thermal(cfgs, st, n);
         }
+    }
+
+    /// Stale ramp-out: a frozen term is held for STALE_HOLD_MS after a sensor went stale, then
+    /// Σ b_i·ΔT_i and c·ΔT_s ramp linearly to 0 over STALE_RAMP_MS, leaving the safe value
+    /// b0 + predicted forces (which need no sensor); THERMAL_RAMP_OUT into `bits` while it does.
+    #[inline(always)]
+    fn stale_ramp_out(&self, st: &mut State, now_ms: u32, any_stale: bool, bits: &mut u16) {
+        if !any_stale {
+            st.stale_ramp = false;
+            return;
+        }
+        if !st.stale_ramp {
+            st.stale_ramp = true;
+            st.stale_since_ms = now_ms;
+            st.frozen_sensor_um = st.sensor_um;
+            st.frozen_expansion_um_per_count = st.expansion_um_per_count;
+        }
+        let since = now_ms.wrapping_sub(st.stale_since_ms);
+        if since > crate::STALE_HOLD_MS {
+            let into = since - crate::STALE_HOLD_MS;
+            let k = if into >= crate::STALE_RAMP_MS {
+                0.0
+            } else {
+                1.0 - into as f32 / crate::STALE_RAMP_MS as f32
+            };
+            st.sensor_um = st.frozen_sensor_um * k;
+            st.expansion_um_per_count = st.frozen_expansion_um_per_count * k;
+            st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
+            *bits |= Flags::THERMAL_RAMP_OUT.0;
+        }
+    }
+
+    /// Every sensor healthy: Σ b_i·ΔT_i over the first `n` sensors (with the range guard, without
+    /// the terms of sensors beyond their bounds: THERMAL_GUARDED), the cached term and c·ΔT_s.
+    #[inline(always)]
+    fn refresh_thermal(&self, cfgs: &[SensorRt; MAX_SENSORS], st: &mut State, n: usize) {
+        let sum = if self.rise_guard {
+            let (sum, guarded) = guarded_sum(cfgs, &st.sensors, n);
+            st.thermo_bits &= !Flags::THERMAL_GUARDED.0;
+            if guarded {
+                st.thermo_bits |= Flags::THERMAL_GUARDED.0;
+            }
+            sum
+        } else {
+            let mut sum = 0.0f32;
+            for (cfg, s) in cfgs.iter().zip(st.sensors.iter()).take(n) {
+                sum += cfg.b_um_per_k * s.filtered_dt;
+            }
+            sum
+        };
+        st.sensor_um = sum;
+        st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
+        st.expansion_um_per_count = if self.has_expansion {
+            let dt = st
+                .sensors
+                .get(self.expansion_sensor as usize)
+                .map_or(0.0, |s| s.filtered_dt);
+            self.expansion_um_per_count_k * dt
+        } else {
+            0.0
+        };
     }
 
     /// Predicted forces from the process parameters (F = k·ap^x·fz^y·n^z via `libm::powf`),

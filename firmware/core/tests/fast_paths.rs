@@ -28,7 +28,7 @@ fn force_image(forces: &[ForceSpec]) -> Box<Compensator> {
             b_um_per_k: &[],
             expansion: None,
             forces,
-            reference: axcomp_core::ThermoReference::Fixed,
+            reference: ThermoReference::Fixed,
             rise_bounds_k: &[],
         }),
         limits: LOOSE,

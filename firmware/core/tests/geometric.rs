@@ -443,7 +443,7 @@ fn geometric_section_refusals() {
             b_um_per_k: &[],
             expansion: None,
             forces: &[],
-            reference: axcomp_core::ThermoReference::Fixed,
+            reference: ThermoReference::Fixed,
             rise_bounds_k: &[],
         });
         image(&s)

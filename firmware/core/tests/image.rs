@@ -76,7 +76,7 @@ fn full_spec<'a>(
                 c_um_per_mm_k: 0.0115,
             }),
             forces: &FORCES,
-            reference: axcomp_core::ThermoReference::Fixed,
+            reference: ThermoReference::Fixed,
             rise_bounds_k: &[],
         }),
         limits: LimitSpec {
@@ -280,7 +280,7 @@ fn spec_errors_name_the_field() {
         b_um_per_k: &[1.0, 2.0],
         expansion: None,
         forces: &[],
-        reference: axcomp_core::ThermoReference::Fixed,
+        reference: ThermoReference::Fixed,
         rise_bounds_k: &[],
     };
     let mut s = base;

@@ -93,7 +93,7 @@ impl Owned {
                     c_um_per_mm_k: c,
                 }),
                 forces: &self.forces,
-                reference: axcomp_core::ThermoReference::Fixed,
+                reference: ThermoReference::Fixed,
                 rise_bounds_k: &[],
             }),
             limits: self.limits,

@@ -52,7 +52,7 @@ fn largest_five_axis_image_fits_one_slot() {
             c_um_per_mm_k: 0.0115,
         }),
         forces: &forces,
-        reference: axcomp_core::ThermoReference::Fixed,
+        reference: ThermoReference::Fixed,
         rise_bounds_k: &[],
     };
     let linear = |id: u16| {

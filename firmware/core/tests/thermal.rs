@@ -30,7 +30,7 @@ fn lag_step_response_matches_analytic() {
         b_um_per_k: &[1.0],
         expansion: None,
         forces: &[],
-        reference: axcomp_core::ThermoReference::Fixed,
+        reference: ThermoReference::Fixed,
         rise_bounds_k: &[],
     }));
     let mut st = State::new();
@@ -78,7 +78,7 @@ fn thermo_force_formula() {
             c_um_per_mm_k: 0.0115,
         }),
         forces: &forces,
-        reference: axcomp_core::ThermoReference::Fixed,
+        reference: ThermoReference::Fixed,
         rise_bounds_k: &[],
     }));
     let mut st = State::new();
@@ -140,7 +140,7 @@ fn predicted_force_from_process() {
         b_um_per_k: &[],
         expansion: None,
         forces: &forces,
-        reference: axcomp_core::ThermoReference::Fixed,
+        reference: ThermoReference::Fixed,
         rise_bounds_k: &[],
     }));
     assert_eq!(comp.force_source(0), Some(ForceSource::Predicted));
@@ -190,7 +190,7 @@ fn one_sensor() -> Box<Compensator> {
         b_um_per_k: &[2.0],
         expansion: None,
         forces: &[],
-        reference: axcomp_core::ThermoReference::Fixed,
+        reference: ThermoReference::Fixed,
         rise_bounds_k: &[],
     }))
 }
