@@ -243,6 +243,8 @@ impl<S: TableStore> AxisCompensator<S> {
         let mut all_healthy = true;
         let mut any_stale = false;
         let mut fault = false;
+        let mut sum = 0.0f32;
+        let mut guarded = false;
         for (i, (cfg, s)) in cfgs.iter().zip(st.sensors.iter_mut()).enumerate() {
             if i >= n {
                 break;
@@ -283,6 +285,13 @@ impl<S: TableStore> AxisCompensator<S> {
             if w & SEEN != 0 {
                 let u = s.last_good_degc - s.reference_degc;
                 s.filtered_dt += cfg.alpha * (u - s.filtered_dt);
+                // Σ b_i·ΔT_i in index order, without the term of a sensor whose unlagged rise u
+                // is beyond its bounds (the range guard; ±∞ without it: every term counts).
+                if u >= cfg.rise_min_k && u <= cfg.rise_max_k {
+                    sum += cfg.b_um_per_k * s.filtered_dt;
+                } else {
+                    guarded = true;
+                }
             }
             if now_ms.wrapping_sub(s.last_good_ms) > cfg.stale_timeout_ms {
                 w |= STALE;
@@ -313,7 +322,7 @@ impl<S: TableStore> AxisCompensator<S> {
         self.stale_ramp_out(st, now_ms, any_stale, &mut bits);
         st.thermo_bits = bits ^ self.thermo_flags_xor;
         if all_healthy {
-            self.refresh_thermal(cfgs, st, n);
+            self.refresh_thermal(st, sum, guarded);
         }
     }
 
@@ -347,24 +356,14 @@ impl<S: TableStore> AxisCompensator<S> {
         }
     }
 
-    /// Every sensor healthy: Σ b_i·ΔT_i over the first `n` sensors (with the range guard, without
-    /// the terms of sensors beyond their bounds: THERMAL_GUARDED), the cached term and c·ΔT_s.
+    /// Every sensor healthy: the new Σ b_i·ΔT_i `sum` (`guarded`: a term was left out by the range
+    /// guard, THERMAL_GUARDED), the cached term and c·ΔT_s.
     #[inline(always)]
-    fn refresh_thermal(&self, cfgs: &[SensorRt; MAX_SENSORS], st: &mut State, n: usize) {
-        let sum = if self.rise_guard {
-            let (sum, guarded) = guarded_sum(cfgs, &st.sensors, n);
-            st.thermo_bits &= !Flags::THERMAL_GUARDED.0;
-            if guarded {
-                st.thermo_bits |= Flags::THERMAL_GUARDED.0;
-            }
-            sum
-        } else {
-            let mut sum = 0.0f32;
-            for (cfg, s) in cfgs.iter().zip(st.sensors.iter()).take(n) {
-                sum += cfg.b_um_per_k * s.filtered_dt;
-            }
-            sum
-        };
+    fn refresh_thermal(&self, st: &mut State, sum: f32, guarded: bool) {
+        st.thermo_bits &= !Flags::THERMAL_GUARDED.0;
+        if guarded {
+            st.thermo_bits |= Flags::THERMAL_GUARDED.0;
+        }
         st.sensor_um = sum;
         st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
         st.expansion_um_per_count = if self.has_expansion {
@@ -405,27 +404,6 @@ impl<S: TableStore> AxisCompensator<S> {
         st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
         st.set_thermo_flag(Flags::FORCE_INVALID, invalid);
     }
-}
-
-/// Σ b_i·ΔT_i over the first `n` sensors leaving out each sensor whose unlagged rise (last
-/// accepted reading − its reference) is outside its bounds (the range guard), and whether any was
-/// left out.
-fn guarded_sum(
-    cfgs: &[SensorRt; MAX_SENSORS],
-    sensors: &[SensorState; MAX_SENSORS],
-    n: usize,
-) -> (f32, bool) {
-    let mut sum = 0.0f32;
-    let mut guarded = false;
-    for (cfg, s) in cfgs.iter().zip(sensors.iter()).take(n) {
-        let rise = s.last_good_degc - s.reference_degc;
-        if rise >= cfg.rise_min_k && rise <= cfg.rise_max_k {
-            sum += cfg.b_um_per_k * s.filtered_dt;
-        } else {
-            guarded = true;
-        }
-    }
-    (sum, guarded)
 }
 
 /// [`SensorState::health`]: rejected readings (bits 0..24, saturating), seen (bit 24), stale
