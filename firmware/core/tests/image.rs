@@ -495,9 +495,9 @@ fn thermo_flags_and_rise_bounds_round_trip() {
         let c = load(&spec);
         assert_eq!(c.thermo_reference(), reference);
         assert_eq!(c.has_rise_guard(), !b.is_empty());
-        for i in 0..2 {
+        for (i, si) in s.iter().enumerate() {
             assert_eq!(c.rise_bounds_k(i), b.get(i).copied());
-            assert_eq!(c.sensor(i), Some(s[i]));
+            assert_eq!(c.sensor(i), Some(*si));
         }
         assert_eq!(c.rise_bounds_k(2), None);
         assert_eq!(inspect_image(&img).unwrap().n_sensors, 2);
