@@ -846,6 +846,8 @@ fn lathe_forward_split_default_below_raw_and_at_or_below_both_plain_references()
             "spindle_on=1",
             "--holdout",
             "run>=20200805",
+            "--sensor-period-ms",
+            "10100",
             "--json",
             j.to_str().unwrap(),
             "--out",
@@ -907,9 +909,10 @@ fn lathe_forward_split_default_below_raw_and_at_or_below_both_plain_references()
             (pr - h).abs() < 1e-6,
             "{target}: predict {pr} vs fit {h} (tolerance 1e-6 µm)"
         );
-        // The firmware's images hold fixed references: a multi-run model is refused, saying why.
+        // The multi-run model builds into an image (each sensor's reference at switch-on, the range
+        // guard), which the firmware runs as predict does.
         let img = dir.join(format!("{target}.img"));
-        let (ok, _, err) = run_args(&[
+        let (ok, out, err) = run_args(&[
             "image",
             "build",
             "--thermal",
@@ -921,11 +924,185 @@ fn lathe_forward_split_default_below_raw_and_at_or_below_both_plain_references()
             "--out",
             img.to_str().unwrap(),
         ]);
+        assert!(ok && img.exists(), "{out}\n{err}");
+        let (ok, text, err) = run_args(&["image", "inspect", img.to_str().unwrap()]);
+        assert!(ok, "{err}");
         assert!(
-            !ok && err.contains("multi-run model") && !img.exists(),
-            "{err}"
+            text.contains("switch-on")
+                && text.contains("range guard: on")
+                && text.contains("rise "),
+            "{text}"
         );
+        firmware_runs_the_model_as_predict(&data, &m, &img, &p, target, &dir);
     }
+}
+
+/// The held-out lathe run checked on the firmware: its 2135 spindle-on rows are the longest held-out run and
+/// the only one without spindle stops (row intervals 10.0 .. 10.3 s; the model's sensor period is 10.1 s).
+const LATHE_CHECK_RUN: &str = "20200813";
+const LATHE_PERIOD_S: f64 = 10.1;
+
+/// The firmware (`axcomp_core::Compensator` on the built image, one `update_temperatures` per row) against
+/// `axcomp predict` on the held-out run [`LATHE_CHECK_RUN`]. The firmware's thermal contribution is b0 + Σ b_i·ΔT_i
+/// (the cached term); predict's is its prediction minus the run's first target value (which predict adds back).
+/// (1) The rows re-timed at exactly the model's sensor period: the same arithmetic up to f32 (a 45 µm term
+///     has a resolution of 4e-6 µm; the lag states accumulate rounding over 2135 updates: 8e-5 µm
+///     measured), tolerance 1e-3 µm.
+/// (2) The same, with the model's first sensor pushed beyond its rise bound for a stretch of the run (a ramp
+///     of 0.01 K/s up to +25 K and back, within the sensor's plausible range): the firmware leaves that term out on the same rows as predict,
+///     tolerance 1e-3 µm.
+/// (3) The rows at their recorded times (predict on the original file): predict's lags follow each row's
+///     interval (10.0 .. 10.3 s), the firmware's the fixed period, so they differ slightly: tolerance
+///     0.05 µm (0.1 % of the largest thermal term, 45 µm; 0.022 µm measured).
+fn firmware_runs_the_model_as_predict(
+    data: &Path,
+    model: &Path,
+    img: &Path,
+    pred: &Path,
+    target: &str,
+    dir: &Path,
+) {
+    let (header, rows) = common::table(data);
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let mut rows: Vec<Vec<String>> = rows
+        .into_iter()
+        .filter(|r| r[col("run")] == LATHE_CHECK_RUN && r[col("spindle_on")] == "1")
+        .collect();
+    assert_eq!(rows.len(), 2135);
+    let host_recorded = predicted_run(pred, target);
+    let t0: f64 = rows[0][col("time_s")].parse().unwrap();
+    for (k, r) in rows.iter_mut().enumerate() {
+        r[col("time_s")] = format!("{}", t0 + k as f64 * LATHE_PERIOD_S);
+    }
+    let m = axcomp_thermal::model_file::ThermalModelFile::load(model).unwrap();
+    assert_eq!(m.sensor_period_ms, 10_100);
+    let y0: f64 = rows[0][col(target)].parse().unwrap();
+    let (fw, guarded) = firmware_run(&m, img, &header, &rows);
+    let host = predict_rows(model, &header, &rows, target, &dir.join("retimed"));
+    let worst = |a: &[f64], b: &[f64]| {
+        assert_eq!(a.len(), b.len());
+        a.iter()
+            .zip(b)
+            .fold(0.0f64, |w, (x, y)| w.max((x - (y - y0)).abs()))
+    };
+    let (w1, w3) = (worst(&fw, &host.0), worst(&fw, &host_recorded));
+    assert_eq!((guarded, host.1), (0, 0), "the run stays within the bounds");
+    // (2) the first model sensor ramped beyond its rise bound and back.
+    let c0 = col(&format!("{}_degC", m.sensors[0].name));
+    for (k, r) in rows.iter_mut().enumerate() {
+        let extra = 0.1 * (250.0 - (k as f64 - 1850.0).abs()).max(0.0);
+        let v: f64 = r[c0].parse().unwrap();
+        r[c0] = format!("{:.3}", v + extra);
+    }
+    let (fw2, guarded2) = firmware_run(&m, img, &header, &rows);
+    let host2 = predict_rows(model, &header, &rows, target, &dir.join("pushed"));
+    let w2 = worst(&fw2, &host2.0);
+    println!(
+        "{target}: firmware vs predict on run {LATHE_CHECK_RUN}: re-timed worst {w1:.2e} µm, sensor pushed \
+         beyond its bound worst {w2:.2e} µm ({guarded2} rows guarded), recorded times worst {w3:.3} µm"
+    );
+    assert!(w1 <= 1e-3, "{target}: re-timed {w1} µm (tol 1e-3)");
+    assert!(
+        guarded2 > 100 && guarded2 == host2.1,
+        "{guarded2} vs {}",
+        host2.1
+    );
+    assert!(w2 <= 1e-3, "{target}: pushed {w2} µm (tol 1e-3)");
+    assert!(w3 <= 0.05, "{target}: recorded times {w3} µm (tol 0.05)");
+}
+
+/// `pred_TARGET` of the check run's rows in predict's output `pred`.
+fn predicted_run(pred: &Path, target: &str) -> Vec<f64> {
+    let (h, rs) = common::table(pred);
+    let c = h
+        .iter()
+        .position(|x| *x == format!("pred_{target}"))
+        .unwrap();
+    let rc = h.iter().position(|x| x == "run").unwrap();
+    rs.iter()
+        .filter(|r| r[rc] == LATHE_CHECK_RUN)
+        .map(|r| r[c].parse().unwrap())
+        .collect()
+}
+
+/// `axcomp predict` on `rows` (written to `stem`.csv): the predictions and the number of rows on which
+/// predict reports a dropped term.
+fn predict_rows(
+    model: &Path,
+    header: &[String],
+    rows: &[Vec<String>],
+    target: &str,
+    stem: &Path,
+) -> (Vec<f64>, usize) {
+    let csv = stem.with_extension("csv");
+    let out = stem.with_extension("pred.csv");
+    let mut text = header.join(",") + "\n";
+    for r in rows {
+        text += &(r.join(",") + "\n");
+    }
+    std::fs::write(&csv, text).unwrap();
+    let (ok, o, err) = run_args(&[
+        "predict",
+        "--model",
+        model.to_str().unwrap(),
+        "--data",
+        csv.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{o}\n{err}");
+    // "on N row(s) (first: ...) a model sensor has risen beyond ..."
+    let dropped = err
+        .split("on ")
+        .filter_map(|t| t.split(" row(s)").next()?.parse::<usize>().ok())
+        .next()
+        .unwrap_or(0);
+    (predicted_run(&out, target), dropped)
+}
+
+/// The firmware on `rows` (one sensor update per row, at the model's sensor period): b0 + Σ b_i·ΔT_i after
+/// each update and the number of updates with a term left out (THERMAL_GUARDED).
+fn firmware_run(
+    m: &axcomp_thermal::model_file::ThermalModelFile,
+    img: &Path,
+    header: &[String],
+    rows: &[Vec<String>],
+) -> (Vec<f64>, usize) {
+    let mut comp = Box::new(axcomp_core::Compensator::IDENTITY);
+    comp.load(&std::fs::read(img).unwrap()).unwrap();
+    assert_eq!(
+        comp.thermo_reference(),
+        axcomp_core::ThermoReference::SwitchOn
+    );
+    assert!(comp.has_rise_guard());
+    let cols: Vec<usize> = m
+        .sensors
+        .iter()
+        .map(|s| {
+            let name = format!("{}_degC", s.name);
+            header.iter().position(|h| *h == name).unwrap()
+        })
+        .collect();
+    let mut st = axcomp_core::State::new();
+    let (mut out, mut guarded) = (Vec::with_capacity(rows.len()), 0);
+    let input = axcomp_core::CycleInput {
+        scale_raw: 0,
+        command_counts: 0,
+        forces_n: [0.0; axcomp_core::MAX_FORCES],
+    };
+    for (k, r) in rows.iter().enumerate() {
+        let readings: Vec<f32> = cols.iter().map(|&c| r[c].parse().unwrap()).collect();
+        comp.update_temperatures(&mut st, k as u32 * m.sensor_period_ms, &readings);
+        let flags = comp.cycle(&mut st, &input).flags;
+        assert!(
+            !flags.contains(axcomp_core::Flags::SENSOR_FAULT)
+                && !flags.contains(axcomp_core::Flags::THERMAL_FROZEN),
+            "row {k}: {flags:?}"
+        );
+        guarded += usize::from(flags.contains(axcomp_core::Flags::THERMAL_GUARDED));
+        out.push(f64::from(comp.b0_um() + st.sensor_term_um()));
+    }
+    (out, guarded)
 }
 
 fn run_args(args: &[&str]) -> (bool, String, String) {

@@ -63,6 +63,8 @@ fn main() -> std::io::Result<()> {
                 b_um_per_k: &[1.5],
                 expansion: None,
                 forces: &forces,
+                reference: axcomp_core::ThermoReference::Fixed,
+                rise_bounds_k: &[],
             }),
             limits: LimitSpec {
                 max_correction_um: 20.0,

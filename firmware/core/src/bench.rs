@@ -111,6 +111,8 @@ pub fn reference_spec() -> ImageSpec<'static> {
                 c_um_per_mm_k: 0.0115,
             }),
             forces: &FORCES,
+            reference: crate::spec::ThermoReference::Fixed,
+            rise_bounds_k: &[],
         }),
         limits: LimitSpec {
             max_correction_um: 50.0,

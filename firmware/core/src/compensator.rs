@@ -54,6 +54,9 @@ impl Flags {
     /// A sensor has been stale for longer than [`crate::STALE_HOLD_MS`]: the frozen thermal term
     /// (Σ b_i·ΔT_i and c·ΔT_s) is ramping out, or has ramped out, to b0 + predicted forces.
     pub const THERMAL_RAMP_OUT: Flags = Flags(1 << 9);
+    /// The range guard left out at least one sensor's term b_i·ΔT_i at the last sensor update
+    /// (its unlagged rise outside the image's bounds; see [`crate::image`]).
+    pub const THERMAL_GUARDED: Flags = Flags(1 << 10);
 
     /// Raw bits.
     pub const fn bits(self) -> u16 {
@@ -168,6 +171,10 @@ pub struct AxisCompensator<S: TableStore> {
     pub(crate) sensors: S::Sensors,
     pub(crate) b0_um: f32,
     pub(crate) has_expansion: bool,
+    /// ΔT against each sensor's first accepted reading (thermo flag REFERENCE_AT_SWITCH_ON).
+    pub(crate) reference_at_switch_on: bool,
+    /// The range guard is on (thermo flag RISE_GUARD; bounds in the sensors' settings).
+    pub(crate) rise_guard: bool,
     pub(crate) expansion_sensor: u8,
     pub(crate) x_ref_counts: i64,
     pub(crate) c_um_per_mm_k: f32,
@@ -268,6 +275,8 @@ impl<S: TableStore> AxisCompensator<S> {
             sensors: S::NO_SENSORS,
             b0_um: 0.0,
             has_expansion: false,
+            reference_at_switch_on: false,
+            rise_guard: false,
             expansion_sensor: 0,
             x_ref_counts: 0,
             c_um_per_mm_k: 0.0,
@@ -781,15 +790,15 @@ impl State {
     pub fn filtered_delta_t(&self, i: usize) -> Option<f32> {
         self.sensors
             .get(i)
-            .and_then(|s| s.seen.then_some(s.filtered_dt))
+            .and_then(|s| s.seen().then_some(s.filtered_dt))
     }
     /// True if sensor `i` is stale (or recovering).
     pub fn sensor_stale(&self, i: usize) -> bool {
-        self.sensors.get(i).is_some_and(|s| s.stale)
+        self.sensors.get(i).is_some_and(|s| s.stale())
     }
-    /// Number of rejected readings of sensor `i`.
+    /// Number of rejected readings of sensor `i` (saturating at 2^24 − 1 = 16 777 215).
     pub fn rejected_readings(&self, i: usize) -> u32 {
-        self.sensors.get(i).map_or(0, |s| s.rejected)
+        self.sensors.get(i).map_or(0, |s| s.rejected())
     }
     /// Cached Σ χ_j·F_j of the predicted forces, µm.
     pub fn predicted_term_um(&self) -> f32 {

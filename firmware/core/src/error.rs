@@ -70,6 +70,10 @@ pub enum Field {
     ProbeMovingSpeed,
     /// Rotary stage: machine kind code (1 ac-trunnion, 2 bc-trunnion, 3 bc-head).
     RotaryMachine,
+    /// Thermo: `thermo_flags` has a bit this build does not know.
+    ThermoFlags,
+    /// Thermo: a sensor's rise bounds of the range guard (index = sensor).
+    RiseBounds,
 }
 
 impl Field {
@@ -108,6 +112,8 @@ impl Field {
             Field::ProbeLockout => "probe.lockout_us",
             Field::ProbeMovingSpeed => "probe.moving_um_per_s",
             Field::RotaryMachine => "rotary.machine",
+            Field::ThermoFlags => "thermo.flags",
+            Field::RiseBounds => "thermo.rise_bounds_k",
         }
     }
 }

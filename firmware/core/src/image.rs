@@ -28,11 +28,22 @@
 //! u32 (0 for hold), reserved u32 = 0, then n forward `[c0, c1, c2, c3]` f32, then (bidirectional)
 //! n backward ones.
 //!
-//! Thermo section (32 + 28·n_sensors + 24·n_forces bytes): `sensor_period_ms` u32, `n_sensors` u8,
-//! `n_forces` u8, `has_expansion` u8 (0/1), `expansion_sensor` u8, `b0_um` f32, `c_um_per_mm_k` f32,
-//! `x_ref_counts` i64, reserved 2×u32 = 0; per sensor `reference_degc`, `min_degc`, `max_degc`,
-//! `max_rate_degc_per_s`, `lag_tau_s` (f32), `stale_timeout_ms` u32, `b_um_per_k` f32; per force
-//! `chi_um_per_n` f32, `has_law` u32 (0/1), `k`, `x_ap`, `y_fz`, `z_n` f32.
+//! Thermo section (32 + 28·n_sensors + 24·n_forces bytes, + 8·n_sensors with RISE_GUARD):
+//! `sensor_period_ms` u32, `n_sensors` u8, `n_forces` u8, `has_expansion` u8 (0/1),
+//! `expansion_sensor` u8, `b0_um` f32, `c_um_per_mm_k` f32, `x_ref_counts` i64, `thermo_flags` u32,
+//! reserved u32 = 0; per sensor `reference_degc`, `min_degc`, `max_degc`, `max_rate_degc_per_s`,
+//! `lag_tau_s` (f32), `stale_timeout_ms` u32, `b_um_per_k` f32; per force `chi_um_per_n` f32,
+//! `has_law` u32 (0/1), `k`, `x_ap`, `y_fz`, `z_n` f32; with RISE_GUARD, per sensor `rise_min_k`,
+//! `rise_max_k` f32.
+//!
+//! `thermo_flags` (other bits 0; an image with flags 0 is read exactly as before the flags existed):
+//! - bit 0 REFERENCE_AT_SWITCH_ON ([`crate::ThermoReference::SwitchOn`]): each sensor's ΔT is taken
+//!   against its first accepted reading after the image was loaded or the state reset, so its lag
+//!   starts at 0 (a model fitted on runs that each start at switch-on); `reference_degc` is then
+//!   only the nominal temperature the model was fitted around and is not used.
+//! - bit 1 RISE_GUARD: while a sensor's unlagged rise (last accepted reading − its reference) is
+//!   outside `[rise_min_k, rise_max_k]`, its term b_i·ΔT_i is left out of Σ b_i·ΔT_i (flag
+//!   [`crate::Flags::THERMAL_GUARDED`]); the sensor stays healthy and the other terms stay.
 //!
 //! Limits section (16 bytes): `max_correction_um` f32, `max_slew_um_per_cycle` f32,
 //! `direction_hysteresis_counts` u32, reserved u32 = 0.
@@ -41,14 +52,14 @@
 //! Every `f32` must be finite. µm per count in [1e-6, 1e4]; |start_counts| ≤ 2^62; the stroke
 //! (n·segment_counts) ≤ u32::MAX counts; per segment Σ|c_k| ≤ 10 000 µm (so |value| ≤ 10 mm);
 //! temperatures in [−273.15, 2000] °C with min < max; max rate in (0, 1e6] K/s; τ in [0, 1e7] s;
-//! stale timeout ≥ 1 ms; sensor period ≥ 1 ms; |b_i| ≤ 1e4 µm/K; |b0| ≤ 1e5 µm; |c| ≤ 1e3 µm/(mm·K);
+//! stale timeout ≥ 1 ms; sensor period ≥ 1 ms; rise bounds in [−2273.15, 2273.15] K with lo < hi; |b_i| ≤ 1e4 µm/K; |b0| ≤ 1e5 µm; |c| ≤ 1e3 µm/(mm·K);
 //! |x_ref| ≤ 2^62; |χ| ≤ 1e3 µm/N; |k| ≤ 1e9, |exponents| ≤ 10; max correction and max slew in
 //! (0, 1e5] µm; direction hysteresis ≤ 2^31 − 1 counts.
 
 use crate::compensator::{AxisCompensator, Compensator, TableStore};
 use crate::error::{Field, ImageError};
 use crate::limits::MAX_LIMIT_UM;
-use crate::spec::{ForceLaw, ImageSpec, OutsideStroke};
+use crate::spec::{ForceLaw, ImageSpec, OutsideStroke, ThermoReference};
 use crate::thermo::SensorRt;
 use crate::{MAX_FORCES, MAX_IMAGE_LEN, MAX_SEGMENTS, MAX_SENSORS};
 
@@ -66,6 +77,15 @@ pub const THERMO_HEADER_LEN: usize = 32;
 pub const SENSOR_LEN: usize = 28;
 /// Bytes per force term in the thermo section.
 pub const FORCE_LEN: usize = 24;
+/// Bytes per sensor of the rise bounds (thermo flag [`THERMO_RISE_GUARD`]).
+pub const RISE_BOUNDS_LEN: usize = 8;
+/// Thermo flag: ΔT against each sensor's first accepted reading ([`ThermoReference::SwitchOn`]).
+pub const THERMO_REFERENCE_AT_SWITCH_ON: u32 = 1 << 0;
+/// Thermo flag: per-sensor rise bounds follow the force records (the range guard).
+pub const THERMO_RISE_GUARD: u32 = 1 << 1;
+const THERMO_KNOWN_FLAGS: u32 = THERMO_REFERENCE_AT_SWITCH_ON | THERMO_RISE_GUARD;
+/// Largest |rise bound|, K (the span of the plausible temperatures).
+const MAX_RISE_K: f32 = MAX_DEGC - MIN_DEGC;
 /// Limits section length.
 pub const LIMITS_LEN: usize = 16;
 /// CRC length.
@@ -123,6 +143,8 @@ pub(crate) struct Layout {
     pub(crate) thermo: Option<usize>,
     pub(crate) n_sensors: usize,
     pub(crate) n_forces: usize,
+    /// The thermo section's `thermo_flags` (0 without one).
+    pub(crate) thermo_flags: u32,
     pub(crate) limits: usize,
 }
 
@@ -254,6 +276,28 @@ fn section(b: &[u8], at: usize) -> (usize, usize) {
     (u32_at(b, at) as usize, u32_at(b, at + 4) as usize)
 }
 
+/// Length of a thermo section with `ns` sensors, `nf` forces and (if `guard`) rise bounds.
+fn thermo_section_len(ns: usize, nf: usize, guard: bool) -> usize {
+    THERMO_HEADER_LEN
+        + SENSOR_LEN.saturating_mul(ns)
+        + FORCE_LEN.saturating_mul(nf)
+        + if guard {
+            RISE_BOUNDS_LEN.saturating_mul(ns)
+        } else {
+            0
+        }
+}
+
+/// Offset of sensor `i`'s rise bounds in a thermo section at `o` (None without RISE_GUARD).
+fn rise_bounds_at(l: &Layout, o: usize, i: usize) -> Option<usize> {
+    (l.thermo_flags & THERMO_RISE_GUARD != 0).then_some(
+        o + THERMO_HEADER_LEN
+            + SENSOR_LEN * l.n_sensors
+            + FORCE_LEN * l.n_forces
+            + RISE_BOUNDS_LEN * i,
+    )
+}
+
 /// Validate everything; nothing is copied.
 pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
     // ---- structure ----
@@ -296,6 +340,7 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
         thermo: None,
         n_sensors: 0,
         n_forces: 0,
+        thermo_flags: 0,
         limits: 0,
     };
     if (t_off, t_len) != (0, 0) {
@@ -329,10 +374,13 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
         if nf > MAX_FORCES {
             return Err(ImageError::TooManyForces);
         }
-        if h_len != THERMO_HEADER_LEN + SENSOR_LEN * ns + FORCE_LEN * nf {
+        let flags = u32_at(b, h_off + 24);
+        check(flags & !THERMO_KNOWN_FLAGS == 0, Field::ThermoFlags, 0)?;
+        if h_len != thermo_section_len(ns, nf, flags & THERMO_RISE_GUARD != 0) {
             return Err(ImageError::BadLength);
         }
         layout.thermo = Some(h_off);
+        layout.thermo_flags = flags;
         layout.n_sensors = ns;
         layout.n_forces = nf;
         cursor = h_off + h_len;
@@ -391,64 +439,7 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
 
     // ---- thermo-force ----
     if let Some(o) = layout.thermo {
-        let period = u32_at(b, o);
-        check(period >= 1, Field::SensorPeriod, 0)?;
-        let has_exp = u8_at(b, o + 6);
-        let exp_sensor = u8_at(b, o + 7) as usize;
-        ranged(f32_at(b, o + 8), -1.0e5, 1.0e5, Field::B0, 0)?;
-        let c = ranged(f32_at(b, o + 12), -1.0e3, 1.0e3, Field::Expansion, 0)?;
-        let x_ref = i64_at(b, o + 16);
-        check(
-            u32_at(b, o + 24) == 0 && u32_at(b, o + 28) == 0,
-            Field::Reserved,
-            0,
-        )?;
-        match has_exp {
-            0 => check(
-                exp_sensor == 0 && c == 0.0 && x_ref == 0,
-                Field::Expansion,
-                0,
-            )?,
-            1 => {
-                check(exp_sensor < layout.n_sensors, Field::ExpansionSensor, 0)?;
-                check(
-                    (-MAX_ABS_POSITION..=MAX_ABS_POSITION).contains(&x_ref),
-                    Field::Expansion,
-                    0,
-                )?;
-            }
-            _ => {
-                return Err(ImageError::OutOfRange {
-                    field: Field::Expansion,
-                    index: 0,
-                });
-            }
-        }
-        for i in 0..layout.n_sensors {
-            let at = o + THERMO_HEADER_LEN + SENSOR_LEN * i;
-            ranged(f32_at(b, at), MIN_DEGC, MAX_DEGC, Field::ReferenceDegc, i)?;
-            let lo = ranged(f32_at(b, at + 4), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
-            let hi = ranged(f32_at(b, at + 8), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
-            check(lo < hi, Field::SensorRange, i)?;
-            positive(f32_at(b, at + 12), 1.0e6, Field::MaxRate, i)?;
-            ranged(f32_at(b, at + 16), 0.0, 1.0e7, Field::LagTau, i)?;
-            check(u32_at(b, at + 20) >= 1, Field::StaleTimeout, i)?;
-            ranged(f32_at(b, at + 24), -1.0e4, 1.0e4, Field::BUmPerK, i)?;
-        }
-        for j in 0..layout.n_forces {
-            let at = o + THERMO_HEADER_LEN + SENSOR_LEN * layout.n_sensors + FORCE_LEN * j;
-            ranged(f32_at(b, at), -1.0e3, 1.0e3, Field::Chi, j)?;
-            let has_law = u32_at(b, at + 4);
-            check(has_law <= 1, Field::ForceLaw, j)?;
-            let k = ranged(f32_at(b, at + 8), -1.0e9, 1.0e9, Field::ForceLaw, j)?;
-            let mut e = [0.0f32; 3];
-            for (m, v) in e.iter_mut().enumerate() {
-                *v = ranged(f32_at(b, at + 12 + 4 * m), -10.0, 10.0, Field::ForceLaw, j)?;
-            }
-            if has_law == 0 {
-                check(k == 0.0 && e == [0.0; 3], Field::ForceLaw, j)?;
-            }
-        }
+        validate_thermo(b, &layout, o)?;
     }
 
     // ---- limits ----
@@ -458,6 +449,76 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
     check(u32_at(b, o + 8) <= i32::MAX as u32, Field::Hysteresis, 0)?;
     check(u32_at(b, o + 12) == 0, Field::Reserved, 0)?;
     Ok(layout)
+}
+
+/// The values of a thermo section at `o` whose structure `l` has been checked.
+fn validate_thermo(b: &[u8], l: &Layout, o: usize) -> Result<(), ImageError> {
+    let period = u32_at(b, o);
+    check(period >= 1, Field::SensorPeriod, 0)?;
+    let has_exp = u8_at(b, o + 6);
+    let exp_sensor = u8_at(b, o + 7) as usize;
+    ranged(f32_at(b, o + 8), -1.0e5, 1.0e5, Field::B0, 0)?;
+    let c = ranged(f32_at(b, o + 12), -1.0e3, 1.0e3, Field::Expansion, 0)?;
+    let x_ref = i64_at(b, o + 16);
+    check(u32_at(b, o + 28) == 0, Field::Reserved, 0)?;
+    match has_exp {
+        0 => check(
+            exp_sensor == 0 && c == 0.0 && x_ref == 0,
+            Field::Expansion,
+            0,
+        )?,
+        1 => {
+            check(exp_sensor < l.n_sensors, Field::ExpansionSensor, 0)?;
+            check(
+                (-MAX_ABS_POSITION..=MAX_ABS_POSITION).contains(&x_ref),
+                Field::Expansion,
+                0,
+            )?;
+        }
+        _ => {
+            return Err(ImageError::OutOfRange {
+                field: Field::Expansion,
+                index: 0,
+            });
+        }
+    }
+    for i in 0..l.n_sensors {
+        let at = o + THERMO_HEADER_LEN + SENSOR_LEN * i;
+        ranged(f32_at(b, at), MIN_DEGC, MAX_DEGC, Field::ReferenceDegc, i)?;
+        let lo = ranged(f32_at(b, at + 4), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
+        let hi = ranged(f32_at(b, at + 8), MIN_DEGC, MAX_DEGC, Field::SensorRange, i)?;
+        check(lo < hi, Field::SensorRange, i)?;
+        positive(f32_at(b, at + 12), 1.0e6, Field::MaxRate, i)?;
+        ranged(f32_at(b, at + 16), 0.0, 1.0e7, Field::LagTau, i)?;
+        check(u32_at(b, at + 20) >= 1, Field::StaleTimeout, i)?;
+        ranged(f32_at(b, at + 24), -1.0e4, 1.0e4, Field::BUmPerK, i)?;
+        if let Some(r) = rise_bounds_at(l, o, i) {
+            let lo = ranged(f32_at(b, r), -MAX_RISE_K, MAX_RISE_K, Field::RiseBounds, i)?;
+            let hi = ranged(
+                f32_at(b, r + 4),
+                -MAX_RISE_K,
+                MAX_RISE_K,
+                Field::RiseBounds,
+                i,
+            )?;
+            check(lo < hi, Field::RiseBounds, i)?;
+        }
+    }
+    for j in 0..l.n_forces {
+        let at = o + THERMO_HEADER_LEN + SENSOR_LEN * l.n_sensors + FORCE_LEN * j;
+        ranged(f32_at(b, at), -1.0e3, 1.0e3, Field::Chi, j)?;
+        let has_law = u32_at(b, at + 4);
+        check(has_law <= 1, Field::ForceLaw, j)?;
+        let k = ranged(f32_at(b, at + 8), -1.0e9, 1.0e9, Field::ForceLaw, j)?;
+        let mut e = [0.0f32; 3];
+        for (m, v) in e.iter_mut().enumerate() {
+            *v = ranged(f32_at(b, at + 12 + 4 * m), -10.0, 10.0, Field::ForceLaw, j)?;
+        }
+        if has_law == 0 {
+            check(k == 0.0 && e == [0.0; 3], Field::ForceLaw, j)?;
+        }
+    }
+    Ok(())
 }
 
 /// `(start_counts, segment_counts, n_segments)` of a validated image's table.
@@ -520,6 +581,10 @@ pub(crate) fn copy_sensors_into(l: &Layout, b: &[u8], cfgs: &mut [SensorRt; MAX_
     for (i, s) in cfgs.iter_mut().enumerate().take(l.n_sensors) {
         let at = o + THERMO_HEADER_LEN + SENSOR_LEN * i;
         let tau = f32_at(b, at + 16);
+        let (rise_min_k, rise_max_k) = match rise_bounds_at(l, o, i) {
+            Some(r) => (f32_at(b, r), f32_at(b, r + 4)),
+            None => (f32::NEG_INFINITY, f32::INFINITY),
+        };
         *s = SensorRt {
             reference_degc: f32_at(b, at),
             min_degc: f32_at(b, at + 4),
@@ -529,6 +594,8 @@ pub(crate) fn copy_sensors_into(l: &Layout, b: &[u8], cfgs: &mut [SensorRt; MAX_
             stale_timeout_ms: u32_at(b, at + 20),
             b_um_per_k: f32_at(b, at + 24),
             alpha: lag_alpha(period_s, tau),
+            rise_min_k,
+            rise_max_k,
         };
     }
 }
@@ -579,6 +646,8 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
     c.n_sensors = 0;
     c.b0_um = 0.0;
     c.has_expansion = false;
+    c.reference_at_switch_on = false;
+    c.rise_guard = false;
     c.expansion_sensor = 0;
     c.x_ref_counts = 0;
     c.c_um_per_mm_k = 0.0;
@@ -597,6 +666,8 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
         c.n_sensors = l.n_sensors as u8;
         c.b0_um = f32_at(b, o + 8);
         c.has_expansion = u8_at(b, o + 6) == 1;
+        c.reference_at_switch_on = l.thermo_flags & THERMO_REFERENCE_AT_SWITCH_ON != 0;
+        c.rise_guard = l.thermo_flags & THERMO_RISE_GUARD != 0;
         c.expansion_sensor = u8_at(b, o + 7);
         c.c_um_per_mm_k = f32_at(b, o + 12);
         c.x_ref_counts = i64_at(b, o + 16);
@@ -660,13 +731,25 @@ pub fn image_len(spec: &ImageSpec) -> usize {
         n = n.saturating_add(TABLE_HEADER_LEN + 16usize.saturating_mul(t.forward.len()) * dirs);
     }
     if let Some(h) = &spec.thermo {
-        n = n.saturating_add(
-            THERMO_HEADER_LEN
-                + SENSOR_LEN.saturating_mul(h.sensors.len())
-                + FORCE_LEN.saturating_mul(h.forces.len()),
-        );
+        n = n.saturating_add(thermo_section_len(
+            h.sensors.len(),
+            h.forces.len(),
+            !h.rise_bounds_k.is_empty(),
+        ));
     }
     n
+}
+
+/// The `thermo_flags` word [`write_image`] writes for a thermo-force term.
+fn thermo_flags_of(h: &crate::spec::ThermoForceSpec) -> u32 {
+    let mut f = 0;
+    if h.reference == ThermoReference::SwitchOn {
+        f |= THERMO_REFERENCE_AT_SWITCH_ON;
+    }
+    if !h.rise_bounds_k.is_empty() {
+        f |= THERMO_RISE_GUARD;
+    }
+    f
 }
 
 /// Validate `spec` and write its image into `out`; returns the length.
@@ -689,7 +772,9 @@ pub fn write_image(spec: &ImageSpec, out: &mut [u8]) -> Result<usize, ImageError
         if h.forces.len() > MAX_FORCES {
             return Err(ImageError::TooManyForces);
         }
-        if h.b_um_per_k.len() != h.sensors.len() {
+        if h.b_um_per_k.len() != h.sensors.len()
+            || !(h.rise_bounds_k.is_empty() || h.rise_bounds_k.len() == h.sensors.len())
+        {
             return Err(ImageError::SensorCountMismatch);
         }
         if let Some(e) = &h.expansion {
@@ -716,7 +801,7 @@ pub fn write_image(spec: &ImageSpec, out: &mut [u8]) -> Result<usize, ImageError
         TABLE_HEADER_LEN + 16 * t.forward.len() * if t.backward.is_empty() { 1 } else { 2 }
     });
     let thermo_len = spec.thermo.as_ref().map_or(0, |h| {
-        THERMO_HEADER_LEN + SENSOR_LEN * h.sensors.len() + FORCE_LEN * h.forces.len()
+        thermo_section_len(h.sensors.len(), h.forces.len(), !h.rise_bounds_k.is_empty())
     });
     let table_off = if table_len > 0 { HEADER_LEN } else { 0 };
     let thermo_off = if thermo_len > 0 {
@@ -765,54 +850,7 @@ pub fn write_image(spec: &ImageSpec, out: &mut [u8]) -> Result<usize, ImageError
         }
     }
     if let Some(h) = &spec.thermo {
-        w.u32(h.sensor_period_ms);
-        w.u8(h.sensors.len() as u8);
-        w.u8(h.forces.len() as u8);
-        match &h.expansion {
-            Some(e) => {
-                w.u8(1);
-                w.u8(e.sensor);
-                w.f32(h.b0_um);
-                w.f32(e.c_um_per_mm_k);
-                w.i64(e.x_ref_counts);
-            }
-            None => {
-                w.u8(0);
-                w.u8(0);
-                w.f32(h.b0_um);
-                w.f32(0.0);
-                w.i64(0);
-            }
-        }
-        w.u32(0);
-        w.u32(0);
-        for (s, &b) in h.sensors.iter().zip(h.b_um_per_k.iter()) {
-            w.f32(s.reference_degc);
-            w.f32(s.min_degc);
-            w.f32(s.max_degc);
-            w.f32(s.max_rate_degc_per_s);
-            w.f32(s.lag_tau_s);
-            w.u32(s.stale_timeout_ms);
-            w.f32(b);
-        }
-        for f in h.forces {
-            w.f32(f.chi_um_per_n);
-            match &f.law {
-                Some(l) => {
-                    w.u32(1);
-                    w.f32(l.k);
-                    w.f32(l.x_ap);
-                    w.f32(l.y_fz);
-                    w.f32(l.z_n);
-                }
-                None => {
-                    w.u32(0);
-                    for _ in 0..4 {
-                        w.f32(0.0);
-                    }
-                }
-            }
-        }
+        put_thermo(&mut w, h);
     }
     w.f32(spec.limits.max_correction_um);
     w.f32(spec.limits.max_slew_um_per_cycle);
@@ -829,5 +867,61 @@ pub fn write_image(spec: &ImageSpec, out: &mut [u8]) -> Result<usize, ImageError
             out.fill(0);
             Err(e)
         }
+    }
+}
+
+/// The thermo section of `h` (validated counts) at `w`'s position.
+fn put_thermo(w: &mut Put, h: &crate::spec::ThermoForceSpec) {
+    w.u32(h.sensor_period_ms);
+    w.u8(h.sensors.len() as u8);
+    w.u8(h.forces.len() as u8);
+    match &h.expansion {
+        Some(e) => {
+            w.u8(1);
+            w.u8(e.sensor);
+            w.f32(h.b0_um);
+            w.f32(e.c_um_per_mm_k);
+            w.i64(e.x_ref_counts);
+        }
+        None => {
+            w.u8(0);
+            w.u8(0);
+            w.f32(h.b0_um);
+            w.f32(0.0);
+            w.i64(0);
+        }
+    }
+    w.u32(thermo_flags_of(h));
+    w.u32(0);
+    for (s, &b) in h.sensors.iter().zip(h.b_um_per_k.iter()) {
+        w.f32(s.reference_degc);
+        w.f32(s.min_degc);
+        w.f32(s.max_degc);
+        w.f32(s.max_rate_degc_per_s);
+        w.f32(s.lag_tau_s);
+        w.u32(s.stale_timeout_ms);
+        w.f32(b);
+    }
+    for f in h.forces {
+        w.f32(f.chi_um_per_n);
+        match &f.law {
+            Some(l) => {
+                w.u32(1);
+                w.f32(l.k);
+                w.f32(l.x_ap);
+                w.f32(l.y_fz);
+                w.f32(l.z_n);
+            }
+            None => {
+                w.u32(0);
+                for _ in 0..4 {
+                    w.f32(0.0);
+                }
+            }
+        }
+    }
+    for &(lo, hi) in h.rise_bounds_k {
+        w.f32(lo);
+        w.f32(hi);
     }
 }

@@ -15,7 +15,10 @@
 //! - **reversal**: a change of the approach direction; detected with a hysteresis so that scale
 //!   noise at standstill does not toggle between the forward and backward tables.
 //! - **thermo-force term**: E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
-//! - **ΔT**: a (lagged) sensor temperature minus its reference temperature, kelvin.
+//! - **ΔT**: a (lagged) sensor temperature minus its reference temperature (the image's, or the
+//!   sensor's first accepted reading with [`ThermoReference::SwitchOn`]), kelvin.
+//! - **range guard**: per-sensor rise bounds; a sensor's term b_i·ΔT_i is left out while its
+//!   unlagged rise is outside them ([`Flags::THERMAL_GUARDED`]).
 //! - **force source**: a force term is *predicted* (from the cutting-force law and the process
 //!   parameters given to [`AxisCompensator::set_process`]) if its [`ForceSpec`] has a `law`, else
 //!   *measured* (from [`CycleInput::forces_n`] at the same index).
@@ -94,7 +97,7 @@ pub use image::{ImageInfo, crc32, declared_image_len, image_len, inspect_image, 
 pub use limits::round_to_counts;
 pub use spec::{
     ExpansionSpec, ForceLaw, ForceSpec, ImageSpec, LimitSpec, OutsideStroke, SensorSpec, TableSpec,
-    ThermoForceSpec,
+    ThermoForceSpec, ThermoReference,
 };
 pub use table::per_count as segment_per_count;
 pub use thermo::{ForceSource, ProcessParams};

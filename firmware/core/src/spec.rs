@@ -84,6 +84,18 @@ pub struct ExpansionSpec {
     pub c_um_per_mm_k: f32,
 }
 
+/// What a sensor's ΔT is taken against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ThermoReference {
+    /// Each sensor's `reference_degc` of the image.
+    Fixed,
+    /// Each sensor's first accepted reading after the image was loaded or the [`crate::State`]
+    /// reset (a model fitted on runs that each start at switch-on, `fit thermal --runs`); the
+    /// lag then starts at ΔT = 0 and `reference_degc` is only the nominal temperature the model
+    /// was fitted around (not used by the firmware).
+    SwitchOn,
+}
+
 /// Thermo-force term E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ThermoForceSpec<'a> {
@@ -99,6 +111,12 @@ pub struct ThermoForceSpec<'a> {
     pub expansion: Option<ExpansionSpec>,
     /// At most [`crate::MAX_FORCES`].
     pub forces: &'a [ForceSpec],
+    /// What each ΔT_i is taken against.
+    pub reference: ThermoReference,
+    /// Range guard: empty = none, else one `(rise_min_k, rise_max_k)` per sensor (lo < hi). While
+    /// sensor i's unlagged rise (last accepted reading − its reference) is outside its bounds, its
+    /// term b_i·ΔT_i is left out of the sum (the sensor stays healthy, the other terms stay).
+    pub rise_bounds_k: &'a [(f32, f32)],
 }
 
 /// Safety limits of the applied correction.

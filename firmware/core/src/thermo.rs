@@ -78,6 +78,10 @@ pub struct SensorRt {
     pub(crate) b_um_per_k: f32,
     /// α = 1 − exp(−period/τ), 1 without lag.
     pub(crate) alpha: f32,
+    /// Range guard: the term b_i·ΔT_i counts while the unlagged rise is within these bounds
+    /// (K; −∞, +∞ without the guard).
+    pub(crate) rise_min_k: f32,
+    pub(crate) rise_max_k: f32,
 }
 
 impl SensorRt {
@@ -90,6 +94,8 @@ impl SensorRt {
         stale_timeout_ms: 0,
         b_um_per_k: 0.0,
         alpha: 0.0,
+        rise_min_k: 0.0,
+        rise_max_k: 0.0,
     };
 }
 
@@ -177,6 +183,18 @@ impl<S: TableStore> AxisCompensator<S> {
             c_um_per_mm_k: self.c_um_per_mm_k,
         })
     }
+    /// What each ΔT is taken against.
+    pub fn thermo_reference(&self) -> crate::spec::ThermoReference {
+        if self.reference_at_switch_on {
+            crate::spec::ThermoReference::SwitchOn
+        } else {
+            crate::spec::ThermoReference::Fixed
+        }
+    }
+    /// True if the image has the range guard (per-sensor rise bounds).
+    pub fn has_rise_guard(&self) -> bool {
+        self.rise_guard
+    }
     /// Number of force terms.
     pub fn force_count(&self) -> usize {
         self.n_forces as usize
@@ -225,49 +243,69 @@ impl<S: TableStore> AxisCompensator<S> {
         let mut all_healthy = true;
         let mut any_stale = false;
         let mut fault = false;
+        let mut sum = 0.0f32;
+        let mut guarded = false;
         for (i, (cfg, s)) in cfgs.iter().zip(st.sensors.iter_mut()).enumerate() {
             if i >= n {
                 break;
             }
             let r = readings.get(i).copied().unwrap_or(f32::NAN);
             let since_good_ms = now_ms.wrapping_sub(s.last_good_ms);
+            let mut w = s.health;
             let plausible = r.is_finite()
                 && r >= cfg.min_degc
                 && r <= cfg.max_degc
-                && (!s.seen
+                && (w & SEEN == 0
                     || libm::fabsf(r - s.last_good_degc)
                         <= cfg.max_rate_degc_per_s * (since_good_ms as f32 * 0.001));
+            let rejected_now;
             if plausible {
-                if !s.seen {
-                    s.seen = true;
-                    s.filtered_dt = r - cfg.reference_degc;
+                if w & SEEN == 0 {
+                    w |= SEEN;
+                    s.reference_degc = if self.reference_at_switch_on {
+                        r
+                    } else {
+                        cfg.reference_degc
+                    };
+                    s.filtered_dt = r - s.reference_degc;
                 }
                 s.last_good_degc = r;
                 s.last_good_ms = now_ms;
-                s.streak = s.streak.saturating_add(1);
-                s.last_rejected = false;
+                if w < STREAK_MAX {
+                    w += STREAK_ONE;
+                }
+                rejected_now = false;
             } else {
-                s.streak = 0;
-                s.last_rejected = !r.is_nan();
-                if s.last_rejected {
-                    s.rejected = s.rejected.saturating_add(1);
+                w &= !STREAK_MASK;
+                rejected_now = !r.is_nan();
+                if rejected_now && w & REJECTED_MASK != REJECTED_MASK {
+                    w += 1;
                 }
             }
-            if s.seen {
-                let u = s.last_good_degc - cfg.reference_degc;
+            if w & SEEN != 0 {
+                let u = s.last_good_degc - s.reference_degc;
                 s.filtered_dt += cfg.alpha * (u - s.filtered_dt);
+                // Σ b_i·ΔT_i in index order, without the term of a sensor whose unlagged rise u
+                // is beyond its bounds (the range guard; ±∞ without it: every term counts).
+                if u >= cfg.rise_min_k && u <= cfg.rise_max_k {
+                    sum += cfg.b_um_per_k * s.filtered_dt;
+                } else {
+                    guarded = true;
+                }
             }
             if now_ms.wrapping_sub(s.last_good_ms) > cfg.stale_timeout_ms {
-                s.stale = true;
+                w |= STALE;
             }
-            if s.stale && s.streak >= RECOVERY_READINGS {
-                s.stale = false;
+            if w & STALE != 0 && w >= RECOVERY_READINGS as u32 * STREAK_ONE {
+                w &= !STALE;
             }
-            if !s.seen || s.stale {
+            s.health = w;
+            let stale = w & STALE != 0;
+            if w & SEEN == 0 || stale {
                 all_healthy = false;
             }
-            any_stale |= s.stale;
-            if s.stale || s.last_rejected {
+            any_stale |= stale;
+            if stale || rejected_now {
                 fault = true;
             }
         }
@@ -281,50 +319,62 @@ impl<S: TableStore> AxisCompensator<S> {
         if !all_healthy {
             bits |= Flags::THERMAL_FROZEN.0;
         }
-        // Stale ramp-out: a frozen term is held for STALE_HOLD_MS after a sensor went stale, then
-        // Σ b_i·ΔT_i and c·ΔT_s ramp linearly to 0 over STALE_RAMP_MS, leaving the safe value
-        // b0 + predicted forces (which need no sensor).
-        if any_stale {
-            if !st.stale_ramp {
-                st.stale_ramp = true;
-                st.stale_since_ms = now_ms;
-                st.frozen_sensor_um = st.sensor_um;
-                st.frozen_expansion_um_per_count = st.expansion_um_per_count;
-            }
-            let since = now_ms.wrapping_sub(st.stale_since_ms);
-            if since > crate::STALE_HOLD_MS {
-                let into = since - crate::STALE_HOLD_MS;
-                let k = if into >= crate::STALE_RAMP_MS {
-                    0.0
-                } else {
-                    1.0 - into as f32 / crate::STALE_RAMP_MS as f32
-                };
-                st.sensor_um = st.frozen_sensor_um * k;
-                st.expansion_um_per_count = st.frozen_expansion_um_per_count * k;
-                st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
-                bits |= Flags::THERMAL_RAMP_OUT.0;
-            }
-        } else {
-            st.stale_ramp = false;
-        }
+        self.stale_ramp_out(st, now_ms, any_stale, &mut bits);
         st.thermo_bits = bits ^ self.thermo_flags_xor;
         if all_healthy {
-            let mut sum = 0.0f32;
-            for (cfg, s) in cfgs.iter().zip(st.sensors.iter()).take(n) {
-                sum += cfg.b_um_per_k * s.filtered_dt;
-            }
-            st.sensor_um = sum;
-            st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
-            st.expansion_um_per_count = if self.has_expansion {
-                let dt = st
-                    .sensors
-                    .get(self.expansion_sensor as usize)
-                    .map_or(0.0, |s| s.filtered_dt);
-                self.expansion_um_per_count_k * dt
-            } else {
-                0.0
-            };
+            self.refresh_thermal(st, sum, guarded);
         }
+    }
+
+    /// Stale ramp-out: a frozen term is held for STALE_HOLD_MS after a sensor went stale, then
+    /// Σ b_i·ΔT_i and c·ΔT_s ramp linearly to 0 over STALE_RAMP_MS, leaving the safe value
+    /// b0 + predicted forces (which need no sensor); THERMAL_RAMP_OUT into `bits` while it does.
+    #[inline(always)]
+    fn stale_ramp_out(&self, st: &mut State, now_ms: u32, any_stale: bool, bits: &mut u16) {
+        if !any_stale {
+            st.stale_ramp = false;
+            return;
+        }
+        if !st.stale_ramp {
+            st.stale_ramp = true;
+            st.stale_since_ms = now_ms;
+            st.frozen_sensor_um = st.sensor_um;
+            st.frozen_expansion_um_per_count = st.expansion_um_per_count;
+        }
+        let since = now_ms.wrapping_sub(st.stale_since_ms);
+        if since > crate::STALE_HOLD_MS {
+            let into = since - crate::STALE_HOLD_MS;
+            let k = if into >= crate::STALE_RAMP_MS {
+                0.0
+            } else {
+                1.0 - into as f32 / crate::STALE_RAMP_MS as f32
+            };
+            st.sensor_um = st.frozen_sensor_um * k;
+            st.expansion_um_per_count = st.frozen_expansion_um_per_count * k;
+            st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
+            *bits |= Flags::THERMAL_RAMP_OUT.0;
+        }
+    }
+
+    /// Every sensor healthy: the new Σ b_i·ΔT_i `sum` (`guarded`: a term was left out by the range
+    /// guard, THERMAL_GUARDED), the cached term and c·ΔT_s.
+    #[inline(always)]
+    fn refresh_thermal(&self, st: &mut State, sum: f32, guarded: bool) {
+        st.thermo_bits &= !Flags::THERMAL_GUARDED.0;
+        if guarded {
+            st.thermo_bits |= Flags::THERMAL_GUARDED.0;
+        }
+        st.sensor_um = sum;
+        st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
+        st.expansion_um_per_count = if self.has_expansion {
+            let dt = st
+                .sensors
+                .get(self.expansion_sensor as usize)
+                .map_or(0.0, |s| s.filtered_dt);
+            self.expansion_um_per_count_k * dt
+        } else {
+            0.0
+        };
     }
 
     /// Predicted forces from the process parameters (F = k·ap^x·fz^y·n^z via `libm::powf`),
@@ -356,31 +406,53 @@ impl<S: TableStore> AxisCompensator<S> {
     }
 }
 
+/// [`SensorState::health`]: rejected readings (bits 0..24, saturating), seen (bit 24), stale
+/// (bit 25) and the consecutive accepted readings (bits 26..32, saturating at 63; a stale sensor
+/// recovers at [`RECOVERY_READINGS`]). One word, so that a sensor's state stays 20 bytes and an
+/// axis's [`State`] (five of them in a group's state) keeps its size.
+const REJECTED_MASK: u32 = (1 << 24) - 1;
+const SEEN: u32 = 1 << 24;
+const STALE: u32 = 1 << 25;
+const STREAK_ONE: u32 = 1 << 26;
+const STREAK_MASK: u32 = 63 * STREAK_ONE;
+/// A streak of 63 (with any other bits below it): no further increment.
+const STREAK_MAX: u32 = STREAK_MASK;
+const _: () = assert!((RECOVERY_READINGS as u32) < 63);
+
 /// Per-sensor health and lag state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SensorState {
-    pub(crate) seen: bool,
-    pub(crate) stale: bool,
-    pub(crate) last_rejected: bool,
-    pub(crate) streak: u8,
+    /// Rejected-reading count, seen, stale and streak (see [`REJECTED_MASK`] and the bits after it).
+    pub(crate) health: u32,
     pub(crate) last_good_degc: f32,
     pub(crate) last_good_ms: u32,
     /// Lagged ΔT, kelvin.
     pub(crate) filtered_dt: f32,
-    pub(crate) rejected: u32,
+    /// What ΔT is taken against, °C: the image's `reference_degc`, or with the reference at
+    /// switch-on the first accepted reading (set at that reading).
+    pub(crate) reference_degc: f32,
 }
 
 impl SensorState {
     pub(crate) const NEW: SensorState = SensorState {
-        seen: false,
-        stale: false,
-        last_rejected: false,
-        streak: 0,
+        health: 0,
         last_good_degc: 0.0,
         last_good_ms: 0,
         filtered_dt: 0.0,
-        rejected: 0,
+        reference_degc: 0.0,
     };
+    /// An accepted reading has been seen.
+    pub(crate) fn seen(&self) -> bool {
+        self.health & SEEN != 0
+    }
+    /// Stale (or recovering).
+    pub(crate) fn stale(&self) -> bool {
+        self.health & STALE != 0
+    }
+    /// Rejected readings (saturating at 2^24 − 1).
+    pub(crate) fn rejected(&self) -> u32 {
+        self.health & REJECTED_MASK
+    }
 }
 
 /// Sensor settings of one axis: `cfgs` (its own or its group's array) for its `n_sensors`.
@@ -419,6 +491,14 @@ impl AxisCompensator<OwnTable> {
     pub fn b_um_per_k(&self, i: usize) -> Option<f32> {
         sensor_b_alpha(&self.sensors, self.n_sensors, i).map(|(b, _)| b)
     }
+    /// Rise bounds `(rise_min_k, rise_max_k)` of sensor `i`'s range guard (None without the
+    /// guard or sensor).
+    pub fn rise_bounds_k(&self, i: usize) -> Option<(f32, f32)> {
+        if !self.rise_guard || i >= self.n_sensors as usize {
+            return None;
+        }
+        self.sensors.get(i).map(|s| (s.rise_min_k, s.rise_max_k))
+    }
     /// Lag coefficient α of sensor `i` (1 = no lag).
     pub fn lag_alpha(&self, i: usize) -> Option<f32> {
         sensor_b_alpha(&self.sensors, self.n_sensors, i).map(|(_, a)| a)
@@ -432,8 +512,14 @@ impl AxisCompensator<OwnTable> {
     /// - a reading is accepted if finite, within `[min_degc, max_degc]` and, after the first
     ///   accepted one, within `max_rate_degc_per_s · (now − time of the last accepted reading)` of
     ///   the last accepted value; otherwise it is rejected (counted) and the last good value held;
+    /// - ΔT is taken against the sensor's `reference_degc`, or, with the reference at switch-on
+    ///   ([`crate::ThermoReference::SwitchOn`]), against its first accepted reading since the
+    ///   image was loaded or the state reset (ΔT then starts at 0);
     /// - each lag advances once per call with the last accepted value as input; it starts at the
     ///   first accepted reading (no transient from 0);
+    /// - with the range guard, a sensor whose unlagged rise (last accepted value − its reference)
+    ///   is outside its rise bounds is left out of Σ b_i·ΔT_i ([`Flags::THERMAL_GUARDED`]); it
+    ///   stays healthy and its lag keeps running;
     /// - a sensor without an accepted reading for more than `stale_timeout_ms` (counted from the
     ///   first call for a sensor that never reported) is stale; it recovers after
     ///   [`RECOVERY_READINGS`] consecutive accepted readings;

@@ -28,6 +28,8 @@ fn force_image(forces: &[ForceSpec]) -> Box<Compensator> {
             b_um_per_k: &[],
             expansion: None,
             forces,
+            reference: ThermoReference::Fixed,
+            rise_bounds_k: &[],
         }),
         limits: LOOSE,
     })

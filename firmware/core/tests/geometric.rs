@@ -443,6 +443,8 @@ fn geometric_section_refusals() {
             b_um_per_k: &[],
             expansion: None,
             forces: &[],
+            reference: ThermoReference::Fixed,
+            rise_bounds_k: &[],
         });
         image(&s)
     };

@@ -76,6 +76,8 @@ fn full_spec<'a>(
                 c_um_per_mm_k: 0.0115,
             }),
             forces: &FORCES,
+            reference: ThermoReference::Fixed,
+            rise_bounds_k: &[],
         }),
         limits: LimitSpec {
             max_correction_um: 80.0,
@@ -278,6 +280,8 @@ fn spec_errors_name_the_field() {
         b_um_per_k: &[1.0, 2.0],
         expansion: None,
         forces: &[],
+        reference: ThermoReference::Fixed,
+        rise_bounds_k: &[],
     };
     let mut s = base;
     s.thermo = Some(ThermoForceSpec {
@@ -428,4 +432,142 @@ fn identity_is_unloaded() {
     assert!(!c.is_loaded());
     assert_eq!(c.forward_segments().len(), 0);
     assert_eq!(State::new(), State::default());
+}
+
+/// Two sensors, one force, with the given reference mode and rise bounds.
+fn flagged_spec<'a>(
+    sensors: &'a [SensorSpec],
+    reference: ThermoReference,
+    rise_bounds_k: &'a [(f32, f32)],
+) -> ImageSpec<'a> {
+    ImageSpec {
+        axis_id: 7,
+        um_per_count: 0.1,
+        counter_bits: 32,
+        table: None,
+        thermo: Some(ThermoForceSpec {
+            sensor_period_ms: 500,
+            sensors,
+            b0_um: 0.5,
+            b_um_per_k: &[1.0, -2.0],
+            expansion: None,
+            forces: &FORCES[..1],
+            reference,
+            rise_bounds_k,
+        }),
+        limits: LOOSE,
+    }
+}
+
+/// Offset of the thermo section (header field at 28).
+fn thermo_off(img: &[u8]) -> usize {
+    u32::from_le_bytes(img[28..32].try_into().unwrap()) as usize
+}
+
+#[test]
+fn thermo_flags_and_rise_bounds_round_trip() {
+    let s = [sensor(20.0, 30.0), sensor(21.0, 0.0)];
+    let bounds = [(-1.5f32, 6.25), (-2273.15, 2273.15)];
+    // Flags 0: the thermo section and its flags word are as without flags.
+    let plain = image(&flagged_spec(&s, ThermoReference::Fixed, &[]));
+    let o = thermo_off(&plain);
+    assert_eq!(&plain[o + 24..o + 32], &[0u8; 8]);
+    assert_eq!(
+        u32::from_le_bytes(plain[32..36].try_into().unwrap()),
+        (32 + 28 * 2 + 24) as u32
+    );
+    for (reference, b, flags) in [
+        (ThermoReference::SwitchOn, &[][..], 1u32),
+        (ThermoReference::Fixed, &bounds[..], 2),
+        (ThermoReference::SwitchOn, &bounds[..], 3),
+    ] {
+        let spec = flagged_spec(&s, reference, b);
+        let img = image(&spec);
+        assert_eq!(img.len(), image_len(&spec));
+        let o = thermo_off(&img);
+        assert_eq!(
+            u32::from_le_bytes(img[o + 24..o + 28].try_into().unwrap()),
+            flags
+        );
+        let len = u32::from_le_bytes(img[32..36].try_into().unwrap()) as usize;
+        assert_eq!(len, 32 + 28 * 2 + 24 + if b.is_empty() { 0 } else { 16 });
+        assert_eq!(img.len(), plain.len() + len - (32 + 28 * 2 + 24));
+        let c = load(&spec);
+        assert_eq!(c.thermo_reference(), reference);
+        assert_eq!(c.has_rise_guard(), !b.is_empty());
+        for (i, si) in s.iter().enumerate() {
+            assert_eq!(c.rise_bounds_k(i), b.get(i).copied());
+            assert_eq!(c.sensor(i), Some(*si));
+        }
+        assert_eq!(c.rise_bounds_k(2), None);
+        assert_eq!(inspect_image(&img).unwrap().n_sensors, 2);
+    }
+}
+
+#[test]
+fn invalid_thermo_flags_and_rise_bounds_are_refused() {
+    let s = [sensor(20.0, 30.0), sensor(21.0, 0.0)];
+    let write = |b: &[(f32, f32)]| {
+        let spec = flagged_spec(&s, ThermoReference::Fixed, b);
+        let mut buf = vec![0u8; image_len(&spec)];
+        write_image(&spec, &mut buf).map(|_| ())
+    };
+    let range = |index| ImageError::OutOfRange {
+        field: Field::RiseBounds,
+        index,
+    };
+    assert_eq!(write(&[(0.0, 1.0), (2.0, 2.0)]), Err(range(1)), "lo == hi");
+    assert_eq!(write(&[(3.0, 1.0), (0.0, 1.0)]), Err(range(0)), "lo > hi");
+    assert_eq!(write(&[(0.0, 1.0), (0.0, 2274.0)]), Err(range(1)));
+    assert_eq!(write(&[(-2274.0, 1.0), (0.0, 1.0)]), Err(range(0)));
+    assert_eq!(
+        write(&[(0.0, f32::NAN), (0.0, 1.0)]),
+        Err(ImageError::NonFinite {
+            field: Field::RiseBounds,
+            index: 0
+        })
+    );
+    assert_eq!(write(&[(0.0, 1.0)]), Err(ImageError::SensorCountMismatch));
+
+    let good = image(&flagged_spec(&s, ThermoReference::Fixed, &[]));
+    let o = thermo_off(&good);
+    let mut c = Box::new(Compensator::IDENTITY);
+    // An unknown flag bit.
+    for bit in [2u32, 31] {
+        let mut b = good.clone();
+        patch(&mut b, o + 24, &(1u32 << bit).to_le_bytes());
+        assert_eq!(
+            c.load(&b),
+            Err(ImageError::OutOfRange {
+                field: Field::ThermoFlags,
+                index: 0
+            })
+        );
+    }
+    // The second reserved word stays 0.
+    let mut b = good.clone();
+    patch(&mut b, o + 28, &1u32.to_le_bytes());
+    assert_eq!(
+        c.load(&b),
+        Err(ImageError::OutOfRange {
+            field: Field::Reserved,
+            index: 0
+        })
+    );
+    // RISE_GUARD without the bounds' bytes: the section length no longer matches.
+    let mut b = good.clone();
+    patch(&mut b, o + 24, &2u32.to_le_bytes());
+    assert_eq!(c.load(&b), Err(ImageError::BadLength));
+    // SwitchOn needs no extra bytes.
+    let mut b = good.clone();
+    patch(&mut b, o + 24, &1u32.to_le_bytes());
+    assert_eq!(c.load(&b), Ok(()));
+    assert_eq!(c.thermo_reference(), ThermoReference::SwitchOn);
+    // A bound patched beyond the range in a guarded image.
+    let guarded = image(&flagged_spec(&s, ThermoReference::Fixed, &[(0.0, 1.0); 2]));
+    let at = thermo_off(&guarded) + 32 + 28 * 2 + 24 + 8 + 4; // sensor 1's rise_max_k
+    let mut b = guarded.clone();
+    patch(&mut b, at, &(-0.5f32).to_le_bytes());
+    assert_eq!(c.load(&b), Err(range(1)));
+    assert_eq!(Field::RiseBounds.name(), "thermo.rise_bounds_k");
 }

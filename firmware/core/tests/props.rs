@@ -93,6 +93,8 @@ impl Owned {
                     c_um_per_mm_k: c,
                 }),
                 forces: &self.forces,
+                reference: ThermoReference::Fixed,
+                rise_bounds_k: &[],
             }),
             limits: self.limits,
         }

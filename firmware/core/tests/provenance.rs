@@ -33,6 +33,8 @@ fn thermal_image(axis_id: u16) -> Vec<u8> {
             b_um_per_k: &[0.5, -0.3],
             expansion: None,
             forces: &[],
+            reference: ThermoReference::Fixed,
+            rise_bounds_k: &[],
         }),
         limits: LOOSE,
     })

@@ -52,6 +52,8 @@ fn largest_five_axis_image_fits_one_slot() {
             c_um_per_mm_k: 0.0115,
         }),
         forces: &forces,
+        reference: ThermoReference::Fixed,
+        rise_bounds_k: &[],
     };
     let linear = |id: u16| {
         let mut s = table_spec(

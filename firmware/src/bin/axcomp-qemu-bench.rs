@@ -228,6 +228,56 @@ mod firmware {
         (full.saturating_sub(empty)) as f32 / (BATCHES as f32 * BATCH as f32)
     }
 
+    type SensorCall = fn(&Compensator, &mut State, u32, &[f32; bench::N_SENSORS]);
+
+    /// The measured sensor-rate call.
+    #[inline(never)]
+    fn sensor_update(comp: &Compensator, st: &mut State, now_ms: u32, r: &[f32; bench::N_SENSORS]) {
+        comp.update_temperatures(st, now_ms, r)
+    }
+
+    /// Its stand-in for the overhead calibration.
+    #[inline(never)]
+    fn empty_sensor_update(
+        _comp: &Compensator,
+        _st: &mut State,
+        _now_ms: u32,
+        _r: &[f32; bench::N_SENSORS],
+    ) {
+    }
+
+    /// Ticks for one batch of sensor updates (readings `first..first + BATCH`, 100 ms apart;
+    /// generated in the same loop for the measured and the empty call, so their cost cancels).
+    #[inline(never)]
+    fn sensor_batch(comp: &Compensator, st: &mut State, first: u32, call: SensorCall) -> u32 {
+        let call = black_box(call);
+        let t0 = now();
+        for k in first..first + BATCH as u32 {
+            let r = bench::reference_temperatures(k);
+            call(
+                black_box(comp),
+                black_box(&mut *st),
+                black_box(k * 100),
+                black_box(&r),
+            );
+        }
+        ticks_since(t0)
+    }
+
+    /// Mean SysTick ticks per `update_temperatures` call minus the empty call (the reference
+    /// image's 8 lagged sensors, every reading accepted, the thermal term live).
+    #[inline(never)]
+    fn measure_sensor_update(comp: &Compensator, st: &mut State) -> f32 {
+        let mut full: u64 = 0;
+        let mut empty: u64 = 0;
+        for b in 0..BATCHES {
+            let first = b * BATCH as u32;
+            full += u64::from(sensor_batch(comp, st, first, sensor_update));
+            empty += u64::from(sensor_batch(comp, st, first, empty_sensor_update));
+        }
+        full.saturating_sub(empty) as f32 / (BATCHES as f32 * BATCH as f32)
+    }
+
     /// Loads `spec` into the engine's spare slot (it becomes the active one).
     fn load(engine: &mut Engine, image: &mut [u8], spec: &ImageSpec) {
         let n = match axcomp_core::write_image(spec, image) {
@@ -265,6 +315,10 @@ mod firmware {
         st.reset(bench::reference_input(0).scale_raw);
         engine.active().set_process(&mut st, &bench::PROCESS);
         let b = measure(engine.active(), &mut st) * instr_per_tick;
+        // (g) one sensor-rate update of the reference image (8 lagged sensors, expansion).
+        // (The measured calls' State is not used after this.)
+        st = State::new();
+        let g = measure_sensor_update(engine.active(), &mut st) * instr_per_tick;
 
         // (c) the whole control-loop cycle (trace axis I/O, Engine::step, output record, statistics), with the
         // reference image (already active in the engine).
@@ -339,6 +393,10 @@ mod firmware {
         hprintln!(
             "bench qemu_instructions_per_loop_cycle {:.1} instructions",
             c
+        );
+        hprintln!(
+            "bench qemu_instructions_per_sensor_update {:.1} instructions",
+            g
         );
         hprintln!(
             "bench qemu_instructions_per_cycle_group3 {:.1} instructions",

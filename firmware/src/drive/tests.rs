@@ -84,6 +84,8 @@ fn image(a: ImageArgs) -> Vec<u8> {
             b_um_per_k: &b[..a.n_sensors],
             expansion: None,
             forces: &[],
+            reference: axcomp_core::ThermoReference::Fixed,
+            rise_bounds_k: &[],
         }),
         limits: LimitSpec {
             max_correction_um: a.max_correction_um,

@@ -58,6 +58,8 @@ fn image(sensors: &[SensorSpec], b: &[f32], b0: f32) -> Vec<u8> {
             b_um_per_k: b,
             expansion: None,
             forces: &[],
+            reference: axcomp_core::ThermoReference::Fixed,
+            rise_bounds_k: &[],
         }),
         limits: LimitSpec {
             max_correction_um: 100.0,

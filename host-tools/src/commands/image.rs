@@ -122,17 +122,6 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
             let m = ThermalModelFile::load(p)
                 .with_context(|| format!("reading thermal model {}", p.display()))?;
             model_sensors = m.sensors.iter().map(|s| s.name.clone()).collect();
-            // The firmware's references are fixed in the image; a multi-run model takes each run's
-            // references at its start, which this image format cannot express yet.
-            if let Some(col) = &m.runs_column {
-                anyhow::bail!(
-                    "{}: a multi-run model (fitted with --runs {col}) takes its references at each switch-on; \
-                     this firmware's images hold fixed references, so the image would be wrong on any day that \
-                     starts at another temperature. Fit without --runs for an image, or use the model with \
-                     `axcomp predict`",
-                    p.display()
-                );
-            }
             // The firmware takes |b0| ≤ 1e5 µm (`axcomp_core` image check): a larger intercept is a model
             // of an absolute position (e.g. a homing position), not of a deviation.
             if m.b0_um.is_nan() || m.b0_um.abs() > 1.0e5 {
@@ -249,6 +238,7 @@ fn spec_error(
                 Field::LagTau => ("sensors", "tau_s must be in [0, 1e7] s"),
                 Field::StaleTimeout => ("sensors", "stale_timeout_ms must be ≥ 1 ms"),
                 Field::BUmPerK => ("sensors", "|coef_um_per_k| must be ≤ 1e4 µm/K"),
+                Field::RiseBounds => ("sensors", "rise_min_k < rise_max_k, both within ±2273.15 K"),
                 Field::Chi => ("forces", "|chi_um_per_n| must be ≤ 1e3 µm/N"),
                 Field::ForceLaw => ("forces", "a force law needs |k| ≤ 1e9 and |exponents| ≤ 10"),
                 Field::B0 => ("", "|b0_um| must be ≤ 1e5 µm"),
@@ -478,13 +468,32 @@ pub fn describe(bytes: &[u8]) -> anyhow::Result<String> {
                 "no"
             }
         )?;
+        let switch_on = comp.thermo_reference() == axcomp_core::ThermoReference::SwitchOn;
+        writeln!(
+            s,
+            "  reference: {}; range guard: {}",
+            if switch_on {
+                "each sensor's first reading after load/reset (switch-on); ref = nominal"
+            } else {
+                "fixed (ref per sensor)"
+            },
+            if comp.has_rise_guard() {
+                "on (a sensor's term is left out while its rise is outside its bounds)"
+            } else {
+                "off"
+            }
+        )?;
         for i in 0..comp.sensor_count() {
             if let (Some(sp), Some(b)) = (comp.sensor(i), comp.b_um_per_k(i)) {
-                writeln!(
+                write!(
                     s,
                     "  sensor {i}: ref {} °C, range {} .. {} °C, b = {} µm/K, lag τ = {} s",
                     sp.reference_degc, sp.min_degc, sp.max_degc, b, sp.lag_tau_s
                 )?;
+                match comp.rise_bounds_k(i) {
+                    Some((lo, hi)) => writeln!(s, ", rise {lo} .. {hi} K")?,
+                    None => writeln!(s)?,
+                }
             }
         }
     } else {

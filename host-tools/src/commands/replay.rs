@@ -138,7 +138,7 @@ fn replay_group(image: Option<&[u8]>, trace: &[u8]) -> anyhow::Result<Replay> {
     })
 }
 
-const FLAG_NAMES: [(Flags, &str); 10] = [
+const FLAG_NAMES: [(Flags, &str); 11] = [
     (Flags::TABLE_OUTSIDE, "TABLE_OUTSIDE"),
     (Flags::CLAMPED, "CLAMPED"),
     (Flags::SLEWED, "SLEWED"),
@@ -149,6 +149,7 @@ const FLAG_NAMES: [(Flags, &str); 10] = [
     (Flags::BACKWARD, "BACKWARD"),
     (Flags::IDENTITY, "IDENTITY"),
     (Flags::THERMAL_RAMP_OUT, "THERMAL_RAMP_OUT"),
+    (Flags::THERMAL_GUARDED, "THERMAL_GUARDED"),
 ];
 
 /// Names of the flags set in `bits`, `|`-separated (empty string for none).

@@ -132,6 +132,8 @@ pub fn linear_image(axis_id: u16, sensors: usize) -> Vec<u8> {
             b_um_per_k: &b,
             expansion: None,
             forces: &[],
+            reference: axcomp_core::ThermoReference::Fixed,
+            rise_bounds_k: &[],
         }),
         limits: LOOSE,
     })

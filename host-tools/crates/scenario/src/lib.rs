@@ -192,6 +192,8 @@ pub fn equivalence_image(second: bool) -> Result<Vec<u8>, ScenarioError> {
                 c_um_per_mm_k: 0.0117,
             }),
             forces: &forces,
+            reference: axcomp_core::ThermoReference::Fixed,
+            rise_bounds_k: &[],
         }),
         limits: LimitSpec {
             max_correction_um: 5.0,
@@ -448,6 +450,8 @@ pub fn group_image_variant(
                 b_um_per_k: b,
                 expansion: None,
                 forces: &[],
+                reference: axcomp_core::ThermoReference::Fixed,
+                rise_bounds_k: &[],
             });
         }
         images.push(build_image(&spec)?);

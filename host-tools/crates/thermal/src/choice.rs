@@ -177,6 +177,12 @@ impl Validation {
     }
 }
 
+/// Added to each side of a range-guard bound, K. Readings come at a fixed resolution (often 0.1 K) and a
+/// bound is a sum of such readings, so a rise exactly at a bound is common; without the margin, whether it
+/// counts as beyond would be decided by rounding (differently in the host's f64 and the firmware's f32).
+/// With it, a rise at a bound is within on both, and f32 rounding (~1e-5 K at 100 °C) decides nothing.
+pub const GUARD_TIE_MARGIN_K: f64 = 1e-4;
+
 /// A structure's coefficients and range-guard bounds, fitted on some groups.
 pub struct Fitted {
     pub beta: DVector<f64>,
@@ -335,7 +341,8 @@ impl Design {
         self.fcm_terms(groups).0
     }
 
-    /// The allowed unlagged rise of each usable sensor after fitting on `groups` (see the range guard).
+    /// The allowed unlagged rise of each usable sensor after fitting on `groups` (see the range guard): the
+    /// fitted range widened by its width (at least 1 K) on each side, and by [`GUARD_TIE_MARGIN_K`] more.
     pub fn bounds(&self, groups: &[usize]) -> Vec<(f64, f64)> {
         (0..self.names.len())
             .map(|s| {
@@ -344,7 +351,7 @@ impl Design {
                     (lo.min(a), hi.max(b))
                 });
                 let w = (hi - lo).max(1.0);
-                (lo - w, hi + w)
+                (lo - w - GUARD_TIE_MARGIN_K, hi + w + GUARD_TIE_MARGIN_K)
             })
             .collect()
     }

@@ -92,6 +92,10 @@ pub struct OwnedThermoForceSpec {
     pub b_um_per_k: Vec<f32>,
     pub expansion: Option<axcomp_core::ExpansionSpec>,
     pub forces: Vec<axcomp_core::ForceSpec>,
+    /// SwitchOn for a multi-run model (`runs_column`), else Fixed.
+    pub reference: axcomp_core::ThermoReference,
+    /// The range guard: one `(rise_min_k, rise_max_k)` per sensor, or empty (no guard).
+    pub rise_bounds_k: Vec<(f32, f32)>,
 }
 
 impl OwnedThermoForceSpec {
@@ -104,6 +108,8 @@ impl OwnedThermoForceSpec {
             b_um_per_k: &self.b_um_per_k,
             expansion: self.expansion,
             forces: &self.forces,
+            reference: self.reference,
+            rise_bounds_k: &self.rise_bounds_k,
         }
     }
 }
@@ -284,9 +290,23 @@ impl ThermalModelFile {
     }
 
     /// Converts to the core's owned spec (f32, sensor order kept). Call [`ThermalModelFile::validate`] first
-    /// (`load` does).
+    /// (`load` does). A multi-run model (`runs_column`) takes each sensor's reference at switch-on (the
+    /// firmware's first reading after load/reset, as each run's first row in the fit); the range guard is
+    /// written when every sensor has both rise bounds (`axcomp predict` then drops the same terms).
     pub fn to_core(&self) -> OwnedThermoForceSpec {
+        let rise_bounds_k = self
+            .sensors
+            .iter()
+            .map(|s| Some((s.rise_min_k? as f32, s.rise_max_k? as f32)))
+            .collect::<Option<Vec<_>>>()
+            .unwrap_or_default();
         OwnedThermoForceSpec {
+            reference: if self.runs_column.is_some() {
+                axcomp_core::ThermoReference::SwitchOn
+            } else {
+                axcomp_core::ThermoReference::Fixed
+            },
+            rise_bounds_k,
             sensor_period_ms: self.sensor_period_ms,
             sensors: self
                 .sensors

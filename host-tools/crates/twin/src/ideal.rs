@@ -195,6 +195,8 @@ impl IdealThermo {
             b_um_per_k: &self.b_um_per_k,
             expansion: self.expansion,
             forces: &self.forces,
+            reference: axcomp_core::ThermoReference::Fixed,
+            rise_bounds_k: &[],
         }
     }
 }
