@@ -248,8 +248,9 @@ impl<'a> GroupImageView<'a> {
         Ok(())
     }
 
-    /// What the firmware checks of a group beyond each section's own validation: distinct axis
-    /// ids ([`Self::check_axis_ids`]) and a pivot near the strokes ([`Self::check_pivot`]).
+    /// What a group must hold beyond each section's own validation: distinct axis ids
+    /// ([`Self::check_axis_ids`], also checked by the board's drive) and a pivot near the strokes
+    /// ([`Self::check_pivot`], checked by the host's `image group` and `inspect`).
     pub fn check_group(&self) -> Result<(), ImageError> {
         self.check_axis_ids()?;
         self.check_pivot()

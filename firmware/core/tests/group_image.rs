@@ -326,9 +326,9 @@ fn one_axis_id_on_two_axes_is_refused_by_the_board_check() {
         .unwrap();
 }
 
-/// A rotary pivot far outside the strokes (mm taken for counts, a sign error): the board check
-/// (and `image group` / `inspect`, which call `GroupImageView::check_group`) refuse it naming the
-/// axis. X's stated stroke is −4000..4000 counts (8000 long): the pivot's X may lie in
+/// A rotary pivot far outside the strokes (mm taken for counts, a sign error): the core's board
+/// check (`check_against`) and `image group` / `inspect` (which call `GroupImageView::check_group`)
+/// refuse it naming the axis (the drive's own image check does not run it: code budget). X's stated stroke is −4000..4000 counts (8000 long): the pivot's X may lie in
 /// −12000..12000. Y and Z state no stroke: their tables' spans are used (a pivot at 1e10 counts
 /// on Y is refused naming Y).
 #[test]
