@@ -5,7 +5,7 @@ use clap::{Parser, Subcommand};
 use crate::commands;
 
 #[derive(Debug, Parser)]
-#[command(name = "axcomp", version, about = "Error compensation for precision linear axes: fit, build, simulate, diagnose", long_about = None, after_help = crate::EXIT_CODES_HELP)]
+#[command(name = "axcomp", version, about = "Error compensation for machine axes (positioning tables, thermo-force, 21-term geometry, rotary axes, touch probe): fit, build images, export, simulate, diagnose", long_about = None, after_help = crate::EXIT_CODES_HELP)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
