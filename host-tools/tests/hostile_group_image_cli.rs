@@ -11,13 +11,13 @@ use axcomp_core::{ImageSpec, LimitSpec, image_len, write_image};
 mod common;
 use common::{axcomp_in, fails_untouched_naming, scratch};
 
-/// A bare axis image (no table, no thermal term) for axis id `axis_id`.
-fn bare(axis_id: u16) -> Vec<u8> {
+/// An axis image for `axis_id` with `table` (None: a bare image) and no thermal term.
+fn axis_image(axis_id: u16, table: Option<axcomp_core::TableSpec>) -> Vec<u8> {
     let spec = ImageSpec {
         axis_id,
         um_per_count: 0.1,
         counter_bits: 32,
-        table: None,
+        table,
         thermo: None,
         limits: LimitSpec {
             max_correction_um: 100.0,
@@ -26,8 +26,14 @@ fn bare(axis_id: u16) -> Vec<u8> {
         },
     };
     let mut buf = vec![0u8; image_len(&spec)];
-    write_image(&spec, &mut buf).unwrap();
+    let n = write_image(&spec, &mut buf).unwrap();
+    buf.truncate(n);
     buf
+}
+
+/// A bare axis image (no table, no thermal term) for axis id `axis_id`.
+fn bare(axis_id: u16) -> Vec<u8> {
+    axis_image(axis_id, None)
 }
 
 /// A group image of X and Y with the given axis ids, written by the core's own writer.
@@ -93,28 +99,16 @@ fn image_inspect_refuses_one_axis_id_on_two_axes() {
 /// An axis image for `axis_id` whose table spans 0..100,000 counts (10 mm at 0.1 µm per count).
 fn with_table(axis_id: u16) -> Vec<u8> {
     let seg = [[0.0f32; 4]; 10];
-    let spec = ImageSpec {
+    axis_image(
         axis_id,
-        um_per_count: 0.1,
-        counter_bits: 32,
-        table: Some(axcomp_core::TableSpec {
+        Some(axcomp_core::TableSpec {
             start_counts: 0,
             segment_counts: 10_000,
             forward: &seg,
             backward: &[],
             outside: axcomp_core::OutsideStroke::Hold,
         }),
-        thermo: None,
-        limits: LimitSpec {
-            max_correction_um: 100.0,
-            max_slew_um_per_cycle: 10.0,
-            direction_hysteresis_counts: 0,
-        },
-    };
-    let mut buf = vec![0u8; image_len(&spec)];
-    let n = write_image(&spec, &mut buf).unwrap();
-    buf.truncate(n);
-    buf
+    )
 }
 
 /// `image group --rotary` with the pivot's X 1e10 counts away (mm typed where counts belong, ×10^4):

@@ -743,7 +743,7 @@ pub fn fit_thermal(
         .by_condition
         .then(|| d.gs.cv_rms(&chosen.terms, &all, chosen.ridge));
     let validation = (!requested && val_rows > 0).then(|| (c.validation.rms(c.chosen), val_raw));
-    let guard = do_no_harm(
+    let mut guard = do_no_harm(
         holdout_rms.map(|h| (h, raw_rms)),
         validation,
         cv_rms
@@ -756,7 +756,6 @@ pub fn fit_thermal(
     } else {
         ranked_reports(&p, &d, &c)
     };
-    let mut guard = guard;
     if !guard.passed {
         guard.reason += &helpful_references(&references, holdout_rms.map(|_| raw_rms), val_raw);
     }
@@ -796,7 +795,7 @@ pub fn fit_thermal(
         lag_supported: d
             .names
             .iter()
-            .map(|n| n.clone())
+            .cloned()
             .zip(
                 p.lag_cap
                     .iter()
