@@ -168,6 +168,24 @@ fn ess_b02_x_leave_one_cycle_out() {
         j["iso230_2_after"]["E_um"].as_f64().unwrap()
             < j["iso230_2_before"]["E_um"].as_f64().unwrap() / 10.0
     );
+    // Pooled after-figures. The chosen table passes through every target (9 targets, natural spline per
+    // direction), so each held-out residual is (x_i − mean)·n/(n−1): reference for R↑ and R↓ after is
+    // 1.25 × the figure before (n = 5), tolerance 1e-6 µm; the target means are equal by construction,
+    // which the JSON says beside E, M and B.
+    let (before, after) = (&j["iso230_2_before"], &j["iso230_2_after"]);
+    for k in ["R_up_um", "R_down_um"] {
+        let want = 1.25 * num(before, k);
+        assert!(
+            (num(after, k) - want).abs() < 1e-6,
+            "{k}: {} vs {want}",
+            after[k]
+        );
+    }
+    assert!(
+        j["iso230_2_after_caveats"]["B_um"].is_string(),
+        "{}",
+        j["iso230_2_after_caveats"]
+    );
     // Model: chosen + every candidate with its CV figure; the chosen one's figure is the reported one.
     let chosen = j["model"]["chosen"].as_str().unwrap();
     let cands = j["model"]["candidates"].as_array().unwrap();
@@ -364,6 +382,34 @@ fn ess_b02_x_with_warmup_drift() {
     }
     assert_eq!(j["guard"]["passed"], true);
     assert_eq!(j["drift_model_written"], true);
+    // ISO 230-2 after the correction, pooled over the five held-out cycles (each corrected by the model of
+    // the fold that held it out): a campaign of 5 runs per target and direction, so every figure is a number
+    // and A falls (before 135.3 µm, measured after 22.3 µm). E, M and B are flagged: each fold's table took
+    // every target from the other cycles, which makes the pooled target means equal by construction.
+    let (before, after) = (&j["iso230_2_before"], &j["iso230_2_after"]);
+    for k in [
+        "A_um",
+        "E_um",
+        "M_um",
+        "R_um",
+        "B_um",
+        "A_up_um",
+        "A_down_um",
+        "R_up_um",
+        "R_down_um",
+    ] {
+        assert!(
+            after[k].as_f64().is_some_and(f64::is_finite),
+            "after {k}: {after}"
+        );
+    }
+    assert_eq!(after["min_runs_per_target"], 5);
+    assert!(
+        num(after, "A_um") < num(before, "A_um"),
+        "A after ≥ A before"
+    );
+    assert!(j["iso230_2_after_caveats"]["E_um"].is_string());
+    assert!(j["iso230_2_after_fold_mean"]["E_um"].is_number());
     // The drift model goes into a firmware image with the table…
     let r = axcomp(&[
         "image",

@@ -14,8 +14,9 @@
 //! - *after-figures*: ISO 230-2 of the judged runs with the predicted correction subtracted, as a
 //!   compensated campaign would measure them: with `--holdout` the held-out runs and the table fitted
 //!   without them; with cross-validation each fold's held-out runs and the model fitted without them,
-//!   evaluated per fold (`iso230_2_per_fold`) and averaged over the folds (`iso230_2_after`). A figure a
-//!   fold cannot define (A and R need ≥ 2 runs per target) is `null` with its reason.
+//!   pooled (`iso230_2_after`: every run corrected by a model that never saw it, so A and R are defined
+//!   when the campaign has ≥ 2 runs per target and direction), and per fold (`iso230_2_per_fold`) with
+//!   their mean (`iso230_2_after_fold_mean`). A figure the runs cannot define is `null` with its reason.
 //!
 //! Outputs: `--out` the table (`axcomp-positioning-table/1` JSON, with its provenance), `--json` the
 //! figures, `--report DIR` a Markdown report and SVG plots. All of them are written together or none
@@ -237,6 +238,39 @@ use axcomp_positioning::fit::rms;
 
 fn iso(x: &[f64], d: &[i8], _run: &[i64], dev: &[f64]) -> Result<Iso230Figures, String> {
     iso230::figures_of_columns(x, d, dev).map_err(|e| e.to_string())
+}
+
+/// ISO 230-2 of the pooled held-out residuals of every fold, with the caveats of its figures. The figures
+/// built on each target's mean deviation (E, M, B) are kept but flagged when every target's mean residual is
+/// the same to rounding: the folds' models then took each target's value from the other runs (a table
+/// through every target, leave-one-out), which makes those means equal by construction, not by
+/// compensation; their fold mean (`iso230_2_after_fold_mean`) is the conservative figure then.
+fn pooled_after(x: &[f64], d: &[i8], residual: &[f64]) -> (Result<Iso230Figures, String>, Value) {
+    let out = iso(x, d, &[], residual);
+    let mut sums: std::collections::BTreeMap<(i64, i8), (f64, usize)> = Default::default();
+    for ((&xi, &di), &r) in x.iter().zip(d).zip(residual) {
+        let e = sums
+            .entry(((xi * 1e6).round() as i64, di.signum()))
+            .or_insert((0.0, 0));
+        (e.0, e.1) = (e.0 + r, e.1 + 1);
+    }
+    let means: Vec<f64> = sums.values().map(|&(s, n)| s / n as f64).collect();
+    let scale = residual.iter().map(|r| r.abs()).sum::<f64>() / residual.len().max(1) as f64;
+    let (lo, hi) = means
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &m| {
+            (l.min(m), h.max(m))
+        });
+    let mut caveats = serde_json::Map::new();
+    if means.len() >= 2 && hi - lo <= 1e-9 * scale.max(1e-12) {
+        let why = "equal target means by construction: each fold's model took every target's value from the \
+                   other runs, so the pooled means differ only by rounding; iso230_2_after_fold_mean is the \
+                   conservative figure";
+        for name in ["E_um", "M_um", "B_um", "B_mean_um", "E_up_um", "E_down_um"] {
+            caveats.insert(name.into(), Value::String(why.into()));
+        }
+    }
+    (out, Value::Object(caveats))
 }
 
 /// The mean of each figure over the folds; `None` (with the first fold's reason) when any fold lacks it.
@@ -577,8 +611,10 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         .collect();
     progress("ISO 230-2 before and after");
     let before = iso(&judged.x, &judged.direction, &judged.run, &judged.deviation);
-    // After: with --holdout the held-out runs minus the table; with CV each fold's held-out runs minus the
-    // model fitted without them, evaluated per fold and averaged.
+    // After: with --holdout the held-out runs minus the table; with CV every run minus the model fitted
+    // without it, pooled (each fold's figures and their mean reported beside).
+    let mut fold_mean: Option<Result<Iso230Figures, String>> = None;
+    let mut after_caveats = Value::Null;
     let (after, per_fold_json, after_method) = if holdout_mask.is_some() {
         (
             iso(&judged.x, &judged.direction, &judged.run, &residual),
@@ -615,12 +651,16 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
             }));
             figs.push(a);
         }
+        fold_mean = Some(mean_figures(&figs));
+        let pooled;
+        (pooled, after_caveats) = pooled_after(&judged.x, &judged.direction, &residual);
         (
-            mean_figures(&figs),
+            pooled,
             Value::Array(per_fold),
             format!(
-                "ISO 230-2 of each fold's held-out runs with the correction predicted by the model fitted \
-                 without them, averaged over the {} folds (a figure is null when a fold cannot define it)",
+                "ISO 230-2 of every run with the correction predicted by the model of the fold that held it \
+                 out, pooled over the {} folds: a compensated campaign none of whose runs its model saw \
+                 (the per-fold figures and their mean are beside it)",
                 figs.len()
             ),
         )
@@ -674,6 +714,8 @@ fn compute(args: &Args) -> anyhow::Result<Outcome> {
         "iso230_2_after": iso_json(&after),
         "iso230_2_after_method": after_method,
         "iso230_2_per_fold": per_fold_json,
+        "iso230_2_after_fold_mean": fold_mean.as_ref().map_or(Value::Null, iso_json),
+        "iso230_2_after_caveats": after_caveats,
         "warnings": warnings,
         "provenance": provenance,
         "model": {
@@ -1004,21 +1046,47 @@ fn report_markdown(args: &Args, j: &Value, fit: &FitResult, verdict: &GuardVerdi
     } else {
         vec!["A_up_um", "E_up_um", "R_up_um"]
     };
+    let has_fold_mean = j["iso230_2_after_fold_mean"].is_object();
     let iso_rows: Vec<Vec<String>> = keys
         .iter()
         .map(|k| {
-            vec![
+            let mut row = vec![
                 k.to_string(),
                 f3(&j["iso230_2_before"][k]),
                 f3(&j["iso230_2_after"][k]),
-            ]
+            ];
+            if has_fold_mean {
+                row.push(f3(&j["iso230_2_after_fold_mean"][k]));
+            }
+            row
         })
         .collect();
-    s.push_str(&axcomp_plot::markdown_table(
-        &["figure", "before / µm", "after / µm"],
-        &iso_rows,
-    ));
-    for part in ["iso230_2_before", "iso230_2_after"] {
+    let mut header = vec!["figure", "before / µm", "after / µm"];
+    if has_fold_mean {
+        header = vec![
+            "figure",
+            "before / µm",
+            "after, pooled / µm",
+            "after, mean of folds / µm",
+        ];
+    }
+    s.push_str(&axcomp_plot::markdown_table(&header, &iso_rows));
+    if let Some(c) = j["iso230_2_after_caveats"].as_object() {
+        for k in &keys {
+            if let Some(why) = c.get(*k).and_then(Value::as_str) {
+                s.push_str(&format!(
+                    "
+iso230_2_after.{k}: {why}.
+"
+                ));
+            }
+        }
+    }
+    for part in [
+        "iso230_2_before",
+        "iso230_2_after",
+        "iso230_2_after_fold_mean",
+    ] {
         if let Some(e) = j[part]["error"].as_str() {
             s.push_str(&format!("\n{part}: not evaluable on these rows: {e}\n"));
         }
