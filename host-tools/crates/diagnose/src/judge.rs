@@ -865,7 +865,15 @@ pub fn judge(
     if blocks.len() >= 3 && !passing.is_empty() {
         progress.step(|| format!("blocked CV over {} training blocks", blocks.len()));
         let cv0 = blocked_cv_rss(base_cols, y, blocks);
-        for &k in &passing {
+        for (done, &k) in passing.iter().enumerate() {
+            progress.step(|| {
+                format!(
+                    "blocked CV: candidate {} of {} ({})",
+                    done + 1,
+                    passing.len(),
+                    effects[k].kind
+                )
+            });
             let v_cols = variant_of(&effects[k]).columns();
             let e = &mut effects[k];
             e.cv_rms_before_um = Some((cv0 / n_tr as f64).sqrt());
@@ -882,8 +890,16 @@ pub fn judge(
             .collect();
         // dbic[k][b]: training ΔBIC of candidate k on resample b (one candidate's columns at a time).
         let mut dbic = vec![vec![f64::NEG_INFINITY; b_count]; effects.len()];
-        for &k in &passing {
+        for (done, &k) in passing.iter().enumerate() {
             let e = &effects[k];
+            progress.step(|| {
+                format!(
+                    "block bootstrap: candidate {} of {} ({}, {b_count} resamples)",
+                    done + 1,
+                    passing.len(),
+                    e.kind
+                )
+            });
             let v_cols = variant_of(e).columns();
             let cols = with_extra(base_cols, &v_cols);
             for b in 0..b_count {
