@@ -46,7 +46,8 @@ pub struct Args {
     #[arg(long, value_name = "F.csv")]
     pub simulate: Option<PathBuf>,
     /// With --simulate: measure a named twin plan instead (seven-line, step-diagonal, axis-lines,
-    /// face-diagonals, tool-offsets, complete), plus the planned lines when both are wanted (`+plan`).
+    /// face-diagonals, tool-offsets, complete, point-cloud: points read along their own beams from four
+    /// stations, as a tracking interferometer measures), plus the planned lines when both are wanted (`+plan`).
     #[arg(long, value_name = "NAME", requires = "simulate")]
     pub twin_plan: Option<String>,
     /// Twin seed (with --simulate).

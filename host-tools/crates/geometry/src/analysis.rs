@@ -190,12 +190,17 @@ pub fn analyse(
             raw_rms_um = rms(all.iter().map(|&i| data.readings[i].deviation_um));
         }
     }
-    // ISO 230-6: body diagonals (beam with all three components ≥ 0.3 in magnitude)
+    // ISO 230-6: body diagonals (one beam for the whole line, with all three components ≥ 0.3 in
+    // magnitude; points read along their own beams from a station are not a diagonal)
     let mut diags = Vec::new();
     for (li, name) in data.lines.iter().enumerate() {
         let rows: Vec<usize> = (0..n).filter(|&i| data.readings[i].line == li).collect();
         let b = data.readings[rows[0]].beam;
-        if b.iter().all(|c| c.abs() >= 0.3) {
+        let one_beam = rows.iter().all(|&i| {
+            let bi = data.readings[i].beam;
+            (0..3).all(|k| (bi[k] - b[k]).abs() <= 1e-6)
+        });
+        if one_beam && b.iter().all(|c| c.abs() >= 0.3) {
             let range = |v: &mut dyn Iterator<Item = f64>| {
                 let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
                     (a.min(x), b.max(x))

@@ -21,6 +21,9 @@ pub struct LineSpec {
     pub stepwise: bool,
     /// Reflector offset from the tool reference point (mm).
     pub tool: [f64; 3],
+    /// A tracking interferometer's station (mm, workpiece frame): each reading is taken along the beam from
+    /// the station to the reflector instead of along the line.
+    pub station: Option<[f64; 3]>,
 }
 
 /// One reading point of a line.
@@ -43,7 +46,14 @@ impl LineSpec {
             targets,
             stepwise: false,
             tool: [0.0; 3],
+            station: None,
         }
+    }
+
+    /// Read each point along the beam from `station` (a tracking interferometer).
+    pub fn from_station(mut self, station: [f64; 3]) -> LineSpec {
+        self.station = Some(station);
+        self
     }
 
     pub fn stepwise(mut self) -> LineSpec {
@@ -102,14 +112,21 @@ impl LineSpec {
             }
         }
         qs.into_iter()
-            .map(|q| Reading {
-                q,
-                pos: [
+            .map(|q| {
+                let pos = [
                     q[0] + self.tool[0],
                     q[1] + self.tool[1],
                     q[2] + self.tool[2],
-                ],
-                beam,
+                ];
+                let beam = match self.station {
+                    None => beam,
+                    Some(s) => {
+                        let d = [pos[0] - s[0], pos[1] - s[1], pos[2] - s[2]];
+                        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                        if n > 0.0 { d.map(|v| v / n) } else { beam }
+                    }
+                };
+                Reading { q, pos, beam }
             })
             .collect()
     }

@@ -296,11 +296,41 @@ impl LineCampaign {
     }
 }
 
+/// A tracking interferometer's campaign (a LaserTRACER-like multilateration): points along lines through
+/// the volume — each axis at its four corner offsets and through the centre — every line read from each of
+/// four stations on the table, 150 mm outside the stroke's corners at Z = 0, each point along its own beam
+/// from the station. Line names say which line and station (`X1@S2`).
+fn point_cloud(stroke: [f64; 3], targets: usize) -> Vec<LineSpec> {
+    let [x, y, _] = stroke;
+    let m = 150.0;
+    let stations = [
+        [-m, -m, 0.0],
+        [x + m, -m, 0.0],
+        [-m, y + m, 0.0],
+        [x + m, y + m, 0.0],
+    ];
+    let mut v = Vec::new();
+    for (a, others) in [(0usize, [1usize, 2]), (1, [0, 2]), (2, [0, 1])] {
+        let offsets = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)];
+        for (i, (p, q)) in offsets.iter().enumerate() {
+            let mut at = [0.0; 3];
+            at[others[0]] = p * stroke[others[0]];
+            at[others[1]] = q * stroke[others[1]];
+            for (k, s) in stations.iter().enumerate() {
+                let n = format!("{}{}@S{}", ['X', 'Y', 'Z'][a], i + 1, k + 1);
+                v.push(lines::axis_line(&n, a, stroke, at, targets).from_station(*s));
+            }
+        }
+    }
+    v
+}
+
 /// Named line plans over `stroke` with `targets` per line: `seven-line` (seed 000), `step-diagonal` (the
 /// four body diagonals read step-wise), `axis-lines` (each axis at the four corner offsets of the other
 /// two), `face-diagonals` (XY, XZ, YZ at the lower faces), `tool-offsets` (each axis line with the
 /// reflector 100 mm off along each other direction, and a body diagonal with (100, 100, 100) mm), `complete` (axis lines at offsets + step-wise body diagonals +
-/// two tool-offset diagonals: every component separable). `None` for an unknown name.
+/// two tool-offset diagonals: every component separable), `point-cloud` (points read along their own beams
+/// from four stations, see [`point_cloud`]). `None` for an unknown name.
 pub fn plan_by_name(name: &str, stroke: [f64; 3], targets: usize) -> Option<Vec<LineSpec>> {
     let [x, y, z] = stroke;
     let axis_lines = || {
@@ -345,6 +375,7 @@ pub fn plan_by_name(name: &str, stroke: [f64; 3], targets: usize) -> Option<Vec<
             v
         }
         "tool-offsets" => tool_lines(),
+        "point-cloud" => point_cloud(stroke, targets),
         "complete" => {
             let mut v = axis_lines();
             v.extend(lines::body_diagonals(stroke, targets, true));
