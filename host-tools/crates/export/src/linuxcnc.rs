@@ -255,7 +255,7 @@ pub fn export(
         "# Load with [KINS]KINEMATICS = {kins}; keep tool-offset netted to motion.tooloffset.z.\n"
     ));
     for (pin, v) in &pins {
-        hal.push_str(&format!("setp {kins}.{pin} {v:.6}\n"));
+        hal.push_str(&format!("setp {kins}.{pin} {v:.9}\n"));
     }
     let mut ini = head;
     let coords = if format == Format::LinuxCncXyzacTrt {

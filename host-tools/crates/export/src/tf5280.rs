@@ -191,7 +191,13 @@ fn list_file(model: &GeometryModel, files: &[String]) -> ExportFile {
     for (k, a) in Axis::ALL.iter().enumerate() {
         s.push_str(&format!("{:<24} {}\n", a.letter(), k + 1));
     }
-    let work: String = model.topology.work.iter().map(|a| a.letter()).collect();
+    let work: String = model
+        .topology
+        .work
+        .iter()
+        .rev()
+        .map(|a| a.letter())
+        .collect();
     s.push_str(&format!(
         "# Axis stacking: chain from the workpiece to the tool; its first {} axes ({}) carry the workpiece. \
          Sign: each parameter file gives every axis's own error motion (a workpiece axis's values are the \
