@@ -70,8 +70,13 @@ fn kind_name(k: FileKind) -> &'static str {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let kind = model_kind(&args.model)?;
     let format = Format::parse(&args.format);
+    let kind = match (model_kind(&args.model), format) {
+        (Ok(k), _) => k,
+        // A positioning table the kind reader does not know: the table reader says what is wrong with it.
+        (Err(_), None) => return run_positioning(&args),
+        (Err(e), Some(_)) => return Err(e),
+    };
     let want = match format {
         None => FileKind::Positioning,
         Some(f) if f.model_kind() == ModelKind::Geometry => FileKind::Geometry,
