@@ -104,9 +104,9 @@ fn tf5280_files_follow_the_isg_grammar_and_the_model() {
             .map(|(_, v)| v.as_str())
             .collect();
         assert_eq!(named.len(), 4);
-        for j in 0..named.len() {
+        for (j, name) in named.iter().enumerate() {
             assert_eq!(get(&format!("file_format[{j}]")), Some("ISG_CSV"));
-            assert!(files.iter().any(|f| f.name == named[j]));
+            assert!(files.iter().any(|f| f.name == *name));
         }
         for a in Axis::ALL {
             let text = file(&files, &tf5280::component_file(a));
