@@ -29,7 +29,8 @@ pub enum Command {
     Replay(commands::replay::Args),
     /// Write a binary trace (scale, command, temperatures, forces over time) for replay on the host or in QEMU.
     Trace(commands::trace::Args),
-    /// Export a fitted positioning table to formats other tools read (LinuxCNC comp file, CSV).
+    /// Export a fitted model in the format a controller loads (positioning: LinuxCNC comp file, CSV; geometry:
+    /// TwinCAT TF5280, Heidenhain .COM/.CMA; rotary: LinuxCNC xyzac/xyzbc-trt-kins values).
     Export(commands::export::Args),
     /// Simulate an axis (the digital twin) and write measurement CSV.
     Sim(commands::sim::Args),
