@@ -600,3 +600,74 @@ fn run_cli(args: &[&str], dir: &Path) {
         String::from_utf8_lossy(&o.stderr)
     );
 }
+
+/// `image group --rotary` with a model holding an effect (`fit rtest --effects rotary_positioning` on a
+/// twin with a C-axis positioning error, seed 5): the image is built with the location errors (the
+/// firmware's stage carries nothing else), and the builder warns naming the effect and the RMS of the
+/// correction it leaves out — the model file's `rms_over_fit_um`, printed to 3 decimals.
+#[test]
+fn image_says_which_effect_it_cannot_carry() {
+    let dir = scratch("effects-image");
+    let m = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
+    let mut twin = FiveAxisTwin::random(m, 5);
+    twin.effects.rotary_positioning = true;
+    let paths = standard_paths(&m, [150.0, 0.0, 100.0], -60.0, 72, &[0.0, -60.0], 36, None);
+    std::fs::write(
+        dir.join("rtest.csv"),
+        twin.measure(&paths, 5).to_csv_string(),
+    )
+    .unwrap();
+    run_cli(
+        &[
+            "fit",
+            "rtest",
+            "--data",
+            "rtest.csv",
+            "--effects",
+            "rotary_positioning",
+            "--out",
+            "model.json",
+        ],
+        &dir,
+    );
+    let model = read_json(&dir.join("model.json"));
+    let rms = model["effects"][0]["rms_over_fit_um"].as_f64().unwrap();
+    assert!(rms > 0.5, "the effect's correction: {rms} µm");
+    let axes = write_axis_images(&dir, MachineKind::AcTrunnion);
+    let mut args: Vec<&str> = vec!["image", "group"];
+    for a in &axes {
+        args.extend(["--axis", a]);
+    }
+    args.extend([
+        "--rotary",
+        "model.json",
+        "--pivot-counts",
+        "1000000,-2000000,3000000",
+        "--tool-length-mm",
+        "100",
+        "--out",
+        "g.bin",
+    ]);
+    let o = axcomp_in(&args, &dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("effect `rotary_positioning`")
+            && err.contains("not carried by the image")
+            && err.contains(&format!("RMS {rms:.3} µm")),
+        "{err}"
+    );
+    let spec = group_image::parse(&std::fs::read(dir.join("g.bin")).unwrap())
+        .unwrap()
+        .rotary
+        .unwrap();
+    let errors = model["location_errors"].as_array().unwrap();
+    for (k, e) in errors.iter().enumerate() {
+        if e[1]["identified"] == true {
+            assert_eq!(
+                spec.all_constants()[k],
+                e[1]["value"].as_f64().unwrap() as f32
+            );
+        }
+    }
+}

@@ -431,3 +431,132 @@ fn held_out_comparison_with_the_nominal_kinematics() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A head-head B/C campaign (bc-head, pivot 250 mm, seed 7, σ = 0.1 µm, 6 s per pose) that probes
+/// B = C = 0 again at the start and at the end as single-pose runs of K4 (runs 0 and 9), with the tool
+/// point creeping (`time_drift`, set to −6, 4, −8 µm/h along X, Y, Z) during the campaign.
+/// Reference: the injected drift over the time between the first and the last visit, `−rate·Δt` (the
+/// twin's `time_drift`: `d −= rate·t`); tolerance per component 4·√2·σ = 0.57 µm (the difference of two
+/// readings of noise σ). The file is fitted (no "single pose" / "conflicting" refusal), the K4 run 2 held
+/// out is predicted better than the nominal kinematics, and `predict` reads the model back on every row.
+#[test]
+fn revisited_pose_as_single_pose_runs_fits_predicts_and_reports_the_closure_drift() {
+    use axcomp_kinematics::rotary::pose_on_sphere;
+    use axcomp_twin::five_axis::RtestPathSpec;
+    let dir = scratch("revisit");
+    let m = FiveAxis::new(MachineKind::BcHead, 250.0);
+    let mut twin = FiveAxisTwin::random(m, 7);
+    twin.noise_um = 0.1;
+    twin.dwell_s = 6.0;
+    twin.effects.time_drift = true;
+    let rate = [-6.0, 4.0, -8.0];
+    twin.effect_params.time_um_h = rate;
+    let sphere = [0.0; 3];
+    let closure = |run| RtestPathSpec {
+        path: "K4".into(),
+        run,
+        setup: "1".into(),
+        sphere_mm: sphere,
+        poses: vec![pose_on_sphere(&m, sphere, 0.0, 0.0)],
+    };
+    let mut paths = vec![closure(0)];
+    paths.extend(standard_paths(
+        &m,
+        sphere,
+        -60.0,
+        72,
+        &[0.0, -60.0],
+        36,
+        None,
+    ));
+    paths.push(closure(9));
+    let campaign = twin.measure(&paths, 7);
+    let elapsed = campaign.rows.last().unwrap().time_s - campaign.rows[0].time_s;
+    std::fs::write(dir.join("rtest.csv"), campaign.to_csv_string()).unwrap();
+    let o = axcomp(
+        &[
+            "fit",
+            "rtest",
+            "--data",
+            "rtest.csv",
+            "--machine",
+            "bc-head",
+            "--pivot-mm",
+            "250",
+            "--holdout",
+            "run=2",
+            "--json",
+            "fit.json",
+            "--report",
+            "rep",
+            "--out",
+            "model.json",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("fit.json")).unwrap()).unwrap();
+    let hold = j["holdout_rms_um"].as_f64().unwrap();
+    let raw = j["raw_rms_um"].as_f64().unwrap();
+    assert!(hold < raw, "held-out {hold} µm vs nominal {raw} µm");
+    // Every K4 pose is revisited by K4 run 2; the closure pose is the one at B = C = 0.
+    let poses = j["closure"]["poses"].as_array().unwrap();
+    assert_eq!(poses.len(), 72, "K4 runs 1 and 2 share their 72 poses");
+    let p = poses
+        .iter()
+        .find(|p| p["pose"]["b_deg"] == 0.0 && p["pose"]["c_deg"] == 0.0)
+        .expect("the B = C = 0 pose is in the closure");
+    assert_eq!(p["first"]["run"], "0");
+    assert_eq!(p["last"]["run"], "9");
+    // Visits: the two closure runs, K4 runs 1 and 2 start there, and the C circle at B = 0 passes C = 0.
+    assert_eq!(p["visits"], 5);
+    assert!((p["elapsed_s"].as_f64().unwrap() - elapsed).abs() < 1e-9);
+    let tol = 4.0 * std::f64::consts::SQRT_2 * twin.noise_um;
+    let mut mag2 = 0.0;
+    for (c, key) in ["dx_um", "dy_um", "dz_um"].iter().enumerate() {
+        let want = -rate[c] * elapsed / 3600.0;
+        let got = p[key].as_f64().unwrap();
+        assert!(
+            (got - want).abs() <= tol,
+            "closure {key}: {got:.3} µm vs injected {want:.3} µm (tolerance {tol:.2})"
+        );
+        mag2 += got * got;
+    }
+    assert!((p["magnitude_um"].as_f64().unwrap() - mag2.sqrt()).abs() < 1e-9);
+    let md = std::fs::read_to_string(dir.join("rep/report.md")).unwrap();
+    assert!(md.contains("Closure"), "{md}");
+    let o = axcomp(
+        &[
+            "predict",
+            "--model",
+            "model.json",
+            "--data",
+            "rtest.csv",
+            "--out",
+            "pred.csv",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let pred = std::fs::read_to_string(dir.join("pred.csv")).unwrap();
+    let header = pred.lines().find(|l| !l.starts_with('#')).unwrap();
+    assert!(header.contains("pred_dx_um"), "{header}");
+    assert_eq!(
+        pred.lines().filter(|l| !l.starts_with('#')).count(),
+        1 + campaign.rows.len()
+    );
+}
+
+/// A pose repeated within one path and run is an error naming both lines, whether its readings conflict or
+/// are identical (a duplicated row); the same pose as a further run is accepted (test above).
+#[test]
+fn duplicate_row_within_a_run_names_both_lines() {
+    let dir = scratch("dup");
+    let csv = twin_csv();
+    let mut v: Vec<String> = csv.lines().map(|s| s.to_string()).collect();
+    v.insert(5, v[4].clone());
+    fails(&dir, &v.join("\n"), &[], "identical readings");
+    // Line 1 is the twin's `#` comment, line 2 the header: the copied row is at lines 5 and 6.
+    fails(&dir, &v.join("\n"), &[], "lines 5 and 6");
+}

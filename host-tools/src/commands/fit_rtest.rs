@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::bail;
 use axcomp_data::sanity::{self, DataWarning};
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
-use axcomp_rtest::analysis::analyse_selected;
+use axcomp_rtest::analysis::analyse_effects;
 use axcomp_rtest::report::report_files;
 use axcomp_rtest::{FitOptions, RtestData, RtestModel, read_shared_error};
 
@@ -24,6 +24,10 @@ Model: the exact homogeneous-transform chain with the 11 location errors (C: EX0
 Default selection (do no harm on data with effects beyond the model): on the fitted rows alone, each path (else run) is left out in turn and predicted by the full model and by the nominal kinematics with the set-up offsets only (linearised refits); when the nominal one predicts better and the location errors explain little of the fitted rows (in-sample RMS ratio below 3), every location error is fixed at zero (identified: false, with the figures). --full-model turns it off. The JSON's comparison gives the judged rows' RMS of this model, the full model, the nominal kinematics without correction and with the set-up offsets only; selection.robust_std flags each location error against its standard uncertainty robust to residuals correlated along a path.
 
 With --free-head-zero the R-test head's zero (tool length, radial offset) is estimated per set-up too; then the rotary axes' absolute position relative to the spindle (e.g. EX0C, EY0A, EZ0A on an AC trunnion) cannot be determined and is reported so.
+
+--effects KIND[,KIND] adds effects beyond the location errors (the kinds `axcomp diagnose` names), each with the parametrisation the diagnosis refits it with (axcomp_rtest::effects): rotary_positioning — the angular positioning error of C as harmonics 0…4 of its angle and of the tilt axis as a polynomial of degree 2 in its angle (what a rotary axis's compensation table holds); rotary_wobble — C tilting about the two axes perpendicular to it and moving radially at 1, 2, 3 per turn, and the tilt axis likewise as powers 1, 2 of its angle; linear_geometry — the tool point's error along X, Y, Z as Legendre polynomials of degree 1…3 of each linear axis over the range the poses move it (its constant and linear parts are shared with the set-up offsets and the squareness / location errors, which keep them; nothing beyond the measured range: `predict` refuses rows outside it). Parameters the poses cannot separate are fixed to 0 and reported identified: false. The location errors are then all estimated (no do-no-harm selection); the JSON's effects object gives each parameter with its std and identified, and comparison.location_errors_only_rms_um the same rows without the effects. The drifts (setup_drift, thermal_drift, time_drift) are not model terms: a drift over one campaign's time does not predict another; the closure figure (revisited poses) reports them.
+
+Revisits: a pose measured again later (a closure check) is a further run of its path; a run may hold a single pose (the readings of a set-up are absolute against its set-up offsets). The JSON's closure gives each revisited pose's drift, last visit minus first.
 
 Example: axcomp fit rtest --data rtest.csv --holdout run=2 --json fit.json --report rtest-report --out rtest-model.json";
 
@@ -60,6 +64,10 @@ pub struct Args {
     /// Estimate every identifiable location error (no do-no-harm selection: see --help).
     #[arg(long)]
     pub full_model: bool,
+    /// Add effects beyond the location errors to the model: rotary_positioning, rotary_wobble,
+    /// linear_geometry (comma-separated; e.g. the verdict of `axcomp diagnose`). See --help.
+    #[arg(long, value_name = "KIND[,KIND]")]
+    pub effects: Option<String>,
     /// Write the model file (for `axcomp predict`).
     #[arg(long, value_name = "MODEL.json")]
     pub out: Option<PathBuf>,
@@ -230,6 +238,41 @@ fn check_enough_poses(
     Ok(())
 }
 
+/// `--effects KIND[,KIND]` into the model's effect terms (their parametrisation over the file's poses).
+fn effect_set(list: &str, data: &RtestData) -> anyhow::Result<axcomp_rtest::effects::EffectSet> {
+    use axcomp_effects::RotaryEffect;
+    use axcomp_rtest::effects::{EffectTerm, MODELLED};
+    let modelled: Vec<&str> = MODELLED.iter().map(|k| k.name()).collect();
+    let mut set = axcomp_rtest::effects::EffectSet::default();
+    for name in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let kind: RotaryEffect = name
+            .parse()
+            .map_err(|e| anyhow::anyhow!("--effects: {e}"))?;
+        if !MODELLED.contains(&kind) {
+            bail!(
+                "--effects {name}: not a model term of `fit rtest` (it models {}): a drift over one campaign's time does not predict another campaign; the JSON's closure reports the drift between revisits",
+                modelled.join(", ")
+            );
+        }
+        if set.terms.iter().any(|t| t.kind == kind) {
+            continue;
+        }
+        let term = EffectTerm::richest(kind, &data.machine, &data.poses).ok_or_else(|| {
+            anyhow::anyhow!(
+                "--effects {name}: cannot be built on these poses (no linear axis moves)"
+            )
+        })?;
+        set.terms.push(term);
+    }
+    if set.is_empty() {
+        bail!(
+            "--effects `{list}`: no effect named (expected {})",
+            modelled.join(", ")
+        );
+    }
+    Ok(set)
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let machine = machine_from(&args.machine, args.pivot_mm)?;
     let head_zero_std_um = args
@@ -258,16 +301,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The probe route's centres carry their calibration's shared error (zero1_dx_um, …): used unless
     // --head-zero-std-um overrides it.
     let shared = read_shared_error(&ds)?;
-    let a = analyse_selected(
+    let effects = match args.effects.as_deref() {
+        Some(list) => effect_set(list, &data)?,
+        None => axcomp_rtest::effects::EffectSet::default(),
+    };
+    let a = analyse_effects(
         &ds,
         &data,
         split.as_ref(),
         &opts,
         shared.as_ref(),
         !args.full_model,
+        &effects,
     )?;
     let json = a.to_json(&data);
-    let model = RtestModel::from_fit(&data, &a.fit);
+    let model: RtestModel = a.model.clone();
     if let Some(dir) = &args.report {
         for (name, text) in report_files(&a, &data) {
             outputs.folder_file(dir, &name, text);
@@ -344,6 +392,23 @@ fn print_summary(a: &axcomp_rtest::analysis::Analysis, data: &RtestData, json: &
             "  default selection: every location error fixed at zero ({evidence}; in-sample RMS ratio {:.2} < {}; --full-model estimates them)",
             sel.fit_rms_ratio,
             axcomp_rtest::select::RATIO_LIMIT
+        );
+    }
+    for e in &a.model.effects {
+        let n_id = e.parameters.iter().filter(|(_, p)| p.identified).count();
+        println!(
+            "  effect {}: {n_id} of {} parameters identified, correction RMS {:.3} µm over the fitted poses; location errors alone {:.3} µm on the {} rows",
+            e.kind,
+            e.parameters.len(),
+            e.rms_over_fit_um,
+            a.full_rms_um,
+            a.judged_by
+        );
+    }
+    if let Some(c) = json["closure"]["max_magnitude_um"].as_f64() {
+        println!(
+            "  closure: {} revisited pose(s), largest drift {c:.3} µm (last visit − first)",
+            a.closure.len()
         );
     }
     if let Some(k) = json.get("k4").filter(|k| !k.is_null()) {

@@ -1135,6 +1135,17 @@ fn rotary_from_args(args: &GroupArgs) -> anyhow::Result<Option<RotaryLocationSpe
         let pivot = parse_pivot_counts(pivot)?;
         let spec = rotary_from_rtest_model(&model, pivot, args.tool_length_mm)
             .with_context(|| format!("--rotary {}", path.display()))?;
+        // The group image's rotary stage carries the 11 location errors only: an effect of `fit rtest
+        // --effects` is said, with the correction it leaves out, never dropped silently.
+        for e in &model.effects {
+            eprintln!(
+                "axcomp: warning: --rotary {}: the model's effect `{}` ({} parameters) is not carried by the image: the firmware's rotary stage applies the 11 location errors only, so its correction (RMS {:.3} µm over the fitted poses) is left out",
+                path.display(),
+                e.kind,
+                e.parameters.len(),
+                e.rms_over_fit_um
+            );
+        }
         return Ok(Some(spec));
     }
     anyhow::ensure!(

@@ -35,9 +35,10 @@
 use std::collections::BTreeMap;
 
 use axcomp_effects::RotaryEffect;
-use axcomp_kinematics::rotary::{FiveAxis, MachineKind, N_LOCATION, N_SETUP, Pose};
+use axcomp_kinematics::rotary::{FiveAxis, MachineKind, N_LOCATION, N_SETUP};
 use axcomp_rtest::RtestData;
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use axcomp_rtest::effects::{EffectBasis, EffectTerm, linear_ranges};
+use nalgebra::{DMatrix, Vector3};
 use serde::Serialize;
 use serde_json::{Map, Value, json};
 
@@ -182,113 +183,9 @@ pub fn parse_model(list: &str) -> Result<Vec<RotaryEffect>, String> {
     Ok(kinds)
 }
 
-fn rot(axis: usize, a: f64) -> Matrix3<f64> {
-    let mut w = Vector3::zeros();
-    w[axis] = a;
-    *nalgebra::Rotation3::new(w).matrix()
-}
-
-fn v3(a: [f64; 3]) -> Vector3<f64> {
-    Vector3::new(a[0], a[1], a[2])
-}
-
-/// Per-pose geometry the signatures need.
-struct PoseGeometry {
-    /// Commanded tool point, mm.
-    p: Vector3<f64>,
-    /// Linear axes' positions, mm.
-    q: Vector3<f64>,
-    /// Nominal rotation of the tilt axis.
-    rt: Matrix3<f64>,
-    tilt_rad: f64,
-    c_rad: f64,
-}
-
-fn geometry(machine: &FiveAxis, pose: &Pose) -> PoseGeometry {
-    let tilt_axis = if machine.kind == MachineKind::AcTrunnion {
-        0
-    } else {
-        1
-    };
-    PoseGeometry {
-        p: v3(pose.p_mm),
-        q: v3(machine.linear_positions(pose)),
-        rt: rot(tilt_axis, pose.tilt_deg.to_radians()),
-        tilt_rad: pose.tilt_deg.to_radians(),
-        c_rad: pose.c_deg.to_radians(),
-    }
-}
-
-/// Derivative (µm per µrad) of the exact displacement with respect to the actual angle of the tilt axis
-/// (`which = 0`) or of C (`which = 1`), the linear axes staying where they were commanded: central
-/// differences of `FiveAxis::displacement_at` at the fitted location errors.
-fn angle_derivative(
-    machine: &FiveAxis,
-    pose: &Pose,
-    le: &axcomp_kinematics::rotary::LocationErrors,
-    setup: [f64; N_SETUP],
-    which: usize,
-) -> [f64; 3] {
-    let q = machine.linear_positions(pose);
-    let s = machine.nominal_sphere(pose);
-    let h_urad: f64 = 10.0;
-    let h_deg = (h_urad * 1e-6).to_degrees();
-    let at = |sign: f64| {
-        let (t, c) = if which == 0 {
-            (pose.tilt_deg + sign * h_deg, pose.c_deg)
-        } else {
-            (pose.tilt_deg, pose.c_deg + sign * h_deg)
-        };
-        // The commanded point for which the linear axes sit at `q` with the rotary axes at (t, c).
-        let l0 = machine.linear_positions(&Pose {
-            p_mm: [0.0; 3],
-            tilt_deg: t,
-            c_deg: c,
-        });
-        let p = [q[0] - l0[0], q[1] - l0[1], q[2] - l0[2]];
-        machine.displacement_at(
-            &Pose {
-                p_mm: p,
-                tilt_deg: t,
-                c_deg: c,
-            },
-            s,
-            le,
-            setup,
-        )
-    };
-    let (a, b) = (at(1.0), at(-1.0));
-    [0, 1, 2].map(|i| (a[i] - b[i]) / (2.0 * h_urad))
-}
-
-/// Small rotation (per µrad) about `e` of what C carries → displacement µm: trunnion `(Rt·e) × p`, head
-/// `−e × (p − q)` (the tool vector).
-fn c_carried_rotation(kind: MachineKind, g: &PoseGeometry, e: Vector3<f64>) -> Vector3<f64> {
-    match kind {
-        MachineKind::BcHead => -e.cross(&(g.p - g.q)) * 1e-3,
-        _ => (g.rt * e).cross(&g.p) * 1e-3,
-    }
-}
-
-/// Radial motion (per µm) of the C axis along `e` → displacement µm.
-fn c_carried_translation(kind: MachineKind, g: &PoseGeometry, e: Vector3<f64>) -> Vector3<f64> {
-    match kind {
-        MachineKind::BcHead => -e,
-        _ => g.rt * e,
-    }
-}
-
 /// Stacks per-pose vectors into a column.
 fn stack(per_pose: &[Vector3<f64>]) -> Vec<f64> {
     per_pose.iter().flat_map(|v| [v[0], v[1], v[2]]).collect()
-}
-
-fn scaled(v: &[f64], w: &[f64]) -> Vec<Vector3<f64>> {
-    // per-pose vector column `v` (stacked) times per-pose weight `w`
-    w.iter()
-        .enumerate()
-        .map(|(i, &x)| Vector3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]) * x)
-        .collect()
 }
 
 fn nonzero(c: &[f64]) -> bool {
@@ -303,23 +200,6 @@ fn variant(columns: Vec<Vec<f64>>, params: Value) -> RtestVariant {
         params: params.as_object().cloned().unwrap_or_default(),
         n_params,
     }
-}
-
-/// Legendre polynomial `P_k(x)`.
-fn legendre(k: usize, x: f64) -> f64 {
-    match k {
-        0 => 1.0,
-        1 => x,
-        2 => 0.5 * (3.0 * x * x - 1.0),
-        _ => 0.5 * (5.0 * x * x * x - 3.0 * x),
-    }
-}
-
-/// `x` mapped to −1…1 over its range (None when constant).
-fn unit_range(x: &[f64]) -> Option<Vec<f64>> {
-    let lo = x.iter().cloned().fold(f64::INFINITY, f64::min);
-    let hi = x.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-    (hi - lo > 1e-9).then(|| x.iter().map(|v| 2.0 * (v - lo) / (hi - lo) - 1.0).collect())
 }
 
 /// Builds the stacked campaign and the candidate families. `model` = effect kinds told in addition to
@@ -394,51 +274,37 @@ pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<Rtest
     }
 
     // ---- candidate families ----
-    let geo: Vec<PoseGeometry> = data.poses.iter().map(|p| geometry(&machine, p)).collect();
     let kind = machine.kind;
-    let le = {
-        let mut le = [0.0; N_LOCATION];
-        le.copy_from_slice(&fit.theta[..N_LOCATION]);
-        le
-    };
     let mut families = Vec::new();
     let mut not_applicable = Vec::new();
     let e = [Vector3::x(), Vector3::y(), Vector3::z()];
     let tilt_letter = machine.kind.tilt_letter().to_ascii_uppercase();
 
+    // The families' columns: the signatures of `axcomp_rtest::effects` (the same terms `fit rtest
+    // --effects` fits) at the training fit's location errors and set-up offsets, one column per parameter.
+    let term_columns = |kind: RotaryEffect, basis: EffectBasis| -> Vec<Vec<f64>> {
+        let term = EffectTerm { kind, basis };
+        let np = term.n_params(machine.kind);
+        let mut cols = vec![vec![0.0; 3 * n]; np];
+        for (i, pose) in data.poses.iter().enumerate() {
+            let (le, so) = axcomp_rtest::split_params(&fit.theta, data.setup[i]);
+            for (k, sig) in term.signatures(&machine, pose, &le, so).iter().enumerate() {
+                cols[k][3 * i..3 * i + 3].copy_from_slice(sig);
+            }
+        }
+        cols
+    };
     // rotary_positioning
     {
-        let jt: Vec<Vector3<f64>> = (0..n)
-            .map(|i| {
-                let (_, so) = axcomp_rtest::split_params(&fit.theta, data.setup[i]);
-                v3(angle_derivative(&machine, &data.poses[i], &le, so, 0))
-            })
-            .collect();
-        let jc: Vec<Vector3<f64>> = (0..n)
-            .map(|i| {
-                let (_, so) = axcomp_rtest::split_params(&fit.theta, data.setup[i]);
-                v3(angle_derivative(&machine, &data.poses[i], &le, so, 1))
-            })
-            .collect();
-        let jt_s = stack(&jt);
-        let jc_s = stack(&jc);
         let mut variants = Vec::new();
         for harmonics in 1..=4usize {
             for tilt_degree in 1..=2usize {
-                let mut cols = vec![jc_s.clone()];
-                for k in 1..=harmonics {
-                    let kf = k as f64;
-                    let cs: Vec<f64> = geo.iter().map(|g| (kf * g.c_rad).cos()).collect();
-                    let sn: Vec<f64> = geo.iter().map(|g| (kf * g.c_rad).sin()).collect();
-                    cols.push(stack(&scaled(&jc_s, &cs)));
-                    cols.push(stack(&scaled(&jc_s, &sn)));
-                }
-                for d in 0..=tilt_degree {
-                    let w: Vec<f64> = geo.iter().map(|g| g.tilt_rad.powi(d as i32)).collect();
-                    cols.push(stack(&scaled(&jt_s, &w)));
-                }
+                let basis = EffectBasis::Positioning {
+                    c_harmonics: harmonics,
+                    tilt_degree,
+                };
                 variants.push(variant(
-                    cols,
+                    term_columns(RotaryEffect::RotaryPositioning, basis),
                     json!({"c_harmonics": harmonics, "tilt_degree": tilt_degree, "axes": format!("C and {tilt_letter}")}),
                 ));
             }
@@ -450,42 +316,14 @@ pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<Rtest
     }
     // rotary_wobble: tilt about the two axes perpendicular to C and radial run-out, per harmonic.
     {
-        let per_harmonic = |k: usize| -> Vec<Vec<f64>> {
-            let kf = k as f64;
-            let mut cols = Vec::new();
-            for trig in 0..2 {
-                let w: Vec<f64> = geo
-                    .iter()
-                    .map(|g| {
-                        if trig == 0 {
-                            (kf * g.c_rad).cos()
-                        } else {
-                            (kf * g.c_rad).sin()
-                        }
-                    })
-                    .collect();
-                for axis in [e[0], e[1]] {
-                    let tilt: Vec<Vector3<f64>> = geo
-                        .iter()
-                        .zip(&w)
-                        .map(|(g, &x)| c_carried_rotation(kind, g, axis) * x)
-                        .collect();
-                    let radial: Vec<Vector3<f64>> = geo
-                        .iter()
-                        .zip(&w)
-                        .map(|(g, &x)| c_carried_translation(kind, g, axis) * x)
-                        .collect();
-                    cols.push(stack(&tilt));
-                    cols.push(stack(&radial));
-                }
-            }
-            cols
-        };
         let mut variants = Vec::new();
         for set in [vec![1], vec![2], vec![3], vec![1, 2], vec![1, 2, 3]] {
-            let cols: Vec<Vec<f64>> = set.iter().flat_map(|&k| per_harmonic(k)).collect();
+            let basis = EffectBasis::Wobble {
+                per_revolution: set.clone(),
+                tilt_degree: 0,
+            };
             variants.push(variant(
-                cols,
+                term_columns(RotaryEffect::RotaryWobble, basis),
                 json!({"per_revolution": set, "components": "tilt about two axes ⊥ C, radial run-out"}),
             ));
         }
@@ -496,25 +334,17 @@ pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<Rtest
     }
     // linear_geometry: e_i · P_k(q_j).
     {
-        let scaled_q: Vec<Option<Vec<f64>>> = (0..3)
-            .map(|a| unit_range(&geo.iter().map(|g| g.q[a]).collect::<Vec<f64>>()))
-            .collect();
+        let ranges = linear_ranges(&machine, &data.poses);
         let axis_names = ["X", "Y", "Z"];
         let cols_for = |axes: &[usize], degree: usize| -> Vec<Vec<f64>> {
-            let mut cols = Vec::new();
-            for &a in axes {
-                let Some(x) = &scaled_q[a] else { continue };
-                for k in 1..=degree {
-                    for comp in e {
-                        let v: Vec<Vector3<f64>> =
-                            x.iter().map(|&xi| comp * legendre(k, xi)).collect();
-                        cols.push(stack(&v));
-                    }
-                }
-            }
-            cols
+            let basis = EffectBasis::Linear {
+                axes: axes.to_vec(),
+                degree,
+                range_mm: axes.iter().filter_map(|&a| ranges[a]).collect(),
+            };
+            term_columns(RotaryEffect::LinearGeometry, basis)
         };
-        let moving: Vec<usize> = (0..3).filter(|&a| scaled_q[a].is_some()).collect();
+        let moving: Vec<usize> = (0..3).filter(|&a| ranges[a].is_some()).collect();
         if moving.is_empty() {
             not_applicable.push((
                 RotaryEffect::LinearGeometry,
@@ -1037,6 +867,7 @@ pub fn report_files(d: &RtestDiagnosis, c: &RtestCampaign) -> Vec<(String, Vec<u
 mod tests {
     use super::*;
     use axcomp_kinematics::rotary::{c_circle, k4_path};
+    use axcomp_rtest::effects::{angle_derivative, c_carried_rotation, geometry};
 
     fn observations(kind: MachineKind) -> RtestObservations {
         let m = FiveAxis::new(kind, 250.0);

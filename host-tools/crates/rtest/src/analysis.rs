@@ -4,9 +4,7 @@
 use axcomp_data::{Dataset, Split};
 use serde_json::{Map, Value, json};
 
-use crate::{
-    Fit, RtestData, RtestError, RtestModel, SIGN_CONVENTION, model_displacement, ranges, rms3,
-};
+use crate::{Fit, RtestData, RtestError, RtestModel, SIGN_CONVENTION, ranges, rms3};
 use axcomp_kinematics::rotary::{N_LOCATION, N_SETUP};
 
 /// Everything `fit rtest` reports.
@@ -33,6 +31,8 @@ pub struct Analysis {
     /// The default's selection in the reported fit (`None`: the full model was asked for).
     pub selection: Option<crate::select::Selection>,
     pub k4: Option<K4Figures>,
+    /// Poses revisited in later runs and their closure drift ([`crate::revisit`]).
+    pub closure: Vec<crate::revisit::Revisit>,
 }
 
 /// ISO 10791-6 K4 figures on the judged rows of the K4 path.
@@ -59,11 +59,12 @@ pub fn k4_rows(data: &RtestData, rows: &[usize]) -> Vec<usize> {
 fn predict_with(fit: &Fit, data: &RtestData, rows: &[usize]) -> Result<Vec<[f64; 3]>, RtestError> {
     rows.iter()
         .map(|&r| {
-            Ok(model_displacement(
-                &data.machine,
+            Ok(crate::displacement_with(
+                data,
                 &data.poses[r],
                 data.setup[r],
                 &fit.theta,
+                &fit.effects,
             ))
         })
         .collect()
@@ -213,13 +214,44 @@ pub fn analyse_selected(
     shared: Option<&crate::SharedError>,
     select: bool,
 ) -> Result<Analysis, RtestError> {
+    analyse_effects(
+        ds,
+        data,
+        split,
+        opts,
+        shared,
+        select,
+        &crate::effects::EffectSet::default(),
+    )
+}
+
+/// [`analyse_selected`] with effect terms in the model (`fit rtest --effects`). With effects the full
+/// location-error model is fitted alongside them (no do-no-harm selection: it guards against effects the
+/// model does not hold, and the named ones are now held); the reports' "full model" is then the
+/// location errors alone, fitted the same way, so that the gain of the effects is shown in the same run.
+pub fn analyse_effects(
+    ds: &Dataset,
+    data: &RtestData,
+    split: Option<&Split>,
+    opts: &crate::FitOptions,
+    shared: Option<&crate::SharedError>,
+    select: bool,
+    effects: &crate::effects::EffectSet,
+) -> Result<Analysis, RtestError> {
+    let with_effects = !effects.is_empty();
+    let select = select && !with_effects;
     let groups = if select { selection_groups(ds)? } else { None };
     let full_fitter = |rows: &[usize]| crate::fit_shared(data, rows, opts, shared);
     let (fit_rows, judged_rows, full_pred, judged_by, full_fit) =
         judge(ds, data, split, &full_fitter)?;
     let full_rms_um = rms3(&residuals(data, &judged_rows, &full_pred));
     let last_selection = std::cell::RefCell::new(None);
-    let (judged_pred, fit, selection) = if select {
+    let (judged_pred, fit, selection) = if with_effects {
+        let eff_fitter =
+            |rows: &[usize]| crate::fit_effects(data, rows, opts, shared, &[], effects);
+        let (_, _, pred, _, f) = judge(ds, data, split, &eff_fitter)?;
+        (pred, f, None)
+    } else if select {
         let sel_fitter = |rows: &[usize]| {
             let (f, s) = crate::select::fit_selected(
                 data,
@@ -288,7 +320,7 @@ pub fn analyse_selected(
     } else {
         None
     };
-    let model = RtestModel::from_fit(data, &fit);
+    let model = RtestModel::from_fit_rows(data, &fit, &fit_rows);
     Ok(Analysis {
         fit,
         model,
@@ -302,6 +334,7 @@ pub fn analyse_selected(
         nominal_setup_rms_um,
         selection,
         k4,
+        closure: crate::revisit::closure(ds, data),
     })
 }
 
@@ -312,7 +345,7 @@ fn xyz(v: [f64; 3]) -> Value {
 impl Analysis {
     /// The contract's JSON.
     pub fn to_json(&self, data: &RtestData) -> Value {
-        let names = data.param_names();
+        let names = crate::param_names_with(data, &self.fit.effects);
         let f = &self.fit;
         let mut le = Map::new();
         for (name, v) in &self.model.location_errors {
@@ -406,6 +439,9 @@ impl Analysis {
                 "robust_std": sel.robust_std.iter().map(|(k, sd, significant)| (names[*k].clone(), json!({ "std": sd, "significant": significant }))).collect::<Map<String, Value>>(),
                 "robust_std_definition": format!("standard uncertainty robust to residuals correlated along a path (cluster-robust over chunks of {} consecutive poses of the full model's fit); significant: |value| ≥ 2 × it. A flag: nothing is fixed by it", crate::select::CHUNK),
             }),
+            None if !f.effects.is_empty() => {
+                json!({ "rule": "--effects: every identifiable location error estimated with the named effects (no do-no-harm selection); full_model_rms_um is the location errors alone", "applied": false })
+            }
             None => {
                 json!({ "rule": "--full-model: every identifiable location error estimated", "applied": false })
             }
@@ -415,6 +451,15 @@ impl Analysis {
             "cv" => out["cv_rms_um"] = json!(self.judged_rms_um),
             _ => {}
         }
+        if !f.effects.is_empty() {
+            out["effects"] = self.effects_json();
+            out["comparison"]["location_errors_only_rms_um"] = json!(self.full_rms_um);
+        }
+        out["closure"] = crate::revisit::closure_json(
+            &self.closure,
+            f.sigma_xyz_um,
+            data.machine.kind.tilt_letter(),
+        );
         out["k4"] = match &self.k4 {
             Some(k) => {
                 let red = |i: usize| 100.0 * (1.0 - k.after_um[i] / k.before_um[i]);
@@ -429,5 +474,29 @@ impl Analysis {
             None => Value::Null,
         };
         out
+    }
+
+    /// The JSON `effects` object: per kind its parameters (value, unit, std, identified, reason), whether
+    /// every parameter is identified, and the RMS of its correction over the fitted poses.
+    fn effects_json(&self) -> Value {
+        let mut out = Map::new();
+        for e in &self.model.effects {
+            let params: Map<String, Value> = e
+                .parameters
+                .iter()
+                .map(|(n, p)| (n.clone(), serde_json::to_value(p).expect("plain data")))
+                .collect();
+            out.insert(
+                e.kind.clone(),
+                json!({
+                    "basis": e.basis,
+                    "parameters": params,
+                    "identified": e.parameters.iter().all(|(_, p)| p.identified),
+                    "identified_count": e.parameters.iter().filter(|(_, p)| p.identified).count(),
+                    "rms_over_fit_um": e.rms_over_fit_um,
+                }),
+            );
+        }
+        Value::Object(out)
     }
 }

@@ -29,8 +29,14 @@
 //!   `u` independent unit variances), `Cov += G·Gᵀ` with `G = (JᵀJ)⁻¹·Jᵀ·B` ([`fit_shared`]).
 
 pub mod analysis;
+pub mod effect_model;
+pub mod effects;
+mod fit;
 pub mod plan;
 pub mod report;
+pub mod revisit;
+
+pub use fit::{displacement_with, fit_effects, param_names_with};
 pub mod select;
 
 use axcomp_data::Dataset;
@@ -66,15 +72,18 @@ pub enum RtestError {
     #[error("{at}: {what}")]
     BadValue { at: String, what: String },
     #[error(
-        "{file}: pose repeated with conflicting readings at lines {first} and {second} (same commanded position and angles in {group}; mark genuine repeats with distinct `run` values)"
+        "{file}: pose repeated with {what} at lines {first} and {second} (same commanded position and angles in {group}; a genuine repeat or a revisit is a further run of its path: give it another `run` value)"
     )]
-    ConflictingPose {
+    RepeatedPose {
         file: String,
         first: usize,
         second: usize,
+        what: &'static str,
         group: String,
     },
-    #[error("{file}: path `{path}` has a single pose (line {line}); a path needs at least two")]
+    #[error(
+        "{file}: path `{path}` has a single pose (line {line}) over all its runs; a path needs at least two (a revisited pose is a further run of the path it was first measured on: same `path`, another `run`)"
+    )]
     SinglePosePath {
         file: String,
         path: String,
@@ -125,7 +134,7 @@ fn finite_column(ds: &Dataset, col: &str) -> Result<Vec<f64>, RtestError> {
 
 impl RtestData {
     /// Reads the contract's R-test columns from `ds` for `machine`. With `need_readings`, `dx_um`, `dy_um`,
-    /// `dz_um` are required and checked (conflicting repeats, single-pose paths).
+    /// `dz_um` are required and checked (repeats within a run, single-pose paths: [`revisit`]).
     pub fn from_dataset(
         ds: &Dataset,
         machine: FiveAxis,
@@ -247,62 +256,9 @@ impl RtestData {
             free_head_zero: false,
         };
         if need_readings {
-            data.check_repeats(&run)?;
+            revisit::check_repeats(&data, &run)?;
         }
         Ok(data)
-    }
-
-    fn check_repeats(&self, run: &[String]) -> Result<(), RtestError> {
-        use std::collections::HashMap;
-        let n = self.poses.len();
-        // Repeats within one (path, run, set-up) group must agree.
-        let mut seen: HashMap<(String, String, usize, [u64; 5]), usize> = HashMap::new();
-        let mut path_count: HashMap<(String, String), (usize, usize)> = HashMap::new();
-        #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
-        for i in 0..n {
-            let p = &self.poses[i];
-            let key = [
-                p.p_mm[0].to_bits(),
-                p.p_mm[1].to_bits(),
-                p.p_mm[2].to_bits(),
-                p.tilt_deg.to_bits(),
-                p.c_deg.to_bits(),
-            ];
-            let k = (self.path[i].clone(), run[i].clone(), self.setup[i], key);
-            if let Some(&j) = seen.get(&k) {
-                if self.d_um[j] != self.d_um[i] {
-                    return Err(RtestError::ConflictingPose {
-                        file: self.source.clone(),
-                        first: self.lines[j],
-                        second: self.lines[i],
-                        group: format!(
-                            "path `{}`, run `{}`, set-up `{}`",
-                            self.path[i], run[i], self.setup_names[self.setup[i]]
-                        ),
-                    });
-                }
-            } else {
-                seen.insert(k, i);
-            }
-            let e = path_count
-                .entry((self.path[i].clone(), run[i].clone()))
-                .or_insert((0, i));
-            e.0 += 1;
-        }
-        let mut singles: Vec<_> = path_count.into_iter().filter(|(_, v)| v.0 == 1).collect();
-        singles.sort_by_key(|(_, v)| v.1);
-        if let Some(((path, _), (_, i))) = singles.into_iter().next() {
-            return Err(RtestError::SinglePosePath {
-                file: self.source.clone(),
-                path: if path.is_empty() {
-                    "(the whole file)".into()
-                } else {
-                    path
-                },
-                line: self.lines[i],
-            });
-        }
-        Ok(())
     }
 
     /// Number of parameters: 11 location errors + 6 per set-up.
@@ -421,7 +377,19 @@ pub fn identifiability(
     names: &[String],
     fixed: &[Option<String>],
 ) -> Identifiability {
+    identifiability_ordered(j, names, fixed, j.ncols())
+}
+
+/// [`identifiability`] of a model whose columns from `n_base` on are effect parameters
+/// ([`effects`]): taken after the location errors, and checked for variance inflation like them.
+pub fn identifiability_ordered(
+    j: &DMatrix<f64>,
+    names: &[String],
+    fixed: &[Option<String>],
+    n_base: usize,
+) -> Identifiability {
     let p = j.ncols();
+    let is_setup = |k: usize| (N_LOCATION..n_base).contains(&k);
     let norms: Vec<f64> = (0..p).map(|k| j.column(k).norm()).collect();
     let scaled = |cols: &[usize]| -> DMatrix<f64> {
         let mut m = DMatrix::zeros(j.nrows(), cols.len());
@@ -430,7 +398,10 @@ pub fn identifiability(
         }
         m
     };
-    let order: Vec<usize> = (N_LOCATION..p).chain(PRIORITY.iter().copied()).collect();
+    let order: Vec<usize> = (N_LOCATION..n_base)
+        .chain(PRIORITY.iter().copied())
+        .chain(n_base..p)
+        .collect();
     let mut chosen: Vec<usize> = Vec::new();
     let mut estimated = vec![false; p];
     let mut reasons: Vec<Option<String>> = vec![None; p];
@@ -471,7 +442,7 @@ pub fn identifiability(
             partners.sort_by(|a, b| b.0.total_cmp(&a.0));
             let list: Vec<&str> = partners.iter().map(|p| names[p.1].as_str()).collect();
             for &(_, c) in &partners {
-                if c < N_LOCATION {
+                if !is_setup(c) {
                     absorbs[c].push(names[k].clone());
                 }
             }
@@ -498,7 +469,7 @@ pub fn identifiability(
     if let Some(inv) = (a.transpose() * &a).try_inverse() {
         for (c, &k) in idx.iter().enumerate() {
             let vif = inv[(c, c)];
-            if k >= N_LOCATION || vif <= VIF_LIMIT || !identified[k] {
+            if is_setup(k) || vif <= VIF_LIMIT || !identified[k] {
                 continue;
             }
             let mut partners: Vec<(f64, &str)> = idx
@@ -546,6 +517,9 @@ pub fn identifiability(
 /// The result of one fit.
 #[derive(Debug, Clone)]
 pub struct Fit {
+    /// Effect terms of the model (none for the location-error model alone); their parameters are
+    /// `theta[data.n_params()..]`.
+    pub effects: effects::EffectSet,
     /// All parameters (unidentified ones 0): 11 location errors then set-up offsets.
     pub theta: Vec<f64>,
     /// Standard uncertainty of estimated parameters (`None` for those fixed to 0).
@@ -727,204 +701,14 @@ pub fn fit_fixed(
     shared: Option<&SharedError>,
     fix: &[Option<String>],
 ) -> Result<Fit, RtestError> {
-    if let Some(s) = opts.head_zero_std_um
-        && let Some(v) = s.iter().find(|v| !(v.is_finite() && **v >= 0.0))
-    {
-        return Err(RtestError::BadValue {
-            at: "head zero standard uncertainty".into(),
-            what: format!("{v} µm (need a finite value ≥ 0)"),
-        });
-    }
-    let m = &data.machine;
-    let ns = data.setup_names.len();
-    let p = data.n_params();
-    let names = data.param_names();
-    let poses: Vec<Pose> = rows.iter().map(|&r| data.poses[r]).collect();
-    let setup: Vec<usize> = rows.iter().map(|&r| data.setup[r]).collect();
-    let meas: Vec<[f64; 3]> = rows.iter().map(|&r| data.d_um[r]).collect();
-    let j0 = sensitivity_matrix(m, &poses, &setup, ns);
-    let mut fixed = head_fixed(p, data.free_head_zero);
-    for (k, why) in fix.iter().enumerate().take(N_LOCATION) {
-        if why.is_some() {
-            fixed[k] = why.clone();
-        }
-    }
-    let ident = identifiability(&j0, &names, &fixed);
-    let free: Vec<usize> = (0..p).filter(|&k| ident.estimated[k]).collect();
-    let nobs = 3 * poses.len();
-    if nobs <= free.len() {
-        return Err(RtestError::Fit(format!(
-            "{} readings for {} free parameters: too few poses to fit",
-            nobs,
-            free.len()
-        )));
-    }
-    let residual = |theta: &[f64]| -> DVector<f64> {
-        let mut r = DVector::zeros(nobs);
-        for (i, pose) in poses.iter().enumerate() {
-            let d = model_displacement(m, pose, setup[i], theta);
-            for c in 0..3 {
-                r[3 * i + c] = meas[i][c] - d[c];
-            }
-        }
-        r
-    };
-    let jacobian = |theta: &[f64]| -> DMatrix<f64> {
-        let mut j = DMatrix::zeros(nobs, free.len());
-        let h = 1.0; // 1 µm / 1 µrad: the model is nearly linear, central differences are exact to O(h²θ)
-        for (c, &k) in free.iter().enumerate() {
-            let mut tp = theta.to_vec();
-            let mut tm = theta.to_vec();
-            tp[k] += h;
-            tm[k] -= h;
-            for (i, pose) in poses.iter().enumerate() {
-                if k >= N_LOCATION && (k - N_LOCATION) / N_SETUP != setup[i] {
-                    continue;
-                }
-                let a = model_displacement(m, pose, setup[i], &tp);
-                let b = model_displacement(m, pose, setup[i], &tm);
-                for cc in 0..3 {
-                    j[(3 * i + cc, c)] = (a[cc] - b[cc]) / (2.0 * h);
-                }
-            }
-        }
-        j
-    };
-    let mut theta = vec![0.0; p];
-    let mut r = residual(&theta);
-    let mut cost = r.norm_squared();
-    let mut lambda = 1e-6;
-    let mut iterations = 0;
-    let mut j = jacobian(&theta);
-    for _ in 0..30 {
-        iterations += 1;
-        let jtj = j.transpose() * &j;
-        let jtr = j.transpose() * &r;
-        let mut a = jtj.clone();
-        for d in 0..free.len() {
-            a[(d, d)] += lambda * jtj[(d, d)];
-        }
-        let step = match a.clone().cholesky() {
-            Some(ch) => ch.solve(&jtr),
-            None => a
-                .svd(true, true)
-                .solve(&jtr, 1e-12)
-                .map_err(|e| RtestError::Fit(e.to_string()))?,
-        };
-        let mut trial = theta.clone();
-        for (c, &k) in free.iter().enumerate() {
-            trial[k] += step[c];
-        }
-        let rt = residual(&trial);
-        let ct = rt.norm_squared();
-        if ct <= cost {
-            let done = cost - ct <= 1e-12 * cost.max(1e-30) || step.norm() < 1e-9;
-            theta = trial;
-            r = rt;
-            cost = ct;
-            lambda = (lambda / 10.0).max(1e-12);
-            if done {
-                break;
-            }
-            j = jacobian(&theta);
-        } else {
-            lambda *= 10.0;
-            if lambda > 1e8 {
-                break;
-            }
-        }
-    }
-    let dof = (nobs - free.len()) as f64;
-    let sigma = (cost / dof).sqrt();
-    let jtj = j.transpose() * &j;
-    let inv = jtj
-        .clone()
-        .try_inverse()
-        .or_else(|| jtj.pseudo_inverse(1e-12).ok())
-        .ok_or_else(|| RtestError::Fit("singular normal matrix".into()))?;
-    // Per-component residual variance (the three components come from different sensors, or from different
-    // parts of a probed sphere): σ̂_c² = RSS_c / (n − p/3), and Cov = (JᵀJ)⁻¹·JᵀWJ·(JᵀJ)⁻¹ with
-    // W = diag(σ̂_c²) — equal to σ̂²(JᵀJ)⁻¹ when the three are alike.
-    let n_poses = poses.len() as f64;
-    let dof_c = n_poses - free.len() as f64 / 3.0;
-    let mut sigma_xyz = [0.0; 3];
-    for (c, sc) in sigma_xyz.iter_mut().enumerate() {
-        let rss: f64 = (0..poses.len()).map(|i| r[3 * i + c].powi(2)).sum();
-        *sc = (rss / dof_c).sqrt();
-    }
-    let mut jw = j.clone();
-    for (row, mut v) in jw.row_iter_mut().enumerate() {
-        v *= sigma_xyz[row % 3].powi(2);
-    }
-    let mut cov = &inv * (j.transpose() * jw) * &inv;
-    let head_zero = opts.head_zero_std_um.filter(|_| !data.free_head_zero);
-    if let Some(s) = head_zero {
-        // J_h: the readings' change per µm of the head zero (one offset for every row, whatever its set-up).
-        let mut jh = DMatrix::zeros(nobs, 3);
-        for (i, pose) in poses.iter().enumerate() {
-            for c in 0..3 {
-                let k = N_LOCATION + N_SETUP * setup[i] + 3 + c;
-                let mut tp = theta.clone();
-                let mut tm = theta.clone();
-                tp[k] += 1.0;
-                tm[k] -= 1.0;
-                let a = model_displacement(m, pose, setup[i], &tp);
-                let b = model_displacement(m, pose, setup[i], &tm);
-                for cc in 0..3 {
-                    jh[(3 * i + cc, c)] = (a[cc] - b[cc]) / 2.0;
-                }
-            }
-        }
-        let g = &inv * (j.transpose() * jh);
-        let sh = DMatrix::from_diagonal(&DVector::from_iterator(3, s.iter().map(|v| v * v)));
-        cov += &g * sh * g.transpose();
-    }
-    let zero = if let Some(s) = head_zero {
-        ZeroUncertainty::Given(s)
-    } else if let Some(sh) = shared {
-        let k = sh.components.len();
-        let mut b = DMatrix::zeros(nobs, k);
-        for (i, &row) in rows.iter().enumerate() {
-            for (kk, l) in sh.loadings_um[row].iter().enumerate() {
-                for c in 0..3 {
-                    b[(3 * i + c, kk)] = l[c];
-                }
-            }
-        }
-        let g = &inv * (j.transpose() * b);
-        cov += &g * g.transpose();
-        ZeroUncertainty::Columns(sh.components.clone())
-    } else if data.free_head_zero {
-        ZeroUncertainty::Estimated
-    } else {
-        ZeroUncertainty::Exact
-    };
-    let mut std = vec![None; p];
-    for (c, &k) in free.iter().enumerate() {
-        std[k] = Some(cov[(c, c)].max(0.0).sqrt());
-    }
-    let mut correlations = Vec::new();
-    for a in 0..free.len() {
-        for b in a + 1..free.len() {
-            let rr = cov[(a, b)] / (cov[(a, a)] * cov[(b, b)]).sqrt();
-            if rr.abs() > 0.9 {
-                correlations.push((free[a], free[b], rr));
-            }
-        }
-    }
-    let pred_rms = (cost / nobs as f64).sqrt();
-    Ok(Fit {
-        theta,
-        std,
-        ident,
-        correlations,
-        fit_rms_um: pred_rms,
-        sigma_um: sigma,
-        sigma_xyz_um: sigma_xyz,
-        iterations,
-        head_zero_std_um: head_zero,
-        zero_uncertainty: zero,
-    })
+    fit::fit_effects(
+        data,
+        rows,
+        opts,
+        shared,
+        fix,
+        &effects::EffectSet::default(),
+    )
 }
 
 /// One location error in the JSON / model file.
@@ -950,6 +734,9 @@ pub struct RtestModel {
     /// Set-up offsets (µm) by set-up name: sphere dx, dy, dz, then R-test head dx, dy, dz.
     pub setup_offsets_um: Vec<(String, SetupOffsets)>,
     pub sign_convention: String,
+    /// Effect terms added by `fit rtest --effects` (absent without), read by name.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<effect_model::EffectModel>,
 }
 
 /// The sign convention, stated in the JSON, the model file and the report.
@@ -981,6 +768,7 @@ impl RtestModel {
         if m.setup_offsets_um.is_empty() {
             return Err(bad("setup_offsets_um: no set-up".into()));
         }
+        effect_model::read(m.machine, &m.effects).map_err(&bad)?;
         for (i, (name, v)) in m.setup_offsets_um.iter().enumerate() {
             if m.setup_offsets_um[..i].iter().any(|(n, _)| n == name) {
                 return Err(bad(format!(
@@ -1053,8 +841,14 @@ fn location_by_name(
 }
 
 impl RtestModel {
-    /// From a fit.
+    /// From a fit on every row of `data`.
     pub fn from_fit(data: &RtestData, f: &Fit) -> RtestModel {
+        let all: Vec<usize> = (0..data.poses.len()).collect();
+        Self::from_fit_rows(data, f, &all)
+    }
+
+    /// From a fit on `fit_rows` (over which each effect's correction RMS is taken).
+    pub fn from_fit_rows(data: &RtestData, f: &Fit, fit_rows: &[usize]) -> RtestModel {
         let names = data.param_names();
         let location_errors = (0..N_LOCATION)
             .map(|k| {
@@ -1083,6 +877,7 @@ impl RtestModel {
             location_errors,
             setup_offsets_um,
             sign_convention: SIGN_CONVENTION.into(),
+            effects: effect_model::from_fit(data, f, fit_rows),
         }
     }
 
@@ -1100,10 +895,33 @@ impl RtestModel {
         le
     }
 
-    /// Predicted displacement (µm) at `pose` with the set-up offsets `setup_um`.
+    /// The effect terms and their values (signature order); the file was checked by [`Self::from_json`].
+    pub fn effect_set(&self) -> (effects::EffectSet, Vec<f64>) {
+        effect_model::read(self.machine, &self.effects).unwrap_or_default()
+    }
+
+    /// Predicted displacement (µm) at `pose` with the set-up offsets `setup_um` (location errors and the
+    /// effects).
     pub fn predict(&self, pose: &Pose, setup_um: SetupOffsets) -> [f64; 3] {
-        self.five_axis()
-            .displacement(pose, &self.location(), setup_um)
+        let (set, values) = self.effect_set();
+        self.predict_with(pose, setup_um, &set, &values)
+    }
+
+    fn predict_with(
+        &self,
+        pose: &Pose,
+        setup_um: SetupOffsets,
+        set: &effects::EffectSet,
+        values: &[f64],
+    ) -> [f64; 3] {
+        let m = self.five_axis();
+        let le = self.location();
+        let mut d = m.displacement(pose, &le, setup_um);
+        let e = set.displacement(&m, pose, &le, setup_um, values);
+        for c in 0..3 {
+            d[c] += e[c];
+        }
+        d
     }
 }
 
@@ -1129,6 +947,8 @@ pub fn predict_rows(model: &RtestModel, ds: &Dataset) -> Result<Vec<[f64; 3]>, R
             ),
         });
     }
+    let (set, values) = model.effect_set();
+    effects_cover(model, &set, &data, ds)?;
     let mut out = Vec::with_capacity(data.poses.len());
     for (i, pose) in data.poses.iter().enumerate() {
         let setup = if model.setup_offsets_um.len() == 1 && !ds.has("setup") {
@@ -1145,9 +965,43 @@ pub fn predict_rows(model: &RtestModel, ds: &Dataset) -> Result<Vec<[f64; 3]>, R
                     what: format!("set-up `{name}` is not one the model was fitted on"),
                 })?
         };
-        out.push(model.predict(pose, setup));
+        out.push(model.predict_with(pose, setup, &set, &values));
     }
     Ok(out)
+}
+
+/// A row whose linear axes lie outside the range a `linear_geometry` term was fitted over is an error
+/// naming the row: the polynomial would extrapolate (contract: a row outside the model's stroke).
+fn effects_cover(
+    model: &RtestModel,
+    set: &effects::EffectSet,
+    data: &RtestData,
+    ds: &Dataset,
+) -> Result<(), RtestError> {
+    for t in &set.terms {
+        let effects::EffectBasis::Linear { axes, range_mm, .. } = &t.basis else {
+            continue;
+        };
+        for (i, pose) in data.poses.iter().enumerate() {
+            let q = model.five_axis().linear_positions(pose);
+            for (&a, r) in axes.iter().zip(range_mm) {
+                let slack = 1e-6 * (r[1] - r[0]);
+                if q[a] < r[0] - slack || q[a] > r[1] + slack {
+                    return Err(RtestError::BadValue {
+                        at: format!("{} line {}", ds.source(), ds.line_of_row(i)),
+                        what: format!(
+                            "the {} axis sits at {:.3} mm, outside the range {:.3}…{:.3} mm the model's linear_geometry was fitted over (it would extrapolate)",
+                            ["X", "Y", "Z"][a],
+                            q[a],
+                            r[0],
+                            r[1]
+                        ),
+                    });
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// ISO 10791-6 figures: range (max − min) of each displacement component, µm.

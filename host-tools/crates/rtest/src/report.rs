@@ -12,7 +12,7 @@ use crate::{RtestData, SIGN_CONVENTION};
 /// Report files: name and contents. Nothing is written here; the caller writes them all or none.
 pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
     let mut files = Vec::new();
-    let names = data.param_names();
+    let names = crate::param_names_with(data, &a.fit.effects);
     let idx: Vec<f64> = (0..a.judged_rows.len()).map(|i| i as f64).collect();
     let judged = match a.judged_by {
         "holdout" => "held-out rows (prediction from the fit on the other rows)",
@@ -171,9 +171,92 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
             &[r(0), r(1), r(2)],
         ));
     }
+    effects_section(&mut md, a);
+    closure_section(&mut md, a, data);
     md.push_str("\n![dx](path_dx.svg)\n![dy](path_dy.svg)\n![dz](path_dz.svg)\n![rotary range](rotary_range.svg)\n");
     files.push(("report.md".into(), md));
     files
+}
+
+/// The effect terms of `--effects`, when there are any.
+fn effects_section(md: &mut String, a: &Analysis) {
+    for e in &a.model.effects {
+        md.push_str(&format!(
+            "\nEffect `{}` ({:?}): correction RMS {:.3} µm over the fitted poses; {} RMS with the location errors alone {:.3} µm, with the effect {:.3} µm.\n\n",
+            e.kind, e.basis, e.rms_over_fit_um, a.judged_by, a.full_rms_um, a.judged_rms_um
+        ));
+        let rows: Vec<Vec<String>> = e
+            .parameters
+            .iter()
+            .map(|(n, v)| {
+                vec![
+                    n.clone(),
+                    format!("{:.3}", v.value),
+                    v.unit.clone(),
+                    v.std.map_or("–".into(), |s| format!("{s:.3}")),
+                    if v.identified {
+                        "yes".into()
+                    } else {
+                        "**no**".into()
+                    },
+                    v.reason.clone().unwrap_or_default(),
+                ]
+            })
+            .collect();
+        md.push_str(&markdown_table(
+            &["parameter", "value", "unit", "std", "identified", "reason"],
+            &rows,
+        ));
+    }
+}
+
+/// The closure drift of revisited poses ([`crate::revisit`]), when there are any.
+fn closure_section(md: &mut String, a: &Analysis, data: &RtestData) {
+    if a.closure.is_empty() {
+        return;
+    }
+    let tilt = data.machine.kind.tilt_letter().to_ascii_uppercase();
+    md.push_str(&format!(
+        "\nClosure (poses revisited in a later run; last visit − first visit, µm; the model cancels at one \
+         pose, so this is drift plus noise: about {:.3} µm per component without drift, √2 σ̂; what \
+         `setup_drift`, `thermal_drift`, `time_drift` look at):\n\n",
+        std::f64::consts::SQRT_2 * a.fit.sigma_um
+    ));
+    let rows: Vec<Vec<String>> = a
+        .closure
+        .iter()
+        .map(|r| {
+            vec![
+                format!(
+                    "x {} y {} z {} {tilt} {} C {}",
+                    r.pose[0], r.pose[1], r.pose[2], r.pose[3], r.pose[4]
+                ),
+                r.setup.clone(),
+                format!(
+                    "{} (line {}) → {} (line {})",
+                    r.first.run, r.first.line, r.last.run, r.last.line
+                ),
+                r.elapsed_s.map_or("–".into(), |t| format!("{t:.0}")),
+                format!("{:.3}", r.drift_um[0]),
+                format!("{:.3}", r.drift_um[1]),
+                format!("{:.3}", r.drift_um[2]),
+                format!("{:.3}", r.magnitude_um),
+            ]
+        })
+        .collect();
+    md.push_str(&markdown_table(
+        &[
+            "pose",
+            "set-up",
+            "runs",
+            "elapsed s",
+            "dx",
+            "dy",
+            "dz",
+            "|d|",
+        ],
+        &rows,
+    ));
 }
 
 /// Writes the report files into `dir` (each atomically; the directory is created).

@@ -8,7 +8,9 @@
 //! - **effects beyond** ([`FiveAxisEffects`], each switchable, all off by default), added to first order on
 //!   top of the exact location-error model: `rotary_positioning` (angular positioning error of C,
 //!   1×+2× per turn, 5–20 µrad, and of the tilt axis, proportional to the tilt, 10–40 µrad/rad),
-//!   `rotary_wobble` (tilt of C turning twice per turn, 3–10 µrad), `radial_runout` (radial motion of C twice
+//!   `rotary_wobble` (tilt of C turning twice per turn, 3–10 µrad), `tilt_wobble` (the tilt axis A or B
+//!   tilting about its two perpendicular axes as it turns, `a·(sin(t + φ) − sin φ)` with a 10–30 µrad:
+//!   a `rotary_wobble` in the contract's vocabulary), `radial_runout` (radial motion of C twice
 //!   per turn, 0.5–2 µm), `linear_geometry` (X positioning 5–15 µm/m, straightness EYX and EZY 1–3 µm
 //!   half-sines over ±300 mm), `thermal_drift` (tool point drifting 1–4 µm/h in Z, ±1 µm/h in X),
 //!   `setup_drift` (sphere drifting 1–3 µm/h per axis in the table frame), `time_drift` (tool point
@@ -34,6 +36,8 @@ use rand_distr::{Distribution, Normal};
 pub struct FiveAxisEffects {
     pub rotary_positioning: bool,
     pub rotary_wobble: bool,
+    /// The tilt axis (A or B) tilting about its two perpendicular axes as it turns (a `rotary_wobble`).
+    pub tilt_wobble: bool,
     pub radial_runout: bool,
     pub linear_geometry: bool,
     pub thermal_drift: bool,
@@ -48,6 +52,7 @@ impl FiveAxisEffects {
         Self {
             rotary_positioning: true,
             rotary_wobble: true,
+            tilt_wobble: false,
             radial_runout: true,
             linear_geometry: true,
             thermal_drift: true,
@@ -58,9 +63,10 @@ impl FiveAxisEffects {
 
     /// Effect names (the contract's candidate kinds for R-test data; `radial_runout` belongs to
     /// `rotary_wobble` there).
-    pub const NAMES: [&'static str; 7] = [
+    pub const NAMES: [&'static str; 8] = [
         "rotary_positioning",
         "rotary_wobble",
+        "tilt_wobble",
         "radial_runout",
         "linear_geometry",
         "thermal_drift",
@@ -73,6 +79,7 @@ impl FiveAxisEffects {
         match name {
             "rotary_positioning" => self.rotary_positioning = true,
             "rotary_wobble" => self.rotary_wobble = true,
+            "tilt_wobble" => self.tilt_wobble = true,
             "radial_runout" => self.radial_runout = true,
             "linear_geometry" => self.linear_geometry = true,
             "thermal_drift" => self.thermal_drift = true,
@@ -104,6 +111,9 @@ pub struct EffectParams {
     pub time_um_h: [f64; 3],
     /// Temperature: warm-up rise K, its time constant s, air-conditioning amplitude K, period s, phase rad.
     pub temperature: [f64; 5],
+    /// Tilt-axis wobble: amplitudes (µrad) about the two axes perpendicular to it (A: Y, Z; B: X, Z) and
+    /// their phases (rad): `a_k·(sin(t + φ_k) − sin φ_k)`, zero at tilt 0.
+    pub tilt_wobble: [f64; 4],
 }
 
 /// One planned path.
@@ -185,6 +195,7 @@ impl FiveAxisTwin {
             ],
             time_um_h: [0.0; 3],
             temperature: [0.0; 5],
+            tilt_wobble: [0.0; 4],
         };
         // Drawn from a second stream so that the first stream's values stay those of earlier versions.
         let mut rng2 = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0074_696d_6564);
@@ -196,6 +207,14 @@ impl FiveAxisTwin {
             rng2.gen_range(0.2..0.5),
             rng2.gen_range(720.0..1200.0),
             rng2.gen_range(0.0..tau),
+        ];
+        // A third stream, for the same reason.
+        let mut rng3 = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0074_696c_7477);
+        effect_params.tilt_wobble = [
+            rng3.gen_range(10.0..30.0),
+            rng3.gen_range(10.0..30.0),
+            rng3.gen_range(0.0..tau),
+            rng3.gen_range(0.0..tau),
         ];
         FiveAxisTwin {
             machine,
@@ -301,6 +320,19 @@ impl FiveAxisTwin {
         } else {
             [0.0; 3]
         };
+        // Tilt-axis wobble: a small rotation `wt` (machine frame at zero angles) of what the tilt axis carries.
+        let wt = if e.tilt_wobble {
+            let tw = &q.tilt_wobble;
+            let a = tw[0] * ((t + tw[2]).sin() - tw[2].sin()) * 1e-6;
+            let b = tw[1] * ((t + tw[3]).sin() - tw[3].sin()) * 1e-6;
+            if tilt_axis == 0 {
+                [0.0, a, b]
+            } else {
+                [a, 0.0, b]
+            }
+        } else {
+            [0.0; 3]
+        };
         let (rt, rc) = (rot(tilt_axis, t), rot(2, c));
         let mut extra = [0.0; 3];
         let lin_q = match self.machine.kind {
@@ -308,7 +340,8 @@ impl FiveAxisTwin {
                 let tool = [0.0, 0.0, -self.machine.pivot_mm];
                 let v_b = mul(rt, tool);
                 let v = mul(rc, v_b);
-                let inner = cross([unit[0] * eps_t, unit[1] * eps_t, unit[2] * eps_t], v_b);
+                let w_b = [0, 1, 2].map(|i| unit[i] * eps_t + wt[i]);
+                let inner = cross(w_b, v_b);
                 let rc_inner = mul(rc, inner);
                 let cz = cross([0.0, 0.0, eps_c], v);
                 let wv = cross(w, v);
@@ -325,7 +358,7 @@ impl FiveAxisTwin {
                 let inner = [0, 1, 2].map(|i| cz[i] + wu[i] + r[i]);
                 let outer = mul(rt, inner);
                 let full = mul(rt, u);
-                let tz = cross([unit[0] * eps_t, unit[1] * eps_t, unit[2] * eps_t], full);
+                let tz = cross([0, 1, 2].map(|i| unit[i] * eps_t + wt[i]), full);
                 for i in 0..3 {
                     extra[i] += outer[i] + tz[i];
                 }
