@@ -14,6 +14,7 @@ pub mod fit_probe;
 pub mod fit_rtest;
 pub mod fit_thermal;
 pub mod image;
+pub mod image_board;
 pub mod plan_geometry;
 pub mod plan_rtest;
 pub mod predict;
