@@ -2,6 +2,7 @@
 
 pub mod common;
 pub mod demo;
+pub mod demo_all;
 pub mod diagnose;
 pub mod diagnose_lines;
 pub mod diagnose_probe;
