@@ -89,7 +89,7 @@ fn positioning(seed: u64, files: &mut Vec<(String, Vec<u8>)>) -> anyhow::Result<
     files.push(("positioning_image.bin".into(), image));
     Ok(Row {
         system: "positioning",
-        figure: "deviation RMS, new ISO 230-2 campaign, µm",
+        figure: "deviation RMS, ISO 230-2 campaign, new noise, µm",
         before: campaign_rms(&plain),
         after: campaign_rms(&after),
         firmware: "Compensator::cycle on every move (table image)".into(),
@@ -164,7 +164,7 @@ fn thermo_force(seed: u64, files: &mut Vec<(String, Vec<u8>)>) -> anyhow::Result
     files.push(("thermo_force_image.bin".into(), image));
     Ok(Row {
         system: "thermo-force",
-        figure: "deviation RMS, new warm-up/cool-down campaign, µm",
+        figure: "deviation RMS, warm-up/cool-down campaign, new noise, µm",
         before: campaign_rms(&plain),
         after: campaign_rms(&after),
         firmware: format!(
@@ -425,7 +425,8 @@ fn probe(seed: u64, dir: &Path, files: &mut Vec<(String, Vec<u8>)>) -> anyhow::R
     })
 }
 
-/// The files `demo --all` writes into `--out`.
+/// Runs every chain, prints one row per system and writes the report folder `out` whole
+/// (`demo_all.json`, `report.md`, each chain's data and image).
 pub fn run_all(out: &Path, seed: u64) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let mut set = OutputSet::new();

@@ -1047,7 +1047,8 @@ fn parse_tool_offset(arg: &str) -> anyhow::Result<[f64; 3]> {
 #[derive(Debug, clap::Args)]
 pub struct GroupArgs {
     /// One axis, in slot order (1 to 5 times): `NAME=IMAGE` for a linear axis (X, Y, Z),
-    /// `NAME:COUNTS_PER_REV=IMAGE` for a rotary one (A, B, C); IMAGE from `image build`.
+    /// `NAME:COUNTS_PER_REV=IMAGE` for a rotary one (A, B, C); IMAGE from `image build` (every axis
+    /// needs one: `image build --identity` for an axis without correction of its own).
     #[arg(long = "axis", value_name = "NAME[:CPR]=IMAGE", required = true)]
     pub axes: Vec<String>,
     /// Sensor names of an axis, one per sensor of its image: `NAME=first,second,...`.

@@ -102,8 +102,23 @@ pub fn board_refusals(image: &[u8], inputs: &[(String, InputUnit)]) -> Vec<Strin
         Err(_) => {}
         Ok(_) => {
             let mut engine = Box::new(GroupEngine::<{ stm32g474::POOL }>::new());
-            if let Err(e) = engine.load_image(image) {
-                out.push(ImageRefusal::Group(e).to_string());
+            if let Err(mut e) = engine.load_image(image) {
+                // A schema-1 image names no axis (the core presents it as X): say its id instead.
+                let id = view
+                    .axes()
+                    .next()
+                    .and_then(|a| inspect_image(a.axis.image).ok());
+                match id {
+                    Some(info) if schema1 => {
+                        e.axis = None;
+                        out.push(format!(
+                            "axis id {}: {}",
+                            info.axis_id,
+                            ImageRefusal::Group(e)
+                        ));
+                    }
+                    _ => out.push(ImageRefusal::Group(e).to_string()),
+                }
             }
         }
     }
