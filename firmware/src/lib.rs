@@ -22,6 +22,7 @@
 #[macro_use]
 mod fmt;
 
+pub mod board_caps;
 pub mod control;
 pub mod drive;
 pub mod max31865;

@@ -14,7 +14,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 #[allow(clippy::large_enum_variant)] // parsed once per process; boxing would only add noise
 pub enum Command {
-    /// Simulate an axis, measure it (ISO 230-2), fit a table, build the firmware image, replay it and print before/after figures.
+    /// The whole loop on the twin in seconds: simulate, measure, fit, build the firmware image, apply it through the firmware library, print before/after; one linear axis, or with --all every system (positioning, thermo-force, three-axis geometry, five-axis rotary, touch probe).
     Demo(commands::demo::Args),
     /// Fit a compensation model from measurements.
     #[command(subcommand)]

@@ -200,3 +200,53 @@ fn closed_standard_output_stops_quietly() {
     assert_eq!(o.status.code(), Some(141), "{err}");
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// `demo --all`: five rows, one per system, each with its before/after figure on data the fit never
+/// saw; every chain but the probe's goes through the firmware library and gets smaller; the probe's
+/// row says its calibration has no firmware stage; the report folder is written whole.
+#[test]
+fn demo_all_prints_a_row_per_system() {
+    let dir = scratch("all");
+    let o = Command::new(env!("CARGO_BIN_EXE_axcomp"))
+        .args(["demo", "--all", "--out", "rep"])
+        .current_dir(&dir)
+        .output()
+        .expect("running axcomp demo --all");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "demo --all failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("rep/demo_all.json")).unwrap())
+            .unwrap();
+    let rows = j["systems"].as_array().unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r["system"].as_str().unwrap()).collect();
+    assert_eq!(
+        names,
+        [
+            "positioning",
+            "thermo-force",
+            "three-axis geometry",
+            "five-axis rotary",
+            "touch probe"
+        ]
+    );
+    for r in rows {
+        let name = r["system"].as_str().unwrap();
+        assert!(
+            stdout.lines().any(|l| l.starts_with(name)),
+            "{name}:\n{stdout}"
+        );
+        let (b, a) = (r["before"].as_f64().unwrap(), r["after"].as_f64().unwrap());
+        // Reference: the uncompensated figure on the same unseen data; the compensated one must be
+        // smaller (each chain's own tests bound it more tightly).
+        assert!(
+            a.is_finite() && b.is_finite() && a < b,
+            "{name}: {b} -> {a}"
+        );
+    }
+    assert!(rows[4]["firmware"].as_str().unwrap().starts_with("none"));
+    assert!(dir.join("rep/report.md").exists());
+}

@@ -38,9 +38,8 @@ mod firmware {
     use static_cell::ConstStaticCell;
 
     /// The engine (two compensator slots with their tables) is built by the const constructor in the static.
-    /// Table segments of the group (per A/B slot, shared by its axes): 2 × 2048 × 16 B = 64 KiB, as the
-    /// single-axis engine's two 1024-segment bidirectional slots were.
-    const POOL: usize = 2048;
+    /// Table segments of the group (per A/B slot, shared by its axes): `stm32g474::POOL`.
+    const POOL: usize = stm32g474::POOL;
     static ENGINE: ConstStaticCell<GroupEngine<POOL>> = ConstStaticCell::new(GroupEngine::new());
     /// Temperature readings from the sensor task to the control loop (applied between two cycles).
     static READINGS: Channel<CriticalSectionRawMutex, Temperatures, 2> = Channel::new();

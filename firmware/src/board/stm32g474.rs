@@ -48,40 +48,17 @@ use static_cell::{ConstStaticCell, StaticCell};
 
 use crate::control::CycleClock;
 use crate::drive::probe::{CapturedEdge, ProbeIo};
-use crate::drive::{BoardCaps, DriveIo, ResetCause, Watchdog};
+use crate::drive::{DriveIo, ResetCause, Watchdog};
 use crate::max31865::{Max31865, SettingsBuilder};
 use crate::probe_capture::{CaptureQueue, CaptureReading};
 
 /// Core clock after [`config`]: HSI16 → PLL → 170 MHz.
 pub const CORE_CLOCK_HZ: u32 = 170_000_000;
-/// Number of RTD channels wired on this board.
-pub const RTD_COUNT: usize = 2;
-/// Scale inputs (timers in encoder mode) wired on this board.
-pub const SCALE_INPUTS: usize = 3;
-/// Axis id of each scale input (and its position in the setpoint frame): set them to the machine's.
-pub const AXIS_IDS: [u16; SCALE_INPUTS] = [1, 2, 3];
-/// What this board has: every image is checked against it before it is applied.
-pub const CAPS: BoardCaps = BoardCaps {
-    counter_bits: 16,
-    axis_ids: &AXIS_IDS,
-    sensors: RTD_COUNT as u16,
+// What the board has (RTDs, scale inputs, axis ids, caps, named sensor inputs, pool): in the portable
+// `crate::board_caps`, so that the host checks images against the same values with the same code.
+pub use crate::board_caps::stm32g474::{
+    AXIS_IDS, CAPS, POOL, RTD_COUNT, SCALE_INPUTS, SENSOR_INPUTS,
 };
-/// The board's sensor inputs by name and unit, in reading order (RTD on chip select PB0, PB1): an
-/// image's sensors are wired to them by name at load, and a sensor none of them can feed (e.g. a
-/// `warmup` input: this board has no drive-enable input wired) is refused
-/// ([`crate::drive::ImageRefusal::SensorNotOnBoard`]). Like [`AXIS_IDS`], name them after what is
-/// wired on the machine (the replays name them `spindle`, `column`:
-/// [`crate::drive::link_trace::REPLAY_SENSOR_INPUTS`]).
-pub const SENSOR_INPUTS: [axcomp_core::wiring::BoardInput<'static>; RTD_COUNT] = [
-    axcomp_core::wiring::BoardInput {
-        name: "rtd0",
-        unit: axcomp_core::wiring::InputUnit::DegC,
-    },
-    axcomp_core::wiring::BoardInput {
-        name: "rtd1",
-        unit: axcomp_core::wiring::InputUnit::DegC,
-    },
-];
 /// Setpoint link rate (see the link budget in [`crate::setpoint`]).
 pub const LINK_BAUD: u32 = 2_000_000;
 /// Watchdog timeout: 100 cycles at 10 kHz.

@@ -34,12 +34,18 @@ use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Directory for the report, plots, measurement CSVs, table and image.
-    #[arg(long, value_name = "DIR", default_value = "axcomp-demo")]
-    pub out: PathBuf,
+    /// Directory for the report, plots, measurement CSVs, table and image (written whole) [default:
+    /// axcomp-demo, with --all axcomp-demo-all].
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
     /// Seed of the simulated measurement noise (the compensated campaign uses seed + 1).
     #[arg(long, default_value_t = 2)]
     pub seed: u64,
+    /// Every system's chain on the twin (positioning, thermo-force, three-axis geometry, five-axis
+    /// rotary, touch probe): measure → fit → image → the firmware library applies it → before/after on
+    /// data the fit never saw; one row per system.
+    #[arg(long)]
+    pub all: bool,
 }
 
 /// One evaluated campaign.
@@ -67,7 +73,7 @@ fn evaluate(name: &str, campaign: Campaign) -> anyhow::Result<Evaluated> {
     })
 }
 
-fn observations(ds: &Dataset) -> anyhow::Result<Vec<Observation>> {
+pub(crate) fn observations(ds: &Dataset) -> anyhow::Result<Vec<Observation>> {
     let x = ds.numeric("target_mm")?;
     let d = ds.numeric("deviation_um")?;
     let r = ds.numeric("run")?;
@@ -264,8 +270,15 @@ fn closed_loop_trace(
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.all {
+        let out = args.out.unwrap_or_else(super::demo_all::default_out);
+        return super::demo_all::run_all(&out, args.seed);
+    }
     let t0 = Instant::now();
-    let out = &args.out;
+    let out = &args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("axcomp-demo"));
     let mut files = Outputs::new(out)?;
 
     // 1. The twin and its ISO 230-2 campaign.

@@ -50,6 +50,11 @@ pub struct BuildArgs {
     /// Thermo-force model (JSON from `fit thermal --out`).
     #[arg(long, value_name = "MODEL.json")]
     pub thermal: Option<PathBuf>,
+    /// An image with no table and no thermo-force term (only the limits): the axis of a group that has
+    /// no correction of its own (`image group` needs an image for every axis; its geometric or rotary
+    /// stage may still correct it). The firmware applies zero correction to it.
+    #[arg(long, conflicts_with_all = ["table", "thermal", "sensor_input"])]
+    pub identity: bool,
     /// Axis id stored in the image (the firmware refuses an image for another axis).
     #[arg(long, value_name = "N")]
     pub axis_id: u16,
@@ -79,6 +84,11 @@ pub struct BuildArgs {
     /// `rtd0`, `rtd1`, °C).
     #[arg(long = "sensor-input", value_name = "SENSOR=INPUT")]
     pub sensor_input: Vec<String>,
+    /// The board's sensor inputs in reading order, `NAME:UNIT,...` (UNIT `degC` or `warmup`), for the
+    /// check of what the board would refuse (warned, the image is still written). Default: the
+    /// STM32G474 board's.
+    #[arg(long, value_name = "LIST", default_value_t = super::image_board::default_board_inputs())]
+    pub board_inputs: String,
 }
 
 #[derive(Debug, clap::Args)]
@@ -87,18 +97,18 @@ pub struct InspectArgs {
     #[arg(value_name = "IMAGE")]
     pub image: PathBuf,
     /// The board's sensor inputs in reading order, `NAME:UNIT,...` (UNIT `degC` or `warmup`), to show
-    /// which input feeds each sensor. Default: the STM32G474 board's.
-    #[arg(long, value_name = "LIST", default_value = BOARD_INPUTS_STM32G474)]
+    /// which input feeds each sensor and what the board would refuse. Default: the STM32G474 board's
+    /// (`axcomp_firmware::board_caps::stm32g474::SENSOR_INPUTS`).
+    #[arg(long, value_name = "LIST", default_value_t = super::image_board::default_board_inputs())]
     pub board_inputs: String,
 }
 
-/// The STM32G474 board's sensor inputs (`firmware/src/board/stm32g474.rs`, `SENSOR_INPUTS`).
-pub const BOARD_INPUTS_STM32G474: &str = "rtd0:degC,rtd1:degC";
-
 /// Builds the image bytes from the table/model files (validated; nothing is written here).
 pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
-    if args.table.is_none() && args.thermal.is_none() {
-        anyhow::bail!("image build: give --table and/or --thermal");
+    if args.table.is_none() && args.thermal.is_none() && !args.identity {
+        anyhow::bail!(
+            "image build: give --table and/or --thermal, or --identity for an axis without correction"
+        );
     }
     if !(args.um_per_count.is_finite() && args.um_per_count > 0.0) {
         anyhow::bail!(
@@ -122,16 +132,21 @@ pub fn build_bytes(args: &BuildArgs) -> anyhow::Result<Vec<u8>> {
             let m = ThermalModelFile::load(p)
                 .with_context(|| format!("reading thermal model {}", p.display()))?;
             model_sensors = m.sensors.iter().map(|s| s.name.clone()).collect();
-            // The firmware takes |b0| ≤ 1e5 µm (`axcomp_core` image check): a larger intercept is a model
-            // of an absolute position (e.g. a homing position), not of a deviation.
-            if m.b0_um.is_nan() || m.b0_um.abs() > 1.0e5 {
-                anyhow::bail!(
-                    "{}: the model's intercept b0 = {} µm is beyond the firmware's ±100000 µm: its target is \
-                     an absolute position, not a deviation; fit it with --zero-at-start N (the change since \
-                     the start)",
-                    p.display(),
-                    m.b0_um
-                );
+            // What the firmware's image check refuses of the model alone (e.g. an absolute b0).
+            // (Any other value out of range: `spec_error` names its range below.)
+            if let Some((e, why)) = super::image_board::thermal_model_refusal(&m) {
+                if matches!(
+                    e,
+                    axcomp_core::ImageError::OutOfRange {
+                        field: axcomp_core::Field::B0,
+                        ..
+                    } | axcomp_core::ImageError::NonFinite {
+                        field: axcomp_core::Field::B0,
+                        ..
+                    }
+                ) {
+                    anyhow::bail!("{}: {why}", p.display());
+                }
             }
             Some(m.to_core())
         }
@@ -356,6 +371,7 @@ pub fn build(args: BuildArgs) -> anyhow::Result<()> {
         outputs.input(p);
     }
     outputs.check()?;
+    let board = parse_board_inputs(&args.board_inputs)?;
     let bytes = build_bytes(&args)?;
     // Check what was built loads, before writing it.
     let mut comp = Compensator::IDENTITY;
@@ -364,20 +380,32 @@ pub fn build(args: BuildArgs) -> anyhow::Result<()> {
     outputs.file(&args.out, bytes.as_slice());
     outputs.commit()?;
     let info = inspect_image(&bytes)?;
+    let table = match (info.n_segments, info.bidirectional) {
+        (0, _) => "no table".to_string(),
+        (n, true) => format!("{n} segments per direction"),
+        (n, false) => format!("{n} segments"),
+    };
     println!(
-        "wrote {} ({} bytes, axis {}, {} segments{}, thermo: {}, CRC-32 {:08x})",
+        "wrote {} ({} bytes, axis id {}, {table}, thermo: {}{}, CRC-32 {:08x})",
         args.out.display(),
         info.len,
         info.axis_id,
-        info.n_segments,
-        if info.bidirectional {
-            " per direction"
+        if info.has_thermo { "yes" } else { "no" },
+        if args.identity {
+            "; identity: the firmware applies no correction to this axis"
         } else {
             ""
         },
-        if info.has_thermo { "yes" } else { "no" },
         info.crc
     );
+    let refusals = super::image_board::board_refusals(&bytes, &board);
+    for r in &refusals {
+        eprintln!(
+            "axcomp: warning: {}: the {} board would refuse this image: {r}",
+            args.out.display(),
+            super::image_board::BOARD_NAME
+        );
+    }
     Ok(())
 }
 
@@ -510,6 +538,8 @@ pub fn inspect(args: InspectArgs) -> anyhow::Result<()> {
         describe_any(&bytes).with_context(|| format!("{}: invalid image", args.image.display()))?;
     print!("{text}");
     print!("{}", describe_trust(&bytes, &board)?);
+    let refusals = super::image_board::board_refusals(&bytes, &board);
+    print!("{}", super::image_board::describe_refusals(&refusals));
     Ok(())
 }
 
@@ -591,9 +621,12 @@ pub fn describe_trust(bytes: &[u8], board: &[(String, InputUnit)]) -> anyhow::Re
         let wiring = axcomp_core::wiring::wire_axis(a, n, &inputs);
         writeln!(
             s,
-            "axis {} (id {}) sensors ({}): {}",
-            a.axis.name.letter(),
-            inspect_image(a.axis.image)?.axis_id,
+            "{} sensors ({}): {}",
+            super::image_board::axis_label(
+                view.version == 1,
+                a.axis.name,
+                inspect_image(a.axis.image)?.axis_id
+            ),
             if named {
                 "wired by name"
             } else {
@@ -1014,7 +1047,8 @@ fn parse_tool_offset(arg: &str) -> anyhow::Result<[f64; 3]> {
 #[derive(Debug, clap::Args)]
 pub struct GroupArgs {
     /// One axis, in slot order (1 to 5 times): `NAME=IMAGE` for a linear axis (X, Y, Z),
-    /// `NAME:COUNTS_PER_REV=IMAGE` for a rotary one (A, B, C); IMAGE from `image build`.
+    /// `NAME:COUNTS_PER_REV=IMAGE` for a rotary one (A, B, C); IMAGE from `image build` (every axis
+    /// needs one: `image build --identity` for an axis without correction of its own).
     #[arg(long = "axis", value_name = "NAME[:CPR]=IMAGE", required = true)]
     pub axes: Vec<String>,
     /// Sensor names of an axis, one per sensor of its image: `NAME=first,second,...`.

@@ -2,6 +2,7 @@
 
 pub mod common;
 pub mod demo;
+pub mod demo_all;
 pub mod diagnose;
 pub mod diagnose_lines;
 pub mod diagnose_probe;
@@ -14,6 +15,7 @@ pub mod fit_probe;
 pub mod fit_rtest;
 pub mod fit_thermal;
 pub mod image;
+pub mod image_board;
 pub mod plan_geometry;
 pub mod plan_rtest;
 pub mod predict;

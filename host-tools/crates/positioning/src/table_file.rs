@@ -101,6 +101,46 @@ impl OwnedTableSpec {
     }
 }
 
+/// A uniform grid on whole counts for a table over `[start, end]` (counts, not necessarily whole) with
+/// knot spacing about `spacing` counts: `(start_counts, segment_counts, segments)`, `None` when a
+/// segment would exceed `u32::MAX` counts.
+///
+/// The ends are rounded to the nearest count when they are within 1e-6 of one (the usual case: a
+/// stroke of whole mm), else widened to the counts around them. Then the last knot is the stroke's
+/// end whenever the span has a divisor `n` within a factor 2 of `span / spacing` (and at most 1024):
+/// the smallest one at or above it (the spacing asked for or a little finer), else the largest below
+/// it. `image group --geometry` needs the axis table and the geometry model's grid to span one
+/// stroke. A span without such a divisor (a prime number of counts, say) takes the covering grid:
+/// segments of `round(spacing)` counts, the last knot up to one segment past the end (the table
+/// holds its end value there).
+pub fn whole_count_grid(start: f64, end: f64, spacing: f64) -> Option<(i64, u32, usize)> {
+    let near = |v: f64| (v - v.round()).abs() <= 1e-6 * v.abs().max(1.0);
+    let lo = if near(start) {
+        start.round()
+    } else {
+        start.floor()
+    };
+    let hi = if near(end) { end.round() } else { end.ceil() };
+    let span = (hi - lo).max(1.0);
+    let max = axcomp_core::MAX_SEGMENTS as u64;
+    let wanted = ((span / spacing.max(1.0) - 1e-9).ceil() as u64).clamp(1, max);
+    let span_counts = span as u64;
+    let divides = |n: &u64| span_counts % n == 0;
+    let finer = (wanted..=(2 * wanted).min(max)).find(divides);
+    if let Some(n) = finer.or_else(|| (wanted.div_ceil(2)..wanted).rev().find(divides)) {
+        let seg = span_counts / n;
+        return (seg <= u64::from(u32::MAX)).then_some((lo as i64, seg as u32, n as usize));
+    }
+    let max = max as f64;
+    let mut seg = spacing.round().max(1.0);
+    let mut n = (span / seg).ceil().max(1.0);
+    while n > max {
+        seg += 1.0;
+        n = (span / seg).ceil().max(1.0);
+    }
+    (seg <= u32::MAX as f64).then_some((lo as i64, seg as u32, n as usize))
+}
+
 fn horner(c: &[f64; 4], t: f64) -> f64 {
     c[0] + t * (c[1] + t * (c[2] + t * c[3]))
 }
@@ -195,8 +235,8 @@ impl TableFile {
     /// The table in scale counts for the firmware image, holding the end values outside the stroke.
     ///
     /// When `start_mm` and `segment_mm` are whole numbers of counts the coefficients are copied (as f32);
-    /// otherwise the table is resampled (C2, same method as the fit) onto the nearest whole-count grid that
-    /// covers the same stroke with at most 1024 segments.
+    /// otherwise the table is resampled (C2, same method as the fit) onto a whole-count grid of at most
+    /// 1024 segments from the table's start to its end ([`whole_count_grid`]).
     pub fn try_to_core(&self, um_per_count: f64) -> Result<OwnedTableSpec, TableError> {
         self.validate()?;
         if !(um_per_count > 0.0 && um_per_count.is_finite()) {
@@ -220,22 +260,14 @@ impl TableFile {
                 outside: axcomp_core::OutsideStroke::Hold,
             });
         }
-        // Resample onto a whole-count grid covering [start, end].
-        let end = self.end_mm() * per_mm;
-        let start_counts = start.floor() as i64;
-        let mut seg_counts = seg.round().max(1.0);
-        let mut n = ((end - start_counts as f64) / seg_counts).ceil().max(1.0) as usize;
-        while n > axcomp_core::MAX_SEGMENTS {
-            seg_counts += 1.0;
-            n = ((end - start_counts as f64) / seg_counts).ceil().max(1.0) as usize;
-        }
-        if seg_counts > u32::MAX as f64 {
-            return Err(TableError::Bad {
+        // Resample onto a whole-count grid whose last knot is the table's end (see [`whole_count_grid`]).
+        let (start_counts, seg_counts, n) = whole_count_grid(start, self.end_mm() * per_mm, seg)
+            .ok_or(TableError::Bad {
                 field: "segment_mm",
                 value: self.segment_mm,
                 why: "too many counts",
-            });
-        }
+            })?;
+        let seg_counts = seg_counts as f64;
         let new_start_mm = start_counts as f64 / per_mm;
         let new_seg_mm = seg_counts / per_mm;
         let resample = |tab: &[[f64; 4]]| -> Result<Vec<[f32; 4]>, TableError> {
@@ -376,6 +408,31 @@ mod tests {
             let got = c[0] + tt * (c[1] + tt * (c[2] + tt * c[3]));
             assert!((got - smooth.deviation_um(xmm, 1)).abs() < 1e-3, "x={xmm}");
         }
+    }
+
+    /// The trap: an 800 mm stroke fitted with 397 segments (2.0151… mm, not whole counts of
+    /// 0.1 µm) was resampled onto 20 151-count segments ending at 802.0194 mm. Now the last knot is the
+    /// stroke's end, exactly (400 segments of 20 000 counts: the first divisor of 8 000 000 counts at
+    /// or above 397); a span with no divisor near the spacing keeps the covering grid.
+    #[test]
+    fn the_last_knot_is_the_end_of_the_stroke() {
+        let (start, seg, n) = whole_count_grid(0.0, 8_000_000.000_000_1, 8e6 / 397.0).unwrap();
+        assert_eq!((start, seg, n), (0, 20_000, 400));
+        let t = TableFile {
+            start_mm: 0.0,
+            segment_mm: 800.0 / 397.0,
+            forward: vec![[1.0, 0.0, 0.0, 0.0]; 397],
+            backward: Vec::new(),
+            ..table()
+        };
+        let c = t.to_core(0.1);
+        assert_eq!(
+            c.start_counts + i64::from(c.segment_counts) * c.forward.len() as i64,
+            8_000_000
+        );
+        // 133 334 counts = 2 · 163 · 409: no divisor within a factor 2 of 32 segments.
+        let (_, seg, n) = whole_count_grid(-66_666.67, 66_666.67, 4166.67).unwrap();
+        assert_eq!((seg, n), (4167, 32));
     }
 
     #[test]
