@@ -229,6 +229,14 @@ pub fn export(
     );
     head.push_str("# Not taken (the kinematics has exact axis directions): ");
     head.push_str(&not_taken(model).join(", "));
+    for e in &model.effects {
+        // Effect terms (fit rtest --effects) vary with the angles; no kinematics parameter holds them.
+        head.push_str(&format!(
+            "\n# Not taken: the effect {} (RMS {:.3} µm over the fitted poses; the remaining error below is \
+             of the location errors only)",
+            e.kind, e.rms_over_fit_um
+        ));
+    }
     head.push_str(&format!(
         "\n# Remaining error over {} poses ({}), the project's kinematics (FiveAxis::displacement_at): \
          RMS |d| {:.3} µm with these values, {:.3} µm with nominal kinematics.\n",

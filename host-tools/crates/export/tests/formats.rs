@@ -233,6 +233,7 @@ fn rotary(kind: MachineKind, le: [f64; N_LOCATION]) -> RtestModel {
             .collect(),
         setup_offsets_um: vec![("1".into(), [0.0; 6])],
         sign_convention: String::new(),
+        effects: Vec::new(),
     }
 }
 
