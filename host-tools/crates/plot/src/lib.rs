@@ -106,6 +106,12 @@ impl Figure {
         self
     }
 
+    /// Replaces the title (when its headline figure is known only once the series are computed).
+    pub fn set_title(&mut self, title: &str) -> &mut Self {
+        title.clone_into(&mut self.title);
+        self
+    }
+
     /// Declares the value (y) axis a magnitude (|e|, an RMS, a range): it starts at 0.
     pub fn magnitude(&mut self) -> &mut Self {
         self.magnitude = true;
