@@ -853,7 +853,10 @@ fn write_report(
                 sum / ts.len() as f64
             })
             .collect();
-        let name = format!("elevation {}°", axcomp_plot::style::fmt_fixed(*el as f64 / 10.0, 1));
+        let name = format!(
+            "elevation {}°",
+            axcomp_plot::style::fmt_fixed(*el as f64 / 10.0, 1)
+        );
         pv.points(&format!("touches, {name}"), &fx, &fy);
         pv.dashed(&format!("model, {name}"), &feeds, &model)
             .like_previous();

@@ -962,16 +962,10 @@ pub fn report_files(
             dg.gap.holdout_rms_um
         );
         if let Some(k) = dg.verdict_candidate() {
-            title += &format!(
-                ", with {} {:.3} µm",
-                dg.verdict, k.holdout_rms_after_um
-            );
+            title += &format!(", with {} {:.3} µm", dg.verdict, k.holdout_rms_after_um);
         }
-        let mut f = axcomp_plot::Figure::new(
-            &title,
-            &label,
-            &axcomp_plot::label("radial residual", "µm"),
-        );
+        let mut f =
+            axcomp_plot::Figure::new(&title, &label, &axcomp_plot::label("radial residual", "µm"));
         f.points(&format!("model ({model})"), &xs, &before);
         if let Some(a) = after {
             let ys: Vec<f64> = c.holdout.iter().map(|&i| a[i]).collect();

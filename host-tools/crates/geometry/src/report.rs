@@ -82,7 +82,10 @@ fn line_figure(name: &str, rs: &[&crate::data::LineReading], judged: &[Option<f6
     );
     for (dir, dir_name) in [(1i8, "forward"), (-1, "backward")] {
         let (mut mx, mut my, mut px, mut py) = (vec![], vec![], vec![], vec![]);
-        for (_, idx) in passes.iter().filter(|(d, _)| *d == dir || (*d == 0 && dir == 1)) {
+        for (_, idx) in passes
+            .iter()
+            .filter(|(d, _)| *d == dir || (*d == 0 && dir == 1))
+        {
             let mut sorted = idx.clone();
             sorted.sort_by(|&a, &b| xs[a].total_cmp(&xs[b]));
             for &i in &sorted {

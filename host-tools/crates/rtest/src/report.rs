@@ -35,7 +35,8 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
         let axis = ["X", "Y", "Z"][c];
         let meas = |k: usize| data.d_um[a.judged_rows[k]][c];
         let pred = |k: usize| a.judged_pred[k][c];
-        let rms = axcomp_numeric::stats::rms_of((0..a.judged_rows.len()).map(|k| meas(k) - pred(k)));
+        let rms =
+            axcomp_numeric::stats::rms_of((0..a.judged_rows.len()).map(|k| meas(k) - pred(k)));
         let mut f = Figure::new(
             &format!(
                 "R-test {axis} deviation {comp} on {}: measured vs the location-error model, residual RMS {rms:.2} µm ({})",
@@ -66,7 +67,8 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
             rx.push(f64::NAN);
             ry.push(f64::NAN);
             f.points(&format!("measured, path {path}"), &xs, &ms);
-            f.dashed(&format!("model, path {path}"), &xs, &ps).like_previous();
+            f.dashed(&format!("model, path {path}"), &xs, &ps)
+                .like_previous();
         }
         f.line("measured − model", &rx, &ry).with_colour("#555555");
         f.hline(0.0, "");
@@ -93,7 +95,11 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
     let cs: Vec<f64> = (0..=72).map(|k| k as f64 * 5.0).collect();
     let tilt = data.machine.kind.tilt_letter().to_ascii_uppercase();
     let peak = std::cell::Cell::new(0.0f64); // the largest |d| drawn, for the title
-    let mut f = Figure::new("", &axcomp_plot::label("C angle", "°"), &axcomp_plot::label("|d| from the location errors", "µm"));
+    let mut f = Figure::new(
+        "",
+        &axcomp_plot::label("C angle", "°"),
+        &axcomp_plot::label("|d| from the location errors", "µm"),
+    );
     f.magnitude().x_axis(0.0, 360.0, Some(45.0));
     for t in &tilts {
         let mag: Vec<f64> = cs
