@@ -259,7 +259,7 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
                 &format!(
                     "{} of the fitted model ({}): peak |value| {peak:.2} {unit}, {}",
                     c.name(),
-                    model.method,
+                    model.method.split(" (").next().unwrap_or(&model.method),
                     if m.identified {
                         "identified"
                     } else {
