@@ -400,8 +400,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "{test}: measured deviation and fitted table ({}, CV RMS {:.2} µm, raw {:.2} µm)",
             fitted.chosen, fitted.cv_rms_um, fitted.raw_rms_um
         ),
-        "target / mm",
-        "deviation / µm",
+        "target position (mm)",
+        "deviation (µm)",
     );
     fig.points("measured ↑ (positive)", &xf, &df)
         .with_colour(up)
@@ -435,8 +435,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "{test}: deviation after compensation (new campaign through the firmware compensator, RMS {:.2} µm)",
             after.rms_um
         ),
-        "target / mm",
-        "deviation / µm",
+        "target position (mm)",
+        "deviation (µm)",
     );
     fig.points("positive approach ↑", &xf2, &df2)
         .with_colour(up)
@@ -452,8 +452,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "{label}: A {:.2}, E {:.2}, B {:.2} µm",
                 e.iso.a_um, e.iso.e_um, e.iso.b_um
             ),
-            "target / mm",
-            "mean deviation ± 2s / µm",
+            "target position (mm)",
+            "mean deviation ± 2s (µm)",
         );
         fig.size(700.0, 460.0);
         for (dname, d, colour) in [("↑", 1i8, up), ("↓", -1i8, down)] {

@@ -429,28 +429,45 @@ fn power_report(
     let pred: Vec<f64> = (0..d.force_n.len())
         .map(|i| fit.predict(d.ap_mm[i], d.fz_mm[i], d.n_rpm[i]))
         .collect();
-    let mut f = Figure::new(
-        "Force law: measured vs predicted",
-        "measured / N",
-        "predicted / N",
-    );
-    f.points("fit rows", &d.force_n, &pred);
-    if let Some(rows) = out["validation"]["rows"].as_array() {
-        let m: Vec<f64> = rows.iter().filter_map(|r| r["force_n"].as_f64()).collect();
-        let p: Vec<f64> = rows
-            .iter()
-            .filter_map(|r| r["predicted_n"].as_f64())
-            .collect();
-        f.points("validation rows", &m, &p);
+    // Measured and model force per sample (fitted rows, then the validation rows), so that eight rows read
+    // as eight pairs rather than a parity line.
+    let n_fit = d.force_n.len();
+    let mut xs: Vec<f64> = (1..=n_fit).map(|i| i as f64).collect();
+    let mut meas = d.force_n.clone();
+    let mut model = pred.clone();
+    let validation = out["validation"]["rows"].as_array();
+    if let Some(rows) = validation {
+        for r in rows {
+            if let (Some(m), Some(p)) = (r["force_n"].as_f64(), r["predicted_n"].as_f64()) {
+                xs.push(xs.len() as f64 + 1.0);
+                meas.push(m);
+                model.push(p);
+            }
+        }
     }
-    let lo = d
-        .force_n
-        .iter()
-        .cloned()
-        .fold(f64::INFINITY, f64::min)
-        .min(0.0);
-    let hi = d.force_n.iter().cloned().fold(0.0, f64::max) * 1.1;
-    f.dashed("ideal", &[lo, hi], &[lo, hi]);
+    let val_note = match out["validation"]["max_rel_error"].as_f64() {
+        Some(e) => format!(", validation rows worst {:.1} %", 100.0 * e),
+        None => String::new(),
+    };
+    let mut f = Figure::new(
+        &format!(
+            "Cutting force: measured vs the power law F = K·ap^x·fz^y·n^z ({}), fit RMS {:.2} N{val_note}",
+            fit.method.split(" (").next().unwrap_or(&fit.method),
+            fit.rms_n
+        ),
+        "sample (fitted rows, then validation rows)",
+        &axcomp_plot::label("force", "N"),
+    );
+    f.magnitude();
+    if xs.len() > n_fit {
+        f.vspan(
+            n_fit as f64 + 0.5,
+            xs.len() as f64 + 0.5,
+            "validation rows (not fitted)",
+        );
+    }
+    f.points("measured", &xs, &meas);
+    f.points("model", &xs, &model);
     let svg = f.to_svg();
     let mut md = format!(
         "# Force law\n\nF = {:.4}·ap^{:.4}·fz^{:.4}·n^{:.4}, residual RMS {:.3} N ({}).\n\n",
@@ -571,9 +588,14 @@ fn run_milling(args: &Args, outputs: &mut OutputSet) -> anyhow::Result<()> {
     if let Some(dir) = &args.report {
         let c: Vec<f64> = tests.iter().map(|t| t.fz_mm).collect();
         let mut f = Figure::new(
-            "Mean forces vs feed per tooth (slotting)",
-            "fz / mm",
-            "mean force / N",
+            &format!(
+                "Slotting at {n_rpm} rpm: mean forces vs feed per tooth ({} feeds) and the Altintas lines, Ktc {:.0} N/mm², Kte {:.1} N/mm",
+                tests.len(),
+                k.ktc_n_mm2.value,
+                k.kte_n_mm.value
+            ),
+            &axcomp_plot::label("feed per tooth fz", "mm"),
+            &axcomp_plot::label("mean force", "N"),
         );
         let lines = &k.lines;
         for (i, (name, v)) in [
@@ -584,12 +606,13 @@ fn run_milling(args: &Args, outputs: &mut OutputSet) -> anyhow::Result<()> {
         .iter()
         .enumerate()
         {
-            f.points(name, &c, v);
             let fit: Vec<f64> = c
                 .iter()
                 .map(|x| lines[i].slope * x + lines[i].intercept)
                 .collect();
-            f.line(&format!("{name} line"), &c, &fit);
+            f.points(&format!("{name} measured"), &c, v);
+            f.line(&format!("{name} line (fitted)"), &c, &fit)
+                .like_previous();
         }
         outputs.folder_file(dir, "mean_forces.svg", f.to_svg());
         let mut md = String::from(

@@ -1213,15 +1213,15 @@ fn report_files(args: &Args, o: &Outcome) -> Vec<(&'static str, Vec<u8>)> {
             "{label}: measured deviation and fitted table ({}, {judged_key} RMS {after:.2} µm, raw {raw:.2} µm)",
             o.fit.chosen
         ),
-        "target position / mm",
-        "deviation / µm",
+        "target position (mm)",
+        "deviation (µm)",
     );
     let mut res = axcomp_plot::Figure::new(
         &format!(
             "{label}: residual after compensation, each row predicted by a model that did not see it ({judged_key} RMS {after:.2} µm)"
         ),
-        "target position / mm",
-        "residual / µm",
+        "target position (mm)",
+        "residual (µm)",
     );
     let bidir = !table.backward.is_empty();
     let has_dir = j.direction.iter().any(|&d| d != 0);

@@ -779,14 +779,17 @@ fn write_report(
         e.2.push((dist - radius - res.plain.effective_radius_mm(t)) * 1000.0);
     }
     let mut after = Figure::new(
-        "Radial residual over the sphere after correction (chosen model)",
-        "azimuth of the surface normal / deg",
-        "radial residual / µm",
+        &format!(
+            "Radial residual of each touch over the sphere after correction (chosen model: {}), one series per elevation ring",
+            cal.structure.name()
+        ),
+        &axcomp_plot::label("azimuth of the surface normal", "°"),
+        &axcomp_plot::label("radial residual", "µm"),
     );
     let mut before = Figure::new(
-        "Radial residual over the sphere with one effective radius (plain method)",
-        "azimuth of the surface normal / deg",
-        "radial residual / µm",
+        "Radial residual of each touch over the sphere with one effective radius (plain method), one series per elevation ring",
+        &axcomp_plot::label("azimuth of the surface normal", "°"),
+        &axcomp_plot::label("radial residual", "µm"),
     );
     for (el, (az, r_after, r_plain)) in &rings {
         let name = format!("elevation {:.1}°", *el as f64 / 10.0);
@@ -799,42 +802,64 @@ fn write_report(
     outputs.folder_file(dir, "residual_map_plain.svg", before.to_svg());
 
     // Pretravel versus speed: measured (stylus radius − |p − C| + R) per touch, model at a few directions.
-    let mut pv = Figure::new(
-        "Pretravel versus probing speed",
-        "feed / mm/min",
-        "pretravel / µm",
-    );
+    // One colour per approach direction class (the elevation ring of the touch's surface normal): its
+    // touches as markers, and the model's pretravel averaged over the same touches' directions as a line.
     let c = cal.sphere_center_mm;
-    let (fx, fy): (Vec<f64>, Vec<f64>) = touches
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| !out.contains(i))
-        .map(|(_, t)| {
-            let dist = ((t.position_mm[0] - c[0]).powi(2)
-                + (t.position_mm[1] - c[1]).powi(2)
-                + (t.position_mm[2] - c[2]).powi(2))
-            .sqrt();
-            (
-                t.feed_mm_min,
-                (cal.stylus_radius_mm - (dist - radius)) * 1000.0,
-            )
-        })
-        .unzip();
-    pv.points("touches", &fx, &fy);
+    let mut classes: BTreeMap<i64, Vec<&Touch>> = BTreeMap::new();
+    for (i, t) in touches.iter().enumerate() {
+        if !out.contains(&i) {
+            classes
+                .entry((t.dir_speed().elevation_deg() * 10.0).round() as i64)
+                .or_default()
+                .push(t);
+        }
+    }
     let fmax = cal.feed_range_mm_min[1].max(1.0) * 1.5;
     let feeds: Vec<f64> = (0..=20).map(|k| fmax * k as f64 / 20.0).collect();
-    for (az, el) in [(0.0, 0.0), (60.0, 0.0), (0.0, 45.0), (0.0, 90.0)] {
-        let ys: Vec<f64> = feeds
+    let mut pv = Figure::new(
+        &format!(
+            "Pretravel of each touch vs probing speed, by approach elevation, and the calibrated model ({}), fit RMS {:.2} µm",
+            cal.structure.name(),
+            cal.fit_rms_um
+        ),
+        &axcomp_plot::label("feed", "mm/min"),
+        &axcomp_plot::label("pretravel", "µm"),
+    );
+    for (el, ts) in &classes {
+        let (fx, fy): (Vec<f64>, Vec<f64>) = ts
+            .iter()
+            .map(|t| {
+                let dist = ((t.position_mm[0] - c[0]).powi(2)
+                    + (t.position_mm[1] - c[1]).powi(2)
+                    + (t.position_mm[2] - c[2]).powi(2))
+                .sqrt();
+                (
+                    t.feed_mm_min,
+                    (cal.stylus_radius_mm - (dist - radius)) * 1000.0,
+                )
+            })
+            .unzip();
+        let model: Vec<f64> = feeds
             .iter()
             .map(|f| {
-                cal.pretravel_um(DirSpeed {
-                    t: f64::sin(f64::to_radians(el)),
-                    theta: f64::to_radians(az),
-                    v: f / 60.0,
-                })
+                let sum: f64 = ts
+                    .iter()
+                    .map(|t| {
+                        let mut d = t.dir_speed();
+                        d.v = f / 60.0;
+                        cal.pretravel_um(d)
+                    })
+                    .sum();
+                sum / ts.len() as f64
             })
             .collect();
-        pv.dashed(&format!("model az {az}° el {el}°"), &feeds, &ys);
+        let name = format!(
+            "elevation {}°",
+            axcomp_plot::style::fmt_fixed(*el as f64 / 10.0, 1)
+        );
+        pv.points(&format!("touches, {name}"), &fx, &fy);
+        pv.dashed(&format!("model, {name}"), &feeds, &model)
+            .like_previous();
     }
     outputs.folder_file(dir, "pretravel_speed.svg", pv.to_svg());
 
@@ -843,9 +868,9 @@ fn write_report(
     speeds.sort_by(f64::total_cmp);
     speeds.dedup();
     let mut dfig = Figure::new(
-        "Diameter error by probing speed",
-        "feed / mm/min",
-        "diameter error / µm",
+        "",
+        &axcomp_plot::label("feed", "mm/min"),
+        &axcomp_plot::label("diameter error", "µm"),
     );
     let mut rows_md = Vec::new();
     let mut series: [(String, Vec<f64>); 3] = [
@@ -886,6 +911,15 @@ fn write_report(
     for (name, ys) in &series {
         dfig.line(name, &xs, ys);
     }
+    let worst = |k: usize| series[k].1.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    dfig.set_title(&format!(
+        "Diameter error of the {} evaluation touches ({}) by probing speed: worst |error| {:.2} µm before, {:.2} µm after the chosen model ({})",
+        eval_touches.len(),
+        report["diameter_error_um"]["on"].as_str().unwrap_or("?"),
+        worst(0),
+        worst(2),
+        cal.structure.name()
+    ));
     dfig.hline(0.0, "");
     outputs.folder_file(dir, "diameter_error.svg", dfig.to_svg());
 

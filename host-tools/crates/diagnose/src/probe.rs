@@ -944,16 +944,34 @@ pub fn report_files(
             continue;
         }
         let before: Vec<f64> = c.holdout.iter().map(|&i| dg.residual[i]).collect();
-        let mut f = axcomp_plot::Figure::new(
-            &format!("held-out radial residual vs {name}"),
-            name,
-            "radial residual (µm)",
+        let label = match name.as_str() {
+            "azimuth_deg" => axcomp_plot::label("approach azimuth", "°"),
+            "elevation_deg" => axcomp_plot::label("approach elevation", "°"),
+            "feed_mm_min" => axcomp_plot::label("feed", "mm/min"),
+            "time_s" => axcomp_plot::label("time", "s"),
+            other => other.replace('_', " "),
+        };
+        let quantity = label.split(" (").next().unwrap_or(&label).to_string();
+        let model = if d.model_holds.is_empty() {
+            "one effective radius".to_string()
+        } else {
+            d.model_holds.join(", ")
+        };
+        let mut title = format!(
+            "Held-out radial residual vs {quantity}: model ({model}) RMS {:.3} µm",
+            dg.gap.holdout_rms_um
         );
-        f.points("model (gap)", &xs, &before);
+        if let Some(k) = dg.verdict_candidate() {
+            title += &format!(", with {} {:.3} µm", dg.verdict, k.holdout_rms_after_um);
+        }
+        let mut f =
+            axcomp_plot::Figure::new(&title, &label, &axcomp_plot::label("radial residual", "µm"));
+        f.points(&format!("model ({model})"), &xs, &before);
         if let Some(a) = after {
             let ys: Vec<f64> = c.holdout.iter().map(|&i| a[i]).collect();
             f.points(&format!("with {}", dg.verdict), &xs, &ys);
         }
+        f.hline(0.0, "");
         let file = format!("holdout_vs_{name}.svg");
         files.push((dir.join(&file), f.to_svg().into_bytes()));
         figs.push(file);

@@ -841,9 +841,16 @@ pub fn report_files(d: &RtestDiagnosis, c: &RtestCampaign) -> Vec<(String, Vec<u
     let mut figs = Vec::new();
     for (comp, name) in ["dx", "dy", "dz"].iter().enumerate() {
         let mut f = axcomp_plot::Figure::new(
-            &format!("held-out {name}: measured − location-error model"),
+            &format!(
+                "Held-out {name}: measured − location-error model, RMS {:.3} µm over all components{}",
+                dg.gap.holdout_rms_um,
+                dg.verdict_candidate().map_or(String::new(), |k| format!(
+                    ", {:.3} µm after adding {}",
+                    k.holdout_rms_after_um, dg.verdict
+                ))
+            ),
             "held-out pose (measurement order)",
-            "µm",
+            &axcomp_plot::label(&format!("residual {name}"), "µm"),
         );
         let before: Vec<f64> = hold_poses.iter().map(|&i| c.y[3 * i + comp]).collect();
         f.points("before (location errors)", &x, &before);
@@ -851,6 +858,7 @@ pub fn report_files(d: &RtestDiagnosis, c: &RtestCampaign) -> Vec<(String, Vec<u
             let av: Vec<f64> = hold_poses.iter().map(|&i| a[3 * i + comp]).collect();
             f.points(&format!("after adding {}", dg.verdict), &x, &av);
         }
+        f.hline(0.0, "");
         figs.push(f);
     }
     let refs: Vec<&axcomp_plot::Figure> = figs.iter().collect();

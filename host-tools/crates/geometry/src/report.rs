@@ -11,6 +11,111 @@ use crate::GeometryError;
 use crate::analysis::Analysis;
 use crate::data::LineData;
 
+/// Measured vs predicted along one judged line. Readings are placed by their position along the line (the
+/// axis it moves, or the distance from its start on a diagonal) and split into passes where the motion
+/// reverses: forward passes in one colour, backward in another, the prediction drawn per pass in its
+/// position order (never joined across passes, never in file order).
+fn line_figure(name: &str, rs: &[&crate::data::LineReading], judged: &[Option<f64>]) -> Figure {
+    let q0 = rs[0].q;
+    let far = rs
+        .iter()
+        .map(|r| sub3(r.q, q0))
+        .max_by(|a, b| norm3(*a).total_cmp(&norm3(*b)))
+        .unwrap_or([1.0, 0.0, 0.0]);
+    let len = norm3(far).max(1e-12);
+    let u = [far[0] / len, far[1] / len, far[2] / len];
+    let along: Vec<f64> = rs
+        .iter()
+        .map(|r| {
+            let d = sub3(r.q, q0);
+            d[0] * u[0] + d[1] * u[1] + d[2] * u[2]
+        })
+        .collect();
+    // One moving axis: its coordinate; a diagonal: the distance from the line's lowest point.
+    let (xs, x_label): (Vec<f64>, String) = match (0..3).find(|&k| u[k].abs() > 0.999) {
+        Some(k) => (
+            rs.iter().map(|r| r.q[k]).collect(),
+            axcomp_plot::label(&format!("{} position", ["X", "Y", "Z"][k]), "mm"),
+        ),
+        None => {
+            let m = along.iter().copied().fold(f64::INFINITY, f64::min);
+            (
+                along.iter().map(|a| a - m).collect(),
+                axcomp_plot::label("distance along the line", "mm"),
+            )
+        }
+    };
+    // Passes: maximal runs of readings moving one way along the line.
+    let mut passes: Vec<(i8, Vec<usize>)> = Vec::new();
+    for i in 0..rs.len() {
+        let step = if i == 0 { 0.0 } else { along[i] - along[i - 1] };
+        let dir: i8 = if step > 1e-9 {
+            1
+        } else if step < -1e-9 {
+            -1
+        } else {
+            0
+        };
+        match passes.last_mut() {
+            Some((d, idx)) if dir == 0 || *d == dir || *d == 0 => {
+                if *d == 0 {
+                    *d = dir;
+                }
+                idx.push(i);
+            }
+            _ => passes.push((dir, vec![i])),
+        }
+    }
+    let pred = |i: usize| judged[rs[i].row].unwrap_or(f64::NAN);
+    let rms: f64 = axcomp_numeric::stats::rms_of(
+        rs.iter()
+            .enumerate()
+            .map(|(i, r)| r.deviation_um - pred(i))
+            .filter(|v| v.is_finite()),
+    );
+    let mut f = Figure::new(
+        &format!(
+            "Line {name} (not fitted): measured deviation vs the model's prediction, residual RMS {rms:.2} µm"
+        ),
+        &x_label,
+        &axcomp_plot::label("deviation along the beam", "µm"),
+    );
+    for (dir, dir_name) in [(1i8, "forward"), (-1, "backward")] {
+        let (mut mx, mut my, mut px, mut py) = (vec![], vec![], vec![], vec![]);
+        for (_, idx) in passes
+            .iter()
+            .filter(|(d, _)| *d == dir || (*d == 0 && dir == 1))
+        {
+            let mut sorted = idx.clone();
+            sorted.sort_by(|&a, &b| xs[a].total_cmp(&xs[b]));
+            for &i in &sorted {
+                mx.push(xs[i]);
+                my.push(rs[i].deviation_um);
+                px.push(xs[i]);
+                py.push(pred(i));
+            }
+            px.push(f64::NAN);
+            py.push(f64::NAN);
+        }
+        if mx.is_empty() {
+            continue;
+        }
+        f.points(&format!("measured, {dir_name} passes"), &mx, &my);
+        f.dashed(&format!("predicted, {dir_name} passes"), &px, &py)
+            .like_previous();
+    }
+    f.hline(0.0, "");
+    f
+}
+
+fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn norm3(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
 fn io(what: &Path) -> impl FnOnce(std::io::Error) -> GeometryError + '_ {
     move |cause| GeometryError::Io {
         what: what.display().to_string(),
@@ -149,25 +254,23 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
                 .zip(&m.uncertainty)
                 .map(|(y, u)| y + u[1])
                 .collect();
+            let unit = if m.unit == "um" { "µm" } else { "µrad" };
             let mut f = Figure::new(
                 &format!(
-                    "{} ({})",
+                    "{} of the fitted model ({}): peak |value| {peak:.2} {unit}, {}",
                     c.name(),
+                    model.method.split(" (").next().unwrap_or(&model.method),
                     if m.identified {
                         "identified"
                     } else {
                         "not identified"
                     }
                 ),
-                &format!("{} position (mm)", ax.letter()),
-                &format!(
-                    "{} ({})",
-                    c.name(),
-                    if m.unit == "um" { "µm" } else { "µrad" }
-                ),
+                &axcomp_plot::label(&format!("{} position", ax.letter()), "mm"),
+                &axcomp_plot::label(c.name(), unit),
             );
             f.band("± standard uncertainty", &xs, &lo, &hi);
-            f.line(c.name(), &xs, &ys);
+            f.line(c.name(), &xs, &ys).like_previous();
             let file = format!("{}.svg", c.name());
             files.push((file.clone(), f.to_svg()));
             md.push_str(&format!("![{}]({file})\n", c.name()));
@@ -189,9 +292,14 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
     // volumetric map
     md.push_str("## Volumetric error map (|e| at the tool reference point)\n\n");
     let (lo, hi) = (model.volume_min_mm, model.volume_max_mm);
+    let (after_rms, after_what) = match (rep.holdout_rms_um, rep.cv_rms_um) {
+        (Some(h), _) => (h, "held-out RMS"),
+        (None, Some(c)) => (c, "cross-validated RMS"),
+        (None, None) => (rep.fit_rms_um, "fit RMS"),
+    };
     for (k, zf) in [0.0, 0.5, 1.0].iter().enumerate() {
         let z = lo[2] + zf * (hi[2] - lo[2]);
-        let mut f = Figure::new(&format!("|e| at z = {z:.0} mm"), "x (mm)", "|e| (µm)");
+        let mut profiles = Vec::new();
         for yf in [0.0, 0.25, 0.5, 0.75, 1.0] {
             let y = lo[1] + yf * (hi[1] - lo[1]);
             let xs: Vec<f64> = (0..=40)
@@ -206,8 +314,29 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
                         .unwrap_or(f64::NAN)
                 })
                 .collect();
-            f.line(&format!("y = {y:.0}"), &xs, &ys);
+            profiles.push((y, xs, ys));
         }
+        let peak = profiles
+            .iter()
+            .flat_map(|p| p.2.iter().copied())
+            .filter(|v| v.is_finite())
+            .fold(0.0, f64::max);
+        let mut f = Figure::new(
+            &format!(
+                "Volumetric error |e| of the fitted model ({}) at z = {z:.0} mm, five y profiles: up to {peak:.1} µm before compensation; after: {after_what} {after_rms:.2} µm along the beam",
+                model.method.split(" (").next().unwrap_or(&model.method)
+            ),
+            &axcomp_plot::label("x", "mm"),
+            &axcomp_plot::label("|e| at the tool point", "µm"),
+        );
+        f.magnitude();
+        for (y, xs, ys) in &profiles {
+            f.line(&format!("before, y = {y:.0} mm"), xs, ys);
+        }
+        f.hline(
+            after_rms,
+            &format!("after compensation: {after_what} {after_rms:.2} µm (judged lines)"),
+        );
         let file = format!("volumetric_z{}.svg", k + 1);
         files.push((file.clone(), f.to_svg()));
         md.push_str(&format!("![volumetric z{}]({file})\n", k + 1));
@@ -225,24 +354,8 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
         md.push_str("## Lines the model never saw: measured vs predicted\n\n");
         for li in judged.iter().take(12) {
             let rs: Vec<_> = data.readings.iter().filter(|r| r.line == *li).collect();
-            let q0 = rs[0].q;
-            let dist = |q: [f64; 3]| {
-                ((q[0] - q0[0]).powi(2) + (q[1] - q0[1]).powi(2) + (q[2] - q0[2]).powi(2)).sqrt()
-            };
-            let xs: Vec<f64> = rs.iter().map(|r| dist(r.q)).collect();
-            let meas: Vec<f64> = rs.iter().map(|r| r.deviation_um).collect();
-            let pred: Vec<f64> = rs
-                .iter()
-                .map(|r| an.judged_pred[r.row].unwrap_or(f64::NAN))
-                .collect();
             let name = &data.lines[*li];
-            let mut f = Figure::new(
-                &format!("line {name}: measured vs predicted"),
-                "distance along the line (mm)",
-                "deviation along the beam (µm)",
-            );
-            f.points("measured", &xs, &meas);
-            f.dashed("predicted (not fitted on this line)", &xs, &pred);
+            let f = line_figure(name, &rs, &an.judged_pred);
             let safe: String = name
                 .chars()
                 .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })

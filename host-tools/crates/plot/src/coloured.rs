@@ -20,6 +20,8 @@ impl Figure {
             ys: ys[..n].to_vec(),
             kind: Kind::Points,
             colour: colour.to_owned(),
+            dash: None,
+            marker: crate::style::Marker::Circle,
         });
         self
     }
@@ -35,8 +37,8 @@ mod tests {
         f.points_coloured("forward", &[0.0, 1.0], &[1.0, 2.0], PALETTE[0]);
         f.points_coloured("reverse", &[0.0, 1.0], &[2.0, 1.0], PALETTE[1]);
         let svg = f.to_svg();
-        // Two markers + one legend marker per series.
-        assert_eq!(svg.matches(PALETTE[0]).count(), 3, "{svg}");
-        assert_eq!(svg.matches(PALETTE[1]).count(), 3, "{svg}");
+        // Two markers + one legend marker per series, and the colour in the plot description.
+        assert_eq!(svg.matches(PALETTE[0]).count(), 3 + 1, "{svg}");
+        assert_eq!(svg.matches(PALETTE[1]).count(), 3 + 1, "{svg}");
     }
 }

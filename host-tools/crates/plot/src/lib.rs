@@ -1,29 +1,41 @@
-//! `axcomp-plot`: small, dependency-free SVG charts and Markdown tables for the axcomp reports.
+//! `axcomp-plot`: small, dependency-free SVG charts and Markdown tables for the axcomp reports, all in one
+//! style ([`style`]).
 //!
 //! Glossary:
 //! - *figure*: one chart with a title, two axis labels and any number of series;
 //! - *series*: a line (polyline through the points, gaps at non-finite values), points (markers), or a band
 //!   (filled area between a lower and an upper curve, e.g. a residual ±2s band);
 //! - *span*: a shaded vertical region of the x axis with a label (a located gap region, a held-out phase);
-//! - *rule*: a horizontal reference line (zero, a tolerance).
+//! - *rule*: a horizontal reference line (zero, a tolerance);
+//! - *magnitude axis*: a value axis declared with [`Figure::magnitude`] (|e|, an RMS): it starts at 0;
+//! - *plot description*: a JSON `<metadata class="axcomp-plot">` element in every SVG naming the axes,
+//!   their ranges and what was drawn of each series (points, markers, line segments), so that a test can
+//!   check a figure without matching its drawing ([`descriptions`]).
+//!
+//! A line with fewer than [`style::FEW_POINTS`] points also shows its markers, and a run of one point
+//! between gaps is drawn as a marker, never as an invisible one-point line.
 //!
 //! ```
-//! let mut fig = axcomp_plot::Figure::new("Deviation", "position / mm", "deviation / µm");
+//! let mut fig = axcomp_plot::Figure::new("Deviation", "position (mm)", "deviation (µm)");
 //! fig.line("forward", &[0.0, 1.0, 2.0], &[1.0, 3.0, 2.0]);
 //! fig.vspan(0.5, 1.5, "held out");
 //! let svg = fig.to_svg();
 //! assert!(svg.starts_with("<svg"));
+//! assert_eq!(axcomp_plot::descriptions(&svg).len(), 1);
 //! ```
 
 use std::fmt::Write as _;
 use std::path::Path;
 
+mod bar;
 mod coloured;
+mod meta;
+mod render;
+pub mod style;
 
-/// Colours cycled through by series that do not choose one (colour-blind friendly, Okabe–Ito).
-pub const PALETTE: [&str; 8] = [
-    "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442",
-];
+pub use bar::BarChart;
+pub use meta::descriptions;
+pub use style::{PALETTE, label};
 
 #[derive(Debug, Clone)]
 enum Kind {
@@ -39,6 +51,9 @@ struct Series {
     ys: Vec<f64>,
     kind: Kind,
     colour: String,
+    /// The dash of a solid line past the palette's first round.
+    dash: Option<&'static str>,
+    marker: style::Marker,
 }
 
 #[derive(Debug, Clone)]
@@ -59,7 +74,10 @@ pub struct Figure {
     series: Vec<Series>,
     spans: Vec<Span>,
     rules: Vec<(f64, String)>,
-    next_colour: usize,
+    next_slot: usize,
+    magnitude: bool,
+    x_range: Option<(f64, f64)>,
+    x_step: Option<f64>,
 }
 
 impl Figure {
@@ -74,7 +92,10 @@ impl Figure {
             series: Vec::new(),
             spans: Vec::new(),
             rules: Vec::new(),
-            next_colour: 0,
+            next_slot: 0,
+            magnitude: false,
+            x_range: None,
+            x_step: None,
         }
     }
 
@@ -85,21 +106,39 @@ impl Figure {
         self
     }
 
-    fn colour(&mut self) -> String {
-        let c = PALETTE[self.next_colour % PALETTE.len()];
-        self.next_colour += 1;
-        c.to_owned()
+    /// Replaces the title (when its headline figure is known only once the series are computed).
+    pub fn set_title(&mut self, title: &str) -> &mut Self {
+        title.clone_into(&mut self.title);
+        self
+    }
+
+    /// Declares the value (y) axis a magnitude (|e|, an RMS, a range): it starts at 0.
+    pub fn magnitude(&mut self) -> &mut Self {
+        self.magnitude = true;
+        self
+    }
+
+    /// Fixes the x axis to `lo..hi` (e.g. a rotary axis's 0…360°) with ticks every `step` (none: chosen).
+    pub fn x_axis(&mut self, lo: f64, hi: f64, step: Option<f64>) -> &mut Self {
+        if lo.is_finite() && hi.is_finite() && hi > lo {
+            self.x_range = Some((lo, hi));
+            self.x_step = step.filter(|s| *s > 0.0 && (hi - lo) / s <= 50.0);
+        }
+        self
     }
 
     fn push(&mut self, name: &str, xs: &[f64], ys: &[f64], kind: Kind) -> &mut Self {
         let n = xs.len().min(ys.len());
-        let colour = self.colour();
+        let (colour, dash, marker) = style::slot(self.next_slot);
+        self.next_slot += 1;
         self.series.push(Series {
             name: name.to_owned(),
             xs: xs[..n].to_vec(),
             ys: ys[..n].to_vec(),
             kind,
-            colour,
+            colour: colour.to_owned(),
+            dash,
+            marker,
         });
         self
     }
@@ -141,6 +180,22 @@ impl Figure {
         self
     }
 
+    /// Gives the series added last the colour, dash and marker of the one before it (a fitted line drawn
+    /// in the colour of the points it was fitted to), and hands its own style slot back.
+    pub fn like_previous(&mut self) -> &mut Self {
+        let n = self.series.len();
+        if n >= 2 {
+            let (colour, dash, marker) = {
+                let p = &self.series[n - 2];
+                (p.colour.clone(), p.dash, p.marker)
+            };
+            let s = &mut self.series[n - 1];
+            (s.colour, s.dash, s.marker) = (colour, dash, marker);
+            self.next_slot -= 1;
+        }
+        self
+    }
+
     /// A shaded vertical region `from..to` with a label.
     pub fn vspan(&mut self, from: f64, to: f64, label: &str) -> &mut Self {
         self.spans.push(Span {
@@ -155,295 +210,6 @@ impl Figure {
     pub fn hline(&mut self, y: f64, label: &str) -> &mut Self {
         self.rules.push((y, label.to_owned()));
         self
-    }
-
-    /// The range of all finite data (x, y), padded; (0,1) for empty figures.
-    fn bounds(&self) -> ((f64, f64), (f64, f64)) {
-        let mut x = (f64::INFINITY, f64::NEG_INFINITY);
-        let mut y = (f64::INFINITY, f64::NEG_INFINITY);
-        let see = |v: f64, r: &mut (f64, f64)| {
-            if v.is_finite() {
-                r.0 = r.0.min(v);
-                r.1 = r.1.max(v);
-            }
-        };
-        for s in &self.series {
-            for &v in &s.xs {
-                see(v, &mut x);
-            }
-            for &v in &s.ys {
-                see(v, &mut y);
-            }
-            if let Kind::Band { upper } = &s.kind {
-                for &v in upper {
-                    see(v, &mut y);
-                }
-            }
-        }
-        for sp in &self.spans {
-            see(sp.from, &mut x);
-            see(sp.to, &mut x);
-        }
-        for (v, _) in &self.rules {
-            see(*v, &mut y);
-        }
-        let fix = |r: (f64, f64)| {
-            if !r.0.is_finite() {
-                (0.0, 1.0)
-            } else if r.1 - r.0 <= f64::EPSILON * r.0.abs().max(1.0) {
-                (r.0 - 0.5, r.1 + 0.5)
-            } else {
-                r
-            }
-        };
-        let x = fix(x);
-        let y = fix(y);
-        let pad = 0.05 * (y.1 - y.0);
-        (x, (y.0 - pad, y.1 + pad))
-    }
-
-    /// Renders the figure as a standalone SVG document.
-    pub fn to_svg(&self) -> String {
-        let (w, h) = (self.width, self.height);
-        // The right margin holds the legend: wide enough for the longest series name (~7 px a character).
-        let longest = self
-            .series
-            .iter()
-            .map(|s| s.name.chars().count())
-            .max()
-            .unwrap_or(0);
-        // Legend: marker (18 px) + gap (6 px) + text (~7.5 px a character at 12 px) + 12 px to the edge.
-        let mr = (50.0 + 7.5 * longest as f64).clamp(90.0, w * 0.45);
-        // Legend names longer than the margin holds are shortened (…) rather than cut by the frame.
-        let legend_chars = ((mr - 50.0) / 7.5).max(4.0) as usize;
-        // Titles wider than the figure (~8 px a character at 15 px) wrap onto more lines.
-        let title_lines = wrap(&self.title, ((w - 20.0) / 8.0).max(10.0) as usize);
-        let (ml, mb) = (70.0, 55.0);
-        let mt = 22.0 + 18.0 * title_lines.len() as f64;
-        let (pw, ph) = (w - ml - mr, h - mt - mb);
-        let ((x0, x1), (y0, y1)) = self.bounds();
-        let xt = nice_ticks(x0, x1, 8);
-        let yt = nice_ticks(y0, y1, 6);
-        let (x0, x1) = (x0.min(xt[0]), x1.max(*xt.last().unwrap_or(&x1)));
-        let (y0, y1) = (y0.min(yt[0]), y1.max(*yt.last().unwrap_or(&y1)));
-        let sx = |v: f64| ml + (v - x0) / (x1 - x0) * pw;
-        let sy = |v: f64| mt + ph - (v - y0) / (y1 - y0) * ph;
-
-        let mut s = String::new();
-        let _ = writeln!(
-            s,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
-        );
-        let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-        for (k, line) in title_lines.iter().enumerate() {
-            let _ = writeln!(
-                s,
-                r#"<text x="{}" y="{}" font-size="15" text-anchor="middle">{}</text>"#,
-                w / 2.0,
-                24.0 + 18.0 * k as f64,
-                esc(line)
-            );
-        }
-        for sp in &self.spans {
-            let (a, b) = (sx(sp.from.max(x0)), sx(sp.to.min(x1)));
-            let _ = writeln!(
-                s,
-                r##"<rect x="{a:.2}" y="{mt}" width="{:.2}" height="{ph}" fill="#F0E442" fill-opacity="0.25"/><text x="{:.2}" y="{}" font-size="11" text-anchor="middle" fill="#555">{}</text>"##,
-                (b - a).max(1.0),
-                (a + b) / 2.0,
-                mt + 12.0,
-                esc(&sp.label)
-            );
-        }
-        // Grid and ticks.
-        for &t in &xt {
-            let px = sx(t);
-            let _ = writeln!(
-                s,
-                r##"<line x1="{px:.2}" y1="{mt}" x2="{px:.2}" y2="{}" stroke="#e5e5e5"/><text x="{px:.2}" y="{}" text-anchor="middle">{}</text>"##,
-                mt + ph,
-                mt + ph + 16.0,
-                fmt_tick(t)
-            );
-        }
-        for &t in &yt {
-            let py = sy(t);
-            let _ = writeln!(
-                s,
-                r##"<line x1="{ml}" y1="{py:.2}" x2="{}" y2="{py:.2}" stroke="#e5e5e5"/><text x="{}" y="{:.2}" text-anchor="end">{}</text>"##,
-                ml + pw,
-                ml - 6.0,
-                py + 4.0,
-                fmt_tick(t)
-            );
-        }
-        let _ = writeln!(
-            s,
-            r##"<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="none" stroke="#333"/>"##
-        );
-        for (v, label) in &self.rules {
-            let py = sy(*v);
-            let _ = writeln!(
-                s,
-                r##"<line x1="{ml}" y1="{py:.2}" x2="{}" y2="{py:.2}" stroke="#777" stroke-dasharray="2,3"/><text x="{}" y="{:.2}" font-size="10" fill="#555">{}</text>"##,
-                ml + pw,
-                ml + 4.0,
-                py - 3.0,
-                esc(label)
-            );
-        }
-        // Series, clipped to the plot area.
-        let _ = writeln!(
-            s,
-            r#"<clipPath id="plotarea"><rect x="{ml}" y="{mt}" width="{pw}" height="{ph}"/></clipPath><g clip-path="url(#plotarea)">"#
-        );
-        for se in &self.series {
-            match &se.kind {
-                Kind::Band { upper } => {
-                    let mut d = String::new();
-                    let idx: Vec<usize> = (0..se.xs.len())
-                        .filter(|&i| {
-                            se.xs[i].is_finite() && se.ys[i].is_finite() && upper[i].is_finite()
-                        })
-                        .collect();
-                    for (k, &i) in idx.iter().enumerate() {
-                        let _ = write!(
-                            d,
-                            "{}{:.2},{:.2} ",
-                            if k == 0 { "M" } else { "L" },
-                            sx(se.xs[i]),
-                            sy(upper[i])
-                        );
-                    }
-                    for &i in idx.iter().rev() {
-                        let _ = write!(d, "L{:.2},{:.2} ", sx(se.xs[i]), sy(se.ys[i]));
-                    }
-                    if !idx.is_empty() {
-                        let _ = writeln!(
-                            s,
-                            r#"<path d="{d}Z" fill="{}" fill-opacity="0.18" stroke="none"/>"#,
-                            se.colour
-                        );
-                    }
-                }
-                Kind::Line { dashed } => {
-                    let mut d = String::new();
-                    let mut pen_down = false;
-                    let (xs, ys) = decimate_line(&se.xs, &se.ys, pw, &sx);
-                    for (&x, &y) in xs.iter().zip(&ys) {
-                        if x.is_finite() && y.is_finite() {
-                            let _ = write!(
-                                d,
-                                "{}{:.2},{:.2} ",
-                                if pen_down { "L" } else { "M" },
-                                sx(x),
-                                sy(y)
-                            );
-                            pen_down = true;
-                        } else {
-                            pen_down = false;
-                        }
-                    }
-                    let dash = if *dashed {
-                        r#" stroke-dasharray="6,4""#
-                    } else {
-                        ""
-                    };
-                    let _ = writeln!(
-                        s,
-                        r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.6"{dash}/>"#,
-                        se.colour
-                    );
-                }
-                Kind::Points if se.xs.len() > DENSE_POINTS => {
-                    // Dense: one mark per occupied 2 × 2 px cell, all in one path of round dots, so the
-                    // file stays small (bounded by the plot area, not by the number of points).
-                    let mut seen = std::collections::HashSet::new();
-                    let mut d = String::new();
-                    for (&x, &y) in se.xs.iter().zip(&se.ys) {
-                        if x.is_finite() && y.is_finite() {
-                            let (px, py) = (sx(x), sy(y));
-                            if seen.insert(((px / 2.0) as i64, (py / 2.0) as i64)) {
-                                let _ = write!(d, "M{px:.1},{py:.1}h0");
-                            }
-                        }
-                    }
-                    let _ = writeln!(
-                        s,
-                        r#"<path d="{d}" stroke="{}" stroke-opacity="0.6" stroke-width="4" stroke-linecap="round" fill="none"/>"#,
-                        se.colour
-                    );
-                }
-                Kind::Points => {
-                    for (&x, &y) in se.xs.iter().zip(&se.ys) {
-                        if x.is_finite() && y.is_finite() {
-                            let _ = writeln!(
-                                s,
-                                r#"<circle cx="{:.2}" cy="{:.2}" r="2.6" fill="{}" fill-opacity="0.75"/>"#,
-                                sx(x),
-                                sy(y),
-                                se.colour
-                            );
-                        }
-                    }
-                }
-            }
-        }
-        let _ = writeln!(s, "</g>");
-        // Axis labels and legend.
-        let _ = writeln!(
-            s,
-            r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
-            ml + pw / 2.0,
-            h - 14.0,
-            esc(&self.x_label)
-        );
-        let _ = writeln!(
-            s,
-            r#"<text transform="translate(18,{}) rotate(-90)" text-anchor="middle">{}</text>"#,
-            mt + ph / 2.0,
-            esc(&self.y_label)
-        );
-        let lx = ml + pw + 14.0;
-        let step = if self.series.is_empty() {
-            18.0
-        } else {
-            (ph / self.series.len() as f64).clamp(11.0, 18.0)
-        };
-        for (k, se) in self.series.iter().enumerate() {
-            let ly = mt + 10.0 + step * k as f64;
-            let mark = match se.kind {
-                Kind::Points => format!(
-                    r#"<circle cx="{}" cy="{ly}" r="3.5" fill="{}"/>"#,
-                    lx + 9.0,
-                    se.colour
-                ),
-                Kind::Band { .. } => format!(
-                    r#"<rect x="{lx}" y="{}" width="18" height="10" fill="{}" fill-opacity="0.3"/>"#,
-                    ly - 5.0,
-                    se.colour
-                ),
-                Kind::Line { dashed } => format!(
-                    r#"<line x1="{lx}" y1="{ly}" x2="{}" y2="{ly}" stroke="{}" stroke-width="2"{}/>"#,
-                    lx + 18.0,
-                    se.colour,
-                    if dashed {
-                        r#" stroke-dasharray="5,3""#
-                    } else {
-                        ""
-                    }
-                ),
-            };
-            let _ = writeln!(
-                s,
-                r#"{mark}<text x="{}" y="{}">{}</text>"#,
-                lx + 24.0,
-                ly + 4.0,
-                esc(&shorten(&se.name, legend_chars))
-            );
-        }
-        s.push_str("</svg>\n");
-        s
     }
 
     /// Writes the SVG to `path` (through a temporary file renamed into place, so a reader never sees half a file).
@@ -478,205 +244,6 @@ pub fn panels_svg(figures: &[&Figure], columns: usize) -> String {
     }
     s.push_str("</svg>\n");
     s
-}
-
-/// A bar chart of values per category (e.g. a residual RMS per operating condition), one bar per series
-/// within each category, with the value printed above each bar. The y axis starts at 0 when all values are
-/// ≥ 0.
-#[derive(Debug, Clone)]
-pub struct BarChart {
-    title: String,
-    y_label: String,
-    categories: Vec<String>,
-    series: Vec<(String, Vec<f64>, String)>,
-}
-
-impl BarChart {
-    pub fn new(title: &str, y_label: &str, categories: &[&str]) -> Self {
-        BarChart {
-            title: title.to_owned(),
-            y_label: y_label.to_owned(),
-            categories: categories.iter().map(|c| (*c).to_owned()).collect(),
-            series: Vec::new(),
-        }
-    }
-
-    /// One value per category (missing or non-finite values draw no bar).
-    pub fn series(&mut self, name: &str, values: &[f64]) -> &mut Self {
-        let colour = PALETTE[self.series.len() % PALETTE.len()].to_owned();
-        self.series.push((name.to_owned(), values.to_vec(), colour));
-        self
-    }
-
-    pub fn to_svg(&self) -> String {
-        let n = self.categories.len().max(1);
-        let per = self.series.len().max(1);
-        let w = (140.0 + n as f64 * (24.0 * per as f64 + 40.0)).clamp(500.0, 1400.0);
-        let h = 460.0;
-        let longest = self
-            .series
-            .iter()
-            .map(|s| s.0.chars().count())
-            .max()
-            .unwrap_or(0);
-        let mr = (40.0 + 7.0 * longest as f64).clamp(40.0, w * 0.4);
-        let title_lines = wrap(&self.title, ((w - 20.0) / 8.0) as usize);
-        let (ml, mb) = (70.0, 80.0);
-        let mt = 22.0 + 18.0 * title_lines.len() as f64 + 14.0;
-        let (pw, ph) = (w - ml - mr, h - mt - mb);
-        let vals = self
-            .series
-            .iter()
-            .flat_map(|s| s.1.iter().copied())
-            .filter(|v| v.is_finite());
-        let (mut y0, mut y1) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(v), b.max(v))
-        });
-        if !y0.is_finite() {
-            (y0, y1) = (0.0, 1.0);
-        }
-        y0 = y0.min(0.0);
-        y1 = y1.max(0.0);
-        if y1 - y0 <= 0.0 {
-            y1 = y0 + 1.0;
-        }
-        y1 += 0.08 * (y1 - y0); // room for the value labels
-        let yt = nice_ticks(y0, y1, 6);
-        let (y0, y1) = (y0.min(yt[0]), y1.max(*yt.last().unwrap_or(&y1)));
-        let sy = |v: f64| mt + ph - (v - y0) / (y1 - y0) * ph;
-        let mut s = String::new();
-        let _ = writeln!(
-            s,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
-        );
-        let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-        for (k, line) in title_lines.iter().enumerate() {
-            let _ = writeln!(
-                s,
-                r#"<text x="{}" y="{}" font-size="15" text-anchor="middle">{}</text>"#,
-                w / 2.0,
-                24.0 + 18.0 * k as f64,
-                esc(line)
-            );
-        }
-        for &t in &yt {
-            let py = sy(t);
-            let _ = writeln!(
-                s,
-                r##"<line x1="{ml}" y1="{py:.2}" x2="{}" y2="{py:.2}" stroke="#e5e5e5"/><text x="{}" y="{:.2}" text-anchor="end">{}</text>"##,
-                ml + pw,
-                ml - 6.0,
-                py + 4.0,
-                fmt_tick(t)
-            );
-        }
-        let slot = pw / n as f64;
-        let bw = (slot * 0.8 / per as f64).min(60.0);
-        for (c, cat) in self.categories.iter().enumerate() {
-            let cx = ml + slot * (c as f64 + 0.5);
-            for (k, (_, v, colour)) in self.series.iter().enumerate() {
-                let Some(&v) = v.get(c) else { continue };
-                if !v.is_finite() {
-                    continue;
-                }
-                let x = cx - bw * per as f64 / 2.0 + bw * k as f64;
-                let (top, bottom) = (sy(v.max(0.0)), sy(v.min(0.0)));
-                let _ = writeln!(
-                    s,
-                    r#"<rect x="{x:.2}" y="{top:.2}" width="{:.2}" height="{:.2}" fill="{colour}"/><text x="{:.2}" y="{:.2}" font-size="10" text-anchor="middle">{}</text>"#,
-                    bw * 0.92,
-                    (bottom - top).max(0.5),
-                    x + bw * 0.46,
-                    top - 3.0,
-                    fmt_value(v)
-                );
-            }
-            let _ = writeln!(
-                s,
-                r#"<text x="{cx:.2}" y="{}" text-anchor="middle">{}</text>"#,
-                mt + ph + 16.0,
-                esc(&shorten(cat, (slot / 6.5).max(4.0) as usize))
-            );
-        }
-        let _ = writeln!(
-            s,
-            r##"<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="none" stroke="#333"/><line x1="{ml}" y1="{:.2}" x2="{}" y2="{:.2}" stroke="#333"/>"##,
-            sy(0.0),
-            ml + pw,
-            sy(0.0)
-        );
-        let _ = writeln!(
-            s,
-            r#"<text transform="translate(18,{}) rotate(-90)" text-anchor="middle">{}</text>"#,
-            mt + ph / 2.0,
-            esc(&self.y_label)
-        );
-        for (k, (name, _, colour)) in self.series.iter().enumerate() {
-            let ly = mt + 10.0 + 18.0 * k as f64;
-            let _ = writeln!(
-                s,
-                r#"<rect x="{}" y="{}" width="14" height="10" fill="{colour}"/><text x="{}" y="{}">{}</text>"#,
-                ml + pw + 12.0,
-                ly - 5.0,
-                ml + pw + 32.0,
-                ly + 4.0,
-                esc(name)
-            );
-        }
-        s.push_str("</svg>\n");
-        s
-    }
-}
-
-fn fmt_value(v: f64) -> String {
-    if v.abs() >= 100.0 {
-        format!("{v:.0}")
-    } else if v.abs() >= 10.0 {
-        format!("{v:.1}")
-    } else {
-        format!("{v:.2}")
-    }
-}
-
-/// Points series with more points than this are drawn as density (one mark per 2 × 2 px cell).
-pub const DENSE_POINTS: usize = 2000;
-
-/// A line with more than 4 vertices per pixel column is reduced to the first, lowest, highest and last
-/// vertex of each column (its drawn shape is unchanged); gaps (non-finite values) are kept.
-fn decimate_line(xs: &[f64], ys: &[f64], pw: f64, sx: &dyn Fn(f64) -> f64) -> (Vec<f64>, Vec<f64>) {
-    if (xs.len() as f64) <= 4.0 * pw {
-        return (xs.to_vec(), ys.to_vec());
-    }
-    let (mut ox, mut oy) = (Vec::new(), Vec::new());
-    let mut i = 0;
-    while i < xs.len() {
-        if !(xs[i].is_finite() && ys[i].is_finite()) {
-            ox.push(f64::NAN);
-            oy.push(f64::NAN);
-            i += 1;
-            continue;
-        }
-        let col = sx(xs[i]).floor();
-        let start = i;
-        let (mut lo, mut hi) = (i, i);
-        while i < xs.len() && xs[i].is_finite() && ys[i].is_finite() && sx(xs[i]).floor() == col {
-            if ys[i] < ys[lo] {
-                lo = i;
-            }
-            if ys[i] > ys[hi] {
-                hi = i;
-            }
-            i += 1;
-        }
-        let mut keep = vec![start, lo, hi, i - 1];
-        keep.sort_unstable();
-        keep.dedup();
-        for k in keep {
-            ox.push(xs[k]);
-            oy.push(ys[k]);
-        }
-    }
-    (ox, oy)
 }
 
 /// `text` cut to `max` characters with a final `…` when longer.
@@ -792,6 +359,13 @@ mod tests {
         assert!(t.contains(&0.0));
     }
 
+    fn describe(svg: &str) -> Vec<serde_json::Value> {
+        descriptions(svg)
+            .iter()
+            .map(|d| serde_json::from_str(d).unwrap())
+            .collect()
+    }
+
     #[test]
     fn svg_contains_every_series_and_skips_nan() {
         let mut f = Figure::new("T <1>", "x", "y");
@@ -802,19 +376,84 @@ mod tests {
         f.hline(0.0, "zero");
         let s = f.to_svg();
         assert!(s.contains("T &lt;1&gt;"));
-        assert_eq!(
-            s.matches("<circle").count(),
-            1 + 1,
-            "one finite point + one legend marker"
-        );
         assert!(s.contains(">gap<") && s.contains(">zero<"));
         assert!(!s.contains("NaN") && !s.contains("inf"));
-        // The NaN breaks the line into two pieces: two move-to commands.
+        let d = &describe(&s)[0];
+        assert_eq!(d["title"], "T <1>");
+        let series = d["series"].as_array().unwrap();
+        // "a": the NaN splits it into a piece of two points and one lone point; with 3 < FEW_POINTS points
+        // every point has its marker.
+        assert_eq!(series[0]["points"], 3);
+        assert_eq!(series[0]["segments"], 1);
+        assert_eq!(series[0]["markers"], 3);
+        // "b": one finite point, one marker.
+        assert_eq!(series[1]["points"], 1);
+        assert_eq!(series[1]["markers"], 1);
+        assert_eq!(series[2]["segments"], 1);
+        // The line piece: one path with one move-to.
         let path = s
             .lines()
             .find(|l| l.contains("stroke-width=\"1.6\""))
             .unwrap();
-        assert_eq!(path.matches('M').count(), 2, "{path}");
+        assert_eq!(path.matches('M').count(), 1, "{path}");
+    }
+
+    /// A one-point line is drawn as a marker (it used to be an invisible "M x,y" path); a long line shows
+    /// no markers except at lone points between gaps.
+    #[test]
+    fn lone_points_are_markers() {
+        let mut f = Figure::new("t", "x (mm)", "y (µm)");
+        f.line("one", &[5.0], &[1.0]);
+        let xs: Vec<f64> = (0..40).map(f64::from).collect();
+        let mut ys: Vec<f64> = xs.iter().map(|x| x.sin()).collect();
+        ys[19] = f64::NAN;
+        ys[21] = f64::NAN;
+        f.line("long", &xs, &ys);
+        let d = &describe(&f.to_svg())[0];
+        let s = d["series"].as_array().unwrap();
+        assert_eq!(
+            (&s[0]["markers"], &s[0]["segments"]),
+            (&1.into(), &0.into())
+        );
+        // 40 − 2 NaN = 38 points in pieces 0..19, {20}, 22..40: two pieces and one lone marker.
+        assert_eq!(
+            (&s[1]["markers"], &s[1]["segments"]),
+            (&1.into(), &2.into())
+        );
+    }
+
+    /// A magnitude axis starts at 0 (reference: the data's minimum is 3, which would otherwise be padded to
+    /// about 2.9), a fixed x axis keeps its range and its tick step.
+    #[test]
+    fn magnitude_and_fixed_axis() {
+        let mut f = Figure::new("t", "C angle (°)", "|d| (µm)");
+        f.line("a", &[0.0, 180.0, 360.0], &[3.0, 4.0, 5.0])
+            .magnitude()
+            .x_axis(0.0, 360.0, Some(45.0));
+        let svg = f.to_svg();
+        let d = &describe(&svg)[0];
+        assert_eq!(d["magnitude"], true);
+        assert_eq!(d["y_axis"][0], 0.0);
+        assert!(d["y_axis"][1].as_f64().unwrap() >= 5.0);
+        assert_eq!(
+            (d["x_axis"][0].as_f64(), d["x_axis"][1].as_f64()),
+            (Some(0.0), Some(360.0))
+        );
+        assert!(svg.contains(">315<") && !svg.contains(">400<"));
+    }
+
+    /// `like_previous` gives a fitted line its points' colour and marker, and the next series the next slot.
+    #[test]
+    fn a_line_and_its_points_share_one_colour() {
+        let mut f = Figure::new("t", "x", "y");
+        f.points("Fx", &[1.0, 2.0], &[1.0, 2.0])
+            .line("Fx fit", &[1.0, 2.0], &[1.0, 2.0])
+            .like_previous()
+            .points("Fy", &[1.0, 2.0], &[3.0, 4.0]);
+        let d = &describe(&f.to_svg())[0];
+        let s = d["series"].as_array().unwrap();
+        assert_eq!(s[0]["colour"], s[1]["colour"]);
+        assert_eq!(s[2]["colour"], PALETTE[1]);
     }
 
     /// A 1e6-point series becomes a density of at most one mark per 2 × 2 px cell: the SVG stays under
@@ -852,6 +491,8 @@ mod tests {
             1 + 4 + 2 + 1,
             "background + 4 bars + 2 legend + frame"
         );
+        let d = &describe(&svg)[0];
+        assert_eq!(d["series"][1]["segments"], 2, "two bars of the model");
         assert!(svg.contains(">5.50<") && svg.contains(">cooling<"));
     }
 

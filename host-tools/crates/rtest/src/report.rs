@@ -13,27 +13,65 @@ use crate::{RtestData, SIGN_CONVENTION};
 pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
     let mut files = Vec::new();
     let names = crate::param_names_with(data, &a.fit.effects);
-    let idx: Vec<f64> = (0..a.judged_rows.len()).map(|i| i as f64).collect();
     let judged = match a.judged_by {
         "holdout" => "held-out rows (prediction from the fit on the other rows)",
         "cv" => "every row (cross-validated prediction)",
         _ => "the fitted rows (in-sample)",
     };
+    // The judged rows grouped by run and path (file order kept within each), each drawn over its C angle.
+    let mut groups: Vec<(String, Vec<usize>)> = Vec::new();
+    for (k, &r) in a.judged_rows.iter().enumerate() {
+        let key = data.path[r].clone();
+        match groups.iter_mut().find(|g| g.0 == key) {
+            Some(g) => g.1.push(k),
+            None => groups.push((key, vec![k])),
+        }
+    }
+    let c_label = axcomp_plot::label("C angle", "°");
+    let cs = a.judged_rows.iter().map(|&r| data.poses[r].c_deg);
+    let c_lo = (cs.clone().fold(0.0, f64::min) / 45.0).floor() * 45.0;
+    let c_hi = (cs.fold(c_lo + 45.0, f64::max) / 45.0).ceil() * 45.0;
     for (c, comp) in ["dx", "dy", "dz"].iter().enumerate() {
-        let meas: Vec<f64> = a.judged_rows.iter().map(|&r| data.d_um[r][c]).collect();
-        let pred: Vec<f64> = a.judged_pred.iter().map(|p| p[c]).collect();
-        let resid: Vec<f64> = meas.iter().zip(&pred).map(|(m, p)| m - p).collect();
+        let axis = ["X", "Y", "Z"][c];
+        let meas = |k: usize| data.d_um[a.judged_rows[k]][c];
+        let pred = |k: usize| a.judged_pred[k][c];
+        let rms =
+            axcomp_numeric::stats::rms_of((0..a.judged_rows.len()).map(|k| meas(k) - pred(k)));
         let mut f = Figure::new(
             &format!(
-                "{comp}: measured vs predicted over the path ({})",
+                "R-test {axis} deviation {comp} on {}: measured vs the location-error model, residual RMS {rms:.2} µm ({})",
+                data.machine.kind.name(),
                 a.judged_by
             ),
-            "pose (judged rows, file order)",
-            &format!("{comp}_um"),
+            &c_label,
+            &axcomp_plot::label(&format!("{axis} deviation {comp}"), "µm"),
         );
-        f.points("measured", &idx, &meas)
-            .dashed("predicted", &idx, &pred)
-            .line("measured − predicted", &idx, &resid);
+        f.x_axis(c_lo, c_hi, Some(45.0));
+        let (mut rx, mut ry) = (Vec::new(), Vec::new());
+        for (path, ks) in &groups {
+            // File order; a pass that starts again (C going back) is not joined to the one before.
+            let (mut xs, mut ms, mut ps) = (Vec::new(), Vec::new(), Vec::new());
+            for &k in ks {
+                let cdeg = data.poses[a.judged_rows[k]].c_deg;
+                if xs.last().is_some_and(|&l: &f64| cdeg < l) {
+                    for v in [&mut xs, &mut ms, &mut ps, &mut rx, &mut ry] {
+                        v.push(f64::NAN);
+                    }
+                }
+                xs.push(cdeg);
+                ms.push(meas(k));
+                ps.push(pred(k));
+                rx.push(cdeg);
+                ry.push(meas(k) - pred(k));
+            }
+            rx.push(f64::NAN);
+            ry.push(f64::NAN);
+            f.points(&format!("measured, path {path}"), &xs, &ms);
+            f.dashed(&format!("model, path {path}"), &xs, &ps)
+                .like_previous();
+        }
+        f.line("measured − model", &rx, &ry).with_colour("#555555");
+        f.hline(0.0, "");
         files.push((format!("path_{comp}.svg"), f.to_svg()));
     }
     // The location errors alone (no set-up offsets) over the rotary range, for the campaign's first sphere.
@@ -55,29 +93,36 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
         v
     };
     let cs: Vec<f64> = (0..=72).map(|k| k as f64 * 5.0).collect();
+    let tilt = data.machine.kind.tilt_letter().to_ascii_uppercase();
+    let peak = std::cell::Cell::new(0.0f64); // the largest |d| drawn, for the title
     let mut f = Figure::new(
-        "Error over the rotary range: |d| from the identified location errors",
-        "C angle (deg)",
-        "|d| (um)",
+        "",
+        &axcomp_plot::label("C angle", "°"),
+        &axcomp_plot::label("|d| from the location errors", "µm"),
     );
+    f.magnitude().x_axis(0.0, 360.0, Some(45.0));
     for t in &tilts {
         let mag: Vec<f64> = cs
             .iter()
             .map(|&c| {
                 let pose = axcomp_kinematics::rotary::pose_on_sphere(&data.machine, sphere, *t, c);
                 let d = data.machine.displacement(&pose, &le, [0.0; N_SETUP]);
-                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+                let m = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                peak.set(peak.get().max(m));
+                m
             })
             .collect();
         f.line(
-            &format!(
-                "{} = {t:.1}°",
-                data.machine.kind.tilt_letter().to_ascii_uppercase()
-            ),
+            &format!("{tilt} = {}°", axcomp_plot::style::fmt_fixed(*t, 1)),
             &cs,
             &mag,
         );
     }
+    f.set_title(&format!(
+        "Displacement |d| over the rotary range from the identified location errors ({}): up to {:.2} µm uncompensated",
+        data.machine.kind.name(),
+        peak.get()
+    ));
     files.push(("rotary_range.svg".into(), f.to_svg()));
 
     let mut md = String::new();

@@ -13,6 +13,21 @@ use axcomp_plot::{BarChart, Figure, markdown_table, panels_svg, write_atomic};
 
 use crate::thermal::{ThermalFit, ThermalInput};
 
+/// `(xs, ys)` with a gap (NaN) wherever the time starts again (a campaign of runs, each from its own zero),
+/// so that a line never joins the end of one run to the start of the next.
+fn broken_at_restarts(xs: &[f64], ys: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let (mut bx, mut by) = (Vec::with_capacity(xs.len()), Vec::with_capacity(ys.len()));
+    for (i, (&x, &y)) in xs.iter().zip(ys).enumerate() {
+        if i > 0 && x < xs[i - 1] {
+            bx.push(f64::NAN);
+            by.push(f64::NAN);
+        }
+        bx.push(x);
+        by.push(y);
+    }
+    (bx, by)
+}
+
 /// Writes `report.md`, `prediction.svg`, `residual_per_condition.svg` and `sensors.svg` into `dir`
 /// (created if needed). Files are written atomically.
 pub fn write_thermal_report(
@@ -62,11 +77,13 @@ pub fn thermal_report_files(
             "{target}: measured vs predicted by model `{}` ({used} of {all} sensors) — {figures}",
             fit.chosen_method
         ),
-        "time / h",
-        "error − reference value / µm",
+        "time (h)",
+        "error − reference value (µm)",
     );
-    f.line("measured", &hours, &measured);
-    f.line("predicted", &hours, &predicted);
+    let (hx, measured) = broken_at_restarts(&hours, &measured);
+    let (_, predicted) = broken_at_restarts(&hours, &predicted);
+    f.line("measured", &hx, &measured);
+    f.line("predicted", &hx, &predicted);
     for (a, b) in &spans {
         f.vspan(*a, *b, "held out");
     }
@@ -78,10 +95,11 @@ pub fn thermal_report_files(
         .collect();
     let mut r = Figure::new(
         &format!("{target}: residual (measured − predicted, what compensation leaves)"),
-        "time / h",
-        "residual / µm",
+        "time (h)",
+        "residual (µm)",
     );
-    r.line("residual", &hours, &resid).with_colour("#009E73");
+    let (_, resid) = broken_at_restarts(&hours, &resid);
+    r.line("residual", &hx, &resid).with_colour("#009E73");
     r.hline(0.0, "");
     for (a, b) in &spans {
         r.vspan(*a, *b, "held out");
@@ -115,9 +133,10 @@ pub fn thermal_report_files(
             "{target}: RMS per condition, raw vs after model `{}` — {figures}",
             fit.chosen_method
         ),
-        "RMS / µm",
+        "RMS (µm)",
         &name_refs,
     );
+    bars.magnitude();
     bars.series(
         "raw",
         &fit.per_condition
@@ -164,11 +183,12 @@ pub fn thermal_report_files(
     // at ~7.5 px a character plus 50 px).
     let longest = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0);
     let width = ((50.0 + 7.5 * longest as f64) / 0.45 + 10.0).max(900.0);
-    let mut f = Figure::new(&title, "time / h", "temperature / °C");
+    let mut f = Figure::new(&title, "time (h)", "temperature (°C)");
     f.size(width, 500.0);
     for (t, label) in fit.model.terms.iter().zip(&labels) {
         if let Some(s) = input.sensors.iter().find(|s| s.name == t.sensor) {
-            f.line(label, &hours, &s.values);
+            let (x, y) = broken_at_restarts(&hours, &s.values);
+            f.line(label, &x, &y);
         }
     }
     for (a, b) in &spans {
