@@ -5,7 +5,7 @@
 //! set-up offsets only, 7 = the full model) the squared errors of the inner leave-one-path-out (`inner_grp`)
 //! and leave-one-quarter-of-a-path-out (`inner_blk`) predictions summed per chunk of 8 poses, the in-sample
 //! SSE, and the outer held-out SSE of the model fitted on the fold's training rows. JSON lines on stdout, to
-//! judge candidate rules offline on the same folds (README, issue 11):
+//! judge candidate rules offline on the same folds (docs/figures.md):
 //! `cargo run --release -p axcomp-rtest --example rtest_select_dump -- 1 20 > design.jsonl`.
 use axcomp_data::Split;
 use axcomp_kinematics::rotary::N_LOCATION;

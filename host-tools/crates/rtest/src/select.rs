@@ -23,8 +23,8 @@
 //! of fitted rows (e.g. `--cv run` leaving out the run with the circles: K4 alone is fitted) or no `path` /
 //! `run` column there is nothing to cross-check on, and only the first criterion can keep them: on the twin
 //! the full model fitted to K4 alone predicts the circles 4× worse than the reference at location errors
-//! ×0. Measured on the twin by `cargo run --release -p axcomp-rtest --example rtest_unmodelled` (README,
-//! issue 11).
+//! ×0. Measured on the twin by `cargo run --release -p axcomp-rtest --example rtest_unmodelled` (figures in
+//! docs/figures.md).
 //!
 //! Flags (never fixing): each location error's standard uncertainty robust to residuals correlated along a
 //! path (cluster-robust over chunks of [`CHUNK`] consecutive poses) and whether it is at least twice that.
