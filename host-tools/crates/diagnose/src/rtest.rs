@@ -18,9 +18,14 @@
 //!     `FiveAxis::displacement_at`).
 //!   - `rotary_wobble`: the C axis tilting about the two axes perpendicular to it and moving radially
 //!     (run-out), each varying as `cos kc`, `sin kc` (k = 1…3): small rotations / translations of what C
-//!     carries (trunnion: the table, in the frame the tilt axis carries; head: the tool).
+//!     carries (trunnion: the table, in the frame the tilt axis carries; head: the tool); or the tilt axis
+//!     (A or B) tilting about its two perpendicular axes and moving radially as powers 1…2 of its angle
+//!     (what `fit rtest --effects rotary_wobble` also fits).
 //!   - `linear_geometry`: low-order (Legendre degree 1…3) errors of the tool point along X, Y, Z as
 //!     functions of the linear axes' positions (positioning and straightness).
+//!
+//!   The columns of these three are the signatures of `axcomp_rtest::effects` (the terms `fit rtest
+//!   --effects` fits), at the training fit.
 //!   - `setup_drift`: the sphere moving with time (linear or quadratic in `time_s`), along the table frame
 //!     for trunnions (the sphere's own set-up columns times time), the machine frame for a head.
 //!   - `thermal_drift`: the tool point moving along machine X, Y, Z in proportion to the temperature rises
@@ -325,6 +330,20 @@ pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<Rtest
             variants.push(variant(
                 term_columns(RotaryEffect::RotaryWobble, basis),
                 json!({"per_revolution": set, "components": "tilt about two axes ⊥ C, radial run-out"}),
+            ));
+        }
+        // The tilt axis's own wobble (A or B tilting about its two perpendicular axes as it turns, and its
+        // radial motion): without it an A-axis wobble is named `linear_geometry`, whose position
+        // polynomials absorb part of it. Powers 1…d of the tilt angle; the constant is a
+        // location error.
+        for tilt_degree in 1..=2usize {
+            let basis = EffectBasis::Wobble {
+                per_revolution: Vec::new(),
+                tilt_degree,
+            };
+            variants.push(variant(
+                term_columns(RotaryEffect::RotaryWobble, basis),
+                json!({"per_revolution": [], "tilt_degree": tilt_degree, "components": format!("tilt of the {tilt_letter} axis about its two perpendicular axes and its radial motion, powers 1…{tilt_degree} of its angle")}),
             ));
         }
         families.push(RtestFamily {
