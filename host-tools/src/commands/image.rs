@@ -2018,7 +2018,8 @@ mod tests {
     #[test]
     fn inspect_reports_missing_provenance_and_the_wiring() {
         let g = axcomp_scenario::group_image(3, false).unwrap();
-        let board = parse_board_inputs(&crate::commands::image_board::default_board_inputs()).unwrap();
+        let board =
+            parse_board_inputs(&crate::commands::image_board::default_board_inputs()).unwrap();
         let text = describe_trust(&g, &board).unwrap();
         assert!(
             text.contains("provenance: none")
