@@ -59,7 +59,8 @@ pub struct Args {
     /// Write report.md and SVG plots into DIR.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
-    /// Write controller tables into DIR: TF5280-style per component, Heidenhain-style per axis.
+    /// Write the model's component tables into DIR as plain CSV (µm, µrad; one file per component and per
+    /// axis). Not a controller's format: `axcomp export --format tf5280|heidenhain` writes those.
     #[arg(long, value_name = "DIR")]
     pub export: Option<PathBuf>,
     /// Position step of the exported tables (mm; default 40 steps per axis).

@@ -1,12 +1,14 @@
-//! Tables users load into controllers.
+//! The model's component tables as plain CSV (`fit geometry --export`), for reading and plotting elsewhere.
+//! They are not a controller's format: the TwinCAT TF5280 and Heidenhain files are written by the
+//! `axcomp-export` crate (`axcomp export --format tf5280|heidenhain`).
 //!
-//! - **TF5280 style** (Beckhoff, one 1-D table per component over its own axis): `EXX.csv` … `ECZ.csv`
+//! - **per component** (one 1-D table per component over its own axis): `EXX.csv` … `ECZ.csv`
 //!   with columns `component,position_mm,value,unit` (µm or µrad), and `squareness.csv`
 //!   (`component,value,unit`).
-//! - **Heidenhain style** (one table per axis, KinematicsComp-like): `axis_X.csv` with columns
+//! - **per axis** (one table per axis): `axis_X.csv` with columns
 //!   `position_mm,EXX,EYX,EZX,EAX,EBX,ECX` (µm and µrad), likewise `axis_Y.csv`, `axis_Z.csv`.
 //! - `not_identified.txt`: the components the data could not identify; their tables hold the prior 0 (the
-//!   TF5280 tables of those components are not written at all).
+//!   per-component tables of those components are not written at all).
 //!
 //! Values are the model's errors (tool relative to workpiece, reached − commanded); a controller subtracts
 //! them. Positions run over the measured range in `step` mm (the last point is the range end).
