@@ -134,29 +134,7 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
         judged
     ));
     md.push_str(&format!("**Sign convention.** {SIGN_CONVENTION}\n\n"));
-    let rows: Vec<Vec<String>> = a
-        .model
-        .location_errors
-        .iter()
-        .map(|(n, v)| {
-            vec![
-                n.clone(),
-                format!("{:.3}", v.value),
-                v.unit.clone(),
-                v.std.map_or("–".into(), |s| format!("{s:.3}")),
-                if v.identified {
-                    "yes".into()
-                } else {
-                    "**no**".into()
-                },
-                v.reason.clone().unwrap_or_default(),
-            ]
-        })
-        .collect();
-    md.push_str(&markdown_table(
-        &["name", "value", "unit", "std", "identified", "reason"],
-        &rows,
-    ));
+    md.push_str(&parameter_table("name", &a.model.location_errors));
     md.push('\n');
     let mut setup_rows = Vec::new();
     for s in 0..data.setup_names.len() {
@@ -230,28 +208,7 @@ fn effects_section(md: &mut String, a: &Analysis) {
             "\nEffect `{}` ({:?}): correction RMS {:.3} µm over the fitted poses; {} RMS with the location errors alone {:.3} µm, with the effect {:.3} µm.\n\n",
             e.kind, e.basis, e.rms_over_fit_um, a.judged_by, a.full_rms_um, a.judged_rms_um
         ));
-        let rows: Vec<Vec<String>> = e
-            .parameters
-            .iter()
-            .map(|(n, v)| {
-                vec![
-                    n.clone(),
-                    format!("{:.3}", v.value),
-                    v.unit.clone(),
-                    v.std.map_or("–".into(), |s| format!("{s:.3}")),
-                    if v.identified {
-                        "yes".into()
-                    } else {
-                        "**no**".into()
-                    },
-                    v.reason.clone().unwrap_or_default(),
-                ]
-            })
-            .collect();
-        md.push_str(&markdown_table(
-            &["parameter", "value", "unit", "std", "identified", "reason"],
-            &rows,
-        ));
+        md.push_str(&parameter_table("parameter", &e.parameters));
     }
 }
 
@@ -311,4 +268,29 @@ pub fn write_report(dir: &Path, files: &[(String, String)]) -> std::io::Result<(
         axcomp_plot::write_atomic(&dir.join(name), text.as_bytes())?;
     }
     Ok(())
+}
+
+/// A Markdown table of named parameters: value, unit, std, identified and why not.
+fn parameter_table(first: &str, params: &[(String, crate::ParamValue)]) -> String {
+    let rows: Vec<Vec<String>> = params
+        .iter()
+        .map(|(n, v)| {
+            vec![
+                n.clone(),
+                format!("{:.3}", v.value),
+                v.unit.clone(),
+                v.std.map_or("–".into(), |s| format!("{s:.3}")),
+                if v.identified {
+                    "yes".into()
+                } else {
+                    "**no**".into()
+                },
+                v.reason.clone().unwrap_or_default(),
+            ]
+        })
+        .collect();
+    markdown_table(
+        &[first, "value", "unit", "std", "identified", "reason"],
+        &rows,
+    )
 }
