@@ -77,21 +77,7 @@ impl BarChart {
         let yt = nice_ticks(y0, y1, 6);
         let (y0, y1) = (y0.min(yt[0]), y1.max(*yt.last().unwrap_or(&y1)));
         let sy = |v: f64| mt + ph - (v - y0) / (y1 - y0) * ph;
-        let mut s = String::new();
-        let _ = writeln!(
-            s,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
-        );
-        let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-        for (k, line) in title_lines.iter().enumerate() {
-            let _ = writeln!(
-                s,
-                r#"<text x="{}" y="{}" font-size="15" text-anchor="middle">{}</text>"#,
-                w / 2.0,
-                24.0 + 18.0 * k as f64,
-                esc(line)
-            );
-        }
+        let mut s = crate::svg_open(w, h, &title_lines);
         for &t in &yt {
             let py = sy(t);
             let _ = writeln!(

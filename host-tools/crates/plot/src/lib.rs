@@ -317,6 +317,26 @@ fn fmt_tick(v: f64) -> String {
     }
 }
 
+/// The opening of a chart's SVG: the root element, a white background and the title lines, centred.
+fn svg_open<S: AsRef<str>>(w: f64, h: f64, title_lines: &[S]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+    for (k, line) in title_lines.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}" font-size="15" text-anchor="middle">{}</text>"#,
+            w / 2.0,
+            24.0 + 18.0 * k as f64,
+            esc(line.as_ref())
+        );
+    }
+    s
+}
+
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")

@@ -121,21 +121,7 @@ impl Figure {
         let sx = |v: f64| ml + (v - x0) / (x1 - x0) * pw;
         let sy = |v: f64| mt + ph - (v - y0) / (y1 - y0) * ph;
 
-        let mut s = String::new();
-        let _ = writeln!(
-            s,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
-        );
-        let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-        for (k, line) in title_lines.iter().enumerate() {
-            let _ = writeln!(
-                s,
-                r#"<text x="{}" y="{}" font-size="15" text-anchor="middle">{}</text>"#,
-                w / 2.0,
-                24.0 + 18.0 * k as f64,
-                esc(line)
-            );
-        }
+        let mut s = crate::svg_open(w, h, &title_lines);
         for sp in &self.spans {
             let (a, b) = (sx(sp.from.max(x0)), sx(sp.to.min(x1)));
             let _ = writeln!(
