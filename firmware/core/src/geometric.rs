@@ -49,8 +49,8 @@
 use core::num::NonZeroU32;
 
 use crate::group::MAX_AXES;
+use crate::hint::cold_path;
 use crate::le::f32_at;
-use crate::limits::cold_path;
 
 /// Most segments of one axis's geometric grid.
 pub const MAX_GEOMETRIC_SEGMENTS: u32 = 1024;

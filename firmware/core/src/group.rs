@@ -39,16 +39,15 @@
 
 use crate::MAX_FORCES;
 use crate::MAX_SENSORS;
-use crate::compensator::{
-    AxisCompensator, CycleInput, CycleOutput, Flags, PoolSource, State, TableStore,
-};
-use crate::counter::{Direction, wrap};
+use crate::counts::{Direction, wrap};
 use crate::error::{Field, ImageError};
 use crate::geometric::{GeometricSpec, GeometricStage};
 use crate::image::{self, Layout};
+use crate::io::{CycleInput, CycleOutput, Flags};
 use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryMachine, RotaryStage};
+use crate::runtime::{AxisCompensator, PoolSource, State, TableStore};
+use crate::sensor::{ProcessParams, SensorRt};
 use crate::spec::SensorSpec;
-use crate::thermo::{ProcessParams, SensorRt};
 use crate::trace::{
     OutputRecord, Record, STATUS_IMAGE_ACCEPTED, STATUS_IMAGE_REJECTED, STATUS_NO_IMAGE,
 };
@@ -565,17 +564,17 @@ impl<const POOL: usize> Group<POOL> {
     /// Settings of sensor `j` of slot `i` (what [`AxisCompensator::sensor`] is for one axis).
     pub fn sensor(&self, i: usize, j: usize) -> Option<SensorSpec> {
         let (a, cfgs) = (self.axes.get(i)?, self.sensors.get(i)?);
-        crate::thermo::sensor_spec(cfgs, a.n_sensors, j)
+        crate::sensor::sensor_spec(cfgs, a.n_sensors, j)
     }
     /// b_j (µm/K) of sensor `j` of slot `i`.
     pub fn b_um_per_k(&self, i: usize, j: usize) -> Option<f32> {
         let (a, cfgs) = (self.axes.get(i)?, self.sensors.get(i)?);
-        crate::thermo::sensor_b_alpha(cfgs, a.n_sensors, j).map(|(b, _)| b)
+        crate::sensor::sensor_b_alpha(cfgs, a.n_sensors, j).map(|(b, _)| b)
     }
     /// Lag coefficient α of sensor `j` of slot `i` (1 = no lag).
     pub fn lag_alpha(&self, i: usize, j: usize) -> Option<f32> {
         let (a, cfgs) = (self.axes.get(i)?, self.sensors.get(i)?);
-        crate::thermo::sensor_b_alpha(cfgs, a.n_sensors, j).map(|(_, al)| al)
+        crate::sensor::sensor_b_alpha(cfgs, a.n_sensors, j).map(|(_, al)| al)
     }
     /// Process parameters for every axis ([`AxisCompensator::set_process`]).
     pub fn set_process(&self, st: &mut GroupState, p: &ProcessParams) {
@@ -1040,7 +1039,7 @@ fn axis_pipeline<const ROTARY: bool, const STAGE: bool>(
         true,
     );
     if pos != tracked.0 {
-        crate::limits::cold_path();
+        crate::hint::cold_path();
         out.position_counts = pos;
     }
     if STAGE {

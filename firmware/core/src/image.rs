@@ -56,11 +56,12 @@
 //! |x_ref| ≤ 2^62; |χ| ≤ 1e3 µm/N; |k| ≤ 1e9, |exponents| ≤ 10; max correction and max slew in
 //! (0, 1e5] µm; direction hysteresis ≤ 2^31 − 1 counts.
 
-use crate::compensator::{AxisCompensator, Compensator, TableStore};
+use crate::counts::CounterShift;
 use crate::error::{Field, ImageError};
 use crate::limits::MAX_LIMIT_UM;
+use crate::runtime::{AxisCompensator, Compensator, TableStore};
+use crate::sensor::SensorRt;
 use crate::spec::{ForceLaw, ImageSpec, OutsideStroke, ThermoReference};
-use crate::thermo::SensorRt;
 use crate::{MAX_FORCES, MAX_IMAGE_LEN, MAX_SEGMENTS, MAX_SENSORS};
 
 /// Image magic.
@@ -606,7 +607,7 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
     let upc = f32_at(b, 16);
     c.axis_id = u16_at(b, 12);
     c.counter_bits = bits;
-    c.sext_shift = crate::counter::CounterShift::new(32u32.saturating_sub(bits as u32));
+    c.sext_shift = CounterShift::new(32u32.saturating_sub(bits as u32));
     c.um_per_count = upc;
     c.counts_per_rev = 0;
 
@@ -657,9 +658,9 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
     c.force_predicted = [false; MAX_FORCES];
     c.measured_mask = 0;
     c.chi_measured = [0.0; MAX_FORCES];
-    c.measured = crate::thermo::MeasuredSet::None;
+    c.measured = crate::sensor::MeasuredSet::None;
     c.thermo_flags_xor = 0;
-    c.laws = [crate::thermo::ZERO_LAW; MAX_FORCES];
+    c.laws = [crate::sensor::ZERO_LAW; MAX_FORCES];
     if let Some(o) = l.thermo {
         let period = u32_at(b, o);
         c.sensor_period_ms = period;
@@ -693,7 +694,7 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
         }
     }
 
-    c.measured = crate::thermo::MeasuredSet::from_mask(c.measured_mask);
+    c.measured = crate::sensor::MeasuredSet::from_mask(c.measured_mask);
 
     let o = l.limits;
     c.max_correction_um = f32_at(b, o);

@@ -70,37 +70,41 @@ extern crate std;
 pub mod bench;
 mod compensator;
 mod counter;
+mod counts;
 mod engine;
 mod error;
 pub mod geometric;
 pub mod group;
 pub mod group_image;
+mod hint;
 pub mod image;
+mod io;
 mod le;
 mod limits;
 pub mod probe;
 pub mod provenance;
 pub mod rotary;
+mod runtime;
+mod sensor;
 mod spec;
 mod table;
 mod thermo;
 pub mod trace;
 pub mod wiring;
 
-pub use compensator::{
-    AxisCompensator, Compensator, CycleInput, CycleOutput, Flags, OwnTable, State, TableStore,
-};
-pub use counter::Direction;
+pub use counts::Direction;
 pub use engine::{Engine, EngineStats};
 pub use error::{Field, ImageError};
 pub use image::{ImageInfo, crc32, declared_image_len, image_len, inspect_image, write_image};
+pub use io::{CycleInput, CycleOutput, Flags};
 pub use limits::round_to_counts;
+pub use runtime::{AxisCompensator, Compensator, OwnTable, State, TableStore};
+pub use sensor::{ForceSource, ProcessParams};
 pub use spec::{
     ExpansionSpec, ForceLaw, ForceSpec, ImageSpec, LimitSpec, OutsideStroke, SensorSpec, TableSpec,
     ThermoForceSpec, ThermoReference,
 };
 pub use table::per_count as segment_per_count;
-pub use thermo::{ForceSource, ProcessParams};
 
 /// Segments per direction of the positioning table.
 pub const MAX_SEGMENTS: usize = 1024;

@@ -5,7 +5,9 @@
 //! - **slew**: the change of the applied correction per cycle ≤ `max_slew_um_per_cycle`.
 //! - **counts**: the applied correction in scale counts, rounded half away from zero.
 
-use crate::compensator::{AxisCompensator, CycleOutput, Flags, State, TableStore};
+use crate::hint::cold_path;
+use crate::io::{CycleOutput, Flags};
+use crate::runtime::{AxisCompensator, State, TableStore};
 
 impl<S: TableStore> AxisCompensator<S> {
     /// Clamp, slew, rounding to counts and the corrected command: the last stage of an axis.
@@ -97,12 +99,6 @@ pub(crate) const fn magnitude_key(m: f32) -> u32 {
 pub(crate) const fn magnitude_key_of(x: f32) -> u32 {
     x.to_bits() << 1
 }
-
-/// Marks the branch that calls it as rarely taken, so the per-cycle path is laid out as the
-/// fall-through (a stand-in for `core::hint::cold_path`, which needs Rust 1.95; MSRV is 1.85).
-#[cold]
-#[inline(never)]
-pub(crate) fn cold_path() {}
 
 /// Clamp `total` to ±`max` (a NaN holds `last`: NON_FINITE), then limit the change from `last` to
 /// `slew`. The per-cycle path takes this only when a limit acts (or the total is NaN).

@@ -114,7 +114,7 @@
 //!   homogeneous transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all
 //!   three kinds).
 
-use crate::counter::{step_in_turn_wide, wrap};
+use crate::counts::{step_in_turn_wide, wrap};
 use crate::error::{Field, ImageError};
 use crate::group::AxisName;
 

@@ -13,9 +13,9 @@
 //!   held or tapered to 0 over `taper_length_counts`.
 
 use crate::MAX_SEGMENTS;
-use crate::compensator::{AxisCompensator, Compensator, TableStore};
-use crate::counter::Direction;
-use crate::limits::cold_path;
+use crate::counts::Direction;
+use crate::hint::cold_path;
+use crate::runtime::{AxisCompensator, Compensator, TableStore};
 use crate::spec::OutsideStroke;
 
 impl<S: TableStore> AxisCompensator<S> {
