@@ -2,6 +2,8 @@
 
 use core::fmt;
 
+use crate::axis::AxisName;
+
 /// The image field an [`ImageError::NonFinite`] or [`ImageError::OutOfRange`] refers to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Field {
@@ -365,5 +367,32 @@ impl From<crate::geometric::GeometricError> for ImageError {
 
 /// Letter of an axis code (`?` for an unknown code).
 fn axis_letter(code: u8) -> char {
-    crate::group::AxisName::from_code(code).map_or('?', |a| a.letter())
+    crate::axis::AxisName::from_code(code).map_or('?', |a| a.letter())
+}
+
+/// Why a group was refused: the error and the axis it concerns (None: the group as a whole or
+/// its stage).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GroupError {
+    /// The axis whose image or settings were refused.
+    pub axis: Option<AxisName>,
+    /// Why.
+    pub error: ImageError,
+}
+
+impl core::fmt::Display for GroupError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self.axis {
+            Some(a) => write!(f, "axis {}: {}", a.letter(), self.error),
+            None => write!(f, "{}", self.error),
+        }
+    }
+}
+
+impl core::error::Error for GroupError {}
+
+impl From<ImageError> for GroupError {
+    fn from(error: ImageError) -> Self {
+        GroupError { axis: None, error }
+    }
 }

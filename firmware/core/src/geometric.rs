@@ -48,7 +48,7 @@
 
 use core::num::NonZeroU32;
 
-use crate::group::MAX_AXES;
+use crate::axis::MAX_AXES;
 use crate::hint::cold_path;
 use crate::le::f32_at;
 

@@ -39,10 +39,15 @@
 
 use crate::MAX_FORCES;
 use crate::MAX_SENSORS;
+pub use crate::axis::{AxisName, GroupAxisImage, MAX_AXES};
 use crate::counts::{Direction, wrap};
-use crate::error::{Field, ImageError};
+pub use crate::error::GroupError;
+pub use crate::io::GroupInput;
+
+use crate::error::ImageError;
 use crate::geometric::{GeometricSpec, GeometricStage};
-use crate::image::{self, Layout};
+use crate::group_check::validate_group_stages;
+use crate::image;
 use crate::io::{CycleInput, CycleOutput, Flags};
 use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryMachine, RotaryStage};
 use crate::runtime::{AxisCompensator, PoolSource, State, TableStore};
@@ -51,9 +56,6 @@ use crate::spec::SensorSpec;
 use crate::trace::{
     OutputRecord, Record, STATUS_IMAGE_ACCEPTED, STATUS_IMAGE_REJECTED, STATUS_NO_IMAGE,
 };
-
-/// Axes in a group.
-pub const MAX_AXES: usize = 5;
 
 /// [`Group`]'s cycle dispatch, set at load. An enum of 0..=6, so that its load carries its range
 /// and the dispatch's `match` is a table branch with no range test.
@@ -77,92 +79,6 @@ enum CycleMode {
     /// [`CycleMode::Plain`] with exactly three axes (its fast path: `Group::xyz_pipelines`,
     /// tail-called from the dispatch).
     Plain3 = 6,
-}
-
-/// Name (and kind) of a group axis.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
-#[repr(u8)]
-pub enum AxisName {
-    /// Linear X.
-    #[default]
-    X = 0,
-    /// Linear Y.
-    Y = 1,
-    /// Linear Z.
-    Z = 2,
-    /// Rotary A (about X).
-    A = 3,
-    /// Rotary B (about Y).
-    B = 4,
-    /// Rotary C (about Z).
-    C = 5,
-}
-
-impl AxisName {
-    /// Every name, in code order.
-    pub const ALL: [AxisName; 6] = [
-        AxisName::X,
-        AxisName::Y,
-        AxisName::Z,
-        AxisName::A,
-        AxisName::B,
-        AxisName::C,
-    ];
-    /// From its code (0..=5).
-    pub const fn from_code(code: u8) -> Option<AxisName> {
-        match code {
-            0 => Some(AxisName::X),
-            1 => Some(AxisName::Y),
-            2 => Some(AxisName::Z),
-            3 => Some(AxisName::A),
-            4 => Some(AxisName::B),
-            5 => Some(AxisName::C),
-            _ => None,
-        }
-    }
-    /// Its code.
-    pub const fn code(self) -> u8 {
-        self as u8
-    }
-    /// `'X'` … `'C'`.
-    pub const fn letter(self) -> char {
-        match self {
-            AxisName::X => 'X',
-            AxisName::Y => 'Y',
-            AxisName::Z => 'Z',
-            AxisName::A => 'A',
-            AxisName::B => 'B',
-            AxisName::C => 'C',
-        }
-    }
-    /// From `'X'` … `'C'` (either case).
-    pub const fn from_letter(c: char) -> Option<AxisName> {
-        match c {
-            'X' | 'x' => Some(AxisName::X),
-            'Y' | 'y' => Some(AxisName::Y),
-            'Z' | 'z' => Some(AxisName::Z),
-            'A' | 'a' => Some(AxisName::A),
-            'B' | 'b' => Some(AxisName::B),
-            'C' | 'c' => Some(AxisName::C),
-            _ => None,
-        }
-    }
-    /// True for A, B, C.
-    pub const fn is_rotary(self) -> bool {
-        matches!(self, AxisName::A | AxisName::B | AxisName::C)
-    }
-}
-
-/// One axis of a group as loaded: its name, its counts per revolution (rotary axes only, 0 for
-/// a linear one) and its single-axis image (schema 1: table, thermo-force term, limits).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GroupAxisImage<'a> {
-    /// Which axis.
-    pub name: AxisName,
-    /// Rotary: counts per revolution (2..=2^31); linear: 0.
-    pub counts_per_rev: u32,
-    /// The axis's image bytes.
-    pub image: &'a [u8],
 }
 
 /// A group axis's table in the group's pool: the first segment of each direction half.
@@ -200,24 +116,6 @@ impl<const POOL: usize> PoolSource for GroupPool<'_, POOL> {
     fn pool(&self) -> &[[f32; 4]] {
         &self.0.pool
     }
-}
-
-/// Inputs of one group cycle, by slot (entries beyond the group's axes are ignored).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GroupInput {
-    /// Per slot.
-    pub axes: [CycleInput; MAX_AXES],
-}
-
-impl GroupInput {
-    /// Every axis at counter 0, command 0, no forces.
-    pub const ZERO: GroupInput = GroupInput {
-        axes: [CycleInput {
-            scale_raw: 0,
-            command_counts: 0,
-            forces_n: [0.0; MAX_FORCES],
-        }; MAX_AXES],
-    };
 }
 
 /// Outputs of one group cycle, by slot.
@@ -1050,143 +948,6 @@ fn axis_pipeline<const ROTARY: bool, const STAGE: bool>(
     out.correction_counts = o.correction_counts;
     out.correction_um = o.correction_um;
     out.flags = o.flags;
-}
-
-/// Why a group was refused: the error and the axis it concerns (None: the group as a whole or
-/// its stage).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct GroupError {
-    /// The axis whose image or settings were refused.
-    pub axis: Option<AxisName>,
-    /// Why.
-    pub error: ImageError,
-}
-
-impl core::fmt::Display for GroupError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self.axis {
-            Some(a) => write!(f, "axis {}: {}", a.letter(), self.error),
-            None => write!(f, "{}", self.error),
-        }
-    }
-}
-
-impl core::error::Error for GroupError {}
-
-impl From<ImageError> for GroupError {
-    fn from(error: ImageError) -> Self {
-        GroupError { axis: None, error }
-    }
-}
-
-/// Every check of [`Group::load_stages`]: [`validate_group`] and the geometric stage's (X, Y, Z
-/// in the group, a valid model, each grid spanning its axis's table grid if the axis has a
-/// table, tables and functions within the pool).
-pub(crate) fn validate_group_stages<const POOL: usize>(
-    axes: &[GroupAxisImage],
-    stage: Option<&RotaryLocationSpec>,
-    geometric: Option<&GeometricSpec>,
-) -> Result<[Option<Layout>; MAX_AXES], GroupError> {
-    let layouts = validate_group::<POOL>(axes, stage)?;
-    let Some(spec) = geometric else {
-        return Ok(layouts);
-    };
-    spec.validate().map_err(ImageError::from)?;
-    let mut needed = spec.pool_entries();
-    for (k, name) in [AxisName::X, AxisName::Y, AxisName::Z]
-        .into_iter()
-        .enumerate()
-    {
-        let Some(i) = axes.iter().position(|a| a.name == name) else {
-            return Err(ImageError::AxisNotInGroup { axis: name.code() }.into());
-        };
-        let Some(l) = layouts[i] else { continue };
-        if let Some((start, seg, n)) = image::table_grid(&l, axes[i].image) {
-            let g = spec.grids[k];
-            if start != g.start_counts
-                || seg as i128 * n as i128 != g.end_counts() - g.start_counts as i128
-            {
-                return Err(GroupError {
-                    axis: Some(name),
-                    error: ImageError::GridMismatch { axis: name.code() },
-                });
-            }
-        }
-    }
-    for l in layouts.iter().flatten() {
-        let halves = if l.bidirectional { 2 } else { 1 };
-        needed = needed.saturating_add(halves * l.n_segments as u32);
-    }
-    if needed as usize > POOL {
-        return Err(ImageError::PoolTooSmall { needed }.into());
-    }
-    Ok(layouts)
-}
-
-/// Every check of [`Group::load`]; the layouts of the axis images by slot.
-pub(crate) fn validate_group<const POOL: usize>(
-    axes: &[GroupAxisImage],
-    stage: Option<&RotaryLocationSpec>,
-) -> Result<[Option<Layout>; MAX_AXES], GroupError> {
-    if axes.is_empty() || axes.len() > MAX_AXES {
-        return Err(ImageError::AxisCount.into());
-    }
-    let mut layouts = [None; MAX_AXES];
-    let mut needed = 0u32;
-    for (i, a) in axes.iter().enumerate() {
-        let at = |error| GroupError {
-            axis: Some(a.name),
-            error,
-        };
-        if axes[..i].iter().any(|b| b.name == a.name) {
-            return Err(at(ImageError::DuplicateAxis {
-                axis: a.name.code(),
-            }));
-        }
-        let l = image::validate(a.image).map_err(at)?;
-        let cpr = a.counts_per_rev;
-        let cpr_ok = if a.name.is_rotary() {
-            (2..=1u32 << 31).contains(&cpr)
-        } else {
-            cpr == 0
-        };
-        if !cpr_ok {
-            return Err(at(ImageError::OutOfRange {
-                field: Field::CountsPerRev,
-                index: i as u16,
-            }));
-        }
-        if a.name.is_rotary() {
-            if let Some((start, seg, n)) = image::table_grid(&l, a.image) {
-                if start != 0 || seg as u64 * n as u64 != cpr as u64 {
-                    return Err(at(ImageError::GridMismatch {
-                        axis: a.name.code(),
-                    }));
-                }
-            }
-        }
-        let halves = if l.bidirectional { 2 } else { 1 };
-        needed = needed.saturating_add(halves * l.n_segments as u32);
-        layouts[i] = Some(l);
-    }
-    if needed as usize > POOL {
-        return Err(ImageError::PoolTooSmall { needed }.into());
-    }
-    if let Some(spec) = stage {
-        spec.validate()?;
-        for name in [
-            AxisName::X,
-            AxisName::Y,
-            AxisName::Z,
-            spec.machine.tilt_axis(),
-            AxisName::C,
-        ] {
-            if !axes.iter().any(|a| a.name == name) {
-                return Err(ImageError::AxisNotInGroup { axis: name.code() }.into());
-            }
-        }
-    }
-    Ok(layouts)
 }
 
 /// Counters of a [`GroupEngine`].

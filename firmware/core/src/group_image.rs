@@ -75,41 +75,21 @@
 //! A schema-1 image presented as a group takes its sensor names and provenance from its header
 //! extension (`SNAM`, `PROV` blocks, [`crate::provenance`]) when it has one.
 
+pub use crate::format::{
+    AXIS_SECTION_HEADER_LEN, DIR_ENTRY_LEN, FLAG_MANDATORY, GEOMETRIC_HEADER_LEN,
+    GEOMETRIC_SEGMENT_LEN, GROUP_HEADER_LEN, GROUP_SCHEMA_VERSION, MAX_SECTIONS, NO_AXIS,
+    ROTARY_SECTION_LEN, ROTARY_SECTION_V1_LEN, ROTARY_SECTION_VERSION, SENSOR_NAME_LEN,
+};
+
+use crate::axis::{AxisName, GroupAxisImage, MAX_AXES};
 use crate::error::ImageError;
+use crate::format::{CRC_LEN, crc32};
 use crate::geometric::{GeometricCoefficients, GeometricGrid, GeometricSpec};
-use crate::group::{AxisName, GroupAxisImage, MAX_AXES};
-use crate::image::{self, CRC_LEN, crc32};
+use crate::image;
 use crate::le::{Put, f32_at, i64_at, rd, u8_at, u16_at, u32_at};
-use crate::probe::{PROBE_SECTION_LEN, ProbeSettings};
+use crate::probe_settings::{PROBE_SECTION_LEN, ProbeSettings};
 use crate::rotary::{RotaryLocationSpec, RotaryMachine};
 use crate::{MAX_IMAGE_LEN, MAX_SENSORS};
-
-/// Schema version of group images.
-pub const GROUP_SCHEMA_VERSION: u16 = 2;
-/// Header length.
-pub const GROUP_HEADER_LEN: usize = 24;
-/// Directory entry length.
-pub const DIR_ENTRY_LEN: usize = 20;
-/// Most sections in one image.
-pub const MAX_SECTIONS: usize = 16;
-/// Fixed part of an axis section (before the embedded schema-1 image).
-pub const AXIS_SECTION_HEADER_LEN: usize = 32;
-/// Length of a rotary-model section of version 1 (AC trunnion, no squareness).
-pub const ROTARY_SECTION_V1_LEN: usize = 64;
-/// Version of the rotary-model section with a machine kind and squareness.
-pub const ROTARY_SECTION_VERSION: u16 = 2;
-/// Length of a rotary-model section of version [`ROTARY_SECTION_VERSION`].
-pub const ROTARY_SECTION_LEN: usize = 80;
-/// Fixed part of a geometric-model section (before the coefficients).
-pub const GEOMETRIC_HEADER_LEN: usize = 96;
-/// Bytes per segment of one axis in a geometric-model section (6 functions × 4 f32).
-pub const GEOMETRIC_SEGMENT_LEN: usize = 96;
-/// Bytes per sensor name.
-pub const SENSOR_NAME_LEN: usize = 16;
-/// Directory `axis` value of a section that belongs to no axis.
-pub const NO_AXIS: u8 = 0xFF;
-/// Directory flag: the section must be understood.
-pub const FLAG_MANDATORY: u8 = 1;
 
 /// Section types.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -177,7 +157,7 @@ pub struct GroupImageView<'a> {
     /// The touch-probe settings, if any (section kind 4).
     pub probe: Option<ProbeSettings>,
     /// The provenance block, if the image has one (validated, never acted on).
-    pub provenance: Option<crate::provenance::ProvenanceView<'a>>,
+    pub provenance: Option<crate::provenance_block::ProvenanceView<'a>>,
     /// The volumetric geometric model, if any (its coefficients borrow the image).
     pub geometric: Option<GeometricSpec<'a>>,
     /// The stored whole-image CRC-32.
@@ -347,18 +327,21 @@ fn parse_v1(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
         return Err(ImageError::TrailingBytes);
     }
     // The header extension (older writers have none): sensor names and provenance.
-    let ext = crate::provenance::header_extension(b);
-    let sensor_names =
-        match crate::provenance::find_block(ext, crate::provenance::SENSOR_NAMES_TAG)? {
-            Some(s) => {
-                check_sensor_names(s, info.n_sensors, AxisName::X.code())?;
-                s
-            }
-            None => &[],
-        };
-    let provenance = crate::provenance::find_block(ext, crate::provenance::PROVENANCE_TAG)?
-        .map(crate::provenance::ProvenanceView::parse)
-        .transpose()?;
+    let ext = crate::provenance_block::header_extension(b);
+    let sensor_names = match crate::provenance_block::find_block(
+        ext,
+        crate::provenance_block::SENSOR_NAMES_TAG,
+    )? {
+        Some(s) => {
+            check_sensor_names(s, info.n_sensors, AxisName::X.code())?;
+            s
+        }
+        None => &[],
+    };
+    let provenance =
+        crate::provenance_block::find_block(ext, crate::provenance_block::PROVENANCE_TAG)?
+            .map(crate::provenance_block::ProvenanceView::parse)
+            .transpose()?;
     let mut axes = [None; MAX_AXES];
     axes[0] = Some(AxisSection {
         axis: GroupAxisImage {
@@ -520,7 +503,7 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
                 if e.axis != NO_AXIS || view.provenance.is_some() {
                     return Err(ImageError::SectionBounds { index: i as u16 });
                 }
-                view.provenance = Some(crate::provenance::ProvenanceView::parse(s)?);
+                view.provenance = Some(crate::provenance_block::ProvenanceView::parse(s)?);
             }
         }
     }
@@ -572,7 +555,7 @@ fn parse_v2(b: &[u8]) -> Result<GroupImageView<'_>, ImageError> {
     // The group's own rules (counts per revolution, rotary grids, the stages' axes), as
     // `Group::load` applies them (the pool size is the loading build's business).
     let (images, n) = view.axis_images();
-    crate::group::validate_group_stages::<{ usize::MAX }>(
+    crate::group_check::validate_group_stages::<{ usize::MAX }>(
         &images[..n],
         view.rotary.as_ref(),
         view.geometric.as_ref(),
@@ -728,11 +711,15 @@ fn parse_axis<'a>(e: &Entry, s: &'a [u8], index: usize) -> Result<AxisSection<'a
     }
     // An embedded image's header extension (from `image build`) is validated like a schema-1
     // image's; the group's own sensor-names and provenance sections are what it uses.
-    let ext = crate::provenance::header_extension(img);
-    if let Some(p) = crate::provenance::find_block(ext, crate::provenance::PROVENANCE_TAG)? {
-        crate::provenance::ProvenanceView::parse(p)?;
+    let ext = crate::provenance_block::header_extension(img);
+    if let Some(p) =
+        crate::provenance_block::find_block(ext, crate::provenance_block::PROVENANCE_TAG)?
+    {
+        crate::provenance_block::ProvenanceView::parse(p)?;
     }
-    if let Some(n) = crate::provenance::find_block(ext, crate::provenance::SENSOR_NAMES_TAG)? {
+    if let Some(n) =
+        crate::provenance_block::find_block(ext, crate::provenance_block::SENSOR_NAMES_TAG)?
+    {
         check_sensor_names(n, info.n_sensors, e.axis)?;
     }
     let stroke_counts = ((start, end) != (0, 0)).then_some((start, end));

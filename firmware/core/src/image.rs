@@ -56,81 +56,20 @@
 //! |x_ref| ≤ 2^62; |χ| ≤ 1e3 µm/N; |k| ≤ 1e9, |exponents| ≤ 10; max correction and max slew in
 //! (0, 1e5] µm; direction hysteresis ≤ 2^31 − 1 counts.
 
+pub use crate::format::{
+    CRC_LEN, FORCE_LEN, HEADER_LEN, LIMITS_LEN, MAGIC, MAX_TABLE_UM, RISE_BOUNDS_LEN,
+    SCHEMA_VERSION, SENSOR_LEN, TABLE_HEADER_LEN, THERMO_HEADER_LEN, THERMO_REFERENCE_AT_SWITCH_ON,
+    THERMO_RISE_GUARD, crc32,
+};
+
 use crate::counts::CounterShift;
 use crate::error::{Field, ImageError};
+use crate::format::{MAX_ABS_POSITION, MAX_DEGC, MAX_RISE_K, MIN_DEGC, THERMO_KNOWN_FLAGS};
 use crate::limits::MAX_LIMIT_UM;
 use crate::runtime::{AxisCompensator, Compensator, TableStore};
 use crate::sensor::SensorRt;
 use crate::spec::{ForceLaw, ImageSpec, OutsideStroke, ThermoReference};
 use crate::{MAX_FORCES, MAX_IMAGE_LEN, MAX_SEGMENTS, MAX_SENSORS};
-
-/// Image magic.
-pub const MAGIC: [u8; 4] = *b"AXCI";
-/// Schema version written and accepted by this build.
-pub const SCHEMA_VERSION: u16 = 1;
-/// Header length written by this build.
-pub const HEADER_LEN: usize = 48;
-/// Table section length without coefficients.
-pub const TABLE_HEADER_LEN: usize = 24;
-/// Thermo section length without sensors and forces.
-pub const THERMO_HEADER_LEN: usize = 32;
-/// Bytes per sensor in the thermo section.
-pub const SENSOR_LEN: usize = 28;
-/// Bytes per force term in the thermo section.
-pub const FORCE_LEN: usize = 24;
-/// Bytes per sensor of the rise bounds (thermo flag [`THERMO_RISE_GUARD`]).
-pub const RISE_BOUNDS_LEN: usize = 8;
-/// Thermo flag: ΔT against each sensor's first accepted reading ([`ThermoReference::SwitchOn`]).
-pub const THERMO_REFERENCE_AT_SWITCH_ON: u32 = 1 << 0;
-/// Thermo flag: per-sensor rise bounds follow the force records (the range guard).
-pub const THERMO_RISE_GUARD: u32 = 1 << 1;
-const THERMO_KNOWN_FLAGS: u32 = THERMO_REFERENCE_AT_SWITCH_ON | THERMO_RISE_GUARD;
-/// Largest |rise bound|, K (the span of the plausible temperatures).
-const MAX_RISE_K: f32 = MAX_DEGC - MIN_DEGC;
-/// Limits section length.
-pub const LIMITS_LEN: usize = 16;
-/// CRC length.
-pub const CRC_LEN: usize = 4;
-
-/// Largest |table value| a segment may reach, µm.
-pub const MAX_TABLE_UM: f32 = 10_000.0;
-const MAX_ABS_POSITION: i64 = 1 << 62;
-const MIN_DEGC: f32 = -273.15;
-const MAX_DEGC: f32 = 2000.0;
-
-// ---- CRC-32 (IEEE), nibble table: 64 bytes of table, two steps per byte ----
-
-const fn crc_nibble_table() -> [u32; 16] {
-    let mut t = [0u32; 16];
-    let mut i = 0;
-    while i < 16 {
-        let mut c = i as u32;
-        let mut k = 0;
-        while k < 4 {
-            c = if c & 1 != 0 {
-                (c >> 1) ^ 0xEDB8_8320
-            } else {
-                c >> 1
-            };
-            k += 1;
-        }
-        t[i] = c;
-        i += 1;
-    }
-    t
-}
-const CRC_TABLE: [u32; 16] = crc_nibble_table();
-
-/// CRC-32 (IEEE 802.3, as zlib/PNG): `crc32(b"123456789") == 0xCBF4_3926`.
-pub fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = !0u32;
-    for &b in bytes {
-        c ^= b as u32;
-        c = (c >> 4) ^ CRC_TABLE[(c & 15) as usize];
-        c = (c >> 4) ^ CRC_TABLE[(c & 15) as usize];
-    }
-    !c
-}
 
 use crate::le::{Put, f32_at, i64_at, rd, u8_at, u16_at, u32_at};
 
@@ -189,7 +128,7 @@ pub fn declared_image_len(b: &[u8]) -> Result<usize, ImageError> {
         return Err(ImageError::BadMagic);
     }
     let version = u16_at(b, 4);
-    if version != SCHEMA_VERSION && version != crate::group_image::GROUP_SCHEMA_VERSION {
+    if version != SCHEMA_VERSION && version != crate::format::GROUP_SCHEMA_VERSION {
         return Err(ImageError::UnsupportedVersion { found: version });
     }
     let total = u32_at(b, 8) as usize;

@@ -2,6 +2,7 @@
 //! [`Flags`]. A leaf: every stage and the engines above them use these types.
 
 use crate::MAX_FORCES;
+use crate::axis::MAX_AXES;
 
 /// Input of one control cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -97,4 +98,22 @@ pub struct CycleOutput {
     pub correction_um: f32,
     /// What happened.
     pub flags: Flags,
+}
+
+/// Inputs of one group cycle, by slot (entries beyond the group's axes are ignored).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupInput {
+    /// Per slot.
+    pub axes: [CycleInput; MAX_AXES],
+}
+
+impl GroupInput {
+    /// Every axis at counter 0, command 0, no forces.
+    pub const ZERO: GroupInput = GroupInput {
+        axes: [CycleInput {
+            scale_raw: 0,
+            command_counts: 0,
+            forces_n: [0.0; MAX_FORCES],
+        }; MAX_AXES],
+    };
 }

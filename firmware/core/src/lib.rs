@@ -67,14 +67,17 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+mod axis;
 pub mod bench;
 mod compensator;
 mod counter;
 mod counts;
 mod engine;
 mod error;
+mod format;
 pub mod geometric;
 pub mod group;
+mod group_check;
 pub mod group_image;
 mod hint;
 pub mod image;
@@ -82,7 +85,9 @@ mod io;
 mod le;
 mod limits;
 pub mod probe;
+mod probe_settings;
 pub mod provenance;
+mod provenance_block;
 pub mod rotary;
 mod runtime;
 mod sensor;

@@ -114,9 +114,9 @@
 //!   homogeneous transforms in `tests/group.rs` and `host-tools/tests/rotary_stage_cli.rs` (all
 //!   three kinds).
 
+use crate::axis::AxisName;
 use crate::counts::{step_in_turn_wide, wrap};
 use crate::error::{Field, ImageError};
-use crate::group::AxisName;
 
 /// The kinematic structure the stage corrects.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]

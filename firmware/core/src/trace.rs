@@ -203,7 +203,7 @@ pub enum Record<'a> {
         /// Axes in the cycle (1..=5).
         n: u8,
         /// Inputs by slot (entries from `n` on are zero).
-        input: crate::group::GroupInput,
+        input: crate::io::GroupInput,
     },
     /// A sensor-rate update of one axis slot of a group.
     AxisTemperatures {
@@ -217,7 +217,7 @@ pub enum Record<'a> {
         /// Axes reset (1..=5).
         n: u8,
         /// Counter values by slot.
-        scale_raw: [u32; crate::group::MAX_AXES],
+        scale_raw: [u32; crate::axis::MAX_AXES],
     },
     /// CRC-32 of every trace byte before this record.
     Crc(u32),
@@ -264,7 +264,7 @@ impl Record<'_> {
 
 /// `n` limited to 1..=5 (what an encoder writes for a group record).
 fn group_n(n: u8) -> usize {
-    (n as usize).clamp(1, crate::group::MAX_AXES)
+    (n as usize).clamp(1, crate::axis::MAX_AXES)
 }
 
 fn put_cycle(w: &mut Put, c: &CycleInput) {
@@ -411,20 +411,20 @@ pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize),
             } else {
                 RESET_LEN
             };
-            if !(1..=crate::group::MAX_AXES).contains(&n)
+            if !(1..=crate::axis::MAX_AXES).contains(&n)
                 || p.len() != 4 + each * n
                 || rd::<3>(p, 1) != [0; 3]
             {
                 return Err(bad);
             }
             if tag == TAG_GROUP_CYCLE {
-                let mut input = crate::group::GroupInput::ZERO;
+                let mut input = crate::io::GroupInput::ZERO;
                 for (k, c) in input.axes.iter_mut().enumerate().take(n) {
                     *c = cycle_at(p, 4 + CYCLE_LEN * k);
                 }
                 Record::GroupCycle { n: n as u8, input }
             } else {
-                let mut scale_raw = [0u32; crate::group::MAX_AXES];
+                let mut scale_raw = [0u32; crate::axis::MAX_AXES];
                 for (k, r) in scale_raw.iter_mut().enumerate().take(n) {
                     *r = u32_at(p, 4 + RESET_LEN * k);
                 }
@@ -436,7 +436,7 @@ pub fn decode_record(bytes: &[u8], offset: usize) -> Result<(Record<'_>, usize),
         }
         TAG_AXIS_TEMPERATURES => {
             let slot = p.first().copied().unwrap_or(0);
-            if slot as usize >= crate::group::MAX_AXES || rd::<3>(p, 1) != [0; 3] {
+            if slot as usize >= crate::axis::MAX_AXES || rd::<3>(p, 1) != [0; 3] {
                 return Err(bad);
             }
             let t = temperatures_of(p.get(4..).unwrap_or(&[])).ok_or(bad)?;
