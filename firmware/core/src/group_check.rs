@@ -7,7 +7,7 @@ use crate::axis::{AxisName, GroupAxisImage, MAX_AXES};
 use crate::error::{Field, GroupError, ImageError};
 use crate::geometric::GeometricSpec;
 use crate::image::{self, Layout};
-use crate::rotary::RotaryLocationSpec;
+use crate::rotary_spec::RotaryLocationSpec;
 
 /// Every check of [`Group::load_stages`]: [`validate_group`] and the geometric stage's (X, Y, Z
 /// in the group, a valid model, each grid spanning its axis's table grid if the axis has a

@@ -339,42 +339,7 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
 
     // ---- table ----
     if let Some(o) = layout.table {
-        let start = i64_at(b, o);
-        check(
-            (-MAX_ABS_POSITION..=MAX_ABS_POSITION).contains(&start),
-            Field::StartCounts,
-            0,
-        )?;
-        let seg = u32_at(b, o + 8) as u64;
-        check(
-            seg >= 1 && seg * layout.n_segments as u64 <= u32::MAX as u64,
-            Field::SegmentCounts,
-            0,
-        )?;
-        let outside = u8_at(b, o + 15);
-        let taper = u32_at(b, o + 16);
-        check(
-            (outside == 0 && taper == 0) || (outside == 1 && taper >= 1),
-            Field::Outside,
-            0,
-        )?;
-        check(u32_at(b, o + 20) == 0, Field::Reserved, 0)?;
-        let dirs = 1 + layout.bidirectional as usize;
-        for d in 0..dirs {
-            let field = if d == 0 {
-                Field::ForwardCoefficient
-            } else {
-                Field::BackwardCoefficient
-            };
-            for s in 0..layout.n_segments {
-                let at = o + TABLE_HEADER_LEN + 16 * (d * layout.n_segments + s);
-                let mut sum = 0.0f32;
-                for k in 0..4 {
-                    sum += libm::fabsf(finite(f32_at(b, at + 4 * k), field, s)?);
-                }
-                check(sum <= MAX_TABLE_UM, field, s)?;
-            }
-        }
+        validate_table(b, &layout, o)?;
     }
 
     // ---- thermo-force ----
@@ -389,6 +354,49 @@ pub(crate) fn validate(b: &[u8]) -> Result<Layout, ImageError> {
     check(u32_at(b, o + 8) <= i32::MAX as u32, Field::Hysteresis, 0)?;
     check(u32_at(b, o + 12) == 0, Field::Reserved, 0)?;
     Ok(layout)
+}
+
+/// The values of a table section at `o` whose structure `l` has been checked: start, segment
+/// length, outside rule, and each segment's coefficients finite with |c0|+|c1|+|c2|+|c3| within
+/// [`MAX_TABLE_UM`].
+fn validate_table(b: &[u8], l: &Layout, o: usize) -> Result<(), ImageError> {
+    let start = i64_at(b, o);
+    check(
+        (-MAX_ABS_POSITION..=MAX_ABS_POSITION).contains(&start),
+        Field::StartCounts,
+        0,
+    )?;
+    let seg = u32_at(b, o + 8) as u64;
+    check(
+        seg >= 1 && seg * l.n_segments as u64 <= u32::MAX as u64,
+        Field::SegmentCounts,
+        0,
+    )?;
+    let outside = u8_at(b, o + 15);
+    let taper = u32_at(b, o + 16);
+    check(
+        (outside == 0 && taper == 0) || (outside == 1 && taper >= 1),
+        Field::Outside,
+        0,
+    )?;
+    check(u32_at(b, o + 20) == 0, Field::Reserved, 0)?;
+    let dirs = 1 + l.bidirectional as usize;
+    for d in 0..dirs {
+        let field = if d == 0 {
+            Field::ForwardCoefficient
+        } else {
+            Field::BackwardCoefficient
+        };
+        for s in 0..l.n_segments {
+            let at = o + TABLE_HEADER_LEN + 16 * (d * l.n_segments + s);
+            let mut sum = 0.0f32;
+            for k in 0..4 {
+                sum += libm::fabsf(finite(f32_at(b, at + 4 * k), field, s)?);
+            }
+            check(sum <= MAX_TABLE_UM, field, s)?;
+        }
+    }
+    Ok(())
 }
 
 /// The values of a thermo section at `o` whose structure `l` has been checked.

@@ -117,3 +117,23 @@ impl GroupInput {
         }; MAX_AXES],
     };
 }
+
+/// Outputs of one group cycle, by slot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupOutput {
+    /// Per slot (entries beyond the group's axes are identity outputs).
+    pub axes: [CycleOutput; MAX_AXES],
+}
+
+impl GroupOutput {
+    /// All zero.
+    pub const ZERO: GroupOutput = GroupOutput {
+        axes: [CycleOutput {
+            position_counts: 0,
+            corrected_command_counts: 0,
+            correction_counts: 0,
+            correction_um: 0.0,
+            flags: Flags::NONE,
+        }; MAX_AXES],
+    };
+}

@@ -501,3 +501,28 @@ impl State {
         self.predicted_forces_n.get(j).copied().unwrap_or(0.0)
     }
 }
+
+/// A group axis's table in the group's pool: the first segment of each direction half.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PoolTable {
+    pub(crate) base: [u32; 2],
+}
+
+const ZERO_SEGMENT: [f32; 4] = [0.0; 4];
+
+impl TableStore for PoolTable {
+    const TURNS: bool = true;
+    // In `Group::sensors`.
+    type Sensors = ();
+    const NO_SENSORS: () = ();
+    #[inline(always)]
+    fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: Direction, seg: u32) -> &'a [f32; 4] {
+        // In range for a loaded group (checked at load). The remainder is a no-op for valid
+        // indices; with the pool's length known at the call (a power of two), it is a mask and
+        // the bounds check folds away. The fallbacks keep the path panic-free.
+        let i = self.base[dir.half()] as usize + seg as usize;
+        i.checked_rem(pool.len())
+            .and_then(|j| pool.get(j))
+            .unwrap_or(&ZERO_SEGMENT)
+    }
+}
