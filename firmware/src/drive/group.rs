@@ -608,6 +608,41 @@ impl GroupDrive {
 
         // ---- supervisors, status word, the reply's corrected commands by board input ----
         let group = engine.active();
+        let (mut flags, reply) = self.supervise_axes(engine, out, &input, results, &mut status);
+        if !group.is_loaded() {
+            flags.insert(Flags::IDENTITY);
+        }
+        status.insert(core_status(flags));
+        status.set(Status::CYCLE_LATE, late_start);
+        status.set(Status::OVERRUN, self.prev_overrun);
+        status.set(Status::REPLY_DROPPED, self.prev_reply_dropped);
+        if probe_on {
+            status.insert(ProbeDrive::status(probe_flags));
+        }
+        self.last_status = status;
+
+        // ---- reply frame: corrected commands by board input, status, one counter ----
+        self.send_reply(engine, io, status, probe_flags, probe_on, &reply, n_inputs);
+
+        watchdog.feed();
+        self.prev_overrun = self.meter.finish(clock.now());
+        (status, probe_flags)
+    }
+
+    /// Each axis's link supervisor on the engine's output, its corrected command into the reply
+    /// (by board input) and into `results`, the axes' flags and sensor status into `status`: the
+    /// union of the axes' flags and the reply's corrected commands. Part of [`Self::cycle_in`].
+    #[inline(always)]
+    fn supervise_axes<const POOL: usize, R: AxisResults>(
+        &mut self,
+        engine: &GroupEngine<POOL>,
+        out: &GroupOutput,
+        input: &GroupInput,
+        results: &mut R,
+        status: &mut Status,
+    ) -> (Flags, [i32; MAX_AXES]) {
+        let n = self.n_axes.min(MAX_AXES);
+        let group = engine.active();
         let mut flags = Flags::NONE;
         let mut reply = [0i32; MAX_AXES];
         for i in 0..n {
@@ -635,19 +670,25 @@ impl GroupDrive {
                 });
             }
         }
-        if !group.is_loaded() {
-            flags.insert(Flags::IDENTITY);
-        }
-        status.insert(core_status(flags));
-        status.set(Status::CYCLE_LATE, late_start);
-        status.set(Status::OVERRUN, self.prev_overrun);
-        status.set(Status::REPLY_DROPPED, self.prev_reply_dropped);
-        if probe_on {
-            status.insert(ProbeDrive::status(probe_flags));
-        }
-        self.last_status = status;
+        (flags, reply)
+    }
 
-        // ---- reply frame: corrected commands by board input, status, one counter ----
+    /// The reply frame (corrected commands by board input, status, one counter, the probe's
+    /// block) encoded in the drive's reply buffer and written to the link. Part of
+    /// [`Self::cycle_in`].
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn send_reply<const POOL: usize, Io: DriveIo>(
+        &mut self,
+        engine: &GroupEngine<POOL>,
+        io: &mut Io,
+        status: Status,
+        probe_flags: axcomp_core::probe::ProbeFlags,
+        probe_on: bool,
+        reply: &[i32; MAX_AXES],
+        n_inputs: usize,
+    ) {
+        let n = self.n_axes.min(MAX_AXES);
         let (id, value) = self.next_counter_value(engine);
         let probe_block =
             probe_on.then(|| self.probe.reply(probe_flags, &self.inputs[..n], n_inputs));
@@ -670,10 +711,6 @@ impl GroupDrive {
         if self.prev_reply_dropped {
             self.counters.replies_dropped = self.counters.replies_dropped.wrapping_add(1);
         }
-
-        watchdog.feed();
-        self.prev_overrun = self.meter.finish(clock.now());
-        (status, probe_flags)
     }
 
     fn next_counter_value<const POOL: usize>(
