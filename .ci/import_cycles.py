@@ -91,14 +91,24 @@ def module_paths(src):
     return mods
 
 
-def paths_in(code):
-    """Every crate-relative path the code names: use trees expanded, plus inline `crate::`/`super::` paths."""
+def paths_in(code, children=()):
+    """Every crate-relative path the code names: use trees expanded, plus inline `crate::`/`super::`
+    paths, plus paths that start with the name of one of the module's own child modules
+    (`children`: Rust 2018 resolves `child::x` relative to the module), written as `self::child::x`."""
     found = []
-    for m in re.finditer(r"\buse\s+((?:crate|super|self)\b[^;]*);", code):
-        found.extend(expand_use(m.group(1)))
+    for m in re.finditer(r"\buse\s+([^;]*);", code):
+        for p in expand_use(m.group(1)):
+            head = p.split("::", 1)[0]
+            if head in ("crate", "super", "self"):
+                found.append(p)
+            elif head in children:
+                found.append("self::" + p)
     body = re.sub(r"\buse\s+[^;]*;", "", code)
     for m in re.finditer(r"\b((?:crate|super)(?:::[A-Za-z_][A-Za-z0-9_]*)+)", body):
         found.append(m.group(1))
+    for c in children:
+        for m in re.finditer(r"(?<![:\w])(" + re.escape(c) + r"(?:::[A-Za-z_][A-Za-z0-9_]*)+)", body):
+            found.append("self::" + m.group(1))
     return found
 
 
@@ -159,7 +169,8 @@ def graph(src):
     for m, code in codes.items():
         if m == ():
             continue
-        for p in paths_in(code):
+        children = {c[-1] for c in mods if len(c) == len(m) + 1 and c[: len(m)] == m}
+        for p in paths_in(code, children):
             t = resolve(p, m, mods)
             if isinstance(t, tuple) and t and t[0] == "<root item>":
                 t = reexp.get(t[1], ())
