@@ -2,6 +2,7 @@
 """Import circles between the source files of one Rust crate.
 
 Usage: import_cycles.py SRC_DIR [SRC_DIR ...]   (each a crate's `src`, e.g. firmware/core/src)
+       import_cycles.py --self-test               (the checker on two small made-up crates)
 
 Each file under SRC_DIR is a module (`a.rs` and `a/mod.rs` are `crate::a`, `a/b.rs` is `crate::a::b`). An
 edge A -> B is a path in A's code (a `use` line or an inline path, test modules left out) that names B:
@@ -246,7 +247,45 @@ def name(m):
     return "::".join(m) or "crate"
 
 
+def self_test():
+    """The checker on two small crates: one with a circle through a facade's re-export, an inline path
+    and a child module's relative path, one without; 0 if both answer as they should."""
+    import tempfile
+
+    crates = {
+        "circle": {
+            "lib.rs": "mod a;\nmod b;\npub use b::B;\n",
+            "a.rs": "use crate::B;\npub struct A;\n",
+            "b/mod.rs": "mod c;\npub struct B;\nfn f() { c::g() }\n",
+            "b/c.rs": "pub fn g() { let _ = crate::a::A; }\n",
+        },
+        "layers": {
+            "lib.rs": "mod a;\nmod b;\n",
+            "a.rs": "// use crate::b;\npub struct A;\n#[cfg(test)]\nmod tests { use crate::b::B; }\n",
+            "b.rs": "use crate::{a::A};\npub struct B(A);\nconst S: &str = \"crate::b\";\n",
+        },
+    }
+    ok = True
+    with tempfile.TemporaryDirectory() as tmp:
+        for crate, files in crates.items():
+            for rel, text in files.items():
+                path = os.path.join(tmp, crate, rel)
+                os.makedirs(os.path.dirname(path), exist_ok=True)
+                with open(path, "w", encoding="utf-8") as f:
+                    f.write(text)
+            mods, edges = graph(os.path.join(tmp, crate))
+            comps = [sorted(c) for c in sccs(mods, edges) if len(c) > 1]
+            want = [[("a",), ("b",), ("b", "c")]] if crate == "circle" else []
+            if comps != want:
+                print(f"self-test {crate}: found {comps}, expected {want}", file=sys.stderr)
+                ok = False
+    print("self-test " + ("passed" if ok else "FAILED"))
+    return 0 if ok else 1
+
+
 def main(argv):
+    if argv[1:] == ["--self-test"]:
+        return self_test()
     if len(argv) < 2:
         print(__doc__.strip(), file=sys.stderr)
         return 2
