@@ -63,6 +63,10 @@ const fn crc_nibble_table() -> [u32; 16] {
 const CRC_TABLE: [u32; 16] = crc_nibble_table();
 
 /// CRC-32 (IEEE 802.3, as zlib/PNG): `crc32(b"123456789") == 0xCBF4_3926`.
+///
+/// Out of line: the loaders call it at several places and it is not on the per-cycle path (inlined,
+/// each copy costs the firmware's code flash about 300 bytes).
+#[inline(never)]
 pub fn crc32(bytes: &[u8]) -> u32 {
     let mut c = !0u32;
     for &b in bytes {

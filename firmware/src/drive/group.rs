@@ -608,7 +608,7 @@ impl GroupDrive {
 
         // ---- supervisors, status word, the reply's corrected commands by board input ----
         let group = engine.active();
-        let (mut flags, reply) = self.supervise_axes(engine, out, &input, results, &mut status);
+        let (mut flags, reply) = self.supervise_axes(engine, n, out, &input, results, &mut status);
         if !group.is_loaded() {
             flags.insert(Flags::IDENTITY);
         }
@@ -622,7 +622,16 @@ impl GroupDrive {
         self.last_status = status;
 
         // ---- reply frame: corrected commands by board input, status, one counter ----
-        self.send_reply(engine, io, status, probe_flags, probe_on, &reply, n_inputs);
+        self.send_reply(
+            engine,
+            io,
+            status,
+            probe_flags,
+            probe_on,
+            &reply,
+            n,
+            n_inputs,
+        );
 
         watchdog.feed();
         self.prev_overrun = self.meter.finish(clock.now());
@@ -636,12 +645,12 @@ impl GroupDrive {
     fn supervise_axes<const POOL: usize, R: AxisResults>(
         &mut self,
         engine: &GroupEngine<POOL>,
+        n: usize,
         out: &GroupOutput,
         input: &GroupInput,
         results: &mut R,
         status: &mut Status,
     ) -> (Flags, [i32; MAX_AXES]) {
-        let n = self.n_axes.min(MAX_AXES);
         let group = engine.active();
         let mut flags = Flags::NONE;
         let mut reply = [0i32; MAX_AXES];
@@ -686,9 +695,9 @@ impl GroupDrive {
         probe_flags: axcomp_core::probe::ProbeFlags,
         probe_on: bool,
         reply: &[i32; MAX_AXES],
+        n: usize,
         n_inputs: usize,
     ) {
-        let n = self.n_axes.min(MAX_AXES);
         let (id, value) = self.next_counter_value(engine);
         let probe_block =
             probe_on.then(|| self.probe.reply(probe_flags, &self.inputs[..n], n_inputs));
