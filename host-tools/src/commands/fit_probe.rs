@@ -191,7 +191,7 @@ fn check_stylus(args: &Args, source: &str, res: &CalibrationResult) -> anyhow::R
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, holdout) = check_options(&args)?;
-    let mut outputs = plan_outputs(&args)?;
+    let outputs = plan_outputs(&args)?;
 
     // ---- data: touches, in the probe's frame where the probe tilts ----
     let ds = load_dataset(&args.data)?;
@@ -259,20 +259,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Vec::new()
     };
     // The error every pose's centre shares through the one calibration (see `axcomp_probe::poses`).
-    let shared = if poses.is_empty() {
-        None
-    } else {
-        let out: Vec<usize> = res.outliers.iter().map(|o| o.index).collect();
-        let inliers: Vec<Touch> = (0..tr_touches.len())
-            .filter(|i| !out.contains(i))
-            .map(|i| tr_touches[i])
-            .collect();
-        Some(
-            axcomp_probe::poses::shared_error(cal, &inliers, &poses).map_err(|e| {
-                anyhow::anyhow!("the calibration's error shared by the groups' centres: {e}")
-            })?,
-        )
-    };
+    let shared = (!poses.is_empty())
+        .then(|| axcomp_probe::poses::shared_error(&res, &tr_touches, &poses))
+        .transpose()
+        .map_err(|e| {
+            anyhow::anyhow!("the calibration's error shared by the groups' centres: {e}")
+        })?;
 
     // ---- outputs: everything computed; now write ----
     let report = ProbeReport {
@@ -286,35 +278,50 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         shared: shared.as_ref(),
         machine: machine.map(|m| m.name()),
     };
+    let columns: Vec<&str> = args
+        .group
+        .iter()
+        .map(String::as_str)
+        .chain(carried_columns(&ds, &args.group))
+        .collect();
+    let centres = args
+        .centres_out
+        .is_some()
+        .then(|| rtest_csv(&columns, &poses, shared.as_ref()))
+        .transpose()?;
+    write_outputs(&args, outputs, &report, centres, &warnings)
+}
+
+/// Writes every output together (or nothing, the report folder included) and prints the summary.
+fn write_outputs(
+    args: &Args,
+    mut outputs: OutputSet,
+    report: &ProbeReport,
+    centres_csv: Option<String>,
+    warnings: &[axcomp_data::sanity::DataWarning],
+) -> anyhow::Result<()> {
     let json = report.json();
     if let Some(dir) = &args.report {
         for (name, text) in report.files(&json) {
             outputs.folder_file(dir, &name, text);
         }
     }
-    if let Some(p) = &args.centres_out {
-        let columns: Vec<&str> = args
-            .group
-            .iter()
-            .map(String::as_str)
-            .chain(carried_columns(&ds, &args.group))
-            .collect();
-        outputs.file(p, rtest_csv(&columns, &poses, shared.as_ref())?);
+    if let (Some(p), Some(text)) = (&args.centres_out, centres_csv) {
+        outputs.file(p, text);
     }
     if let Some(p) = &args.out {
         let provenance =
             crate::provenance::of_data(&args.data, args.holdout.as_deref(), None, "", "fit probe")?;
         outputs.file(
             p,
-            crate::provenance::stamp_text(&cal.to_json(), &provenance)?,
+            crate::provenance::stamp_text(&report.result.calibration.to_json(), &provenance)?,
         );
     }
     if let Some(p) = &args.json {
-        outputs.json(p, &with_warnings(json.clone(), &warnings)?)?;
+        outputs.json(p, &with_warnings(json.clone(), warnings)?)?;
     }
-    // Everything together or nothing (the report folder included).
     outputs.commit()?;
-    print_summary(&report, &json);
+    print_summary(report, &json);
     Ok(())
 }
 

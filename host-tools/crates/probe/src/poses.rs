@@ -24,7 +24,7 @@ use nalgebra::Matrix3;
 
 use crate::touches::out_of_frame;
 use crate::{
-    Calibration, ProbeError, SharedCentreError, Sphere, Touch, fit_center,
+    Calibration, CalibrationResult, ProbeError, SharedCentreError, Sphere, Touch, fit_center,
     iterated_sphere_outliers, shared_centre_error,
 };
 
@@ -261,15 +261,21 @@ fn fit_one_pose(
     })
 }
 
-/// The error every pose's centre shares through the one calibration ([`shared_centre_error`], computed in
-/// the probe frame), each pose's loadings turned into the machine frame. A rotation per pose keeps the
+/// The error every pose's centre shares through the one calibration `result` (fitted on
+/// `calibration_touches`, its outliers left out) ([`shared_centre_error`], computed in the probe frame), each pose's loadings turned into the machine frame. A rotation per pose keeps the
 /// stacked loadings' singular values, so the components stay independent; the per-axis std is recomputed
 /// in the machine frame.
 pub fn shared_error(
-    cal: &Calibration,
-    calibration_inliers: &[Touch],
+    result: &CalibrationResult,
+    calibration_touches: &[Touch],
     poses: &[PoseCentre],
 ) -> Result<SharedCentreError, ProbeError> {
+    let cal = &result.calibration;
+    let out: Vec<usize> = result.outliers.iter().map(|o| o.index).collect();
+    let calibration_inliers: Vec<Touch> = (0..calibration_touches.len())
+        .filter(|i| !out.contains(i))
+        .map(|i| calibration_touches[i])
+        .collect();
     let groups: Vec<(&[Touch], [f64; 3])> = poses
         .iter()
         .map(|p| {
@@ -277,7 +283,7 @@ pub fn shared_error(
             (p.kept.as_slice(), centre)
         })
         .collect();
-    let mut z = shared_centre_error(cal, calibration_inliers, &groups)?;
+    let mut z = shared_centre_error(cal, &calibration_inliers, &groups)?;
     if poses.iter().all(|p| p.to_machine == Matrix3::identity()) {
         return Ok(z);
     }
