@@ -81,7 +81,7 @@ pub fn touch_warnings(ds: &Dataset, touches: &[Touch]) -> Vec<DataWarning> {
     w
 }
 
-/// Parses a `--machine` name for the probe route: `None` for an empty name.
+/// Parses a `--machine` name for the probe route (the kinds of `fit rtest --machine`).
 pub fn parse_machine(name: &str) -> Result<MachineKind, ProbeError> {
     MachineKind::parse(name).ok_or_else(|| {
         ProbeError::BadOption(format!(
