@@ -458,7 +458,7 @@ fn run_five_axis(a: Args) -> anyhow::Result<()> {
         outputs.planned(path);
     }
     outputs.check()?;
-    let (rows, what) = if probing {
+    let (rows, what, noise_um) = if probing {
         use axcomp_twin::five_axis_probe::{PoseProbing, probe_campaign_csv};
         let mut probe = axcomp_twin::probe::ProbeModel::kinematic_demo().without_glitches();
         if a.noise_um.is_some() {
@@ -473,11 +473,11 @@ fn run_five_axis(a: Args) -> anyhow::Result<()> {
         );
         let n = csv.lines().count() - 1;
         outputs.file(&a.out, csv);
-        (n, "touches")
+        (n, "touches", probe.noise_um)
     } else {
         let campaign = twin.measure(&paths, a.seed);
         outputs.file(&a.out, campaign.to_csv_string());
-        (campaign.rows.len(), "R-test rows")
+        (campaign.rows.len(), "R-test rows", twin.noise_um)
     };
     if let Some(path) = &a.truth {
         let names = kind.location_names();
@@ -544,7 +544,7 @@ fn run_five_axis(a: Args) -> anyhow::Result<()> {
         a.out.display(),
         kind.name(),
         a.seed,
-        twin.noise_um,
+        noise_um,
         a.effects.as_deref().unwrap_or("none")
     );
     if let Some(path) = &a.truth {

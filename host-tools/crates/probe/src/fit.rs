@@ -555,6 +555,9 @@ fn harmonic_candidates(keys: &[(i64, i64)], one_speed: bool) -> Vec<Structure> {
     harmonic
 }
 
+/// Outlier flags, the inliers' indices and the centre.
+type Screened = (Vec<bool>, Vec<usize>, [f64; 3]);
+
 /// The richest harmonic model fixes the centre for the CV; it is refit on the inliers twice so that the
 /// outlier flags come from a model that explains the lobing. Returns the flags, the inliers and the centre.
 fn screen_with_richest(
@@ -565,7 +568,7 @@ fn screen_with_richest(
     start: [f64; 3],
     mut out: Vec<bool>,
     outlier_mad: f64,
-) -> Result<(Vec<bool>, Vec<usize>, [f64; 3]), ProbeError> {
+) -> Result<Screened, ProbeError> {
     let n = touches.len();
     let richest = harmonic
         .iter()
