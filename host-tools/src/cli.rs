@@ -41,7 +41,7 @@ pub enum Command {
     /// Apply a fitted model file (positioning table, thermal model, geometry model, rotary-axis model, probe calibration, force law) to the rows of a CSV and write them with the predictions added.
     Predict(commands::predict::Args),
     /// Simulate touches of the twin's touch-trigger probe (calibration sphere, or a sphere, ring gauge and plane) as a touch CSV.
-    SimProbe(commands::fit_probe::SimArgs),
+    SimProbe(commands::sim_probe::SimArgs),
 }
 
 #[derive(Debug, Subcommand)]

@@ -11,8 +11,8 @@ use axcomp_data::{Dataset, HoldoutSpec};
 use axcomp_diagnose::probe::{self as dprobe, ProbeData, ProbeModelSpec};
 
 use super::diagnose::Args;
-use crate::commands::predict::read_touches;
 use crate::output::OutputSet;
+use axcomp_probe::touches::read_touches;
 
 /// The touch columns as [`ProbeData`] (held-out rows from `--holdout`).
 pub fn probe_data(ds: &Dataset, holdout: &str) -> anyhow::Result<ProbeData> {
@@ -47,34 +47,27 @@ pub fn probe_data(ds: &Dataset, holdout: &str) -> anyhow::Result<ProbeData> {
 }
 
 /// Robust σ threshold of a gross outlier (bounce, false trigger): `fit probe --outlier-mad`'s default.
-const OUTLIER_ROBUST_SIGMA: f64 = super::fit_probe::DEFAULT_OUTLIER_MAD;
+const OUTLIER_ROBUST_SIGMA: f64 = axcomp_probe::DEFAULT_OUTLIER_MAD;
 
-/// Flags of the touches of one sphere: radial residual about the free-radius sphere of the touches kept more
-/// than [`OUTLIER_ROBUST_SIGMA`] robust σ (1.4826·MAD, at least 0.05 µm) from the median, iterated until the
-/// flags no longer change (at most 10 rounds). A glitch of hundreds of µm would otherwise dominate the gap
-/// and hide every effect. `None` when the touches do not determine a sphere (ring gauge, plane).
+/// Flags of the touches of one sphere ([`axcomp_probe::iterated_sphere_outliers`], threshold
+/// [`OUTLIER_ROBUST_SIGMA`]) about the free-radius sphere of the touches kept. A glitch of hundreds of µm
+/// would otherwise dominate the gap and hide every effect. `None` when the touches do not determine a sphere
+/// (ring gauge, plane).
 fn sphere_outliers(points: &[[f64; 3]]) -> Option<Vec<bool>> {
-    let mut flags = vec![false; points.len()];
-    for _ in 0..10 {
-        let kept: Vec<[f64; 3]> = (0..points.len())
-            .filter(|&i| !flags[i])
-            .map(|i| points[i])
-            .collect();
-        let s = axcomp_probe::geometry::geometric_sphere(&kept, None).ok()?;
-        let r: Vec<f64> = points
-            .iter()
-            .map(|p| {
-                let d = (0..3).map(|k| (p[k] - s.center_mm[k]).powi(2)).sum::<f64>();
-                (d.sqrt() - s.radius_mm) * 1000.0
-            })
-            .collect();
-        let next = axcomp_probe::flag_outliers(&r, OUTLIER_ROBUST_SIGMA);
-        if next == flags {
-            break;
-        }
-        flags = next;
-    }
-    Some(flags)
+    axcomp_probe::iterated_sphere_outliers(points.len(), OUTLIER_ROBUST_SIGMA, |kept| {
+        let kept: Vec<[f64; 3]> = kept.iter().map(|&i| points[i]).collect();
+        let s = axcomp_probe::geometry::geometric_sphere(&kept, None)?;
+        Ok::<_, axcomp_probe::ProbeError>(
+            points
+                .iter()
+                .map(|p| {
+                    let d = (0..3).map(|k| (p[k] - s.center_mm[k]).powi(2)).sum::<f64>();
+                    (d.sqrt() - s.radius_mm) * 1000.0
+                })
+                .collect(),
+        )
+    })
+    .ok()
 }
 
 /// `d` without the gross outliers of each sphere artefact ([`sphere_outliers`]), listed on stderr.

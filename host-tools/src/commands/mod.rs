@@ -21,6 +21,7 @@ pub mod plan_rtest;
 pub mod predict;
 pub mod replay;
 pub mod sim;
+pub mod sim_probe;
 pub mod trace;
 pub mod validate_diagnosis;
 
@@ -47,6 +48,6 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Diagnose(a) => diagnose::run(a),
         Command::ValidateDiagnosis(a) => validate_diagnosis::run(a),
         Command::Predict(a) => predict::run(a),
-        Command::SimProbe(a) => fit_probe::sim_probe(a),
+        Command::SimProbe(a) => sim_probe::sim_probe(a),
     }
 }

@@ -36,7 +36,8 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use axcomp_data::{DataError, Dataset};
 use axcomp_positioning::TableFile;
-use axcomp_probe::{Calibration, Touch};
+use axcomp_probe::Calibration;
+use axcomp_probe::touches::read_touches;
 use axcomp_thermal::model_file::{ModelForceLaw, ThermalModelFile};
 
 use crate::cli::DataArgs;
@@ -502,49 +503,6 @@ pub fn predict_force_law(
     let name = format!("pred_{column}");
     ds.add_numeric_column(&name, force)?;
     Ok(vec![name])
-}
-
-/// Reads the touch columns (names the cell of a non-numeric value). `feed_mm_min` is 0 when absent.
-pub fn read_touches(ds: &Dataset) -> anyhow::Result<(Vec<Touch>, Vec<String>)> {
-    axcomp_data::sanity::absurd_values(
-        ds,
-        &[
-            "x_mm",
-            "y_mm",
-            "z_mm",
-            "approach_x",
-            "approach_y",
-            "approach_z",
-            "feed_mm_min",
-        ],
-    )?;
-    let col = |c: &str| -> anyhow::Result<Vec<f64>> { Ok(ds.numeric(c)?.to_vec()) };
-    let (x, y, z) = (col("x_mm")?, col("y_mm")?, col("z_mm")?);
-    let (ax, ay, az) = (col("approach_x")?, col("approach_y")?, col("approach_z")?);
-    let feed = if ds.has("feed_mm_min") {
-        col("feed_mm_min")?
-    } else {
-        vec![0.0; ds.n_rows()]
-    };
-    let touches = (0..ds.n_rows())
-        .map(|i| {
-            // A vector within the accepted tolerance of unit length is normalised (its length error would
-            // otherwise move the contact point by r·(|u| − 1), up to 1.5 µm for a Ø3 mm ball); one further
-            // off is left as given for `validate_touches` to refuse, naming the row.
-            let mut approach = [ax[i], ay[i], az[i]];
-            let l = approach.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if (l - 1.0).abs() <= axcomp_probe::UNIT_TOLERANCE {
-                approach = approach.map(|v| v / l);
-            }
-            Touch {
-                position_mm: [x[i], y[i], z[i]],
-                approach,
-                feed_mm_min: feed[i],
-            }
-        })
-        .collect();
-    let labels = (0..ds.n_rows()).map(|i| row_name(ds, i)).collect();
-    Ok((touches, labels))
 }
 
 /// Adds `contact_x_mm, contact_y_mm, contact_z_mm`.

@@ -74,14 +74,18 @@ pub struct Args {
     /// writes the contract's R-test CSV; --plan rtest (default: K4 run 1, C circles at 0° and at the largest
     /// tilt, K4 run 2), rtest-h2 (the circles again with the sphere 50 mm higher, set-up 2) or k4 (K4 runs 1
     /// and 2); --effects from rotary_positioning, rotary_wobble, radial_runout, linear_geometry,
-    /// thermal_drift, setup_drift; noise σ 0.3 µm unless --noise-um.
+    /// thermal_drift, setup_drift; noise σ 0.3 µm unless --noise-um. --plan probe-rtest writes a touch
+    /// probe's touches instead (the probe's σ 0.5 µm unless --noise-um; the twin's probe, pretravel by direction in the probe's frame, no glitches;
+    /// top and four sides of a Ø25 mm sphere per pose, 300 mm/min; B = C = 0 as run 1 and revisited as
+    /// run 3, tilts ±1, ±0.6, ±0.2 × --tilt-max-deg [default 50] at C = 0/90/180/270° as run 2), the input
+    /// of `axcomp fit probe --machine KIND --group b_deg,c_deg,run --centres-out`.
     #[arg(long, value_name = "KIND", conflicts_with_all = ["axis", "image", "random_params", "rows"])]
     pub machine: Option<String>,
     /// Five-axis bc-head: distance from the B axis to the tool point, mm [default: 250].
     #[arg(long, value_name = "L", requires = "machine")]
     pub pivot_mm: Option<f64>,
     /// Five-axis: the sphere's nominal position, mm (table frame for a trunnion, machine frame for a head)
-    /// [default: 150,0,100 for a trunnion, 0,0,0 for a head].
+    /// [default: 150,0,100 for a trunnion, 0,0,0 for a head (150,50,-100 with --plan probe-rtest)].
     #[arg(
         long,
         value_name = "X,Y,Z",
@@ -367,6 +371,9 @@ fn run_five_axis(a: Args) -> anyhow::Result<()> {
         (false, None) => 0.0,
     };
     let sphere = match &a.sphere_mm {
+        // Touches about a sphere at the origin would hold coordinates near 0 next to ones near 14 mm, which
+        // the unit-mix check takes for µm mixed with mm.
+        None if head && a.plan == "probe-rtest" => [150.0, 50.0, -100.0],
         None if head => [0.0; 3],
         None => [150.0, 0.0, 100.0],
         Some(text) => {
@@ -381,7 +388,8 @@ fn run_five_axis(a: Args) -> anyhow::Result<()> {
             [v[0], v[1], v[2]]
         }
     };
-    let tilt_max = a.tilt_max_deg.unwrap_or(-60.0);
+    let probing = a.plan == "probe-rtest";
+    let tilt_max = a.tilt_max_deg.unwrap_or(if probing { 50.0 } else { -60.0 });
     if !(tilt_max.is_finite() && tilt_max != 0.0 && tilt_max.abs() <= 120.0) {
         bail!("--tilt-max-deg {tilt_max}: need a non-zero angle within ±120°");
     }
@@ -432,7 +440,12 @@ fn run_five_axis(a: Args) -> anyhow::Result<()> {
             Some(50.0),
         ),
         "k4" => standard_paths(&machine, sphere, tilt_max, k4_poses, &[], 0, None),
-        other => bail!("--plan {other}: with --machine the plans are rtest, rtest-h2, k4"),
+        "probe-rtest" => {
+            axcomp_twin::five_axis_probe::probe_rtest_paths(&machine, sphere, tilt_max)
+        }
+        other => {
+            bail!("--plan {other}: with --machine the plans are rtest, rtest-h2, k4, probe-rtest")
+        }
     };
     let plan_name = if a.plan == "iso230" { "rtest" } else { &a.plan };
     check_parent(&a.out, "--out")?;
@@ -445,8 +458,27 @@ fn run_five_axis(a: Args) -> anyhow::Result<()> {
         outputs.planned(path);
     }
     outputs.check()?;
-    let campaign = twin.measure(&paths, a.seed);
-    outputs.file(&a.out, campaign.to_csv_string());
+    let (rows, what, noise_um) = if probing {
+        use axcomp_twin::five_axis_probe::{PoseProbing, probe_campaign_csv};
+        let mut probe = axcomp_twin::probe::ProbeModel::kinematic_demo().without_glitches();
+        if a.noise_um.is_some() {
+            probe.noise_um = twin.noise_um;
+        }
+        let csv = probe_campaign_csv(
+            &twin,
+            &probe,
+            &paths,
+            &PoseProbing::top_and_four_sides(),
+            a.seed,
+        );
+        let n = csv.lines().count() - 1;
+        outputs.file(&a.out, csv);
+        (n, "touches", probe.noise_um)
+    } else {
+        let campaign = twin.measure(&paths, a.seed);
+        outputs.file(&a.out, campaign.to_csv_string());
+        (campaign.rows.len(), "R-test rows", twin.noise_um)
+    };
     if let Some(path) = &a.truth {
         let names = kind.location_names();
         let location: serde_json::Map<String, serde_json::Value> = names
@@ -508,12 +540,11 @@ fn run_five_axis(a: Args) -> anyhow::Result<()> {
     }
     outputs.commit()?;
     println!(
-        "wrote {}: {} R-test rows, machine {}, plan {plan_name}, seed {}, noise σ {} µm, effects beyond the location errors: {}",
+        "wrote {}: {rows} {what}, machine {}, plan {plan_name}, seed {}, noise σ {} µm, effects beyond the location errors: {}",
         a.out.display(),
-        campaign.rows.len(),
         kind.name(),
         a.seed,
-        twin.noise_um,
+        noise_um,
         a.effects.as_deref().unwrap_or("none")
     );
     if let Some(path) = &a.truth {

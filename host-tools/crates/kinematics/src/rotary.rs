@@ -198,6 +198,19 @@ impl FiveAxis {
         )
     }
 
+    /// Nominal orientation of the spindle (and of a probe in it) relative to the machine frame at `pose`:
+    /// the head's `Rc(c)·Rb(b)`; the identity for a trunnion, whose spindle does not turn. A vector `v`
+    /// given in the spindle frame is `R·v` in the machine frame.
+    pub fn spindle_rotation(&self, pose: &Pose) -> Matrix3<f64> {
+        match self.kind {
+            MachineKind::BcHead => {
+                let (rb, rc) = self.nominal_rotations(pose);
+                rc * rb
+            }
+            _ => Matrix3::identity(),
+        }
+    }
+
     /// The nominal sphere position (mm) that the commanded pose aims at (see the glossary).
     pub fn nominal_sphere(&self, pose: &Pose) -> [f64; 3] {
         let (rt, rc) = self.nominal_rotations(pose);

@@ -130,4 +130,5 @@ impl<'a> TruthReport<'a> {
     }
 }
 pub mod five_axis;
+pub mod five_axis_probe;
 pub mod geometry;
