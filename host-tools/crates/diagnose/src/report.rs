@@ -49,14 +49,21 @@ pub fn write_report(
     dir: &Path,
     obs: &Observations,
     d: &Diagnosis,
-) -> anyhow::Result<Vec<std::path::PathBuf>> {
+) -> crate::error::Result<Vec<std::path::PathBuf>> {
+    use crate::error::DiagnoseError;
     let files = report_files(dir, obs, d)?;
-    std::fs::create_dir_all(dir)
-        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|cause| DiagnoseError::Io {
+        action: "create",
+        path: dir.display().to_string(),
+        cause,
+    })?;
     let mut written = Vec::new();
     for (path, bytes) in files {
-        axcomp_plot::write_atomic(&path, &bytes)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+        axcomp_plot::write_atomic(&path, &bytes).map_err(|cause| DiagnoseError::Io {
+            action: "write",
+            path: path.display().to_string(),
+            cause,
+        })?;
         written.push(path);
     }
     Ok(written)
@@ -74,7 +81,7 @@ pub fn report_files(
     dir: &Path,
     obs: &Observations,
     d: &Diagnosis,
-) -> anyhow::Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
+) -> crate::error::Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
     let hold = obs.holdout_rows();
     let (shown, stride) = thin(&hold);
     let after = d.verdict_candidate().map(|c| &c.residual_after);
