@@ -109,13 +109,32 @@ impl Builder<'_> {
         // radial motion): without it an A-axis wobble is named `linear_geometry`, whose position
         // polynomials absorb part of it. Powers 1…d of the tilt angle; the constant is a
         // location error.
+        // The tilt alone (an angular error motion of the axis without radial motion) is a variant of its
+        // own: half the columns, so on R-test paths, where the location errors absorb most of a tilt
+        // varying with the angle, the part they leave is found with more power.
         for tilt_degree in 1..=2usize {
             let basis = EffectBasis::Wobble {
                 per_revolution: Vec::new(),
                 tilt_degree,
             };
+            let names = EffectTerm {
+                kind: RotaryEffect::RotaryWobble,
+                basis: basis.clone(),
+            }
+            .param_names(self.obs.data.machine.kind);
+            let cols = term_columns(RotaryEffect::RotaryWobble, basis);
+            let tilt_only: Vec<Vec<f64>> = cols
+                .iter()
+                .zip(&names)
+                .filter(|(_, (name, _))| name.contains("_tilt_"))
+                .map(|(c, _)| c.clone())
+                .collect();
             variants.push(variant(
-                term_columns(RotaryEffect::RotaryWobble, basis),
+                tilt_only,
+                json!({"per_revolution": [], "tilt_degree": tilt_degree, "components": format!("tilt of the {tilt_letter} axis about its two perpendicular axes, powers 1…{tilt_degree} of its angle")}),
+            ));
+            variants.push(variant(
+                cols,
                 json!({"per_revolution": [], "tilt_degree": tilt_degree, "components": format!("tilt of the {tilt_letter} axis about its two perpendicular axes and its radial motion, powers 1…{tilt_degree} of its angle")}),
             ));
         }
