@@ -1,5 +1,5 @@
-//! Diagnosis on touch-probe data (issue 12, contract "Effect kinds for geometry, rotary-axis and probe
-//! data"): which unmodelled effect explains what the probe model misses on held-out touches.
+//! Diagnosis on touch-probe data (contract "Effect kinds for geometry, rotary-axis and probe data"):
+//! which unmodelled effect explains what the probe model misses on held-out touches.
 //!
 //! # Glossary
 //! - **touch**: a latched stylus-tip centre `p`, its unit approach `u` (toward the surface), the probing
