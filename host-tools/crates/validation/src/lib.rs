@@ -22,6 +22,7 @@
 
 pub mod axis;
 pub mod harness;
+pub mod held_back;
 pub mod lines;
 pub mod probe;
 pub mod rtest;
