@@ -62,6 +62,54 @@ pub struct ModelInfo {
     pub sigma_um: f64,
 }
 
+/// What can be said about the identifiable floor (the best any model in the span of the measured lines
+/// could do on the judged rows). The floor itself needs the true errors: the twin's validation computes it
+/// (`axcomp-validation`, `held_back`); on measured data these are its computable parts.
+#[derive(Debug, Clone, Serialize)]
+pub struct FloorInfo {
+    /// Residual standard deviation of the fit (µm): the reading noise, which no model removes from unseen
+    /// readings.
+    pub noise_um: f64,
+    /// With `--holdout`: √(σ̂² + mean prediction variance over the held-out rows), µm: the held-out RMS a
+    /// model that is right in the span of the fitted lines would score with this noise (its estimation
+    /// error included, the part of the truth outside the span not).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub expected_holdout_rms_um: Option<f64>,
+    /// The floor in µm: always null on measured data (it needs the truth).
+    pub floor_um: Option<f64>,
+    pub note: String,
+}
+
+/// The floor's computable parts for held-out rows `held` (empty: none held out).
+fn floor_info(f: &Fit, data: &LineData, held: &[usize]) -> FloorInfo {
+    let sigma = f.model.sigma_um;
+    let expected_holdout_rms_um = (!held.is_empty()).then(|| {
+        let var: f64 = held
+            .iter()
+            .map(|&i| {
+                let r = &data.readings[i];
+                let row = f.layout.row(&f.model.topology, r.q, r.tool, r.beam);
+                let a: Vec<f64> = f.active_cols.iter().map(|&j| row[j]).collect();
+                let mut v = 0.0;
+                for (x, ax) in a.iter().enumerate() {
+                    for (y, ay) in a.iter().enumerate() {
+                        v += ax * f.covariance[(x, y)] * ay;
+                    }
+                }
+                v.max(0.0)
+            })
+            .sum::<f64>()
+            / held.len() as f64;
+        (sigma * sigma + var).sqrt()
+    });
+    FloorInfo {
+        noise_um: sigma,
+        expected_holdout_rms_um,
+        floor_um: None,
+        note: "the identifiable floor (the best any model in the span of the fitted lines could do on the judged rows) needs the true errors and is computed on the twin (cargo run --release -p axcomp-validation --example held_back); noise_um is the floor no model beats on unseen readings, expected_holdout_rms_um what a model right in the lines' span would score with this noise".into(),
+    }
+}
+
 /// The contract's JSON of `axcomp fit geometry` (plus more fields).
 #[derive(Debug, Clone, Serialize)]
 pub struct FitReport {
@@ -71,6 +119,8 @@ pub struct FitReport {
     pub holdout_rms_um: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cv_rms_um: Option<f64>,
+    /// Next to the held-out figure: what can be computed of the identifiable floor.
+    pub identifiable_floor: FloorInfo,
     pub errors: BTreeMap<String, ErrorEntry>,
     pub identifiability: Identifiability,
     pub volumetric: Volumetric,
@@ -148,6 +198,7 @@ pub fn analyse(
     let mut holdout_rms_um = None;
     let mut cv_rms_um = None;
     let mut basis = "fit";
+    let mut held_rows: Vec<usize> = Vec::new();
     let raw_rms_um;
     match judge {
         Judge::Holdout(mask) => {
@@ -160,6 +211,7 @@ pub fn analyse(
                 .iter()
                 .map(|&i| data.readings[i].deviation_um - fitted_pred[i])));
             basis = "holdout";
+            held_rows = held;
         }
         Judge::Cv(groups) => {
             let mut ids: Vec<usize> = groups.clone();
@@ -256,6 +308,7 @@ pub fn analyse(
         fit_rms_um: f.fit_rms_um,
         holdout_rms_um,
         cv_rms_um,
+        identifiable_floor: floor_info(&f, data, &held_rows),
         errors,
         identifiability: f.identifiability.clone(),
         volumetric: volumetric(&f.model),

@@ -157,6 +157,16 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
     if let Some(h) = rep.holdout_rms_um {
         figures.push(("held-out RMS (µm)", format!("{h:.3}")));
     }
+    if let Some(e) = rep.identifiable_floor.expected_holdout_rms_um {
+        figures.push((
+            "held-out RMS a model right in the lines' span would score (σ̂ and estimation; the floor itself needs the truth) (µm)",
+            format!("{e:.3}"),
+        ));
+    }
+    figures.push((
+        "noise σ̂, the floor no model beats on unseen readings (µm)",
+        format!("{:.3}", rep.identifiable_floor.noise_um),
+    ));
     if let Some(c) = rep.cv_rms_um {
         figures.push(("cross-validated RMS (µm)", format!("{c:.3}")));
     }
@@ -186,7 +196,11 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
     md.push_str(&markdown_table(&["figure", "value"], &rows));
     md.push('\n');
     if !rep.identifiability.not_separable.is_empty() {
-        md.push_str("Not separable by these lines (fixed at 0): ");
+        md.push_str(if model.method.contains("minimum norm") {
+            "Not separable by these lines (estimated at the damped minimum norm, not identified): "
+        } else {
+            "Not separable by these lines (fixed at 0): "
+        });
         let g: Vec<String> = rep
             .identifiability
             .not_separable
