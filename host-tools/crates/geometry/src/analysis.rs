@@ -179,6 +179,84 @@ pub fn volumetric(model: &GeometryModel) -> Volumetric {
     }
 }
 
+/// ISO 230-6 figures of the body diagonals (one beam for the whole line, with all three components ≥ 0.3
+/// in magnitude; points read along their own beams from a station are not a diagonal): the range of the
+/// readings before, and after the judged predictions (`basis`) where every reading of the line has one.
+fn body_diagonal_figures(
+    data: &LineData,
+    judged_pred: &[Option<f64>],
+    fitted_pred: &[f64],
+    basis: &str,
+) -> Vec<DiagonalFigure> {
+    let n = data.readings.len();
+    let mut diags = Vec::new();
+    for (li, name) in data.lines.iter().enumerate() {
+        let rows: Vec<usize> = (0..n).filter(|&i| data.readings[i].line == li).collect();
+        let b = data.readings[rows[0]].beam;
+        let one_beam = rows.iter().all(|&i| {
+            let bi = data.readings[i].beam;
+            (0..3).all(|k| (bi[k] - b[k]).abs() <= 1e-6)
+        });
+        if one_beam && b.iter().all(|c| c.abs() >= 0.3) {
+            let range = |v: &mut dyn Iterator<Item = f64>| {
+                let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                    (a.min(x), b.max(x))
+                });
+                hi - lo
+            };
+            let before = range(&mut rows.iter().map(|&i| data.readings[i].deviation_um));
+            let line_basis = if rows.iter().all(|&i| judged_pred[i].is_some()) {
+                basis
+            } else {
+                "fit"
+            };
+            let after = range(&mut rows.iter().map(|&i| {
+                data.readings[i].deviation_um - judged_pred[i].unwrap_or(fitted_pred[i])
+            }));
+            diags.push(DiagonalFigure {
+                line: name.clone(),
+                before_um: before,
+                after_um: after,
+                basis: line_basis.to_string(),
+            });
+        }
+    }
+    diags
+}
+
+/// The contract's `errors` object: each component's identification, samples (functions) or value
+/// (squareness), and uncertainty.
+fn error_entries(model: &GeometryModel) -> BTreeMap<String, ErrorEntry> {
+    let mut errors = BTreeMap::new();
+    for (i, c) in Component::ALL.iter().enumerate() {
+        let m = &model.components[i];
+        let (samples, value) = match c.axis() {
+            Some(_) => (
+                Some(
+                    m.uncertainty
+                        .iter()
+                        .map(|[q, _]| [*q, model.component_value(*c, *q)])
+                        .collect(),
+                ),
+                None,
+            ),
+            None => (None, Some(m.value)),
+        };
+        errors.insert(
+            c.name().to_string(),
+            ErrorEntry {
+                identified: m.identified,
+                reason: m.reason.clone(),
+                unit: m.unit.clone(),
+                samples,
+                value,
+                uncertainty: m.uncertainty.clone(),
+            },
+        );
+    }
+    errors
+}
+
 /// Fits on the training rows, judges per `judge`, and builds the contract's JSON.
 pub fn analyse(
     data: &LineData,
@@ -242,67 +320,8 @@ pub fn analyse(
             raw_rms_um = rms(all.iter().map(|&i| data.readings[i].deviation_um));
         }
     }
-    // ISO 230-6: body diagonals (one beam for the whole line, with all three components ≥ 0.3 in
-    // magnitude; points read along their own beams from a station are not a diagonal)
-    let mut diags = Vec::new();
-    for (li, name) in data.lines.iter().enumerate() {
-        let rows: Vec<usize> = (0..n).filter(|&i| data.readings[i].line == li).collect();
-        let b = data.readings[rows[0]].beam;
-        let one_beam = rows.iter().all(|&i| {
-            let bi = data.readings[i].beam;
-            (0..3).all(|k| (bi[k] - b[k]).abs() <= 1e-6)
-        });
-        if one_beam && b.iter().all(|c| c.abs() >= 0.3) {
-            let range = |v: &mut dyn Iterator<Item = f64>| {
-                let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-                    (a.min(x), b.max(x))
-                });
-                hi - lo
-            };
-            let before = range(&mut rows.iter().map(|&i| data.readings[i].deviation_um));
-            let line_basis = if rows.iter().all(|&i| judged_pred[i].is_some()) {
-                basis
-            } else {
-                "fit"
-            };
-            let after = range(&mut rows.iter().map(|&i| {
-                data.readings[i].deviation_um - judged_pred[i].unwrap_or(fitted_pred[i])
-            }));
-            diags.push(DiagonalFigure {
-                line: name.clone(),
-                before_um: before,
-                after_um: after,
-                basis: line_basis.to_string(),
-            });
-        }
-    }
-    let mut errors = BTreeMap::new();
-    for (i, c) in Component::ALL.iter().enumerate() {
-        let m = &f.model.components[i];
-        let (samples, value) = match c.axis() {
-            Some(_) => (
-                Some(
-                    m.uncertainty
-                        .iter()
-                        .map(|[q, _]| [*q, f.model.component_value(*c, *q)])
-                        .collect(),
-                ),
-                None,
-            ),
-            None => (None, Some(m.value)),
-        };
-        errors.insert(
-            c.name().to_string(),
-            ErrorEntry {
-                identified: m.identified,
-                reason: m.reason.clone(),
-                unit: m.unit.clone(),
-                samples,
-                value,
-                uncertainty: m.uncertainty.clone(),
-            },
-        );
-    }
+    let diags = body_diagonal_figures(data, &judged_pred, &fitted_pred, basis);
+    let errors = error_entries(&f.model);
     let report = FitReport {
         raw_rms_um,
         fit_rms_um: f.fit_rms_um,

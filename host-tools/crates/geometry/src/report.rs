@@ -138,8 +138,19 @@ pub fn write_report(dir: &Path, data: &LineData, an: &Analysis) -> Result<(), Ge
 /// `report.md` last (so a writer that goes in order writes the report last).
 pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
     let mut files: Vec<(String, String)> = Vec::new();
+    let mut md = summary_section(an);
+    components_section(&mut md, &mut files, an);
+    volumetric_section(&mut md, &mut files, an);
+    unseen_lines_section(&mut md, &mut files, data, an);
+    files.push(("report.md".to_string(), md));
+    files
+}
+
+/// Title, method, conventions, the figures table, the not-separable sets and the ISO 230-6 diagonals.
+fn summary_section(an: &Analysis) -> String {
     let model = &an.fit.model;
     let rep = &an.report;
+
     let mut md = String::from("# Geometric errors (21 ISO 230-1 components)\n\n");
     md.push_str(&format!(
         "Method: {}. Topology (work/tool axes, bed outward): {}. Lines: {}, readings: {} ({} fitted).\n\n",
@@ -230,6 +241,12 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
         ));
         md.push('\n');
     }
+    md
+}
+
+/// The components table and each function's figure with its uncertainty band.
+fn components_section(md: &mut String, files: &mut Vec<(String, String)>, an: &Analysis) {
+    let model = &an.fit.model;
     md.push_str("## Components\n\n");
     let mut rows = Vec::new();
     for c in Component::ALL {
@@ -303,7 +320,12 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
         &rows,
     ));
     md.push('\n');
-    // volumetric map
+}
+
+/// The volumetric error map at three Z levels, with the judged RMS after compensation.
+fn volumetric_section(md: &mut String, files: &mut Vec<(String, String)>, an: &Analysis) {
+    let model = &an.fit.model;
+    let rep = &an.report;
     md.push_str("## Volumetric error map (|e| at the tool reference point)\n\n");
     let (lo, hi) = (model.volume_min_mm, model.volume_max_mm);
     let (after_rms, after_what) = match (rep.holdout_rms_um, rep.cv_rms_um) {
@@ -356,7 +378,15 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
         md.push_str(&format!("![volumetric z{}]({file})\n", k + 1));
     }
     md.push('\n');
-    // judged lines
+}
+
+/// Measured vs predicted along the lines the model never saw (at most 12).
+fn unseen_lines_section(
+    md: &mut String,
+    files: &mut Vec<(String, String)>,
+    data: &LineData,
+    an: &Analysis,
+) {
     let judged: Vec<usize> = (0..data.lines.len())
         .filter(|&li| {
             data.readings
@@ -379,6 +409,4 @@ pub fn report_files(data: &LineData, an: &Analysis) -> Vec<(String, String)> {
             md.push_str(&format!("![line {name}]({file})\n"));
         }
     }
-    files.push(("report.md".to_string(), md));
-    files
 }

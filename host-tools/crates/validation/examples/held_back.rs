@@ -13,9 +13,18 @@ fn main() {
         .nth(1)
         .map_or(20, |s| s.parse().expect("SEEDS: a number"));
     let opts = HeldBackOptions::default();
+    // the default fit's options; AXCOMP_DAMPING overrides its damping (to compare values)
+    let fit = FitOptions {
+        damping: std::env::var("AXCOMP_DAMPING")
+            .ok()
+            .map_or(FitOptions::default().damping, |s| {
+                s.parse().expect("a number")
+            }),
+        ..FitOptions::default()
+    };
     let results: Vec<_> = (0..seeds)
         .map(|s| {
-            let r = run_case(&opts, s, &FitOptions::default());
+            let r = run_case(&opts, s, &fit);
             let f = |h: &HeldScore| {
                 format!(
                     "lines {:.3} (axis {:.3} diag {:.3}) beam {:.3}",

@@ -12,10 +12,10 @@
 //!   included, as `holdout_rms_um` of `fit geometry --holdout` reports it. Given for the lines at other
 //!   offsets and the diagonals together (`lines`), and per group (`axis`, `diagonal`, `beam`).
 //! - **identifiable floor**: the held-out RMS of the best model these training lines can determine: the
-//!   minimum-norm least-squares solution of the noise-free training readings on a fine basis (all 21
-//!   components, cubic B-splines with [`FLOOR_INTERVALS`] intervals per axis, no smoothing), judged against
-//!   the same noisy held-back readings. What the lines cannot separate it leaves at the minimum norm, so it
-//!   is the floor of the span of the measured lines, not the truth.
+//!   minimum-norm least-squares solution of the noise-free training readings in the default fit's basis
+//!   (all 21 components, cubic B-splines on its knot grid, no smoothing), judged against the same noisy
+//!   held-back readings. What the lines cannot separate it leaves at the minimum norm, so it is the floor
+//!   of the span of the measured lines, not the truth.
 //! - **plain reference**: `fit geometry --method plain` (general least squares, no smoothing, what the lines
 //!   cannot separate fixed at 0).
 //! - **minimum-norm reference**: all 21 components as cubic B-splines with 10 intervals per axis, a light
@@ -32,9 +32,6 @@ use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
-
-/// Knot intervals per axis of the floor's basis.
-pub const FLOOR_INTERVALS: usize = 20;
 
 /// Second-difference penalty of the minimum-norm reference, relative to the design's mean diagonal.
 pub const MIN_NORM_LAMBDA: f64 = 1e-3;
@@ -208,18 +205,19 @@ pub fn score(case: &HeldBackCase, pred: &[f64]) -> HeldScore {
     }
 }
 
-/// Minimum-norm solution (raw parameter units) of the training rows' design with a second-difference
-/// penalty `lambda` (relative to the design's mean diagonal); predictions for every reading.
+/// Minimum-norm solution (raw parameter units) of the training rows' design on `intervals` knot intervals
+/// per axis (`None`: the fit's default grid) with a second-difference penalty `lambda` and a ridge `ridge`
+/// (both relative to the design's mean diagonal); predictions for every reading.
 pub fn min_norm_predictions(
     data: &LineData,
     train: &[usize],
     values: &[f64],
-    intervals: usize,
+    intervals: Option<usize>,
     lambda: f64,
     ridge: f64,
 ) -> Vec<f64> {
     let topo = Topology::default();
-    let layout = Layout::new(data, Some(intervals));
+    let layout = Layout::new(data, intervals);
     let rows: Vec<Vec<f64>> = data
         .readings
         .iter()
@@ -306,18 +304,11 @@ pub fn run_case(opts: &HeldBackOptions, seed: u64, fit: &FitOptions) -> HeldBack
     let values: Vec<f64> = case.data.readings.iter().map(|r| r.deviation_um).collect();
     let min_norm = score(
         &case,
-        &min_norm_predictions(&case.data, &train, &values, 10, MIN_NORM_LAMBDA, 0.0),
+        &min_norm_predictions(&case.data, &train, &values, Some(10), MIN_NORM_LAMBDA, 0.0),
     );
     let floor = score(
         &case,
-        &min_norm_predictions(
-            &case.data,
-            &train,
-            &case.truth_um,
-            FLOOR_INTERVALS,
-            0.0,
-            0.0,
-        ),
+        &min_norm_predictions(&case.data, &train, &case.truth_um, None, 0.0, 0.0),
     );
     HeldBackResult {
         seed,

@@ -15,8 +15,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 #[test]
 fn held_back_lines_within_the_identifiable_floor() {
     let opts = HeldBackOptions {
-        targets: 9,
-        runs: 1,
+        targets: 11,
         ..HeldBackOptions::default()
     };
     let results: Vec<_> = (0..10)
