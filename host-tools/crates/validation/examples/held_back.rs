@@ -13,13 +13,17 @@ fn main() {
         .nth(1)
         .map_or(20, |s| s.parse().expect("SEEDS: a number"));
     let opts = HeldBackOptions::default();
-    // the default fit's options; AXCOMP_DAMPING overrides its damping (to compare values)
+    // the default fit's options; AXCOMP_DAMPING and AXCOMP_INTERVALS override its damping and knot
+    // intervals (to compare values)
     let fit = FitOptions {
         damping: std::env::var("AXCOMP_DAMPING")
             .ok()
             .map_or(FitOptions::default().damping, |s| {
                 s.parse().expect("a number")
             }),
+        intervals: std::env::var("AXCOMP_INTERVALS")
+            .ok()
+            .map(|s| s.parse().expect("a number")),
         ..FitOptions::default()
     };
     let results: Vec<_> = (0..seeds)
