@@ -356,3 +356,79 @@ fn point_cloud_read_along_station_beams_is_fitted_and_predicts_diagonals() {
     }
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// The identifiable floor's computable parts next to the held-out figure, and `plan geometry --measured`
+/// listing further lines. Reference: the fit's own σ̂ (`model.sigma_um`); the held-out RMS a model right in
+/// the lines' span would score is at least σ̂ (noise plus estimation variance). The seven-line set cannot
+/// separate ECY, EAZ, EBZ, ECZ; the first further line listed adds rank and reaches only those.
+#[test]
+fn floor_next_to_holdout_and_further_lines_after_measured_ones() {
+    let d = scratch("floor");
+    ok(&axcomp(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--lines",
+            "1",
+            "--sigma-um",
+            "0.5",
+            "--twin-plan",
+            "seven-line",
+            "--simulate",
+            "seven.csv",
+        ],
+        &d,
+    ));
+    ok(&axcomp(
+        &[
+            "fit",
+            "geometry",
+            "--data",
+            "seven.csv",
+            "--holdout",
+            "line=L2",
+            "--json",
+            "fit.json",
+        ],
+        &d,
+    ));
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("fit.json")).unwrap()).unwrap();
+    let fl = &j["identifiable_floor"];
+    let sigma = j["model"]["sigma_um"].as_f64().unwrap();
+    assert_eq!(fl["noise_um"].as_f64().unwrap(), sigma, "{fl}");
+    assert!(
+        fl["expected_holdout_rms_um"].as_f64().unwrap() >= sigma,
+        "{fl}"
+    );
+    assert!(fl["floor_um"].is_null(), "{fl}");
+    let out = ok(&axcomp(
+        &[
+            "plan",
+            "geometry",
+            "--stroke",
+            "800,600,500",
+            "--measured",
+            "seven.csv",
+            "--json",
+            "plan.json",
+        ],
+        &d,
+    ));
+    assert!(
+        out.contains("further lines that would lower the identifiable floor"),
+        "{out}"
+    );
+    let p: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("plan.json")).unwrap()).unwrap();
+    let further = p["further_lines"].as_array().unwrap();
+    assert!(!further.is_empty(), "{p}");
+    // after the lines the plan adds, everything is separable: the list ranks by information gain
+    assert!(p["complete"].as_bool().unwrap(), "{p}");
+    assert!(
+        further[0]["information_gain"].as_f64().unwrap() > 0.0,
+        "{p}"
+    );
+}

@@ -21,7 +21,7 @@ use crate::output::OutputSet;
 const LONG_HELP: &str = "\
 Model: rigid-body small-angle chain of the axes (--work-axes from the bed outward carry the workpiece, --tool-axes the tool; default YX / Z), the reflector offset (tool_*_mm) as the Abbe arm. The 18 error functions are cubic B-splines on a knot grid over each axis's measured range, zero at the axis's zero (straightness also with zero least-squares slope: the slope between axes is the squareness), plus EC0Y, EB0Z, EA0Z.
 
-Identifiability: rank and singular values of the stacked design; components or combinations in its null space are fixed at 0 and reported identified: false with the reason (never invented). Smoothing λ by leave-one-line-out cross-validation (λ = 0, plain least squares, is a candidate). --method plain: no smoothing; --method seven-line: seed 000's 17 parameters (ECY, EAZ, EBZ, ECZ fixed: no lever arm at zero reflector offset).
+Identifiability: rank and singular values of the stacked design; components or combinations in its null space are reported identified: false with the reason and listed in not_separable; by default (auto) they are estimated at the damped minimum norm (what the lines determine, shared the least-norm way: a weak prior of size 0 that also keeps noise in barely separable directions from growing away from the lines), by --method plain fixed at 0. Next to the held-out figure, identifiable_floor gives what can be computed of the floor (the noise σ̂, and with --holdout the held-out RMS a model right in the lines' span would score); the floor itself needs the truth (computed on the twin). Smoothing λ by leave-one-line-out cross-validation (λ = 0, plain least squares, is a candidate). --method plain: no smoothing; --method seven-line: seed 000's 17 parameters (ECY, EAZ, EBZ, ECZ fixed: no lever arm at zero reflector offset).
 
 Example:
   axcomp plan geometry --stroke 800,600,500 --lines 20 --simulate lines.csv
@@ -264,7 +264,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         rep.raw_rms_um,
         rep.fit_rms_um,
         rep.holdout_rms_um
-            .map(|h| format!(", held-out RMS {h:.3} µm"))
+            .map(|h| {
+                let fl = &rep.identifiable_floor;
+                format!(
+                    ", held-out RMS {h:.3} µm (noise σ̂ {:.3} µm{})",
+                    fl.noise_um,
+                    fl.expected_holdout_rms_um
+                        .map(|e| format!(
+                            ", a model right in the lines' span would score {e:.3} µm"
+                        ))
+                        .unwrap_or_default()
+                )
+            })
             .unwrap_or_default(),
         rep.cv_rms_um
             .map(|h| format!(", cross-validated RMS {h:.3} µm"))
@@ -277,7 +288,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         rep.identifiability.condition_number
     );
     for g in &rep.identifiability.not_separable {
-        println!("  not separable (fixed at 0): {}", g.join(", "));
+        println!("  not separable: {}", g.join(", "));
     }
     println!(
         "volumetric |e| over the measured volume: max {:.2} µm, RMS {:.2} µm",

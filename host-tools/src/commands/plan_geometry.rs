@@ -6,7 +6,8 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use axcomp_geometry::plan::{PlanOptions, plan};
+use axcomp_geometry::LineData;
+use axcomp_geometry::plan::{FurtherLine, PlanOptions, plan_after};
 use axcomp_kinematics::Topology;
 use axcomp_twin::geometry::{GeometryTwin, plan_by_name};
 
@@ -39,6 +40,10 @@ pub struct Args {
     pub work_axes: String,
     #[arg(long, default_value = "Z", value_name = "AXES")]
     pub tool_axes: String,
+    /// Lines already measured (the laser line CSV): the plan adds to them, and the further lines listed
+    /// are those that lower their identifiable floor.
+    #[arg(long, value_name = "F.csv")]
+    pub measured: Option<PathBuf>,
     /// Machine-readable plan.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
@@ -83,6 +88,45 @@ fn triple(s: &str, what: &str) -> anyhow::Result<[f64; 3]> {
         bail!("{what} {s}: expected three finite numbers X,Y,Z");
     }
     Ok([v[0], v[1], v[2]])
+}
+
+/// The further lines that lower the identifiable floor, one a line.
+fn print_further(further: &[FurtherLine], measured: bool) {
+    println!(
+        "further lines that would lower the identifiable floor of the {} lines (rank they add: what the lines cannot separate that they reach; then information gain):",
+        if measured {
+            "measured and chosen"
+        } else {
+            "chosen"
+        }
+    );
+    for f in further {
+        let l = &f.line;
+        println!(
+            "  {}, {:?} → {:?}, step-wise {}, reflector offset {:?}: rank +{}{}, information gain {:.2}",
+            l.name,
+            l.start,
+            l.end,
+            l.stepwise,
+            l.tool,
+            f.rank_gain,
+            if f.reaches.is_empty() {
+                String::new()
+            } else {
+                format!(" (reaches {})", f.reaches.join(", "))
+            },
+            f.information_gain
+        );
+    }
+}
+
+fn further_json(f: &FurtherLine) -> serde_json::Value {
+    let l = &f.line;
+    serde_json::json!({
+        "name": l.name, "start_mm": l.start, "end_mm": l.end, "targets": l.targets,
+        "stepwise": l.stepwise, "tool_mm": l.tool, "rank_gain": f.rank_gain,
+        "reaches": f.reaches, "information_gain": f.information_gain,
+    })
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -145,14 +189,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             Some((v, with_plan))
         }
     };
-    let p = plan(&PlanOptions {
-        stroke_mm: stroke,
-        max_lines: a.lines,
-        tool_offsets: offsets,
-        sigma_um: a.sigma_um,
-        targets: a.targets,
-        topology: topology.clone(),
-    })?;
+    let measured = match &a.measured {
+        None => None,
+        Some(path) => {
+            let ds = axcomp_data::Dataset::load(path, &axcomp_data::LoadOptions::default())?;
+            Some(LineData::from_dataset(&ds, false)?)
+        }
+    };
+    let p = plan_after(
+        &PlanOptions {
+            stroke_mm: stroke,
+            max_lines: a.lines,
+            tool_offsets: offsets,
+            sigma_um: a.sigma_um,
+            targets: a.targets,
+            topology: topology.clone(),
+        },
+        measured.as_ref(),
+    )?;
     println!(
         "{} lines chosen from {} candidates; all 21 identifiable: {}",
         p.lines.len(),
@@ -183,8 +237,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             println!("  {name:5} not identifiable");
         }
     }
+    print_further(&p.further, measured.is_some());
     if let Some(path) = &a.json {
         let v = serde_json::json!({
+            "further_lines": p.further.iter().map(further_json).collect::<Vec<_>>(),
             "complete": p.complete,
             "not_identifiable": p.not_identifiable,
             "candidates": p.candidates,

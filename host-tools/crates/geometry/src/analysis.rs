@@ -62,6 +62,54 @@ pub struct ModelInfo {
     pub sigma_um: f64,
 }
 
+/// What can be said about the identifiable floor (the best any model in the span of the measured lines
+/// could do on the judged rows). The floor itself needs the true errors: the twin's validation computes it
+/// (`axcomp-validation`, `held_back`); on measured data these are its computable parts.
+#[derive(Debug, Clone, Serialize)]
+pub struct FloorInfo {
+    /// Residual standard deviation of the fit (µm): the reading noise, which no model removes from unseen
+    /// readings.
+    pub noise_um: f64,
+    /// With `--holdout`: √(σ̂² + mean prediction variance over the held-out rows), µm: the held-out RMS a
+    /// model that is right in the span of the fitted lines would score with this noise (its estimation
+    /// error included, the part of the truth outside the span not).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub expected_holdout_rms_um: Option<f64>,
+    /// The floor in µm: always null on measured data (it needs the truth).
+    pub floor_um: Option<f64>,
+    pub note: String,
+}
+
+/// The floor's computable parts for held-out rows `held` (empty: none held out).
+fn floor_info(f: &Fit, data: &LineData, held: &[usize]) -> FloorInfo {
+    let sigma = f.model.sigma_um;
+    let expected_holdout_rms_um = (!held.is_empty()).then(|| {
+        let var: f64 = held
+            .iter()
+            .map(|&i| {
+                let r = &data.readings[i];
+                let row = f.layout.row(&f.model.topology, r.q, r.tool, r.beam);
+                let a: Vec<f64> = f.active_cols.iter().map(|&j| row[j]).collect();
+                let mut v = 0.0;
+                for (x, ax) in a.iter().enumerate() {
+                    for (y, ay) in a.iter().enumerate() {
+                        v += ax * f.covariance[(x, y)] * ay;
+                    }
+                }
+                v.max(0.0)
+            })
+            .sum::<f64>()
+            / held.len() as f64;
+        (sigma * sigma + var).sqrt()
+    });
+    FloorInfo {
+        noise_um: sigma,
+        expected_holdout_rms_um,
+        floor_um: None,
+        note: "the identifiable floor (the best any model in the span of the fitted lines could do on the judged rows) needs the true errors and is computed on the twin (cargo run --release -p axcomp-validation --example held_back); noise_um is the floor no model beats on unseen readings, expected_holdout_rms_um what a model right in the lines' span would score with this noise".into(),
+    }
+}
+
 /// The contract's JSON of `axcomp fit geometry` (plus more fields).
 #[derive(Debug, Clone, Serialize)]
 pub struct FitReport {
@@ -71,6 +119,8 @@ pub struct FitReport {
     pub holdout_rms_um: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cv_rms_um: Option<f64>,
+    /// Next to the held-out figure: what can be computed of the identifiable floor.
+    pub identifiable_floor: FloorInfo,
     pub errors: BTreeMap<String, ErrorEntry>,
     pub identifiability: Identifiability,
     pub volumetric: Volumetric,
@@ -129,69 +179,16 @@ pub fn volumetric(model: &GeometryModel) -> Volumetric {
     }
 }
 
-/// Fits on the training rows, judges per `judge`, and builds the contract's JSON.
-pub fn analyse(
+/// ISO 230-6 figures of the body diagonals (one beam for the whole line, with all three components ≥ 0.3
+/// in magnitude; points read along their own beams from a station are not a diagonal): the range of the
+/// readings before, and after the judged predictions (`basis`) where every reading of the line has one.
+fn body_diagonal_figures(
     data: &LineData,
-    judge: &Judge,
-    opts: &FitOptions,
-) -> Result<Analysis, GeometryError> {
+    judged_pred: &[Option<f64>],
+    fitted_pred: &[f64],
+    basis: &str,
+) -> Vec<DiagonalFigure> {
     let n = data.readings.len();
-    let train: Vec<usize> = match judge {
-        Judge::Holdout(mask) => (0..n).filter(|&i| !mask[i]).collect(),
-        _ => (0..n).collect(),
-    };
-    let f = fit(data, &train, opts)?;
-    // the RMS figures sum in the fit's row order (independent of the file's)
-    let all = data.canonical_order(&(0..n).collect::<Vec<_>>());
-    let fitted_pred = predict_readings(&f.model, data);
-    let mut judged_pred: Vec<Option<f64>> = vec![None; n];
-    let mut holdout_rms_um = None;
-    let mut cv_rms_um = None;
-    let mut basis = "fit";
-    let raw_rms_um;
-    match judge {
-        Judge::Holdout(mask) => {
-            let held: Vec<usize> = all.iter().copied().filter(|&i| mask[i]).collect();
-            for &i in &held {
-                judged_pred[i] = Some(fitted_pred[i]);
-            }
-            raw_rms_um = rms(held.iter().map(|&i| data.readings[i].deviation_um));
-            holdout_rms_um = Some(rms(held
-                .iter()
-                .map(|&i| data.readings[i].deviation_um - fitted_pred[i])));
-            basis = "holdout";
-        }
-        Judge::Cv(groups) => {
-            let mut ids: Vec<usize> = groups.clone();
-            ids.sort();
-            ids.dedup();
-            let fold_opts = FitOptions {
-                lambdas: vec![f.model.smoothing_lambda],
-                ..opts.clone()
-            };
-            for g in ids {
-                let tr: Vec<usize> = (0..n).filter(|&i| groups[i] != g).collect();
-                if tr.is_empty() {
-                    continue;
-                }
-                let ff = fit(data, &tr, &fold_opts)?;
-                let p = predict_readings(&ff.model, data);
-                for i in (0..n).filter(|&i| groups[i] == g) {
-                    judged_pred[i] = Some(p[i]);
-                }
-            }
-            raw_rms_um = rms(all.iter().map(|&i| data.readings[i].deviation_um));
-            cv_rms_um = Some(rms(all.iter().filter_map(|&i| {
-                judged_pred[i].map(|p| data.readings[i].deviation_um - p)
-            })));
-            basis = "cv";
-        }
-        Judge::None => {
-            raw_rms_um = rms(all.iter().map(|&i| data.readings[i].deviation_um));
-        }
-    }
-    // ISO 230-6: body diagonals (one beam for the whole line, with all three components ≥ 0.3 in
-    // magnitude; points read along their own beams from a station are not a diagonal)
     let mut diags = Vec::new();
     for (li, name) in data.lines.iter().enumerate() {
         let rows: Vec<usize> = (0..n).filter(|&i| data.readings[i].line == li).collect();
@@ -224,15 +221,21 @@ pub fn analyse(
             });
         }
     }
+    diags
+}
+
+/// The contract's `errors` object: each component's identification, samples (functions) or value
+/// (squareness), and uncertainty.
+fn error_entries(model: &GeometryModel) -> BTreeMap<String, ErrorEntry> {
     let mut errors = BTreeMap::new();
     for (i, c) in Component::ALL.iter().enumerate() {
-        let m = &f.model.components[i];
+        let m = &model.components[i];
         let (samples, value) = match c.axis() {
             Some(_) => (
                 Some(
                     m.uncertainty
                         .iter()
-                        .map(|[q, _]| [*q, f.model.component_value(*c, *q)])
+                        .map(|[q, _]| [*q, model.component_value(*c, *q)])
                         .collect(),
                 ),
                 None,
@@ -251,11 +254,80 @@ pub fn analyse(
             },
         );
     }
+    errors
+}
+
+/// Fits on the training rows, judges per `judge`, and builds the contract's JSON.
+pub fn analyse(
+    data: &LineData,
+    judge: &Judge,
+    opts: &FitOptions,
+) -> Result<Analysis, GeometryError> {
+    let n = data.readings.len();
+    let train: Vec<usize> = match judge {
+        Judge::Holdout(mask) => (0..n).filter(|&i| !mask[i]).collect(),
+        _ => (0..n).collect(),
+    };
+    let f = fit(data, &train, opts)?;
+    // the RMS figures sum in the fit's row order (independent of the file's)
+    let all = data.canonical_order(&(0..n).collect::<Vec<_>>());
+    let fitted_pred = predict_readings(&f.model, data);
+    let mut judged_pred: Vec<Option<f64>> = vec![None; n];
+    let mut holdout_rms_um = None;
+    let mut cv_rms_um = None;
+    let mut basis = "fit";
+    let mut held_rows: Vec<usize> = Vec::new();
+    let raw_rms_um;
+    match judge {
+        Judge::Holdout(mask) => {
+            let held: Vec<usize> = all.iter().copied().filter(|&i| mask[i]).collect();
+            for &i in &held {
+                judged_pred[i] = Some(fitted_pred[i]);
+            }
+            raw_rms_um = rms(held.iter().map(|&i| data.readings[i].deviation_um));
+            holdout_rms_um = Some(rms(held
+                .iter()
+                .map(|&i| data.readings[i].deviation_um - fitted_pred[i])));
+            basis = "holdout";
+            held_rows = held;
+        }
+        Judge::Cv(groups) => {
+            let mut ids: Vec<usize> = groups.clone();
+            ids.sort();
+            ids.dedup();
+            let fold_opts = FitOptions {
+                lambdas: vec![f.model.smoothing_lambda],
+                ..opts.clone()
+            };
+            for g in ids {
+                let tr: Vec<usize> = (0..n).filter(|&i| groups[i] != g).collect();
+                if tr.is_empty() {
+                    continue;
+                }
+                let ff = fit(data, &tr, &fold_opts)?;
+                let p = predict_readings(&ff.model, data);
+                for i in (0..n).filter(|&i| groups[i] == g) {
+                    judged_pred[i] = Some(p[i]);
+                }
+            }
+            raw_rms_um = rms(all.iter().map(|&i| data.readings[i].deviation_um));
+            cv_rms_um = Some(rms(all.iter().filter_map(|&i| {
+                judged_pred[i].map(|p| data.readings[i].deviation_um - p)
+            })));
+            basis = "cv";
+        }
+        Judge::None => {
+            raw_rms_um = rms(all.iter().map(|&i| data.readings[i].deviation_um));
+        }
+    }
+    let diags = body_diagonal_figures(data, &judged_pred, &fitted_pred, basis);
+    let errors = error_entries(&f.model);
     let report = FitReport {
         raw_rms_um,
         fit_rms_um: f.fit_rms_um,
         holdout_rms_um,
         cv_rms_um,
+        identifiable_floor: floor_info(&f, data, &held_rows),
         errors,
         identifiability: f.identifiability.clone(),
         volumetric: volumetric(&f.model),

@@ -1,7 +1,7 @@
 //! Identification of the 21 components from laser line readings: stacked design matrix, identifiability
-//! (eigen-decomposition of the column-normalised normal matrix = SVD of the design), components fixed at
-//! zero where the data cannot separate them, smoothing chosen by cross-validation over lines, standard
-//! uncertainties.
+//! (eigen-decomposition of the column-normalised normal matrix = SVD of the design), the sets the data
+//! cannot separate (estimated at the damped minimum norm by default, fixed at zero by the plain and
+//! seven-line methods), smoothing chosen by cross-validation over lines, standard uncertainties.
 
 use std::collections::BTreeMap;
 
@@ -53,6 +53,10 @@ pub const SEVEN_LINE_FIXED: [Component; 4] = [
     Component::ECZ,
 ];
 
+/// [`FitOptions::damping`]'s default (chosen on held-back twin lines at other offsets and diagonals:
+/// `cargo run --release -p axcomp-validation --example held_back`).
+pub const DEFAULT_DAMPING: f64 = 1e-4;
+
 /// Options of [`fit`].
 #[derive(Debug, Clone)]
 pub struct FitOptions {
@@ -63,6 +67,10 @@ pub struct FitOptions {
     pub intervals: Option<usize>,
     /// Smoothing λ candidates for [`Method::Auto`].
     pub lambdas: Vec<f64>,
+    /// [`Method::Auto`]'s damping of every parameter, relative to the mean diagonal of the normal matrix: a
+    /// weak prior of size 0 that gives the directions the lines cannot separate their minimum-norm value
+    /// and keeps noise in the barely separable ones from growing away from the measured lines.
+    pub damping: f64,
 }
 
 impl Default for FitOptions {
@@ -72,6 +80,7 @@ impl Default for FitOptions {
             method: Method::Auto,
             intervals: None,
             lambdas: vec![0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0],
+            damping: DEFAULT_DAMPING,
         }
     }
 }
@@ -205,8 +214,10 @@ pub struct Identifiability {
 pub struct ComponentStatus {
     pub identified: bool,
     pub reason: String,
-    /// Fixed at zero (not estimated).
+    /// Left out of the solve (value 0).
     pub fixed: bool,
+    /// A member of a set the lines cannot separate.
+    pub not_separable: bool,
 }
 
 /// A fitted model with everything the JSON and report need.
@@ -266,6 +277,606 @@ fn solve_only(m: &DMatrix<f64>, r: &DVector<f64>) -> DVector<f64> {
     }
 }
 
+/// Tolerance of the rank decisions: singular values below `TOL` × the largest count as zero.
+const TOL: f64 = 1e-6;
+
+/// The stacked design of the training readings and its normal equations, per line and in total.
+struct Design {
+    a: DMatrix<f64>,
+    d: DVector<f64>,
+    col_norm: Vec<f64>,
+    max_norm: f64,
+    /// Rows of each line (keyed by the line's label, not its order in the file) and their normal equations.
+    folds: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)>,
+    g_full: DMatrix<f64>,
+    r_full: DVector<f64>,
+}
+
+impl Design {
+    fn new(data: &LineData, train: &[usize], layout: &Layout, topo: &Topology) -> Design {
+        let (n, p) = (train.len(), layout.p);
+        let mut a = DMatrix::zeros(n, p);
+        for (i, &ri) in train.iter().enumerate() {
+            let r = &data.readings[ri];
+            for (j, v) in layout
+                .row(topo, r.q, r.tool, r.beam)
+                .into_iter()
+                .enumerate()
+            {
+                a[(i, j)] = v;
+            }
+        }
+        let d = DVector::from_iterator(n, train.iter().map(|&ri| data.readings[ri].deviation_um));
+        let col_norm: Vec<f64> = (0..p).map(|j| a.column(j).norm()).collect();
+        let max_norm = col_norm.iter().fold(0.0f64, |x, y| x.max(*y));
+        let mut line_rows: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
+        for (i, &ri) in train.iter().enumerate() {
+            line_rows
+                .entry(data.lines[data.readings[ri].line].as_str())
+                .or_default()
+                .push(i);
+        }
+        let folds: Vec<_> = line_rows
+            .into_values()
+            .map(|rows| {
+                let (g, r) = normal(&a, &d, &rows);
+                (rows, g, r)
+            })
+            .collect();
+        let mut g_full = DMatrix::<f64>::zeros(p, p);
+        let mut r_full = DVector::<f64>::zeros(p);
+        for (_, g, r) in &folds {
+            g_full += g;
+            r_full += r;
+        }
+        Design {
+            a,
+            d,
+            col_norm,
+            max_norm,
+            folds,
+            g_full,
+            r_full,
+        }
+    }
+
+    /// The normal matrix of columns `cols`, column-normalised. A parameter no reading is sensitive to (a
+    /// B-spline coefficient of a stretch of the axis between its zero and the measured range) is a null
+    /// direction: 0, not 0/0 = NaN (NaN would hide every null direction).
+    fn normalised(&self, cols: &[usize]) -> DMatrix<f64> {
+        let mut g = self
+            .g_full
+            .select_rows(cols.iter())
+            .select_columns(cols.iter());
+        for i in 0..cols.len() {
+            for j in 0..cols.len() {
+                let scale = self.col_norm[cols[i]] * self.col_norm[cols[j]];
+                g[(i, j)] = if scale > 0.0 { g[(i, j)] / scale } else { 0.0 };
+            }
+        }
+        g
+    }
+
+    /// Norm of the columns of component `i`.
+    fn component_norm(&self, layout: &Layout, i: usize) -> f64 {
+        let (s, k) = layout.cols[i];
+        (s..s + k)
+            .map(|j| self.col_norm[j] * self.col_norm[j])
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Rank and singular values (largest first) of the column-normalised design.
+    fn rank(&self) -> Result<(usize, Vec<f64>), GeometryError> {
+        let p = self.col_norm.len();
+        let nz: Vec<usize> = (0..p)
+            .filter(|&j| self.col_norm[j] > 1e-9 * self.max_norm)
+            .collect();
+        if nz.is_empty() {
+            return Err(GeometryError::NothingIdentifiable);
+        }
+        let eig = SymmetricEigen::new(self.normalised(&nz));
+        let mut sv: Vec<f64> = eig.eigenvalues.iter().map(|l| l.max(0.0).sqrt()).collect();
+        sv.sort_by(|x, y| y.total_cmp(x));
+        let smax = sv.first().copied().unwrap_or(0.0);
+        Ok((sv.iter().filter(|s| **s > TOL * smax).count(), sv))
+    }
+
+    /// Largest / smallest singular value of the column-normalised design of `cols`.
+    fn condition(&self, cols: &[usize]) -> f64 {
+        let eig = SymmetricEigen::new(self.normalised(cols));
+        let lmax = eig.eigenvalues.iter().fold(0.0f64, |x, y| x.max(*y));
+        let lmin = eig
+            .eigenvalues
+            .iter()
+            .fold(f64::INFINITY, |x, y| x.min(*y))
+            .max(0.0);
+        (lmax / lmin).sqrt()
+    }
+}
+
+/// Parameter columns of the components that are not fixed.
+fn active_of(layout: &Layout, status: &[ComponentStatus]) -> Vec<usize> {
+    let mut v = Vec::new();
+    for (i, st) in status.iter().enumerate() {
+        if !st.fixed {
+            let (s, k) = layout.cols[i];
+            v.extend(s..s + k);
+        }
+    }
+    v
+}
+
+/// Every component estimated, except the seven-line method's four.
+fn initial_status(method: Method) -> Vec<ComponentStatus> {
+    let mut status: Vec<ComponentStatus> = Component::ALL
+        .iter()
+        .map(|_| ComponentStatus {
+            identified: true,
+            reason: String::new(),
+            fixed: false,
+            not_separable: false,
+        })
+        .collect();
+    if method == Method::SevenLine {
+        for c in SEVEN_LINE_FIXED {
+            status[c.index()] = ComponentStatus {
+                identified: false,
+                reason: "fixed at 0 by the seven-line method: with the reflector on the tool reference point it has no lever arm (seed 000 eq. 9); measure lines with tool offsets to identify it".into(),
+                fixed: true,
+                not_separable: false,
+            };
+        }
+    }
+    status
+}
+
+/// Fixes the components no reading is sensitive to (each its own not-separable set).
+fn fix_insensitive(
+    layout: &Layout,
+    design: &Design,
+    status: &mut [ComponentStatus],
+    not_separable: &mut Vec<Vec<String>>,
+) {
+    for (i, c) in Component::ALL.iter().enumerate() {
+        if status[i].fixed || design.component_norm(layout, i) > 1e-9 * design.max_norm.max(1e-300)
+        {
+            continue;
+        }
+        let reason = match c.axis() {
+            Some(ax) if !layout.moved[ax.index()] => {
+                format!("axis {} does not move in these lines; fixed at 0", ax.letter())
+            }
+            _ => match c.kind() {
+                ComponentKind::Angular { .. } => "no reading is sensitive to it: no line gives it a lever arm across its rotation (zero tool offset and no travel of the axes stacked after it in that direction); fixed at 0".to_string(),
+                _ => "no reading is sensitive to it (no beam has a component along it); fixed at 0".to_string(),
+            },
+        };
+        status[i] = ComponentStatus {
+            identified: false,
+            reason,
+            fixed: true,
+            not_separable: false,
+        };
+        not_separable.push(vec![c.name().to_string()]);
+    }
+}
+
+/// The component sets spanned by the null directions of the active design (overlapping sets merged), and
+/// each component's total share of them; `None` when the active design has full column rank.
+fn null_groups(
+    layout: &Layout,
+    design: &Design,
+    active: &[usize],
+) -> Option<(Vec<Vec<usize>>, [f64; 21])> {
+    let eig = SymmetricEigen::new(design.normalised(active));
+    let lmax = eig.eigenvalues.iter().fold(0.0f64, |x, y| x.max(*y));
+    let null: Vec<usize> = (0..active.len())
+        .filter(|&i| eig.eigenvalues[i] <= TOL * TOL * lmax)
+        .collect();
+    if null.is_empty() {
+        return None;
+    }
+    let comp_of_col = |col: usize| {
+        (0..21)
+            .find(|&i| {
+                let (s, k) = layout.cols[i];
+                col >= s && col < s + k
+            })
+            .expect("every column belongs to a component")
+    };
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut share_total = [0.0f64; 21];
+    for &ni in &null {
+        let v = eig.eigenvectors.column(ni);
+        let mut share = [0.0f64; 21];
+        for (r, &col) in active.iter().enumerate() {
+            share[comp_of_col(col)] += v[r] * v[r];
+        }
+        for i in 0..21 {
+            share_total[i] += share[i];
+        }
+        let mut merged: Vec<usize> = (0..21).filter(|&i| share[i] > 0.01).collect();
+        groups.retain(|g| {
+            if g.iter().any(|m| merged.contains(m)) {
+                merged.extend(g.iter().filter(|m| !merged.contains(m)).collect::<Vec<_>>());
+                false
+            } else {
+                true
+            }
+        });
+        merged.sort();
+        groups.push(merged);
+    }
+    Some((groups, share_total))
+}
+
+/// Marks one not-separable set: the member fixed first (angular, straightness, squareness, positioning;
+/// then the largest share of the null directions) leaves the identifiable design, the others carry the
+/// combination.
+fn mark_group(g: &[usize], share_total: &[f64; 21], status: &mut [ComponentStatus]) -> Vec<String> {
+    let fix = *g
+        .iter()
+        .min_by(|&&x, &&y| {
+            priority(Component::ALL[x])
+                .cmp(&priority(Component::ALL[y]))
+                .then(share_total[y].total_cmp(&share_total[x]))
+        })
+        .expect("a null direction has members");
+    let names: Vec<String> = g
+        .iter()
+        .map(|&i| Component::ALL[i].name().to_string())
+        .collect();
+    let others = |i: usize| -> String {
+        names
+            .iter()
+            .filter(|n| *n != Component::ALL[i].name())
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    status[fix] = ComponentStatus {
+        identified: false,
+        reason: if g.len() == 1 {
+            "its shape along the axis is not determined by these lines (too few distinct positions where a reading is sensitive to it)".into()
+        } else {
+            format!("not separable from {} with these lines", others(fix))
+        },
+        fixed: true,
+        not_separable: true,
+    };
+    for &i in g {
+        if i != fix && !status[i].fixed {
+            status[i].identified = false;
+            status[i].not_separable = true;
+            status[i].reason = format!("only its combination with {} is determined", others(i));
+        }
+    }
+    names
+}
+
+/// Fixes members of the null directions' component sets until the remaining design has full column rank.
+fn fix_null_groups(
+    layout: &Layout,
+    design: &Design,
+    status: &mut [ComponentStatus],
+    not_separable: &mut Vec<Vec<String>>,
+) {
+    for _ in 0..21 {
+        let active = active_of(layout, status);
+        if active.is_empty() {
+            break;
+        }
+        let Some((groups, share_total)) = null_groups(layout, design, &active) else {
+            break;
+        };
+        for g in &groups {
+            let names = mark_group(g, &share_total, status);
+            if !not_separable.contains(&names) {
+                not_separable.push(names);
+            }
+        }
+    }
+}
+
+/// How the not-separable sets end: fixed at 0 (plain, seven-line) or estimated with the others at the
+/// damped minimum norm (auto): the reasons say which.
+fn settle_not_separable(status: &mut [ComponentStatus], min_norm: bool) {
+    for st in status.iter_mut().filter(|s| s.not_separable) {
+        if min_norm {
+            st.fixed = false;
+            st.reason.push_str("; its value is the minimum-norm share of what the lines determine (not its own value)");
+        } else if st.fixed {
+            st.reason.push_str("; fixed at 0");
+        } else {
+            st.reason.push_str(
+                " (the not-separable members fixed at 0); the value carries that combination",
+            );
+        }
+    }
+}
+
+/// Second-difference penalty on the active parameters, each function's block scaled by its columns' mean
+/// squared norm (so λ is relative to the data's weight on it).
+fn penalty(
+    layout: &Layout,
+    design: &Design,
+    status: &[ComponentStatus],
+    active: &[usize],
+) -> DMatrix<f64> {
+    let pa = active.len();
+    let mut pen = DMatrix::zeros(pa, pa);
+    for (i, st) in status.iter().enumerate().take(18) {
+        if st.fixed {
+            continue;
+        }
+        let (s, k) = layout.cols[i];
+        let pos0 = active
+            .iter()
+            .position(|&c| c == s)
+            .expect("an estimated component's columns are active");
+        let g = &layout.grids[Component::ALL[i].axis().expect("a function").index()];
+        let dn = g.second_difference() * &layout.bases[i];
+        let block = dn.transpose() * &dn;
+        let w: f64 = (s..s + k)
+            .map(|j| design.col_norm[j] * design.col_norm[j])
+            .sum::<f64>()
+            / k as f64;
+        for r in 0..k {
+            for c2 in 0..k {
+                pen[(pos0 + r, pos0 + c2)] = w * block[(r, c2)];
+            }
+        }
+    }
+    pen
+}
+
+/// Damping of the solve: `damping` × the mean diagonal of the normal matrix on every active parameter (a
+/// weak prior of size 0 in the parameters' own units: the minimum-norm solution where the lines say nothing).
+fn damping_matrix(g: &DMatrix<f64>, damping: f64) -> DMatrix<f64> {
+    let p = g.nrows();
+    let mean = g.trace() / p.max(1) as f64;
+    DMatrix::identity(p, p) * (damping * mean)
+}
+
+/// The active problem: normal equations restricted to the estimated parameters.
+struct Active<'a> {
+    cols: Vec<usize>,
+    aa: DMatrix<f64>,
+    g: DMatrix<f64>,
+    r: DVector<f64>,
+    pen: DMatrix<f64>,
+    damp: DMatrix<f64>,
+    design: &'a Design,
+}
+
+impl Active<'_> {
+    fn sel(&self, g: &DMatrix<f64>) -> DMatrix<f64> {
+        g.select_rows(self.cols.iter())
+            .select_columns(self.cols.iter())
+    }
+    fn selv(&self, r: &DVector<f64>) -> DVector<f64> {
+        DVector::from_iterator(self.cols.len(), self.cols.iter().map(|&j| r[j]))
+    }
+}
+
+/// λ by leave-one-line-out cross-validation: `(λ, [(λ, RMS)], whether the folds could choose)`. A fold
+/// whose removal leaves some identifiable parameter undetermined (an essential line) cannot be predicted
+/// by any λ and is left out of the score (pivot of the fold's Cholesky factor, on the identifiable
+/// columns `ident`, below 1e-9 of the column's own diagonal). When no fold is informative, the scores
+/// differ by rounding only and λ = 0.
+fn choose_lambda(act: &Active, ident: &[usize], lambdas: &[f64]) -> (f64, Vec<(f64, f64)>, bool) {
+    let design = act.design;
+    let g_ident = design
+        .g_full
+        .select_rows(ident.iter())
+        .select_columns(ident.iter());
+    let informative: Vec<bool> = design
+        .folds
+        .iter()
+        .map(|(_, gf, _)| {
+            let m = &g_ident - gf.select_rows(ident.iter()).select_columns(ident.iter());
+            match m.clone().cholesky() {
+                Some(ch) => {
+                    let l = ch.l();
+                    (0..m.nrows()).all(|i| l[(i, i)] * l[(i, i)] > 1e-9 * m[(i, i)].abs())
+                }
+                None => false,
+            }
+        })
+        .collect();
+    let any = informative.iter().any(|x| *x);
+    let mut scores = Vec::new();
+    let mut best = (f64::INFINITY, 0.0);
+    for &lam in lambdas {
+        let (mut sse, mut count) = (0.0, 0usize);
+        for (fi, (rows, gf, rf)) in design.folds.iter().enumerate() {
+            if any && !informative[fi] {
+                continue;
+            }
+            let m = &act.g - act.sel(gf) + &act.pen * lam + &act.damp;
+            let beta = solve_only(&m, &(&act.r - act.selv(rf)));
+            for &i in rows {
+                sse += (design.d[i] - act.aa.row(i).dot(&beta.transpose())).powi(2);
+                count += 1;
+            }
+        }
+        let rms = (sse / count.max(1) as f64).sqrt();
+        scores.push((lam, rms));
+        // prefer less smoothing unless more smoothing is better by 0.1 %
+        if rms < best.0 * 0.999 {
+            best = (rms, lam);
+        }
+    }
+    if any {
+        (best.1, scores, true)
+    } else {
+        (0.0, scores, false)
+    }
+}
+
+/// The final solve: parameters, covariance σ̂²·M⁻¹GM⁻¹, σ̂² with the effective degrees of freedom, and the
+/// unsmoothed solution (for the smoothing bias) when λ > 0.
+struct Solution {
+    beta: DVector<f64>,
+    cov: DMatrix<f64>,
+    sigma2: f64,
+    rss: f64,
+    beta_unsmoothed: Option<DVector<f64>>,
+}
+
+fn solve_final(act: &Active, lambda: f64) -> Solution {
+    let m = &act.g + &act.pen * lambda + &act.damp;
+    let (beta, minv) = solve(&m, &act.r);
+    let resid = &act.design.d - &act.aa * &beta;
+    let rss = resid.norm_squared();
+    let edf = (&minv * &act.g).trace();
+    let n = act.design.d.len() as f64;
+    let sigma2 = rss / (n - edf).max(1.0);
+    let cov = &minv * &act.g * &minv * sigma2;
+    let beta_unsmoothed = (lambda > 0.0).then(|| solve_only(&(&act.g + &act.damp), &act.r));
+    Solution {
+        beta,
+        cov,
+        sigma2,
+        rss,
+        beta_unsmoothed,
+    }
+}
+
+/// Standard uncertainty of `gᵀβ_c` for component columns `idx` (positions in the active set): the
+/// variance from the covariance plus the squared smoothing bias (difference from the unsmoothed solution).
+fn uncertainty(sol: &Solution, idx: &[Option<usize>], g: &[f64]) -> f64 {
+    let mut v = 0.0;
+    if let Some(bp) = &sol.beta_unsmoothed {
+        let b: f64 = idx
+            .iter()
+            .enumerate()
+            .filter_map(|(a1, i1)| i1.map(|x| g[a1] * (sol.beta[x] - bp[x])))
+            .sum();
+        v += b * b;
+    }
+    for (a1, i1) in idx.iter().enumerate() {
+        for (a2, i2) in idx.iter().enumerate() {
+            if let (Some(x), Some(y)) = (i1, i2) {
+                v += g[a1] * sol.cov[(*x, *y)] * g[a2];
+            }
+        }
+    }
+    v.max(0.0).sqrt()
+}
+
+/// Component `i`'s model entry.
+fn component_model(
+    layout: &Layout,
+    act: &Active,
+    sol: &Solution,
+    params: &[f64],
+    st: &ComponentStatus,
+    i: usize,
+) -> ComponentModel {
+    let c = Component::ALL[i];
+    let (s, k) = layout.cols[i];
+    let idx: Vec<Option<usize>> = (s..s + k)
+        .map(|j| act.cols.iter().position(|&x| x == j))
+        .collect();
+    let (coefficients, value, unc) = match c.axis() {
+        Some(ax) => {
+            let grid = layout.grids[ax.index()];
+            let n = &layout.bases[i];
+            let unc = grid
+                .positions(21)
+                .into_iter()
+                .map(|q| {
+                    let b = grid.basis(q);
+                    let g: Vec<f64> = (0..k)
+                        .map(|col| (0..b.len()).map(|r| b[r] * n[(r, col)]).sum())
+                        .collect();
+                    [q, uncertainty(sol, &idx, &g)]
+                })
+                .collect();
+            (layout.coefficients(i, params), 0.0, unc)
+        }
+        None => (
+            Vec::new(),
+            params[s],
+            vec![[0.0, uncertainty(sol, &idx, &[1.0])]],
+        ),
+    };
+    let a = &act.design.a;
+    let reason = if st.identified {
+        let sensitive = (0..a.nrows())
+            .filter(|&r| (s..s + k).any(|j| a[(r, j)] != 0.0))
+            .count();
+        format!("identified ({sensitive} readings sensitive to it)")
+    } else {
+        st.reason.clone()
+    };
+    ComponentModel {
+        name: c.name().to_string(),
+        identified: st.identified,
+        reason,
+        unit: c.unit().to_string(),
+        coefficients,
+        value,
+        uncertainty: unc,
+    }
+}
+
+/// The method line of the model file.
+fn method_text(method: Method, layout: &Layout, lambda: f64, cv_chose: bool) -> String {
+    let [x, y, z] = [0, 1, 2].map(|k| layout.grids[k].intervals);
+    let min_norm = "what the lines cannot separate at the damped minimum norm";
+    match method {
+        Method::Auto if !cv_chose => format!(
+            "general least squares on cubic B-splines (knot intervals X {x}, Y {y}, Z {z}), {min_norm}, no smoothing (λ = 0): leave-one-line-out cross-validation cannot choose λ on these lines, since removing any one of them leaves parameters undetermined (the scores in lambda_cv_rms_um differ by rounding only)"
+        ),
+        Method::Auto => format!(
+            "general least squares on cubic B-splines (knot intervals X {x}, Y {y}, Z {z}), {min_norm}, smoothing λ = {lambda} chosen by leave-one-line-out cross-validation"
+        ),
+        Method::Plain => "general least squares on cubic B-splines, no smoothing, what the lines cannot separate fixed at 0 (plain reference)".to_string(),
+        Method::SevenLine => "seven-line method (seed 000): 17 parameters by least squares, ECY, EAZ, EBZ, ECZ fixed at 0".to_string(),
+    }
+}
+
+/// The axis-position box of all readings (mm).
+fn volume(data: &LineData) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for r in &data.readings {
+        for k in 0..3 {
+            lo[k] = lo[k].min(r.q[k]);
+            hi[k] = hi[k].max(r.q[k]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Identifiability of the design: components no reading sees and the not-separable sets, marked in the
+/// status; rank, singular values and the condition of the identifiable part.
+fn identify(
+    layout: &Layout,
+    design: &Design,
+    status: &mut [ComponentStatus],
+) -> Result<(Identifiability, Vec<usize>), GeometryError> {
+    let mut not_separable = Vec::new();
+    fix_insensitive(layout, design, status, &mut not_separable);
+    let (rank, sv) = design.rank()?;
+    fix_null_groups(layout, design, status, &mut not_separable);
+    let ident = active_of(layout, status);
+    if ident.is_empty() {
+        return Err(GeometryError::NothingIdentifiable);
+    }
+    let identifiability = Identifiability {
+        rank,
+        parameters: layout.p,
+        condition_number: design.condition(&ident),
+        not_separable,
+        singular_values: sv,
+    };
+    Ok((identifiability, ident))
+}
+
 /// Fits the model to the readings in `train` (indices into `data.readings`).
 pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, GeometryError> {
     if train.is_empty() {
@@ -275,466 +886,65 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
     let train = &data.canonical_order(train)[..];
     let topo = &opts.topology;
     let layout = Layout::new(data, opts.intervals);
-    let p = layout.p;
-    let n = train.len();
-    let a = DMatrix::from_fn(n, p, |_, _| 0.0);
-    let mut a = a;
-    for (i, &ri) in train.iter().enumerate() {
-        let r = &data.readings[ri];
-        let row = layout.row(topo, r.q, r.tool, r.beam);
-        for (j, v) in row.into_iter().enumerate() {
-            a[(i, j)] = v;
+    let design = Design::new(data, train, &layout, topo);
+    let mut status = initial_status(opts.method);
+    let (identifiability, ident) = identify(&layout, &design, &mut status)?;
+    let min_norm = opts.method == Method::Auto;
+    settle_not_separable(&mut status, min_norm);
+    let cols = active_of(&layout, &status);
+    let damping = if min_norm { opts.damping } else { 0.0 };
+    let mut act = Active {
+        aa: design.a.select_columns(cols.iter()),
+        g: design
+            .g_full
+            .select_rows(cols.iter())
+            .select_columns(cols.iter()),
+        r: DVector::from_iterator(cols.len(), cols.iter().map(|&j| design.r_full[j])),
+        pen: penalty(&layout, &design, &status, &cols),
+        damp: DMatrix::zeros(0, 0),
+        cols,
+        design: &design,
+    };
+    act.damp = damping_matrix(&act.g, damping);
+    let (lambda, lambda_cv, cv_chose) = match opts.method {
+        Method::Auto if design.folds.len() >= 3 && opts.lambdas.len() > 1 => {
+            choose_lambda(&act, &ident, &opts.lambdas)
         }
+        Method::Auto if opts.lambdas.len() == 1 => (opts.lambdas[0], Vec::new(), true),
+        _ => (0.0, Vec::new(), true),
+    };
+    let sol = solve_final(&act, lambda);
+    let mut params = vec![0.0; layout.p];
+    for (k, &c) in act.cols.iter().enumerate() {
+        params[c] = sol.beta[k];
     }
-    let d = DVector::from_iterator(n, train.iter().map(|&ri| data.readings[ri].deviation_um));
-
-    // --- identifiability -------------------------------------------------------------------------
-    let mut status: Vec<ComponentStatus> = Component::ALL
-        .iter()
-        .map(|_| ComponentStatus {
-            identified: true,
-            reason: String::new(),
-            fixed: false,
-        })
+    let components = (0..21)
+        .map(|i| component_model(&layout, &act, &sol, &params, &status[i], i))
         .collect();
-    let mut not_separable: Vec<Vec<String>> = Vec::new();
-    let col_norm: Vec<f64> = (0..p).map(|j| a.column(j).norm()).collect();
-    let max_norm = col_norm.iter().fold(0.0f64, |x, y| x.max(*y));
-    if opts.method == Method::SevenLine {
-        for c in SEVEN_LINE_FIXED {
-            let st = &mut status[c.index()];
-            st.fixed = true;
-            st.identified = false;
-            st.reason = "fixed at 0 by the seven-line method: with the reflector on the tool reference point it has no lever arm (seed 000 eq. 9); measure lines with tool offsets to identify it".into();
-        }
-    }
-    for (i, c) in Component::ALL.iter().enumerate() {
-        if status[i].fixed {
-            continue;
-        }
-        let (s, k) = layout.cols[i];
-        let norm: f64 = (s..s + k)
-            .map(|j| col_norm[j] * col_norm[j])
-            .sum::<f64>()
-            .sqrt();
-        if norm <= 1e-9 * max_norm.max(1e-300) {
-            let reason = match c.axis() {
-                Some(ax) if !layout.moved[ax.index()] => {
-                    format!("axis {} does not move in these lines; fixed at 0", ax.letter())
-                }
-                _ => match c.kind() {
-                    ComponentKind::Angular { .. } => "no reading is sensitive to it: no line gives it a lever arm across its rotation (zero tool offset and no travel of the axes stacked after it in that direction); fixed at 0".to_string(),
-                    _ => "no reading is sensitive to it (no beam has a component along it); fixed at 0".to_string(),
-                },
-            };
-            status[i] = ComponentStatus {
-                identified: false,
-                reason,
-                fixed: true,
-            };
-            not_separable.push(vec![c.name().to_string()]);
-        }
-    }
-    let active_of = |status: &[ComponentStatus]| -> Vec<usize> {
-        let mut v = Vec::new();
-        for (i, st) in status.iter().enumerate() {
-            if !st.fixed {
-                let (s, k) = layout.cols[i];
-                v.extend(s..s + k);
-            }
-        }
-        v
-    };
-    // normal equations per line (the folds of the cross-validation) and in total, computed once
-    // (keyed by the line's label, not its order of first appearance in the file)
-    let mut line_rows: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
-    for (i, &ri) in train.iter().enumerate() {
-        line_rows
-            .entry(data.lines[data.readings[ri].line].as_str())
-            .or_default()
-            .push(i);
-    }
-    let fold_full: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)> = line_rows
-        .values()
-        .map(|rows| {
-            let (g, r) = normal(&a, &d, rows);
-            (rows.clone(), g, r)
-        })
-        .collect();
-    let mut g_full = DMatrix::<f64>::zeros(p, p);
-    let mut r_full = DVector::<f64>::zeros(p);
-    for (_, g, r) in &fold_full {
-        g_full += g;
-        r_full += r;
-    }
-    // rank of the full stacked design (column-normalised)
-    let nz: Vec<usize> = (0..p).filter(|&j| col_norm[j] > 1e-9 * max_norm).collect();
-    let normalised = |cols: &[usize]| -> DMatrix<f64> {
-        let mut g = g_full.select_rows(cols.iter()).select_columns(cols.iter());
-        for i in 0..cols.len() {
-            for j in 0..cols.len() {
-                // a parameter no reading is sensitive to (a B-spline coefficient of a stretch of the axis
-                // between its zero and the measured range) is a null direction: 0, not 0/0 = NaN (NaN
-                // hid every null direction and reported a rank-deficient design as identified)
-                let scale = col_norm[cols[i]] * col_norm[cols[j]];
-                g[(i, j)] = if scale > 0.0 { g[(i, j)] / scale } else { 0.0 };
-            }
-        }
-        g
-    };
-    const TOL: f64 = 1e-6;
-    if nz.is_empty() {
-        return Err(GeometryError::NothingIdentifiable);
-    }
-    let eig = SymmetricEigen::new(normalised(&nz));
-    let mut sv: Vec<f64> = eig.eigenvalues.iter().map(|l| l.max(0.0).sqrt()).collect();
-    sv.sort_by(|x, y| y.total_cmp(x));
-    let smax = sv.first().copied().unwrap_or(0.0);
-    let rank = sv.iter().filter(|s| **s > TOL * smax).count();
-    // fix components of null directions until the remaining design has full column rank
-    for _ in 0..21 {
-        let active = active_of(&status);
-        if active.is_empty() {
-            break;
-        }
-        let eig = SymmetricEigen::new(normalised(&active));
-        let lmax = eig.eigenvalues.iter().fold(0.0f64, |x, y| x.max(*y));
-        let null: Vec<usize> = (0..active.len())
-            .filter(|&i| eig.eigenvalues[i] <= TOL * TOL * lmax)
-            .collect();
-        if null.is_empty() {
-            break;
-        }
-        // component share of each null vector; union of components over null vectors
-        let comp_of_col = |col: usize| {
-            (0..21).find(|&i| {
-                let (s, k) = layout.cols[i];
-                col >= s && col < s + k
-            })
-        };
-        let mut groups: Vec<Vec<usize>> = Vec::new();
-        let mut share_total = [0.0f64; 21];
-        for &ni in &null {
-            let v = eig.eigenvectors.column(ni);
-            let mut share = [0.0f64; 21];
-            for (r, &col) in active.iter().enumerate() {
-                share[comp_of_col(col).unwrap()] += v[r] * v[r];
-            }
-            let members: Vec<usize> = (0..21).filter(|&i| share[i] > 0.01).collect();
-            for i in 0..21 {
-                share_total[i] += share[i];
-            }
-            // merge with overlapping groups
-            let mut merged = members.clone();
-            groups.retain(|g| {
-                if g.iter().any(|m| merged.contains(m)) {
-                    for m in g {
-                        if !merged.contains(m) {
-                            merged.push(*m);
-                        }
-                    }
-                    false
-                } else {
-                    true
-                }
-            });
-            merged.sort();
-            groups.push(merged);
-        }
-        for g in &groups {
-            let fix = *g
-                .iter()
-                .min_by(|&&x, &&y| {
-                    priority(Component::ALL[x])
-                        .cmp(&priority(Component::ALL[y]))
-                        .then(share_total[y].total_cmp(&share_total[x]))
-                })
-                .unwrap();
-            let names: Vec<String> = g
-                .iter()
-                .map(|&i| Component::ALL[i].name().to_string())
-                .collect();
-            if g.len() == 1 {
-                status[fix] = ComponentStatus {
-                    identified: false,
-                    reason: "its shape along the axis is not determined by these lines (too few distinct positions where a reading is sensitive to it); fixed at 0".into(),
-                    fixed: true,
-                };
-            } else {
-                let others: Vec<String> = names
-                    .iter()
-                    .filter(|n| *n != Component::ALL[fix].name())
-                    .cloned()
-                    .collect();
-                status[fix] = ComponentStatus {
-                    identified: false,
-                    reason: format!(
-                        "not separable from {} with these lines; fixed at 0",
-                        others.join(", ")
-                    ),
-                    fixed: true,
-                };
-                for &i in g {
-                    if i != fix && !status[i].fixed {
-                        status[i].identified = false;
-                        status[i].reason = format!(
-                            "only its combination with {} is determined ({} fixed at 0); the value carries that combination",
-                            names
-                                .iter()
-                                .filter(|n| *n != Component::ALL[i].name())
-                                .cloned()
-                                .collect::<Vec<_>>()
-                                .join(", "),
-                            Component::ALL[fix].name()
-                        );
-                    }
-                }
-            }
-            if !not_separable.contains(&names) {
-                not_separable.push(names);
-            }
-        }
-    }
-    let active = active_of(&status);
-    if active.is_empty() {
-        return Err(GeometryError::NothingIdentifiable);
-    }
-    let ga = normalised(&active);
-    let eig = SymmetricEigen::new(ga);
-    let lmax = eig.eigenvalues.iter().fold(0.0f64, |x, y| x.max(*y));
-    let lmin = eig
-        .eigenvalues
-        .iter()
-        .fold(f64::INFINITY, |x, y| x.min(*y))
-        .max(0.0);
-    let condition_number = (lmax / lmin).sqrt();
-
-    // --- smoothing penalty on the active parameters ---------------------------------------------
-    let pa = active.len();
-    let mut pen = DMatrix::zeros(pa, pa);
-    for (i, st) in status.iter().enumerate().take(18) {
-        if st.fixed {
-            continue;
-        }
-        let (s, k) = layout.cols[i];
-        let pos0 = active.iter().position(|&c| c == s).unwrap();
-        let g = &layout.grids[Component::ALL[i].axis().unwrap().index()];
-        let dn = g.second_difference() * &layout.bases[i];
-        let block = dn.transpose() * &dn;
-        let w: f64 = (s..s + k).map(|j| col_norm[j] * col_norm[j]).sum::<f64>() / k as f64;
-        for r in 0..k {
-            for c2 in 0..k {
-                pen[(pos0 + r, pos0 + c2)] = w * block[(r, c2)];
-            }
-        }
-    }
-    let aa = a.select_columns(active.iter());
-    let sel = |g: &DMatrix<f64>| g.select_rows(active.iter()).select_columns(active.iter());
-    let selv =
-        |r: &DVector<f64>| DVector::from_iterator(active.len(), active.iter().map(|&j| r[j]));
-    let g_all = sel(&g_full);
-    let r_all = selv(&r_full);
-
-    // --- λ by leave-one-line-out cross-validation -----------------------------------------------
-    let mut lambda_cv = Vec::new();
-    // Set when no fold is informative: every line's removal leaves some parameter undetermined, so the
-    // held-out readings of every fold fall on directions the other lines do not reach, and the scores differ
-    // by rounding only. λ is then not chosen by them: no smoothing, the plain reference's solution.
-    let mut cv_cannot_choose = false;
-    let lambda = match opts.method {
-        Method::Auto if line_rows.len() >= 3 && opts.lambdas.len() > 1 => {
-            let folds: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)> = fold_full
-                .iter()
-                .map(|(rows, g, r)| (rows.clone(), sel(g), selv(r)))
-                .collect();
-            // A fold whose removal leaves some parameter undetermined (an essential line) cannot be
-            // predicted by any λ; it is left out of the score (pivot of the fold's Cholesky factor below
-            // 1e-9 of the column's own diagonal).
-            let informative: Vec<bool> = folds
-                .iter()
-                .map(|(_, gf, _)| {
-                    let m = &g_all - gf;
-                    match m.clone().cholesky() {
-                        Some(ch) => {
-                            let l = ch.l();
-                            (0..m.nrows()).all(|i| l[(i, i)] * l[(i, i)] > 1e-9 * m[(i, i)].abs())
-                        }
-                        None => false,
-                    }
-                })
-                .collect();
-            let any = informative.iter().any(|x| *x);
-            let mut best = (f64::INFINITY, 0.0);
-            for &lam in &opts.lambdas {
-                let mut sse = 0.0;
-                let mut count = 0usize;
-                for (fi, (rows, gf, rf)) in folds.iter().enumerate() {
-                    if any && !informative[fi] {
-                        continue;
-                    }
-                    let m = &g_all - gf + &pen * lam;
-                    let beta = solve_only(&m, &(&r_all - rf));
-                    for &i in rows {
-                        let pred = aa.row(i).dot(&beta.transpose());
-                        sse += (d[i] - pred).powi(2);
-                        count += 1;
-                    }
-                }
-                let rms = (sse / count.max(1) as f64).sqrt();
-                lambda_cv.push((lam, rms));
-                // prefer less smoothing unless more smoothing is better by 0.1 %
-                if rms < best.0 * 0.999 {
-                    best = (rms, lam);
-                }
-            }
-            if any {
-                best.1
-            } else {
-                cv_cannot_choose = true;
-                0.0
-            }
-        }
-        Method::Auto if opts.lambdas.len() == 1 => opts.lambdas[0],
-        _ => 0.0,
-    };
-
-    // --- final solve, residual σ, covariance ----------------------------------------------------
-    let m = &g_all + &pen * lambda;
-    let (beta, minv) = solve(&m, &r_all);
-    let resid = &d - &aa * &beta;
-    let rss = resid.norm_squared();
-    let edf = (&minv * &g_all).trace();
-    let sigma2 = rss / (n as f64 - edf).max(1.0);
-    let cov = &minv * &g_all * &minv * sigma2;
-    // smoothing bias, estimated per parameter as the difference from the unsmoothed solution; it is added
-    // to the reported uncertainty of each function value (u² = variance + bias²)
-    let beta_plain = if lambda > 0.0 {
-        Some(solve_only(&g_all, &r_all))
-    } else {
-        None
-    };
-    let mut params = vec![0.0; p];
-    for (k, &c) in active.iter().enumerate() {
-        params[c] = beta[k];
-    }
-    let fit_rms_um = (rss / n as f64).sqrt();
-
-    // --- model file -----------------------------------------------------------------------------
-    let mut volume_min = [f64::INFINITY; 3];
-    let mut volume_max = [f64::NEG_INFINITY; 3];
-    for r in &data.readings {
-        for k in 0..3 {
-            volume_min[k] = volume_min[k].min(r.q[k]);
-            volume_max[k] = volume_max[k].max(r.q[k]);
-        }
-    }
-    let mut components = Vec::new();
-    for (i, c) in Component::ALL.iter().enumerate() {
-        let (s, k) = layout.cols[i];
-        let idx: Vec<Option<usize>> = (s..s + k)
-            .map(|j| active.iter().position(|&x| x == j))
-            .collect();
-        let u_at = |g: &[f64]| -> f64 {
-            let mut v = 0.0;
-            if let Some(bp) = &beta_plain {
-                let mut b = 0.0;
-                for (a1, i1) in idx.iter().enumerate() {
-                    if let Some(x) = i1 {
-                        b += g[a1] * (beta[*x] - bp[*x]);
-                    }
-                }
-                v += b * b;
-            }
-            for (a1, i1) in idx.iter().enumerate() {
-                for (a2, i2) in idx.iter().enumerate() {
-                    if let (Some(x), Some(y)) = (i1, i2) {
-                        v += g[a1] * cov[(*x, *y)] * g[a2];
-                    }
-                }
-            }
-            v.max(0.0).sqrt()
-        };
-        let (coefficients, value, uncertainty) = match c.axis() {
-            Some(ax) => {
-                let grid = layout.grids[ax.index()];
-                let coef = layout.coefficients(i, &params);
-                let n = &layout.bases[i];
-                let unc = grid
-                    .positions(21)
-                    .into_iter()
-                    .map(|q| {
-                        let b = grid.basis(q);
-                        let g: Vec<f64> = (0..k)
-                            .map(|col| (0..b.len()).map(|r| b[r] * n[(r, col)]).sum())
-                            .collect();
-                        [q, u_at(&g)]
-                    })
-                    .collect();
-                (coef, 0.0, unc)
-            }
-            None => (Vec::new(), params[s], vec![[0.0, u_at(&[1.0])]]),
-        };
-        let st = &status[i];
-        let reason = if st.identified {
-            format!(
-                "identified ({} readings sensitive to it)",
-                (0..n)
-                    .filter(|&r| (s..s + k).any(|j| a[(r, j)] != 0.0))
-                    .count()
-            )
-        } else {
-            st.reason.clone()
-        };
-        components.push(ComponentModel {
-            name: c.name().to_string(),
-            identified: st.identified,
-            reason,
-            unit: c.unit().to_string(),
-            coefficients,
-            value,
-            uncertainty,
-        });
-    }
-    let method = match opts.method {
-        Method::Auto if cv_cannot_choose => format!(
-            "general least squares on cubic B-splines (knot intervals X {}, Y {}, Z {}), no smoothing (λ = 0, as the plain reference): leave-one-line-out cross-validation cannot choose λ on these lines, since removing any one of them leaves parameters undetermined (the scores in lambda_cv_rms_um differ by rounding only)",
-            layout.grids[0].intervals, layout.grids[1].intervals, layout.grids[2].intervals
-        ),
-        Method::Auto => format!(
-            "general least squares on cubic B-splines (knot intervals X {}, Y {}, Z {}), smoothing λ = {} chosen by leave-one-line-out cross-validation",
-            layout.grids[0].intervals, layout.grids[1].intervals, layout.grids[2].intervals, lambda
-        ),
-        Method::Plain => "general least squares on cubic B-splines, no smoothing (plain reference)".to_string(),
-        Method::SevenLine => "seven-line method (seed 000): 17 parameters by least squares, ECY, EAZ, EBZ, ECZ fixed at 0".to_string(),
-    };
+    let (volume_min_mm, volume_max_mm) = volume(data);
     let model = GeometryModel {
         format: MODEL_FORMAT.to_string(),
         version: crate::model::MODEL_VERSION,
         topology: topo.clone(),
         grids: layout.grids,
         components,
-        method,
+        method: method_text(opts.method, &layout, lambda, cv_chose),
         smoothing_lambda: lambda,
-        sigma_um: sigma2.sqrt(),
-        volume_min_mm: volume_min,
-        volume_max_mm: volume_max,
+        sigma_um: sol.sigma2.sqrt(),
+        volume_min_mm,
+        volume_max_mm,
     };
+    let n = train.len();
     Ok(Fit {
         model,
         params,
-        covariance: cov,
-        active_cols: active,
+        covariance: sol.cov,
+        active_cols: act.cols,
         status,
-        identifiability: Identifiability {
-            rank,
-            parameters: p,
-            condition_number,
-            not_separable,
-            singular_values: sv,
-        },
+        identifiability,
         lambda_cv,
         train_rows: n,
-        fit_rms_um,
+        fit_rms_um: (sol.rss / n as f64).sqrt(),
         layout,
     })
 }

@@ -12,7 +12,12 @@
 //!   the model is linear in them ([`fit::Layout`]).
 //! - **identifiability**: the rank and singular values of the column-normalised stacked design; its null
 //!   space names the components (or combinations) the lines cannot separate ([`fit::Identifiability`]).
-//!   Those are fixed at the prior 0 and reported `identified: false` with the reason.
+//!   Those are reported `identified: false` with the reason; the default fit estimates them at the damped
+//!   minimum norm (a weak prior of size 0 on every parameter, [`fit::DEFAULT_DAMPING`]), the plain and
+//!   seven-line methods fix them at 0.
+//! - **identifiable floor**: the held-out RMS of the best model the fitted lines can determine (needs the
+//!   truth: computed on the twin); `fit geometry` reports its computable parts ([`analysis::FloorInfo`]),
+//!   `plan geometry` the further lines that lower it ([`plan::FurtherLine`]).
 //! - **seven-line method** (seed 000): line 1 along X, lines 2–3 the XY face diagonals read step-wise, lines
 //!   4–7 the body diagonals read step-wise; it yields 17 parameters — EXX, EYY, EZZ; EYX, EZX, EXY, EZY, EXZ,
 //!   EYZ; EAX, EBX, ECX, EAY, EBY; EC0Y, EB0Z, EA0Z — and fixes ECY, EAZ, EBZ, ECZ, which have no lever arm

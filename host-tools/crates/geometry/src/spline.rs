@@ -1,6 +1,7 @@
 //! Uniform cubic B-splines on a knot grid over an axis's range, and the constrained bases of the
 //! component functions (zero at the axis's zero; straightness also with zero least-squares slope).
 
+use axcomp_numeric::bspline;
 use nalgebra::{DMatrix, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 
@@ -22,23 +23,11 @@ impl AxisGrid {
         q >= self.lo - 1e-3 && q <= self.hi + 1e-3
     }
 
-    /// First basis index and the four non-zero basis values at `q` (clamped to the range).
+    /// First basis index and the four non-zero basis values at `q` (clamped to the range): the
+    /// workspace's uniform cubic B-spline ([`axcomp_numeric::bspline`]).
     pub fn local(&self, q: f64) -> (usize, [f64; 4]) {
-        let h = (self.hi - self.lo) / self.intervals as f64;
-        let s = ((q - self.lo) / h).clamp(0.0, self.intervals as f64);
-        let i = (s.floor() as usize).min(self.intervals - 1);
-        let t = s - i as f64;
-        let t2 = t * t;
-        let t3 = t2 * t;
-        (
-            i,
-            [
-                (1.0 - t) * (1.0 - t) * (1.0 - t) / 6.0,
-                (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0,
-                (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0,
-                t3 / 6.0,
-            ],
-        )
+        let (i, t) = bspline::locate(q, self.lo, self.hi, self.intervals);
+        (i, bspline::cubic_weights(t))
     }
 
     /// All basis values at `q`.
@@ -104,6 +93,34 @@ impl AxisGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The grid's basis is the workspace's one: reference the explicit uniform cubic B-spline weights
+    /// (1−t)³/6, (3t³−6t²+4)/6, (−3t³+3t²+3t+1)/6, t³/6 on the segment holding q; tolerance 1e-12.
+    #[test]
+    fn basis_is_the_uniform_cubic_b_spline() {
+        let g = AxisGrid {
+            lo: -120.0,
+            hi: 480.0,
+            intervals: 7,
+        };
+        for q in g.positions(301).into_iter().chain([-500.0, 900.0]) {
+            let h = (g.hi - g.lo) / g.intervals as f64;
+            let s = ((q - g.lo) / h).clamp(0.0, g.intervals as f64);
+            let i = (s.floor() as usize).min(g.intervals - 1);
+            let t = s - i as f64;
+            let want = [
+                (1.0 - t) * (1.0 - t) * (1.0 - t) / 6.0,
+                (3.0 * t * t * t - 6.0 * t * t + 4.0) / 6.0,
+                (-3.0 * t * t * t + 3.0 * t * t + 3.0 * t + 1.0) / 6.0,
+                t * t * t / 6.0,
+            ];
+            let (j, v) = g.local(q);
+            assert_eq!(j, i);
+            for k in 0..4 {
+                assert!((v[k] - want[k]).abs() < 1e-12, "q {q}: {v:?} vs {want:?}");
+            }
+        }
+    }
 
     #[test]
     fn partition_of_unity_and_constraints() {

@@ -336,3 +336,65 @@ fn held_back_lines_predicted_from_seven_lines_plus_axis_lines() {
     );
     assert!(sum_auto < 0.5 * sum_noise);
 }
+
+/// `plan geometry` after seven measured lines (seed 000's set, which cannot separate ECY, EAZ, EBZ, ECZ:
+/// no lever arm at zero reflector offset). Reference: the fit's own `not_separable` sets of the same
+/// readings. The first further line listed adds rank, reaches only components of those sets, and has a
+/// reflector offset (the only way to give them a lever arm); adding it to the measured lines and refitting
+/// raises the rank of the stacked design (same parameters).
+#[test]
+fn plan_lists_further_lines_that_add_rank_to_measured_lines() {
+    use axcomp_geometry::plan::plan_after;
+    let twin = GeometryTwin::random(STROKE, Topology::default(), 5);
+    let seven = plan_by_name("seven-line", STROKE, 11).unwrap();
+    let (_, measured) = load(&twin.measure(&seven, 1, 5));
+    let fitted = analyse(&measured, &Judge::None, &FitOptions::default()).unwrap();
+    let not_separable: Vec<String> = fitted
+        .report
+        .identifiability
+        .not_separable
+        .iter()
+        .flatten()
+        .cloned()
+        .collect();
+    let p = plan_after(
+        &PlanOptions {
+            stroke_mm: STROKE,
+            max_lines: Some(0),
+            tool_offsets: vec![[0.0; 3], [0.0, 0.0, 150.0]],
+            sigma_um: 0.5,
+            targets: 11,
+            topology: Topology::default(),
+        },
+        Some(&measured),
+    )
+    .unwrap();
+    let first = &p.further[0];
+    println!(
+        "further lines after the seven lines: {:?}",
+        p.further
+            .iter()
+            .map(|f| format!("{} +{} {:?}", f.line.name, f.rank_gain, f.reaches))
+            .collect::<Vec<_>>()
+    );
+    assert!(first.rank_gain > 0, "{first:?}");
+    assert!(first.line.tool != [0.0; 3], "{first:?}");
+    assert!(
+        first.reaches.iter().all(|c| not_separable.contains(c)),
+        "{:?} vs {not_separable:?}",
+        first.reaches
+    );
+    let mut lines = seven.clone();
+    lines.push(first.line.clone());
+    let (_, more) = load(&twin.measure(&lines, 1, 5));
+    let refit = analyse(&more, &Judge::None, &FitOptions::default()).unwrap();
+    let (before, after) = (
+        fitted.report.identifiability.rank,
+        refit.report.identifiability.rank,
+    );
+    assert_eq!(
+        refit.report.identifiability.parameters,
+        fitted.report.identifiability.parameters
+    );
+    assert!(after > before, "rank {before} → {after}");
+}

@@ -16,12 +16,14 @@
 //!
 //! Modules: [`axis`] (single-axis campaigns: ISO 230-2 runs, scans, load steps, thermal rounds),
 //! [`lines`] (laser lines of the three-axis twin), [`rtest`] (R-test campaigns of the five-axis twin),
-//! [`probe`] (touch-probe campaigns: calibration sphere, plane, ring gauge, a held-out second sphere);
+//! [`probe`] (touch-probe campaigns: calibration sphere, plane, ring gauge, a held-out second sphere),
+//! [`held_back`] (`fit geometry` on held-back twin lines, next to its references and the identifiable floor);
 //! [`harness`] holds what they share (options checks, case schedule, validate loop, oracle RMS, rates,
 //! per-SNR grouping, confusion matrix and its table).
 
 pub mod axis;
 pub mod harness;
+pub mod held_back;
 pub mod lines;
 pub mod probe;
 pub mod rtest;

@@ -1,0 +1,71 @@
+//! Held-back lines of the three-axis twin over many seeds: `fit geometry`'s default next to the plain
+//! and minimum-norm references and the identifiable floor (medians of the held-out RMS, µm):
+//! `cargo run --release -p axcomp-validation --example held_back -- [SEEDS]`.
+use axcomp_geometry::FitOptions;
+use axcomp_validation::held_back::{HeldBackOptions, HeldScore, run_case};
+
+fn median(mut v: Vec<f64>) -> f64 {
+    axcomp_numeric::stats::median(&mut v)
+}
+
+fn main() {
+    let seeds: u64 = std::env::args()
+        .nth(1)
+        .map_or(20, |s| s.parse().expect("SEEDS: a number"));
+    let opts = HeldBackOptions::default();
+    // the default fit's options; AXCOMP_DAMPING and AXCOMP_INTERVALS override its damping and knot
+    // intervals (to compare values)
+    let fit = FitOptions {
+        damping: std::env::var("AXCOMP_DAMPING")
+            .ok()
+            .map_or(FitOptions::default().damping, |s| {
+                s.parse().expect("a number")
+            }),
+        intervals: std::env::var("AXCOMP_INTERVALS")
+            .ok()
+            .map(|s| s.parse().expect("a number")),
+        ..FitOptions::default()
+    };
+    let results: Vec<_> = (0..seeds)
+        .map(|s| {
+            let r = run_case(&opts, s, &fit);
+            let f = |h: &HeldScore| {
+                format!(
+                    "lines {:.3} (axis {:.3} diag {:.3}) beam {:.3}",
+                    h.lines, h.axis, h.diagonal, h.beam
+                )
+            };
+            println!(
+                "seed {s}: default {} | plain {} | min-norm {} | floor {}",
+                f(&r.default),
+                f(&r.plain),
+                f(&r.min_norm),
+                f(&r.floor)
+            );
+            r
+        })
+        .collect();
+    let med =
+        |get: &dyn Fn(&HeldScore) -> f64,
+         pick: &dyn Fn(&axcomp_validation::held_back::HeldBackResult) -> HeldScore| {
+            median(results.iter().map(|r| get(&pick(r))).collect())
+        };
+    for (name, get) in [
+        (
+            "lines",
+            &(|h: &HeldScore| h.lines) as &dyn Fn(&HeldScore) -> f64,
+        ),
+        ("axis", &|h: &HeldScore| h.axis),
+        ("diagonal", &|h: &HeldScore| h.diagonal),
+        ("beam", &|h: &HeldScore| h.beam),
+    ] {
+        println!(
+            "median {name}: default {:.3}, plain {:.3}, min-norm {:.3}, floor {:.3} µm (σ {})",
+            med(get, &|r| r.default),
+            med(get, &|r| r.plain),
+            med(get, &|r| r.min_norm),
+            med(get, &|r| r.floor),
+            opts.noise_um
+        );
+    }
+}

@@ -1,0 +1,320 @@
+//! Held-back evaluation of `fit geometry` on the three-axis twin: how well a model fitted to a few lines
+//! predicts lines it never saw.
+//!
+//! # Glossary
+//! - **case**: one twin machine (`GeometryTwin::random`, all 21 components in the ranges, reading
+//!   noise σ) measured in two runs along the training lines — seed 000's seven lines plus the Y and Z axis
+//!   lines through the origin — and the held-back lines, drawn per case: an X, a Y and a Z axis line at
+//!   random offsets of the other two axes, the XZ and YZ face diagonals at a random offset, a body diagonal
+//!   with a random 100–200 mm tool offset along Z, and an axis line read point by point along the beams
+//!   from a tracking interferometer's station (each point along its own beam).
+//! - **held-out RMS**: RMS of (held-back reading − prediction) along each reading's beam, µm; noise
+//!   included, as `holdout_rms_um` of `fit geometry --holdout` reports it. Given for the lines at other
+//!   offsets and the diagonals together (`lines`), and per group (`axis`, `diagonal`, `beam`).
+//! - **identifiable floor**: the held-out RMS of the best model these training lines can determine: the
+//!   minimum-norm least-squares solution of the noise-free training readings in the default fit's basis
+//!   (all 21 components, cubic B-splines on its knot grid, no smoothing), judged against the same noisy
+//!   held-back readings. What the lines cannot separate it leaves at the minimum norm, so it is the floor
+//!   of the span of the measured lines, not the truth.
+//! - **plain reference**: `fit geometry --method plain` (general least squares, no smoothing, what the lines
+//!   cannot separate fixed at 0).
+//! - **minimum-norm reference**: all 21 components as cubic B-splines with 10 intervals per axis, a light
+//!   second-difference penalty (λ = [`MIN_NORM_LAMBDA`] of the design's mean diagonal), the minimum-norm
+//!   solution of the stacked system (the first solver an engineer with numpy would write).
+
+use axcomp_geometry::data::LineReading;
+use axcomp_geometry::fit::Layout;
+use axcomp_geometry::{FitOptions, Judge, LineData, analyse};
+use axcomp_kinematics::lines::{LineSpec, axis_line, face_diagonals, seven_line};
+use axcomp_kinematics::{Component, Topology};
+use axcomp_twin::geometry::{GeometryTwin, LineCampaign};
+use nalgebra::{DMatrix, DVector};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+
+/// Second-difference penalty of the minimum-norm reference, relative to the design's mean diagonal.
+pub const MIN_NORM_LAMBDA: f64 = 1e-3;
+
+/// Settings of the held-back cases.
+#[derive(Debug, Clone)]
+pub struct HeldBackOptions {
+    pub stroke_mm: [f64; 3],
+    /// Targets per line.
+    pub targets: usize,
+    pub runs: usize,
+    /// Reading noise σ, µm.
+    pub noise_um: f64,
+}
+
+impl Default for HeldBackOptions {
+    fn default() -> Self {
+        HeldBackOptions {
+            stroke_mm: [800.0, 600.0, 500.0],
+            targets: 15,
+            runs: 2,
+            noise_um: 0.3,
+        }
+    }
+}
+
+/// Which group a held-back line belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HeldGroup {
+    Axis,
+    Diagonal,
+    Beam,
+}
+
+/// One case: the campaign as the fit reads it, the held-back mask and each reading's group.
+pub struct HeldBackCase {
+    pub data: LineData,
+    /// Noise-free readings (µm along the beam).
+    pub truth_um: Vec<f64>,
+    pub held: Vec<bool>,
+    /// The group of each held-back reading (`None` for training readings).
+    pub group: Vec<Option<HeldGroup>>,
+}
+
+fn line_data(c: &LineCampaign) -> LineData {
+    let mut lines: Vec<String> = Vec::new();
+    let readings = c
+        .rows
+        .iter()
+        .enumerate()
+        .map(|(row, r)| {
+            let line = lines.iter().position(|l| *l == r.line).unwrap_or_else(|| {
+                lines.push(r.line.clone());
+                lines.len() - 1
+            });
+            LineReading {
+                q: std::array::from_fn(|k| r.pos_mm[k] - r.tool_mm[k]),
+                tool: r.tool_mm,
+                beam: r.beam,
+                deviation_um: r.deviation_um,
+                line,
+                row,
+            }
+        })
+        .collect();
+    LineData { readings, lines }
+}
+
+/// The held-back lines of case `seed`, each with its group.
+fn held_lines(opts: &HeldBackOptions, rng: &mut StdRng) -> Vec<(LineSpec, HeldGroup)> {
+    let s = opts.stroke_mm;
+    let n = opts.targets;
+    let mut frac = || rng.gen_range(0.3..1.0);
+    let mut v = vec![
+        (
+            axis_line("hX", 0, s, [0.0, frac() * s[1], frac() * s[2]], n),
+            HeldGroup::Axis,
+        ),
+        (
+            axis_line("hY", 1, s, [frac() * s[0], 0.0, frac() * s[2]], n),
+            HeldGroup::Axis,
+        ),
+        (
+            axis_line("hZ", 2, s, [frac() * s[0], frac() * s[1], 0.0], n),
+            HeldGroup::Axis,
+        ),
+    ];
+    for (a, b) in [(0usize, 2usize), (1, 2)] {
+        let at = frac() * s[3 - a - b];
+        for l in face_diagonals(s, a, b, at, n, false) {
+            v.push((l, HeldGroup::Diagonal));
+        }
+    }
+    let tool = [0.0, 0.0, 100.0 + 100.0 * frac()];
+    v.push((
+        LineSpec::new("hDT", [0.0; 3], s, n).with_tool(tool),
+        HeldGroup::Diagonal,
+    ));
+    let station = [-150.0, -150.0, 0.0];
+    let at = [0.0, frac() * s[1], frac() * s[2]];
+    v.push((
+        axis_line("hBX", 0, s, at, n).from_station(station),
+        HeldGroup::Beam,
+    ));
+    v
+}
+
+/// Builds case `seed`.
+pub fn make_case(opts: &HeldBackOptions, seed: u64) -> HeldBackCase {
+    let mut rng = StdRng::seed_from_u64(seed ^ 0x4e1d_bac4);
+    let s = opts.stroke_mm;
+    let mut lines = seven_line(s, opts.targets);
+    lines.push(axis_line("Y0", 1, s, [0.0; 3], opts.targets));
+    lines.push(axis_line("Z0", 2, s, [0.0; 3], opts.targets));
+    let n_train = lines.len();
+    let held = held_lines(opts, &mut rng);
+    let groups: Vec<HeldGroup> = held.iter().map(|(_, g)| *g).collect();
+    lines.extend(held.into_iter().map(|(l, _)| l));
+    let mut twin = GeometryTwin::random(s, Topology::default(), 7000 + seed);
+    twin.noise_um = opts.noise_um;
+    let camp = twin.measure(&lines, opts.runs, seed);
+    let data = line_data(&camp);
+    let line_index: Vec<usize> = data
+        .lines
+        .iter()
+        .map(|name| lines.iter().position(|l| l.name == *name).unwrap())
+        .collect();
+    let group: Vec<Option<HeldGroup>> = data
+        .readings
+        .iter()
+        .map(|r| {
+            let li = line_index[r.line];
+            (li >= n_train).then(|| groups[li - n_train])
+        })
+        .collect();
+    HeldBackCase {
+        truth_um: camp.rows.iter().map(|r| r.truth_um).collect(),
+        held: group.iter().map(Option::is_some).collect(),
+        group,
+        data,
+    }
+}
+
+/// Held-out RMS of one case's predictions (µm), per group.
+#[derive(Debug, Clone, Copy, Serialize, Default)]
+pub struct HeldScore {
+    /// Lines at other offsets and diagonals together.
+    pub lines: f64,
+    pub axis: f64,
+    pub diagonal: f64,
+    pub beam: f64,
+}
+
+/// The held-out scores of predictions `pred` (along each reading's beam) against the noisy readings.
+pub fn score(case: &HeldBackCase, pred: &[f64]) -> HeldScore {
+    let rms_of = |keep: &dyn Fn(HeldGroup) -> bool| {
+        axcomp_numeric::stats::rms_of(
+            case.data
+                .readings
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| case.group[*i].is_some_and(keep))
+                .map(|(i, r)| r.deviation_um - pred[i]),
+        )
+    };
+    HeldScore {
+        lines: rms_of(&|g| g != HeldGroup::Beam),
+        axis: rms_of(&|g| g == HeldGroup::Axis),
+        diagonal: rms_of(&|g| g == HeldGroup::Diagonal),
+        beam: rms_of(&|g| g == HeldGroup::Beam),
+    }
+}
+
+/// Minimum-norm solution (raw parameter units) of the training rows' design on `intervals` knot intervals
+/// per axis (`None`: the fit's default grid) with a second-difference penalty `lambda` and a ridge `ridge`
+/// (both relative to the design's mean diagonal); predictions for every reading.
+pub fn min_norm_predictions(
+    data: &LineData,
+    train: &[usize],
+    values: &[f64],
+    intervals: Option<usize>,
+    lambda: f64,
+    ridge: f64,
+) -> Vec<f64> {
+    let topo = Topology::default();
+    let layout = Layout::new(data, intervals);
+    let rows: Vec<Vec<f64>> = data
+        .readings
+        .iter()
+        .map(|r| layout.row(&topo, r.q, r.tool, r.beam))
+        .collect();
+    let a = DMatrix::from_fn(train.len(), layout.p, |i, j| rows[train[i]][j]);
+    let mean_diag = (0..layout.p)
+        .map(|j| a.column(j).norm_squared())
+        .sum::<f64>()
+        / layout.p as f64;
+    let mut pen_rows: Vec<Vec<f64>> = Vec::new();
+    if lambda > 0.0 {
+        for (i, c) in Component::ALL[..18].iter().enumerate() {
+            let g = &layout.grids[c.axis().unwrap().index()];
+            let dn = g.second_difference() * &layout.bases[i];
+            let (s, _) = layout.cols[i];
+            for r in 0..dn.nrows() {
+                let mut row = vec![0.0; layout.p];
+                for k in 0..dn.ncols() {
+                    row[s + k] = (lambda * mean_diag).sqrt() * dn[(r, k)];
+                }
+                pen_rows.push(row);
+            }
+        }
+    }
+    if ridge > 0.0 {
+        for j in 0..layout.p {
+            let mut row = vec![0.0; layout.p];
+            row[j] = (ridge * mean_diag).sqrt();
+            pen_rows.push(row);
+        }
+    }
+    let n = train.len() + pen_rows.len();
+    let stacked = DMatrix::from_fn(n, layout.p, |i, j| {
+        if i < train.len() {
+            a[(i, j)]
+        } else {
+            pen_rows[i - train.len()][j]
+        }
+    });
+    let y = DVector::from_fn(n, |i, _| {
+        if i < train.len() {
+            values[train[i]]
+        } else {
+            0.0
+        }
+    });
+    let svd = stacked.svd(true, true);
+    let smax = svd.singular_values.max();
+    let beta = svd.solve(&y, 1e-10 * smax).expect("SVD with U and V");
+    rows.iter()
+        .map(|r| r.iter().zip(beta.iter()).map(|(x, b)| x * b).sum())
+        .collect()
+}
+
+/// One case's figures.
+#[derive(Debug, Clone, Serialize)]
+pub struct HeldBackResult {
+    pub seed: u64,
+    pub default: HeldScore,
+    pub plain: HeldScore,
+    pub min_norm: HeldScore,
+    pub floor: HeldScore,
+}
+
+/// Fits case `seed` with `fit geometry`'s default and the references, and scores all on the held-back lines.
+pub fn run_case(opts: &HeldBackOptions, seed: u64, fit: &FitOptions) -> HeldBackResult {
+    let case = make_case(opts, seed);
+    let judge = Judge::Holdout(case.held.clone());
+    let n = case.held.len();
+    let train: Vec<usize> = (0..n).filter(|&i| !case.held[i]).collect();
+    let predict = |fo: &FitOptions| {
+        let an = analyse(&case.data, &judge, fo).expect("held-back case fits");
+        axcomp_geometry::analysis::predict_readings(&an.fit.model, &case.data)
+    };
+    let default = score(&case, &predict(fit));
+    let plain = score(
+        &case,
+        &predict(&FitOptions {
+            method: axcomp_geometry::Method::Plain,
+            ..fit.clone()
+        }),
+    );
+    let values: Vec<f64> = case.data.readings.iter().map(|r| r.deviation_um).collect();
+    let min_norm = score(
+        &case,
+        &min_norm_predictions(&case.data, &train, &values, Some(10), MIN_NORM_LAMBDA, 0.0),
+    );
+    let floor = score(
+        &case,
+        &min_norm_predictions(&case.data, &train, &case.truth_um, None, 0.0, 0.0),
+    );
+    HeldBackResult {
+        seed,
+        default,
+        plain,
+        min_norm,
+        floor,
+    }
+}
