@@ -93,6 +93,8 @@ pub const CRC_LEN: usize = 4;
 
 /// Largest |table value| a segment may reach, µm.
 pub const MAX_TABLE_UM: f32 = 10_000.0;
+/// Largest |b0| of a thermo-force model, µm (the intercept is a deviation, not a position).
+pub const MAX_B0_UM: f32 = 1.0e5;
 const MAX_ABS_POSITION: i64 = 1 << 62;
 const MIN_DEGC: f32 = -273.15;
 const MAX_DEGC: f32 = 2000.0;
@@ -457,7 +459,7 @@ fn validate_thermo(b: &[u8], l: &Layout, o: usize) -> Result<(), ImageError> {
     check(period >= 1, Field::SensorPeriod, 0)?;
     let has_exp = u8_at(b, o + 6);
     let exp_sensor = u8_at(b, o + 7) as usize;
-    ranged(f32_at(b, o + 8), -1.0e5, 1.0e5, Field::B0, 0)?;
+    ranged(f32_at(b, o + 8), -MAX_B0_UM, MAX_B0_UM, Field::B0, 0)?;
     let c = ranged(f32_at(b, o + 12), -1.0e3, 1.0e3, Field::Expansion, 0)?;
     let x_ref = i64_at(b, o + 16);
     check(u32_at(b, o + 28) == 0, Field::Reserved, 0)?;
