@@ -83,9 +83,13 @@ pub struct GroupArgs {
     pub out: PathBuf,
 }
 
-/// The rotary section from `--rotary` and its placement arguments; a warning for each part of the
-/// model the image does not carry.
-fn rotary_from_args(args: &GroupArgs) -> anyhow::Result<Option<RotaryLocationSpec>> {
+/// The rotary section from `--rotary` and its placement arguments; the model's rotary positioning
+/// error put into the rotary axes' images as their angle tables (a note says so), a warning for each
+/// part of the model the image does not carry.
+fn rotary_from_args(
+    args: &GroupArgs,
+    axes: &mut [GroupAxis],
+) -> anyhow::Result<Option<RotaryLocationSpec>> {
     let Some(path) = args.rotary.as_deref() else {
         anyhow::ensure!(
             args.pivot_counts.is_none() && args.tool_length_mm.is_none(),
@@ -102,7 +106,11 @@ fn rotary_from_args(args: &GroupArgs) -> anyhow::Result<Option<RotaryLocationSpe
         args.pivot_counts.as_deref(),
         args.tool_length_mm,
     )?;
-    for w in &section.left_out {
+    axcomp_image::angle_table::put_angle_tables(axes, &section.effects.angle_errors, &label)?;
+    for c in &section.effects.carried {
+        eprintln!("axcomp: note: {label}: {c}");
+    }
+    for w in &section.effects.left_out {
         eprintln!("axcomp: warning: {label}: {w}");
     }
     Ok(Some(section.spec))
@@ -151,7 +159,7 @@ fn axes_from_args(args: &GroupArgs) -> anyhow::Result<Vec<GroupAxis>> {
 
 /// The group image bytes from the arguments (validated; nothing is written here).
 pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
-    let axes = axes_from_args(args)?;
+    let mut axes = axes_from_args(args)?;
     let mut names: Vec<(AxisName, Vec<String>)> = Vec::new();
     for arg in &args.sensor_names {
         let (name, list) = args::parse_sensor_names_arg(arg)?;
@@ -162,7 +170,7 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
         );
         names.push((name, list));
     }
-    let rotary = rotary_from_args(args)?;
+    let rotary = rotary_from_args(args, &mut axes)?;
     let names = group_lib::group_sensor_names(&axes, &names)?;
     anyhow::ensure!(
         args.exclude_geometric.is_empty() || args.geometry.is_some(),

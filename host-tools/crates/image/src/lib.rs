@@ -36,6 +36,7 @@ macro_rules! bail {
     };
 }
 
+pub mod angle_table;
 pub mod args;
 pub mod board;
 pub mod describe;

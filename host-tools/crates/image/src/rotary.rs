@@ -5,6 +5,7 @@ use axcomp_core::rotary::{RotaryLocationSpec, RotaryMachine};
 use axcomp_kinematics::rotary::MachineKind;
 use axcomp_rtest::RtestModel;
 
+use crate::angle_table::{EffectsInImage, effects_in_image};
 use crate::{Context, Error, Result};
 
 /// The core's rotary section from a `fit rtest` model: every identified location error and
@@ -131,29 +132,12 @@ pub fn rotary_from_hand_written(label: &str, v: &serde_json::Value) -> Result<Ro
     })
 }
 
-/// What the rotary section leaves out of `model`: one sentence per effect of `fit rtest --effects`
-/// (the firmware's rotary stage applies the 11 location errors only), with the correction left out.
-pub fn effects_left_out(model: &RtestModel) -> Vec<String> {
-    model
-        .effects
-        .iter()
-        .map(|e| {
-            format!(
-                "the model's effect `{}` ({} parameters) is not carried by the image: the firmware's rotary stage applies the 11 location errors only, so its correction (RMS {:.3} µm over the fitted poses) is left out",
-                e.kind,
-                e.parameters.len(),
-                e.rms_over_fit_um
-            )
-        })
-        .collect()
-}
-
-/// What `image group --rotary` makes of a rotary model file: the rotary section, and a sentence for
-/// each part of the model the image does not carry.
+/// What `image group --rotary` makes of a rotary model file: the rotary section, and what of the
+/// model's effects the image carries (the rotary axes' angle tables) and leaves out.
 #[derive(Debug, Clone)]
 pub struct RotarySection {
     pub spec: RotaryLocationSpec,
-    pub left_out: Vec<String>,
+    pub effects: EffectsInImage,
 }
 
 /// The rotary section from a rotary model file's `text` (`label` names it in messages, e.g.
@@ -188,10 +172,11 @@ pub fn rotary_section(
         let pivot = crate::args::parse_pivot_counts(pivot)?;
         let spec = rotary_from_rtest_model(&model, pivot, tool_length_mm)
             .map_err(|e| Error::Invalid(format!("{label}: {e}")))?;
-        // The group image's rotary stage carries the 11 location errors only: an effect of `fit rtest
-        // --effects` is said, with the correction it leaves out, never dropped silently.
-        let left_out = effects_left_out(&model);
-        return Ok(RotarySection { spec, left_out });
+        // The rotary stage carries the 11 location errors; of the effects, what the axis tables can
+        // apply goes there and the rest is said, with the correction it leaves out.
+        let effects =
+            effects_in_image(&model).map_err(|e| Error::Invalid(format!("{label}: {e}")))?;
+        return Ok(RotarySection { spec, effects });
     }
     ensure!(
         pivot_counts.is_none() && tool_length_mm.is_none(),
@@ -201,6 +186,6 @@ pub fn rotary_section(
     let spec = rotary_from_hand_written(label, &v)?;
     Ok(RotarySection {
         spec,
-        left_out: vec![],
+        effects: EffectsInImage::default(),
     })
 }
