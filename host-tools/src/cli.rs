@@ -80,7 +80,7 @@ pub enum ImageCommand {
     /// component of that axis (EXX, EYY, EZZ), or the rotary model's and the geometric model's
     /// squareness (EC0Y, EB0Z, EA0Z), would both correct the same error is refused (naming both, writing
     /// nothing); `--exclude-geometric` leaves the geometric components out.
-    Group(commands::image::GroupArgs),
+    Group(commands::image_group::GroupArgs),
 }
 
 /// Options shared by every command that reads a measurement CSV (see the contract's "Common options").

@@ -102,11 +102,6 @@ pub fn from_hex(hex: &str) -> Option<[u8; 32]> {
     Some(out)
 }
 
-/// Lower-case hex of 32 bytes.
-pub fn to_hex(b: &[u8; 32]) -> String {
-    b.iter().map(|x| format!("{x:02x}")).collect()
-}
-
 /// The image record of the model file at `path`: `role`, the SHA-256 of its bytes and the data SHA-256
 /// of its provenance (zero when it has none).
 pub fn model_record(
@@ -180,7 +175,7 @@ mod tests {
         assert_eq!(back, law);
         assert_eq!(read_from(text.as_bytes()), Some(p.clone()));
         assert_eq!(sha256(b"abc"), from_hex(&p.source_sha256).unwrap());
-        assert_eq!(to_hex(&sha256(b"abc")), p.source_sha256);
+        assert_eq!(axcomp_image::to_hex(&sha256(b"abc")), p.source_sha256);
         assert!(from_hex("zz").is_none());
     }
 }

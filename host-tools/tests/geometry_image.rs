@@ -7,15 +7,14 @@ mod common;
 use common::scratch;
 use std::path::{Path, PathBuf};
 
-use axcomp::commands::image::{
-    GroupArgs, describe_any, exclude_geometric_components, geometric_from_model, group_bytes,
-};
+use axcomp::commands::image_group::{GroupArgs, group_bytes};
 use axcomp_core::group::Group;
 use axcomp_core::group_image;
 use axcomp_core::{ImageSpec, LimitSpec, OutsideStroke, TableSpec, image_len, write_image};
 use axcomp_geometry::GeometryModel;
 use axcomp_geometry::model::{ComponentModel, MODEL_FORMAT};
 use axcomp_geometry::spline::AxisGrid;
+use axcomp_image::{describe_any, exclude_geometric_components, geometric_from_model};
 use axcomp_kinematics::{Component, Topology};
 
 /// µm per count of every axis (as the axis images store it, f32).

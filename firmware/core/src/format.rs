@@ -35,6 +35,8 @@ pub const CRC_LEN: usize = 4;
 
 /// Largest |table value| a segment may reach, µm.
 pub const MAX_TABLE_UM: f32 = 10_000.0;
+/// Largest |b0| of a thermo-force model, µm (the intercept is a deviation, not a position).
+pub const MAX_B0_UM: f32 = 1.0e5;
 pub(crate) const MAX_ABS_POSITION: i64 = 1 << 62;
 pub(crate) const MIN_DEGC: f32 = -273.15;
 pub(crate) const MAX_DEGC: f32 = 2000.0;

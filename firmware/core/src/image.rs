@@ -57,7 +57,7 @@
 //! (0, 1e5] µm; direction hysteresis ≤ 2^31 − 1 counts.
 
 pub use crate::format::{
-    CRC_LEN, FORCE_LEN, HEADER_LEN, LIMITS_LEN, MAGIC, MAX_TABLE_UM, RISE_BOUNDS_LEN,
+    CRC_LEN, FORCE_LEN, HEADER_LEN, LIMITS_LEN, MAGIC, MAX_B0_UM, MAX_TABLE_UM, RISE_BOUNDS_LEN,
     SCHEMA_VERSION, SENSOR_LEN, TABLE_HEADER_LEN, THERMO_HEADER_LEN, THERMO_REFERENCE_AT_SWITCH_ON,
     THERMO_RISE_GUARD, crc32,
 };
@@ -405,7 +405,7 @@ fn validate_thermo(b: &[u8], l: &Layout, o: usize) -> Result<(), ImageError> {
     check(period >= 1, Field::SensorPeriod, 0)?;
     let has_exp = u8_at(b, o + 6);
     let exp_sensor = u8_at(b, o + 7) as usize;
-    ranged(f32_at(b, o + 8), -1.0e5, 1.0e5, Field::B0, 0)?;
+    ranged(f32_at(b, o + 8), -MAX_B0_UM, MAX_B0_UM, Field::B0, 0)?;
     let c = ranged(f32_at(b, o + 12), -1.0e3, 1.0e3, Field::Expansion, 0)?;
     let x_ref = i64_at(b, o + 16);
     check(u32_at(b, o + 28) == 0, Field::Reserved, 0)?;

@@ -25,7 +25,7 @@ use axcomp_core::trace::{OutputRecord, Record, Writer};
 use axcomp_core::{Compensator, CycleInput, Engine, ImageSpec, image_len, write_image};
 use axcomp_data::{Dataset, LoadOptions};
 use axcomp_plot::{Figure, markdown_table};
-use axcomp_positioning::fit::{FitOptions, FitResult, Observation, fit};
+use axcomp_positioning::fit::{FitOptions, FitResult, fit};
 use axcomp_positioning::iso230::{self, Iso230Result};
 use axcomp_twin::{Axis, Campaign, IdealTable, Iso230Plan, Plan, simulate};
 use serde_json::json;
@@ -71,23 +71,6 @@ fn evaluate(name: &str, campaign: Campaign) -> anyhow::Result<Evaluated> {
         iso,
         rms_um,
     })
-}
-
-pub(crate) fn observations(ds: &Dataset) -> anyhow::Result<Vec<Observation>> {
-    let x = ds.numeric("target_mm")?;
-    let d = ds.numeric("deviation_um")?;
-    let r = ds.numeric("run")?;
-    let dir = ds
-        .direction()?
-        .context("the campaign has no direction column")?;
-    Ok((0..ds.n_rows())
-        .map(|i| Observation {
-            target_mm: x[i],
-            direction: dir[i],
-            run: r[i] as i64,
-            deviation_um: d[i],
-        })
-        .collect())
 }
 
 fn image_bytes(spec: &ImageSpec) -> anyhow::Result<Vec<u8>> {
@@ -270,10 +253,6 @@ fn closed_loop_trace(
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.all {
-        let out = args.out.unwrap_or_else(super::demo_all::default_out);
-        return super::demo_all::run_all(&out, args.seed);
-    }
     let t0 = Instant::now();
     let out = &args
         .out
@@ -305,7 +284,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let t_sim = t0.elapsed();
 
     // 2. Fit (cross-validated, guarded).
-    let obs = observations(&before.data)?;
+    let obs = super::common::positioning_observations(&before.data)?;
     let mut fitted: FitResult = fit(&obs, &FitOptions::default()).context("fitting the table")?;
     fitted.table.provenance = Some(provenance);
     if !fitted.guard.passed {
@@ -335,19 +314,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         limits,
     };
     // With its provenance (as `image build` writes it): the table file's hash and its data's.
-    let image = super::image::with_extension(
+    let image = axcomp_image::with_extension(
         image_bytes(&spec)?,
-        &[crate::provenance::model_record_of(
+        &crate::provenance::image_block(&[crate::provenance::model_record_of(
             table_json.as_bytes(),
             axcomp_core::provenance::ANY_AXIS,
             axcomp_core::provenance::role::POSITIONING_TABLE,
-        )],
+        )])?,
         &[],
     )?;
     let mut comp = Compensator::IDENTITY;
     comp.load(&image).context("loading the built image")?;
     files.add("image.bin", image.clone());
-    let image_text = super::image::describe(&image)?;
+    let image_text = axcomp_image::describe(&image)?;
 
     // 4. Compensated campaign (new noise), and the ideal floor.
     let compensated =
@@ -368,7 +347,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     //    bytes (what `axcomp replay` and the QEMU firmware do).
     let (trace, live, read_at) = closed_loop_trace(&axis, &image, &after.campaign, 2.0)?;
     files.add("trace.bin", trace.clone());
-    let replayed = super::replay::replay(None, &trace)?;
+    let replayed = axcomp_image::replay::replay(None, &trace)?;
     let bit_for_bit = replayed.outputs == live && replayed.trace_errors.is_empty();
     let replay_bytes: Vec<u8> = replayed.outputs.iter().flat_map(|o| o.encode()).collect();
     files.add("replay.bin", replay_bytes);
@@ -379,7 +358,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .zip(&after.campaign.truth)
         .map(|(&k, t)| (replayed.outputs[k].correction_um() as f64 - t.correction_um).abs())
         .fold(0.0f64, f64::max);
-    let replay_summary = super::replay::summary(&replayed);
+    let replay_summary = axcomp_image::replay::summary(&replayed);
 
     // 6. Plots.
     let cond = axis.reference_conditions();

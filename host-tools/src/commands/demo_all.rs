@@ -71,7 +71,7 @@ fn positioning(seed: u64, files: &mut Vec<(String, Vec<u8>)>) -> anyhow::Result<
     let csv = measured.to_csv_string();
     let ds = Dataset::from_csv_str("positioning.csv", &csv, &LoadOptions::default())?;
     files.push(("positioning_measurement.csv".into(), csv.into_bytes()));
-    let obs = super::demo::observations(&ds)?;
+    let obs = super::common::positioning_observations(&ds)?;
     let fitted = fit(&obs, &FitOptions::default()).context("positioning fit")?;
     let table = fitted.table.try_to_core(axis.scale_um_per_count)?;
     let image = image_bytes(&ImageSpec {
@@ -145,7 +145,7 @@ fn thermo_force(seed: u64, files: &mut Vec<(String, Vec<u8>)>) -> anyhow::Result
     let fit = fit_thermal(&input, &opts).context("thermal fit")?;
     let model =
         ThermalModelFile::from_fit(&fit, &input, "deviation_um", axcomp_twin::SENSOR_PERIOD_MS);
-    if let Some((_, why)) = super::image_board::thermal_model_refusal(&model) {
+    if let Some((_, why)) = axcomp_image::board::thermal_model_refusal(&model) {
         anyhow::bail!("thermo-force model: {why}");
     }
     let thermo = model.to_core();
@@ -203,7 +203,7 @@ fn geometry(seed: u64, files: &mut Vec<(String, Vec<u8>)>) -> anyhow::Result<Row
     let model = analyse(&data, &Judge::None, &FitOptions::default())?
         .fit
         .model;
-    let section = super::image::geometric_from_model(&model, [UPC; 3], [0.0; 3])?;
+    let section = axcomp_image::geometric_from_model(&model, [UPC; 3], [0.0; 3])?;
     let images = (1..=3)
         .map(|id| bare(id, UPC as f32))
         .collect::<anyhow::Result<Vec<_>>>()?;
@@ -283,7 +283,7 @@ fn rotary(seed: u64, files: &mut Vec<(String, Vec<u8>)>) -> anyhow::Result<Row> 
     let data = axcomp_rtest::RtestData::from_dataset(&ds, machine, true)?;
     let split = axcomp_data::Split::Holdout(HoldoutSpec::parse("run=2")?);
     let a = axcomp_rtest::analysis::analyse(&ds, &data, Some(&split))?;
-    let spec = super::image::rotary_from_rtest_model(&a.model, PIVOT, Some(tool_mm))?;
+    let spec = axcomp_image::rotary_from_rtest_model(&a.model, PIVOT, Some(tool_mm))?;
     let images = [(AxisName::X, 1), (AxisName::Y, 2), (AxisName::Z, 3)]
         .into_iter()
         .map(|(n, id)| Ok((n, 0, bare(id, UPC5 as f32)?)))

@@ -543,7 +543,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         file.validate()
             .map_err(|e| anyhow::anyhow!("model not written: {e}"))?;
-        if let Some((_, why)) = super::image_board::thermal_model_refusal(&file) {
+        if let Some((_, why)) = axcomp_image::board::thermal_model_refusal(&file) {
             eprintln!(
                 "axcomp: warning: {}: `image build` cannot put this model into a firmware image: {why}",
                 out.display()

@@ -16,7 +16,7 @@ pub mod fit_probe;
 pub mod fit_rtest;
 pub mod fit_thermal;
 pub mod image;
-pub mod image_board;
+pub mod image_group;
 pub mod plan_geometry;
 pub mod plan_rtest;
 pub mod predict;
@@ -30,6 +30,10 @@ use crate::cli::{Cli, Command, FitCommand, ImageCommand, PlanCommand};
 
 pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Demo(a) if a.all => {
+            let out = a.out.unwrap_or_else(demo_all::default_out);
+            demo_all::run_all(&out, a.seed)
+        }
         Command::Demo(a) => demo::run(a),
         Command::Fit(FitCommand::Positioning(a)) => fit_positioning::run(a),
         Command::Fit(FitCommand::Thermal(a)) => fit_thermal::run(a),
@@ -41,7 +45,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Plan(PlanCommand::Rtest(a)) => plan_rtest::run(a),
         Command::Image(ImageCommand::Build(a)) => image::build(a),
         Command::Image(ImageCommand::Inspect(a)) => image::inspect(a),
-        Command::Image(ImageCommand::Group(a)) => image::group(a),
+        Command::Image(ImageCommand::Group(a)) => image_group::group(a),
         Command::Replay(a) => replay::run(a),
         Command::Trace(a) => trace::run(a),
         Command::Export(a) => export::run(a),

@@ -19,6 +19,9 @@ use axcomp_core::inspect_image;
 use axcomp_core::wiring::{self, BoardInput, InputUnit};
 use axcomp_firmware::board_caps::stm32g474;
 use axcomp_firmware::drive::group::check_group_image_wired;
+
+use crate::{Error, Result};
+
 use axcomp_firmware::drive::{BoardCaps, ImageRefusal};
 
 /// The board whose refusals `image build` and `image inspect` report.
@@ -197,10 +200,11 @@ pub fn thermal_model_refusal(
         | ImageError::NonFinite {
             field: Field::B0, ..
         } => format!(
-            "the model's intercept b0 = {} µm is beyond the firmware's ±100000 µm ({e}): its target \
+            "the model's intercept b0 = {} µm is beyond the firmware's ±{} µm ({e}): its target \
              is an absolute position, not a deviation; fit it with --zero-at-start N (the change since \
              the start) or --runs COL",
-            model.b0_um
+            model.b0_um,
+            axcomp_core::image::MAX_B0_UM
         ),
         ImageError::NonFinite { field, index } | ImageError::OutOfRange { field, index } => {
             let sensor = model
@@ -214,4 +218,36 @@ pub fn thermal_model_refusal(
         _ => format!("the firmware's image check refuses it: {e}"),
     };
     Some((e, why))
+}
+
+/// `--board-inputs NAME:UNIT,...` (UNIT `degC` or `warmup`).
+pub fn parse_board_inputs(list: &str) -> Result<Vec<(String, InputUnit)>> {
+    list.split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(|s| {
+            let (name, unit) = s.trim().split_once(':').ok_or_else(|| {
+                Error::Invalid(format!("--board-inputs `{s}`: expected NAME:UNIT"))
+            })?;
+            let unit = match unit {
+                "degC" | "°C" => InputUnit::DegC,
+                "warmup" => InputUnit::WarmupState,
+                u => {
+                    return Err(Error::Invalid(format!(
+                        "--board-inputs `{s}`: unit `{u}` is not degC or warmup"
+                    )));
+                }
+            };
+            Ok((name.to_string(), unit))
+        })
+        .collect::<Result<Vec<_>>>()
+        .and_then(|inputs| {
+            // The firmware wires a sensor to the input of its name: a name given twice is ambiguous.
+            for (k, (name, _)) in inputs.iter().enumerate() {
+                ensure!(
+                    !inputs[..k].iter().any(|(n, _)| n == name),
+                    "--board-inputs `{list}`: input `{name}` is named twice"
+                );
+            }
+            Ok(inputs)
+        })
 }
