@@ -18,9 +18,10 @@ use axcomp_data::{DataError, Dataset, Split};
 use serde_json::{Value, json};
 
 use crate::campaign_figures::{after_figures, per_run_json};
-use crate::fit::{FitError, FitOptions, FitResult, Observation, Progress, rms};
+use crate::fit::{FitError, FitOptions, FitResult, Observation, Progress};
 use crate::guard::{self, GuardVerdict};
 use crate::warmup::{self, WarmupFit};
+use axcomp_numeric::stats::rms;
 
 /// The options of one campaign fit, as the command line gives them.
 #[derive(Debug, Clone, Default)]

@@ -12,8 +12,8 @@
 use serde_json::{Value, json};
 
 use crate::campaign::Judged;
-use crate::fit::rms;
 use crate::iso230::{self, Iso230Figures};
+use axcomp_numeric::stats::rms;
 
 /// The ISO 230-2 parts of the JSON, each already in its JSON form.
 #[derive(Debug, Clone)]
