@@ -1112,8 +1112,8 @@ pub(crate) mod tests {
     fn a_direction_reaching_part_of_the_stroke_is_held_beyond_its_targets() {
         // ISO 230-2 style runs over 0 … 200 mm; the negative approach reached only 0 … 100 mm. Truth: a
         // curved pitch error (cubic, 0 at 0, +64 µm at 200 mm) plus a 4 µm reversal, σ = 0.3 µm noise.
-        // Before, the backward curve beyond 100 mm was its last pieces extrapolated (hundreds of µm on
-        // the real B02 X case); now the backward curve holds the value reached at 100 mm (reference: that
+        // Extrapolating the backward curve's last pieces beyond 100 mm would invent hundreds of µm (as on
+        // the real B02 X case); the backward curve holds the value reached at 100 mm (reference: that
         // value; exactly), and the table follows it within the resampling error it reports (the uniform C2
         // table rounds the corner at 100 mm; below 0.2 µm here). The forward direction, measured over the
         // whole stroke, is unchanged: within 0.5 µm of the truth there.

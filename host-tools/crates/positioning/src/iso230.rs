@@ -708,8 +708,8 @@ mod tests {
     }
 
     /// The honest figures agree with [`evaluate`] on a full bidirectional test (same hand-computed example
-    /// as above, tolerance 1e-12), leave bidirectional figures `null` on one-direction data (issue 14: the
-    /// old `B_um: 0`, `A_down_um == A_up_um` were invented) and A/R `null` with one run per target.
+    /// as above, tolerance 1e-12), leave bidirectional figures `null` on one-direction data (a `B_um: 0` or
+    /// `A_down_um == A_up_um` there would be invented) and A/R `null` with one run per target.
     #[test]
     fn honest_figures() {
         let pts = hand_example();

@@ -124,42 +124,7 @@ pub fn power_columns(
             }
         }
     };
-    // Rows without a cut (force 0 N with ap_mm, fz_mm or the spindle speed 0: the idle periods of a spindle
-    // campaign such as `axcomp sim --plan spindle`'s) are no power-law data: left out with a note. Any other
-    // zero or negative value stays an error below.
-    let (ds, n) = {
-        let zero = |c: &str| -> Vec<bool> {
-            match ds.numeric(c) {
-                Ok(v) => v.iter().map(|x| *x == 0.0).collect(),
-                Err(_) => vec![false; n],
-            }
-        };
-        let rpm_col = ds
-            .column_names()
-            .into_iter()
-            .find(|c| c.ends_with("_rpm"))
-            .map(str::to_string);
-        let force0 = zero(&force_col);
-        let (ap0, fz0) = (zero("ap_mm"), zero("fz_mm"));
-        let rpm0 = rpm_col.as_deref().map_or(vec![false; n], zero);
-        let keep: Vec<bool> = (0..n)
-            .map(|i| !(force0[i] && (ap0[i] || fz0[i] || rpm0[i])))
-            .collect();
-        let idle = keep.iter().filter(|k| !**k).count();
-        if idle == 0 {
-            (ds, n)
-        } else if idle == n {
-            return Err(input(format!(
-                "{}: no row with a cut (every row has `{force_col}` 0 N and ap_mm, fz_mm or the speed 0)",
-                path.display()
-            )));
-        } else {
-            notes.push(format!(
-                "{idle} rows without a cut (`{force_col}` 0 N with ap_mm, fz_mm or the speed 0) left out"
-            ));
-            (ds.select_rows(&keep), n - idle)
-        }
-    };
+    let (ds, n) = without_idle_rows(ds, &force_col, path, &mut notes)?;
     let mut param = |col: &str, rpm: bool| -> Result<Vec<f64>, ForceInputError> {
         let name = if rpm {
             ds.column_names()
@@ -228,6 +193,49 @@ pub fn power_columns(
         notes,
         force_col,
     })
+}
+
+/// Rows without a cut (force 0 N with ap_mm, fz_mm or the spindle speed 0: the idle periods of a spindle
+/// campaign such as `axcomp sim --plan spindle`'s) are no power-law data: left out with a note. Any other
+/// zero or negative value stays an error (checked by the caller).
+fn without_idle_rows(
+    ds: Dataset,
+    force_col: &str,
+    path: &std::path::Path,
+    notes: &mut Vec<String>,
+) -> Result<(Dataset, usize), ForceInputError> {
+    let n = ds.n_rows();
+    let zero = |c: &str| -> Vec<bool> {
+        match ds.numeric(c) {
+            Ok(v) => v.iter().map(|x| *x == 0.0).collect(),
+            Err(_) => vec![false; n],
+        }
+    };
+    let rpm_col = ds
+        .column_names()
+        .into_iter()
+        .find(|c| c.ends_with("_rpm"))
+        .map(str::to_string);
+    let force0 = zero(force_col);
+    let (ap0, fz0) = (zero("ap_mm"), zero("fz_mm"));
+    let rpm0 = rpm_col.as_deref().map_or(vec![false; n], zero);
+    let keep: Vec<bool> = (0..n)
+        .map(|i| !(force0[i] && (ap0[i] || fz0[i] || rpm0[i])))
+        .collect();
+    let idle = keep.iter().filter(|k| !**k).count();
+    if idle == 0 {
+        Ok((ds, n))
+    } else if idle == n {
+        return Err(input(format!(
+            "{}: no row with a cut (every row has `{force_col}` 0 N and ap_mm, fz_mm or the speed 0)",
+            path.display()
+        )));
+    } else {
+        notes.push(format!(
+                "{idle} rows without a cut (`{force_col}` 0 N with ap_mm, fz_mm or the speed 0) left out"
+            ));
+        Ok((ds.select_rows(&keep), n - idle))
+    }
 }
 
 /// `force_fit.svg` and `report.md` of a power-law fit.

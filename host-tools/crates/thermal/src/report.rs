@@ -230,27 +230,8 @@ fn sensors_svg(fit: &ThermalFit, input: &ThermalInput, t: &TimeAxis) -> Vec<u8> 
     f.to_svg().into_bytes()
 }
 
-/// `report.md`: model, figures, sensor selection, terms and residual per condition.
-fn report_md(fit: &ThermalFit, target: &str) -> String {
-    let mut md = String::new();
-    let _ = writeln!(md, "# Thermal model of `{target}`\n");
-    let _ = writeln!(md, "Model: `{}`\n", fit.formula);
-    let _ = writeln!(
-        md,
-        "Raw RMS {:.3} µm, after the model {} (held-out rows: {}, training rows: {}). Guard: {} — {}.\n",
-        fit.raw_rms_um,
-        fit.holdout_rms_um
-            .map_or("n/a (no holdout)".into(), |h| format!("{h:.3} µm")),
-        fit.holdout_rows,
-        fit.training_rows,
-        if fit.guard.passed { "passed" } else { "FAILED" },
-        fit.guard.reason
-    );
-    let _ = writeln!(
-        md,
-        "## Sensor selection\n\nChosen: **{}** ({}).\n",
-        fit.chosen_method, fit.why
-    );
+/// The candidates compared, with their validation and held-out RMS.
+fn candidates_md(md: &mut String, fit: &ThermalFit) {
     if fit.candidates.is_empty() {
         let _ = writeln!(md, "No candidates compared (forced selection).\n");
     } else {
@@ -281,7 +262,7 @@ fn report_md(fit: &ThermalFit, target: &str) -> String {
                 ]
             })
             .collect();
-        md += &markdown_table(
+        *md += &markdown_table(
             &[
                 "candidate",
                 "sensors",
@@ -293,6 +274,30 @@ fn report_md(fit: &ThermalFit, target: &str) -> String {
             &rows,
         );
     }
+}
+
+/// `report.md`: model, figures, sensor selection, terms and residual per condition.
+fn report_md(fit: &ThermalFit, target: &str) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# Thermal model of `{target}`\n");
+    let _ = writeln!(md, "Model: `{}`\n", fit.formula);
+    let _ = writeln!(
+        md,
+        "Raw RMS {:.3} µm, after the model {} (held-out rows: {}, training rows: {}). Guard: {} — {}.\n",
+        fit.raw_rms_um,
+        fit.holdout_rms_um
+            .map_or("n/a (no holdout)".into(), |h| format!("{h:.3} µm")),
+        fit.holdout_rows,
+        fit.training_rows,
+        if fit.guard.passed { "passed" } else { "FAILED" },
+        fit.guard.reason
+    );
+    let _ = writeln!(
+        md,
+        "## Sensor selection\n\nChosen: **{}** ({}).\n",
+        fit.chosen_method, fit.why
+    );
+    candidates_md(&mut md, fit);
     if let Some(fg) = &fit.fcm_gra_detail {
         let _ = writeln!(
             md,
