@@ -175,7 +175,7 @@ fn validate_diagnosis_report_and_json_together_or_not_at_all() {
 #[test]
 fn fit_thermal_bad_last_output_touches_nothing() {
     let dir = scratch("thermal");
-    let d = axcomp_thermal::synth::generate(&axcomp_thermal::synth::SynthConfig {
+    let d = axcomp_twin::synth::generate(&axcomp_twin::synth::SynthConfig {
         seed: 5,
         ..Default::default()
     });

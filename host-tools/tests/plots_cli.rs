@@ -149,7 +149,7 @@ fn positioning_and_demo_plots_read() {
 #[test]
 fn thermal_plots_read() {
     let dir = scratch("thermal");
-    let d = axcomp_thermal::synth::generate(&axcomp_thermal::synth::SynthConfig {
+    let d = axcomp_twin::synth::generate(&axcomp_twin::synth::SynthConfig {
         seed: 5,
         ..Default::default()
     });

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::Command;
 
 use axcomp_thermal::model_file::ThermalModelFile;
-use axcomp_thermal::synth::{SynthConfig, generate};
+use axcomp_twin::synth::{SynthConfig, generate};
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_axcomp"))
@@ -62,7 +62,7 @@ fn twin_unseen_condition_within_1p2_of_oracle_and_model_file_builds_an_image() {
     let oracle = d.oracle_prediction();
     let mask: Vec<bool> = d.condition.iter().map(|&c| c == 2).collect();
     let res: Vec<f64> = d.error_um.iter().zip(&oracle).map(|(a, b)| a - b).collect();
-    let oracle_rms = axcomp_thermal::stats::rms_masked(&res, &mask);
+    let oracle_rms = axcomp_numeric::stats::rms_masked(&res, &mask);
     let got = v["holdout_rms_um"].as_f64().unwrap();
     let raw = v["raw_rms_um"].as_f64().unwrap();
     println!(
@@ -240,11 +240,11 @@ fn voron_args(file: &Path, um_per_step: Option<&str>) -> Vec<String> {
 /// Held-out RMS of a least-squares fit `target ~ 1 + Σ cols` on the training rows (QR, no penalty).
 fn ls_holdout_rms(cols: &[Vec<f64>], target: &[f64], held: &[bool]) -> f64 {
     let train: Vec<usize> = (0..target.len()).filter(|&i| !held[i]).collect();
-    let x = axcomp_thermal::linalg::DMatrix::from_fn(train.len(), cols.len() + 1, |r, c| {
+    let x = axcomp_numeric::lsq::DMatrix::from_fn(train.len(), cols.len() + 1, |r, c| {
         if c == 0 { 1.0 } else { cols[c - 1][train[r]] }
     });
     let y: Vec<f64> = train.iter().map(|&i| target[i]).collect();
-    let fit = axcomp_thermal::linalg::lstsq(&x, &y, 0.0, Some(0)).expect("plain least squares");
+    let fit = axcomp_numeric::lsq::lstsq(&x, &y, 0.0, Some(0)).expect("plain least squares");
     let res: Vec<f64> = (0..target.len())
         .filter(|&i| held[i])
         .map(|i| {
@@ -257,7 +257,7 @@ fn ls_holdout_rms(cols: &[Vec<f64>], target: &[f64], held: &[bool]) -> f64 {
                     .sum::<f64>()
         })
         .collect();
-    axcomp_thermal::stats::rms(&res)
+    axcomp_numeric::stats::rms(&res)
 }
 
 /// Temperature rises (from the first row) of the sensors that vary on the training rows.
@@ -266,7 +266,7 @@ fn rises(sensors: &[Vec<f64>], held: &[bool]) -> Vec<Vec<f64>> {
         .iter()
         .filter(|s| {
             let v: Vec<f64> = (0..s.len()).filter(|&i| !held[i]).map(|i| s[i]).collect();
-            axcomp_thermal::stats::std_dev(&v) > 1e-9
+            axcomp_numeric::stats::std_dev(&v) > 1e-9
         })
         .map(|s| s.iter().map(|v| v - s[0]).collect())
         .collect()
@@ -289,17 +289,17 @@ fn greedy_lags_holdout_rms(
         .iter()
         .map(|r| {
             taus.iter()
-                .map(|&t| axcomp_thermal::lag::lag(time_s, r, t))
+                .map(|&t| axcomp_numeric::lag::lag(time_s, r, t))
                 .collect()
         })
         .collect();
     let train: Vec<usize> = (0..target.len()).filter(|&i| !held[i]).collect();
     let train_sse = |cols: &[Vec<f64>]| -> f64 {
-        let x = axcomp_thermal::linalg::DMatrix::from_fn(train.len(), cols.len() + 1, |r, c| {
+        let x = axcomp_numeric::lsq::DMatrix::from_fn(train.len(), cols.len() + 1, |r, c| {
             if c == 0 { 1.0 } else { cols[c - 1][train[r]] }
         });
         let y: Vec<f64> = train.iter().map(|&i| target[i]).collect();
-        axcomp_thermal::linalg::lstsq(&x, &y, 0.0, Some(0)).map_or(f64::INFINITY, |f| f.sse)
+        axcomp_numeric::lsq::lstsq(&x, &y, 0.0, Some(0)).map_or(f64::INFINITY, |f| f.sse)
     };
     let mut chosen: Vec<Vec<f64>> = fixed.to_vec();
     let mut used = vec![false; rises.len()];
@@ -421,7 +421,7 @@ fn voron_default_at_or_below_plain_ls_and_greedy_lags_on_every_cooling_holdout()
         let plain = ls_holdout_rms(&r, &target, &held);
         let greedy = greedy_lags_holdout_rms(&time_s, &r, &[], &target, &held);
         // Raw: the target minus its first reading (the sensors' reference row), on the held-out rows.
-        let raw_here = axcomp_thermal::stats::rms(
+        let raw_here = axcomp_numeric::stats::rms(
             &(0..target.len())
                 .filter(|&i| held[i])
                 .map(|i| target[i] - target[0])
@@ -462,7 +462,7 @@ fn twin_spindle_campaign_new_regime_default_near_the_oracle_and_at_or_below_the_
     // (variable-speed) block held out. References in this run: plain least squares on every sensor and the
     // force, greedy 4 sensors + lags (+ force), and the oracle (each channel's truth on the measured columns).
     let dir = tmp_dir("spindle");
-    let c = axcomp_thermal::synth::spindle_campaign(1, 60.0);
+    let c = axcomp_twin::synth::spindle_campaign(1, 60.0);
     let csv = dir.join("spindle.csv");
     std::fs::write(&csv, c.to_csv()).unwrap();
     let d = &c.data;
@@ -493,7 +493,7 @@ fn twin_spindle_campaign_new_regime_default_near_the_oracle_and_at_or_below_the_
         let plain = ls_holdout_rms(&plain_cols, err, &held);
         let greedy = greedy_lags_holdout_rms(&d.time_s, &r, &force, err, &held);
         let oracle: Vec<f64> = err.iter().zip(c.oracle(ch)).map(|(a, b)| a - b).collect();
-        let o = axcomp_thermal::stats::rms_masked(&oracle, &held);
+        let o = axcomp_numeric::stats::rms_masked(&oracle, &held);
         println!(
             "twin spindle {name}: default {h:.4} µm ({}), plain LS {plain:.4}, greedy 4 + lags {greedy:.4}, \
              oracle {o:.4}",
@@ -868,7 +868,7 @@ fn lathe_forward_split_default_below_raw_and_at_or_below_both_plain_references()
             v["chosen_method"]
         );
         // Raw is the per-run zeroed target on the held-out rows (tolerance 1e-9 µm).
-        let raw_here = axcomp_thermal::stats::rms_masked(&y, &held);
+        let raw_here = axcomp_numeric::stats::rms_masked(&y, &held);
         assert!((raw - raw_here).abs() < 1e-9, "raw {raw} vs {raw_here}");
         assert!(
             h < 0.75 * raw,
@@ -907,7 +907,7 @@ fn lathe_forward_split_default_below_raw_and_at_or_below_both_plain_references()
             .filter(|r| r[rc].as_str() > "20200730")
             .map(|r| r[tc].parse::<f64>().unwrap() - r[pc].parse::<f64>().unwrap())
             .collect();
-        let pr = axcomp_thermal::stats::rms(&res);
+        let pr = axcomp_numeric::stats::rms(&res);
         assert!(
             (pr - h).abs() < 1e-6,
             "{target}: predict {pr} vs fit {h} (tolerance 1e-6 µm)"

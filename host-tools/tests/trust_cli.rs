@@ -7,8 +7,8 @@
 use std::path::Path;
 
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
-use axcomp_thermal::synth::{SynthConfig, generate};
 use axcomp_twin::five_axis::{FiveAxisTwin, standard_paths};
+use axcomp_twin::synth::{SynthConfig, generate};
 
 mod common;
 use common::{axcomp_in, ok_in as ok, read_json, scratch};

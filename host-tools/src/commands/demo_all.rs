@@ -53,13 +53,8 @@ fn image_bytes(spec: &ImageSpec) -> anyhow::Result<Vec<u8>> {
     Ok(buf)
 }
 
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
-    (s / n.max(1) as f64).sqrt()
-}
-
 fn campaign_rms(c: &axcomp_twin::Campaign) -> f64 {
-    rms(c.rows.iter().map(|r| r.deviation_um))
+    c.rms_deviation_um()
 }
 
 /// Positioning: ISO 230-2 on the demo axis, `fit positioning`'s fit, the table image, a new

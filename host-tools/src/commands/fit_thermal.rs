@@ -8,14 +8,17 @@
 //! - **guard**: the model is written (`--out`) only if it is not worse than raw on the held-out rows (or, with
 //!   no holdout, in the validation); otherwise the command exits 3 ([`crate::EXIT_GUARD_REFUSED`]);
 //!   `--force` writes it anyway.
+//!
+//! Reading, fitting, summary, JSON and model file are the library's ([`axcomp_thermal::request`],
+//! [`axcomp_thermal::fit_thermal`], [`axcomp_thermal::report`]); this command parses, calls and writes.
 
 use std::path::PathBuf;
 
-use anyhow::{Context, bail};
-use axcomp_data::{Dataset, HoldoutSpec, LoadOptions, groups};
-use axcomp_thermal::model_file::{ModelForceLaw, ThermalModelFile};
+use anyhow::Context;
+use axcomp_data::{Dataset, LoadOptions};
+use axcomp_thermal::fit_thermal;
 use axcomp_thermal::report::thermal_report_files;
-use axcomp_thermal::{Ridge, Selection, Series, ThermalInput, ThermalOptions, fit_thermal};
+use axcomp_thermal::request::{ThermalRequest, summary};
 
 use crate::cli::DataArgs;
 use crate::output::OutputSet;
@@ -117,77 +120,30 @@ pub struct Args {
     pub force: bool,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
-    // ---- validate options before reading anything ----
-    let forced_selection = args.select != "auto";
-    let ridge = match args.ridge.as_deref() {
-        None if forced_selection => Ridge::Off,
-        None => Ridge::Auto,
-        Some("auto") => Ridge::Auto,
-        Some(s) => match s.parse::<f64>() {
-            Ok(l) if l >= 0.0 && l.is_finite() => Ridge::Fixed(l),
-            _ => bail!("--ridge `{s}`: expected a number >= 0 or `auto`"),
-        },
-    };
-    let selection = match args.select.as_str() {
-        "auto" => Selection::Auto,
-        "fcm-gra" | "fcm_gra" => Selection::FcmGra,
-        "forward" => Selection::Forward,
-        "all" => Selection::All,
-        "greedy" => Selection::Greedy,
-        s => bail!("--select `{s}`: expected auto, fcm-gra, forward, greedy or all"),
-    };
-    if args.sensor_period_ms == 0 {
-        bail!("--sensor-period-ms must be > 0");
-    }
-    if let Some(0) = args.zero_at_start {
-        bail!("--zero-at-start 0: must be at least 1");
-    }
-    let mut opts = ThermalOptions {
-        // The default choice always compares lagged candidates (unless --no-lags), and so does greedy (the
-        // reference with lags); another forced selection fits lags only with --lags.
-        lags: if forced_selection && selection != Selection::Greedy {
-            args.lags
-        } else {
-            !args.no_lags
-        },
-        ridge,
+/// The library's request from the command line.
+fn request(args: &Args) -> ThermalRequest {
+    ThermalRequest {
+        data: args.data.data.clone(),
+        target: args.target.clone(),
+        holdout: args.holdout.clone(),
+        runs: args.runs.clone(),
+        cv: args.cv.clone(),
+        force_law: args.force_law.clone(),
+        lags: args.lags,
+        no_lags: args.no_lags,
+        ridge: args.ridge.clone(),
+        select: args.select.clone(),
         max_sensors: args.max_sensors,
-        selection,
-        reference_rows: args.zero_at_start.unwrap_or(1),
-        ..ThermalOptions::default()
+        sensors: args.sensors.clone(),
+        no_forces: args.no_forces,
+        zero_at_start: args.zero_at_start,
+        sensor_period_ms: args.sensor_period_ms,
     }
-    .build()?;
-    let load = LoadOptions::from_args(&args.data.where_, &args.data.rename, &args.data.scale)?;
-    let holdout = args
-        .holdout
-        .as_deref()
-        .map(HoldoutSpec::parse)
-        .transpose()?;
-    let laws = args
-        .force_law
-        .iter()
-        .map(|s| {
-            let (col, path) = s
-                .split_once('=')
-                .with_context(|| format!("--force-law `{s}`: expected COL=LAW.json"))?;
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("--force-law: reading {path}"))?;
-            let law: ModelForceLaw = serde_json::from_str(&text).with_context(|| {
-                format!("--force-law: {path} is not a force-law file (k, x_ap, y_fz, z_n)")
-            })?;
-            if ![law.k, law.x_ap, law.y_fz, law.z_n]
-                .iter()
-                .all(|v| v.is_finite())
-                || law.k <= 0.0
-            {
-                bail!("--force-law: {path}: k must be > 0 and all values finite");
-            }
-            Ok((col.trim().to_string(), law))
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    // Every output is planned and checked before the fit; written together at the end (the model is
-    // dropped from the set when the guard refuses it).
+}
+
+/// Every output planned and checked before the fit; written together at the end (the model is dropped
+/// from the set when the guard refuses it).
+fn planned_outputs(args: &Args) -> anyhow::Result<OutputSet> {
     let mut outputs = OutputSet::new();
     outputs.input(&args.data.data);
     if let Some(dir) = &args.report {
@@ -205,305 +161,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outputs.planned(p);
     }
     outputs.check()?;
+    Ok(outputs)
+}
 
-    // ---- read ----
+pub fn run(args: Args) -> anyhow::Result<()> {
+    // ---- validate options before reading anything ----
+    let req = request(&args);
+    let mut opts = req.options()?;
+    let load = LoadOptions::from_args(&args.data.where_, &args.data.rename, &args.data.scale)?;
+    let holdout = req.holdout_spec()?;
+    let laws = req.force_laws()?;
+    let mut outputs = planned_outputs(&args)?;
+
+    // ---- read, and the rows' quality (reported; the fit keeps every row) ----
     let ds = Dataset::load(&args.data.data, &load)?;
-    let n = ds.n_rows();
-    if n == 0 {
-        bail!("{}: no rows (after --where)", args.data.data.display());
-    }
-    let mut target = ds.numeric(&args.target)?.to_vec();
-    let mut target_offset = 0.0;
-    if let Some(k) = args.zero_at_start {
-        if k == 0 || k > n {
-            bail!("--zero-at-start {k}: must be 1..={n}");
-        }
-        target_offset = target[..k].iter().sum::<f64>() / k as f64;
-        target.iter_mut().for_each(|v| *v -= target_offset);
-    }
-    // Without the time of each row a lag's time constant would be in rows, not seconds (and `predict` and
-    // the firmware read it as seconds): the default choice then has no lagged candidates.
-    let mut lags_note: Option<String> = None;
-    let time_s: Vec<f64> = match ds.time_s() {
-        Some(t) => t.to_vec(),
-        None if args.lags => {
-            if ds.has("time_s") {
-                ds.numeric("time_s")?;
-            }
-            bail!(
-                "--lags needs a `time_s` column (or a `time` column of timestamps) in {}{}",
-                args.data.data.display(),
-                crate::commands::common::time_hint(&ds)
-            );
-        }
-        None => {
-            if ds.has("time_s") {
-                ds.numeric("time_s")?;
-            }
-            if opts.lags {
-                opts.lags = false;
-                let note = format!(
-                    "{}: no `time_s` column (nor a `time` column of timestamps){}: lagged candidates left out \
-                     (a time constant needs the time of each row)",
-                    args.data.data.display(),
-                    crate::commands::common::time_hint(&ds)
-                );
-                eprintln!("axcomp: note: {note}");
-                lags_note = Some(note);
-            }
-            (0..n).map(|i| i as f64).collect()
-        }
-    };
-    let mut names = ds.sensors();
-    if !args.sensors.is_empty() {
-        for s in &args.sensors {
-            if !names.contains(s) {
-                bail!(
-                    "--sensors: `{s}` is not a sensor of {} (have: {})",
-                    args.data.data.display(),
-                    names.join(", ")
-                );
-            }
-        }
-        names.retain(|s| args.sensors.contains(s));
-    }
-    if names.is_empty() {
-        bail!("{}: no `*_degC` sensor columns", args.data.data.display());
-    }
-    let sensors = names
-        .iter()
-        .map(|s| {
-            Ok(Series {
-                name: s.clone(),
-                values: ds.numeric(&format!("{s}_degC"))?.to_vec(),
-            })
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    let forces: Vec<Series> = if args.no_forces {
-        vec![]
-    } else {
-        ds.column_names()
-            .into_iter()
-            .filter(|c| c.len() > 2 && c.ends_with("_N"))
-            .map(|c| {
-                Ok(Series {
-                    name: c.to_string(),
-                    values: ds.numeric(c)?.to_vec(),
-                })
-            })
-            .collect::<anyhow::Result<Vec<_>>>()?
-    };
-    if forces.len() > 3 {
-        bail!(
-            "{} force columns (`*_N`); the firmware takes at most 3 (use --no-forces or --rename)",
-            forces.len()
-        );
-    }
-    // The label of each row in a grouping column (`--cv`, `--runs`).
-    let labels_of = |col: &Option<String>| -> anyhow::Result<Option<Vec<String>>> {
-        let Some(col) = col else { return Ok(None) };
-        let (ids, labels) = groups(&ds, col)?;
-        Ok(Some(ids.into_iter().map(|i| labels[i].clone()).collect()))
-    };
-    let conditions = labels_of(&args.cv)?;
-    for (col, _) in &laws {
-        if !forces.iter().any(|f| &f.name == col) {
-            bail!(
-                "--force-law {col}: not a force column of the model (have: {})",
-                forces
-                    .iter()
-                    .map(|f| f.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-        }
-    }
-    let held = holdout.as_ref().map(|h| h.mask(&ds)).transpose()?;
-    let runs = labels_of(&args.runs)?;
-    // An explicit NaN or inf is no value the fit can use: named by file, line and column here (the fit
-    // itself only knows the data row).
-    let mut used: Vec<(String, &[f64])> = vec![(args.target.clone(), &target)];
-    if ds.time_s().is_some() {
-        used.push(("time_s".into(), &time_s));
-    }
-    used.extend(
-        sensors
-            .iter()
-            .map(|s| (format!("{}_degC", s.name), s.values.as_slice())),
-    );
-    used.extend(forces.iter().map(|f| (f.name.clone(), f.values.as_slice())));
-    for (col, values) in &used {
-        if let Some(row) = values.iter().position(|v| !v.is_finite()) {
-            bail!(
-                "{}: `{}` is not a finite number; remove the row or fill in the value",
-                ds.locate(col, row),
-                values[row]
-            );
-        }
-    }
-    // A force column that does not vary on the training rows (e.g. a `force_N` of zeros in a record
-    // without load) cannot be told from the intercept: it is left out with a note, as a constant sensor is.
-    let mut excluded_forces: Vec<String> = Vec::new();
-    let mut forces = forces;
-    forces.retain(|f| {
-        let train = f
-            .values
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| !held.as_ref().is_some_and(|h| h[*i]))
-            .map(|(_, v)| *v);
-        let (lo, hi) = train.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-            (lo.min(v), hi.max(v))
-        });
-        let constant = hi - lo <= 1e-9 * hi.abs().max(lo.abs()).max(1.0);
-        if constant {
-            excluded_forces.push(f.name.clone());
-        }
-        !constant
-    });
-    for name in &excluded_forces {
-        if laws.iter().any(|(col, _)| col == name) {
-            bail!(
-                "--force-law {name}: the force column `{name}` is constant on the training rows, so the \
-                 model has no force term to attach the law to"
-            );
-        }
-        eprintln!(
-            "axcomp: note: {}: force column `{name}` is constant on the training rows: left out of the model",
-            args.data.data.display()
-        );
-    }
-    let input = ThermalInput {
-        time_s,
-        sensors,
-        forces,
-        target,
-        conditions,
-        holdout: held,
-        runs,
-    };
-
-    // ---- row quality: glitches and stopped measurements, reported (the fit keeps every row) ----
-    let quality_runs = axcomp_thermal::runs::RunIndex::new(input.runs.as_deref(), n);
-    let mut quality_cols: Vec<(&str, &[f64])> = vec![(args.target.as_str(), &input.target)];
-    quality_cols.extend(
-        input
-            .sensors
-            .iter()
-            .map(|s| (s.name.as_str(), s.values.as_slice())),
-    );
-    let glitches = axcomp_thermal::quality::glitches(&quality_cols, &quality_runs);
-    for g in &glitches {
-        eprintln!(
-            "axcomp: warning: {}: `{}` has {} single-sample glitch(es) (first: {})",
-            args.data.data.display(),
-            g.column,
-            g.rows.len(),
-            ds.locate(
-                if g.column == args.target {
-                    g.column.clone()
-                } else {
-                    format!("{}_degC", g.column)
-                }
-                .as_str(),
-                g.rows[0] - 1
-            )
-        );
-    }
-    let sensor_refs: Vec<&[f64]> = input.sensors.iter().map(|s| s.values.as_slice()).collect();
-    let stopped =
-        axcomp_thermal::quality::stopped(&input.target, &sensor_refs, &input.time_s, &quality_runs);
-    if let Some(s) = stopped.first() {
-        eprintln!(
-            "axcomp: warning: {}: `{}` holds still while the temperatures move on {} stretch(es) (first: \
-             data rows {}–{}, {:.0} s, a sensor moved {:.1} K): a stopped measurement? (e.g. --where to keep \
-             the rows where the machine runs)",
-            args.data.data.display(),
-            args.target,
-            stopped.len(),
-            s.from_row,
-            s.to_row,
-            s.duration_s,
-            s.sensor_change_k
-        );
-    }
+    let mut notice = |line: String| eprintln!("axcomp: {line}");
+    let read = req.read_input(
+        &ds,
+        holdout.as_ref(),
+        &laws,
+        &mut opts,
+        crate::commands::common::time_hint(&ds),
+        &mut notice,
+    )?;
+    let quality = req.row_quality(&ds, &read.input, &mut notice);
 
     // ---- fit ----
-    let fit = fit_thermal(&input, &opts)
+    let fit = fit_thermal(&read.input, &opts)
         .with_context(|| format!("fitting {}", args.data.data.display()))?;
     let write_model = args.out.is_some() && (fit.guard.passed || args.force);
 
     // ---- outputs ----
-    println!("target {}: {}", args.target, fit.formula);
-    println!(
-        "sensors: {} (method {}: {})",
-        fit.sensors.join(", "),
-        fit.chosen_method,
-        fit.why
-    );
-    for c in &fit.candidates {
-        println!(
-            "  candidate {:<13} validation RMS {:>10.4} µm{}{}{}",
-            c.name,
-            c.validation_rms_um,
-            if !c.eligible {
-                "  (reported only)"
-            } else if c.beats_reference {
-                "  (below plain LS)"
-            } else {
-                ""
-            },
-            c.holdout_rms_um
-                .map_or(String::new(), |h| format!("  (held-out {h:.4} µm)")),
-            if c.chosen { "  ← chosen" } else { "" }
-        );
-    }
-    for r in &fit.references {
-        println!(
-            "  reference {:<13} validation RMS {:>10.4} µm{}",
-            r.name,
-            r.validation_rms_um,
-            r.holdout_rms_um
-                .map_or(String::new(), |h| format!("  (held-out {h:.4} µm)"))
-        );
-    }
-    match fit.holdout_rms_um {
-        Some(h) => println!(
-            "held-out RMS: raw {:.3} µm → {:.3} µm ({} rows; raw = target − {:.3} µm, its reference value)",
-            fit.raw_rms_um, h, fit.holdout_rows, fit.raw_reference_um
-        ),
-        None => println!(
-            "RMS: raw {:.3} µm, training residual {:.3} µm",
-            fit.raw_rms_um, fit.train_rms_um
-        ),
-    }
-    if let Some(cv) = fit.cv_rms_um {
-        println!("leave-one-group-out CV RMS (conditions or runs): {cv:.3} µm");
-    }
-    println!(
-        "condition number {:.1}; guard: {}",
-        fit.condition_number, fit.guard.reason
-    );
+    print!("{}", summary(&fit, &args.target));
     if let Some(path) = &args.json {
-        let mut v = serde_json::to_value(&fit)?;
-        let o = v.as_object_mut().expect("fit serializes to an object");
-        o.insert("data".into(), args.data.data.display().to_string().into());
-        o.insert("target".into(), args.target.clone().into());
-        o.insert("target_offset_um".into(), target_offset.into());
-        o.insert("model_written".into(), write_model.into());
-        if let Some(note) = &lags_note {
-            o.insert("lags_note".into(), note.clone().into());
-        }
-        o.insert("excluded_forces".into(), excluded_forces.clone().into());
-        o.insert(
-            "row_quality".into(),
-            serde_json::json!({ "glitches": glitches, "stopped_target": stopped }),
-        );
-        let text = serde_json::to_string_pretty(&v)?;
-        outputs.file(path, text);
+        let v = req.json(&fit, &read, &quality, write_model)?;
+        outputs.file(path, serde_json::to_string_pretty(&v)?);
     }
     if let Some(dir) = &args.report {
-        for (path, bytes) in thermal_report_files(dir, &fit, &input, &args.target) {
+        for (path, bytes) in thermal_report_files(dir, &fit, &read.input, &args.target) {
             outputs.folder_file(dir, &crate::commands::common::file_name(&path), bytes);
         }
     }
@@ -527,22 +222,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .into());
     }
     if let Some(out) = &args.out {
-        let mut file =
-            ThermalModelFile::from_fit(&fit, &input, &args.target, args.sensor_period_ms);
-        if args.zero_at_start.is_some() {
-            file.target_offset_um = Some(target_offset);
-        }
-        file.runs_column = args.runs.clone();
-        for (col, law) in &laws {
-            let f = file
-                .forces
-                .iter_mut()
-                .find(|f| &f.column == col)
-                .expect("checked before fitting");
-            f.law = Some(*law);
-        }
-        file.validate()
-            .map_err(|e| anyhow::anyhow!("model not written: {e}"))?;
+        let file = req.model_file(&fit, &read, &laws)?;
         if let Some((_, why)) = axcomp_image::board::thermal_model_refusal(&file) {
             eprintln!(
                 "axcomp: warning: {}: `image build` cannot put this model into a firmware image: {why}",

@@ -112,7 +112,7 @@ const MAX_ROWS: usize = 10_000_000;
 /// A standard twin plan, or a spindle campaign from the thermal generator (held at mid-stroke).
 enum PlanChoice {
     Standard(Plan),
-    Spindle(axcomp_thermal::synth::SynthConfig),
+    Spindle(axcomp_twin::synth::SynthConfig),
 }
 
 /// The validated configuration.

@@ -154,9 +154,7 @@ pub fn predict_readings(model: &GeometryModel, data: &LineData) -> Vec<f64> {
         .collect()
 }
 
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    axcomp_numeric::stats::rms_of(v)
-}
+use axcomp_numeric::stats::rms;
 
 /// Volumetric figures of a model over its measured box (11³ grid, tool offset 0).
 pub fn volumetric(model: &GeometryModel) -> Volumetric {

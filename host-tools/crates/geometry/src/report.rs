@@ -67,7 +67,7 @@ fn line_figure(name: &str, rs: &[&crate::data::LineReading], judged: &[Option<f6
         }
     }
     let pred = |i: usize| judged[rs[i].row].unwrap_or(f64::NAN);
-    let rms: f64 = axcomp_numeric::stats::rms_of(
+    let rms: f64 = axcomp_numeric::stats::rms(
         rs.iter()
             .enumerate()
             .map(|(i, r)| r.deviation_um - pred(i))

@@ -6,12 +6,26 @@
 //! - **t quantile**: `t_{q, dof}`, the value a Student-t variable stays below with probability `q`; a two-sided
 //!   95 % confidence interval is `estimate ± t_{0.975, dof} · standard error`.
 
-/// Root mean square of `v` (NaN for an empty slice).
-pub fn rms(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
+/// Root mean square `sqrt(Σ x² / n)` of a slice, a vector or any iterator of values (by value or by
+/// reference). NaN when there are no values: the RMS of nothing is undefined (it serialises as JSON `null`),
+/// and a caller for whom "no rows" means "no error" says so where it calls. The sum of squares is taken in
+/// order, then one division and one root.
+pub fn rms<I>(values: I) -> f64
+where
+    I: IntoIterator,
+    I::Item: std::borrow::Borrow<f64>,
+{
+    let (mut s, mut n) = (0.0, 0usize);
+    for x in values {
+        let x = *std::borrow::Borrow::<f64>::borrow(&x);
+        s += x * x;
+        n += 1;
     }
-    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+    if n == 0 {
+        f64::NAN
+    } else {
+        (s / n as f64).sqrt()
+    }
 }
 
 /// Mean of `v` (NaN for an empty slice).
@@ -193,27 +207,6 @@ mod tests {
     }
 }
 
-/// Root mean square of any sequence of values (NaN when there are none, like [`rms`]).
-pub fn rms_of(v: impl IntoIterator<Item = f64>) -> f64 {
-    rms_or(v, f64::NAN)
-}
-
-/// Root mean square of any sequence of values, 0 when there are none (the convention of the twin's and
-/// the diagnosis's summaries, where "no rows" means "no error").
-pub fn rms_or_zero(v: impl IntoIterator<Item = f64>) -> f64 {
-    rms_or(v, 0.0)
-}
-
-/// RMS with `empty` for no values (sum of squares in order, one division, one root).
-fn rms_or(v: impl IntoIterator<Item = f64>, empty: f64) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for x in v {
-        s += x * x;
-        n += 1;
-    }
-    if n == 0 { empty } else { (s / n as f64).sqrt() }
-}
-
 /// Median of `v` (sorted in place with `total_cmp`; mean of the two middle values for an even count; NaN
 /// when empty).
 pub fn median(v: &mut [f64]) -> f64 {
@@ -285,11 +278,15 @@ mod distribution_tests {
     fn rms_conventions_and_median() {
         // Reference: hand arithmetic; exact.
         assert_eq!(
-            rms_of([3.0, 4.0].into_iter().chain([0.0; 0])),
+            rms([3.0, 4.0].into_iter().chain([0.0; 0])),
             (12.5f64).sqrt()
         );
-        assert!(rms_of(std::iter::empty()).is_nan());
-        assert_eq!(rms_or_zero(std::iter::empty()), 0.0);
+        // The same value from a slice, a vector by reference and an iterator by value: one function.
+        assert_eq!(rms(&[3.0, 4.0][..]), (12.5f64).sqrt());
+        assert_eq!(rms(&vec![3.0, 4.0]), (12.5f64).sqrt());
+        // No values: NaN (documented), from every form.
+        assert!(rms(std::iter::empty::<f64>()).is_nan());
+        assert!(rms(&[0.0f64; 0][..]).is_nan());
         assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
         assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
         // Upper median: the value at n/2 after sorting; sample variance of {1, 2, 3, 6}: mean 3,

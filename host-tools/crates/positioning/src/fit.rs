@@ -24,6 +24,9 @@
 
 use std::collections::HashMap;
 
+use axcomp_core::MAX_SEGMENTS;
+use axcomp_numeric::stats::rms;
+
 use serde::Serialize;
 use thiserror::Error;
 
@@ -277,9 +280,6 @@ pub struct FitResult {
 // ---------------------------------------------------------------------------------------------
 
 /// Root mean square of the values; NaN when there are none.
-pub fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    axcomp_numeric::stats::rms_of(v)
-}
 
 /// Key of a target position (grid detection): rounded to 1 nm.
 fn target_key(x: f64) -> i64 {
@@ -298,6 +298,78 @@ struct Problem<'a> {
 
 /// Fits every candidate, chooses the best by cross-validation, resamples it to the uniform table.
 pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError> {
+    let (lo, hi) = stroke(obs)?;
+    let (fold, folds, split) = make_folds(obs, opts.row_folds.max(3), opts.max_folds);
+    let has_fwd = obs.iter().any(|o| o.direction > 0);
+    let has_bwd = obs.iter().any(|o| o.direction < 0);
+    let bidirectional = has_fwd && has_bwd;
+    let p = Problem {
+        obs,
+        fold,
+        folds,
+        lo,
+        hi,
+        grid: target_grid(obs),
+    };
+    let mut evaluated = evaluate_candidates(&p, opts, bidirectional)?;
+    let (chosen_idx, reason) = choose(&mut evaluated, &split.method);
+    let chosen = &evaluated[chosen_idx];
+    let chosen_preds: Vec<f64> = obs
+        .iter()
+        .zip(&p.fold)
+        .map(|(o, &f)| chosen.fold_curves[f].predict(o.target_mm, o.direction))
+        .collect();
+
+    let raw_rms = rms(obs.iter().map(|o| o.deviation_um));
+    let cv_rms = chosen.cand.cv_rms_um;
+    let dev: Vec<f64> = obs.iter().map(|o| o.deviation_um).collect();
+    let verdict = guard::judge(
+        &dev,
+        &chosen_preds,
+        &p.fold,
+        opts.improvement_ratio,
+        opts.runs_improved_fraction,
+        &split.method,
+    );
+
+    // Each direction's curve holds its end value beyond the targets that direction reached (when one
+    // direction covers less of the stroke than the other), rather than extrapolating its last pieces.
+    let curves = hold_beyond_each_direction(chosen.final_curves.clone(), obs, lo, hi);
+    let (fwd, bwd, segment_mm, resampling_max) = resample_table(&curves, lo, hi, opts)?;
+    let table = TableFile {
+        format: crate::table_file::FORMAT.to_string(),
+        axis: opts.axis.clone(),
+        start_mm: lo,
+        segment_mm,
+        forward: fwd.coeffs,
+        backward: bwd.map(|b| b.coeffs).unwrap_or_default(),
+        model: chosen.cand.name.clone(),
+        cv_rms_um: cv_rms,
+        raw_rms_um: raw_rms,
+        cv_method: split.method.clone(),
+        provenance: None,
+    };
+    let candidates = evaluated.iter().map(|e| e.cand.clone()).collect();
+    let chosen_name = chosen.cand.name.clone();
+    let preds = chosen_preds;
+    Ok(FitResult {
+        table,
+        curves,
+        chosen: chosen_name,
+        reason,
+        candidates,
+        cv_predictions: preds,
+        fold_of_row: p.fold.clone(),
+        split,
+        raw_rms_um: raw_rms,
+        cv_rms_um: cv_rms,
+        resampling_max_um: resampling_max,
+        guard: verdict,
+    })
+}
+
+/// The stroke `(lo, hi)` of the targets, after checking there are enough finite rows.
+fn stroke(obs: &[Observation]) -> Result<(f64, f64), FitError> {
     if obs.len() < 4 {
         return Err(FitError::TooFewPoints {
             needed: 4,
@@ -329,53 +401,78 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     if !(hi > lo) {
         return Err(FitError::NoStroke(lo));
     }
-    let (fold, folds, split) = make_folds(obs, opts.row_folds.max(3), opts.max_folds);
-    let has_fwd = obs.iter().any(|o| o.direction > 0);
-    let has_bwd = obs.iter().any(|o| o.direction < 0);
-    let bidirectional = has_fwd && has_bwd;
-    let grid = {
-        let mut keys: HashMap<i64, f64> = HashMap::new();
-        let mut too_many = false;
-        for o in obs {
-            keys.entry(target_key(o.target_mm)).or_insert(o.target_mm);
-            if keys.len() > 1024 {
-                too_many = true;
-                break;
-            }
-        }
-        if !too_many && keys.len() >= 2 && keys.len() * 2 <= obs.len() {
-            let mut g: Vec<f64> = keys.into_values().collect();
-            g.sort_by(f64::total_cmp);
-            Some(g)
-        } else {
-            None
-        }
-    };
-    let p = Problem {
-        obs,
-        fold,
-        folds,
-        lo,
-        hi,
-        grid,
-    };
+    let lo = obs
+        .iter()
+        .map(|o| o.target_mm)
+        .fold(f64::INFINITY, f64::min);
+    let hi = obs
+        .iter()
+        .map(|o| o.target_mm)
+        .fold(f64::NEG_INFINITY, f64::max);
+    if !(hi > lo) {
+        return Err(FitError::NoStroke(lo));
+    }
+    Ok((lo, hi))
+}
 
-    let structures_for = |kind: Kind| -> Vec<Structure> {
-        if !bidirectional {
-            return vec![Structure::Single];
+/// Most distinct target positions that still count as a grid of targets (ISO 230-2 style runs).
+const MAX_GRID_TARGETS: usize = 1024;
+
+/// The distinct targets, sorted, when the rows lie on a grid of targets (2..=1024 positions, ≥ 2 rows per
+/// position on average); `None` for scattered positions.
+fn target_grid(obs: &[Observation]) -> Option<Vec<f64>> {
+    let mut keys: HashMap<i64, f64> = HashMap::new();
+    let mut too_many = false;
+    for o in obs {
+        keys.entry(target_key(o.target_mm)).or_insert(o.target_mm);
+        if keys.len() > MAX_GRID_TARGETS {
+            too_many = true;
+            break;
         }
-        match kind {
-            Kind::Linear => vec![Structure::Separate, Structure::MeanConstReversal],
-            Kind::PiecewiseLinear | Kind::SplineNatural | Kind::SplineNotAKnot => vec![
-                Structure::Separate,
-                Structure::MeanConstReversal,
-                Structure::MeanLinearReversal,
-            ],
-            Kind::SmoothingSplineUniform | Kind::SmoothingSplineFeature => {
-                vec![Structure::Separate, Structure::MeanSmoothReversal]
-            }
+    }
+    if !too_many && keys.len() >= 2 && keys.len() * 2 <= obs.len() {
+        let mut g: Vec<f64> = keys.into_values().collect();
+        g.sort_by(f64::total_cmp);
+        Some(g)
+    } else {
+        None
+    }
+}
+
+/// A candidate evaluated: the per-fold curves are kept, not the per-row predictions (15 candidates × rows
+/// would dominate the memory of a large campaign); the chosen one's predictions are computed again.
+struct Evaluated {
+    cand: Candidate,
+    fold_curves: Vec<Curves>,
+    final_curves: Curves,
+}
+
+/// The structures fitted for a model kind: one curve without two directions, else those of the kind.
+fn structures_for(kind: Kind, bidirectional: bool) -> Vec<Structure> {
+    if !bidirectional {
+        return vec![Structure::Single];
+    }
+    match kind {
+        Kind::Linear => vec![Structure::Separate, Structure::MeanConstReversal],
+        Kind::PiecewiseLinear | Kind::SplineNatural | Kind::SplineNotAKnot => vec![
+            Structure::Separate,
+            Structure::MeanConstReversal,
+            Structure::MeanLinearReversal,
+        ],
+        Kind::SmoothingSplineUniform | Kind::SmoothingSplineFeature => {
+            vec![Structure::Separate, Structure::MeanSmoothReversal]
         }
-    };
+    }
+}
+
+/// Every candidate (kind × structure, filtered by `opts.only`) cross-validated; an error naming each
+/// failure when none could be evaluated.
+fn evaluate_candidates(
+    p: &Problem,
+    opts: &FitOptions,
+    bidirectional: bool,
+) -> Result<Vec<Evaluated>, FitError> {
+    let (obs, folds) = (p.obs, p.folds);
     let mut kinds = vec![Kind::Linear];
     if p.grid.is_some() {
         kinds.extend([
@@ -385,24 +482,10 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
         ]);
     }
     kinds.extend([Kind::SmoothingSplineUniform, Kind::SmoothingSplineFeature]);
-
-    // The per-fold curves are kept, not the per-row predictions (15 candidates × rows would dominate the
-    // memory of a large campaign); the chosen one's predictions are computed again at the end.
-    struct Evaluated {
-        cand: Candidate,
-        fold_curves: Vec<Curves>,
-        final_curves: Curves,
-    }
-    let predict = |fold_curves: &[Curves]| -> Vec<f64> {
-        obs.iter()
-            .zip(&p.fold)
-            .map(|(o, &f)| fold_curves[f].predict(o.target_mm, o.direction))
-            .collect()
-    };
     let mut evaluated: Vec<Evaluated> = Vec::new();
     let mut failures: Vec<String> = Vec::new();
     for kind in kinds {
-        let structures: Vec<Structure> = structures_for(kind)
+        let structures: Vec<Structure> = structures_for(kind, bidirectional)
             .into_iter()
             .filter(|st| {
                 let name = format!("{}/{}", kind.name(), st.name());
@@ -412,7 +495,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
         if structures.is_empty() {
             continue;
         }
-        let results = evaluate(&p, kind, &structures);
+        let results = evaluate(p, kind, &structures);
         for (structure, ev) in structures.into_iter().zip(results) {
             let name = format!("{}/{}", kind.name(), structure.name());
             match ev {
@@ -451,6 +534,11 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
     if evaluated.is_empty() {
         return Err(FitError::NoCandidate(failures.join("; ")));
     }
+    Ok(evaluated)
+}
+
+/// Sorts the candidates by CV RMS and picks the simplest within 1 % of the best: its index and the reason.
+fn choose(evaluated: &mut [Evaluated], method: &str) -> (usize, String) {
     evaluated.sort_by(|a, b| a.cand.cv_rms_um.total_cmp(&b.cand.cv_rms_um));
     let best_cv = evaluated[0].cand.cv_rms_um;
     // Near-tie (within 1 % of the best CV RMS): prefer the simplest model.
@@ -463,38 +551,33 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
         })
         .unwrap();
     let chosen = &evaluated[chosen_idx];
-    let chosen_preds = predict(&chosen.fold_curves);
     let reason = if chosen_idx == 0 {
         format!(
             "lowest {} RMS ({:.3} µm) of {} candidates",
-            split.method,
+            method,
             chosen.cand.cv_rms_um,
             evaluated.len()
         )
     } else {
         format!(
             "simplest candidate within 1 % of the lowest {} RMS ({:.3} µm vs best {:.3} µm, {})",
-            split.method, chosen.cand.cv_rms_um, best_cv, evaluated[0].cand.name
+            method, chosen.cand.cv_rms_um, best_cv, evaluated[0].cand.name
         )
     };
 
-    let raw_rms = rms(obs.iter().map(|o| o.deviation_um));
-    let cv_rms = chosen.cand.cv_rms_um;
-    let dev: Vec<f64> = obs.iter().map(|o| o.deviation_um).collect();
-    let verdict = guard::judge(
-        &dev,
-        &chosen_preds,
-        &p.fold,
-        opts.improvement_ratio,
-        opts.runs_improved_fraction,
-        &split.method,
-    );
+    (chosen_idx, reason)
+}
 
-    // Each direction's curve holds its end value beyond the targets that direction reached (when one
-    // direction covers less of the stroke than the other), rather than extrapolating its last pieces.
-    let curves = hold_beyond_each_direction(chosen.final_curves.clone(), obs, lo, hi);
-    // Resample to the uniform table.
-    let (segments, segment_mm) = table_grid(&curves, lo, hi, opts)?;
+/// The chosen curves resampled to the uniform table: forward and backward tables, segment length, and the
+/// largest difference between the tables and the curves over the stroke.
+#[allow(clippy::type_complexity)]
+fn resample_table(
+    curves: &Curves,
+    lo: f64,
+    hi: f64,
+    opts: &FitOptions,
+) -> Result<(spline::UniformTable, Option<spline::UniformTable>, f64, f64), FitError> {
+    let (segments, segment_mm) = table_grid(curves, lo, hi, opts)?;
     let fwd = spline::resample_uniform(&curves.forward, lo, segment_mm, segments)?;
     let bwd = match &curves.backward {
         Some(b) => Some(spline::resample_uniform(b, lo, segment_mm, segments)?),
@@ -509,36 +592,7 @@ pub fn fit(obs: &[Observation], opts: &FitOptions) -> Result<FitResult, FitError
             resampling_max = resampling_max.max((bt.eval(x) - bc.eval(x)).abs());
         }
     }
-    let table = TableFile {
-        format: crate::table_file::FORMAT.to_string(),
-        axis: opts.axis.clone(),
-        start_mm: lo,
-        segment_mm,
-        forward: fwd.coeffs,
-        backward: bwd.map(|b| b.coeffs).unwrap_or_default(),
-        model: chosen.cand.name.clone(),
-        cv_rms_um: cv_rms,
-        raw_rms_um: raw_rms,
-        cv_method: split.method.clone(),
-        provenance: None,
-    };
-    let candidates = evaluated.iter().map(|e| e.cand.clone()).collect();
-    let chosen_name = chosen.cand.name.clone();
-    let preds = chosen_preds;
-    Ok(FitResult {
-        table,
-        curves,
-        chosen: chosen_name,
-        reason,
-        candidates,
-        cv_predictions: preds,
-        fold_of_row: p.fold.clone(),
-        split,
-        raw_rms_um: raw_rms,
-        cv_rms_um: cv_rms,
-        resampling_max_um: resampling_max,
-        guard: verdict,
-    })
+    Ok((fwd, bwd, segment_mm, resampling_max))
 }
 
 /// The targets each approach direction reached, `[forward, backward]` as `(min, max)` mm (`None` for a
@@ -640,9 +694,9 @@ fn table_grid(
             "give either segments or segment_mm, not both".into(),
         )),
         (Some(n), None) => {
-            if n == 0 || n > axcomp_core_max_segments() {
+            if n == 0 || n > MAX_SEGMENTS {
                 return Err(FitError::BadTable(format!(
-                    "segments = {n} is outside 1..=1024"
+                    "segments = {n} is outside 1..={MAX_SEGMENTS}"
                 )));
             }
             Ok((n, range / n as f64))
@@ -652,15 +706,15 @@ fn table_grid(
                 return Err(FitError::BadTable(format!("segment_mm = {s} must be > 0")));
             }
             let n = (range / s - 1e-9).ceil().max(1.0) as usize;
-            if n > axcomp_core_max_segments() {
+            if n > MAX_SEGMENTS {
                 return Err(FitError::BadTable(format!(
-                    "segment_mm = {s} needs {n} segments over {range} mm (at most 1024)"
+                    "segment_mm = {s} needs {n} segments over {range} mm (at most {MAX_SEGMENTS})"
                 )));
             }
             Ok((n, s))
         }
         (None, None) => {
-            // Four table segments per shortest knot interval of the model, at most 1024.
+            // Four table segments per shortest knot interval of the model, at most the firmware's MAX_SEGMENTS.
             let min_gap = curves
                 .forward
                 .knots
@@ -674,17 +728,15 @@ fn table_grid(
                 )
                 .fold(f64::INFINITY, f64::min);
             let n = if min_gap.is_finite() && min_gap > 0.0 {
-                (range / (min_gap / 4.0)).round().clamp(16.0, 1024.0) as usize
+                (range / (min_gap / 4.0))
+                    .round()
+                    .clamp(16.0, MAX_SEGMENTS as f64) as usize
             } else {
                 64
             };
             Ok((n, range / n as f64))
         }
     }
-}
-
-fn axcomp_core_max_segments() -> usize {
-    1024
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -933,373 +985,7 @@ fn fit_simple(
 
 // ---------------------------------------------------------------------------------------------
 
-mod smoothing {
-    //! Penalised least-squares B-splines with nested cross-validation of the smoothing parameter,
-    //! using per-fold sufficient statistics (cost linear in the number of points).
-    use super::*;
-
-    /// Candidate smoothing parameters ρ (dimensionless): 10^-9 … 10^3 in half decades.
-    pub(super) fn rho_grid() -> Vec<f64> {
-        (0..=24)
-            .map(|k| 10f64.powf(-9.0 + 0.5 * k as f64))
-            .collect()
-    }
-    /// Coarser grid for the reversal curve of the joint model.
-    fn rho_rev_grid() -> Vec<f64> {
-        (0..=6).map(|k| 10f64.powf(-6.0 + 2.0 * k as f64)).collect()
-    }
-
-    /// Blocks of one structure: statistics per fold and block, penalty matrices per block.
-    struct Design {
-        basis: BSplineBasis,
-        structure: Structure,
-        /// stats[fold][block]
-        stats: Vec<Vec<NormalStats>>,
-        /// Penalties per block: list of (matrix, λ scale = tr(AᵀA)/tr(P)).
-        penalties: Vec<Vec<(Band, f64)>>,
-    }
-
-    fn blocks(structure: Structure) -> usize {
-        if structure == Structure::Separate {
-            2
-        } else {
-            1
-        }
-    }
-
-    /// Designs of several structures on one basis, accumulated in a single pass over the points.
-    fn build_many(p: &Problem, basis: &BSplineBasis, structures: &[Structure]) -> Vec<Design> {
-        let nb = basis.len();
-        let mut all: Vec<Vec<Vec<NormalStats>>> = structures
-            .iter()
-            .map(|&st| {
-                let (n, w) = if st == Structure::MeanSmoothReversal {
-                    (2 * nb, 7)
-                } else {
-                    (nb, 3)
-                };
-                vec![vec![NormalStats::zeros(n, w); blocks(st)]; p.folds]
-            })
-            .collect();
-        let mut vals = [0.0f64; 8];
-        for (o, &f) in p.obs.iter().zip(&p.fold) {
-            let (j, v) = basis.values(o.target_mm);
-            for (stats, &structure) in all.iter_mut().zip(structures) {
-                match structure {
-                    Structure::Separate => {
-                        if o.direction == 0 {
-                            continue;
-                        }
-                        let b = usize::from(o.direction < 0);
-                        stats[f][b].add_row_n(j, &v, o.deviation_um);
-                    }
-                    Structure::MeanSmoothReversal => {
-                        let h = 0.5 * o.direction as f64;
-                        // Interleaved columns 2j … 2j+7: mean coefficient, reversal coefficient, …
-                        for r in 0..4 {
-                            vals[2 * r] = v[r];
-                            vals[2 * r + 1] = h * v[r];
-                        }
-                        stats[f][0].add_row_n(2 * j, &vals, o.deviation_um);
-                    }
-                    _ => stats[f][0].add_row_n(j, &v, o.deviation_um),
-                }
-            }
-        }
-        all.into_iter()
-            .zip(structures)
-            .map(|(stats, &st)| finish(basis.clone(), st, stats))
-            .collect()
-    }
-
-    fn finish(basis: BSplineBasis, structure: Structure, stats: Vec<Vec<NormalStats>>) -> Design {
-        let nb = basis.len();
-        let joint = structure == Structure::MeanSmoothReversal;
-        let (n, w) = if joint { (2 * nb, 7) } else { (nb, 3) };
-        let nblocks = blocks(structure);
-        let rough = basis.roughness();
-        let mut penalties = Vec::new();
-        for b in 0..nblocks {
-            let mut total = NormalStats::zeros(n, w);
-            for s in &stats {
-                total.add(&s[b], 1.0);
-            }
-            if joint {
-                let mut pm = Band::zeros(n, w);
-                let mut pr = Band::zeros(n, w);
-                for i in 0..nb {
-                    for k in 0..=3 {
-                        if i + k < nb {
-                            pm.add(2 * i, 2 * (i + k), rough.get(i, i + k));
-                            pr.add(2 * i + 1, 2 * (i + k) + 1, rough.get(i, i + k));
-                        }
-                    }
-                }
-                let sm = scale(&total.ata, &pm, true);
-                let sr = scale(&total.ata, &pr, false);
-                penalties.push(vec![(pm, sm), (pr, sr)]);
-            } else {
-                let s = scale(&total.ata, &rough, true);
-                penalties.push(vec![(rough.clone(), s)]);
-            }
-        }
-        Design {
-            basis,
-            structure,
-            stats,
-            penalties,
-        }
-    }
-
-    /// λ scale: trace of the data part over trace of the penalty (restricted to even/odd indices for joint).
-    fn scale(ata: &Band, pen: &Band, even: bool) -> f64 {
-        let joint = ata.n != pen.n || ata.w == 7;
-        let mut ta = 0.0;
-        let mut tp = 0.0;
-        for i in 0..ata.n {
-            if joint && (i % 2 == 0) != even {
-                continue;
-            }
-            ta += ata.get(i, i);
-            tp += pen.get(i, i);
-        }
-        if tp > 0.0 && ta > 0.0 { ta / tp } else { 1.0 }
-    }
-
-    impl Design {
-        fn sum(&self, block: usize, exclude: &[usize]) -> NormalStats {
-            let s0 = &self.stats[0][block];
-            let mut t = NormalStats::zeros(s0.ata.n, s0.ata.w);
-            for (f, s) in self.stats.iter().enumerate() {
-                if !exclude.contains(&f) {
-                    t.add(&s[block], 1.0);
-                }
-            }
-            t
-        }
-        fn solve(
-            &self,
-            st: &NormalStats,
-            block: usize,
-            rho: &[f64],
-        ) -> Result<Vec<f64>, SplineError> {
-            let pens: Vec<(&Band, f64)> = self.penalties[block]
-                .iter()
-                .zip(rho)
-                .map(|((m, s), r)| (m, s * r))
-                .collect();
-            st.solve(&pens)
-        }
-        fn combos(&self) -> Vec<Vec<f64>> {
-            if self.structure == Structure::MeanSmoothReversal {
-                let mut v = Vec::new();
-                for &a in &rho_grid() {
-                    for &b in &rho_rev_grid() {
-                        v.push(vec![a, b]);
-                    }
-                }
-                v
-            } else {
-                rho_grid().into_iter().map(|r| vec![r]).collect()
-            }
-        }
-        /// ρ minimising the CV error over the folds in `train` (each left out in turn), for one block.
-        fn choose(&self, block: usize, train: &[usize]) -> Vec<f64> {
-            let combos = self.combos();
-            let outside: Vec<usize> = (0..self.stats.len())
-                .filter(|f| !train.contains(f))
-                .collect();
-            let total = self.sum(block, &outside);
-            let mut best = (f64::INFINITY, combos[combos.len() / 2].clone());
-            for rho in combos {
-                let mut sse = 0.0;
-                for &h in train {
-                    let held = &self.stats[h][block];
-                    if held.rows == 0 {
-                        continue;
-                    }
-                    let mut t = total.clone();
-                    t.add(held, -1.0);
-                    match self.solve(&t, block, &rho) {
-                        Ok(c) => sse += held.sse(&c),
-                        Err(_) => {
-                            sse = f64::INFINITY;
-                            break;
-                        }
-                    }
-                }
-                if sse < best.0 {
-                    best = (sse, rho);
-                }
-            }
-            best.1
-        }
-        /// Curves fitted on all folds except `exclude`, ρ chosen by CV over the remaining folds.
-        fn fit_without(&self, exclude: Option<usize>) -> Result<(Curves, Vec<f64>), FitError> {
-            let train: Vec<usize> = (0..self.stats.len())
-                .filter(|&f| Some(f) != exclude)
-                .collect();
-            let ex: Vec<usize> = exclude.into_iter().collect();
-            let nb = self.basis.len();
-            match self.structure {
-                Structure::Separate => {
-                    let mut curves = Vec::new();
-                    let mut rhos = Vec::new();
-                    for b in 0..2 {
-                        let rho = self.choose(b, &train);
-                        let c = self.solve(&self.sum(b, &ex), b, &rho)?;
-                        curves.push(self.basis.to_piecewise(&c));
-                        rhos.extend(rho);
-                    }
-                    let bwd = curves.pop();
-                    Ok((
-                        Curves {
-                            forward: curves.pop().unwrap(),
-                            backward: bwd,
-                        },
-                        rhos,
-                    ))
-                }
-                Structure::MeanSmoothReversal => {
-                    let rho = self.choose(0, &train);
-                    let c = self.solve(&self.sum(0, &ex), 0, &rho)?;
-                    let fw: Vec<f64> = (0..nb).map(|i| c[2 * i] + 0.5 * c[2 * i + 1]).collect();
-                    let bw: Vec<f64> = (0..nb).map(|i| c[2 * i] - 0.5 * c[2 * i + 1]).collect();
-                    Ok((
-                        Curves {
-                            forward: self.basis.to_piecewise(&fw),
-                            backward: Some(self.basis.to_piecewise(&bw)),
-                        },
-                        rho,
-                    ))
-                }
-                _ => {
-                    let rho = self.choose(0, &train);
-                    let c = self.solve(&self.sum(0, &ex), 0, &rho)?;
-                    Ok((
-                        Curves {
-                            forward: self.basis.to_piecewise(&c),
-                            backward: None,
-                        },
-                        rho,
-                    ))
-                }
-            }
-        }
-    }
-
-    /// Knot intervals: at the targets for a uniform grid of ≤ 64 targets, otherwise up to 128 (≤ n/8).
-    fn intervals(p: &Problem) -> usize {
-        if let Some(g) = &p.grid {
-            if g.len() <= 65 {
-                return (g.len() - 1).max(1);
-            }
-        }
-        (p.obs.len() / 8).clamp(1, 128)
-    }
-
-    /// Breakpoints with density ∝ √|f''| of the pilot curve (plus a floor of 25 % of its mean), so that
-    /// knots gather where the deviation bends sharply.
-    pub fn feature_breaks(pilot: &PiecewiseCubic, lo: f64, hi: f64, m: usize) -> Vec<f64> {
-        let samples = (m * 32).max(256);
-        let xs: Vec<f64> = (0..=samples)
-            .map(|k| lo + (hi - lo) * k as f64 / samples as f64)
-            .collect();
-        let dens: Vec<f64> = xs
-            .iter()
-            .map(|&x| pilot.curvature(x).abs().sqrt())
-            .collect();
-        let mean = dens.iter().sum::<f64>() / dens.len() as f64;
-        let floor = 0.25 * mean + 1e-12;
-        let mut cum = vec![0.0; xs.len()];
-        for k in 1..xs.len() {
-            cum[k] = cum[k - 1] + 0.5 * (dens[k] + dens[k - 1] + 2.0 * floor) * (xs[k] - xs[k - 1]);
-        }
-        let total = cum[xs.len() - 1];
-        let mut breaks = vec![lo];
-        let mut k = 1;
-        for q in 1..m {
-            let target = total * q as f64 / m as f64;
-            while k < xs.len() - 1 && cum[k] < target {
-                k += 1;
-            }
-            let (c0, c1) = (cum[k - 1], cum[k]);
-            let f = if c1 > c0 {
-                (target - c0) / (c1 - c0)
-            } else {
-                0.0
-            };
-            let x = xs[k - 1] + f * (xs[k] - xs[k - 1]);
-            let min_gap = 1e-6 * (hi - lo);
-            if x > breaks.last().unwrap() + min_gap && x < hi - min_gap {
-                breaks.push(x);
-            }
-        }
-        breaks.push(hi);
-        breaks
-    }
-
-    /// Evaluates `kind` with each of `structures`. Feature knots are placed per outer fold from a pilot fitted
-    /// on that fold's training rows only; all structures share one pass over the points per basis.
-    pub(super) fn evaluate_all(
-        p: &Problem,
-        kind: Kind,
-        structures: &[Structure],
-    ) -> Vec<Result<Evaluation, FitError>> {
-        match evaluate_inner(p, kind, structures) {
-            Ok(v) => v,
-            Err(e) => structures.iter().map(|_| Err(e.clone())).collect(),
-        }
-    }
-
-    fn evaluate_inner(
-        p: &Problem,
-        kind: Kind,
-        structures: &[Structure],
-    ) -> Result<Vec<Result<Evaluation, FitError>>, FitError> {
-        let m = intervals(p);
-        let uniform = BSplineBasis::uniform(p.lo, p.hi, m)?;
-        if kind == Kind::SmoothingSplineUniform {
-            let designs = build_many(p, &uniform, structures);
-            return Ok(designs
-                .iter()
-                .map(|d| {
-                    let mut per_fold = Vec::with_capacity(p.folds);
-                    for f in 0..p.folds {
-                        per_fold.push(d.fit_without(Some(f))?.0);
-                    }
-                    let (fin, rho) = d.fit_without(None)?;
-                    Ok((per_fold, fin, rho))
-                })
-                .collect());
-        }
-        // Feature knots: pilot = uniform single-curve smoothing spline on the training folds only.
-        let pilot = build_many(p, &uniform, &[Structure::Single]).pop().unwrap();
-        let mut per_fold: Vec<Vec<Result<Curves, FitError>>> = vec![Vec::new(); structures.len()];
-        let mut finals = Vec::new();
-        for exclude in (0..p.folds).map(Some).chain([None]) {
-            let (pc, _) = pilot.fit_without(exclude)?;
-            let breaks = feature_breaks(&pc.forward, p.lo, p.hi, m);
-            let designs = build_many(p, &BSplineBasis::new(breaks)?, structures);
-            for (k, d) in designs.iter().enumerate() {
-                match exclude {
-                    Some(_) => per_fold[k].push(d.fit_without(exclude).map(|r| r.0)),
-                    None => finals.push(d.fit_without(None)),
-                }
-            }
-        }
-        Ok(per_fold
-            .into_iter()
-            .zip(finals)
-            .map(|(folds, fin)| {
-                let folds = folds.into_iter().collect::<Result<Vec<_>, _>>()?;
-                let (fin, rho) = fin?;
-                Ok((folds, fin, rho))
-            })
-            .collect())
-    }
-}
-
+mod smoothing;
 pub use smoothing::feature_breaks;
 
 #[cfg(test)]
@@ -1426,8 +1112,8 @@ pub(crate) mod tests {
     fn a_direction_reaching_part_of_the_stroke_is_held_beyond_its_targets() {
         // ISO 230-2 style runs over 0 … 200 mm; the negative approach reached only 0 … 100 mm. Truth: a
         // curved pitch error (cubic, 0 at 0, +64 µm at 200 mm) plus a 4 µm reversal, σ = 0.3 µm noise.
-        // Before, the backward curve beyond 100 mm was its last pieces extrapolated (hundreds of µm on
-        // the real B02 X case); now the backward curve holds the value reached at 100 mm (reference: that
+        // Extrapolating the backward curve's last pieces beyond 100 mm would invent hundreds of µm (as on
+        // the real B02 X case); the backward curve holds the value reached at 100 mm (reference: that
         // value; exactly), and the table follows it within the resampling error it reports (the uniform C2
         // table rounds the corner at 100 mm; below 0.2 µm here). The forward direction, measured over the
         // whole stroke, is unchanged: within 0.5 µm of the truth there.

@@ -452,59 +452,8 @@ fn figures_by(n: usize, point: impl Fn(usize) -> Point) -> Result<Iso230Figures,
         out.null_reasons = reasons;
         return Ok(out);
     }
-    // Unidirectional figures, per side: complete = every target measured on this side.
-    struct SideFigures {
-        e: Option<f64>,
-        a: Option<f64>,
-        r: Option<f64>,
-        why_e: Option<String>,
-        why_ar: Option<String>,
-    }
-    // A side without figures, and why.
-    let undefined = |why: String| SideFigures {
-        e: None,
-        a: None,
-        r: None,
-        why_e: Some(why.clone()),
-        why_ar: Some(why),
-    };
-    let side_figures = |sides: &[Option<Side>], present: bool, name: &str| -> SideFigures {
-        if !present {
-            return undefined(format!("no {name}-approach points"));
-        }
-        if let Some(i) = sides.iter().position(Option::is_none) {
-            return undefined(format!(
-                "target {} mm has no {name}-approach point while others do",
-                groups[i].0
-            ));
-        }
-        let ss: Vec<Side> = sides.iter().map(|s| s.expect("complete")).collect();
-        let e = max_of(ss.iter().map(|s| s.mean)) - min_of(ss.iter().map(|s| s.mean));
-        if let Some(i) = ss.iter().position(|s| s.s.is_none()) {
-            return SideFigures {
-                e: Some(e),
-                a: None,
-                r: None,
-                why_e: None,
-                why_ar: Some(format!(
-                    "target {} mm has {} {name}-approach point(s); the standard uncertainty s needs at least 2 runs",
-                    groups[i].0, ss[i].n
-                )),
-            };
-        }
-        let a = max_of(ss.iter().map(|s| s.mean + 2.0 * s.s.unwrap_or(0.0)))
-            - min_of(ss.iter().map(|s| s.mean - 2.0 * s.s.unwrap_or(0.0)));
-        let r = max_of(ss.iter().map(|s| 4.0 * s.s.unwrap_or(0.0)));
-        SideFigures {
-            e: Some(e),
-            a: Some(a),
-            r: Some(r),
-            why_e: None,
-            why_ar: None,
-        }
-    };
-    let up = side_figures(&ups, has_up, "positive");
-    let down = side_figures(&downs, has_down, "negative");
+    let up = side_figures(&groups, &ups, has_up, "positive");
+    let down = side_figures(&groups, &downs, has_down, "negative");
     for (k, v, why) in [
         ("E_up_um", up.e, &up.why_e),
         ("A_up_um", up.a, &up.why_ar),
@@ -536,10 +485,87 @@ fn figures_by(n: usize, point: impl Fn(usize) -> Point) -> Result<Iso230Figures,
         out.null_reasons = reasons;
         return Ok(out);
     }
+    bidirectional_figures(&mut out, &mut reasons, &ups, &downs, &up, &down);
+    out.null_reasons = reasons;
+    Ok(out)
+}
+
+/// Unidirectional figures of one side: complete = every target measured on this side.
+struct SideFigures {
+    e: Option<f64>,
+    a: Option<f64>,
+    r: Option<f64>,
+    why_e: Option<String>,
+    why_ar: Option<String>,
+}
+
+/// A side without figures, and why.
+fn undefined(why: String) -> SideFigures {
+    SideFigures {
+        e: None,
+        a: None,
+        r: None,
+        why_e: Some(why.clone()),
+        why_ar: Some(why),
+    }
+}
+
+/// E, A and R of one approach direction (`name`), or why they are undefined.
+fn side_figures(
+    groups: &[TargetGroup],
+    sides: &[Option<Side>],
+    present: bool,
+    name: &str,
+) -> SideFigures {
+    if !present {
+        return undefined(format!("no {name}-approach points"));
+    }
+    if let Some(i) = sides.iter().position(Option::is_none) {
+        return undefined(format!(
+            "target {} mm has no {name}-approach point while others do",
+            groups[i].0
+        ));
+    }
+    let ss: Vec<Side> = sides.iter().map(|s| s.expect("complete")).collect();
+    let e = max_of(ss.iter().map(|s| s.mean)) - min_of(ss.iter().map(|s| s.mean));
+    if let Some(i) = ss.iter().position(|s| s.s.is_none()) {
+        return SideFigures {
+            e: Some(e),
+            a: None,
+            r: None,
+            why_e: None,
+            why_ar: Some(format!(
+                "target {} mm has {} {name}-approach point(s); the standard uncertainty s needs at least 2 runs",
+                groups[i].0, ss[i].n
+            )),
+        };
+    }
+    let a = max_of(ss.iter().map(|s| s.mean + 2.0 * s.s.unwrap_or(0.0)))
+        - min_of(ss.iter().map(|s| s.mean - 2.0 * s.s.unwrap_or(0.0)));
+    let r = max_of(ss.iter().map(|s| 4.0 * s.s.unwrap_or(0.0)));
+    SideFigures {
+        e: Some(e),
+        a: Some(a),
+        r: Some(r),
+        why_e: None,
+        why_ar: None,
+    }
+}
+
+/// The bidirectional figures (A, E, M, R, B) when both sides are complete at every target; A and R only
+/// when every target has a standard uncertainty on both sides (else their reason).
+fn bidirectional_figures(
+    out: &mut Iso230Figures,
+    reasons: &mut std::collections::BTreeMap<&'static str, String>,
+    ups: &[Option<Side>],
+    downs: &[Option<Side>],
+    up: &SideFigures,
+    down: &SideFigures,
+) {
     out.bidirectional = true;
     let pairs: Vec<(Side, Side)> = ups
         .iter()
-        .zip(&downs)
+        .zip(downs)
         .map(|(u, d)| (u.expect("complete"), d.expect("complete")))
         .collect();
     let rev: Vec<f64> = pairs.iter().map(|(u, d)| u.mean - d.mean).collect();
@@ -578,8 +604,6 @@ fn figures_by(n: usize, point: impl Fn(usize) -> Point) -> Result<Iso230Figures,
         reasons.insert("A_um", why.clone());
         reasons.insert("R_um", why);
     }
-    out.null_reasons = reasons;
-    Ok(out)
 }
 
 /// Points of a dataset: `target_mm`, the error column `target_col` (e.g. `deviation_um`), `run`/`cycle`
@@ -684,8 +708,8 @@ mod tests {
     }
 
     /// The honest figures agree with [`evaluate`] on a full bidirectional test (same hand-computed example
-    /// as above, tolerance 1e-12), leave bidirectional figures `null` on one-direction data (issue 14: the
-    /// old `B_um: 0`, `A_down_um == A_up_um` were invented) and A/R `null` with one run per target.
+    /// as above, tolerance 1e-12), leave bidirectional figures `null` on one-direction data (a `B_um: 0` or
+    /// `A_down_um == A_up_um` there would be invented) and A/R `null` with one run per target.
     #[test]
     fn honest_figures() {
         let pts = hand_example();

@@ -11,16 +11,20 @@
 //! - *CV*: cross-validation; leave-one-run-out predicts each run from a model fitted on the other runs.
 //! - *guard*: the do-no-harm rule that refuses a table not clearly better than no compensation.
 //!
-//! Entry point: [`fit::fit`] (points → chosen model, CV figures, table); [`table_file::TableFile`] (the table
+//! Entry points: [`campaign::fit_campaign`] (a measurement file's campaign → judged table, JSON, report:
+//! [`report`]); [`fit::fit`] (points → chosen model, CV figures, table); [`table_file::TableFile`] (the table
 //! file and its conversion to [`axcomp_core::TableSpec`]); [`guard::judge`].
 
 // `!(a > b)` is used on purpose: it is also true when a value is NaN, which must be rejected too.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod campaign;
+pub mod campaign_figures;
 pub mod export;
 pub mod fit;
 pub mod guard;
 pub mod iso230;
+pub mod report;
 pub mod spline;
 pub mod table_file;
 pub mod warmup;

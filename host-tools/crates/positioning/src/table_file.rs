@@ -410,8 +410,8 @@ mod tests {
         }
     }
 
-    /// The trap: an 800 mm stroke fitted with 397 segments (2.0151… mm, not whole counts of
-    /// 0.1 µm) was resampled onto 20 151-count segments ending at 802.0194 mm. Now the last knot is the
+    /// An 800 mm stroke fitted with 397 segments (2.0151… mm, not whole counts of 0.1 µm) must not be
+    /// resampled onto 20 151-count segments ending at 802.0194 mm, past the stroke: the last knot is the
     /// stroke's end, exactly (400 segments of 20 000 counts: the first divisor of 8 000 000 counts at
     /// or above 397); a span with no divisor near the spacing keeps the covering grid.
     #[test]

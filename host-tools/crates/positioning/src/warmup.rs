@@ -23,8 +23,9 @@ use std::collections::HashMap;
 
 use thiserror::Error;
 
-use crate::fit::{FitError, FitOptions, FitResult, Observation, fit, rms};
+use crate::fit::{FitError, FitOptions, FitResult, Observation, fit};
 use crate::guard::{self, GuardVerdict};
+use axcomp_numeric::stats::rms;
 
 /// Candidate time constants, as multiples of the age span of the data (geometric, factor √2).
 pub const TAU_SPAN_FACTORS: [f64; 13] = [

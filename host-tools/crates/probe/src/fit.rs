@@ -267,7 +267,7 @@ fn residuals_um(
         .collect()
 }
 
-use axcomp_numeric::stats::rms_of as rms;
+use axcomp_numeric::stats::rms;
 
 /// Cross-validated RMS (µm) of a structure with the centre fixed, folds by direction group.
 fn cv_rms(

@@ -35,8 +35,7 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
         let axis = ["X", "Y", "Z"][c];
         let meas = |k: usize| data.d_um[a.judged_rows[k]][c];
         let pred = |k: usize| a.judged_pred[k][c];
-        let rms =
-            axcomp_numeric::stats::rms_of((0..a.judged_rows.len()).map(|k| meas(k) - pred(k)));
+        let rms = axcomp_numeric::stats::rms((0..a.judged_rows.len()).map(|k| meas(k) - pred(k)));
         let mut f = Figure::new(
             &format!(
                 "R-test {axis} deviation {comp} on {}: measured vs the location-error model, residual RMS {rms:.2} µm ({})",

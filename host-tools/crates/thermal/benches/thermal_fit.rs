@@ -3,9 +3,9 @@
 
 use std::time::{Duration, Instant};
 
-use axcomp_thermal::linalg::lstsq;
-use axcomp_thermal::synth::{SynthConfig, generate};
+use axcomp_numeric::lsq::lstsq;
 use axcomp_thermal::{Selection, ThermalInput, ThermalOptions, fit_thermal};
+use axcomp_twin::synth::{SynthConfig, generate};
 use nalgebra::DMatrix;
 
 fn median_time(reps: usize, mut f: impl FnMut()) -> Duration {

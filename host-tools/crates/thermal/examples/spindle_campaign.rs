@@ -5,7 +5,7 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let out = args.next().expect("usage: spindle_campaign OUT.csv [SEED]");
     let seed: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1);
-    let c = axcomp_thermal::synth::spindle_campaign(seed, 60.0);
+    let c = axcomp_twin::synth::spindle_campaign(seed, 60.0);
     std::fs::write(&out, c.to_csv()).expect("write the CSV");
     println!(
         "{} rows, {} channels → {out}",

@@ -3,8 +3,9 @@
 //! (`SEL=all` forces every sensor, `RIDGE=auto` a CV-chosen ridge, `NOLAGS=1` no lags, `HELD=k` holds out
 //! condition k instead of 2).
 
-use axcomp_thermal::synth::{SynthConfig, generate};
-use axcomp_thermal::{ThermalInput, ThermalOptions, fit_thermal, stats};
+use axcomp_numeric::stats;
+use axcomp_thermal::{ThermalInput, ThermalOptions, fit_thermal};
+use axcomp_twin::synth::{SynthConfig, generate};
 
 fn main() {
     let n: u64 = std::env::args()

@@ -55,55 +55,134 @@ pub fn transfer_blocks(
 ) -> Blocks {
     let n = time_s.len();
     let m = train_idx.len();
-    let mut group_of_row = vec![None; n];
     // 1. conditions.
-    if let Some(c) = conditions {
-        let mut names: Vec<String> = vec![];
-        for &i in train_idx {
-            let g = match names.iter().position(|x| *x == c[i]) {
-                Some(g) => g,
-                None => {
-                    names.push(c[i].clone());
-                    names.len() - 1
-                }
-            };
-            group_of_row[i] = Some(g);
-        }
-        if names.len() >= 3 {
-            let k = names.len();
-            // More than MAX_BLOCKS conditions: consecutive conditions (first-appearance order) share a block.
-            let b = k.min(MAX_BLOCKS);
-            let chunk = |c: usize| c * b / k;
-            for g in group_of_row.iter_mut().flatten() {
-                *g = chunk(*g);
-            }
-            let merged: Vec<String> = (0..b)
-                .map(|j| {
-                    let members: Vec<&str> = (0..k)
-                        .filter(|&c| chunk(c) == j)
-                        .map(|c| names[c].as_str())
-                        .collect();
-                    format!("condition {}", members.join("+"))
-                })
-                .collect();
-            return Blocks {
-                group_of_row,
-                names: merged,
-                order: (0..b).collect(),
-                by_condition: true,
-                rule: if b < k {
-                    format!(
-                        "{k} training conditions (--cv) in {b} blocks of consecutive conditions"
-                    )
-                } else {
-                    format!("{k} training conditions (--cv), each left out in turn")
-                },
-                regimes: k,
-            };
-        }
-        group_of_row = vec![None; n];
+    if let Some(b) = conditions.and_then(|c| condition_blocks(c, train_idx, n)) {
+        return b;
     }
-    // 2. regimes from the sign of the smoothed rate of the mean standardized temperature.
+    let mut group_of_row = vec![None; n];
+    // 2. regimes.
+    let (mut blocks, min_len) = regime_runs(sensors, conditions, train_idx);
+    let regimes = blocks.len();
+    // 3. and 4.
+    let mut rule = split_in_time(
+        &mut blocks,
+        m,
+        min_len,
+        regimes,
+        time_blocks,
+        conditions.is_some(),
+    );
+    // 5.
+    let (block_of_run, n_blocks) = group_runs(&blocks, &mut rule);
+    let mut members: Vec<Vec<usize>> = vec![vec![]; n_blocks];
+    for (r, &g) in block_of_run.iter().enumerate() {
+        members[g].push(r);
+    }
+    let mut names = vec![];
+    for (g, runs) in members.iter().enumerate() {
+        for &r in runs {
+            for &i in &train_idx[blocks[r].0..blocks[r].1] {
+                group_of_row[i] = Some(g);
+            }
+        }
+        let b = &blocks[runs[0]];
+        let last = &blocks[*runs.last().expect("a block holds a run")];
+        let b = &(b.0, last.1, b.2.clone());
+        let runs_note = if runs.len() > 1 {
+            format!(" ({} runs)", runs.len())
+        } else {
+            String::new()
+        };
+        let (t0, t1) = (time_s[train_idx[b.0]], time_s[train_idx[b.1 - 1]]);
+        let regime = if rule.starts_with("equal") || rule.contains("equal contiguous") {
+            String::new()
+        } else if b.2.1 {
+            ", heating".to_string()
+        } else {
+            ", cooling".to_string()
+        };
+        let cond = if b.2.0.is_empty() {
+            String::new()
+        } else {
+            format!(", condition {}", b.2.0)
+        };
+        names.push(format!(
+            "{}–{}{cond}{regime}{runs_note}",
+            fmt_h(t0),
+            fmt_h(t1)
+        ));
+    }
+    if names.is_empty() {
+        rule = "no training rows".into();
+    }
+    let k = names.len();
+    Blocks {
+        group_of_row,
+        names,
+        order: (0..k).collect(),
+        by_condition: false,
+        rule,
+        regimes,
+    }
+}
+
+/// Rule 1: the `--cv` conditions as blocks when the training rows hold at least 3 of them.
+fn condition_blocks(c: &[String], train_idx: &[usize], n: usize) -> Option<Blocks> {
+    let mut group_of_row = vec![None; n];
+    let mut names: Vec<String> = vec![];
+    for &i in train_idx {
+        let g = match names.iter().position(|x| *x == c[i]) {
+            Some(g) => g,
+            None => {
+                names.push(c[i].clone());
+                names.len() - 1
+            }
+        };
+        group_of_row[i] = Some(g);
+    }
+    if names.len() >= 3 {
+        let k = names.len();
+        // More than MAX_BLOCKS conditions: consecutive conditions (first-appearance order) share a block.
+        let b = k.min(MAX_BLOCKS);
+        let chunk = |c: usize| c * b / k;
+        for g in group_of_row.iter_mut().flatten() {
+            *g = chunk(*g);
+        }
+        let merged: Vec<String> = (0..b)
+            .map(|j| {
+                let members: Vec<&str> = (0..k)
+                    .filter(|&c| chunk(c) == j)
+                    .map(|c| names[c].as_str())
+                    .collect();
+                format!("condition {}", members.join("+"))
+            })
+            .collect();
+        return Some(Blocks {
+            group_of_row,
+            names: merged,
+            order: (0..b).collect(),
+            by_condition: true,
+            rule: if b < k {
+                format!("{k} training conditions (--cv) in {b} blocks of consecutive conditions")
+            } else {
+                format!("{k} training conditions (--cv), each left out in turn")
+            },
+            regimes: k,
+        });
+    }
+    None
+}
+
+/// Rule 2: contiguous runs of one regime (and condition), short runs merged into the run before them.
+/// Returns the runs `[from, to)` in training positions with their label, and the shortest run length.
+#[allow(clippy::type_complexity)]
+fn regime_runs(
+    sensors: &[&[f64]],
+    conditions: Option<&[String]>,
+    train_idx: &[usize],
+) -> (Vec<(usize, usize, (String, bool))>, usize) {
+    let m = train_idx.len();
+    // Regimes from the sign of the smoothed rate of the mean standardized temperature.
     let mean_std: Vec<f64> = {
         let mut acc = vec![0.0; m];
         for s in sensors {
@@ -155,7 +234,20 @@ pub fn transfer_blocks(
             _ => blocks.push(r),
         }
     }
-    let regimes = blocks.len();
+    (blocks, min_len)
+}
+
+/// Rules 3 and 4: the longest blocks cut in halves in time up to `time_blocks`; with fewer than 3, equal
+/// contiguous blocks. Returns the rule as described in the report.
+#[allow(clippy::type_complexity)]
+fn split_in_time(
+    blocks: &mut Vec<(usize, usize, (String, bool))>,
+    m: usize,
+    min_len: usize,
+    regimes: usize,
+    time_blocks: usize,
+    by_condition_changes: bool,
+) -> String {
     // 3. split the longest blocks in time.
     while blocks.len() < time_blocks {
         let Some((k, _)) = blocks
@@ -172,10 +264,10 @@ pub fn transfer_blocks(
         blocks.insert(k + 1, (mid, b.1, b.2));
     }
     // 4. fallback.
-    let mut rule;
+    let rule;
     if blocks.len() < 3 {
         let b = time_blocks.min(m).max(1);
-        blocks = (0..b)
+        *blocks = (0..b)
             .map(|k| (k * m / b, (k + 1) * m / b, (String::new(), true)))
             .filter(|r| r.1 > r.0)
             .collect();
@@ -189,20 +281,26 @@ pub fn transfer_blocks(
              sensors' smoothed mean rate{}; runs under {min_len} rows merged), longest cut in halves in time",
             blocks.len(),
             regimes,
-            if conditions.is_some() {
+            if by_condition_changes {
                 ", and changes of the --cv condition"
             } else {
                 ""
             }
         );
     }
-    // More than MAX_BLOCKS runs (long campaigns): the runs of each regime, in time order, are grouped into
-    // consecutive chunks (a block may then hold several runs of the same regime, never two regimes).
+    rule
+}
+
+/// Rule 5: with more than [`MAX_BLOCKS`] runs (long campaigns), the runs of each regime, in time order, are
+/// grouped into consecutive chunks (a block may then hold several runs of the same regime, never two
+/// regimes). Returns the block of each run and the number of blocks, and extends `rule`.
+#[allow(clippy::type_complexity)]
+fn group_runs(blocks: &[(usize, usize, (String, bool))], rule: &mut String) -> (Vec<usize>, usize) {
     let mut block_of_run: Vec<usize> = (0..blocks.len()).collect();
     let mut n_blocks = blocks.len();
     if blocks.len() > MAX_BLOCKS {
         let mut labels: Vec<(String, bool)> = vec![];
-        for b in &blocks {
+        for b in blocks {
             if !labels.contains(&b.2) {
                 labels.push(b.2.clone());
             }
@@ -220,60 +318,11 @@ pub fn transfer_blocks(
             }
             n_blocks += g;
         }
-        rule += &format!(
+        *rule += &format!(
             "; the {total} runs grouped into {n_blocks} blocks, each holding consecutive runs of one regime"
         );
     }
-    let mut members: Vec<Vec<usize>> = vec![vec![]; n_blocks];
-    for (r, &g) in block_of_run.iter().enumerate() {
-        members[g].push(r);
-    }
-    let mut names = vec![];
-    for (g, runs) in members.iter().enumerate() {
-        for &r in runs {
-            for &i in &train_idx[blocks[r].0..blocks[r].1] {
-                group_of_row[i] = Some(g);
-            }
-        }
-        let b = &blocks[runs[0]];
-        let last = &blocks[*runs.last().expect("a block holds a run")];
-        let b = &(b.0, last.1, b.2.clone());
-        let runs_note = if runs.len() > 1 {
-            format!(" ({} runs)", runs.len())
-        } else {
-            String::new()
-        };
-        let (t0, t1) = (time_s[train_idx[b.0]], time_s[train_idx[b.1 - 1]]);
-        let regime = if rule.starts_with("equal") || rule.contains("equal contiguous") {
-            String::new()
-        } else if b.2.1 {
-            ", heating".to_string()
-        } else {
-            ", cooling".to_string()
-        };
-        let cond = if b.2.0.is_empty() {
-            String::new()
-        } else {
-            format!(", condition {}", b.2.0)
-        };
-        names.push(format!(
-            "{}–{}{cond}{regime}{runs_note}",
-            fmt_h(t0),
-            fmt_h(t1)
-        ));
-    }
-    if names.is_empty() {
-        rule = "no training rows".into();
-    }
-    let k = names.len();
-    Blocks {
-        group_of_row,
-        names,
-        order: (0..k).collect(),
-        by_condition: false,
-        rule,
-        regimes,
-    }
+    (block_of_run, n_blocks)
 }
 
 /// Whether the training rows support fitting a lag for this sensor: its smoothed trace (moving mean over

@@ -147,7 +147,7 @@ pub struct Validation {
 
 impl Validation {
     /// Validation RMS of candidate `k` (NaN without folds).
-    pub fn rms(&self, k: usize) -> f64 {
+    pub fn pooled_rms(&self, k: usize) -> f64 {
         let n: usize = self.rows.iter().sum();
         if n == 0 {
             return f64::NAN;
@@ -456,7 +456,7 @@ pub fn decide(
     reference: &[bool],
     plain: usize,
 ) -> Decision {
-    let score: Vec<f64> = (0..kinds.len()).map(|k| v.rms(k)).collect();
+    let score: Vec<f64> = (0..kinds.len()).map(|k| v.pooled_rms(k)).collect();
     if v.folds.is_empty() {
         return Decision {
             chosen: plain,

@@ -17,8 +17,8 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use crate::linalg::lstsq;
-use crate::stats::{rms, student_t_quantile};
+use axcomp_numeric::lsq::lstsq;
+use axcomp_numeric::stats::{rms, student_t_quantile};
 
 /// Measurements for a power-law fit (same lengths; all > 0).
 #[derive(Debug, Clone, Default)]
@@ -109,14 +109,132 @@ pub enum ForceError {
     NoConvergence(String),
 }
 
-/// Fits `F = K·ap^x·fz^y·n^z` (see the module docs).
-pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLawFit, ForceError> {
+/// A power law's columns and which exponents are free: the model, its squared error and its Jacobian in
+/// θ = [K, free exponents].
+struct PowerProblem<'a> {
+    /// Per parameter (ap, fz, n): its values and its fixed exponent, if fixed.
+    cols: [(&'a [f64], Option<f64>); 3],
+    /// Indices (into `cols`) of the free exponents.
+    free: Vec<usize>,
+    force: &'a [f64],
+}
+
+impl PowerProblem<'_> {
+    fn exps(&self, th: &[f64]) -> [f64; 3] {
+        let mut e = [0, 1, 2].map(|j| self.cols[j].1.unwrap_or(0.0));
+        for (c, &j) in self.free.iter().enumerate() {
+            e[j] = th[c + 1];
+        }
+        e
+    }
+
+    fn model(&self, th: &[f64], i: usize) -> f64 {
+        let e = self.exps(th);
+        th[0]
+            * (0..3)
+                .map(|j| self.cols[j].0[i].powf(e[j]))
+                .product::<f64>()
+    }
+
+    fn sse(&self, th: &[f64]) -> f64 {
+        (0..self.force.len())
+            .map(|i| (self.force[i] - self.model(th, i)).powi(2))
+            .sum::<f64>()
+    }
+
+    fn jac(&self, th: &[f64]) -> DMatrix<f64> {
+        DMatrix::from_fn(self.force.len(), 1 + self.free.len(), |i, c| {
+            let f = self.model(th, i);
+            if c == 0 {
+                f / th[0]
+            } else {
+                f * self.cols[self.free[c - 1]].0[i].ln()
+            }
+        })
+    }
+
+    /// Log-linear least squares start: θ with K = exp(intercept).
+    fn loglinear_start(&self) -> Result<Vec<f64>, ForceError> {
+        let (n, p) = (self.force.len(), 1 + self.free.len());
+        let x = DMatrix::from_fn(n, p, |i, c| {
+            if c == 0 {
+                1.0
+            } else {
+                self.cols[self.free[c - 1]].0[i].ln()
+            }
+        });
+        let ly: Vec<f64> = (0..n)
+            .map(|i| {
+                let mut v = self.force[i].ln();
+                for col in &self.cols {
+                    if let Some(e) = col.1 {
+                        v -= e * col.0[i].ln();
+                    }
+                }
+                v
+            })
+            .collect();
+        let ll =
+            lstsq(&x, &ly, 0.0, Some(0)).map_err(|e| ForceError::NoConvergence(e.to_string()))?;
+        Ok(std::iter::once(ll.coef[0].exp())
+            .chain(ll.coef[1..].iter().cloned())
+            .collect())
+    }
+
+    /// Levenberg–Marquardt (Marquardt's diagonal scaling) from `theta`: the refined θ, its SSE and the
+    /// iterations taken.
+    fn refine(&self, mut theta: Vec<f64>) -> (Vec<f64>, f64, usize) {
+        let (n, p) = (self.force.len(), 1 + self.free.len());
+        let mut lambda = 1e-3;
+        let mut sse = self.sse(&theta);
+        let mut iterations = 0;
+        let mut converged = false;
+        for it in 0..200 {
+            iterations = it + 1;
+            let j = self.jac(&theta);
+            let r = DVector::from_fn(n, |i, _| self.force[i] - self.model(&theta, i));
+            let jtj = j.transpose() * &j;
+            let jtr = j.transpose() * r;
+            let mut improved = false;
+            for _ in 0..30 {
+                let mut a = jtj.clone();
+                for k in 0..p {
+                    a[(k, k)] += lambda * jtj[(k, k)].max(1e-300);
+                }
+                let Some(step) = a.lu().solve(&jtr) else {
+                    lambda *= 10.0;
+                    continue;
+                };
+                let cand: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
+                let s2 = self.sse(&cand);
+                if cand[0] > 0.0 && s2.is_finite() && s2 <= sse {
+                    converged = (sse - s2) <= 1e-14 * sse.max(1e-300);
+                    theta = cand;
+                    sse = s2;
+                    lambda = (lambda / 10.0).max(1e-12);
+                    improved = true;
+                    break;
+                }
+                lambda *= 10.0;
+            }
+            if !improved || lambda > 1e12 {
+                break;
+            }
+            if converged || step_small(&jtr, sse) {
+                break;
+            }
+        }
+        (theta, sse, iterations)
+    }
+}
+
+/// Checks the columns (lengths, positive finite values) and returns the free exponents' indices (an
+/// exponent is free when not fixed; its parameter must then vary).
+fn free_exponents(
+    d: &PowerLawData,
+    cols: &[(&'static str, &'static str, &[f64], Option<f64>); 3],
+) -> Result<Vec<usize>, ForceError> {
     let n = d.force_n.len();
-    let cols: [(&'static str, &'static str, &[f64], Option<f64>); 3] = [
-        ("ap_mm", "x_ap", &d.ap_mm, fixed.x_ap),
-        ("fz_mm", "y_fz", &d.fz_mm, fixed.y_fz),
-        ("n_rpm", "z_n", &d.n_rpm, fixed.z_n),
-    ];
     for (what, _, v, _) in cols
         .iter()
         .chain([("force_N", "", &d.force_n[..], None)].iter())
@@ -136,7 +254,6 @@ pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLaw
             });
         }
     }
-    // Free exponents.
     let mut free: Vec<usize> = vec![];
     for (j, (what, name, v, fx)) in cols.iter().enumerate() {
         if fx.is_none() {
@@ -152,107 +269,36 @@ pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLaw
             free.push(j);
         }
     }
+    Ok(free)
+}
+
+/// Fits `F = K·ap^x·fz^y·n^z` (see the module docs).
+pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLawFit, ForceError> {
+    let n = d.force_n.len();
+    let cols: [(&'static str, &'static str, &[f64], Option<f64>); 3] = [
+        ("ap_mm", "x_ap", &d.ap_mm, fixed.x_ap),
+        ("fz_mm", "y_fz", &d.fz_mm, fixed.y_fz),
+        ("n_rpm", "z_n", &d.n_rpm, fixed.z_n),
+    ];
+    let free = free_exponents(d, &cols)?;
     let p = 1 + free.len();
     if n < p {
         return Err(ForceError::TooFew { n, p });
     }
-    let fixed_val = |j: usize| cols[j].3.unwrap_or(0.0);
-    // Log-linear start.
-    let x = DMatrix::from_fn(n, p, |i, c| {
-        if c == 0 {
-            1.0
-        } else {
-            cols[free[c - 1]].2[i].ln()
-        }
-    });
-    let ly: Vec<f64> = (0..n)
-        .map(|i| {
-            let mut v = d.force_n[i].ln();
-            for (j, col) in cols.iter().enumerate() {
-                if col.3.is_some() {
-                    v -= fixed_val(j) * col.2[i].ln();
-                }
-            }
-            v
-        })
-        .collect();
-    let ll = lstsq(&x, &ly, 0.0, Some(0)).map_err(|e| ForceError::NoConvergence(e.to_string()))?;
-    // θ = [K, free exponents].
-    let mut theta: Vec<f64> = std::iter::once(ll.coef[0].exp())
-        .chain(ll.coef[1..].iter().cloned())
-        .collect();
-    let exps = |th: &[f64]| -> [f64; 3] {
-        let mut e = [fixed_val(0), fixed_val(1), fixed_val(2)];
-        for (c, &j) in free.iter().enumerate() {
-            e[j] = th[c + 1];
-        }
-        e
+    let prob = PowerProblem {
+        cols: [0, 1, 2].map(|j| (cols[j].2, cols[j].3)),
+        free,
+        force: &d.force_n,
     };
+    // θ = [K, free exponents].
+    let theta = prob.loglinear_start()?;
     let loglinear = {
-        let e = exps(&theta);
+        let e = prob.exps(&theta);
         [theta[0], e[0], e[1], e[2]]
     };
-    let model = |th: &[f64], i: usize| -> f64 {
-        let e = exps(th);
-        th[0] * (0..3).map(|j| cols[j].2[i].powf(e[j])).product::<f64>()
-    };
-    let sse_of = |th: &[f64]| {
-        (0..n)
-            .map(|i| (d.force_n[i] - model(th, i)).powi(2))
-            .sum::<f64>()
-    };
-    let jac = |th: &[f64]| {
-        DMatrix::from_fn(n, p, |i, c| {
-            let f = model(th, i);
-            if c == 0 {
-                f / th[0]
-            } else {
-                f * cols[free[c - 1]].2[i].ln()
-            }
-        })
-    };
-    // Levenberg–Marquardt (Marquardt's diagonal scaling).
-    let mut lambda = 1e-3;
-    let mut sse = sse_of(&theta);
-    let mut iterations = 0;
-    let mut converged = false;
-    for it in 0..200 {
-        iterations = it + 1;
-        let j = jac(&theta);
-        let r = DVector::from_fn(n, |i, _| d.force_n[i] - model(&theta, i));
-        let jtj = j.transpose() * &j;
-        let jtr = j.transpose() * r;
-        let mut improved = false;
-        for _ in 0..30 {
-            let mut a = jtj.clone();
-            for k in 0..p {
-                a[(k, k)] += lambda * jtj[(k, k)].max(1e-300);
-            }
-            let Some(step) = a.lu().solve(&jtr) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let cand: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
-            let s2 = sse_of(&cand);
-            if cand[0] > 0.0 && s2.is_finite() && s2 <= sse {
-                converged = (sse - s2) <= 1e-14 * sse.max(1e-300);
-                theta = cand;
-                sse = s2;
-                lambda = (lambda / 10.0).max(1e-12);
-                improved = true;
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !improved || lambda > 1e12 {
-            break;
-        }
-        if converged || step_small(&jtr, sse) {
-            break;
-        }
-    }
+    let (theta, sse, iterations) = prob.refine(theta);
     let dof = n - p;
-    let j = jac(&theta);
+    let j = prob.jac(&theta);
     let cov = (j.transpose() * &j).try_inverse();
     let tq = if dof > 0 {
         Some(student_t_quantile(0.975, dof as f64))
@@ -291,10 +337,12 @@ pub fn fit_power_law(d: &PowerLawData, fixed: FixedExponents) -> Result<PowerLaw
             e.value = v;
         }
     }
-    for (c, &jx) in free.iter().enumerate() {
+    for (c, &jx) in prob.free.iter().enumerate() {
         e3[jx] = est(c + 1);
     }
-    let residuals_n: Vec<f64> = (0..n).map(|i| d.force_n[i] - model(&theta, i)).collect();
+    let residuals_n: Vec<f64> = (0..n)
+        .map(|i| d.force_n[i] - prob.model(&theta, i))
+        .collect();
     Ok(PowerLawFit {
         k: est(0),
         x_ap: e3[0],

@@ -3,32 +3,28 @@
 //! Glossary:
 //! - **sensor**: a temperature channel (`NAME_degC`), **rise** ΔT: its change against a reference reading.
 //! - **lag**: first-order delay of a temperature with time constant τ, as the structure follows it
-//!   ([`lag`]).
+//!   ([`axcomp_numeric::lag`]).
 //! - **selection**: choosing a few sensors out of many collinear ones: the reference method fuzzy c-means +
 //!   grey relational analysis ([`fcm`], [`gra`]) and forward selection scored by cross-validation
 //!   ([`select`]).
-//! - **thermal model**: `e = b0 + Σ b ΔT + Σ χ F`, fitted by QR least squares ([`linalg`], [`thermal`]).
+//! - **thermal model**: `e = b0 + Σ b ΔT + Σ χ F`, fitted by QR least squares ([`axcomp_numeric::lsq`], [`thermal`]).
 //! - **force law**: `F = K·ap^x·fz^y·n^z` ([`force`]); **cutting coefficients** Ktc, Krc, Kac (cutting) and
 //!   Kte, Kre, Kae (edge) of a milling cutter from mean forces ([`milling`]).
-//! - **twin data**: synthetic temperatures, forces and errors with known truth ([`synth`], the twin's).
 
 pub mod blocks;
 pub mod choice;
 pub mod fcm;
 pub mod force;
+pub mod force_data;
 pub mod gra;
-pub mod lag;
-pub mod linalg;
 pub mod milling;
 pub mod model_file;
 mod prepare;
 pub mod quality;
 pub mod report;
+pub mod request;
 pub mod runs;
 pub mod select;
-pub mod stats;
-/// The synthetic campaign generator now lives in the twin ([`axcomp_twin::synth`]); re-exported here.
-pub use axcomp_twin::synth;
 pub mod thermal;
 
 pub use thermal::{

@@ -19,7 +19,7 @@
 
 use serde::Serialize;
 
-use crate::stats::{mean, student_t_quantile};
+use axcomp_numeric::stats::{mean, student_t_quantile};
 
 /// A DynoWare export: sampling rate and the force channels (N) in dynamometer axes.
 #[derive(Debug, Clone)]

@@ -129,6 +129,52 @@ pub enum ModelFileError {
 }
 
 impl ThermalModelFile {
+    /// A warm-up drift as a model with one input, `warmup` (0 while the axis is cold or de-energised, 1
+    /// while it is energised), lagged by `tau_s`: `b0 + drift_um·w` with `b0 = −drift_um·state_ref`, so the
+    /// model reads 0 at the reference state the positioning table holds. `period_ms` is the rate the drive
+    /// feeds the input (> 0). Errors say why the model is not usable.
+    #[allow(clippy::too_many_arguments)]
+    pub fn warmup_drift(
+        target: &str,
+        period_ms: u32,
+        tau_s: f64,
+        drift_um: f64,
+        state_ref: f64,
+        raw_rms_um: f64,
+        judged_rms_um: f64,
+    ) -> Result<ThermalModelFile, String> {
+        if period_ms == 0 {
+            return Err("--drift-period-ms must be > 0".into());
+        }
+        let m = ThermalModelFile {
+            format: FORMAT.into(),
+            target: target.to_string(),
+            sensor_period_ms: period_ms,
+            b0_um: -drift_um * state_ref,
+            sensors: vec![ModelSensor {
+                name: "warmup".into(),
+                reference_degc: 0.0,
+                tau_s,
+                coef_um_per_k: drift_um,
+                // The input is 0 or 1; any step between them is plausible.
+                min_degc: -0.5,
+                max_degc: 1.5,
+                max_rate_degc_per_s: 1.0e6,
+                stale_timeout_ms: (10 * period_ms).max(10_000),
+                rise_min_k: None,
+                rise_max_k: None,
+            }],
+            forces: vec![],
+            raw_rms_um,
+            holdout_rms_um: Some(judged_rms_um),
+            target_offset_um: None,
+            runs_column: None,
+        };
+        m.validate()
+            .map_err(|e| format!("the warm-up drift model is not usable: {e}"))?;
+        Ok(m)
+    }
+
     /// Builds the file from a fit and the data it was fitted on (plausibility limits from the data).
     pub fn from_fit(
         fit: &ThermalFit,

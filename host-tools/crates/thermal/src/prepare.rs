@@ -7,7 +7,9 @@
 use crate::choice::Design;
 use crate::runs::RunIndex;
 use crate::select::{Candidate, GramSet};
-use crate::thermal::{LAG_CAP_FRACTION, ThermalError, ThermalInput, ThermalOptions, golden_min};
+use axcomp_numeric::minimize::golden_min;
+
+use crate::thermal::{LAG_CAP_FRACTION, ThermalError, ThermalInput, ThermalOptions};
 
 /// What the fit prepares before any candidate runs.
 pub(crate) struct Prepared {
@@ -37,7 +39,7 @@ fn usable_sensors(
     let mut sens = vec![];
     for (i, s) in input.sensors.iter().enumerate() {
         let v: Vec<f64> = train_idx.iter().map(|&r| s.values[r]).collect();
-        if crate::stats::std_dev(&v) <= 1e-9 {
+        if axcomp_numeric::stats::std_dev(&v) <= 1e-9 {
             excluded.push((s.name.clone(), "constant on the training rows".to_string()));
         } else {
             sens.push(i);

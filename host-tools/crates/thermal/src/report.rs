@@ -51,14 +51,13 @@ pub fn thermal_report_files(
     input: &ThermalInput,
     target: &str,
 ) -> Vec<(std::path::PathBuf, Vec<u8>)> {
-    let mut files = Vec::new();
     let n = input.time_s.len();
     let hours: Vec<f64> = input.time_s.iter().map(|t| t / 3600.0).collect();
     let held = input.holdout.clone().unwrap_or_else(|| vec![false; n]);
-    let spans = spans(&hours, &held);
-
-    let used = fit.model.terms.len();
-    let all = input.sensors.len();
+    let t = TimeAxis {
+        spans: spans(&hours, &held),
+        hours,
+    };
     // One line naming the data, the model and its figures, shared by the titles.
     let figures = match fit.holdout_rms_um {
         Some(h) => format!(
@@ -67,6 +66,37 @@ pub fn thermal_report_files(
         ),
         None => format!("raw RMS {:.2} µm (no held-out rows)", fit.raw_rms_um),
     };
+    vec![
+        (
+            dir.join("prediction.svg"),
+            prediction_svg(fit, input, target, &t, &figures),
+        ),
+        (
+            dir.join("residual_per_condition.svg"),
+            per_condition_svg(fit, target, &figures),
+        ),
+        (dir.join("sensors.svg"), sensors_svg(fit, input, &t)),
+        (dir.join("report.md"), report_md(fit, target).into_bytes()),
+    ]
+}
+
+/// The time axis of the plots: hours and the held-out spans.
+struct TimeAxis {
+    hours: Vec<f64>,
+    spans: Vec<(f64, f64)>,
+}
+
+/// Measured vs predicted over time, and the residual in a panel of its own.
+fn prediction_svg(
+    fit: &ThermalFit,
+    input: &ThermalInput,
+    target: &str,
+    t: &TimeAxis,
+    figures: &str,
+) -> Vec<u8> {
+    let (hours, spans) = (&t.hours, &t.spans);
+    let used = fit.model.terms.len();
+    let all = input.sensors.len();
     // Measured and predicted after the same zeroing as the raw figures (target − its reference value), and
     // the residual in a panel of its own (its scale is much smaller).
     let zero = fit.raw_reference_um;
@@ -80,11 +110,11 @@ pub fn thermal_report_files(
         "time (h)",
         "error − reference value (µm)",
     );
-    let (hx, measured) = broken_at_restarts(&hours, &measured);
-    let (_, predicted) = broken_at_restarts(&hours, &predicted);
+    let (hx, measured) = broken_at_restarts(hours, &measured);
+    let (_, predicted) = broken_at_restarts(hours, &predicted);
     f.line("measured", &hx, &measured);
     f.line("predicted", &hx, &predicted);
-    for (a, b) in &spans {
+    for (a, b) in spans {
         f.vspan(*a, *b, "held out");
     }
     let resid: Vec<f64> = input
@@ -98,19 +128,19 @@ pub fn thermal_report_files(
         "time (h)",
         "residual (µm)",
     );
-    let (_, resid) = broken_at_restarts(&hours, &resid);
+    let (_, resid) = broken_at_restarts(hours, &resid);
     r.line("residual", &hx, &resid).with_colour("#009E73");
     r.hline(0.0, "");
-    for (a, b) in &spans {
+    for (a, b) in spans {
         r.vspan(*a, *b, "held out");
     }
     f.size(900.0, 420.0);
     r.size(900.0, 320.0);
-    files.push((
-        dir.join("prediction.svg"),
-        panels_svg(&[&f, &r], 1).into_bytes(),
-    ));
+    panels_svg(&[&f, &r], 1).into_bytes()
+}
 
+/// One bar pair per condition (raw, after the model).
+fn per_condition_svg(fit: &ThermalFit, target: &str, figures: &str) -> Vec<u8> {
     // One bar pair per condition (raw, after the model); held-out conditions are marked in the name.
     let names: Vec<String> = fit
         .per_condition
@@ -151,11 +181,14 @@ pub fn thermal_report_files(
             .map(|c| c.rms_um)
             .collect::<Vec<_>>(),
     );
-    files.push((
-        dir.join("residual_per_condition.svg"),
-        bars.to_svg().into_bytes(),
-    ));
+    bars.to_svg().into_bytes()
+}
 
+/// The sensors the model uses over time.
+fn sensors_svg(fit: &ThermalFit, input: &ThermalInput, t: &TimeAxis) -> Vec<u8> {
+    let (hours, spans) = (&t.hours, &t.spans);
+    let used = fit.model.terms.len();
+    let all = input.sensors.len();
     // The sensors the model uses (only those), each named with its coefficient and lag.
     let title = if used == all {
         format!(
@@ -187,34 +220,18 @@ pub fn thermal_report_files(
     f.size(width, 500.0);
     for (t, label) in fit.model.terms.iter().zip(&labels) {
         if let Some(s) = input.sensors.iter().find(|s| s.name == t.sensor) {
-            let (x, y) = broken_at_restarts(&hours, &s.values);
+            let (x, y) = broken_at_restarts(hours, &s.values);
             f.line(label, &x, &y);
         }
     }
-    for (a, b) in &spans {
+    for (a, b) in spans {
         f.vspan(*a, *b, "held out");
     }
-    files.push((dir.join("sensors.svg"), f.to_svg().into_bytes()));
+    f.to_svg().into_bytes()
+}
 
-    let mut md = String::new();
-    let _ = writeln!(md, "# Thermal model of `{target}`\n");
-    let _ = writeln!(md, "Model: `{}`\n", fit.formula);
-    let _ = writeln!(
-        md,
-        "Raw RMS {:.3} µm, after the model {} (held-out rows: {}, training rows: {}). Guard: {} — {}.\n",
-        fit.raw_rms_um,
-        fit.holdout_rms_um
-            .map_or("n/a (no holdout)".into(), |h| format!("{h:.3} µm")),
-        fit.holdout_rows,
-        fit.training_rows,
-        if fit.guard.passed { "passed" } else { "FAILED" },
-        fit.guard.reason
-    );
-    let _ = writeln!(
-        md,
-        "## Sensor selection\n\nChosen: **{}** ({}).\n",
-        fit.chosen_method, fit.why
-    );
+/// The candidates compared, with their validation and held-out RMS.
+fn candidates_md(md: &mut String, fit: &ThermalFit) {
     if fit.candidates.is_empty() {
         let _ = writeln!(md, "No candidates compared (forced selection).\n");
     } else {
@@ -245,7 +262,7 @@ pub fn thermal_report_files(
                 ]
             })
             .collect();
-        md += &markdown_table(
+        *md += &markdown_table(
             &[
                 "candidate",
                 "sensors",
@@ -257,6 +274,30 @@ pub fn thermal_report_files(
             &rows,
         );
     }
+}
+
+/// `report.md`: model, figures, sensor selection, terms and residual per condition.
+fn report_md(fit: &ThermalFit, target: &str) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# Thermal model of `{target}`\n");
+    let _ = writeln!(md, "Model: `{}`\n", fit.formula);
+    let _ = writeln!(
+        md,
+        "Raw RMS {:.3} µm, after the model {} (held-out rows: {}, training rows: {}). Guard: {} — {}.\n",
+        fit.raw_rms_um,
+        fit.holdout_rms_um
+            .map_or("n/a (no holdout)".into(), |h| format!("{h:.3} µm")),
+        fit.holdout_rows,
+        fit.training_rows,
+        if fit.guard.passed { "passed" } else { "FAILED" },
+        fit.guard.reason
+    );
+    let _ = writeln!(
+        md,
+        "## Sensor selection\n\nChosen: **{}** ({}).\n",
+        fit.chosen_method, fit.why
+    );
+    candidates_md(&mut md, fit);
     if let Some(fg) = &fit.fcm_gra_detail {
         let _ = writeln!(
             md,
@@ -332,8 +373,7 @@ pub fn thermal_report_files(
         &rows,
     );
     md += "\n![prediction](prediction.svg)\n\n![residual per condition](residual_per_condition.svg)\n\n![sensors](sensors.svg)\n";
-    files.push((dir.join("report.md"), md.into_bytes()));
-    files
+    md
 }
 
 /// Consecutive runs of `true` in `mask` as (x_from, x_to).

@@ -24,10 +24,10 @@ use serde::Serialize;
 
 use crate::choice::rank_correlation;
 use crate::choice::{self, Design, Kind, Structure};
-use crate::linalg::{condition_number, lstsq, vif};
 use crate::prepare::{Prepared, refine_lags};
 use crate::select::{self, Candidate};
-use crate::stats::rms;
+use axcomp_numeric::lsq::{condition_number, lstsq, vif};
+use axcomp_numeric::stats::rms;
 
 /// What the fit reads (already filtered, renamed and scaled).
 #[derive(Debug, Clone)]
@@ -140,7 +140,7 @@ pub enum ThermalError {
     #[error("the holdout selects no rows")]
     EmptyHoldout,
     #[error("least squares failed: {0}")]
-    Ls(#[from] crate::linalg::LsError),
+    Ls(#[from] axcomp_numeric::lsq::LsError),
 }
 
 pub use axcomp_effects::thermal_model::{ForceTerm, SensorTerm, Series, ThermalModel};
@@ -444,7 +444,7 @@ fn choose(p: &Prepared, d: &Design, opts: &ThermalOptions) -> Result<Chosen, The
             .collect();
         let dec = choice::decide(&kinds, &validation, &eligible, &simple, 0);
         let table = (0..kinds.len())
-            .map(|k| format!("{} {:.4} µm", kinds[k].name(), validation.rms(k)))
+            .map(|k| format!("{} {:.4} µm", kinds[k].name(), validation.pooled_rms(k)))
             .collect::<Vec<_>>()
             .join(", ");
         let why = format!(
@@ -481,7 +481,7 @@ fn describe(d: &Design, terms: &[usize]) -> (Vec<String>, Vec<f64>) {
 }
 
 fn candidate_reports(d: &Design, c: &Chosen) -> Vec<CandidateReport> {
-    let plain = c.validation.rms(0);
+    let plain = c.validation.pooled_rms(0);
     (0..c.kinds.len())
         .filter(|&k| c.kinds[k] != Kind::PlainAll)
         .map(|k| {
@@ -497,12 +497,12 @@ fn candidate_reports(d: &Design, c: &Chosen) -> Vec<CandidateReport> {
                 } else {
                     "none".into()
                 },
-                validation_rms_um: c.validation.rms(k),
+                validation_rms_um: c.validation.pooled_rms(k),
                 validation_block_rms_um: c.validation.fold_rms(k),
                 holdout_rms_um: c.holdout[k],
                 n_sensors,
                 eligible: n_sensors <= d.sensor_limit,
-                beats_reference: k != 0 && c.validation.rms(k) < plain,
+                beats_reference: k != 0 && c.validation.pooled_rms(k) < plain,
                 chosen: k == c.chosen,
             }
         })
@@ -522,7 +522,7 @@ fn references(d: &Design, c: &Chosen) -> Vec<Reference> {
                 what: Kind::what(c.kinds[k]).into(),
                 sensors,
                 tau_s,
-                validation_rms_um: c.validation.rms(k),
+                validation_rms_um: c.validation.pooled_rms(k),
                 holdout_rms_um: c.holdout[k],
             })
         })
@@ -538,7 +538,7 @@ fn method_report(d: &Design, c: &Chosen, kind: Kind, method: &str) -> MethodRepo
                 sensors,
                 tau_s,
                 inner_cv_rms_um: d.gs.cv_rms(&c.finals[k].terms, &d.order, 0.0),
-                nested_cv_rms_um: c.validation.rms(k),
+                nested_cv_rms_um: c.validation.pooled_rms(k),
                 ran: true,
             }
         }
@@ -742,7 +742,8 @@ pub fn fit_thermal(
         .blocks
         .by_condition
         .then(|| d.gs.cv_rms(&chosen.terms, &all, chosen.ridge));
-    let validation = (!requested && val_rows > 0).then(|| (c.validation.rms(c.chosen), val_raw));
+    let validation =
+        (!requested && val_rows > 0).then(|| (c.validation.pooled_rms(c.chosen), val_raw));
     let mut guard = do_no_harm(
         holdout_rms.map(|h| (h, raw_rms)),
         validation,
@@ -982,28 +983,4 @@ fn forward_path(input: &ThermalInput, d: &Design, c: &Chosen) -> Vec<(String, f6
             Candidate::Force { force } => (input.forces[force].name.clone(), s.cv_rms),
         })
         .collect()
-}
-
-/// Golden-section minimisation of `f` on `[a, b]`, `iters` steps; returns the abscissa of the minimum.
-pub fn golden_min(f: &mut dyn FnMut(f64) -> f64, mut a: f64, mut b: f64, iters: usize) -> f64 {
-    let r = (5f64.sqrt() - 1.0) / 2.0;
-    let mut c = b - r * (b - a);
-    let mut d = a + r * (b - a);
-    let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..iters {
-        if fc < fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - r * (b - a);
-            fc = f(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + r * (b - a);
-            fd = f(d);
-        }
-    }
-    if fc < fd { c } else { d }
 }

@@ -3,8 +3,8 @@
 //! host prediction in f64; tolerance 0.01 µm + 1e-5 relative (the firmware computes in f32).
 
 use axcomp_thermal::model_file::ThermalModelFile;
-use axcomp_thermal::synth::{SynthConfig, generate};
 use axcomp_thermal::{ThermalInput, ThermalOptions, fit_thermal};
+use axcomp_twin::synth::{SynthConfig, generate};
 
 #[test]
 #[allow(clippy::needless_range_loop)] // rows index several parallel columns

@@ -1,8 +1,8 @@
 //! Model file: save/load round trip, validation messages, ridge options.
 
 use axcomp_thermal::model_file::ThermalModelFile;
-use axcomp_thermal::synth::{SynthConfig, generate};
 use axcomp_thermal::{Ridge, ThermalInput, ThermalOptions, fit_thermal};
+use axcomp_twin::synth::{SynthConfig, generate};
 
 fn input() -> ThermalInput {
     let d = generate(&SynthConfig {

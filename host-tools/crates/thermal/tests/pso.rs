@@ -3,8 +3,8 @@
 //! test minimises the same mean squared error and must never beat the QR solution (tolerance 1e-9 relative),
 //! while getting close to it (within 5 %).
 
-use axcomp_thermal::linalg::lstsq;
-use axcomp_thermal::synth::{SynthConfig, generate};
+use axcomp_numeric::lsq::lstsq;
+use axcomp_twin::synth::{SynthConfig, generate};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng, rngs::StdRng};
 

@@ -1,10 +1,11 @@
 //! Thermal fit on the synthetic twin: 16 collinear sensors, lagged response, one unseen operating condition
 //! held out. Reference: the oracle (true sensors, coefficients, lags and χ on the measured columns).
 
-use axcomp_thermal::synth::{SynthConfig, generate};
-use axcomp_thermal::{Ridge, ThermalInput, ThermalOptions, fit_thermal, stats};
+use axcomp_numeric::stats;
+use axcomp_thermal::{Ridge, ThermalInput, ThermalOptions, fit_thermal};
+use axcomp_twin::synth::{SynthConfig, generate};
 
-fn input(d: &axcomp_thermal::synth::SynthData, held_condition: usize) -> ThermalInput {
+fn input(d: &axcomp_twin::synth::SynthData, held_condition: usize) -> ThermalInput {
     ThermalInput {
         time_s: d.time_s.clone(),
         sensors: d.sensor_series(),

@@ -9,6 +9,7 @@
 use std::io;
 use std::path::Path;
 
+use axcomp_numeric::stats::rms;
 use serde::Serialize;
 
 use crate::effects::{Conditions, EffectKind};
@@ -165,20 +166,21 @@ impl Campaign {
         self.rows.iter().map(|r| r.deviation_um).collect()
     }
 
-    /// RMS of the measured deviations.
+    /// RMS of the measured deviations (0 for a campaign without rows: no rows, no error).
     pub fn rms_deviation_um(&self) -> f64 {
+        if self.rows.is_empty() {
+            return 0.0;
+        }
         rms(self.rows.iter().map(|r| r.deviation_um))
     }
 
-    /// RMS of the noise-free deviations.
+    /// RMS of the noise-free deviations (0 without truth rows: no rows, no error).
     pub fn rms_truth_um(&self) -> f64 {
+        if self.truth.is_empty() {
+            return 0.0;
+        }
         rms(self.truth.iter().map(|t| t.deviation_um))
     }
-}
-
-/// Root mean square (0 for no values).
-pub fn rms(values: impl IntoIterator<Item = f64>) -> f64 {
-    axcomp_numeric::stats::rms_or_zero(values)
 }
 
 /// The host libraries' one atomic write (temporary sibling, sync, rename): see `axcomp-files`.

@@ -57,7 +57,7 @@ pub mod synth;
 pub mod thermal;
 
 pub use axis::{Axis, AxisError, Noise, Sensor};
-pub use campaign::{Campaign, ExtraColumn, Row, Truth, rms, write_atomically};
+pub use campaign::{Campaign, ExtraColumn, Row, Truth, write_atomically};
 pub use effects::{
     Abbe, Cogging, Conditions, DriftTerm, Effect, EffectKind, EndEffect, FollowingError,
     ForceDeflection, InterpolationError, LagTerm, Layout, PitchError, Reversal, ScaleExpansion,
@@ -115,10 +115,15 @@ impl<'a> TruthReport<'a> {
             contribution_rms_um: kinds
                 .iter()
                 .map(|&k| {
-                    (
-                        k.name(),
-                        rms((0..campaign.rows.len()).map(|i| campaign.contribution_um(k, i))),
-                    )
+                    // No rows, no error: 0 for an empty campaign.
+                    let r = if campaign.rows.is_empty() {
+                        0.0
+                    } else {
+                        axcomp_numeric::stats::rms(
+                            (0..campaign.rows.len()).map(|i| campaign.contribution_um(k, i)),
+                        )
+                    };
+                    (k.name(), r)
                 })
                 .collect(),
         }

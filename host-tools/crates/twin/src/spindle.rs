@@ -226,7 +226,7 @@ mod tests {
         assert!(!cutting.is_empty());
         assert!(cutting.iter().all(|t| t.contributions_um[force_k] > 0.0));
         // Measured − truth is the noise σ 0.3 µm (2000 rows: tolerance ±15 %).
-        let noise = crate::rms(
+        let noise = axcomp_numeric::stats::rms(
             c.rows
                 .iter()
                 .zip(&c.truth)

@@ -3,6 +3,7 @@
 //! through `axcomp-data`.
 
 use axcomp_core::Compensator;
+use axcomp_numeric::stats::rms;
 use axcomp_twin::*;
 
 fn axis_with(kinds: &[EffectKind], noise_um: f64) -> Axis {

@@ -34,7 +34,7 @@ fn main() {
     cols.extend(d.model_columns.iter().cloned());
     cols.push(c.truth_um.clone());
     let fit = axcomp_diagnose::lsq::fit(&cols, &c.obs.target, &train);
-    let after = axcomp_diagnose::stats::rms(
+    let after = axcomp_numeric::stats::rms(
         hold.iter()
             .map(|&i| c.obs.target[i] - fit.predict(&cols, i)),
     );

@@ -122,7 +122,7 @@ pub fn holdout_rms_after_fit<C: AsRef<[f64]>>(
     hold: &[usize],
 ) -> f64 {
     let fit = lsq::fit(cols, y, train);
-    axcomp_numeric::stats::rms_of(hold.iter().map(|&i| y[i] - fit.predict(cols, i)))
+    axcomp_numeric::stats::rms(hold.iter().map(|&i| y[i] - fit.predict(cols, i)))
 }
 
 /// Held-out shrink in % (`100·(1 − after/before)`).

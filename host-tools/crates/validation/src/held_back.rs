@@ -188,7 +188,7 @@ pub struct HeldScore {
 /// The held-out scores of predictions `pred` (along each reading's beam) against the noisy readings.
 pub fn score(case: &HeldBackCase, pred: &[f64]) -> HeldScore {
     let rms_of = |keep: &dyn Fn(HeldGroup) -> bool| {
-        axcomp_numeric::stats::rms_of(
+        axcomp_numeric::stats::rms(
             case.data
                 .readings
                 .iter()
