@@ -35,7 +35,7 @@ pub enum Command {
     /// Simulate an axis (the digital twin) and write measurement CSV.
     Sim(commands::sim::Args),
     /// Diagnose the gap between a model and measurements: where it lies, which unmodelled effect explains it.
-    Diagnose(commands::diagnose::Args),
+    Diagnose(commands::diagnose_shared::Args),
     /// Check the diagnosis on many twin campaigns with one effect withheld (detection, attribution, false alarms).
     ValidateDiagnosis(commands::validate_diagnosis::Args),
     /// Apply a fitted model file (positioning table, thermal model, geometry model, rotary-axis model, probe calibration, force law) to the rows of a CSV and write them with the predictions added.

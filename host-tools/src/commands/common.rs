@@ -9,6 +9,7 @@
 use std::path::Path;
 
 use axcomp_data::{Dataset, LoadOptions, Split};
+use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
 
 use crate::cli::DataArgs;
 
@@ -109,6 +110,27 @@ pub fn check_count(option: &str, n: usize, lo: usize, hi: usize) -> anyhow::Resu
         anyhow::bail!("{option} {n}: need {lo} … {hi}");
     }
     Ok(())
+}
+
+/// Longest `--pivot-mm` (10 m): beyond, no spindle head.
+const MAX_PIVOT_MM: f64 = 1.0e4;
+
+/// `--machine` and `--pivot-mm` into the nominal kinematics.
+pub fn machine_from(kind: &str, pivot_mm: Option<f64>) -> anyhow::Result<FiveAxis> {
+    let Some(k) = MachineKind::parse(kind) else {
+        anyhow::bail!("--machine `{kind}`: expected ac-trunnion, bc-trunnion or bc-head");
+    };
+    match (k, pivot_mm) {
+        (MachineKind::BcHead, None) => {
+            anyhow::bail!("--machine bc-head needs --pivot-mm L (B axis to tool point, mm)")
+        }
+        (MachineKind::BcHead, Some(l)) if !(l.is_finite() && l > 0.0 && l <= MAX_PIVOT_MM) => {
+            anyhow::bail!("--pivot-mm {l}: need a length > 0 mm, at most {MAX_PIVOT_MM} mm")
+        }
+        (MachineKind::BcHead, Some(l)) => Ok(FiveAxis::new(k, l)),
+        (_, Some(_)) => anyhow::bail!("--pivot-mm is for --machine bc-head only"),
+        (_, None) => Ok(FiveAxis::new(k, 0.0)),
+    }
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@ use axcomp_diagnose::{DiagnoseOptions, report};
 use axcomp_geometry::LineData;
 use axcomp_kinematics::Topology;
 
-use super::diagnose::Args;
+use crate::commands::diagnose_shared::{Args, print_candidates, write_diagnosis};
 use crate::output::OutputSet;
 
 /// The line observations of a dataset (checks of `axcomp-geometry`: ≥ 3 targets per line, unit beams
@@ -112,7 +112,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
             100.0 * r.share
         );
     }
-    super::diagnose::print_candidates(&d.effects, 6, opts.alpha);
+    print_candidates(&d.effects, 6, opts.alpha);
     for n in &d.not_applicable {
         println!("  not applicable: {n}");
     }
@@ -154,5 +154,5 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
         }
         report = Some((dir.as_path(), files));
     }
-    super::diagnose::write_diagnosis(outputs, report, args.json.as_deref(), &ld)
+    write_diagnosis(outputs, report, args.json.as_deref(), &ld)
 }

@@ -10,7 +10,7 @@ use anyhow::Context;
 use axcomp_data::{Dataset, HoldoutSpec};
 use axcomp_diagnose::probe::{self as dprobe, ProbeData, ProbeModelSpec};
 
-use super::diagnose::Args;
+use crate::commands::diagnose_shared::{Args, print_candidates, write_diagnosis};
 use crate::output::OutputSet;
 use axcomp_probe::touches::read_touches;
 
@@ -181,11 +181,11 @@ pub fn run(args: &Args, ds: Dataset) -> anyhow::Result<()> {
             100.0 * r.share
         );
     }
-    super::diagnose::print_candidates(&d.diagnosis.effects, 6, opts.alpha);
+    print_candidates(&d.diagnosis.effects, 6, opts.alpha);
     println!("verdict: {} — {}", d.diagnosis.verdict, d.diagnosis.note);
     let report = match &args.report {
         Some(dir) => Some((dir.as_path(), dprobe::report_files(dir, &campaign, &d)?)),
         None => None,
     };
-    super::diagnose::write_diagnosis(outputs, report, args.json.as_deref(), &d)
+    write_diagnosis(outputs, report, args.json.as_deref(), &d)
 }

@@ -6,7 +6,8 @@
 use axcomp_diagnose::judge::DiagnoseOptions;
 use axcomp_diagnose::rtest::{self, RtestObservations};
 
-use super::diagnose::Args;
+use crate::commands::common::machine_from;
+use crate::commands::diagnose_shared::{Args, print_candidates, write_diagnosis};
 use crate::output::OutputSet;
 
 pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
@@ -16,7 +17,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
             args.target
         );
     }
-    let machine = super::fit_rtest::machine_from(
+    let machine = machine_from(
         args.machine.as_deref().unwrap_or("ac-trunnion"),
         args.pivot_mm,
     )?;
@@ -59,7 +60,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
             100.0 * r.share
         );
     }
-    super::diagnose::print_candidates(&dg.effects, usize::MAX, opts.alpha);
+    print_candidates(&dg.effects, usize::MAX, opts.alpha);
     for [a, b] in &d.same_signature {
         println!("  {a} and {b}: same signature on these poses (the data cannot tell them apart)");
     }
@@ -71,5 +72,5 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
             .collect();
         (dir, files)
     });
-    super::diagnose::write_diagnosis(outputs, report, args.json.as_deref(), &d)
+    write_diagnosis(outputs, report, args.json.as_deref(), &d)
 }

@@ -7,13 +7,15 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use axcomp_data::sanity::{self, DataWarning};
-use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
+use axcomp_kinematics::rotary::MachineKind;
 use axcomp_rtest::analysis::analyse_effects;
 use axcomp_rtest::report::report_files;
 use axcomp_rtest::{FitOptions, RtestData, RtestModel, read_shared_error};
 
 use crate::cli::DataArgs;
-use crate::commands::common::{load_dataset, report_warnings, split_from, with_warnings};
+use crate::commands::common::{
+    load_dataset, machine_from, report_warnings, split_from, with_warnings,
+};
 use crate::output::OutputSet;
 
 const LONG_HELP: &str = "\
@@ -169,27 +171,6 @@ fn header_machine(path: &std::path::Path, kind: MachineKind) -> Option<DataWarni
         ),
         lines: vec![line + 1],
     })
-}
-
-/// Longest `--pivot-mm` (10 m): beyond, no spindle head.
-const MAX_PIVOT_MM: f64 = 1.0e4;
-
-/// `--machine` and `--pivot-mm` into the nominal kinematics.
-pub fn machine_from(kind: &str, pivot_mm: Option<f64>) -> anyhow::Result<FiveAxis> {
-    let Some(k) = MachineKind::parse(kind) else {
-        bail!("--machine `{kind}`: expected ac-trunnion, bc-trunnion or bc-head");
-    };
-    match (k, pivot_mm) {
-        (MachineKind::BcHead, None) => {
-            bail!("--machine bc-head needs --pivot-mm L (B axis to tool point, mm)")
-        }
-        (MachineKind::BcHead, Some(l)) if !(l.is_finite() && l > 0.0 && l <= MAX_PIVOT_MM) => {
-            bail!("--pivot-mm {l}: need a length > 0 mm, at most {MAX_PIVOT_MM} mm")
-        }
-        (MachineKind::BcHead, Some(l)) => Ok(FiveAxis::new(k, l)),
-        (_, Some(_)) => bail!("--pivot-mm is for --machine bc-head only"),
-        (_, None) => Ok(FiveAxis::new(k, 0.0)),
-    }
 }
 
 /// `--head-zero-std-um S` or `SX,SY,SZ` (µm, finite, ≥ 0).

@@ -7,6 +7,7 @@ pub mod diagnose;
 pub mod diagnose_lines;
 pub mod diagnose_probe;
 pub mod diagnose_rtest;
+pub mod diagnose_shared;
 pub mod export;
 pub mod fit_force;
 pub mod fit_geometry;
@@ -45,9 +46,22 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Trace(a) => trace::run(a),
         Command::Export(a) => export::run(a),
         Command::Sim(a) => sim::run(a),
-        Command::Diagnose(a) => diagnose::run(a),
+        Command::Diagnose(a) => diagnose_by_kind(a),
         Command::ValidateDiagnosis(a) => validate_diagnosis::run(a),
         Command::Predict(a) => predict::run(a),
         Command::SimProbe(a) => sim_probe::sim_probe(a),
+    }
+}
+
+/// `axcomp diagnose`: the file's columns say which kind of data it is (contract: "Effect kinds for
+/// geometry, rotary-axis and probe data"); each kind has its own command module.
+fn diagnose_by_kind(args: diagnose_shared::Args) -> anyhow::Result<()> {
+    use axcomp_effects::DataKind;
+    let ds = common::load_dataset(&args.data)?;
+    match DataKind::detect(&ds.column_names()) {
+        Some(DataKind::LaserLines) => diagnose_lines::run(&args, ds),
+        Some(DataKind::RTest) => diagnose_rtest::run(&args, ds),
+        Some(DataKind::ProbeTouches) => diagnose_probe::run(&args, ds),
+        Some(DataKind::Axis) | None => diagnose::run(args, ds),
     }
 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use axcomp_rtest::plan::{PlanGeometry, plan};
 
-use crate::commands::fit_rtest::machine_from;
+use crate::commands::common::machine_from;
 use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]

@@ -252,385 +252,421 @@ fn time_scaled(ctx: &Context) -> Vec<f64> {
 /// The family of `kind` for these observations, or `None` when the columns it needs are absent or constant.
 /// Columns are built on demand from `ctx` and `obs` (see [`Variant::columns`]).
 pub fn family(kind: EffectKind, obs: &Observations, ctx: &Context) -> Option<Family> {
-    let fam = |variants: Vec<Variant>| Some(Family { kind, variants });
-    match kind {
-        EffectKind::PitchError => {
-            ctx.x.as_ref()?;
-            let u = ctx.n_unique_x_train;
-            if u < 2 {
-                return None;
-            }
-            if u < 5 {
-                // Polynomial of degree u−1 (the constant is the model's intercept).
-                ctx.xs.as_ref()?;
-                return fam(vec![var(
-                    u - 1,
-                    map(json!({"basis": "polynomial", "degree": u - 1})),
-                    0,
-                    move |ctx, _| {
-                        (1..u)
-                            .map(|p| xs_of(ctx).iter().map(|v| v.powi(p as i32)).collect())
-                            .collect()
-                    },
-                )]);
-            }
-            let k = (u - 3).clamp(1, ctx.pitch_segments_max.max(1));
-            fam(vec![var(
-                k + 3,
-                map(
-                    json!({"basis": "cubic_bspline", "segments": k, "knot_spacing_mm": ctx.stroke() / k as f64}),
-                ),
-                0,
-                move |ctx, _| bspline_basis(x_of(ctx), ctx.x_min, ctx.x_max, k),
-            )])
+    let variants = match kind {
+        EffectKind::PitchError => pitch_error(ctx)?,
+        EffectKind::Reversal => reversal(ctx)?,
+        EffectKind::ScaleExpansion => scale_expansion(ctx)?,
+        EffectKind::ThermalDrift => thermal_drift(ctx)?,
+        EffectKind::ThermalLag => thermal_lag(ctx)?,
+        EffectKind::ForceDeflection => force_deflection(obs, ctx)?,
+        EffectKind::Cogging => cogging(ctx)?,
+        EffectKind::InterpolationError => interpolation_error(ctx)?,
+        EffectKind::EndEffect => end_effect(ctx)?,
+        EffectKind::FollowingError => following_error(obs, ctx)?,
+        EffectKind::Abbe => abbe(obs, ctx)?,
+        EffectKind::TimeDrift => time_drift(ctx)?,
+    };
+    Some(Family { kind, variants })
+}
+
+/// The `pitch_error` variants (see the module table).
+fn pitch_error(ctx: &Context) -> Option<Vec<Variant>> {
+    ctx.x.as_ref()?;
+    let u = ctx.n_unique_x_train;
+    if u < 2 {
+        return None;
+    }
+    if u < 5 {
+        // Polynomial of degree u−1 (the constant is the model's intercept).
+        ctx.xs.as_ref()?;
+        return Some(vec![var(
+            u - 1,
+            map(json!({"basis": "polynomial", "degree": u - 1})),
+            0,
+            move |ctx, _| {
+                (1..u)
+                    .map(|p| xs_of(ctx).iter().map(|v| v.powi(p as i32)).collect())
+                    .collect()
+            },
+        )]);
+    }
+    let k = (u - 3).clamp(1, ctx.pitch_segments_max.max(1));
+    Some(vec![var(
+        k + 3,
+        map(
+            json!({"basis": "cubic_bspline", "segments": k, "knot_spacing_mm": ctx.stroke() / k as f64}),
+        ),
+        0,
+        move |ctx, _| bspline_basis(x_of(ctx), ctx.x_min, ctx.x_max, k),
+    )])
+}
+
+/// The `reversal` variants (see the module table).
+fn reversal(ctx: &Context) -> Option<Vec<Variant>> {
+    ctx.d.as_ref()?;
+    let mut vars = vec![var(1, map(json!({"form": "constant"})), 0, |ctx, _| {
+        vec![d_of(ctx).to_vec()]
+    })];
+    if ctx.xs.is_some() {
+        vars.push(var(2, map(json!({"form": "linear_in_x"})), 0, |ctx, _| {
+            vec![d_of(ctx).to_vec(), product(d_of(ctx), xs_of(ctx))]
+        }));
+    }
+    Some(vars)
+}
+
+/// The `scale_expansion` variants (see the module table).
+fn scale_expansion(ctx: &Context) -> Option<Vec<Variant>> {
+    // c·(x − x_ref)·ΔT_s with x_ref on a grid reaching half a measured range beyond each end (the
+    // reference may lie outside the measured positions); one column, so it never absorbs a
+    // position-independent drift.
+    ctx.x.as_ref()?;
+    if ctx.dt.is_empty() {
+        return None;
+    }
+    let searched = 1 + usize::from(ctx.dt.len() > 1);
+    let mut vars = Vec::new();
+    for (si, s) in ctx.dt.iter().enumerate() {
+        for k in 0..=16 {
+            let xr = ctx.x_min + ctx.stroke() * (k as f64 / 8.0 - 0.5);
+            vars.push(var(
+                1,
+                map(json!({"sensor": s.name, "x_ref_mm": xr})),
+                searched,
+                move |ctx, _| {
+                    let dt = &ctx.dt[si].values;
+                    vec![
+                        x_of(ctx)
+                            .iter()
+                            .zip(dt)
+                            .map(|(x, t)| (x - xr) * t)
+                            .collect(),
+                    ]
+                },
+            ));
         }
-        EffectKind::Reversal => {
-            ctx.d.as_ref()?;
-            let mut vars = vec![var(1, map(json!({"form": "constant"})), 0, |ctx, _| {
-                vec![d_of(ctx).to_vec()]
-            })];
-            if ctx.xs.is_some() {
-                vars.push(var(2, map(json!({"form": "linear_in_x"})), 0, |ctx, _| {
-                    vec![d_of(ctx).to_vec(), product(d_of(ctx), xs_of(ctx))]
-                }));
-            }
-            fam(vars)
+    }
+    Some(vars)
+}
+
+/// The `thermal_drift` variants (see the module table).
+fn thermal_drift(ctx: &Context) -> Option<Vec<Variant>> {
+    if ctx.dt.is_empty() {
+        return None;
+    }
+    let names: Vec<&str> = ctx.dt.iter().map(|s| s.name.as_str()).collect();
+    let mut vars = Vec::new();
+    if ctx.dt.len() > 1 {
+        for (si, s) in ctx.dt.iter().enumerate() {
+            vars.push(var(
+                1,
+                map(json!({"sensors": [s.name]})),
+                1,
+                move |ctx, _| vec![ctx.dt[si].values.clone()],
+            ));
         }
-        EffectKind::ScaleExpansion => {
-            // c·(x − x_ref)·ΔT_s with x_ref on a grid reaching half a measured range beyond each end (the
-            // reference may lie outside the measured positions); one column, so it never absorbs a
-            // position-independent drift.
-            ctx.x.as_ref()?;
-            if ctx.dt.is_empty() {
-                return None;
-            }
-            let searched = 1 + usize::from(ctx.dt.len() > 1);
-            let mut vars = Vec::new();
+    }
+    vars.push(var(
+        ctx.dt.len(),
+        map(json!({"sensors": names})),
+        0,
+        |ctx, _| ctx.dt.iter().map(|s| s.values.clone()).collect(),
+    ));
+    Some(vars)
+}
+
+/// The `thermal_lag` variants (see the module table).
+fn thermal_lag(ctx: &Context) -> Option<Vec<Variant>> {
+    ctx.t.as_ref()?;
+    if ctx.dt.is_empty() || ctx.duration_s <= 0.0 {
+        return None;
+    }
+    let names: Vec<&str> = ctx.dt.iter().map(|s| s.name.as_str()).collect();
+    let mut vars = Vec::new();
+    let m = 18;
+    for k in 0..m {
+        let frac = 0.0005 * (1.0f64 / 0.0005).powf(k as f64 / (m - 1) as f64);
+        let tau = frac * ctx.duration_s;
+        if ctx.dt.len() > 1 {
             for (si, s) in ctx.dt.iter().enumerate() {
-                for k in 0..=16 {
-                    let xr = ctx.x_min + ctx.stroke() * (k as f64 / 8.0 - 0.5);
-                    vars.push(var(
-                        1,
-                        map(json!({"sensor": s.name, "x_ref_mm": xr})),
-                        searched,
-                        move |ctx, _| {
-                            let dt = &ctx.dt[si].values;
-                            vec![
-                                x_of(ctx)
-                                    .iter()
-                                    .zip(dt)
-                                    .map(|(x, t)| (x - xr) * t)
-                                    .collect(),
-                            ]
-                        },
-                    ));
-                }
+                vars.push(var(
+                    1,
+                    map(json!({"tau_s": tau, "sensors": [s.name]})),
+                    2,
+                    move |ctx, _| {
+                        vec![first_order_lag(
+                            &ctx.dt[si].values,
+                            t_of(ctx),
+                            &ctx.time_order,
+                            tau,
+                        )]
+                    },
+                ));
             }
-            fam(vars)
         }
-        EffectKind::ThermalDrift => {
-            if ctx.dt.is_empty() {
-                return None;
-            }
-            let names: Vec<&str> = ctx.dt.iter().map(|s| s.name.as_str()).collect();
-            let mut vars = Vec::new();
-            if ctx.dt.len() > 1 {
-                for (si, s) in ctx.dt.iter().enumerate() {
-                    vars.push(var(
-                        1,
-                        map(json!({"sensors": [s.name]})),
-                        1,
-                        move |ctx, _| vec![ctx.dt[si].values.clone()],
-                    ));
+        vars.push(var(
+            ctx.dt.len(),
+            map(json!({"tau_s": tau, "sensors": names})),
+            1,
+            move |ctx, _| {
+                ctx.dt
+                    .iter()
+                    .map(|s| first_order_lag(&s.values, t_of(ctx), &ctx.time_order, tau))
+                    .collect()
+            },
+        ));
+    }
+    Some(vars)
+}
+
+/// The `force_deflection` variants (see the module table).
+fn force_deflection(obs: &Observations, ctx: &Context) -> Option<Vec<Variant>> {
+    let idx: Vec<usize> = (0..obs.forces.len())
+        .filter(|&j| varies(&obs.forces[j].values, &ctx.train))
+        .collect();
+    if idx.is_empty() {
+        return None;
+    }
+    let names: Vec<&str> = obs.forces.iter().map(|f| f.name.as_str()).collect();
+    Some(vec![var(
+        idx.len(),
+        map(json!({"forces": names})),
+        0,
+        move |_, obs| idx.iter().map(|&j| obs.forces[j].values.clone()).collect(),
+    )])
+}
+
+/// The `cogging` variants (see the module table).
+fn cogging(ctx: &Context) -> Option<Vec<Variant>> {
+    ctx.x.as_ref()?;
+    let l = ctx.stroke();
+    if l < 5.0 {
+        return None;
+    }
+    let (f_lo, f_hi) = (1.0 / 60.0, 1.0 / 5.0);
+    // Frequency step 1/(12·stroke): at most π/12 of phase error across the stroke.
+    let df = 1.0 / (12.0 * l);
+    let steps = (((f_hi - f_lo) / df).ceil() as usize).clamp(60, 900);
+    let vars = (0..=steps)
+        .map(|k| {
+            let f = f_lo + (f_hi - f_lo) * k as f64 / steps as f64;
+            var(2, map(json!({"period_mm": 1.0 / f})), 1, move |ctx, _| {
+                sincos(x_of(ctx), 1.0 / f)
+            })
+        })
+        .collect();
+    Some(vars)
+}
+
+/// The `interpolation_error` variants (see the module table).
+fn interpolation_error(ctx: &Context) -> Option<Vec<Variant>> {
+    let x = ctx.x.as_ref()?;
+    let mut vars = Vec::new();
+    let all: Vec<usize> = (0..ctx.n).collect();
+    let grid = regular_spacing(x, &all);
+    for p_um in [4.0, 8.0, 10.0, 20.0, 40.0, 100.0, 200.0] {
+        for (h, label) in [(1.0, 1), (2.0, 2)] {
+            let period_mm = p_um / 1000.0 / h;
+            if let Some(s) = grid {
+                // On a regular grid of spacing s a short period aliases to 1/|1/P − m/s|: when
+                // that is longer than 2 mm it mimics cogging / pitch and is not identifiable.
+                let f = 1.0 / period_mm;
+                let alias = (f - (f * s).round() / s).abs();
+                if alias < 0.5 {
+                    continue;
                 }
             }
             vars.push(var(
-                ctx.dt.len(),
-                map(json!({"sensors": names})),
-                0,
-                |ctx, _| ctx.dt.iter().map(|s| s.values.clone()).collect(),
+                2,
+                map(json!({"signal_period_um": p_um, "harmonic": label})),
+                1,
+                move |ctx, _| sincos(x_of(ctx), period_mm),
             ));
-            fam(vars)
-        }
-        EffectKind::ThermalLag => {
-            ctx.t.as_ref()?;
-            if ctx.dt.is_empty() || ctx.duration_s <= 0.0 {
-                return None;
-            }
-            let names: Vec<&str> = ctx.dt.iter().map(|s| s.name.as_str()).collect();
-            let mut vars = Vec::new();
-            let m = 18;
-            for k in 0..m {
-                let frac = 0.0005 * (1.0f64 / 0.0005).powf(k as f64 / (m - 1) as f64);
-                let tau = frac * ctx.duration_s;
-                if ctx.dt.len() > 1 {
-                    for (si, s) in ctx.dt.iter().enumerate() {
-                        vars.push(var(
-                            1,
-                            map(json!({"tau_s": tau, "sensors": [s.name]})),
-                            2,
-                            move |ctx, _| {
-                                vec![first_order_lag(
-                                    &ctx.dt[si].values,
-                                    t_of(ctx),
-                                    &ctx.time_order,
-                                    tau,
-                                )]
-                            },
-                        ));
-                    }
-                }
-                vars.push(var(
-                    ctx.dt.len(),
-                    map(json!({"tau_s": tau, "sensors": names})),
-                    1,
-                    move |ctx, _| {
-                        ctx.dt
-                            .iter()
-                            .map(|s| first_order_lag(&s.values, t_of(ctx), &ctx.time_order, tau))
-                            .collect()
-                    },
-                ));
-            }
-            fam(vars)
-        }
-        EffectKind::ForceDeflection => {
-            let idx: Vec<usize> = (0..obs.forces.len())
-                .filter(|&j| varies(&obs.forces[j].values, &ctx.train))
-                .collect();
-            if idx.is_empty() {
-                return None;
-            }
-            let names: Vec<&str> = obs.forces.iter().map(|f| f.name.as_str()).collect();
-            fam(vec![var(
-                idx.len(),
-                map(json!({"forces": names})),
-                0,
-                move |_, obs| idx.iter().map(|&j| obs.forces[j].values.clone()).collect(),
-            )])
-        }
-        EffectKind::Cogging => {
-            ctx.x.as_ref()?;
-            let l = ctx.stroke();
-            if l < 5.0 {
-                return None;
-            }
-            let (f_lo, f_hi) = (1.0 / 60.0, 1.0 / 5.0);
-            // Frequency step 1/(12·stroke): at most π/12 of phase error across the stroke.
-            let df = 1.0 / (12.0 * l);
-            let steps = (((f_hi - f_lo) / df).ceil() as usize).clamp(60, 900);
-            let vars = (0..=steps)
-                .map(|k| {
-                    let f = f_lo + (f_hi - f_lo) * k as f64 / steps as f64;
-                    var(2, map(json!({"period_mm": 1.0 / f})), 1, move |ctx, _| {
-                        sincos(x_of(ctx), 1.0 / f)
-                    })
-                })
-                .collect();
-            fam(vars)
-        }
-        EffectKind::InterpolationError => {
-            let x = ctx.x.as_ref()?;
-            let mut vars = Vec::new();
-            let all: Vec<usize> = (0..ctx.n).collect();
-            let grid = regular_spacing(x, &all);
-            for p_um in [4.0, 8.0, 10.0, 20.0, 40.0, 100.0, 200.0] {
-                for (h, label) in [(1.0, 1), (2.0, 2)] {
-                    let period_mm = p_um / 1000.0 / h;
-                    if let Some(s) = grid {
-                        // On a regular grid of spacing s a short period aliases to 1/|1/P − m/s|: when
-                        // that is longer than 2 mm it mimics cogging / pitch and is not identifiable.
-                        let f = 1.0 / period_mm;
-                        let alias = (f - (f * s).round() / s).abs();
-                        if alias < 0.5 {
-                            continue;
-                        }
-                    }
-                    vars.push(var(
-                        2,
-                        map(json!({"signal_period_um": p_um, "harmonic": label})),
-                        1,
-                        move |ctx, _| sincos(x_of(ctx), period_mm),
-                    ));
-                }
-            }
-            if vars.is_empty() {
-                return None;
-            }
-            fam(vars)
-        }
-        EffectKind::EndEffect => {
-            ctx.x.as_ref()?;
-            let l = ctx.stroke();
-            let has_d = ctx.d.is_some();
-            let mut vars = Vec::new();
-            let decay = |ctx: &Context, lam: f64, end: bool| -> Vec<f64> {
-                x_of(ctx)
-                    .iter()
-                    .map(|v| {
-                        if end {
-                            (-(ctx.x_max - v) / lam).exp()
-                        } else {
-                            (-(v - ctx.x_min) / lam).exp()
-                        }
-                    })
-                    .collect()
-            };
-            for frac in [0.01, 0.015, 0.02, 0.03, 0.04, 0.055, 0.075, 0.1] {
-                let lam = frac * l;
-                for (end, at_end) in [("start", false), ("end", true)] {
-                    let p = map(
-                        json!({"decay_mm": lam, "stroke_end": end, "end_mm": if end == "start" { ctx.x_min } else { ctx.x_max }}),
-                    );
-                    vars.push(var(1, p.clone(), 2, move |ctx, _| {
-                        vec![decay(ctx, lam, at_end)]
-                    }));
-                    if has_d {
-                        let mut p = p;
-                        p.insert("by_direction".into(), Value::Bool(true));
-                        vars.push(var(2, p, 2, move |ctx, _| {
-                            let e = decay(ctx, lam, at_end);
-                            let de = product(&e, d_of(ctx));
-                            vec![e, de]
-                        }));
-                    }
-                }
-                vars.push(var(
-                    if has_d { 4 } else { 2 },
-                    map(json!({"decay_mm": lam, "stroke_end": "both"})),
-                    1,
-                    move |ctx, _| {
-                        let lo = decay(ctx, lam, false);
-                        let hi = decay(ctx, lam, true);
-                        let mut cols = Vec::new();
-                        if ctx.d.is_some() {
-                            cols.push(product(&lo, d_of(ctx)));
-                            cols.push(product(&hi, d_of(ctx)));
-                        }
-                        cols.insert(0, hi);
-                        cols.insert(0, lo);
-                        cols
-                    },
-                ));
-            }
-            fam(vars)
-        }
-        EffectKind::FollowingError => {
-            let v = obs
-                .velocity_mm_s
-                .as_ref()
-                .is_some_and(|v| varies(v, &ctx.train));
-            let a = obs
-                .accel_mm_s2
-                .as_ref()
-                .is_some_and(|a| varies(a, &ctx.train));
-            let vel = |o: &Observations| o.velocity_mm_s.clone().unwrap_or_default();
-            let acc = |o: &Observations| o.accel_mm_s2.clone().unwrap_or_default();
-            let mut vars = Vec::new();
-            if v {
-                vars.push(var(
-                    1,
-                    map(json!({"terms": ["velocity"]})),
-                    0,
-                    move |_, o| vec![vel(o)],
-                ));
-            }
-            if a {
-                vars.push(var(
-                    1,
-                    map(json!({"terms": ["acceleration"]})),
-                    0,
-                    move |_, o| vec![acc(o)],
-                ));
-            }
-            if v && a {
-                vars.push(var(
-                    2,
-                    map(json!({"terms": ["velocity", "acceleration"]})),
-                    0,
-                    move |_, o| vec![vel(o), acc(o)],
-                ));
-            }
-            if vars.is_empty() {
-                return None;
-            }
-            fam(vars)
-        }
-        EffectKind::Abbe => {
-            obs.offset_mm.as_ref().filter(|o| varies(o, &ctx.train))?;
-            let off = |o: &Observations| o.offset_mm.clone().unwrap_or_default();
-            let mut vars = vec![var(1, map(json!({"degree": 0})), 0, move |_, o| {
-                vec![off(o)]
-            })];
-            if ctx.xs.is_some() {
-                for degree in 1..=2usize {
-                    vars.push(var(
-                        degree + 1,
-                        map(json!({"degree": degree})),
-                        0,
-                        move |ctx, o| {
-                            let o = off(o);
-                            let xs = xs_of(ctx);
-                            let mut cols = vec![product(&o, xs)];
-                            if degree == 2 {
-                                cols.push(
-                                    o.iter()
-                                        .zip(xs)
-                                        .map(|(a, b)| a * (1.5 * b * b - 0.5))
-                                        .collect(),
-                                );
-                            }
-                            cols.insert(0, o);
-                            cols
-                        },
-                    ));
-                }
-            }
-            fam(vars)
-        }
-        EffectKind::TimeDrift => {
-            ctx.t.as_ref()?;
-            let mut vars: Vec<Variant> = (1..=3usize)
-                .map(|degree| {
-                    var(
-                        degree,
-                        map(json!({"basis": "legendre", "degree": degree})),
-                        0,
-                        move |ctx, _| {
-                            let ts = time_scaled(ctx);
-                            let mut cols = Vec::new();
-                            if degree >= 2 {
-                                cols.push(ts.iter().map(|s| 1.5 * s * s - 0.5).collect());
-                            }
-                            if degree >= 3 {
-                                cols.push(ts.iter().map(|s| 2.5 * s * s * s - 1.5 * s).collect());
-                            }
-                            cols.insert(0, ts);
-                            cols
-                        },
-                    )
-                })
-                .collect();
-            // A drift that settles: linear trend plus `1 − exp(−(t − t₀)/τ)`, τ searched on a
-            // geometric grid from 1 % to 30 % of the campaign's duration.
-            let m = 6;
-            for k in 0..m {
-                let tau = ctx.duration_s * 0.01 * 30f64.powf(k as f64 / (m - 1) as f64);
-                vars.push(var(
-                    2,
-                    map(json!({"basis": "settle", "tau_s": tau})),
-                    1,
-                    move |ctx, _| {
-                        let t = t_of(ctx);
-                        let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
-                        let settle = t.iter().map(|v| 1.0 - (-(v - lo) / tau).exp()).collect();
-                        vec![time_scaled(ctx), settle]
-                    },
-                ));
-            }
-            fam(vars)
         }
     }
+    if vars.is_empty() {
+        return None;
+    }
+    Some(vars)
+}
+
+/// The `end_effect` variants (see the module table).
+fn end_effect(ctx: &Context) -> Option<Vec<Variant>> {
+    ctx.x.as_ref()?;
+    let l = ctx.stroke();
+    let has_d = ctx.d.is_some();
+    let mut vars = Vec::new();
+    let decay = |ctx: &Context, lam: f64, end: bool| -> Vec<f64> {
+        x_of(ctx)
+            .iter()
+            .map(|v| {
+                if end {
+                    (-(ctx.x_max - v) / lam).exp()
+                } else {
+                    (-(v - ctx.x_min) / lam).exp()
+                }
+            })
+            .collect()
+    };
+    for frac in [0.01, 0.015, 0.02, 0.03, 0.04, 0.055, 0.075, 0.1] {
+        let lam = frac * l;
+        for (end, at_end) in [("start", false), ("end", true)] {
+            let p = map(
+                json!({"decay_mm": lam, "stroke_end": end, "end_mm": if end == "start" { ctx.x_min } else { ctx.x_max }}),
+            );
+            vars.push(var(1, p.clone(), 2, move |ctx, _| {
+                vec![decay(ctx, lam, at_end)]
+            }));
+            if has_d {
+                let mut p = p;
+                p.insert("by_direction".into(), Value::Bool(true));
+                vars.push(var(2, p, 2, move |ctx, _| {
+                    let e = decay(ctx, lam, at_end);
+                    let de = product(&e, d_of(ctx));
+                    vec![e, de]
+                }));
+            }
+        }
+        vars.push(var(
+            if has_d { 4 } else { 2 },
+            map(json!({"decay_mm": lam, "stroke_end": "both"})),
+            1,
+            move |ctx, _| {
+                let lo = decay(ctx, lam, false);
+                let hi = decay(ctx, lam, true);
+                let mut cols = Vec::new();
+                if ctx.d.is_some() {
+                    cols.push(product(&lo, d_of(ctx)));
+                    cols.push(product(&hi, d_of(ctx)));
+                }
+                cols.insert(0, hi);
+                cols.insert(0, lo);
+                cols
+            },
+        ));
+    }
+    Some(vars)
+}
+
+/// The `following_error` variants (see the module table).
+fn following_error(obs: &Observations, ctx: &Context) -> Option<Vec<Variant>> {
+    let v = obs
+        .velocity_mm_s
+        .as_ref()
+        .is_some_and(|v| varies(v, &ctx.train));
+    let a = obs
+        .accel_mm_s2
+        .as_ref()
+        .is_some_and(|a| varies(a, &ctx.train));
+    let vel = |o: &Observations| o.velocity_mm_s.clone().unwrap_or_default();
+    let acc = |o: &Observations| o.accel_mm_s2.clone().unwrap_or_default();
+    let mut vars = Vec::new();
+    if v {
+        vars.push(var(
+            1,
+            map(json!({"terms": ["velocity"]})),
+            0,
+            move |_, o| vec![vel(o)],
+        ));
+    }
+    if a {
+        vars.push(var(
+            1,
+            map(json!({"terms": ["acceleration"]})),
+            0,
+            move |_, o| vec![acc(o)],
+        ));
+    }
+    if v && a {
+        vars.push(var(
+            2,
+            map(json!({"terms": ["velocity", "acceleration"]})),
+            0,
+            move |_, o| vec![vel(o), acc(o)],
+        ));
+    }
+    if vars.is_empty() {
+        return None;
+    }
+    Some(vars)
+}
+
+/// The `abbe` variants (see the module table).
+fn abbe(obs: &Observations, ctx: &Context) -> Option<Vec<Variant>> {
+    obs.offset_mm.as_ref().filter(|o| varies(o, &ctx.train))?;
+    let off = |o: &Observations| o.offset_mm.clone().unwrap_or_default();
+    let mut vars = vec![var(1, map(json!({"degree": 0})), 0, move |_, o| {
+        vec![off(o)]
+    })];
+    if ctx.xs.is_some() {
+        for degree in 1..=2usize {
+            vars.push(var(
+                degree + 1,
+                map(json!({"degree": degree})),
+                0,
+                move |ctx, o| {
+                    let o = off(o);
+                    let xs = xs_of(ctx);
+                    let mut cols = vec![product(&o, xs)];
+                    if degree == 2 {
+                        cols.push(
+                            o.iter()
+                                .zip(xs)
+                                .map(|(a, b)| a * (1.5 * b * b - 0.5))
+                                .collect(),
+                        );
+                    }
+                    cols.insert(0, o);
+                    cols
+                },
+            ));
+        }
+    }
+    Some(vars)
+}
+
+/// The `time_drift` variants (see the module table).
+fn time_drift(ctx: &Context) -> Option<Vec<Variant>> {
+    ctx.t.as_ref()?;
+    let mut vars: Vec<Variant> = (1..=3usize)
+        .map(|degree| {
+            var(
+                degree,
+                map(json!({"basis": "legendre", "degree": degree})),
+                0,
+                move |ctx, _| {
+                    let ts = time_scaled(ctx);
+                    let mut cols = Vec::new();
+                    if degree >= 2 {
+                        cols.push(ts.iter().map(|s| 1.5 * s * s - 0.5).collect());
+                    }
+                    if degree >= 3 {
+                        cols.push(ts.iter().map(|s| 2.5 * s * s * s - 1.5 * s).collect());
+                    }
+                    cols.insert(0, ts);
+                    cols
+                },
+            )
+        })
+        .collect();
+    // A drift that settles: linear trend plus `1 − exp(−(t − t₀)/τ)`, τ searched on a
+    // geometric grid from 1 % to 30 % of the campaign's duration.
+    let m = 6;
+    for k in 0..m {
+        let tau = ctx.duration_s * 0.01 * 30f64.powf(k as f64 / (m - 1) as f64);
+        vars.push(var(
+            2,
+            map(json!({"basis": "settle", "tau_s": tau})),
+            1,
+            move |ctx, _| {
+                let t = t_of(ctx);
+                let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
+                let settle = t.iter().map(|v| 1.0 - (-(v - lo) / tau).exp()).collect();
+                vec![time_scaled(ctx), settle]
+            },
+        ));
+    }
+    Some(vars)
 }
 
 #[cfg(test)]

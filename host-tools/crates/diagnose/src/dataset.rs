@@ -6,9 +6,10 @@
 
 use axcomp_data::{Dataset, HoldoutSpec};
 
+use crate::error::{DiagnoseError, Result};
 use crate::obs::{Named, Observations};
 
-fn optional(ds: &Dataset, col: &str) -> anyhow::Result<Option<Vec<f64>>> {
+fn optional(ds: &Dataset, col: &str) -> Result<Option<Vec<f64>>> {
     if ds.has(col) {
         Ok(Some(ds.numeric(col)?.to_vec()))
     } else {
@@ -18,7 +19,7 @@ fn optional(ds: &Dataset, col: &str) -> anyhow::Result<Option<Vec<f64>>> {
 
 /// Builds the observations: `target` column, held-out rows from `holdout` (`COL=V1,V2`, `COL>=X`, ...).
 /// Errors name the file, line and column of a bad cell, or the missing column.
-pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> anyhow::Result<Observations> {
+pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> Result<Observations> {
     let spec = HoldoutSpec::parse(holdout)?;
     let held_out = spec.mask(ds)?;
     let y = ds.numeric(target)?.to_vec();
@@ -29,10 +30,10 @@ pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> anyhow::Result
     let run = if ds.has("run") {
         // An empty label would silently make its rows one more run.
         if let Some(row) = ds.text("run")?.iter().position(|t| t.trim().is_empty()) {
-            anyhow::bail!(
-                "{}: empty cell where the row's run is required: every row needs one",
-                ds.locate("run", row)
-            );
+            return Err(DiagnoseError::BadValue {
+                at: ds.locate("run", row),
+                what: "empty cell where the row's run is required: every row needs one".into(),
+            });
         }
         Some(axcomp_data::groups(ds, "run")?.0)
     } else {
@@ -97,14 +98,18 @@ pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> anyhow::Result
     }
     for (col, values) in &used {
         if let Some(row) = values.iter().position(|v| !v.is_finite()) {
-            anyhow::bail!(
-                "{}: `{}` is not a finite number; remove the row or fill in the value",
-                ds.locate(col, row),
-                values[row]
-            );
+            return Err(DiagnoseError::BadValue {
+                at: ds.locate(col, row),
+                what: format!(
+                    "`{}` is not a finite number; remove the row or fill in the value",
+                    values[row]
+                ),
+            });
         }
     }
-    obs.validate()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
+    obs.validate().map_err(|e| DiagnoseError::BadValue {
+        at: ds.source().to_string(),
+        what: e,
+    })?;
     Ok(obs)
 }

@@ -386,10 +386,10 @@ mod tests {
 
     #[test]
     fn verdict_does_not_hinge_on_the_held_out_size() {
-        // Issue 13: a withheld reversal of ±0.5 µm (σ 0.5: the held-out gap shrinks by ≈ 29 %, 11–36 % on 20
-        // rows) has, with only 20 held-out rows, a held-out paired p of 0.29 and 0.014 for seeds 21 and 23
-        // (measured), so the former rule (held-out p < 0.01) said `none`. The rule now blames it with
-        // 20 held-out rows as with 400, since the shrink is material either way; and a complete model stays
+        // A withheld reversal of ±0.5 µm (σ 0.5: the held-out gap shrinks by ≈ 29 %, 11–36 % on 20 rows)
+        // has, with only 20 held-out rows, a held-out paired p of 0.29 and 0.014 for seeds 21 and 23
+        // (measured), so a rule on the held-out p (< 0.01) would say `none`. The rule blames it with 20
+        // held-out rows as with 400, since the shrink is material either way; and a complete model stays
         // `none` with 20 held-out rows too.
         for seed in 21..=23 {
             for n_ho in [20usize, 400] {

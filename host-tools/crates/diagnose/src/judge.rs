@@ -62,7 +62,12 @@ use serde_json::{Map, Value};
 use crate::EffectKind;
 use crate::locate::{self, Region};
 use crate::lsq::{self, Projector};
-use crate::stats;
+
+mod evidence;
+mod refit;
+mod verdict;
+
+use refit::{BaseModel, RefitContext, judge_family};
 
 /// Builds a variant's columns over all rows on demand (a family with hundreds of searched variants then
 /// holds only their parameters: memory O(rows), not O(rows·variants)).
@@ -560,25 +565,6 @@ pub(crate) fn with_extra<'a>(base: &'a [Vec<f64>], extra: &'a [Vec<f64>]) -> Vec
         .collect::<Vec<&[f64]>>()
 }
 
-/// Sum of squared prediction errors of leave-one-block-out fits.
-fn blocked_cv_rss<C: AsRef<[f64]>>(cols: &[C], y: &[f64], blocks: &[Vec<usize>]) -> f64 {
-    let mut total = 0.0;
-    for (k, b) in blocks.iter().enumerate() {
-        let rows: Vec<usize> = blocks
-            .iter()
-            .enumerate()
-            .filter(|(j, _)| *j != k)
-            .flat_map(|(_, r)| r.iter().cloned())
-            .collect();
-        let fit = lsq::fit(cols, y, &rows);
-        total += b
-            .iter()
-            .map(|&i| (y[i] - fit.predict(cols, i)).powi(2))
-            .sum::<f64>();
-    }
-    total
-}
-
 fn max_corr(r: &[f64], cols: &[Vec<f64>]) -> f64 {
     let n = r.len() as f64;
     let mr = r.iter().sum::<f64>() / n;
@@ -638,24 +624,6 @@ impl Progress {
     }
 }
 
-/// The deterministic block-bootstrap resamples (xorshift64 over the block indices).
-fn bootstrap_rows(blocks: &[Vec<usize>], b: usize, n_tr: usize) -> Vec<usize> {
-    let mut rng = 0x2545_f491_4f6c_dd1du64 ^ (n_tr as u64);
-    let mut rows = Vec::with_capacity(n_tr);
-    for round in 0..=b {
-        rows.clear();
-        for _ in 0..blocks.len() {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            if round == b {
-                rows.extend_from_slice(&blocks[(rng % blocks.len() as u64) as usize]);
-            }
-        }
-    }
-    rows
-}
-
 /// Best variant of `variants` by the training BIC of the whole refit, given the projector and the
 /// training residual `r` of the other columns: maximises `n·ln(RSS₀/(RSS₀ − drop)) − k·ln n` (`drop` =
 /// exact refit RSS drop). The variants' columns are built one at a time. Returns (index, drop).
@@ -705,385 +673,54 @@ pub fn judge(
         on: opts.progress,
         t0: std::time::Instant::now(),
     };
-    let y = c.y;
-    let n = y.len();
-    let train = &c.train;
-    let hold = &c.holdout;
-    let n_tr = train.len();
-    let n_ho = hold.len();
-    let base_cols = &c.base_columns;
-
-    // ---- base model ----
-    let base = fit_all(base_cols, y, train);
-    let p0 = base.fit.rank;
-    let rss0 = ss(&base.resid, train);
-    let rss_ho0 = ss(&base.resid, hold);
-    let dof0 = n_tr.saturating_sub(p0).max(1);
-    let noise2 = rss0 / dof0 as f64;
-    let gap = Gap {
-        train_rms_um: (rss0 / n_tr as f64).sqrt(),
-        holdout_rms_um: (rss_ho0 / n_ho as f64).sqrt(),
-        holdout_max_um: hold
-            .iter()
-            .map(|&i| base.resid[i].abs())
-            .fold(0.0, f64::max),
-    };
-    let mut model_terms = c.model.clone();
-    {
-        let mut k = base_cols.len() - model_terms.iter().map(|t| t.columns).sum::<usize>();
-        for t in &mut model_terms {
-            let coefs: Vec<f64> = base.fit.coef[k..k + t.columns].to_vec();
-            if coefs.len() <= 4 {
-                t.params.insert("coefficients".into(), Value::from(coefs));
-            }
-            k += t.columns;
-        }
-    }
-
-    // ---- where ----
+    let (train, hold) = (&c.train, &c.holdout);
+    let base = BaseModel::fit(c);
     let where_vars: Vec<(&str, &[f64])> = c
         .where_variables
         .iter()
         .map(|(name, v)| (name.as_str(), v.as_slice()))
         .collect();
-    let where_ = locate::locate_variables(&where_vars, hold, &base.resid, noise2);
+    let where_ = locate::locate_variables(&where_vars, hold, &base.fitted.resid, base.noise2);
 
-    // ---- candidates ----
     let total_variants: usize = candidates
         .iter()
         .map(|f| f.variants.len())
         .sum::<usize>()
         .max(1);
-    let proj = Projector::new(base_cols, train);
-    let r_tr: Vec<f64> = train.iter().map(|&i| base.resid[i]).collect();
+    let rc = RefitContext {
+        c,
+        base: &base,
+        proj: Projector::new(&c.base_columns, train),
+        r_tr: train.iter().map(|&i| base.fitted.resid[i]).collect(),
+        total_variants,
+        alpha: opts.alpha,
+    };
     let mut effects = Vec::new();
     for (fi, f) in candidates.iter().enumerate() {
-        if f.variants.is_empty() {
-            return Err(format!("candidate `{}` has no variant", f.kind));
-        }
         progress.step(|| format!("searching {} ({} variants)", f.kind, f.variants.len()));
-        let best = select_variant(&f.variants, &proj, &r_tr, train);
-        let v = &f.variants[best.0];
-        let v_cols = v.columns();
-        if let Some(k) = v_cols.iter().position(|col| col.len() != n) {
-            return Err(format!(
-                "candidate `{}`: column {k} has {} values, expected {n}",
-                f.kind,
-                v_cols[k].len()
-            ));
-        }
-        let cols = with_extra(base_cols, &v_cols);
-        let refit = fit_all(&cols, y, train);
-        let q = refit.fit.rank.saturating_sub(p0);
-        let rss1 = ss(&refit.resid, train).min(rss0);
-        let rss_ho1 = ss(&refit.resid, hold);
-        let k_pen = (v.n_params - v_cols.len() + q) as f64;
-        let dof1 = n_tr.saturating_sub(p0 + q).max(1) as f64;
-        let p_train = if q == 0 || rss1 <= 0.0 {
-            if q > 0 && rss0 > 0.0 { 0.0 } else { 1.0 }
-        } else {
-            let fstat = ((rss0 - rss1) / q as f64) / (rss1 / dof1);
-            (stats::f_sf(fstat, q as f64, dof1) * total_variants as f64).min(1.0)
-        };
-        let d: Vec<f64> = hold
-            .iter()
-            .map(|&i| base.resid[i].powi(2) - refit.resid[i].powi(2))
-            .collect();
-        let (_, p_ho) = stats::paired_t(&d);
-        let rms_after = (rss_ho1 / n_ho as f64).sqrt();
-        let shrink = if gap.holdout_rms_um > 0.0 {
-            100.0 * (1.0 - rms_after / gap.holdout_rms_um)
-        } else {
-            0.0
-        };
-        let score = if rss_ho1 > 0.0 && rss_ho0 > 0.0 {
-            n_ho as f64 * (rss_ho0 / rss_ho1).ln() - k_pen * (n_ho as f64).ln()
-        } else {
-            0.0
-        };
-        let train_delta_bic = if rss1 > 0.0 && rss0 > 0.0 {
-            n_tr as f64 * (rss0 / rss1).ln() - k_pen * (n_tr as f64).ln()
-        } else {
-            0.0
-        };
-        let sigma = (rss1 / dof1).sqrt();
-        let gain = gap.holdout_rms_um - rms_after;
-        let mut params = v.params.clone();
-        let coefs: Vec<f64> = refit.fit.coef[base_cols.len()..].to_vec();
-        let contribution: Vec<f64> = (0..n)
-            .map(|i| v_cols.iter().zip(&coefs).map(|(c, b)| c[i] * b).sum())
-            .collect();
-        let local = local_gain(&contribution, &base.resid, &refit.resid, hold, sigma);
-        let material = is_material(gain, gap.holdout_rms_um, sigma)
-            || local.as_ref().is_some_and(|l| l.material);
-        let peak = hold
-            .iter()
-            .map(|&i| contribution[i].abs())
-            .fold(0.0, f64::max);
-        params.insert("peak_holdout_um".into(), Value::from(peak));
-        match &f.decorate {
-            Some(decorate) => decorate(&mut params, &coefs),
-            None => {
-                params.insert("coefficients".into(), Value::from(coefs.clone()));
-            }
-        }
-        effects.push(Candidate {
-            kind: f.kind.clone(),
-            score,
-            params,
-            holdout_rms_after_um: rms_after,
-            shrink_pct: shrink,
-            n_params: v.n_params,
-            train_rms_after_um: (rss1 / n_tr as f64).sqrt(),
-            train_delta_bic,
-            train_p_value: p_train,
-            holdout_p_value: p_ho,
-            holdout_gain_um: gain,
-            noise_um: sigma,
-            material,
-            local,
-            explains: p_train < opts.alpha && material,
-            residual_correlation: max_corr(&r_tr, &restrict(&v_cols, train)),
-            cv_rms_before_um: None,
-            cv_rms_after_um: None,
-            inclusion_probability: 0.0,
-            kind_enum: None,
-            family_index: fi,
-            variant_index: best.0,
-            coefficients: coefs,
-            contribution_um: contribution,
-            residual_after: refit.resid,
-        });
+        effects.push(judge_family(&rc, fi, f)?);
     }
-    drop(proj);
-    let variant_of = |e: &Candidate| &candidates[e.family_index].variants[e.variant_index];
-    // ---- evidence: blocked CV and block-bootstrap stability selection ----
-    let blocks = &c.blocks;
-    let passing: Vec<usize> = (0..effects.len())
-        .filter(|&k| effects[k].train_p_value < opts.alpha)
-        .collect();
-    if blocks.len() >= 3 && !passing.is_empty() {
-        progress.step(|| format!("blocked CV over {} training blocks", blocks.len()));
-        let cv0 = blocked_cv_rss(base_cols, y, blocks);
-        for (done, &k) in passing.iter().enumerate() {
-            progress.step(|| {
-                format!(
-                    "blocked CV: candidate {} of {} ({})",
-                    done + 1,
-                    passing.len(),
-                    effects[k].kind
-                )
-            });
-            let v_cols = variant_of(&effects[k]).columns();
-            let e = &mut effects[k];
-            e.cv_rms_before_um = Some((cv0 / n_tr as f64).sqrt());
-            e.cv_rms_after_um = Some(
-                (blocked_cv_rss(&with_extra(base_cols, &v_cols), y, blocks) / n_tr as f64).sqrt(),
-            );
-        }
-    }
-    if blocks.len() >= 2 && !passing.is_empty() {
-        progress.step(|| "block bootstrap (20 resamples)".to_string());
-        let b_count = 20;
-        let r0: Vec<f64> = (0..b_count)
-            .map(|b| rss_on(base_cols, y, &bootstrap_rows(blocks, b, n_tr)))
-            .collect();
-        // dbic[k][b]: training ΔBIC of candidate k on resample b (one candidate's columns at a time).
-        let mut dbic = vec![vec![f64::NEG_INFINITY; b_count]; effects.len()];
-        for (done, &k) in passing.iter().enumerate() {
-            let e = &effects[k];
-            progress.step(|| {
-                format!(
-                    "block bootstrap: candidate {} of {} ({}, {b_count} resamples)",
-                    done + 1,
-                    passing.len(),
-                    e.kind
-                )
-            });
-            let v_cols = variant_of(e).columns();
-            let cols = with_extra(base_cols, &v_cols);
-            for b in 0..b_count {
-                let rows = bootstrap_rows(blocks, b, n_tr);
-                let nb = rows.len() as f64;
-                let r1 = rss_on(&cols, y, &rows);
-                if r0[b] > 0.0 && r1 > 0.0 {
-                    dbic[k][b] = nb * (r0[b] / r1).ln() - e.n_params as f64 * nb.ln();
-                }
-            }
-        }
-        let mut wins = vec![0usize; effects.len()];
-        #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
-        for b in 0..b_count {
-            let mut best = (usize::MAX, 0.0f64);
-            for &k in &passing {
-                if dbic[k][b] > best.1 {
-                    best = (k, dbic[k][b]);
-                }
-            }
-            if best.0 != usize::MAX {
-                wins[best.0] += 1;
-            }
-        }
-        for (e, w) in effects.iter_mut().zip(wins) {
-            e.inclusion_probability = w as f64 / b_count as f64;
-        }
-    }
-
-    // Explaining candidates first, by held-out RMS after (lowest first), then the rest by score.
-    effects.sort_by(|a, b| {
-        b.explains.cmp(&a.explains).then(if a.explains {
-            a.holdout_rms_after_um.total_cmp(&b.holdout_rms_after_um)
-        } else {
-            b.score.total_cmp(&a.score)
-        })
-    });
-
-    // ---- verdict, ties ----
-    let mut verdict = "none".to_string();
-    let mut ties = Vec::new();
-    let mut note;
-    let n_explain = effects.iter().take_while(|e| e.explains).count();
-    if n_explain > 0 {
-        // The leader (lowest held-out RMS) and every explaining candidate it does not beat materially.
-        let lead = &effects[0];
-        let gain_lead = rss_ho0 - ss(&lead.residual_after, hold);
-        let group: Vec<usize> = (0..n_explain)
-            .filter(|&j| {
-                if j == 0 {
-                    return true;
-                }
-                let d: Vec<f64> = hold
-                    .iter()
-                    .map(|&i| effects[j].residual_after[i].powi(2) - lead.residual_after[i].powi(2))
-                    .collect();
-                let (t, _) = stats::paired_t(&d);
-                let rss_j = ss(&effects[j].residual_after, hold);
-                let gain_j = rss_ho0 - rss_j;
-                // Held-out ΔBIC of the leader over j (Kass & Raftery 1995: ≥ 2 is positive evidence).
-                let evidence = effects[0].score - effects[j].score;
-                t < 2.0 || (gain_j >= TIE_GAIN_FRACTION * gain_lead && evidence < TIE_EVIDENCE)
-            })
-            .collect();
-        // The simplest of the group: not a last resort (the sensor-free `time_drift`) first, then fewest
-        // parameters, then the simplicity rank (a special case before its generalisation), then the
-        // lowest held-out RMS.
-        let family = |k: usize| &candidates[effects[k].family_index];
-        let pick = *group
-            .iter()
-            .min_by(|&&a, &&b| {
-                family(a)
-                    .last_resort
-                    .cmp(&family(b).last_resort)
-                    .then(effects[a].n_params.cmp(&effects[b].n_params))
-                    .then(family(a).simplicity.cmp(&family(b).simplicity))
-                    .then(a.cmp(&b))
-            })
-            .unwrap();
-        // Encompassing test on the training rows: a tied candidate replaces the simpler pick when its columns
-        // add significantly to the pick's refit (F-test, Bonferroni over its searched variants) while the
-        // pick's columns add nothing significant to its own refit, and it is not worse on the held-out rows
-        // (e.g. a time constant the drift cannot mimic, or a trend in time the temperatures do not carry).
-        let mut pick = pick;
-        let mut encompassed = None;
-        for &j in &group {
-            if j == pick || effects[j].holdout_rms_after_um > effects[pick].holdout_rms_after_um {
-                continue;
-            }
-            let n_var = |k: usize| family(k).variants.len();
-            let cp = variant_of(&effects[pick]).columns();
-            let cj = variant_of(&effects[j]).columns();
-            let both: Vec<Vec<f64>> = cp.iter().chain(cj.iter()).cloned().collect();
-            let joint = fit_all(&with_extra(base_cols, &both), y, train);
-            let rss_pj = ss(&joint.resid, train);
-            let dof = n_tr.saturating_sub(joint.fit.rank).max(1) as f64;
-            let adds = |k: usize, q: usize| {
-                let rss_k = ss(&effects[k].residual_after, train);
-                if q == 0 || rss_pj <= 0.0 || rss_k <= rss_pj {
-                    return 1.0;
-                }
-                let f = ((rss_k - rss_pj) / q as f64) / (rss_pj / dof);
-                (stats::f_sf(f, q as f64, dof) * n_var(if k == pick { j } else { pick }) as f64)
-                    .min(1.0)
-            };
-            // p of j's columns added to the pick's refit, and of the pick's added to j's.
-            let p_j_over_pick = adds(pick, cj.len());
-            let p_pick_over_j = adds(j, cp.len());
-            if p_j_over_pick < opts.alpha && p_pick_over_j >= opts.alpha {
-                encompassed = Some((effects[pick].kind.clone(), p_j_over_pick, p_pick_over_j));
-                pick = j;
-                break;
-            }
-        }
-        if group.len() > 1 {
-            ties = group
-                .iter()
-                .filter(|&&j| j != pick)
-                .map(|&j| effects[j].kind.clone())
-                .collect();
-            let others: Vec<String> = group
-                .iter()
-                .filter(|&&j| j != pick)
-                .map(|&j| {
-                    format!(
-                        "{} ({} parameters, held-out RMS {:.3} µm)",
-                        effects[j].kind, effects[j].n_params, effects[j].holdout_rms_after_um
-                    )
-                })
-                .collect();
-            note = format!(
-                "{} ({} parameters, held-out RMS {:.3} µm) explains the gap as well as {} (not beaten on the held-out rows with paired t ≥ 2 and either a margin — it removes ≥ {} % of the held-out squared gap the best removes — or held-out ΔBIC ≥ 2); the simpler is preferred",
-                effects[pick].kind,
-                effects[pick].n_params,
-                effects[pick].holdout_rms_after_um,
-                others.join(", "),
-                100.0 * TIE_GAIN_FRACTION
-            );
-        } else {
-            note = format!(
-                "{} explains the held-out gap beyond noise (train p = {:.2e} after Bonferroni over {} variants; held-out RMS {:.3} → {:.3} µm, shrink {:.1} % ≥ {} %, gain {:.3} µm ≥ {}·σ = {:.3} µm)",
-                effects[pick].kind,
-                effects[pick].train_p_value,
-                total_variants,
-                gap.holdout_rms_um,
-                effects[pick].holdout_rms_after_um,
-                effects[pick].shrink_pct,
-                MIN_SHRINK_PCT,
-                effects[pick].holdout_gain_um,
-                MIN_NOISE_FRACTION,
-                MIN_NOISE_FRACTION * effects[pick].noise_um
-            );
-        }
-        if let Some((simpler, p_in, p_out)) = &encompassed {
-            note = note.replace("; the simpler is preferred", "");
-            note = format!(
-                "{note}; {} is chosen over the simpler {simpler}: on the training rows its columns add significantly to {simpler}'s refit (p = {p_in:.2e} after Bonferroni) while {simpler}'s add nothing to its own (p = {p_out:.2e}), and it is not worse on the held-out rows",
-                effects[pick].kind
-            );
-        }
-        if pick != 0 {
-            let c = effects.remove(pick);
-            effects.insert(0, c);
-        }
-        verdict = effects[0].kind.clone();
-    } else {
-        let sig = effects.iter().find(|e| e.train_p_value < opts.alpha);
-        note = match sig {
-            Some(c) => format!(
-                "no candidate explains the held-out gap beyond noise: the best significant one on the training rows, {}, changes the held-out RMS by {:.1} % ({:.3} µm; material needs ≥ {} % of the gap and ≥ {}·σ = {:.3} µm)",
-                c.kind,
-                c.shrink_pct,
-                c.holdout_gain_um,
-                MIN_SHRINK_PCT,
-                MIN_NOISE_FRACTION,
-                MIN_NOISE_FRACTION * c.noise_um
-            ),
-            None => "no candidate explains the held-out gap beyond noise (none passes the training test)".into(),
-        };
-    }
+    drop(rc);
+    evidence::add_evidence(&mut effects, candidates, c, opts.alpha, &progress);
+    let setting = verdict::Setting {
+        y: c.y,
+        base_columns: &c.base_columns,
+        train,
+        hold,
+        rss_holdout: base.rss_holdout,
+        holdout_rms_um: base.gap.holdout_rms_um,
+        total_variants,
+        alpha: opts.alpha,
+    };
+    let verdict::Verdict {
+        verdict,
+        ties,
+        note,
+    } = verdict::decide(&mut effects, candidates, &setting);
 
     let verdict_where = match effects.first() {
         Some(e) if e.kind == verdict => {
-            locate::locate_gain_variables(&where_vars, hold, &base.resid, &e.residual_after)
+            locate::locate_gain_variables(&where_vars, hold, &base.fitted.resid, &e.residual_after)
         }
         _ => Vec::new(),
     };
@@ -1092,25 +729,15 @@ pub fn judge(
         e.residual_after = Vec::new();
         e.contribution_um = Vec::new();
     }
-
-    // ---- residual checks ----
-    let l1p = c.position_order.as_ref().map(|o| lag1(&base.resid, o));
-    let l1t = lag1(&base.resid, &c.time_order);
-    let sq = (n_tr as f64).sqrt();
-    let residual_checks = ResidualChecks {
-        lag1_autocorr_position: l1p,
-        lag1_autocorr_time: l1t,
-        white_position: l1p.map(|r| r.abs() * sq < 3.0),
-        white_time: l1t.abs() * sq < 3.0,
-    };
+    let residual_checks = residual_checks(c, &base.fitted.resid);
     progress.step(|| format!("verdict {verdict}"));
 
     Ok(Diagnosis {
         target: c.target.clone(),
-        n_train: n_tr,
-        n_holdout: n_ho,
-        model: model_terms,
-        gap,
+        n_train: train.len(),
+        n_holdout: hold.len(),
+        model: base.terms(c),
+        gap: base.gap.clone(),
         where_,
         verdict_where,
         effects,
@@ -1120,10 +747,23 @@ pub fn judge(
         ties,
         not_applicable: c.not_applicable.clone(),
         residual_checks,
-        noise_um: noise2.sqrt(),
-        residual: base.resid,
-        model_columns: base_cols.clone(),
+        noise_um: base.noise2.sqrt(),
+        residual: base.fitted.resid,
+        model_columns: c.base_columns.clone(),
     })
+}
+
+/// Lag-1 autocorrelation of the base model's training residual in position and time order.
+fn residual_checks(c: &Campaign, resid: &[f64]) -> ResidualChecks {
+    let l1p = c.position_order.as_ref().map(|o| lag1(resid, o));
+    let l1t = lag1(resid, &c.time_order);
+    let sq = (c.train.len() as f64).sqrt();
+    ResidualChecks {
+        lag1_autocorr_position: l1p,
+        lag1_autocorr_time: l1t,
+        white_position: l1p.map(|r| r.abs() * sq < 3.0),
+        white_time: l1t.abs() * sq < 3.0,
+    }
 }
 
 #[cfg(test)]

@@ -35,6 +35,7 @@
 pub mod basis;
 pub mod dataset;
 pub mod engine;
+pub mod error;
 pub mod judge;
 pub mod lines;
 pub mod locate;
@@ -48,5 +49,6 @@ pub mod stats;
 /// The effect vocabulary is the twin's (one definition for the twin and the diagnosis).
 pub use axcomp_effects::EffectKind;
 pub use engine::{Candidate, DiagnoseOptions, Diagnosis, Gap, diagnose};
+pub use error::DiagnoseError;
 pub use locate::Region;
 pub use obs::Observations;

@@ -287,8 +287,6 @@ fn candidates<'a>(
     train: &[usize],
     opts: &LineOptions,
 ) -> (Vec<CandidateFamily<'a>>, Vec<String>) {
-    let n = obs.n_rows();
-    let rd = &obs.data.readings;
     let kinds = opts
         .candidates
         .clone()
@@ -302,19 +300,7 @@ fn candidates<'a>(
             .filter(|c| f(*c) && !model.contains(c))
             .collect()
     };
-    // Axis positions scaled to [−1, 1] (zero at the axis's zero), and which axes move on training rows.
-    let mut u = vec![vec![0.0; n]; 3];
-    let mut moves = [false; 3];
-    for k in 0..3 {
-        let m = rd.iter().map(|r| r.q[k].abs()).fold(0.0, f64::max);
-        if m > 0.0 {
-            for (i, r) in rd.iter().enumerate() {
-                u[k][i] = r.q[k] / m;
-            }
-        }
-        moves[k] = varies(&u[k], train);
-    }
-    let axis_name = |k: usize| ['X', 'Y', 'Z'][k];
+    let rows = RowInputs::new(obs, train);
     // Knot grids of the component candidates: 1, 2 and 4 intervals per axis (when coarser than the
     // model's), then the model's own grid.
     let coarse: Vec<Design> = [1usize, 2, 4]
@@ -381,150 +367,212 @@ fn candidates<'a>(
                     )),
                 }
             }
-            LineEffect::CrossCoupling => {
-                let mut variants = Vec::new();
-                for a in 0..3 {
-                    for c in 0..3 {
-                        if a == c || !moves[a] || !moves[c] {
-                            continue;
-                        }
-                        let mut cols = Vec::new();
-                        for i in 1..=2 {
-                            for j in 1..=2 {
-                                cols.push(
-                                    (0..n)
-                                        .map(|r| rd[r].beam[a] * u[a][r].powi(i) * u[c][r].powi(j))
-                                        .collect::<Vec<f64>>(),
-                                );
-                            }
-                        }
-                        cols.retain(|col| train.iter().any(|&r| col[r] != 0.0));
-                        if cols.is_empty() {
-                            continue;
-                        }
-                        let mut params = Map::new();
-                        params.insert("axis".into(), json!(axis_name(a).to_string()));
-                        params.insert("depends_on".into(), json!(axis_name(c).to_string()));
-                        variants.push(CandidateVariant::new(cols, params, 1));
-                    }
-                }
-                if variants.is_empty() {
-                    na.push("cross_coupling: needs two axes that move along beams with a component along one of them".into());
-                } else {
-                    fams.push(CandidateFamily::new(kind.name(), variants));
-                }
-            }
-            LineEffect::ThermalDrift => {
-                let order = time_order(obs);
-                let dts: Vec<(String, Vec<f64>)> = obs
-                    .temperatures
-                    .iter()
-                    .map(|t| {
-                        let t0 = t.values[order[0]];
-                        (t.name.clone(), t.values.iter().map(|v| v - t0).collect())
-                    })
-                    .filter(|(_, v): &(String, Vec<f64>)| varies(v, train))
-                    .collect();
-                if dts.is_empty() {
-                    na.push(
-                        "thermal_drift: needs a `*_degC` column that varies on the training rows"
-                            .into(),
-                    );
-                    continue;
-                }
-                let mut sensor_sets: Vec<Vec<usize>> = (0..dts.len()).map(|s| vec![s]).collect();
-                if dts.len() > 1 {
-                    sensor_sets.push((0..dts.len()).collect());
-                }
-                let searched = 1 + usize::from(sensor_sets.len() > 1);
-                let mut variants = Vec::new();
-                for set in &sensor_sets {
-                    for form in ["scale", "offset", "scale+offset"] {
-                        let mut cols = Vec::new();
-                        for &s in set {
-                            for k in 0..3 {
-                                if form != "offset" && moves[k] {
-                                    cols.push(
-                                        (0..n)
-                                            .map(|r| {
-                                                rd[r].beam[k] * rd[r].q[k] / 1000.0 * dts[s].1[r]
-                                            })
-                                            .collect::<Vec<f64>>(),
-                                    );
-                                }
-                                if form != "scale" {
-                                    cols.push(
-                                        (0..n)
-                                            .map(|r| rd[r].beam[k] * dts[s].1[r])
-                                            .collect::<Vec<f64>>(),
-                                    );
-                                }
-                            }
-                        }
-                        cols.retain(|col| train.iter().any(|&r| col[r] != 0.0));
-                        if cols.is_empty() {
-                            continue;
-                        }
-                        let mut params = Map::new();
-                        params.insert(
-                            "sensors".into(),
-                            json!(set.iter().map(|&s| dts[s].0.clone()).collect::<Vec<_>>()),
-                        );
-                        params.insert("form".into(), json!(form));
-                        variants.push(CandidateVariant::new(cols, params, searched));
-                    }
-                }
-                if variants.is_empty() {
-                    na.push("thermal_drift: no training beam reads the sensors' terms".into());
-                    continue;
-                }
-                let mut f = CandidateFamily::new(kind.name(), variants);
-                f.simplicity = 0;
-                fams.push(f);
-            }
-            LineEffect::TimeDrift => {
-                let Some(t) = obs.time_s.as_ref().filter(|t| varies(t, train)) else {
-                    na.push(
-                        "time_drift: needs a `time_s` column that varies on the training rows"
-                            .into(),
-                    );
-                    continue;
-                };
-                let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
-                let hi = t.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-                let ts: Vec<f64> = t.iter().map(|v| 2.0 * (v - lo) / (hi - lo) - 1.0).collect();
-                let mut variants = Vec::new();
-                for degree in 1..=3usize {
-                    let mut cols = Vec::new();
-                    for k in 0..3 {
-                        for j in 1..=degree {
-                            cols.push(
-                                (0..n)
-                                    .map(|r| rd[r].beam[k] * legendre(j, ts[r]))
-                                    .collect::<Vec<f64>>(),
-                            );
-                        }
-                    }
-                    cols.retain(|col| train.iter().any(|&r| col[r] != 0.0));
-                    if cols.is_empty() {
-                        continue;
-                    }
-                    let mut params = Map::new();
-                    params.insert("degree".into(), json!(degree));
-                    variants.push(CandidateVariant::new(cols, params, 1));
-                }
-                if variants.is_empty() {
-                    na.push("time_drift: no training beam reads a drift".into());
-                    continue;
-                }
-                let mut f = CandidateFamily::new(kind.name(), variants);
-                f.last_resort = true;
-                f.simplicity = 3;
-                fams.push(f);
-            }
+            LineEffect::CrossCoupling => add(cross_coupling(&rows), &mut fams, &mut na),
+            LineEffect::ThermalDrift => add(thermal_drift(obs, &rows), &mut fams, &mut na),
+            LineEffect::TimeDrift => add(time_drift(obs, &rows), &mut fams, &mut na),
         }
     }
     (fams, na)
+}
+
+/// The per-row inputs of the cross-coupling and drift families.
+struct RowInputs<'r> {
+    rd: &'r [axcomp_geometry::data::LineReading],
+    /// Axis positions scaled to [−1, 1] (zero at the axis's zero).
+    u: Vec<Vec<f64>>,
+    /// Which axes move on the training rows.
+    moves: [bool; 3],
+    train: &'r [usize],
+}
+
+impl<'r> RowInputs<'r> {
+    fn new(obs: &'r LineObservations, train: &'r [usize]) -> RowInputs<'r> {
+        let rd = &obs.data.readings;
+        let n = rd.len();
+        let mut u = vec![vec![0.0; n]; 3];
+        let mut moves = [false; 3];
+        for k in 0..3 {
+            let m = rd.iter().map(|r| r.q[k].abs()).fold(0.0, f64::max);
+            if m > 0.0 {
+                for (i, r) in rd.iter().enumerate() {
+                    u[k][i] = r.q[k] / m;
+                }
+            }
+            moves[k] = varies(&u[k], train);
+        }
+        RowInputs {
+            rd,
+            u,
+            moves,
+            train,
+        }
+    }
+}
+
+/// A built family joins the candidates; a reason joins `not_applicable`.
+fn add<'a>(
+    built: Result<CandidateFamily<'a>, String>,
+    fams: &mut Vec<CandidateFamily<'a>>,
+    na: &mut Vec<String>,
+) {
+    match built {
+        Ok(f) => fams.push(f),
+        Err(why) => na.push(why),
+    }
+}
+
+/// `cross_coupling`: an axis's position error depending on another axis's position (products of powers
+/// 1…2 of both, along the beam's component of the first).
+#[allow(clippy::needless_range_loop)]
+fn cross_coupling<'a>(x: &RowInputs) -> Result<CandidateFamily<'a>, String> {
+    let (rd, u, moves, train) = (x.rd, &x.u, x.moves, x.train);
+    let n = rd.len();
+    let axis_name = |k: usize| ['X', 'Y', 'Z'][k];
+    let mut variants = Vec::new();
+    for a in 0..3 {
+        for c in 0..3 {
+            if a == c || !moves[a] || !moves[c] {
+                continue;
+            }
+            let mut cols = Vec::new();
+            for i in 1..=2 {
+                for j in 1..=2 {
+                    cols.push(
+                        (0..n)
+                            .map(|r| rd[r].beam[a] * u[a][r].powi(i) * u[c][r].powi(j))
+                            .collect::<Vec<f64>>(),
+                    );
+                }
+            }
+            cols.retain(|col| train.iter().any(|&r| col[r] != 0.0));
+            if cols.is_empty() {
+                continue;
+            }
+            let mut params = Map::new();
+            params.insert("axis".into(), json!(axis_name(a).to_string()));
+            params.insert("depends_on".into(), json!(axis_name(c).to_string()));
+            variants.push(CandidateVariant::new(cols, params, 1));
+        }
+    }
+    if variants.is_empty() {
+        return Err(
+            "cross_coupling: needs two axes that move along beams with a component along one of them"
+                .into(),
+        );
+    }
+    Ok(CandidateFamily::new(
+        LineEffect::CrossCoupling.name(),
+        variants,
+    ))
+}
+
+/// `thermal_drift`: per sensor (and all together), a scale (position × ΔT) and/or an offset (ΔT) along
+/// each axis's beam component.
+#[allow(clippy::needless_range_loop)]
+fn thermal_drift<'a>(obs: &LineObservations, x: &RowInputs) -> Result<CandidateFamily<'a>, String> {
+    let (rd, moves, train) = (x.rd, x.moves, x.train);
+    let n = rd.len();
+    let order = time_order(obs);
+    let dts: Vec<(String, Vec<f64>)> = obs
+        .temperatures
+        .iter()
+        .map(|t| {
+            let t0 = t.values[order[0]];
+            (t.name.clone(), t.values.iter().map(|v| v - t0).collect())
+        })
+        .filter(|(_, v): &(String, Vec<f64>)| varies(v, train))
+        .collect();
+    if dts.is_empty() {
+        return Err(
+            "thermal_drift: needs a `*_degC` column that varies on the training rows".into(),
+        );
+    }
+    let mut sensor_sets: Vec<Vec<usize>> = (0..dts.len()).map(|s| vec![s]).collect();
+    if dts.len() > 1 {
+        sensor_sets.push((0..dts.len()).collect());
+    }
+    let searched = 1 + usize::from(sensor_sets.len() > 1);
+    let mut variants = Vec::new();
+    for set in &sensor_sets {
+        for form in ["scale", "offset", "scale+offset"] {
+            let mut cols = Vec::new();
+            for &s in set {
+                for k in 0..3 {
+                    if form != "offset" && moves[k] {
+                        cols.push(
+                            (0..n)
+                                .map(|r| rd[r].beam[k] * rd[r].q[k] / 1000.0 * dts[s].1[r])
+                                .collect::<Vec<f64>>(),
+                        );
+                    }
+                    if form != "scale" {
+                        cols.push(
+                            (0..n)
+                                .map(|r| rd[r].beam[k] * dts[s].1[r])
+                                .collect::<Vec<f64>>(),
+                        );
+                    }
+                }
+            }
+            cols.retain(|col| train.iter().any(|&r| col[r] != 0.0));
+            if cols.is_empty() {
+                continue;
+            }
+            let mut params = Map::new();
+            params.insert(
+                "sensors".into(),
+                json!(set.iter().map(|&s| dts[s].0.clone()).collect::<Vec<_>>()),
+            );
+            params.insert("form".into(), json!(form));
+            variants.push(CandidateVariant::new(cols, params, searched));
+        }
+    }
+    if variants.is_empty() {
+        return Err("thermal_drift: no training beam reads the sensors' terms".into());
+    }
+    let mut f = CandidateFamily::new(LineEffect::ThermalDrift.name(), variants);
+    f.simplicity = 0;
+    Ok(f)
+}
+
+/// `time_drift`: Legendre polynomials of degree 1…3 of the scaled time along each beam component (a last
+/// resort: blamed only when no sensor explains the gap as well).
+fn time_drift<'a>(obs: &LineObservations, x: &RowInputs) -> Result<CandidateFamily<'a>, String> {
+    let (rd, train) = (x.rd, x.train);
+    let n = rd.len();
+    let Some(t) = obs.time_s.as_ref().filter(|t| varies(t, train)) else {
+        return Err("time_drift: needs a `time_s` column that varies on the training rows".into());
+    };
+    let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
+    let hi = t.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let ts: Vec<f64> = t.iter().map(|v| 2.0 * (v - lo) / (hi - lo) - 1.0).collect();
+    let mut variants = Vec::new();
+    for degree in 1..=3usize {
+        let mut cols = Vec::new();
+        for k in 0..3 {
+            for j in 1..=degree {
+                cols.push(
+                    (0..n)
+                        .map(|r| rd[r].beam[k] * legendre(j, ts[r]))
+                        .collect::<Vec<f64>>(),
+                );
+            }
+        }
+        cols.retain(|col| train.iter().any(|&r| col[r] != 0.0));
+        if cols.is_empty() {
+            continue;
+        }
+        let mut params = Map::new();
+        params.insert("degree".into(), json!(degree));
+        variants.push(CandidateVariant::new(cols, params, 1));
+    }
+    if variants.is_empty() {
+        return Err("time_drift: no training beam reads a drift".into());
+    }
+    let mut f = CandidateFamily::new(LineEffect::TimeDrift.name(), variants);
+    f.last_resort = true;
+    f.simplicity = 3;
+    Ok(f)
 }
 
 fn time_order(obs: &LineObservations) -> Vec<usize> {

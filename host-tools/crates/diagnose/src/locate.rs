@@ -229,9 +229,9 @@ mod tests {
 
     #[test]
     fn shares_stay_within_0_and_1_when_gains_are_negative() {
-        // Issue 13: a refit that gains 4 on x ≥ 90 and loses 0.35 elsewhere has a signed total of
-        // 4·11 − 0.35·90 = 12.5, so the signed share of the gaining region was 44/12.5 = 352 %. Shares are
-        // now of the positive part: the gaining region holds exactly 100 % (reference: direct sum, tol 1e-12).
+        // A refit that gains 4 on x ≥ 90 and loses 0.35 elsewhere has a signed total of 4·11 − 0.35·90 =
+        // 12.5, so a signed share of the gaining region would be 44/12.5 = 352 %. Shares are of the positive
+        // part: the gaining region holds exactly 100 % (reference: direct sum, tol 1e-12).
         let v: Vec<f64> = (0..=100).map(|i| i as f64).collect();
         let g: Vec<f64> = v
             .iter()

@@ -7,8 +7,8 @@
 //! would give (`‖P_{Z̃} r‖²` with `Z̃` the candidate columns made orthogonal to the model).
 //!
 //! Method: columns are scaled to unit RMS and decomposed by a thin SVD; singular values below
-//! `√1e-9·σ_max` (the eigenvalues of the scaled Gram matrix below `1e-9·λ_max`, this module's
-//! former threshold) are treated as zero (minimum-norm pseudo-inverse solution).
+//! `√1e-9·σ_max` (the eigenvalues of the scaled Gram matrix below `1e-9·λ_max`) are treated as zero
+//! (minimum-norm pseudo-inverse solution).
 
 use axcomp_numeric::lsq::{DMatrix, column_space, column_space_scaled, lstsq_min_norm};
 

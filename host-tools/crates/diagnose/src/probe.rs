@@ -1,5 +1,5 @@
-//! Diagnosis on touch-probe data (issue 12, contract "Effect kinds for geometry, rotary-axis and probe
-//! data"): which unmodelled effect explains what the probe model misses on held-out touches.
+//! Diagnosis on touch-probe data (contract "Effect kinds for geometry, rotary-axis and probe data"):
+//! which unmodelled effect explains what the probe model misses on held-out touches.
 //!
 //! # Glossary
 //! - **touch**: a latched stylus-tip centre `p`, its unit approach `u` (toward the surface), the probing
@@ -45,6 +45,9 @@
 use axcomp_effects::ProbeEffect;
 use axcomp_probe::{DirSpeed, Touch};
 use serde_json::{Map, Value, json};
+
+mod artefacts;
+mod families;
 
 /// One candidate variant: its columns over all rows and its parameters (what the variant is).
 pub type ProbeVariant = crate::judge::BuiltVariant;
@@ -249,473 +252,31 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
     let holdout: Vec<usize> = (0..n).filter(|&i| d.held_out[i]).collect();
     let ds: Vec<DirSpeed> = d.touches.iter().map(Touch::dir_speed).collect();
 
-    // ---- artefacts: linearisation, target, normals, placement columns ----
-    let mut names: Vec<String> = Vec::new();
-    let art: Vec<usize> = d
-        .artefact
-        .iter()
-        .map(|a| match names.iter().position(|x| x == a) {
-            Some(k) => k,
-            None => {
-                names.push(a.clone());
-                names.len() - 1
-            }
-        })
-        .collect();
-    let mut y = vec![0.0; n];
-    let mut normal = vec![[0.0; 3]; n];
-    let mut base_columns: Vec<Vec<f64>> = Vec::new();
-    let mut base_terms = Vec::new();
-    let mut projections: Vec<(Vec<usize>, Vec<Vec<f64>>)> = Vec::new();
-    let mut artefacts = Vec::new();
-    for (a, name) in names.iter().enumerate() {
-        let rows: Vec<usize> = (0..n).filter(|&i| art[i] == a).collect();
-        let tr: Vec<usize> = rows.iter().copied().filter(|&i| !d.held_out[i]).collect();
-        let ho: Vec<usize> = rows.iter().copied().filter(|&i| d.held_out[i]).collect();
-        let pts = |r: &[usize]| -> Vec<[f64; 3]> {
-            r.iter().map(|&i| d.touches[i].position_mm).collect()
-        };
-        let labels =
-            |r: &[usize]| -> Vec<String> { r.iter().map(|&i| d.labels[i].clone()).collect() };
-        // A sphere when the touches span three dimensions (≥ 4 not on one plane); fitted on the training
-        // touches when they suffice (else on all of the artefact's touches: the placement is projected out).
-        let fit_rows = if tr.len() >= 4
-            && axcomp_probe::geometry::check_not_coplanar(&pts(&tr), &labels(&tr)).is_ok()
-        {
-            Some(tr.clone())
-        } else if rows.len() >= 4
-            && axcomp_probe::geometry::check_not_coplanar(&pts(&rows), &labels(&rows)).is_ok()
-        {
-            Some(rows.clone())
-        } else {
-            None
-        };
-        let mut fit = ArtefactFit {
-            name: name.clone(),
-            shape: "planar",
-            reference_mm: [0.0; 3],
-            radius_mm: 0.0,
-            train_touches: tr.len(),
-            holdout_touches: ho.len(),
-            placement: if tr.is_empty() { "projected" } else { "base" },
-        };
-        let mut cols: Vec<Vec<f64>> = Vec::new();
-        let zero = || vec![0.0; n];
-        // The artefact's placement columns on its rows: a size change along the normal (1), then a
-        // translation (the normal's three components).
-        let size_and_normal = |normal: &[[f64; 3]]| -> Vec<Vec<f64>> {
-            let mut size = zero();
-            for &i in &rows {
-                size[i] = 1.0;
-            }
-            let mut out = vec![size];
-            #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
-            for k in 0..3 {
-                let mut c = zero();
-                for &i in &rows {
-                    c[i] = normal[i][k];
-                }
-                out.push(c);
-            }
-            out
-        };
-        if let Some(fr) = fit_rows {
-            let s = axcomp_probe::geometric_sphere(&pts(&fr), None)
-                .map_err(|e| format!("artefact `{name}`: sphere fit: {e}"))?;
-            fit.shape = "sphere";
-            fit.reference_mm = s.center_mm;
-            fit.radius_mm = s.radius_mm;
-            for &i in &rows {
-                let q = sub(d.touches[i].position_mm, s.center_mm);
-                let l = norm(q);
-                if l.is_nan() || l <= 0.0 {
-                    return Err(format!(
-                        "{}: the touch is at the fitted sphere centre",
-                        d.labels[i]
-                    ));
-                }
-                normal[i] = [q[0] / l, q[1] / l, q[2] / l];
-                y[i] = (l - s.radius_mm) * 1000.0;
-            }
-            cols.extend(size_and_normal(&normal));
-        } else {
-            let m = rows.len().max(1) as f64;
-            let mut pbar = [0.0; 3];
-            for &i in &rows {
-                #[allow(clippy::needless_range_loop)] // parallel arrays indexed together
-                for k in 0..3 {
-                    pbar[k] += d.touches[i].position_mm[k] / m;
-                }
-            }
-            fit.reference_mm = pbar;
-            for &i in &rows {
-                let u = d.touches[i].approach;
-                normal[i] = [-u[0], -u[1], -u[2]];
-                let q = sub(d.touches[i].position_mm, pbar);
-                y[i] = (0..3).map(|k| normal[i][k] * q[k]).sum::<f64>() * 1000.0;
-            }
-            cols.extend(size_and_normal(&normal));
-            // A translation along a direction no touch approaches is left out (its column is noise).
-            cols.retain(|c| rms_on(c, &rows) >= 1e-3);
-            // Small rotation ω of the artefact: n·(ω × q) = ω·(q × n), q in mm. A component that the
-            // artefact's shape does not show (a ring's tilt: its touches have one height) comes out at the
-            // measured residual's µm level: columns below 1e-3 of the artefact's extent are left out, so
-            // that no placement column is built from what was measured.
-            let qs: Vec<[f64; 3]> = rows
-                .iter()
-                .map(|&i| sub(d.touches[i].position_mm, pbar))
-                .collect();
-            let extent = (qs
-                .iter()
-                .map(|q| q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
-                .sum::<f64>()
-                / qs.len().max(1) as f64)
-                .sqrt();
-            for k in 0..3 {
-                let mut c = zero();
-                for (q, &i) in qs.iter().zip(&rows) {
-                    let nn = normal[i];
-                    let x = [
-                        q[1] * nn[2] - q[2] * nn[1],
-                        q[2] * nn[0] - q[0] * nn[2],
-                        q[0] * nn[1] - q[1] * nn[0],
-                    ];
-                    c[i] = x[k];
-                }
-                if rms_on(&c, &rows) >= 1e-3 * extent {
-                    cols.push(c);
-                }
-            }
-        }
-        if tr.is_empty() {
-            let b = orthonormal(cols, &ho);
-            projections.push((ho.clone(), b));
-        } else {
-            let b = orthonormal(cols, &rows);
-            base_terms.push((
-                "artefact_placement".to_string(),
-                params(&[("artefact", json!(name)), ("shape", json!(fit.shape))]),
-                b.len(),
-            ));
-            base_columns.extend(b);
-        }
-        artefacts.push(fit);
-    }
+    let artefacts::Linearised {
+        art,
+        mut y,
+        normal,
+        mut base_columns,
+        mut base_terms,
+        projections,
+        artefacts,
+    } = artefacts::linearise(d)?;
 
     // The target before any projection (for the nominal positions below).
     let y_raw = y.clone();
-    // ---- direction / speed / position / temperature variables ----
-    let c2: Vec<f64> = ds.iter().map(|x| (1.0 - x.t * x.t).max(0.0)).collect();
-    let t2: Vec<f64> = ds.iter().map(|x| x.t * x.t).collect();
-    let v: Vec<f64> = ds.iter().map(|x| x.v).collect();
-    let has_speed = {
-        let (lo, hi) = train
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |a, &i| {
-                (a.0.min(v[i]), a.1.max(v[i]))
-            });
-        hi - lo > 1e-9 * hi.abs().max(1e-9)
-    };
-    let harmonic = |k: usize| -> (Vec<f64>, Vec<f64>) {
-        let cs = (0..n)
-            .map(|i| c2[i] * (k as f64 * ds[i].theta).cos())
-            .collect();
-        let sn = (0..n)
-            .map(|i| c2[i] * (k as f64 * ds[i].theta).sin())
-            .collect();
-        (cs, sn)
-    };
-    let has_azimuth = train.iter().any(|&i| c2[i] > 0.05);
-
-    // ---- candidate families ----
-    let mut families = Vec::new();
-    let mut not_applicable = Vec::new();
-    let mut notes = Vec::new();
-    // lobing
-    {
-        let mut vars = Vec::new();
-        // Order 2 is left out: on a sphere it is a linear machine error's pattern (n_x² − n_y², n_x·n_y).
-        let orders: [(&[usize], bool); 5] = [
-            (&[3], false),
-            (&[3, 6], false),
-            (&[3, 6], true),
-            (&[3, 6, 9], true),
-            (&[4, 8], true),
-        ];
-        for (ks, zonal) in orders {
-            let mut cols = Vec::new();
-            for &k in ks {
-                let (a, b) = harmonic(k);
-                cols.push(a);
-                cols.push(b);
-            }
-            if zonal {
-                cols.push(c2.clone());
-            }
-            let m = cols.len();
-            vars.push(ProbeVariant {
-                columns: cols,
-                params: params(&[
-                    ("azimuth_orders", json!(ks)),
-                    ("zonal_cos2_elevation", json!(zonal)),
-                ]),
-                n_params: m,
-            });
-        }
-        if has_azimuth {
-            families.push(ProbeFamily {
-                kind: ProbeEffect::Lobing,
-                variants: vars,
-            });
-        } else {
-            not_applicable.push((
-                ProbeEffect::Lobing,
-                "no lateral touch among the training touches".into(),
-            ));
-        }
-    }
-    // speed_pretravel and latch_latency
-    if has_speed {
-        let lat: Vec<f64> = (0..n).map(|i| v[i] * c2[i]).collect();
-        let ax: Vec<f64> = (0..n).map(|i| v[i] * t2[i]).collect();
-        let (h3c, h3s) = harmonic(3);
-        let vh3c: Vec<f64> = (0..n).map(|i| v[i] * h3c[i]).collect();
-        let vh3s: Vec<f64> = (0..n).map(|i| v[i] * h3s[i]).collect();
-        families.push(ProbeFamily {
-            kind: ProbeEffect::SpeedPretravel,
-            variants: vec![
-                ProbeVariant {
-                    columns: vec![lat.clone(), ax.clone()],
-                    params: params(&[("terms", json!(["v·cos²φ", "v·sin²φ"]))]),
-                    n_params: 2,
-                },
-                ProbeVariant {
-                    columns: vec![lat, ax, vh3c, vh3s],
-                    params: params(&[(
-                        "terms",
-                        json!(["v·cos²φ", "v·sin²φ", "v·cos²φ·cos3θ", "v·cos²φ·sin3θ"]),
-                    )]),
-                    n_params: 4,
-                },
-            ],
-        });
-        families.push(ProbeFamily {
-            kind: ProbeEffect::LatchLatency,
-            variants: vec![ProbeVariant {
-                columns: vec![v.clone()],
-                params: params(&[(
-                    "terms",
-                    json!(["v (along the approach, every direction alike)"]),
-                )]),
-                n_params: 1,
-            }],
-        });
-        notes.push(
-            "latch latency and a speed-linear pretravel both move the latched point along the approach by an \
-             amount ∝ speed: touches tell them apart only when the speed term differs between lateral and \
-             axial touches (speed_pretravel); an isotropic speed term is latch_latency, with speed_pretravel \
-             tied"
-                .into(),
-        );
-    } else {
-        for k in [ProbeEffect::SpeedPretravel, ProbeEffect::LatchLatency] {
-            not_applicable.push((
-                k,
-                "one probing speed in the training touches (or no feed_mm_min)".into(),
-            ));
-        }
-    }
-    // stylus_bending
-    {
-        let el_spread = {
-            let (lo, hi) = train
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |a, &i| {
-                    (a.0.min(c2[i]), a.1.max(c2[i]))
-                });
-            hi - lo
-        };
-        if el_spread > 0.05 {
-            families.push(ProbeFamily {
-                kind: ProbeEffect::StylusBending,
-                variants: vec![
-                    ProbeVariant {
-                        columns: vec![c2.iter().map(|x| x.sqrt()).collect()],
-                        params: params(&[("term", json!("cos φ (horizontal approach component)"))]),
-                        n_params: 1,
-                    },
-                    ProbeVariant {
-                        columns: vec![c2.clone()],
-                        params: params(&[("term", json!("cos²φ"))]),
-                        n_params: 1,
-                    },
-                ],
-            });
-        } else {
-            not_applicable.push((
-                ProbeEffect::StylusBending,
-                "the training touches have one elevation: bending is a constant there".into(),
-            ));
-        }
-    }
-    // machine_geometry
-    {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for t in &d.touches {
-            for k in 0..3 {
-                lo[k] = lo[k].min(t.position_mm[k]);
-                hi[k] = hi[k].max(t.position_mm[k]);
-            }
-        }
-        let mid = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
-        let half = (0..3)
-            .map(|k| 0.5 * (hi[k] - lo[k]))
-            .fold(0.0, f64::max)
-            .max(1.0);
-        // Positions without the measured radial residual (the nominal surface-side point): a column built
-        // from the latched position itself would hold the target (`n·p = |p − C| + n·C` on a sphere).
-        let q: Vec<[f64; 3]> = (0..n)
-            .map(|i| {
-                let p = d.touches[i].position_mm;
-                [0, 1, 2].map(|k| (p[k] - y_raw[i] * 1e-3 * normal[i][k] - mid[k]) / half)
-            })
-            .collect();
-        let col = |k: usize, f: &dyn Fn(&[f64; 3]) -> f64| -> Vec<f64> {
-            (0..n).map(|i| normal[i][k] * f(&q[i])).collect()
-        };
-        let mut lin = Vec::new();
-        for k in 0..3 {
-            for j in 0..3 {
-                lin.push(col(k, &|p| p[j]));
-            }
-        }
-        let mut quad = lin.clone();
-        for k in 0..3 {
-            for j in 0..3 {
-                quad.push(col(k, &|p| p[j] * p[j]));
-            }
-            for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-                quad.push(col(k, &|p| p[a] * p[b]));
-            }
-        }
-        let scale = params(&[("centre_mm", json!(mid)), ("scale_mm", json!(half))]);
-        let mut p1 = scale.clone();
-        p1.insert("degree".into(), json!(1));
-        let mut p2 = scale;
-        p2.insert("degree".into(), json!(2));
-        families.push(ProbeFamily {
-            kind: ProbeEffect::MachineGeometry,
-            variants: vec![
-                ProbeVariant {
-                    columns: lin,
-                    params: p1,
-                    n_params: 9,
-                },
-                ProbeVariant {
-                    columns: quad,
-                    params: p2,
-                    n_params: 27,
-                },
-            ],
-        });
-        notes.push(
-            "a linear machine error seen on one sphere is a degree-2 pattern of the normal, like a direction \
-             dependence of the probe: only artefacts at other places (a plane grid, a second sphere) tell them \
-             apart"
-                .into(),
-        );
-    }
-    // thermal_drift
-    {
-        let mut vars = Vec::new();
-        for (name, t) in &d.temperatures {
-            let m = train.iter().map(|&i| t[i]).sum::<f64>() / train.len() as f64;
-            let dt: Vec<f64> = t.iter().map(|x| x - m).collect();
-            let spread = train
-                .iter()
-                .map(|&i| dt[i])
-                .fold(0.0f64, |a, x| a.max(x.abs()));
-            if spread.is_nan() || spread <= 1e-6 {
-                continue;
-            }
-            let drift: Vec<Vec<f64>> = (0..3)
-                .map(|k| (0..n).map(|i| normal[i][k] * dt[i]).collect())
-                .collect();
-            vars.push(ProbeVariant {
-                columns: drift.clone(),
-                params: params(&[("sensor", json!(name)), ("terms", json!("n·ΔT (drift)"))]),
-                n_params: 3,
-            });
-            let mut with_size = drift;
-            with_size.push(dt.clone());
-            vars.push(ProbeVariant {
-                columns: with_size,
-                params: params(&[
-                    ("sensor", json!(name)),
-                    ("terms", json!("n·ΔT + ΔT (drift and size)")),
-                ]),
-                n_params: 4,
-            });
-        }
-        if vars.is_empty() {
-            not_applicable.push((
-                ProbeEffect::ThermalDrift,
-                "no *_degC column that varies over the training touches".into(),
-            ));
-        } else {
-            families.push(ProbeFamily {
-                kind: ProbeEffect::ThermalDrift,
-                variants: vars,
-            });
-        }
-    }
-
+    let inputs = families::Inputs::new(d, &train, &ds, &normal, &y_raw);
+    let has_speed = inputs.has_speed;
+    let families::Families {
+        mut families,
+        mut not_applicable,
+        notes,
+    } = families::build(&inputs);
     // ---- the base model: probe_pretravel and the named kinds ----
     let mut held: Vec<ProbeEffect> = Vec::new();
     if model.pretravel {
-        let (structure, why) = pretravel_structure(d, &train, &artefacts, &art)?;
-        let p = structure.len();
-        let mut phi = vec![0.0; p];
-        let mut cols = vec![vec![0.0; n]; p];
-        for i in 0..n {
-            structure.basis(ds[i], &mut phi);
-            for k in 0..p {
-                cols[k][i] = phi[k];
-            }
-        }
-        // The constant is each artefact's size (already in the placements).
-        let cols: Vec<Vec<f64>> = cols
-            .into_iter()
-            .filter(|c| c.iter().any(|&x| (x - 1.0).abs() > 1e-12))
-            .collect();
-        if let axcomp_probe::Structure::Harmonic {
-            max_order,
-            elevation_degree,
-            speed_terms,
-        } = structure
-        {
-            if max_order >= 3 {
-                held.push(ProbeEffect::Lobing);
-            }
-            if elevation_degree >= 1 {
-                held.push(ProbeEffect::StylusBending);
-            }
-            if speed_terms >= 1 {
-                held.push(ProbeEffect::LatchLatency);
-            }
-            if speed_terms >= 2 {
-                held.push(ProbeEffect::SpeedPretravel);
-            }
-        }
-        base_terms.push((
-            axcomp_effects::campaign_kinds::base_model::PROBE_PRETRAVEL.to_string(),
-            params(&[
-                ("structure", json!(structure.name())),
-                ("chosen", json!(why)),
-            ]),
-            cols.len(),
-        ));
+        let (cols, term, kinds) = pretravel_term(d, &train, &artefacts, &art, &ds)?;
+        held.extend(kinds);
+        base_terms.push(term);
         base_columns.extend(cols);
     }
     for k in &model.extra {
@@ -752,7 +313,84 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
         }
     }
 
-    let blocks = d.run.as_ref().map(|r| {
+    Ok(ProbeCampaign {
+        y,
+        base_columns,
+        base_terms,
+        train,
+        holdout,
+        blocks: run_blocks(d),
+        where_variables: where_variables(d, &ds, has_speed),
+        families,
+        held,
+        not_applicable,
+        notes,
+        artefacts,
+    })
+}
+
+/// A base term: (kind, params, number of columns).
+type BaseTerm = (String, Map<String, Value>, usize);
+
+/// `probe_pretravel`'s columns (the calibrated structure's basis without its constant), its term, and the
+/// effect kinds the structure holds.
+fn pretravel_term(
+    d: &ProbeData,
+    train: &[usize],
+    artefacts: &[ArtefactFit],
+    art: &[usize],
+    ds: &[DirSpeed],
+) -> Result<(Vec<Vec<f64>>, BaseTerm, Vec<ProbeEffect>), String> {
+    let n = ds.len();
+    let mut held = Vec::new();
+    let (structure, why) = pretravel_structure(d, train, artefacts, art)?;
+    let p = structure.len();
+    let mut phi = vec![0.0; p];
+    let mut cols = vec![vec![0.0; n]; p];
+    for i in 0..n {
+        structure.basis(ds[i], &mut phi);
+        for k in 0..p {
+            cols[k][i] = phi[k];
+        }
+    }
+    // The constant is each artefact's size (already in the placements).
+    let cols: Vec<Vec<f64>> = cols
+        .into_iter()
+        .filter(|c| c.iter().any(|&x| (x - 1.0).abs() > 1e-12))
+        .collect();
+    if let axcomp_probe::Structure::Harmonic {
+        max_order,
+        elevation_degree,
+        speed_terms,
+    } = structure
+    {
+        if max_order >= 3 {
+            held.push(ProbeEffect::Lobing);
+        }
+        if elevation_degree >= 1 {
+            held.push(ProbeEffect::StylusBending);
+        }
+        if speed_terms >= 1 {
+            held.push(ProbeEffect::LatchLatency);
+        }
+        if speed_terms >= 2 {
+            held.push(ProbeEffect::SpeedPretravel);
+        }
+    }
+    let term = (
+        axcomp_effects::campaign_kinds::base_model::PROBE_PRETRAVEL.to_string(),
+        params(&[
+            ("structure", json!(structure.name())),
+            ("chosen", json!(why)),
+        ]),
+        cols.len(),
+    );
+    Ok((cols, term, held))
+}
+
+/// Run index per row (blocks of the training rows), if the file has runs.
+fn run_blocks(d: &ProbeData) -> Option<Vec<usize>> {
+    d.run.as_ref().map(|r| {
         let mut u: Vec<&String> = Vec::new();
         r.iter()
             .map(|l| match u.iter().position(|x| *x == l) {
@@ -763,7 +401,12 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
                 }
             })
             .collect()
-    });
+    })
+}
+
+/// Where the gap may lie: the approach's azimuth and elevation, the feed (when it varies or is given) and
+/// time.
+fn where_variables(d: &ProbeData, ds: &[DirSpeed], has_speed: bool) -> Vec<(String, Vec<f64>)> {
     let mut where_variables = vec![
         (
             "azimuth_deg".to_string(),
@@ -783,20 +426,7 @@ pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, Str
     if let Some(t) = &d.time_s {
         where_variables.push(("time_s".to_string(), t.clone()));
     }
-    Ok(ProbeCampaign {
-        y,
-        base_columns,
-        base_terms,
-        train,
-        holdout,
-        blocks,
-        where_variables,
-        families,
-        held,
-        not_applicable,
-        notes,
-        artefacts,
-    })
+    where_variables
 }
 
 /// The pretravel structure of `probe_pretravel`: `axcomp-probe`'s calibration (best harmonic structure by
@@ -933,7 +563,7 @@ pub fn report_files(
     dir: &std::path::Path,
     c: &ProbeCampaign,
     d: &ProbeDiagnosis,
-) -> anyhow::Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
+) -> crate::error::Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
     let dg = &d.diagnosis;
     let mut files = Vec::new();
     let after = dg.verdict_candidate().map(|k| &k.residual_after);

@@ -49,14 +49,21 @@ pub fn write_report(
     dir: &Path,
     obs: &Observations,
     d: &Diagnosis,
-) -> anyhow::Result<Vec<std::path::PathBuf>> {
+) -> crate::error::Result<Vec<std::path::PathBuf>> {
+    use crate::error::DiagnoseError;
     let files = report_files(dir, obs, d)?;
-    std::fs::create_dir_all(dir)
-        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|cause| DiagnoseError::Io {
+        action: "create",
+        path: dir.display().to_string(),
+        cause,
+    })?;
     let mut written = Vec::new();
     for (path, bytes) in files {
-        axcomp_plot::write_atomic(&path, &bytes)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+        axcomp_plot::write_atomic(&path, &bytes).map_err(|cause| DiagnoseError::Io {
+            action: "write",
+            path: path.display().to_string(),
+            cause,
+        })?;
         written.push(path);
     }
     Ok(written)
@@ -74,9 +81,32 @@ pub fn report_files(
     dir: &Path,
     obs: &Observations,
     d: &Diagnosis,
-) -> anyhow::Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
+) -> crate::error::Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
     let hold = obs.holdout_rows();
-    let (shown, stride) = thin(&hold);
+    let (figs, mut written) = figures(dir, obs, d, &hold);
+    let mut md = summary_markdown(d, &hold);
+    md.push_str(&where_markdown(d));
+    for f in &figs {
+        md.push_str(&format!("\n![{f}]({f})\n"));
+    }
+    md.push_str(&candidates_markdown(d));
+    let path = dir.join("diagnosis.md");
+    written.push((path, md.into_bytes()));
+    Ok(written)
+}
+
+/// A figure's file name and bytes.
+type FigureFile = (std::path::PathBuf, Vec<u8>);
+
+/// The gap figures: per variable, the held-out gap of the model as given and, with a verdict, after
+/// refitting with it. Returns the file names and the files.
+fn figures(
+    dir: &Path,
+    obs: &Observations,
+    d: &Diagnosis,
+    hold: &[usize],
+) -> (Vec<String>, Vec<FigureFile>) {
+    let (shown, stride) = thin(hold);
     let after = d.verdict_candidate().map(|c| &c.residual_after);
     let by_direction = obs.direction.as_ref().filter(|dir| {
         let both = hold.iter().any(|&i| dir[i] > 0.0) && hold.iter().any(|&i| dir[i] < 0.0);
@@ -174,7 +204,11 @@ pub fn report_files(
             written.push((path, f.to_svg().into_bytes()));
         }
     }
+    (figs, written)
+}
 
+/// The report's head: the model, the verdict and its rule, and the gap before and after.
+fn summary_markdown(d: &Diagnosis, hold: &[usize]) -> String {
     let mut md = String::new();
     md.push_str(&format!("# Gap diagnosis of `{}`\n\n", d.target));
     let model: Vec<&str> = d.model.iter().map(|m| m.kind.as_str()).collect();
@@ -226,6 +260,12 @@ pub fn report_files(
             },
         ],
     ));
+    md
+}
+
+/// Where the gap lies: the regions holding most of it.
+fn where_markdown(d: &Diagnosis) -> String {
+    let mut md = String::new();
     md.push_str("\n## Where the gap lies\n\n");
     if d.where_.is_empty() {
         md.push_str("No region holds more of the gap than noise.\n");
@@ -254,9 +294,13 @@ pub fn report_files(
             &rows,
         ));
     }
-    for f in &figs {
-        md.push_str(&format!("\n![{f}]({f})\n"));
-    }
+    md
+}
+
+/// The candidates table (the whole model refitted with each), what is not applicable and the
+/// residual's whiteness.
+fn candidates_markdown(d: &Diagnosis) -> String {
+    let mut md = String::new();
     md.push_str("\n## Candidates (whole model refitted with each)\n\n");
     let rows: Vec<Vec<String>> = d
         .effects
@@ -319,7 +363,5 @@ pub fn report_files(
             .lag1_autocorr_position
             .map_or(String::new(), |r| format!(", position order {r:.3}"))
     ));
-    let path = dir.join("diagnosis.md");
-    written.push((path, md.into_bytes()));
-    Ok(written)
+    md
 }

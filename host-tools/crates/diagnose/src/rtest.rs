@@ -40,12 +40,13 @@
 use std::collections::BTreeMap;
 
 use axcomp_effects::RotaryEffect;
-use axcomp_kinematics::rotary::{FiveAxis, MachineKind, N_LOCATION, N_SETUP};
+use axcomp_kinematics::rotary::{FiveAxis, N_LOCATION};
 use axcomp_rtest::RtestData;
-use axcomp_rtest::effects::{EffectBasis, EffectTerm, linear_ranges};
 use nalgebra::{DMatrix, Vector3};
 use serde::Serialize;
 use serde_json::{Map, Value, json};
+
+mod families;
 
 /// R-test rows with the held-out mask and the columns the candidates use.
 #[derive(Debug, Clone)]
@@ -69,7 +70,8 @@ impl RtestObservations {
         ds: &axcomp_data::Dataset,
         machine: FiveAxis,
         holdout: &str,
-    ) -> anyhow::Result<RtestObservations> {
+    ) -> crate::error::Result<RtestObservations> {
+        use crate::error::DiagnoseError;
         let spec = axcomp_data::HoldoutSpec::parse(holdout)?;
         let held_out = spec.mask(ds)?;
         let data = RtestData::from_dataset(ds, machine, true)?;
@@ -77,11 +79,10 @@ impl RtestObservations {
         let time_s = if ds.has("time_s") {
             let t = ds.numeric("time_s")?.to_vec();
             if let Some(r) = t.iter().position(|v| !v.is_finite()) {
-                anyhow::bail!(
-                    "{}: `time_s` is {} (need a finite number)",
-                    ds.locate("time_s", r),
-                    t[r]
-                );
+                return Err(DiagnoseError::BadValue {
+                    at: ds.locate("time_s", r),
+                    what: format!("`time_s` is {} (need a finite number)", t[r]),
+                });
             }
             Some(t)
         } else {
@@ -92,11 +93,10 @@ impl RtestObservations {
             let col = format!("{s}_degC");
             let v = ds.numeric(&col)?.to_vec();
             if let Some(r) = v.iter().position(|x| !x.is_finite()) {
-                anyhow::bail!(
-                    "{}: `{col}` is {} (need a finite number)",
-                    ds.locate(&col, r),
-                    v[r]
-                );
+                return Err(DiagnoseError::BadValue {
+                    at: ds.locate(&col, r),
+                    what: format!("`{col}` is {} (need a finite number)", v[r]),
+                });
             }
             temperatures.push((s, v));
         }
@@ -107,8 +107,10 @@ impl RtestObservations {
             time_s,
             temperatures,
         };
-        o.validate()
-            .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
+        o.validate().map_err(|e| DiagnoseError::BadValue {
+            at: ds.source().to_string(),
+            what: e,
+        })?;
         Ok(o)
     }
 
@@ -278,240 +280,15 @@ pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<Rtest
         where_variables.push(("time_s".to_string(), per_row(&|i| t[i])));
     }
 
-    // ---- candidate families ----
-    let kind = machine.kind;
-    let mut families = Vec::new();
-    let mut not_applicable = Vec::new();
-    let e = [Vector3::x(), Vector3::y(), Vector3::z()];
-    let tilt_letter = machine.kind.tilt_letter().to_ascii_uppercase();
-
-    // The families' columns: the signatures of `axcomp_rtest::effects` (the same terms `fit rtest
-    // --effects` fits) at the training fit's location errors and set-up offsets, one column per parameter.
-    let term_columns = |kind: RotaryEffect, basis: EffectBasis| -> Vec<Vec<f64>> {
-        let term = EffectTerm { kind, basis };
-        let np = term.n_params(machine.kind);
-        let mut cols = vec![vec![0.0; 3 * n]; np];
-        for (i, pose) in data.poses.iter().enumerate() {
-            let (le, so) = axcomp_rtest::split_params(&fit.theta, data.setup[i]);
-            for (k, sig) in term.signatures(&machine, pose, &le, so).iter().enumerate() {
-                cols[k][3 * i..3 * i + 3].copy_from_slice(sig);
-            }
-        }
-        cols
-    };
-    // rotary_positioning
-    {
-        let mut variants = Vec::new();
-        for harmonics in 1..=4usize {
-            for tilt_degree in 1..=2usize {
-                let basis = EffectBasis::Positioning {
-                    c_harmonics: harmonics,
-                    tilt_degree,
-                };
-                variants.push(variant(
-                    term_columns(RotaryEffect::RotaryPositioning, basis),
-                    json!({"c_harmonics": harmonics, "tilt_degree": tilt_degree, "axes": format!("C and {tilt_letter}")}),
-                ));
-            }
-        }
-        families.push(RtestFamily {
-            kind: RotaryEffect::RotaryPositioning,
-            variants,
-        });
+    let families::Families {
+        families,
+        mut not_applicable,
+    } = families::Builder {
+        obs,
+        fit: &fit,
+        j: &j,
     }
-    // rotary_wobble: tilt about the two axes perpendicular to C and radial run-out, per harmonic.
-    {
-        let mut variants = Vec::new();
-        for set in [vec![1], vec![2], vec![3], vec![1, 2], vec![1, 2, 3]] {
-            let basis = EffectBasis::Wobble {
-                per_revolution: set.clone(),
-                tilt_degree: 0,
-            };
-            variants.push(variant(
-                term_columns(RotaryEffect::RotaryWobble, basis),
-                json!({"per_revolution": set, "components": "tilt about two axes ⊥ C, radial run-out"}),
-            ));
-        }
-        // The tilt axis's own wobble (A or B tilting about its two perpendicular axes as it turns, and its
-        // radial motion): without it an A-axis wobble is named `linear_geometry`, whose position
-        // polynomials absorb part of it. Powers 1…d of the tilt angle; the constant is a
-        // location error.
-        for tilt_degree in 1..=2usize {
-            let basis = EffectBasis::Wobble {
-                per_revolution: Vec::new(),
-                tilt_degree,
-            };
-            variants.push(variant(
-                term_columns(RotaryEffect::RotaryWobble, basis),
-                json!({"per_revolution": [], "tilt_degree": tilt_degree, "components": format!("tilt of the {tilt_letter} axis about its two perpendicular axes and its radial motion, powers 1…{tilt_degree} of its angle")}),
-            ));
-        }
-        families.push(RtestFamily {
-            kind: RotaryEffect::RotaryWobble,
-            variants,
-        });
-    }
-    // linear_geometry: e_i · P_k(q_j).
-    {
-        let ranges = linear_ranges(&machine, &data.poses);
-        let axis_names = ["X", "Y", "Z"];
-        let cols_for = |axes: &[usize], degree: usize| -> Vec<Vec<f64>> {
-            let basis = EffectBasis::Linear {
-                axes: axes.to_vec(),
-                degree,
-                range_mm: axes.iter().filter_map(|&a| ranges[a]).collect(),
-            };
-            term_columns(RotaryEffect::LinearGeometry, basis)
-        };
-        let moving: Vec<usize> = (0..3).filter(|&a| ranges[a].is_some()).collect();
-        if moving.is_empty() {
-            not_applicable.push((
-                RotaryEffect::LinearGeometry,
-                "the linear axes do not move on these poses".to_string(),
-            ));
-        } else {
-            let mut variants = Vec::new();
-            for degree in 1..=3 {
-                variants.push(variant(
-                    cols_for(&moving, degree),
-                    json!({"axes": moving.iter().map(|&a| axis_names[a]).collect::<String>(), "degree": degree}),
-                ));
-            }
-            if moving.len() > 1 {
-                for &a in &moving {
-                    for degree in 2..=3 {
-                        variants.push(variant(
-                            cols_for(&[a], degree),
-                            json!({"axes": axis_names[a], "degree": degree}),
-                        ));
-                    }
-                }
-            }
-            families.push(RtestFamily {
-                kind: RotaryEffect::LinearGeometry,
-                variants,
-            });
-        }
-    }
-    // Time and temperatures.
-    let tau: Option<Vec<f64>> = obs.time_s.as_ref().and_then(|t| {
-        let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
-        let hi = t.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-        (hi - lo > 0.0).then(|| t.iter().map(|v| (v - lo) / (hi - lo)).collect())
-    });
-    // The sphere's own set-up columns (table frame for trunnions, machine frame for a head).
-    let sphere: Vec<[Vector3<f64>; 3]> = (0..n)
-        .map(|i| {
-            let b = N_LOCATION + N_SETUP * data.setup[i];
-            [0, 1, 2].map(|a| {
-                Vector3::new(
-                    j[(3 * i, b + a)],
-                    j[(3 * i + 1, b + a)],
-                    j[(3 * i + 2, b + a)],
-                )
-            })
-        })
-        .collect();
-    let machine_frame = |w: &[f64]| -> Vec<Vec<f64>> {
-        e.iter()
-            .map(|&ax| stack(&w.iter().map(|&x| ax * x).collect::<Vec<_>>()))
-            .collect()
-    };
-    let table_frame = |w: &[f64]| -> Vec<Vec<f64>> {
-        (0..3)
-            .map(|a| stack(&(0..n).map(|i| sphere[i][a] * w[i]).collect::<Vec<_>>()))
-            .collect()
-    };
-    match &tau {
-        None => {
-            let why = if obs.time_s.is_some() {
-                "`time_s` is constant"
-            } else {
-                "no `time_s` column"
-            };
-            not_applicable.push((RotaryEffect::SetupDrift, why.to_string()));
-            not_applicable.push((RotaryEffect::TimeDrift, why.to_string()));
-        }
-        Some(tau) => {
-            let powers = |d: usize| -> Vec<f64> { tau.iter().map(|t| t.powi(d as i32)).collect() };
-            let mut sd = Vec::new();
-            let mut td = Vec::new();
-            for degree in 1..=2usize {
-                let mut cs = Vec::new();
-                let mut ct = Vec::new();
-                for d in 1..=degree {
-                    cs.extend(table_frame(&powers(d)));
-                    ct.extend(machine_frame(&powers(d)));
-                }
-                sd.push(variant(cs, json!({"time_degree": degree, "frame": if kind == MachineKind::BcHead { "machine" } else { "table" }})));
-                td.push(variant(
-                    ct,
-                    json!({"time_degree": degree, "frame": "machine"}),
-                ));
-            }
-            families.push(RtestFamily {
-                kind: RotaryEffect::SetupDrift,
-                variants: sd,
-            });
-            families.push(RtestFamily {
-                kind: RotaryEffect::TimeDrift,
-                variants: td,
-            });
-        }
-    }
-    // thermal_drift: ΔT of each sensor from its value at the earliest pose.
-    {
-        let first = match &obs.time_s {
-            Some(t) => (0..n).min_by(|&a, &b| t[a].total_cmp(&t[b])).unwrap_or(0),
-            None => 0,
-        };
-        let rises: Vec<(String, Vec<f64>)> = obs
-            .temperatures
-            .iter()
-            .filter(|(_, v)| v.iter().any(|x| (x - v[0]).abs() > 1e-9))
-            .map(|(name, v)| (name.clone(), v.iter().map(|x| x - v[first]).collect()))
-            .collect();
-        if rises.is_empty() {
-            not_applicable.push((
-                RotaryEffect::ThermalDrift,
-                if obs.temperatures.is_empty() {
-                    "no `*_degC` column".to_string()
-                } else {
-                    "the `*_degC` columns are constant".to_string()
-                },
-            ));
-        } else {
-            let mut variants = Vec::new();
-            let mut sets: Vec<Vec<usize>> = vec![(0..rises.len()).collect()];
-            if rises.len() > 1 {
-                sets.extend((0..rises.len()).map(|k| vec![k]));
-            }
-            for set in sets {
-                let sensors: Vec<&str> = set.iter().map(|&k| rises[k].0.as_str()).collect();
-                let mut cm = Vec::new();
-                let mut ct = Vec::new();
-                for &k in &set {
-                    cm.extend(machine_frame(&rises[k].1));
-                    ct.extend(table_frame(&rises[k].1));
-                }
-                variants.push(variant(
-                    cm.clone(),
-                    json!({"sensors": sensors, "moves": "tool point (machine frame)"}),
-                ));
-                if kind != MachineKind::BcHead {
-                    cm.extend(ct);
-                    variants.push(variant(
-                        cm,
-                        json!({"sensors": sensors, "moves": "tool point and sphere"}),
-                    ));
-                }
-            }
-            families.push(RtestFamily {
-                kind: RotaryEffect::ThermalDrift,
-                variants,
-            });
-        }
-    }
+    .build();
     // The told effects join the base (their richest variant); they are no candidates.
     let mut candidates = Vec::new();
     for f in families {
@@ -893,7 +670,7 @@ pub fn report_files(d: &RtestDiagnosis, c: &RtestCampaign) -> Vec<(String, Vec<u
 #[cfg(test)]
 mod tests {
     use super::*;
-    use axcomp_kinematics::rotary::{c_circle, k4_path};
+    use axcomp_kinematics::rotary::{MachineKind, N_SETUP, c_circle, k4_path};
     use axcomp_rtest::effects::{angle_derivative, c_carried_rotation, geometry};
 
     fn observations(kind: MachineKind) -> RtestObservations {

@@ -25,3 +25,4 @@ pub mod harness;
 pub mod lines;
 pub mod probe;
 pub mod rtest;
+pub mod rtest_blind;
