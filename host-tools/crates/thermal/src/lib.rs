@@ -21,6 +21,7 @@ pub mod lag;
 pub mod linalg;
 pub mod milling;
 pub mod model_file;
+pub mod predict;
 mod prepare;
 pub mod quality;
 pub mod report;
