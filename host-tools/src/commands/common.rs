@@ -66,6 +66,22 @@ pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
     })
 }
 
+/// An output path's directory exists (`what`: the option, e.g. `--out`), checked before any work.
+pub fn check_parent(path: &Path, what: &str) -> anyhow::Result<()> {
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !parent.is_dir() {
+        bail!(
+            "{what} {}: directory {} does not exist",
+            path.display(),
+            parent.display()
+        );
+    }
+    Ok(())
+}
+
 /// Parses `--where/--rename/--scale`.
 pub fn load_options(args: &DataArgs) -> anyhow::Result<LoadOptions> {
     Ok(LoadOptions::from_args(

@@ -26,6 +26,7 @@ pub mod plan_rtest;
 pub mod predict;
 pub mod replay;
 pub mod sim;
+pub mod sim_five_axis;
 pub mod sim_probe;
 pub mod trace;
 pub mod validate_diagnosis;
@@ -61,7 +62,7 @@ pub enum Command {
     /// TwinCAT TF5280, Heidenhain .COM/.CMA; rotary: LinuxCNC xyzac/xyzbc-trt-kins values).
     Export(export::Args),
     /// Simulate an axis (the digital twin) and write measurement CSV.
-    Sim(sim::Args),
+    Sim(crate::cli::SimArgs),
     /// Diagnose the gap between a model and measurements: where it lies, which unmodelled effect explains it.
     Diagnose(diagnose_shared::Args),
     /// Check the diagnosis on many twin campaigns with one effect withheld (detection, attribution, false alarms).
@@ -128,6 +129,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Replay(a) => replay::run(a),
         Command::Trace(a) => trace::run(a),
         Command::Export(a) => export::run(a),
+        Command::Sim(a) if a.machine.is_some() => sim_five_axis::run(a),
         Command::Sim(a) => sim::run(a),
         Command::Diagnose(a) => diagnose_by_kind(a),
         Command::ValidateDiagnosis(a) => validate_diagnosis::run(a),

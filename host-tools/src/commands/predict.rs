@@ -77,7 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ModelKind::Positioning => {
             let table = TableFile::load(&args.model)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", args.model.display()))?;
-            predict_positioning(&table, &mut ds)?
+            axcomp_positioning::predict::predict_positioning(&table, &mut ds)?
         }
         ModelKind::Thermal => {
             let model = ThermalModelFile::load(&args.model)?;
@@ -169,48 +169,6 @@ fn load_rows(args: &DataArgs) -> anyhow::Result<Dataset> {
             Err(e) => return Err(e.into()),
         }
     }
-}
-
-fn row_name(ds: &Dataset, row: usize) -> String {
-    format!("{}:{} (row {})", ds.source(), ds.line_of_row(row), row + 1)
-}
-
-/// Adds `pred_<target>`: the column the table was fitted on (`pred_deviation_um` by default).
-pub fn predict_positioning(table: &TableFile, ds: &mut Dataset) -> anyhow::Result<Vec<String>> {
-    let x = ds.numeric("target_mm")?.to_vec();
-    let dir = ds.direction()?;
-    if !table.backward.is_empty() && dir.is_none() {
-        bail!(
-            "{}: missing column `direction`: the table is bidirectional (forward and backward), so every row \
-             needs its approach direction",
-            ds.source()
-        );
-    }
-    let (lo, hi) = (table.start_mm, table.end_mm());
-    let tol = 1e-9 * (hi - lo).abs().max(1.0);
-    let mut pred = Vec::with_capacity(x.len());
-    for (i, &xi) in x.iter().enumerate() {
-        if !xi.is_finite() {
-            bail!("{}: target_mm is {xi}", ds.locate("target_mm", i));
-        }
-        if xi < lo - tol || xi > hi + tol {
-            bail!(
-                "{}: target_mm {xi} is outside the table's stroke [{lo}, {hi}] mm; the model cannot predict it",
-                row_name(ds, i)
-            );
-        }
-        let d = dir.as_ref().map_or(0, |d| d[i]);
-        pred.push(table.deviation_um(xi, d));
-    }
-    let target = table
-        .provenance
-        .as_ref()
-        .map(|p| p.target.as_str())
-        .filter(|t| !t.is_empty())
-        .unwrap_or("deviation_um");
-    let name = format!("pred_{target}");
-    ds.add_numeric_column(&name, pred)?;
-    Ok(vec![name])
 }
 
 /// Adds `contact_x_mm, contact_y_mm, contact_z_mm`.

@@ -604,6 +604,16 @@ impl Dataset {
         }
     }
 
+    /// Where a row sits, as `file:line (row N)` (N counted from 1), for messages about a whole row.
+    pub fn row_name(&self, row: usize) -> String {
+        format!(
+            "{}:{} (row {})",
+            self.source(),
+            self.line_of_row(row),
+            row + 1
+        )
+    }
+
     /// The physical line of the file on which row `row` starts (0 for rows built in memory).
     pub fn line_of_row(&self, row: usize) -> usize {
         self.lines[row]

@@ -21,6 +21,7 @@ pub mod export;
 pub mod fit;
 pub mod guard;
 pub mod iso230;
+pub mod predict;
 pub mod spline;
 pub mod table_file;
 pub mod warmup;

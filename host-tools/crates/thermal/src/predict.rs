@@ -29,10 +29,6 @@ macro_rules! fail {
     };
 }
 
-fn row_name(ds: &Dataset, row: usize) -> String {
-    format!("{}:{} (row {})", ds.source(), ds.line_of_row(row), row + 1)
-}
-
 /// Adds `pred_<target>`. `note` receives what the user should know about the rows (lags restarting, a
 /// missing runs column, guarded sensor terms), each without a prefix.
 pub fn predict_thermal(
@@ -218,7 +214,7 @@ fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> Result<Vec<f64>, 
         if !v.is_finite() {
             fail!(
                 "{}: the force law of `{what}` gives no finite force for ap_mm {}, fz_mm {}, n {}",
-                row_name(ds, i),
+                ds.row_name(i),
                 ap[i],
                 fz[i],
                 nn[i]
