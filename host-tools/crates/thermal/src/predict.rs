@@ -37,76 +37,10 @@ pub fn predict_thermal(
     note: &mut dyn FnMut(String),
 ) -> Result<Vec<String>, PredictError> {
     let n = ds.n_rows();
-    let needs_time = m.sensors.iter().any(|s| s.tau_s > 0.0);
-    let time: Vec<f64> = if needs_time {
-        if !ds.has("time_s") {
-            fail!(
-                "{}: missing column `time_s` (or a `time` column of timestamps){}: the model's sensor lags need \
-                 the time of each row",
-                ds.source(),
-                ds.time_hint()
-            );
-        }
-        let t = ds.numeric("time_s")?.to_vec();
-        if let Some(i) = t.iter().position(|v| !v.is_finite()) {
-            fail!("{}: time_s is {}", ds.locate("time_s", i), t[i]);
-        }
-        // The lags restart (in equilibrium with that row) where time does not increase, as in the fit; rows
-        // out of time order (e.g. shuffled) would silently lose their lags, so say where it happens.
-        let restarts: Vec<usize> = (1..n).filter(|&k| t[k] <= t[k - 1]).collect();
-        if let Some(&first) = restarts.first() {
-            note(format!(
-                "{}: time_s does not increase at {} row(s) (first {}): the model's sensor lags \
-                 restart there, in equilibrium with that row, as in the fit (a new recording); sort the rows \
-                 by time if they are one recording",
-                ds.source(),
-                restarts.len(),
-                ds.locate("time_s", first)
-            ));
-        }
-        t
-    } else {
-        vec![0.0; n]
-    };
+    let time = time_column(m, ds, note)?;
     let mut pred = vec![m.b0_um + m.target_offset_um.unwrap_or(0.0); n];
-    let mut sensors = Vec::with_capacity(m.sensors.len());
-    for s in &m.sensors {
-        let col = format!("{}_degC", s.name);
-        let v = ds.numeric(&col)?.to_vec();
-        for (i, &t) in v.iter().enumerate() {
-            if !(t >= s.min_degc && t <= s.max_degc) {
-                fail!(
-                    "{}: {t} °C is outside the model's plausible range [{}, {}] °C for sensor `{}`; the model \
-                     cannot predict this row",
-                    ds.locate(&col, i),
-                    s.min_degc,
-                    s.max_degc,
-                    s.name
-                );
-            }
-        }
-        sensors.push(crate::Series {
-            name: s.name.clone(),
-            values: v,
-        });
-    }
-    // A multi-run model: each run's references are its first row (the readings at switch-on); a file
-    // without the runs column is one run.
-    let runs = match &m.runs_column {
-        Some(col) if ds.has(col) => {
-            let (ids, labels) = axcomp_data::groups(ds, col)?;
-            let l: Vec<String> = ids.into_iter().map(|i| labels[i].clone()).collect();
-            Some(crate::runs::RunIndex::new(Some(&l), n))
-        }
-        Some(col) => {
-            note(format!(
-                "{}: no `{col}` column: the rows are one run, referenced to its first row",
-                ds.source()
-            ));
-            Some(crate::runs::RunIndex::new(Some(&vec![String::new(); n]), n))
-        }
-        None => None,
-    };
+    let sensors = sensor_series(m, ds)?;
+    let runs = run_index(m, ds, note)?;
     let thermal = crate::ThermalModel {
         b0_um: 0.0,
         terms: m
@@ -172,6 +106,99 @@ pub fn predict_thermal(
     let name = format!("pred_{}", m.target);
     ds.add_numeric_column(&name, pred)?;
     Ok(vec![name])
+}
+
+/// The rows' `time_s` when a sensor has a lag (zeros otherwise), every value finite; a note where time does
+/// not increase (the lags restart there).
+fn time_column(
+    m: &ThermalModelFile,
+    ds: &Dataset,
+    note: &mut dyn FnMut(String),
+) -> Result<Vec<f64>, PredictError> {
+    let n = ds.n_rows();
+    let needs_time = m.sensors.iter().any(|s| s.tau_s > 0.0);
+    Ok(if needs_time {
+        if !ds.has("time_s") {
+            fail!(
+                "{}: missing column `time_s` (or a `time` column of timestamps){}: the model's sensor lags need \
+                 the time of each row",
+                ds.source(),
+                ds.time_hint()
+            );
+        }
+        let t = ds.numeric("time_s")?.to_vec();
+        if let Some(i) = t.iter().position(|v| !v.is_finite()) {
+            fail!("{}: time_s is {}", ds.locate("time_s", i), t[i]);
+        }
+        // The lags restart (in equilibrium with that row) where time does not increase, as in the fit; rows
+        // out of time order (e.g. shuffled) would silently lose their lags, so say where it happens.
+        let restarts: Vec<usize> = (1..n).filter(|&k| t[k] <= t[k - 1]).collect();
+        if let Some(&first) = restarts.first() {
+            note(format!(
+                "{}: time_s does not increase at {} row(s) (first {}): the model's sensor lags \
+                 restart there, in equilibrium with that row, as in the fit (a new recording); sort the rows \
+                 by time if they are one recording",
+                ds.source(),
+                restarts.len(),
+                ds.locate("time_s", first)
+            ));
+        }
+        t
+    } else {
+        vec![0.0; n]
+    })
+}
+
+/// Each model sensor's `<name>_degC` column, every reading within the model's plausible range.
+fn sensor_series(m: &ThermalModelFile, ds: &Dataset) -> Result<Vec<crate::Series>, PredictError> {
+    let mut sensors = Vec::with_capacity(m.sensors.len());
+    for s in &m.sensors {
+        let col = format!("{}_degC", s.name);
+        let v = ds.numeric(&col)?.to_vec();
+        for (i, &t) in v.iter().enumerate() {
+            if !(t >= s.min_degc && t <= s.max_degc) {
+                fail!(
+                    "{}: {t} °C is outside the model's plausible range [{}, {}] °C for sensor `{}`; the model \
+                     cannot predict this row",
+                    ds.locate(&col, i),
+                    s.min_degc,
+                    s.max_degc,
+                    s.name
+                );
+            }
+        }
+        sensors.push(crate::Series {
+            name: s.name.clone(),
+            values: v,
+        });
+    }
+    Ok(sensors)
+}
+
+/// The rows' runs for a multi-run model (`None` for a single-run model).
+fn run_index(
+    m: &ThermalModelFile,
+    ds: &Dataset,
+    note: &mut dyn FnMut(String),
+) -> Result<Option<crate::runs::RunIndex>, PredictError> {
+    let n = ds.n_rows();
+    // A multi-run model: each run's references are its first row (the readings at switch-on); a file
+    // without the runs column is one run.
+    Ok(match &m.runs_column {
+        Some(col) if ds.has(col) => {
+            let (ids, labels) = axcomp_data::groups(ds, col)?;
+            let l: Vec<String> = ids.into_iter().map(|i| labels[i].clone()).collect();
+            Some(crate::runs::RunIndex::new(Some(&l), n))
+        }
+        Some(col) => {
+            note(format!(
+                "{}: no `{col}` column: the rows are one run, referenced to its first row",
+                ds.source()
+            ));
+            Some(crate::runs::RunIndex::new(Some(&vec![String::new(); n]), n))
+        }
+        None => None,
+    })
 }
 
 /// The force a law `F = k·ap^x·fz^y·n^z` gives on each row, from `ap_mm`, `fz_mm` and the one `*_rpm` column
