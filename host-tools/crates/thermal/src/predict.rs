@@ -301,3 +301,49 @@ pub fn predict_force_law(
     ds.add_numeric_column(&name, force)?;
     Ok(vec![name])
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use axcomp_data::LoadOptions;
+
+    fn rows(csv: &str) -> Dataset {
+        Dataset::from_csv_str("rows.csv", csv, &LoadOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn force_law_gives_the_law_on_a_cut_and_zero_when_idle() {
+        let law = ModelForceLaw {
+            k: 1500.0,
+            x_ap: 0.9,
+            y_fz: 0.75,
+            z_n: -0.1,
+        };
+        let mut ds = rows("ap_mm,fz_mm,spindle_rpm\n2,0.1,3000\n0,0.1,3000\n");
+        let names = predict_force_law(&law, Some("Fc_N"), &mut ds).unwrap();
+        assert_eq!(names, ["pred_Fc_N"]);
+        let f = ds.numeric("pred_Fc_N").unwrap();
+        // Reference: the law evaluated by hand; tolerance 1e-12 relative (the same powers, in one order).
+        let want = 1500.0 * 2f64.powf(0.9) * 0.1f64.powf(0.75) * 3000f64.powf(-0.1);
+        assert!((f[0] - want).abs() <= 1e-12 * want, "{} vs {want}", f[0]);
+        assert_eq!(f[1], 0.0, "an idle row (ap 0) is no force");
+    }
+
+    #[test]
+    fn a_negative_process_value_is_an_error_naming_the_cell() {
+        let law = ModelForceLaw {
+            k: 1.0,
+            x_ap: 1.0,
+            y_fz: 1.0,
+            z_n: 0.0,
+        };
+        let mut ds = rows("ap_mm,fz_mm\n1,0.1\n-1,0.1\n");
+        let err = predict_force_law(&law, None, &mut ds)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("rows.csv") && err.contains("ap_mm"), "{err}");
+        assert!(err.contains("not a finite number ≥ 0"), "{err}");
+        assert!(check_force_law(&ModelForceLaw { k: f64::NAN, ..law }).is_err());
+        assert!(check_force_law(&law).is_ok());
+    }
+}
