@@ -1,4 +1,4 @@
-//! The `axcomp` command-line tool: raw arguments are parsed by clap into [`cli::Cli`], each subcommand's
+//! The `axcomp` command-line tool: raw arguments are parsed by clap into [`commands::Cli`], each subcommand's
 //! arguments are validated into a configuration by its module in [`commands`], which then does the work.
 
 pub mod cli;
@@ -73,7 +73,7 @@ where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    let cli = match cli::Cli::try_parse_from(args) {
+    let cli = match commands::Cli::try_parse_from(args) {
         Ok(cli) => cli,
         Err(e) if e.use_stderr() => {
             // clap renders "error: ..." itself; main adds the "axcomp: error:" prefix.

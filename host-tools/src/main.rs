@@ -1,4 +1,4 @@
-//! `axcomp`: thin entry point. Parsing lives in [`axcomp::cli`], the work in [`axcomp::commands`].
+//! `axcomp`: thin entry point. Parsing and the work live in [`axcomp::commands`].
 
 use std::process::ExitCode;
 

@@ -1,5 +1,5 @@
-//! Helpers shared by the commands: loading a measurement CSV with the common options, and writing output
-//! files so that nothing is half-written.
+//! Helpers shared by the commands: loading a measurement CSV with the common options, telling a model
+//! file's kind, and writing output files so that nothing is half-written. Imports no command.
 //!
 //! Terms:
 //! - *common options*: `--data`, `--where`, `--rename`, `--scale` ([`crate::cli::DataArgs`]).
@@ -8,10 +8,79 @@
 
 use std::path::Path;
 
+use anyhow::{Context, bail};
+
 use axcomp_data::{Dataset, LoadOptions, Split};
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind};
 
 use crate::cli::DataArgs;
+
+/// The kind of a model file, from its `format` field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelKind {
+    Positioning,
+    Thermal,
+    Probe,
+    Geometry,
+    Rtest,
+    /// A force law of `fit force --out` (no `format` field: `k`, `x_ap`, `y_fz`, `z_n`).
+    ForceLaw,
+}
+
+/// Reads the `format` field of a model file.
+pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = axcomp_files::model_text(&bytes)
+        .map_err(|why| anyhow::anyhow!("{} {why}", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(text)
+        .with_context(|| format!("{}: not a JSON model file", path.display()))?;
+    let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
+    match v.get("kind").and_then(|k| k.as_str()) {
+        Some("rtest") if format.is_empty() => return Ok(ModelKind::Rtest),
+        Some(kind) if format.is_empty() => bail!(
+            "{}: model kind `{kind}` is not one this reader knows (an R-test model has \"kind\": \"rtest\")",
+            path.display()
+        ),
+        _ => {}
+    }
+    if format.is_empty()
+        && ["k", "x_ap", "y_fz", "z_n"]
+            .iter()
+            .all(|k| v[k].is_number())
+    {
+        return Ok(ModelKind::ForceLaw);
+    }
+    Ok(match format {
+        axcomp_positioning::table_file::FORMAT => ModelKind::Positioning,
+        axcomp_thermal::model_file::FORMAT => ModelKind::Thermal,
+        axcomp_probe::FORMAT => ModelKind::Probe,
+        axcomp_geometry::model::MODEL_FORMAT => ModelKind::Geometry,
+        other => bail!(
+            "{}: unknown model format `{other}` (expected {}, {}, {}, {}, an R-test model with \"kind\": \"rtest\" or a force law of `fit force --out`)",
+            path.display(),
+            axcomp_positioning::table_file::FORMAT,
+            axcomp_thermal::model_file::FORMAT,
+            axcomp_probe::FORMAT,
+            axcomp_geometry::model::MODEL_FORMAT
+        ),
+    })
+}
+
+/// An output path's directory exists (`what`: the option, e.g. `--out`), checked before any work.
+pub fn check_parent(path: &Path, what: &str) -> anyhow::Result<()> {
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !parent.is_dir() {
+        bail!(
+            "{what} {}: directory {} does not exist",
+            path.display(),
+            parent.display()
+        );
+    }
+    Ok(())
+}
 
 /// Parses `--where/--rename/--scale`.
 pub fn load_options(args: &DataArgs) -> anyhow::Result<LoadOptions> {
@@ -28,15 +97,9 @@ pub fn load_dataset(args: &DataArgs) -> anyhow::Result<Dataset> {
     Ok(Dataset::load(&args.data, &opts)?)
 }
 
-/// For a message about a missing `time_s`: when the file has a `time` column that is not read as timestamps
-/// (numbers, or another date form), says so and how to give seconds.
+/// For a message about a missing `time_s` ([`Dataset::time_hint`]).
 pub fn time_hint(ds: &Dataset) -> &'static str {
-    if ds.has("time") {
-        " (its `time` column is not read as timestamps such as `2021-06-13 05:42:16`; if it holds seconds, \
-         give it as `time_s` with --rename time=time_s)"
-    } else {
-        ""
-    }
+    ds.time_hint()
 }
 
 /// `--holdout` / `--cv` into a [`Split`] (`None` when neither is given; both is an error).

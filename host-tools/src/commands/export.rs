@@ -15,7 +15,7 @@ use axcomp_export::{Format, ModelKind};
 use axcomp_positioning::TableFile;
 use axcomp_positioning::export::{ExportFormat, export};
 
-use crate::commands::predict::{ModelKind as FileKind, model_kind};
+use crate::commands::common::{ModelKind as FileKind, model_kind};
 use crate::output::OutputSet;
 
 const FORMATS_HELP: &str = "Formats by model kind:

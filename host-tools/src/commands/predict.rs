@@ -39,9 +39,10 @@ use axcomp_positioning::TableFile;
 use axcomp_probe::Calibration;
 use axcomp_probe::touches::read_touches;
 use axcomp_thermal::model_file::{ModelForceLaw, ThermalModelFile};
+use axcomp_thermal::predict::{check_force_law, predict_force_law, predict_thermal};
 
 use crate::cli::DataArgs;
-use crate::commands::common::load_options;
+use crate::commands::common::{ModelKind, load_options, model_kind};
 use crate::output::OutputSet;
 
 #[derive(Debug, clap::Args)]
@@ -65,57 +66,6 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-/// The kind of a model file, from its `format` field.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ModelKind {
-    Positioning,
-    Thermal,
-    Probe,
-    Geometry,
-    Rtest,
-    /// A force law of `fit force --out` (no `format` field: `k`, `x_ap`, `y_fz`, `z_n`).
-    ForceLaw,
-}
-
-/// Reads the `format` field of a model file.
-pub fn model_kind(path: &std::path::Path) -> anyhow::Result<ModelKind> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let text = axcomp_files::model_text(&bytes)
-        .map_err(|why| anyhow::anyhow!("{} {why}", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(text)
-        .with_context(|| format!("{}: not a JSON model file", path.display()))?;
-    let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
-    match v.get("kind").and_then(|k| k.as_str()) {
-        Some("rtest") if format.is_empty() => return Ok(ModelKind::Rtest),
-        Some(kind) if format.is_empty() => bail!(
-            "{}: model kind `{kind}` is not one this reader knows (an R-test model has \"kind\": \"rtest\")",
-            path.display()
-        ),
-        _ => {}
-    }
-    if format.is_empty()
-        && ["k", "x_ap", "y_fz", "z_n"]
-            .iter()
-            .all(|k| v[k].is_number())
-    {
-        return Ok(ModelKind::ForceLaw);
-    }
-    Ok(match format {
-        axcomp_positioning::table_file::FORMAT => ModelKind::Positioning,
-        axcomp_thermal::model_file::FORMAT => ModelKind::Thermal,
-        axcomp_probe::FORMAT => ModelKind::Probe,
-        axcomp_geometry::model::MODEL_FORMAT => ModelKind::Geometry,
-        other => bail!(
-            "{}: unknown model format `{other}` (expected {}, {}, {}, {}, an R-test model with \"kind\": \"rtest\" or a force law of `fit force --out`)",
-            path.display(),
-            axcomp_positioning::table_file::FORMAT,
-            axcomp_thermal::model_file::FORMAT,
-            axcomp_probe::FORMAT,
-            axcomp_geometry::model::MODEL_FORMAT
-        ),
-    })
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     let kind = model_kind(&args.model)?;
     let mut outputs = OutputSet::new();
@@ -127,11 +77,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ModelKind::Positioning => {
             let table = TableFile::load(&args.model)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", args.model.display()))?;
-            predict_positioning(&table, &mut ds)?
+            axcomp_positioning::predict::predict_positioning(&table, &mut ds)?
         }
         ModelKind::Thermal => {
             let model = ThermalModelFile::load(&args.model)?;
-            predict_thermal(&model, &mut ds)?
+            predict_thermal(&model, &mut ds, &mut |note| {
+                eprintln!("axcomp: note: {note}")
+            })?
         }
         ModelKind::Probe => {
             let p = args.model.display().to_string();
@@ -217,292 +169,6 @@ fn load_rows(args: &DataArgs) -> anyhow::Result<Dataset> {
             Err(e) => return Err(e.into()),
         }
     }
-}
-
-fn row_name(ds: &Dataset, row: usize) -> String {
-    format!("{}:{} (row {})", ds.source(), ds.line_of_row(row), row + 1)
-}
-
-/// Adds `pred_<target>`: the column the table was fitted on (`pred_deviation_um` by default).
-pub fn predict_positioning(table: &TableFile, ds: &mut Dataset) -> anyhow::Result<Vec<String>> {
-    let x = ds.numeric("target_mm")?.to_vec();
-    let dir = ds.direction()?;
-    if !table.backward.is_empty() && dir.is_none() {
-        bail!(
-            "{}: missing column `direction`: the table is bidirectional (forward and backward), so every row \
-             needs its approach direction",
-            ds.source()
-        );
-    }
-    let (lo, hi) = (table.start_mm, table.end_mm());
-    let tol = 1e-9 * (hi - lo).abs().max(1.0);
-    let mut pred = Vec::with_capacity(x.len());
-    for (i, &xi) in x.iter().enumerate() {
-        if !xi.is_finite() {
-            bail!("{}: target_mm is {xi}", ds.locate("target_mm", i));
-        }
-        if xi < lo - tol || xi > hi + tol {
-            bail!(
-                "{}: target_mm {xi} is outside the table's stroke [{lo}, {hi}] mm; the model cannot predict it",
-                row_name(ds, i)
-            );
-        }
-        let d = dir.as_ref().map_or(0, |d| d[i]);
-        pred.push(table.deviation_um(xi, d));
-    }
-    let target = table
-        .provenance
-        .as_ref()
-        .map(|p| p.target.as_str())
-        .filter(|t| !t.is_empty())
-        .unwrap_or("deviation_um");
-    let name = format!("pred_{target}");
-    ds.add_numeric_column(&name, pred)?;
-    Ok(vec![name])
-}
-
-/// Adds `pred_<target>`.
-pub fn predict_thermal(m: &ThermalModelFile, ds: &mut Dataset) -> anyhow::Result<Vec<String>> {
-    let n = ds.n_rows();
-    let needs_time = m.sensors.iter().any(|s| s.tau_s > 0.0);
-    let time: Vec<f64> = if needs_time {
-        if !ds.has("time_s") {
-            bail!(
-                "{}: missing column `time_s` (or a `time` column of timestamps){}: the model's sensor lags need \
-                 the time of each row",
-                ds.source(),
-                crate::commands::common::time_hint(ds)
-            );
-        }
-        let t = ds.numeric("time_s")?.to_vec();
-        if let Some(i) = t.iter().position(|v| !v.is_finite()) {
-            bail!("{}: time_s is {}", ds.locate("time_s", i), t[i]);
-        }
-        // The lags restart (in equilibrium with that row) where time does not increase, as in the fit; rows
-        // out of time order (e.g. shuffled) would silently lose their lags, so say where it happens.
-        let restarts: Vec<usize> = (1..n).filter(|&k| t[k] <= t[k - 1]).collect();
-        if let Some(&first) = restarts.first() {
-            eprintln!(
-                "axcomp: note: {}: time_s does not increase at {} row(s) (first {}): the model's sensor lags \
-                 restart there, in equilibrium with that row, as in the fit (a new recording); sort the rows \
-                 by time if they are one recording",
-                ds.source(),
-                restarts.len(),
-                ds.locate("time_s", first)
-            );
-        }
-        t
-    } else {
-        vec![0.0; n]
-    };
-    let mut pred = vec![m.b0_um + m.target_offset_um.unwrap_or(0.0); n];
-    let mut sensors = Vec::with_capacity(m.sensors.len());
-    for s in &m.sensors {
-        let col = format!("{}_degC", s.name);
-        let v = ds.numeric(&col)?.to_vec();
-        for (i, &t) in v.iter().enumerate() {
-            if !(t >= s.min_degc && t <= s.max_degc) {
-                bail!(
-                    "{}: {t} °C is outside the model's plausible range [{}, {}] °C for sensor `{}`; the model \
-                     cannot predict this row",
-                    ds.locate(&col, i),
-                    s.min_degc,
-                    s.max_degc,
-                    s.name
-                );
-            }
-        }
-        sensors.push(axcomp_thermal::Series {
-            name: s.name.clone(),
-            values: v,
-        });
-    }
-    // A multi-run model: each run's references are its first row (the readings at switch-on); a file
-    // without the runs column is one run.
-    let runs = match &m.runs_column {
-        Some(col) if ds.has(col) => {
-            let (ids, labels) = axcomp_data::groups(ds, col)?;
-            let l: Vec<String> = ids.into_iter().map(|i| labels[i].clone()).collect();
-            Some(axcomp_thermal::runs::RunIndex::new(Some(&l), n))
-        }
-        Some(col) => {
-            eprintln!(
-                "axcomp: note: {}: no `{col}` column: the rows are one run, referenced to its first row",
-                ds.source()
-            );
-            Some(axcomp_thermal::runs::RunIndex::new(
-                Some(&vec![String::new(); n]),
-                n,
-            ))
-        }
-        None => None,
-    };
-    let thermal = axcomp_thermal::ThermalModel {
-        b0_um: 0.0,
-        terms: m
-            .sensors
-            .iter()
-            .map(|s| axcomp_thermal::SensorTerm {
-                sensor: s.name.clone(),
-                reference_degc: s.reference_degc,
-                tau_s: s.tau_s,
-                coef_um_per_k: s.coef_um_per_k,
-            })
-            .collect(),
-        forces: vec![],
-    };
-    let bounds: Option<Vec<(f64, f64)>> = m
-        .sensors
-        .iter()
-        .map(|s| Some((s.rise_min_k?, s.rise_max_k?)))
-        .collect();
-    let (terms, guarded) = axcomp_thermal::runs::predict_campaign(
-        &thermal,
-        bounds.as_deref(),
-        &time,
-        &sensors,
-        &[],
-        runs.as_ref(),
-    )
-    .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
-    for (p, t) in pred.iter_mut().zip(terms) {
-        *p += t;
-    }
-    if let Some(first) = guarded.iter().position(|g| *g) {
-        eprintln!(
-            "axcomp: note: {}: on {} row(s) (first: data row {}) a model sensor has risen beyond the range it \
-             was fitted on by more than that range: that sensor's term is dropped there (as the firmware does)",
-            ds.source(),
-            guarded.iter().filter(|g| **g).count(),
-            first + 1
-        );
-    }
-    if let (Some(r), true) = (&runs, ds.has(&m.target)) {
-        // The model predicts the change since each run's first row; the run's first reading is added back.
-        let target = ds.numeric(&m.target)?.to_vec();
-        for (p, r0) in pred.iter_mut().zip(r.reference(&target)) {
-            *p += r0;
-        }
-    }
-    for f in &m.forces {
-        let force: Vec<f64> = match &f.law {
-            None => {
-                let v = ds.numeric(&f.column)?.to_vec();
-                if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                    bail!("{}: force is {}", ds.locate(&f.column, i), v[i]);
-                }
-                v
-            }
-            Some(law) => law_force(ds, law, &f.column)?,
-        };
-        for (p, v) in pred.iter_mut().zip(force) {
-            *p += f.chi_um_per_n * v;
-        }
-    }
-    let name = format!("pred_{}", m.target);
-    ds.add_numeric_column(&name, pred)?;
-    Ok(vec![name])
-}
-
-/// The force a law `F = k·ap^x·fz^y·n^z` gives on each row, from `ap_mm`, `fz_mm` and the one `*_rpm` column
-/// (none needed when z = 0); `what` names the force in messages. A row without a finite force is an error
-/// naming the row.
-fn law_force(ds: &Dataset, law: &ModelForceLaw, what: &str) -> anyhow::Result<Vec<f64>> {
-    let n = ds.n_rows();
-    let ap = process_column(ds, "ap_mm")?;
-    let fz = process_column(ds, "fz_mm")?;
-    let rpm_cols: Vec<String> = ds
-        .column_names()
-        .into_iter()
-        .filter(|c| c.ends_with("_rpm"))
-        .map(str::to_string)
-        .collect();
-    let nn: Vec<f64> = match rpm_cols.as_slice() {
-        [c] if law.z_n != 0.0 => process_column(ds, c)?,
-        [c] => ds.numeric(c)?.to_vec(),
-        [] if law.z_n == 0.0 => vec![1.0; n],
-        [] => bail!(
-            "{}: missing a `*_rpm` column: the force law of `{what}` depends on the spindle speed",
-            ds.source()
-        ),
-        many => bail!(
-            "{}: several `*_rpm` columns ({}): keep one (e.g. with --rename)",
-            ds.source(),
-            many.join(", ")
-        ),
-    };
-    let mut out = Vec::with_capacity(n);
-    for i in 0..n {
-        // No cut (depth, feed or a speed the law depends on is 0: an idle period) is no force, 0 N, as the
-        // firmware outputs (a law with z_n < 0 once made the idle rows of a spindle campaign an error).
-        let idle = ap[i] == 0.0 || fz[i] == 0.0 || (law.z_n != 0.0 && nn[i] == 0.0);
-        let v = if idle {
-            0.0
-        } else {
-            law.k * ap[i].powf(law.x_ap) * fz[i].powf(law.y_fz) * nn[i].powf(law.z_n)
-        };
-        if !v.is_finite() {
-            bail!(
-                "{}: the force law of `{what}` gives no finite force for ap_mm {}, fz_mm {}, n {}",
-                row_name(ds, i),
-                ap[i],
-                fz[i],
-                nn[i]
-            );
-        }
-        out.push(v);
-    }
-    Ok(out)
-}
-
-/// A force law's terms are finite, `k` of plausible size and the exponents within ±100 (a fitted law
-/// has exponents near 1; beyond, the power overflows on ordinary process values).
-fn check_force_law(law: &ModelForceLaw) -> Result<(), String> {
-    let terms = [
-        ("k", law.k, 1e12),
-        ("x_ap", law.x_ap, 100.0),
-        ("y_fz", law.y_fz, 100.0),
-        ("z_n", law.z_n, 100.0),
-    ];
-    match terms
-        .iter()
-        .find(|(_, v, max)| !(v.is_finite() && v.abs() <= *max))
-    {
-        Some((name, v, max)) => Err(format!(
-            "force law term `{name}` is {v}, not a finite number within ±{max}"
-        )),
-        None => Ok(()),
-    }
-}
-
-/// A process parameter of a force law (`ap_mm`, `fz_mm`, the speed): a negative or non-finite value is an
-/// error naming the cell, as in `fit force` (with an exponent of 1, fixed as in Kienzle's law, a negative
-/// depth of cut once gave a negative force instead). Zero is a row without a cut: 0 N (see [`law_force`]).
-fn process_column(ds: &Dataset, col: &str) -> anyhow::Result<Vec<f64>> {
-    let v = ds.numeric(col)?.to_vec();
-    if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
-        bail!(
-            "{}: {} is not a finite number ≥ 0 (a process parameter of the force law); the model cannot \
-             predict this row",
-            ds.locate(col, i),
-            v[i]
-        );
-    }
-    Ok(v)
-}
-
-/// Adds `pred_<force column>` (the column the law was fitted on, from its provenance; `pred_force_N` for a
-/// law without provenance).
-pub fn predict_force_law(
-    law: &ModelForceLaw,
-    force_column: Option<&str>,
-    ds: &mut Dataset,
-) -> anyhow::Result<Vec<String>> {
-    let column = force_column.filter(|c| !c.is_empty()).unwrap_or("force_N");
-    let force = law_force(ds, law, column)?;
-    let name = format!("pred_{column}");
-    ds.add_numeric_column(&name, force)?;
-    Ok(vec![name])
 }
 
 /// Adds `contact_x_mm, contact_y_mm, contact_z_mm`.

@@ -593,6 +593,27 @@ impl Dataset {
         self.index_of(col).is_some()
     }
 
+    /// For a message about a missing `time_s`: when the file has a `time` column that is not read as
+    /// timestamps (numbers, or another date form), says so and how to give seconds; else "".
+    pub fn time_hint(&self) -> &'static str {
+        if self.has("time") {
+            " (its `time` column is not read as timestamps such as `2021-06-13 05:42:16`; if it holds seconds, \
+             give it as `time_s` with --rename time=time_s)"
+        } else {
+            ""
+        }
+    }
+
+    /// Where a row sits, as `file:line (row N)` (N counted from 1), for messages about a whole row.
+    pub fn row_name(&self, row: usize) -> String {
+        format!(
+            "{}:{} (row {})",
+            self.source(),
+            self.line_of_row(row),
+            row + 1
+        )
+    }
+
     /// The physical line of the file on which row `row` starts (0 for rows built in memory).
     pub fn line_of_row(&self, row: usize) -> usize {
         self.lines[row]

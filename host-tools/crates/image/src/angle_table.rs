@@ -27,7 +27,7 @@ use axcomp_core::{
 use axcomp_rtest::RtestModel;
 use axcomp_rtest::effects::EffectBasis;
 
-use crate::group::GroupAxis;
+use crate::axis::GroupAxis;
 use crate::{Error, Result};
 
 /// Segments of an angle table over one turn (cubic Hermite; the C harmonics of `fit rtest` reach 8 per

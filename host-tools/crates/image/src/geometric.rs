@@ -7,7 +7,7 @@ use axcomp_core::geometric::{
 use axcomp_core::group::AxisName;
 use axcomp_geometry::GeometryModel;
 
-use crate::group::GroupAxis;
+use crate::axis::GroupAxis;
 use crate::{Error, Result};
 
 /// A `fit geometry` model converted for the core's geometric stage (owned coefficients).

@@ -13,15 +13,7 @@ use axcomp_core::rotary::RotaryLocationSpec;
 use crate::geometric::{GeometricSection, geometric_component_nonzero};
 use crate::{Error, Result};
 
-/// One axis of a group: its name, counts per revolution (0 for a linear axis), its single-axis image
-/// and how the user gave it (e.g. `X=x.bin`, for messages).
-#[derive(Debug, Clone)]
-pub struct GroupAxis {
-    pub name: AxisName,
-    pub counts_per_rev: u32,
-    pub image: Vec<u8>,
-    pub given_as: String,
-}
+pub use crate::axis::GroupAxis;
 
 /// An axis file must be one single-axis image of `image build`: a group image, another file or an
 /// image with bytes after its end is refused naming the option (`given_as`) and the file (`shown`).

@@ -38,6 +38,7 @@ macro_rules! bail {
 
 pub mod angle_table;
 pub mod args;
+pub mod axis;
 pub mod board;
 pub mod describe;
 pub mod extension;

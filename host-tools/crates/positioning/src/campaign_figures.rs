@@ -11,7 +11,7 @@
 
 use serde_json::{Value, json};
 
-use crate::campaign::Judged;
+use crate::campaign_types::Judged;
 use crate::iso230::{self, Iso230Figures};
 use axcomp_numeric::stats::rms;
 

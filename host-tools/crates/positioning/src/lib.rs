@@ -20,10 +20,12 @@
 
 pub mod campaign;
 pub mod campaign_figures;
+pub mod campaign_types;
 pub mod export;
 pub mod fit;
 pub mod guard;
 pub mod iso230;
+pub mod predict;
 pub mod report;
 pub mod spline;
 pub mod table_file;

@@ -8,7 +8,7 @@
 
 use serde_json::Value;
 
-use crate::campaign::{Outcome, Request};
+use crate::campaign_types::{Outcome, Request};
 use crate::fit::FitResult;
 use crate::guard::GuardVerdict;
 

@@ -38,6 +38,7 @@ pub mod revisit;
 
 pub use fit::{displacement_with, fit_effects, param_names_with};
 pub mod select;
+pub mod warnings;
 
 use axcomp_data::Dataset;
 use axcomp_kinematics::rotary::{

@@ -9,7 +9,7 @@ use crate::runs::RunIndex;
 use crate::select::{Candidate, GramSet};
 use axcomp_numeric::minimize::golden_min;
 
-use crate::thermal::{LAG_CAP_FRACTION, ThermalError, ThermalInput, ThermalOptions};
+use crate::input::{LAG_CAP_FRACTION, ThermalError, ThermalInput, ThermalOptions};
 
 /// What the fit prepares before any candidate runs.
 pub(crate) struct Prepared {
