@@ -7,8 +7,9 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use axcomp_geometry::LineData;
-use axcomp_geometry::plan::{FurtherLine, PlanOptions, plan_after};
+use axcomp_geometry::plan::{FurtherLine, Plan, PlanOptions, plan_after};
 use axcomp_kinematics::Topology;
+use axcomp_kinematics::lines::LineSpec;
 use axcomp_twin::geometry::{GeometryTwin, plan_by_name};
 
 use crate::commands::common::{check_count, check_range};
@@ -142,53 +143,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         check_range("--stroke", s, 1e-3, 1e5)?;
     }
     let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
-    let mut offsets = Vec::new();
-    for s in &a.tool_offsets {
-        for part in s.split(';').filter(|p| !p.trim().is_empty()) {
-            offsets.push(triple(part, "--tool-offsets")?);
-        }
-    }
-    if offsets.is_empty() {
-        offsets = vec![
-            [0.0; 3],
-            [150.0, 0.0, 0.0],
-            [0.0, 150.0, 0.0],
-            [0.0, 0.0, 150.0],
-        ];
-    }
-    if !a.sigma_um.is_finite() || a.sigma_um <= 0.0 {
-        bail!("--sigma-um {}: must be positive", a.sigma_um);
-    }
-    if a.lines == Some(0) {
-        bail!(
-            "--lines 0: ask for at least one line (or leave --lines out for the fewest that identify all 21)"
-        );
-    }
-    if a.targets > MAX_TARGETS {
-        // The plan's cost grows with the cube of the readings: 200 targets take seconds, 1000 took 6 minutes.
-        bail!(
-            "--targets {}: at most {MAX_TARGETS} targets per line",
-            a.targets
-        );
-    }
-    if a.simulate.is_some() && a.runs == 0 {
-        bail!("--runs 0: ask for at least one run");
-    }
-    check_count("--runs", a.runs, 0, MAX_RUNS)?;
+    let offsets = tool_offsets(&a.tool_offsets)?;
+    check_limits(&a)?;
     let drift = triple(&a.drift_um_per_h, "--drift-um-per-h")?;
     // A named twin plan is checked before anything is printed.
-    let twin_lines = match a.twin_plan.as_deref() {
-        None => None,
-        Some(name) => {
-            let (name, with_plan) = match name.strip_suffix("+plan") {
-                Some(n) => (n, true),
-                None => (name, false),
-            };
-            let v = plan_by_name(name, stroke, a.targets)
-                .with_context(|| format!("--twin-plan {name}: unknown plan"))?;
-            Some((v, with_plan))
-        }
-    };
+    let twin_lines = twin_plan(&a, stroke)?;
     let measured = match &a.measured {
         None => None,
         Some(path) => {
@@ -207,51 +166,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         },
         measured.as_ref(),
     )?;
-    println!(
-        "{} lines chosen from {} candidates; all 21 identifiable: {}",
-        p.lines.len(),
-        p.candidates,
-        if p.complete { "yes" } else { "no" }
-    );
-    if !p.complete {
-        println!(
-            "not identifiable with these lines: {}",
-            p.not_identifiable.join(", ")
-        );
-    }
-    println!("line, from (mm), to (mm), step-wise, reflector offset (mm)");
-    for l in &p.lines {
-        println!(
-            "{}, {:?}, {:?}, {}, {:?}",
-            l.name, l.start, l.end, l.stepwise, l.tool
-        );
-    }
-    println!(
-        "predicted standard uncertainty (largest over the axis) for σ = {} µm:",
-        a.sigma_um
-    );
-    for (name, unit, u) in &p.uncertainty {
-        if u.is_finite() {
-            println!("  {name:5} {u:8.3} {unit}");
-        } else {
-            println!("  {name:5} not identifiable");
-        }
-    }
-    print_further(&p.further, measured.is_some());
+    print_plan(&p, a.sigma_um, measured.is_some());
     if let Some(path) = &a.json {
-        let v = serde_json::json!({
-            "further_lines": p.further.iter().map(further_json).collect::<Vec<_>>(),
-            "complete": p.complete,
-            "not_identifiable": p.not_identifiable,
-            "candidates": p.candidates,
-            "sigma_um": a.sigma_um,
-            "lines": p.lines.iter().map(|l| serde_json::json!({
-                "name": l.name, "start_mm": l.start, "end_mm": l.end, "targets": l.targets,
-                "stepwise": l.stepwise, "tool_mm": l.tool })).collect::<Vec<_>>(),
-            "uncertainty": p.uncertainty.iter().map(|(n, u, v)| serde_json::json!({
-                "component": n, "unit": u, "max_u": if v.is_finite() { serde_json::json!(v) } else { serde_json::Value::Null } })).collect::<Vec<_>>(),
-        });
-        outputs.json(path, &v)?;
+        outputs.json(path, &plan_json(&p, a.sigma_um))?;
     }
     let mut simulated = None;
     if let Some(path) = &a.simulate {
@@ -281,4 +198,115 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         println!("{line}");
     }
     Ok(())
+}
+
+/// Reflector offsets from `--tool-offsets` (default: 0 and 150 mm along each axis).
+fn tool_offsets(args: &[String]) -> anyhow::Result<Vec<[f64; 3]>> {
+    let mut offsets = Vec::new();
+    for s in args {
+        for part in s.split(';').filter(|p| !p.trim().is_empty()) {
+            offsets.push(triple(part, "--tool-offsets")?);
+        }
+    }
+    if offsets.is_empty() {
+        offsets = vec![
+            [0.0; 3],
+            [150.0, 0.0, 0.0],
+            [0.0, 150.0, 0.0],
+            [0.0, 0.0, 150.0],
+        ];
+    }
+    Ok(offsets)
+}
+
+/// The noise, line, target and run options' limits.
+fn check_limits(a: &Args) -> anyhow::Result<()> {
+    if !a.sigma_um.is_finite() || a.sigma_um <= 0.0 {
+        bail!("--sigma-um {}: must be positive", a.sigma_um);
+    }
+    if a.lines == Some(0) {
+        bail!(
+            "--lines 0: ask for at least one line (or leave --lines out for the fewest that identify all 21)"
+        );
+    }
+    if a.targets > MAX_TARGETS {
+        // The plan's cost grows with the cube of the readings: 200 targets take seconds, 1000 took 6 minutes.
+        bail!(
+            "--targets {}: at most {MAX_TARGETS} targets per line",
+            a.targets
+        );
+    }
+    if a.simulate.is_some() && a.runs == 0 {
+        bail!("--runs 0: ask for at least one run");
+    }
+    check_count("--runs", a.runs, 0, MAX_RUNS)?;
+    Ok(())
+}
+
+/// `--twin-plan NAME[+plan]`: the named plan's lines and whether the computed plan is added to them.
+fn twin_plan(a: &Args, stroke: [f64; 3]) -> anyhow::Result<Option<(Vec<LineSpec>, bool)>> {
+    let twin_lines = match a.twin_plan.as_deref() {
+        None => None,
+        Some(name) => {
+            let (name, with_plan) = match name.strip_suffix("+plan") {
+                Some(n) => (n, true),
+                None => (name, false),
+            };
+            let v = plan_by_name(name, stroke, a.targets)
+                .with_context(|| format!("--twin-plan {name}: unknown plan"))?;
+            Some((v, with_plan))
+        }
+    };
+    Ok(twin_lines)
+}
+
+/// The plan on stdout: lines, predicted uncertainties and further lines.
+fn print_plan(p: &Plan, sigma_um: f64, measured: bool) {
+    println!(
+        "{} lines chosen from {} candidates; all 21 identifiable: {}",
+        p.lines.len(),
+        p.candidates,
+        if p.complete { "yes" } else { "no" }
+    );
+    if !p.complete {
+        println!(
+            "not identifiable with these lines: {}",
+            p.not_identifiable.join(", ")
+        );
+    }
+    println!("line, from (mm), to (mm), step-wise, reflector offset (mm)");
+    for l in &p.lines {
+        println!(
+            "{}, {:?}, {:?}, {}, {:?}",
+            l.name, l.start, l.end, l.stepwise, l.tool
+        );
+    }
+    println!(
+        "predicted standard uncertainty (largest over the axis) for σ = {} µm:",
+        sigma_um
+    );
+    for (name, unit, u) in &p.uncertainty {
+        if u.is_finite() {
+            println!("  {name:5} {u:8.3} {unit}");
+        } else {
+            println!("  {name:5} not identifiable");
+        }
+    }
+    print_further(&p.further, measured);
+}
+
+/// The plan as `--json` writes it.
+fn plan_json(p: &Plan, sigma_um: f64) -> serde_json::Value {
+    serde_json::json!({
+        "further_lines": p.further.iter().map(further_json).collect::<Vec<_>>(),
+        "complete": p.complete,
+        "not_identifiable": p.not_identifiable,
+        "candidates": p.candidates,
+        "sigma_um": sigma_um,
+        "lines": p.lines.iter().map(|l| serde_json::json!({
+            "name": l.name, "start_mm": l.start, "end_mm": l.end, "targets": l.targets,
+            "stepwise": l.stepwise, "tool_mm": l.tool })).collect::<Vec<_>>(),
+        "uncertainty": p.uncertainty.iter().map(|(n, u, v)| serde_json::json!({
+            "component": n, "unit": u, "max_u": if v.is_finite() { serde_json::json!(v) } else { serde_json::Value::Null } })).collect::<Vec<_>>(),
+    })
 }
