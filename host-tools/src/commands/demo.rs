@@ -264,6 +264,81 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let axis = Axis::linear_motor_demo();
     let plan = Plan::from(Iso230Plan::standard(axis.start_mm, axis.end_mm));
     let measured = simulate(&axis, &plan, None, args.seed).context("simulating the campaign")?;
+    let (before, provenance) = record_measurement(measured, args.seed, &mut files)?;
+    let t_sim = t0.elapsed();
+
+    // 2. Fit (cross-validated, guarded).
+    let (fitted, table_json) = fit_table(&before, provenance, &mut files)?;
+    let t_fit = t0.elapsed();
+
+    // 3. Firmware image (the core's `write_image`, as `axcomp image build`), loaded as the firmware would.
+    let (image, comp) = build_image(&axis, &fitted, &table_json, &mut files)?;
+    let image_text = axcomp_image::describe(&image)?;
+
+    // 4. Compensated campaign (new noise), and the ideal floor.
+    let (after, ideal) =
+        compensated_campaigns(&axis, &plan, &comp, &fitted, args.seed, &mut files)?;
+    let t_comp = t0.elapsed();
+
+    // 5. The same moves as a recorded firmware trace, replayed through the core's engine from the file
+    //    bytes (what `axcomp replay` and the QEMU firmware do).
+    let replay = replay_moves(&axis, &image, &after, &mut files)?;
+
+    // 6. Plots.
+    plots(&axis, &before, &after, &fitted, &mut files)?;
+    let t_plot = t0.elapsed();
+
+    // 7. Figures: console, JSON, report.
+    let demo = Demo {
+        seed: args.seed,
+        axis: &axis,
+        before: &before,
+        after: &after,
+        ideal: &ideal,
+        fitted: &fitted,
+        image: &image,
+        replay: &replay,
+    };
+    let headers = ["campaign", "A µm", "E µm", "M µm", "R µm", "B µm", "RMS µm"];
+    let rows = vec![
+        figures_row("before (uncompensated)", &before),
+        figures_row("after (fitted table)", &after),
+        figures_row("ideal table (truth)", &ideal),
+    ];
+    let mut console = demo.console(&rows);
+    let _ = writeln!(
+        console,
+        "time: simulate {:.2} s, fit {:.2} s, image + compensated campaigns {:.2} s, plots {:.2} s",
+        t_sim.as_secs_f64(),
+        (t_fit - t_sim).as_secs_f64(),
+        (t_comp - t_fit).as_secs_f64(),
+        (t_plot - t_comp).as_secs_f64()
+    );
+    let _ = writeln!(
+        console,
+        "wrote {}/{{report.md, demo.json, *.svg, *.csv, table.json, image.bin, trace.bin, replay.bin}}",
+        out.display()
+    );
+    files.add(
+        "demo.json",
+        serde_json::to_string_pretty(&demo.summary())? + "\n",
+    );
+    files.add(
+        "report.md",
+        demo.report(&markdown_table(&headers, &rows), &image_text),
+    );
+    files.write_all()?;
+    print!("{console}");
+    Ok(())
+}
+
+/// `measurement.csv` (the simulated campaign) added to the outputs, read back and evaluated, with the
+/// provenance its table will carry.
+fn record_measurement(
+    measured: Campaign,
+    seed: u64,
+    files: &mut Outputs,
+) -> anyhow::Result<(Evaluated, axcomp_data::Provenance)> {
     let measurement_csv = measured.to_csv_string();
     let provenance = axcomp_data::Provenance {
         source_file: "measurement.csv".into(),
@@ -276,14 +351,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cv: None,
         target: "deviation_um".into(),
         tool: concat!("axcomp ", env!("CARGO_PKG_VERSION")).into(),
-        command: format!("demo --seed {}", args.seed),
+        command: format!("demo --seed {}", seed),
         created_utc: axcomp_data::provenance::utc_iso8601(std::time::SystemTime::now()),
     };
     files.add("measurement.csv", measurement_csv);
     let before = evaluate("measurement.csv", measured)?;
-    let t_sim = t0.elapsed();
+    Ok((before, provenance))
+}
 
-    // 2. Fit (cross-validated, guarded).
+/// The table fitted on the uncompensated campaign (refused when the do-no-harm guard fails), added as
+/// `table.json`.
+fn fit_table(
+    before: &Evaluated,
+    provenance: axcomp_data::Provenance,
+    files: &mut Outputs,
+) -> anyhow::Result<(FitResult, String)> {
     let obs = super::common::positioning_observations(&before.data)?;
     let mut fitted: FitResult = fit(&obs, &FitOptions::default()).context("fitting the table")?;
     fitted.table.provenance = Some(provenance);
@@ -300,9 +382,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     fitted.table.validate()?;
     let table_json = serde_json::to_string_pretty(&fitted.table)? + "\n";
     files.add("table.json", table_json.clone());
-    let t_fit = t0.elapsed();
+    Ok((fitted, table_json))
+}
 
-    // 3. Firmware image (the core's `write_image`, as `axcomp image build`), loaded as the firmware would.
+/// `image.bin` built from the fitted table (with its provenance), and a compensator loaded from it.
+fn build_image(
+    axis: &Axis,
+    fitted: &FitResult,
+    table_json: &str,
+    files: &mut Outputs,
+) -> anyhow::Result<(Vec<u8>, Compensator)> {
     let table_core = fitted.table.try_to_core(axis.scale_um_per_count)?;
     let limits = axcomp_twin::ideal::default_limits(&axis);
     let spec = ImageSpec {
@@ -326,26 +415,54 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut comp = Compensator::IDENTITY;
     comp.load(&image).context("loading the built image")?;
     files.add("image.bin", image.clone());
-    let image_text = axcomp_image::describe(&image)?;
 
-    // 4. Compensated campaign (new noise), and the ideal floor.
-    let compensated =
-        simulate(&axis, &plan, Some(&comp), args.seed + 1).context("compensated campaign")?;
+    Ok((image, comp))
+}
+
+/// The compensated campaign (new noise, through `comp`) and the ideal table's campaign.
+fn compensated_campaigns(
+    axis: &Axis,
+    plan: &Plan,
+    comp: &Compensator,
+    fitted: &FitResult,
+    seed: u64,
+    files: &mut Outputs,
+) -> anyhow::Result<(Evaluated, Evaluated)> {
+    let compensated = simulate(axis, plan, Some(comp), seed + 1).context("compensated campaign")?;
     files.add("measurement_compensated.csv", compensated.to_csv_string());
     let after = evaluate("measurement_compensated.csv", compensated)?;
-    let ideal_table = IdealTable::new(&axis, fitted.table.segment_mm);
-    let ideal_image = ideal_table.image(&axis)?;
+    let ideal_table = IdealTable::new(axis, fitted.table.segment_mm);
+    let ideal_image = ideal_table.image(axis)?;
     let mut ideal_comp = Compensator::IDENTITY;
     ideal_comp.load(&ideal_image)?;
     let ideal = evaluate(
         "ideal",
-        simulate(&axis, &plan, Some(&ideal_comp), args.seed + 1).context("ideal campaign")?,
+        simulate(axis, plan, Some(&ideal_comp), seed + 1).context("ideal campaign")?,
     )?;
-    let t_comp = t0.elapsed();
+    Ok((after, ideal))
+}
 
-    // 5. The same moves as a recorded firmware trace, replayed through the core's engine from the file
-    //    bytes (what `axcomp replay` and the QEMU firmware do).
-    let (trace, live, read_at) = closed_loop_trace(&axis, &image, &after.campaign, 2.0)?;
+/// What the replay of the compensated moves showed.
+struct ReplayCheck {
+    trace_bytes: usize,
+    replayed: axcomp_image::replay::Replay,
+    bit_for_bit: bool,
+    /// Number of measured rows compared.
+    points: usize,
+    /// Largest |replayed correction − the twin's| at the measured rows, µm.
+    agree_um: f64,
+    summary: String,
+}
+
+/// The compensated moves as a firmware trace (`trace.bin`), replayed through the core's engine
+/// (`replay.bin`) and compared with the live outputs and the twin's corrections.
+fn replay_moves(
+    axis: &Axis,
+    image: &[u8],
+    after: &Evaluated,
+    files: &mut Outputs,
+) -> anyhow::Result<ReplayCheck> {
+    let (trace, live, read_at) = closed_loop_trace(axis, image, &after.campaign, 2.0)?;
     files.add("trace.bin", trace.clone());
     let replayed = axcomp_image::replay::replay(None, &trace)?;
     let bit_for_bit = replayed.outputs == live && replayed.trace_errors.is_empty();
@@ -360,7 +477,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .fold(0.0f64, f64::max);
     let replay_summary = axcomp_image::replay::summary(&replayed);
 
-    // 6. Plots.
+    Ok(ReplayCheck {
+        trace_bytes: trace.len(),
+        replayed,
+        bit_for_bit,
+        points: read_at.len(),
+        agree_um,
+        summary: replay_summary,
+    })
+}
+
+/// The SVG plots: deviation before (with table and truth), after, and ISO 230-2 before/after panels.
+fn plots(
+    axis: &Axis,
+    before: &Evaluated,
+    after: &Evaluated,
+    fitted: &FitResult,
+    files: &mut Outputs,
+) -> anyhow::Result<()> {
     let cond = axis.reference_conditions();
     let n = 801;
     let xs: Vec<f64> = (0..n)
@@ -446,189 +580,194 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         fig
     };
     let (pb, pa) = (
-        panel("Before (uncompensated)", &before),
-        panel("After (firmware compensator)", &after),
+        panel("Before (uncompensated)", before),
+        panel("After (firmware compensator)", after),
     );
     files.add(
         "iso230_before_after.svg",
         axcomp_plot::panels_svg(&[&pb, &pa], 2),
     );
-    let t_plot = t0.elapsed();
+    Ok(())
+}
 
-    // 7. Figures: console, JSON, report.
-    let headers = ["campaign", "A µm", "E µm", "M µm", "R µm", "B µm", "RMS µm"];
-    let rows = vec![
-        figures_row("before (uncompensated)", &before),
-        figures_row("after (fitted table)", &after),
-        figures_row("ideal table (truth)", &ideal),
-    ];
-    let table_md = markdown_table(&headers, &rows);
-    let reduction = |b: f64, a: f64| 100.0 * (1.0 - a / b);
-    let mut console = String::new();
-    let _ = writeln!(
-        console,
-        "axcomp demo: twin `{}` ({:.0}..{:.0} mm), ISO 230-2: {} targets × {} runs × 2 directions",
-        axis.name,
-        axis.start_mm,
-        axis.end_mm,
-        before.iso.targets.len(),
-        before.data.run().map_or(0, |r| {
-            let mut u = r.clone();
-            u.sort();
-            u.dedup();
-            u.len()
-        })
-    );
-    let _ = writeln!(
-        console,
-        "fit: {} ({}), raw RMS {:.2} µm → cross-validated {:.2} µm ({}); guard: passed",
-        fitted.chosen, fitted.reason, fitted.raw_rms_um, fitted.cv_rms_um, fitted.split.method
-    );
-    let _ = writeln!(
-        console,
-        "image: {} bytes, {} segments of {:.3} mm per direction",
-        image.len(),
-        fitted.table.segments(),
-        fitted.table.segment_mm
-    );
-    let _ = write!(
-        console,
-        "replay of the compensated moves (trace.bin, {} bytes) through axcomp_core::Engine: {}",
-        trace.len(),
-        replay_summary
-    );
-    let _ = writeln!(
-        console,
-        "  replayed bit for bit: {}; correction at the {} measured points vs the twin's: max |diff| {:.4} µm",
-        if bit_for_bit { "yes" } else { "NO" },
-        read_at.len(),
-        agree_um
-    );
-    let _ = writeln!(console);
-    let _ = writeln!(
-        console,
-        "{:<24} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
-        "", "A µm", "E µm", "M µm", "R µm", "B µm", "RMS µm"
-    );
-    for r in &rows {
+/// The demo's results, for the console, `demo.json` and `report.md`.
+struct Demo<'a> {
+    seed: u64,
+    axis: &'a Axis,
+    before: &'a Evaluated,
+    after: &'a Evaluated,
+    ideal: &'a Evaluated,
+    fitted: &'a FitResult,
+    image: &'a [u8],
+    replay: &'a ReplayCheck,
+}
+
+impl Demo<'_> {
+    /// The console summary up to the figures table and the reductions (`rows`: the figures' rows).
+    fn console(&self, rows: &[Vec<String>]) -> String {
+        let (axis, before, after, fitted) = (self.axis, self.before, self.after, self.fitted);
+        let (image, r) = (self.image, self.replay);
+        let reduction = |b: f64, a: f64| 100.0 * (1.0 - a / b);
+        let mut console = String::new();
+        let _ = writeln!(
+            console,
+            "axcomp demo: twin `{}` ({:.0}..{:.0} mm), ISO 230-2: {} targets × {} runs × 2 directions",
+            axis.name,
+            axis.start_mm,
+            axis.end_mm,
+            before.iso.targets.len(),
+            before.data.run().map_or(0, |r| {
+                let mut u = r.clone();
+                u.sort();
+                u.dedup();
+                u.len()
+            })
+        );
+        let _ = writeln!(
+            console,
+            "fit: {} ({}), raw RMS {:.2} µm → cross-validated {:.2} µm ({}); guard: passed",
+            fitted.chosen, fitted.reason, fitted.raw_rms_um, fitted.cv_rms_um, fitted.split.method
+        );
+        let _ = writeln!(
+            console,
+            "image: {} bytes, {} segments of {:.3} mm per direction",
+            image.len(),
+            fitted.table.segments(),
+            fitted.table.segment_mm
+        );
+        let _ = write!(
+            console,
+            "replay of the compensated moves (trace.bin, {} bytes) through axcomp_core::Engine: {}",
+            r.trace_bytes, r.summary
+        );
+        let _ = writeln!(
+            console,
+            "  replayed bit for bit: {}; correction at the {} measured points vs the twin's: max |diff| {:.4} µm",
+            if r.bit_for_bit { "yes" } else { "NO" },
+            r.points,
+            r.agree_um
+        );
+        let _ = writeln!(console);
         let _ = writeln!(
             console,
             "{:<24} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
-            r[0], r[1], r[2], r[3], r[4], r[5], r[6]
+            "", "A µm", "E µm", "M µm", "R µm", "B µm", "RMS µm"
         );
+        for row in rows {
+            let _ = writeln!(
+                console,
+                "{:<24} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
+                row[0], row[1], row[2], row[3], row[4], row[5], row[6]
+            );
+        }
+        let _ = writeln!(console);
+        let _ = writeln!(
+            console,
+            "accuracy A: {:.2} → {:.2} µm ({:.0} % less); systematic E: {:.2} → {:.2} µm ({:.0} % less)",
+            before.iso.a_um,
+            after.iso.a_um,
+            reduction(before.iso.a_um, after.iso.a_um),
+            before.iso.e_um,
+            after.iso.e_um,
+            reduction(before.iso.e_um, after.iso.e_um)
+        );
+        console
     }
-    let _ = writeln!(console);
-    let _ = writeln!(
-        console,
-        "accuracy A: {:.2} → {:.2} µm ({:.0} % less); systematic E: {:.2} → {:.2} µm ({:.0} % less)",
-        before.iso.a_um,
-        after.iso.a_um,
-        reduction(before.iso.a_um, after.iso.a_um),
-        before.iso.e_um,
-        after.iso.e_um,
-        reduction(before.iso.e_um, after.iso.e_um)
-    );
-    let _ = writeln!(
-        console,
-        "time: simulate {:.2} s, fit {:.2} s, image + compensated campaigns {:.2} s, plots {:.2} s",
-        t_sim.as_secs_f64(),
-        (t_fit - t_sim).as_secs_f64(),
-        (t_comp - t_fit).as_secs_f64(),
-        (t_plot - t_comp).as_secs_f64()
-    );
-    let _ = writeln!(
-        console,
-        "wrote {}/{{report.md, demo.json, *.svg, *.csv, table.json, image.bin, trace.bin, replay.bin}}",
-        out.display()
-    );
 
-    let summary = json!({
-        "axis": axis.name,
-        "seed": args.seed,
-        "rows": before.campaign.rows.len(),
-        "model": { "chosen": fitted.chosen, "reason": fitted.reason, "cv_method": fitted.split.method,
-                   "raw_rms_um": fitted.raw_rms_um, "cv_rms_um": fitted.cv_rms_um,
-                   "segments": fitted.table.segments(), "segment_mm": fitted.table.segment_mm },
-        "iso230_2_before": before.iso,
-        "iso230_2_after": after.iso,
-        "iso230_2_ideal": ideal.iso,
-        "rms_before_um": before.rms_um,
-        "rms_after_um": after.rms_um,
-        "rms_ideal_um": ideal.rms_um,
-        "image_bytes": image.len(),
-        "replay": { "cycles": replayed.outputs.len(), "bit_for_bit": bit_for_bit,
-                    "max_abs_correction_um": replayed.outputs.iter().map(|o| o.correction_um().abs() as f64).fold(0.0, f64::max),
-                    "max_diff_to_twin_um": agree_um, "trace_bytes": trace.len() },
-    });
-    files.add("demo.json", serde_json::to_string_pretty(&summary)? + "\n");
+    /// `demo.json`.
+    fn summary(&self) -> serde_json::Value {
+        let (axis, before, after, ideal, fitted) =
+            (self.axis, self.before, self.after, self.ideal, self.fitted);
+        let (image, r) = (self.image, self.replay);
+        json!({
+            "axis": axis.name,
+            "seed": self.seed,
+            "rows": before.campaign.rows.len(),
+            "model": { "chosen": fitted.chosen, "reason": fitted.reason, "cv_method": fitted.split.method,
+                       "raw_rms_um": fitted.raw_rms_um, "cv_rms_um": fitted.cv_rms_um,
+                       "segments": fitted.table.segments(), "segment_mm": fitted.table.segment_mm },
+            "iso230_2_before": before.iso,
+            "iso230_2_after": after.iso,
+            "iso230_2_ideal": ideal.iso,
+            "rms_before_um": before.rms_um,
+            "rms_after_um": after.rms_um,
+            "rms_ideal_um": ideal.rms_um,
+            "image_bytes": image.len(),
+            "replay": { "cycles": r.replayed.outputs.len(), "bit_for_bit": r.bit_for_bit,
+                        "max_abs_correction_um": r.replayed.outputs.iter().map(|o| o.correction_um().abs() as f64).fold(0.0, f64::max),
+                        "max_diff_to_twin_um": r.agree_um, "trace_bytes": r.trace_bytes },
+        })
+    }
 
-    let mut md = String::new();
-    let _ = writeln!(md, "# axcomp demo\n");
-    let _ = writeln!(
-        md,
-        "Simulated axis `{}` ({:.0}–{:.0} mm; effects: {}), measured with an ISO 230-2 test \
-         ({} targets, 5 bidirectional runs, seed {}). A table was fitted on that campaign, built into a \
-         firmware image, and a **second campaign with new noise** (seed {}) was driven through the \
-         firmware's compensator loaded from that image. The ideal row uses a table built from the twin's \
-         known truth: the floor any fitted table could reach.\n",
-        axis.name,
-        axis.start_mm,
-        axis.end_mm,
-        axis.kinds()
-            .iter()
-            .map(|k| k.name())
-            .collect::<Vec<_>>()
-            .join(", "),
-        before.iso.targets.len(),
-        args.seed,
-        args.seed + 1
-    );
-    let _ = writeln!(md, "## ISO 230-2 figures (bidirectional, µm)\n\n{table_md}");
-    let _ = writeln!(
-        md,
-        "A = accuracy, E = systematic positional deviation, M = mean bidirectional positional deviation \
-         range, R = repeatability, B = reversal value; RMS over all measured deviations.\n"
-    );
-    let _ = writeln!(
-        md,
-        "## Fit\n\nChosen model: `{}` — {}.\nRaw RMS {:.3} µm, cross-validated ({}) RMS {:.3} µm. \
-         Do-no-harm guard: passed ({}).\nTable: {} segments of {:.3} mm per direction, resampling error \
-         ≤ {:.3} µm.\n",
-        fitted.chosen,
-        fitted.reason,
-        fitted.raw_rms_um,
-        fitted.split.method,
-        fitted.cv_rms_um,
-        fitted.guard.rule,
-        fitted.table.segments(),
-        fitted.table.segment_mm,
-        fitted.resampling_max_um
-    );
-    let _ = writeln!(md, "## Firmware image\n\n```\n{image_text}```\n");
-    let _ = writeln!(
-        md,
-        "## Replay\n\nThe compensated moves, logged as a firmware trace (`trace.bin`: the image record, then one \
-         cycle record per control cycle with an ideal servo), replayed through `axcomp_core::Engine` from the \
-         file bytes (`axcomp replay --trace trace.bin --out replay.bin`):\n\n```\n{replay_summary}```\n\
-         Replayed bit for bit: {}. Correction at the {} measured points vs the correction the twin applied: \
-         max |difference| {:.4} µm.\n",
-        if bit_for_bit { "yes" } else { "no" },
-        read_at.len(),
-        agree_um
-    );
-    let _ = writeln!(
-        md,
-        "## Plots\n\n![before](deviation_before.svg)\n\n![after](deviation_after.svg)\n\n\
-         ![ISO 230-2 before/after](iso230_before_after.svg)\n"
-    );
-    let _ = writeln!(
-        md,
-        "## Files\n\n`measurement.csv` (uncompensated campaign), `measurement_compensated.csv`, `table.json` \
-         (`axcomp export --table table.json --format linuxcnc1 --step 5 --out x.comp`), `image.bin` \
-         (`axcomp image inspect image.bin`), `demo.json` (figures).\n"
-    );
-    files.add("report.md", md);
-    files.write_all()?;
-    print!("{console}");
-    Ok(())
+    /// `report.md` (`table_md`: the ISO 230-2 figures table; `image_text`: the image's description).
+    fn report(&self, table_md: &str, image_text: &str) -> String {
+        let (axis, before, fitted, r) = (self.axis, self.before, self.fitted, self.replay);
+        let mut md = String::new();
+        let _ = writeln!(md, "# axcomp demo\n");
+        let _ = writeln!(
+            md,
+            "Simulated axis `{}` ({:.0}–{:.0} mm; effects: {}), measured with an ISO 230-2 test \
+             ({} targets, 5 bidirectional runs, seed {}). A table was fitted on that campaign, built into a \
+             firmware image, and a **second campaign with new noise** (seed {}) was driven through the \
+             firmware's compensator loaded from that image. The ideal row uses a table built from the twin's \
+             known truth: the floor any fitted table could reach.\n",
+            axis.name,
+            axis.start_mm,
+            axis.end_mm,
+            axis.kinds()
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>()
+                .join(", "),
+            before.iso.targets.len(),
+            self.seed,
+            self.seed + 1
+        );
+        let _ = writeln!(md, "## ISO 230-2 figures (bidirectional, µm)\n\n{table_md}");
+        let _ = writeln!(
+            md,
+            "A = accuracy, E = systematic positional deviation, M = mean bidirectional positional deviation \
+             range, R = repeatability, B = reversal value; RMS over all measured deviations.\n"
+        );
+        let _ = writeln!(
+            md,
+            "## Fit\n\nChosen model: `{}` — {}.\nRaw RMS {:.3} µm, cross-validated ({}) RMS {:.3} µm. \
+             Do-no-harm guard: passed ({}).\nTable: {} segments of {:.3} mm per direction, resampling error \
+             ≤ {:.3} µm.\n",
+            fitted.chosen,
+            fitted.reason,
+            fitted.raw_rms_um,
+            fitted.split.method,
+            fitted.cv_rms_um,
+            fitted.guard.rule,
+            fitted.table.segments(),
+            fitted.table.segment_mm,
+            fitted.resampling_max_um
+        );
+        let _ = writeln!(md, "## Firmware image\n\n```\n{image_text}```\n");
+        let _ = writeln!(
+            md,
+            "## Replay\n\nThe compensated moves, logged as a firmware trace (`trace.bin`: the image record, then one \
+             cycle record per control cycle with an ideal servo), replayed through `axcomp_core::Engine` from the \
+             file bytes (`axcomp replay --trace trace.bin --out replay.bin`):\n\n```\n{}```\n\
+             Replayed bit for bit: {}. Correction at the {} measured points vs the correction the twin applied: \
+             max |difference| {:.4} µm.\n",
+            r.summary,
+            if r.bit_for_bit { "yes" } else { "no" },
+            r.points,
+            r.agree_um
+        );
+        let _ = writeln!(
+            md,
+            "## Plots\n\n![before](deviation_before.svg)\n\n![after](deviation_after.svg)\n\n\
+             ![ISO 230-2 before/after](iso230_before_after.svg)\n"
+        );
+        let _ = writeln!(
+            md,
+            "## Files\n\n`measurement.csv` (uncompensated campaign), `measurement_compensated.csv`, `table.json` \
+             (`axcomp export --table table.json --format linuxcnc1 --step 5 --out x.comp`), `image.bin` \
+             (`axcomp image inspect image.bin`), `demo.json` (figures).\n"
+        );
+        md
+    }
 }
