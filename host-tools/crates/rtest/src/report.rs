@@ -12,12 +12,14 @@ use crate::{RtestData, SIGN_CONVENTION};
 /// Report files: name and contents. Nothing is written here; the caller writes them all or none.
 pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
     let mut files = Vec::new();
-    let names = crate::param_names_with(data, &a.fit.effects);
-    let judged = match a.judged_by {
-        "holdout" => "held-out rows (prediction from the fit on the other rows)",
-        "cv" => "every row (cross-validated prediction)",
-        _ => "the fitted rows (in-sample)",
-    };
+    path_figures(a, data, &mut files);
+    files.push(("rotary_range.svg".into(), rotary_range_figure(a, data)));
+    files.push(("report.md".into(), report_md(a, data)));
+    files
+}
+
+/// The measured-vs-model figures along the judged paths, one per component (`path_dx.svg`, …).
+fn path_figures(a: &Analysis, data: &RtestData, files: &mut Vec<(String, String)>) {
     // The judged rows grouped by run and path (file order kept within each), each drawn over its C angle.
     let mut groups: Vec<(String, Vec<usize>)> = Vec::new();
     for (k, &r) in a.judged_rows.iter().enumerate() {
@@ -73,6 +75,10 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
         f.hline(0.0, "");
         files.push((format!("path_{comp}.svg"), f.to_svg()));
     }
+}
+
+/// `rotary_range.svg`: the displacement the identified location errors alone cause over the rotary range.
+fn rotary_range_figure(a: &Analysis, data: &RtestData) -> String {
     // The location errors alone (no set-up offsets) over the rotary range, for the campaign's first sphere.
     let sphere = data.machine.nominal_sphere(&data.poses[0]);
     let le = a.model.location();
@@ -122,8 +128,17 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
         data.machine.kind.name(),
         peak.get()
     ));
-    files.push(("rotary_range.svg".into(), f.to_svg()));
+    f.to_svg()
+}
 
+/// report.md: the fitted parameters, set-up offsets, identifiability, RMS figures and the sections after.
+fn report_md(a: &Analysis, data: &RtestData) -> String {
+    let names = crate::param_names_with(data, &a.fit.effects);
+    let judged = match a.judged_by {
+        "holdout" => "held-out rows (prediction from the fit on the other rows)",
+        "cv" => "every row (cross-validated prediction)",
+        _ => "the fitted rows (in-sample)",
+    };
     let mut md = String::new();
     md.push_str(&format!(
         "# R-test location errors ({})\n\nData: `{}`; {} rows fitted; judged on {}.\n\n",
@@ -135,6 +150,32 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
     md.push_str(&format!("**Sign convention.** {SIGN_CONVENTION}\n\n"));
     md.push_str(&parameter_table("name", &a.model.location_errors));
     md.push('\n');
+    setup_offsets_section(&mut md, a, data);
+    md.push_str(&format!(
+        "\nIdentifiability: rank {} of {} parameters, condition number {:.3e} (column-scaled).\n",
+        a.fit.ident.rank,
+        names.len(),
+        a.fit.ident.condition_number
+    ));
+    for &(i, j, r) in &a.fit.correlations {
+        md.push_str(&format!(
+            "- correlation {} / {}: {r:.3}\n",
+            names[i], names[j]
+        ));
+    }
+    md.push_str(&format!(
+        "\nRMS over dx, dy, dz: raw {:.3} µm, fit {:.3} µm, {} {:.3} µm (σ̂ = {:.3} µm).\n",
+        a.raw_rms_um, a.fit.fit_rms_um, a.judged_by, a.judged_rms_um, a.fit.sigma_um
+    ));
+    k4_section(&mut md, a);
+    effects_section(&mut md, a);
+    closure_section(&mut md, a, data);
+    md.push_str("\n![dx](path_dx.svg)\n![dy](path_dy.svg)\n![dz](path_dz.svg)\n![rotary range](rotary_range.svg)\n");
+    md
+}
+
+/// The set-up offsets (nuisance parameters) table, with its heading.
+fn setup_offsets_section(md: &mut String, a: &Analysis, data: &RtestData) {
     let mut setup_rows = Vec::new();
     for s in 0..data.setup_names.len() {
         let b = N_LOCATION + N_SETUP * s;
@@ -158,46 +199,30 @@ pub fn report_files(a: &Analysis, data: &RtestData) -> Vec<(String, String)> {
         &["set-up", "of", "dx", "dy", "dz"],
         &setup_rows,
     ));
+}
+
+/// The ISO 10791-6 K4 figures, when the data have K4 poses.
+fn k4_section(md: &mut String, a: &Analysis) {
+    let Some(k) = &a.k4 else {
+        return;
+    };
     md.push_str(&format!(
-        "\nIdentifiability: rank {} of {} parameters, condition number {:.3e} (column-scaled).\n",
-        a.fit.ident.rank,
-        names.len(),
-        a.fit.ident.condition_number
+        "\nISO 10791-6 K4 figures (range of each component over {} K4 poses, {}):\n\n",
+        k.rows,
+        if k.in_sample { "fit" } else { a.judged_by }
     ));
-    for &(i, j, r) in &a.fit.correlations {
-        md.push_str(&format!(
-            "- correlation {} / {}: {r:.3}\n",
-            names[i], names[j]
-        ));
-    }
-    md.push_str(&format!(
-        "\nRMS over dx, dy, dz: raw {:.3} µm, fit {:.3} µm, {} {:.3} µm (σ̂ = {:.3} µm).\n",
-        a.raw_rms_um, a.fit.fit_rms_um, a.judged_by, a.judged_rms_um, a.fit.sigma_um
+    let r = |i: usize| {
+        vec![
+            ["dx", "dy", "dz"][i].to_string(),
+            format!("{:.3}", k.before_um[i]),
+            format!("{:.3}", k.after_um[i]),
+            format!("{:.1}", 100.0 * (1.0 - k.after_um[i] / k.before_um[i])),
+        ]
+    };
+    md.push_str(&markdown_table(
+        &["component", "before µm", "after µm", "reduction %"],
+        &[r(0), r(1), r(2)],
     ));
-    if let Some(k) = &a.k4 {
-        md.push_str(&format!(
-            "\nISO 10791-6 K4 figures (range of each component over {} K4 poses, {}):\n\n",
-            k.rows,
-            if k.in_sample { "fit" } else { a.judged_by }
-        ));
-        let r = |i: usize| {
-            vec![
-                ["dx", "dy", "dz"][i].to_string(),
-                format!("{:.3}", k.before_um[i]),
-                format!("{:.3}", k.after_um[i]),
-                format!("{:.1}", 100.0 * (1.0 - k.after_um[i] / k.before_um[i])),
-            ]
-        };
-        md.push_str(&markdown_table(
-            &["component", "before µm", "after µm", "reduction %"],
-            &[r(0), r(1), r(2)],
-        ));
-    }
-    effects_section(&mut md, a);
-    closure_section(&mut md, a, data);
-    md.push_str("\n![dx](path_dx.svg)\n![dy](path_dy.svg)\n![dz](path_dz.svg)\n![rotary range](rotary_range.svg)\n");
-    files.push(("report.md".into(), md));
-    files
 }
 
 /// The effect terms of `--effects`, when there are any.
