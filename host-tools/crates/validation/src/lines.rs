@@ -48,6 +48,7 @@ use axcomp_diagnose::obs::Named;
 use axcomp_effects::LineEffect;
 use axcomp_geometry::LineData;
 use axcomp_geometry::data::LineReading;
+use axcomp_kinematics::lines::LineSpec;
 use axcomp_kinematics::{Component, Topology};
 use axcomp_twin::geometry::{GeometryTwin, LineCampaign, plan_by_name};
 use rand::rngs::StdRng;
@@ -250,7 +251,87 @@ fn try_case(opts: &LineValidateOptions, index: usize, round: u64) -> Result<Line
     let mut data = line_data(&clean);
     let time: Vec<f64> = clean.rows.iter().map(|r| r.time_s).collect();
     let duration = time.last().copied().unwrap_or(1.0).max(1.0);
+    let temperatures = case_temperatures(&time, duration, &mut rng, case_seed);
 
+    // Held-out lines: three at random, redrawn while the complete model loses rank without them.
+    let all_rows: Vec<usize> = (0..n).collect();
+    let full_obs = LineObservations {
+        data: data.clone(),
+        target_name: "deviation_um".into(),
+        held_out: vec![false; n],
+        time_s: Some(time.clone()),
+        temperatures: temperatures.clone(),
+        topology: topology.clone(),
+    };
+    let (held_lines, held_out) = pick_held_out(opts, &full_obs, &mut rng, case_seed);
+    let hold: Vec<usize> = (0..n).filter(|&i| held_out[i]).collect();
+
+    // The withheld effect at unit size, and the model told to the diagnosis.
+    // Redrawn (up to 30 times) until it shows on the held-out lines: its held-out peak ≥ 20 % of its
+    // peak over all lines, and the part the model cannot absorb ≥ 20 % of that (the held-out lines were
+    // drawn first, blind to the kind).
+    let full_truth: Vec<f64> = clean.rows.iter().map(|r| r.truth_um).collect();
+    let mut obs = LineObservations {
+        data: data.clone(),
+        target_name: "deviation_um".into(),
+        held_out,
+        time_s: Some(time),
+        temperatures: temperatures.clone(),
+        topology,
+    };
+    let case = CaseTwin {
+        opts,
+        twin: &twin,
+        plan: &plan,
+        clean: &clean,
+        data: &data,
+        temperatures: &temperatures,
+        full_truth: &full_truth,
+        case_seed,
+    };
+    let drawn = draw_shown(&case, kind, snr, &obs, &all_rows, &hold, &mut rng);
+    let Some((model, base_truth, contribution, detail)) = drawn else {
+        return Err(format!(
+            "case {index}: no draw of the withheld {} shows on the held-out lines {}",
+            kind.map_or("none", |k| k.name()),
+            held_lines.join(", ")
+        ));
+    };
+    let mut noise = axcomp_numeric::noise::TestNoise(case_seed ^ 0x5eed);
+    for (i, r) in data.readings.iter_mut().enumerate() {
+        r.deviation_um = base_truth[i] + contribution[i] + opts.noise_um * noise.normal();
+    }
+    obs.data = data;
+    Ok(LineCaseData {
+        obs,
+        model,
+        withheld: kind,
+        detail,
+        snr,
+        contribution_um: contribution,
+        holdout_lines: held_lines,
+    })
+}
+
+/// The twin, plan, clean campaign and temperatures of one case: what its withheld effect is drawn from.
+struct CaseTwin<'a> {
+    opts: &'a LineValidateOptions,
+    twin: &'a GeometryTwin,
+    plan: &'a [LineSpec],
+    clean: &'a LineCampaign,
+    data: &'a LineData,
+    temperatures: &'a [Named],
+    /// The clean campaign's true deviation per reading, µm.
+    full_truth: &'a [f64],
+    case_seed: u64,
+}
+
+/// One draw of the withheld effect: the model told to the diagnosis, the truth without the effect, the
+/// effect's contribution per reading (µm) and its description.
+type Withheld = (Vec<Component>, Vec<f64>, Vec<f64>, String);
+
+/// The case's two temperature sensors (see the module glossary), drawn from `rng`.
+fn case_temperatures(time: &[f64], duration: f64, rng: &mut StdRng, case_seed: u64) -> Vec<Named> {
     // Temperatures (every case).
     let (a1, p1) = (rng.gen_range(1.0..3.0), rng.gen_range(0.6..1.6));
     let (a2, per2, ph2) = (
@@ -273,7 +354,7 @@ fn try_case(opts: &LineValidateOptions, index: usize, round: u64) -> Result<Line
                 + 0.01 * sensor_noise.normal()
         })
         .collect();
-    let temperatures = vec![
+    vec![
         Named {
             name: "spindle".into(),
             values: spindle,
@@ -282,19 +363,21 @@ fn try_case(opts: &LineValidateOptions, index: usize, round: u64) -> Result<Line
             name: "ambient".into(),
             values: ambient,
         },
-    ];
+    ]
+}
 
-    // Held-out lines: three at random, redrawn while the complete model loses rank without them.
+/// The held-out lines (names) and row mask: drawn at random, redrawn (up to 50 times) while the complete
+/// model loses rank or predicts them poorly without them.
+fn pick_held_out(
+    opts: &LineValidateOptions,
+    full_obs: &LineObservations,
+    rng: &mut StdRng,
+    case_seed: u64,
+) -> (Vec<String>, Vec<bool>) {
+    let data = &full_obs.data;
+    let n = full_obs.held_out.len();
     let all_rows: Vec<usize> = (0..n).collect();
-    let full_obs = LineObservations {
-        data: data.clone(),
-        target_name: "deviation_um".into(),
-        held_out: vec![false; n],
-        time_s: Some(time.clone()),
-        temperatures: temperatures.clone(),
-        topology: topology.clone(),
-    };
-    let design = lines::Design::new(&full_obs, None);
+    let design = lines::Design::new(full_obs, None);
     let full_cols = lines::base_columns(&design, &Component::ALL, &all_rows);
     let full_rank = rank_on(&full_cols, &all_rows);
     let mut held_lines = Vec::new();
@@ -322,186 +405,205 @@ fn try_case(opts: &LineValidateOptions, index: usize, round: u64) -> Result<Line
             break;
         }
     }
-    let hold: Vec<usize> = (0..n).filter(|&i| held_out[i]).collect();
+    (held_lines, held_out)
+}
 
-    // The withheld effect at unit size, and the model told to the diagnosis.
-    // Redrawn (up to 30 times) until it shows on the held-out lines: its held-out peak ≥ 20 % of its
-    // peak over all lines, and the part the model cannot absorb ≥ 20 % of that (the held-out lines were
-    // drawn first, blind to the kind).
-    let full_truth: Vec<f64> = clean.rows.iter().map(|r| r.truth_um).collect();
-    let mut obs = LineObservations {
-        data: data.clone(),
-        target_name: "deviation_um".into(),
-        held_out,
-        time_s: Some(time),
-        temperatures: temperatures.clone(),
-        topology,
-    };
-    let rd = &data.readings;
-    let mut drawn = None;
+/// The withheld effect, redrawn (up to 30 times) until it shows on the held-out rows `hold`, scaled to the
+/// SNR; at unit size for a case without SNR. None when no draw shows.
+fn draw_shown(
+    c: &CaseTwin,
+    kind: Option<LineEffect>,
+    snr: Option<f64>,
+    obs: &LineObservations,
+    all_rows: &[usize],
+    hold: &[usize],
+    rng: &mut StdRng,
+) -> Option<Withheld> {
+    let opts = c.opts;
     for _attempt in 0..30 {
-        let mut model: Vec<Component> = Component::ALL.to_vec();
-        let mut base_truth = full_truth.clone();
-        let mut contribution = vec![0.0; n];
-        let mut detail = String::from("nothing withheld");
-        match kind {
-            None => {}
-            Some(
-                k @ (LineEffect::AbbeAngular | LineEffect::Squareness | LineEffect::Straightness),
-            ) => {
-                use Component::*;
-                let groups: Vec<Vec<Component>> = match k {
-                    LineEffect::AbbeAngular => vec![
-                        vec![ECY, EAZ, EBZ, ECZ],
-                        vec![EAX, EBX, ECX],
-                        vec![EAY, EBY, ECY],
-                        vec![EAZ, EBZ, ECZ],
-                    ],
-                    LineEffect::Squareness => {
-                        vec![vec![EC0Y, EB0Z, EA0Z], vec![EC0Y], vec![EB0Z], vec![EA0Z]]
-                    }
-                    _ => vec![
-                        vec![EYX, EZX, EXY, EZY, EXZ, EYZ],
-                        vec![EYX, EZX],
-                        vec![EXY, EZY],
-                        vec![EXZ, EYZ],
-                    ],
-                };
-                let g = groups[rng.gen_range(0..groups.len())].clone();
-                base_truth = truth_without(&twin, &g, &clean);
-                contribution = full_truth
-                    .iter()
-                    .zip(&base_truth)
-                    .map(|(a, b)| a - b)
-                    .collect();
-                model.retain(|c| !g.contains(c));
-                detail = format!(
-                    "twin components left out of the model: {}",
-                    g.iter().map(|c| c.name()).collect::<Vec<_>>().join(", ")
-                );
-            }
-            Some(LineEffect::TimeDrift) => {
-                let mut d = [0.0f64; 3];
-                for v in d.iter_mut() {
-                    *v = rng.gen_range(-1.0..1.0);
-                }
-                let norm = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-9);
-                let rate = [2.0 * d[0] / norm, 2.0 * d[1] / norm, 2.0 * d[2] / norm];
-                let mut drifting = twin.clone();
-                drifting.drift_um_per_h = rate;
-                let m = drifting.measure(&plan, opts.runs, case_seed);
-                contribution = m
-                    .rows
-                    .iter()
-                    .zip(&clean.rows)
-                    .map(|(a, b)| a.deviation_um - b.deviation_um)
-                    .collect();
-                detail = format!(
-                    "twin drift direction ({:.2}, {:.2}, {:.2})",
-                    d[0] / norm,
-                    d[1] / norm,
-                    d[2] / norm
-                );
-            }
-            Some(LineEffect::CrossCoupling) => {
-                let pairs = [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)];
-                let (a, c) = pairs[rng.gen_range(0..pairs.len())];
-                let (c2, c3, p) = (
-                    rng.gen_range(-1.0..1.0),
-                    rng.gen_range(-1.0..1.0),
-                    rng.gen_range(1.5..2.5),
-                );
-                let s = opts.stroke_mm;
-                contribution = rd
-                    .iter()
-                    .map(|r| {
-                        let ua = r.q[a] / s[a];
-                        let uc = (r.q[c] / s[c]).max(0.0);
-                        let g = ua + c2 * ua * ua + c3 * (std::f64::consts::PI * ua).sin();
-                        r.beam[a] * g * uc.powf(p)
-                    })
-                    .collect();
-                detail = format!(
-                    "harness-added: error of {} along its axis × ({}/stroke)^{p:.2}",
-                    ['X', 'Y', 'Z'][a],
-                    ['x', 'y', 'z'][c]
-                );
-            }
-            Some(LineEffect::ThermalDrift) => {
-                let s = rng.gen_range(0..temperatures.len());
-                let t0 = temperatures[s].values[0];
-                let scale_form = rng.gen_bool(0.5);
-                let mut coef = [0.0; 3];
-                for v in coef.iter_mut() {
-                    *v = rng.gen_range(0.5..1.0) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-                }
-                contribution = rd
-                    .iter()
-                    .enumerate()
-                    .map(|(i, r)| {
-                        let dt = temperatures[s].values[i] - t0;
-                        (0..3)
-                            .map(|k| {
-                                let f = if scale_form { r.q[k] / 1000.0 } else { 1.0 };
-                                r.beam[k] * coef[k] * f * dt
-                            })
-                            .sum()
-                    })
-                    .collect();
-                detail = format!(
-                    "harness-added: {} of sensor {} ({:.2}, {:.2}, {:.2})",
-                    if scale_form {
-                        "scale expansion, µm/m/K,"
-                    } else {
-                        "offset, µm/K,"
-                    },
-                    temperatures[s].name,
-                    coef[0],
-                    coef[1],
-                    coef[2]
-                );
-            }
-        }
+        let (model, base_truth, mut contribution, detail) = draw_withheld(c, kind, rng);
         let Some(snr) = snr else {
-            drawn = Some((model, base_truth, contribution, detail));
-            break;
+            return Some((model, base_truth, contribution, detail));
         };
-        let left = lines::model_residual(&obs, &model, None, &contribution);
+        let left = lines::model_residual(obs, &model, None, &contribution);
         let peak_of =
             |v: &[f64], rows: &[usize]| rows.iter().map(|&i| v[i].abs()).fold(0.0, f64::max);
-        let raw_all = peak_of(&contribution, &all_rows);
-        let raw = peak_of(&contribution, &hold);
-        let un = peak_of(&left, &hold);
+        let raw_all = peak_of(&contribution, all_rows);
+        let raw = peak_of(&contribution, hold);
+        let un = peak_of(&left, hold);
         if raw >= 0.2 * raw_all && un >= 0.2 * raw && raw > 0.0 {
             let f = snr * opts.noise_um / raw.min(un);
             for v in contribution.iter_mut() {
                 *v *= f;
             }
-            drawn = Some((model, base_truth, contribution, detail));
-            break;
+            return Some((model, base_truth, contribution, detail));
         }
     }
-    let Some((model, base_truth, contribution, detail)) = drawn else {
-        return Err(format!(
-            "case {index}: no draw of the withheld {} shows on the held-out lines {}",
-            kind.map_or("none", |k| k.name()),
-            held_lines.join(", ")
-        ));
-    };
-    let mut noise = axcomp_numeric::noise::TestNoise(case_seed ^ 0x5eed);
-    for (i, r) in data.readings.iter_mut().enumerate() {
-        r.deviation_um = base_truth[i] + contribution[i] + opts.noise_um * noise.normal();
+    None
+}
+
+/// One draw of the withheld effect of `kind` at unit size.
+fn draw_withheld(c: &CaseTwin, kind: Option<LineEffect>, rng: &mut StdRng) -> Withheld {
+    match kind {
+        None => (
+            Component::ALL.to_vec(),
+            c.full_truth.to_vec(),
+            vec![0.0; c.full_truth.len()],
+            String::from("nothing withheld"),
+        ),
+        Some(k @ (LineEffect::AbbeAngular | LineEffect::Squareness | LineEffect::Straightness)) => {
+            withheld_components(c, k, rng)
+        }
+        Some(LineEffect::TimeDrift) => time_drift(c, rng),
+        Some(LineEffect::CrossCoupling) => cross_coupling(c, rng),
+        Some(LineEffect::ThermalDrift) => thermal_drift(c, rng),
     }
-    obs.data = data;
-    Ok(LineCaseData {
-        obs,
-        model,
-        withheld: kind,
+}
+
+/// A group of the twin's components left out of the model (`abbe_angular`, `squareness`, `straightness`).
+fn withheld_components(c: &CaseTwin, k: LineEffect, rng: &mut StdRng) -> Withheld {
+    use Component::*;
+    let groups: Vec<Vec<Component>> = match k {
+        LineEffect::AbbeAngular => vec![
+            vec![ECY, EAZ, EBZ, ECZ],
+            vec![EAX, EBX, ECX],
+            vec![EAY, EBY, ECY],
+            vec![EAZ, EBZ, ECZ],
+        ],
+        LineEffect::Squareness => {
+            vec![vec![EC0Y, EB0Z, EA0Z], vec![EC0Y], vec![EB0Z], vec![EA0Z]]
+        }
+        _ => vec![
+            vec![EYX, EZX, EXY, EZY, EXZ, EYZ],
+            vec![EYX, EZX],
+            vec![EXY, EZY],
+            vec![EXZ, EYZ],
+        ],
+    };
+    let g = groups[rng.gen_range(0..groups.len())].clone();
+    let base_truth = truth_without(c.twin, &g, c.clean);
+    let contribution = c
+        .full_truth
+        .iter()
+        .zip(&base_truth)
+        .map(|(a, b)| a - b)
+        .collect();
+    let mut model: Vec<Component> = Component::ALL.to_vec();
+    model.retain(|c| !g.contains(c));
+    let detail = format!(
+        "twin components left out of the model: {}",
+        g.iter().map(|c| c.name()).collect::<Vec<_>>().join(", ")
+    );
+    (model, base_truth, contribution, detail)
+}
+
+/// The twin's own drift in a random direction, model complete.
+fn time_drift(c: &CaseTwin, rng: &mut StdRng) -> Withheld {
+    let mut d = [0.0f64; 3];
+    for v in d.iter_mut() {
+        *v = rng.gen_range(-1.0..1.0);
+    }
+    let norm = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-9);
+    let rate = [2.0 * d[0] / norm, 2.0 * d[1] / norm, 2.0 * d[2] / norm];
+    let mut drifting = c.twin.clone();
+    drifting.drift_um_per_h = rate;
+    let m = drifting.measure(c.plan, c.opts.runs, c.case_seed);
+    let contribution = m
+        .rows
+        .iter()
+        .zip(&c.clean.rows)
+        .map(|(a, b)| a.deviation_um - b.deviation_um)
+        .collect();
+    let detail = format!(
+        "twin drift direction ({:.2}, {:.2}, {:.2})",
+        d[0] / norm,
+        d[1] / norm,
+        d[2] / norm
+    );
+    (
+        Component::ALL.to_vec(),
+        c.full_truth.to_vec(),
+        contribution,
         detail,
-        snr,
-        contribution_um: contribution,
-        holdout_lines: held_lines,
-    })
+    )
+}
+
+/// A harness-added cross-coupling of two axes, model complete.
+fn cross_coupling(case: &CaseTwin, rng: &mut StdRng) -> Withheld {
+    let pairs = [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)];
+    let (a, c) = pairs[rng.gen_range(0..pairs.len())];
+    let (c2, c3, p) = (
+        rng.gen_range(-1.0..1.0),
+        rng.gen_range(-1.0..1.0),
+        rng.gen_range(1.5..2.5),
+    );
+    let s = case.opts.stroke_mm;
+    let contribution = case
+        .data
+        .readings
+        .iter()
+        .map(|r| {
+            let ua = r.q[a] / s[a];
+            let uc = (r.q[c] / s[c]).max(0.0);
+            let g = ua + c2 * ua * ua + c3 * (std::f64::consts::PI * ua).sin();
+            r.beam[a] * g * uc.powf(p)
+        })
+        .collect();
+    let detail = format!(
+        "harness-added: error of {} along its axis × ({}/stroke)^{p:.2}",
+        ['X', 'Y', 'Z'][a],
+        ['x', 'y', 'z'][c]
+    );
+    (
+        Component::ALL.to_vec(),
+        case.full_truth.to_vec(),
+        contribution,
+        detail,
+    )
+}
+
+/// A harness-added thermal drift of one sensor, model complete.
+fn thermal_drift(c: &CaseTwin, rng: &mut StdRng) -> Withheld {
+    let s = rng.gen_range(0..c.temperatures.len());
+    let t0 = c.temperatures[s].values[0];
+    let scale_form = rng.gen_bool(0.5);
+    let mut coef = [0.0; 3];
+    for v in coef.iter_mut() {
+        *v = rng.gen_range(0.5..1.0) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+    }
+    let contribution = c
+        .data
+        .readings
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let dt = c.temperatures[s].values[i] - t0;
+            (0..3)
+                .map(|k| {
+                    let f = if scale_form { r.q[k] / 1000.0 } else { 1.0 };
+                    r.beam[k] * coef[k] * f * dt
+                })
+                .sum()
+        })
+        .collect();
+    let detail = format!(
+        "harness-added: {} of sensor {} ({:.2}, {:.2}, {:.2})",
+        if scale_form {
+            "scale expansion, µm/m/K,"
+        } else {
+            "offset, µm/K,"
+        },
+        c.temperatures[s].name,
+        coef[0],
+        coef[1],
+        coef[2]
+    );
+    (
+        Component::ALL.to_vec(),
+        c.full_truth.to_vec(),
+        contribution,
+        detail,
+    )
 }
 
 /// Diagnoses case `index` blind and compares with the truth and the oracle.
