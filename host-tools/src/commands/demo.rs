@@ -393,7 +393,7 @@ fn build_image(
     files: &mut Outputs,
 ) -> anyhow::Result<(Vec<u8>, Compensator)> {
     let table_core = fitted.table.try_to_core(axis.scale_um_per_count)?;
-    let limits = axcomp_twin::ideal::default_limits(&axis);
+    let limits = axcomp_twin::ideal::default_limits(axis);
     let spec = ImageSpec {
         axis_id: 1,
         um_per_count: axis.scale_um_per_count as f32,
