@@ -136,18 +136,22 @@ pub enum TiltWobbleShape {
     Quadratic,
     /// `a·(sin(2t + φ) − sin φ)`: twice per turn.
     Harmonic2,
+    /// A tilt only beyond 0.5 rad (≈ 29°) of travel, `±2a·max(0, |t| − 0.5)` (the sign of `cos φ`):
+    /// a bearing that tilts over part of the range.
+    Partial,
     /// The first harmonic plus a radial motion of the axis twice per turn,
     /// `r_k·(sin(2t + ψ + kπ/2) − sin(ψ + kπ/2))` along its two perpendicular axes.
     Harmonic1Radial,
 }
 
 impl TiltWobbleShape {
-    pub const ALL: [TiltWobbleShape; 5] = [
+    pub const ALL: [TiltWobbleShape; 6] = [
         TiltWobbleShape::Harmonic1,
         TiltWobbleShape::Linear,
         TiltWobbleShape::Quadratic,
         TiltWobbleShape::Harmonic2,
         TiltWobbleShape::Harmonic1Radial,
+        TiltWobbleShape::Partial,
     ];
 
     pub fn name(self) -> &'static str {
@@ -157,6 +161,7 @@ impl TiltWobbleShape {
             TiltWobbleShape::Quadratic => "quadratic",
             TiltWobbleShape::Harmonic2 => "harmonic2",
             TiltWobbleShape::Harmonic1Radial => "harmonic1_radial",
+            TiltWobbleShape::Partial => "partial",
         }
     }
 
@@ -169,6 +174,7 @@ impl TiltWobbleShape {
             TiltWobbleShape::Linear => a * t * phi.cos().signum(),
             TiltWobbleShape::Quadratic => a * t * t * phi.cos().signum(),
             TiltWobbleShape::Harmonic2 => a * ((2.0 * t + phi).sin() - phi.sin()),
+            TiltWobbleShape::Partial => 2.0 * a * (t.abs() - 0.5).max(0.0) * phi.cos().signum(),
         }
     }
 

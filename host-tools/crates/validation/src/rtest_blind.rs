@@ -139,13 +139,24 @@ pub fn varied_plan(machine: &FiveAxis, rng: &mut TestNoise) -> Vec<RtestPathSpec
 
 /// Builds, measures and diagnoses the blind case of `kind` and `seed` (`--model location_errors`).
 pub fn run_blind_case(kind: BlindKind, seed: u64) -> Result<BlindCase, String> {
+    run_blind_case_shaped(kind, seed, None)
+}
+
+/// As [`run_blind_case`], with the wobble's shape forced to `shape` (None: drawn from the seed); every
+/// other draw stays that of the seed.
+pub fn run_blind_case_shaped(
+    kind: BlindKind,
+    seed: u64,
+    shape: Option<TiltWobbleShape>,
+) -> Result<BlindCase, String> {
     let machine = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
     let mut rng = TestNoise(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0x626c_696e_64);
     let paths = varied_plan(&machine, &mut rng);
     let noise_um = 0.15 + 0.35 * rng.uniform();
     let scale = (0.5f64).powf(1.0 - 2.0 * rng.uniform());
     let all = TiltWobbleShape::ALL;
-    let shape = all[((rng.uniform() * all.len() as f64) as usize).min(all.len() - 1)];
+    let drawn = all[((rng.uniform() * all.len() as f64) as usize).min(all.len() - 1)];
+    let shape = shape.unwrap_or(drawn);
     let mut twin = FiveAxisTwin::random(machine, 7000 + seed);
     twin.noise_um = noise_um;
     twin.dwell_s = 6.0;
