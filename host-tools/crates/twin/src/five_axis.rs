@@ -191,6 +191,24 @@ impl TiltWobbleShape {
     }
 }
 
+impl EffectParams {
+    /// The tilt-axis wobble at tilt `t` (rad) of the axis `tilt_axis` (0: A, 1: B): its small rotation
+    /// (rad) and its radial motion (mm), both in the machine frame at zero angles.
+    fn tilt_wobble_at(&self, t: f64, tilt_axis: usize) -> ([f64; 3], [f64; 3]) {
+        let (tw, shape) = (&self.tilt_wobble, self.tilt_wobble_shape);
+        let a = shape.tilt_urad(tw[0], tw[2], t) * 1e-6;
+        let b = shape.tilt_urad(tw[1], tw[3], t) * 1e-6;
+        let [p, q] = shape
+            .radial_um(&self.tilt_wobble_radial, t)
+            .map(|v| v * 1e-3);
+        if tilt_axis == 0 {
+            ([0.0, a, b], [0.0, p, q])
+        } else {
+            ([a, 0.0, b], [p, 0.0, q])
+        }
+    }
+}
+
 /// One planned path.
 #[derive(Debug, Clone)]
 pub struct RtestPathSpec {
@@ -404,30 +422,12 @@ impl FiveAxisTwin {
         } else {
             [0.0; 3]
         };
-        // Tilt-axis wobble: a small rotation `wt` (machine frame at zero angles) of what the tilt axis carries.
-        let wt = if e.tilt_wobble {
-            let tw = &q.tilt_wobble;
-            let shape = q.tilt_wobble_shape;
-            let a = shape.tilt_urad(tw[0], tw[2], t) * 1e-6;
-            let b = shape.tilt_urad(tw[1], tw[3], t) * 1e-6;
-            if tilt_axis == 0 {
-                [0.0, a, b]
-            } else {
-                [a, 0.0, b]
-            }
+        // Tilt-axis wobble: a small rotation `wt` (machine frame at zero angles) of what the tilt axis
+        // carries, and its radial motion `wr` (mm).
+        let (wt, wr) = if e.tilt_wobble {
+            q.tilt_wobble_at(t, tilt_axis)
         } else {
-            [0.0; 3]
-        };
-        // Its radial motion (mm, machine frame at zero angles), for the shapes that have one.
-        let wr = if e.tilt_wobble {
-            let [p, q2] = q.tilt_wobble_shape.radial_um(&q.tilt_wobble_radial, t);
-            if tilt_axis == 0 {
-                [0.0, p * 1e-3, q2 * 1e-3]
-            } else {
-                [p * 1e-3, 0.0, q2 * 1e-3]
-            }
-        } else {
-            [0.0; 3]
+            ([0.0; 3], [0.0; 3])
         };
         let (rt, rc) = (rot(tilt_axis, t), rot(2, c));
         let mut extra = [0.0; 3];
@@ -762,5 +762,30 @@ mod tests {
             }
         }
         assert!(spread.1 - spread.0 > 0.05, "{spread:?}");
+    }
+
+    /// Every tilt-wobble shape is zero at tilt 0 (a constant part would be a location error), only the
+    /// radial shape moves the axis, and the default shape is the first harmonic.
+    #[test]
+    fn tilt_wobble_shapes_vanish_at_zero_tilt() {
+        let twin = FiveAxisTwin::random(FiveAxis::new(MachineKind::AcTrunnion, 0.0), 5);
+        assert_eq!(
+            twin.effect_params.tilt_wobble_shape,
+            TiltWobbleShape::Harmonic1
+        );
+        for shape in TiltWobbleShape::ALL {
+            let mut q = twin.effect_params;
+            q.tilt_wobble_shape = shape;
+            let (w0, r0) = q.tilt_wobble_at(0.0, 0);
+            assert!(w0.iter().chain(&r0).all(|v| v.abs() < 1e-15), "{shape:?}");
+            let (w, r) = q.tilt_wobble_at(-1.2, 0);
+            assert!(w[1].abs() > 1e-7, "{shape:?}: {w:?}");
+            let moves = r.iter().any(|v| v.abs() > 1e-6);
+            assert_eq!(
+                moves,
+                shape == TiltWobbleShape::Harmonic1Radial,
+                "{shape:?}"
+            );
+        }
     }
 }
