@@ -11,6 +11,13 @@
 //! - *oracle*: the measurement noise alone (what a perfect compensation would leave: the noise floor, as
 //!   `diagnose_rtest_cli` takes it);
 //! - *location errors only*: the same chain with `fit rtest` without `--effects`.
+//!
+//! Also printed: each figure with the six set-up offsets refitted to it (least squares on their
+//! sensitivities) instead of the twin's true ones taken out. A C-axis zero offset, and what a fit
+//! without the effect puts into the location errors in its place, cannot be told from where the sphere
+//! sits: `fit rtest` keeps that part in its set-up offsets, which `predict` applies and an image cannot.
+//! Refitted, the location errors alone give what `fit rtest` predicts held out (0.99 µm); with the
+//! true offsets out they give 2.25 µm.
 
 use std::path::Path;
 
@@ -151,7 +158,8 @@ fn held_out(twin: &FiveAxisTwin, c: &RtestCampaign, image: &[u8]) -> ([f64; 3], 
     g.load_image(image).unwrap();
     let mut placed = twin.clone();
     placed.setup_offsets_um = vec![[0.0; N_SETUP]];
-    let (mut after, mut noise, mut raw, mut rows) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut after, mut noise, mut raw, mut rows) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for r in c.rows.iter().filter(|r| r.run == 2) {
         let truth = twin.reading(&r.pose, r.sphere_mm, r.setup_index, r.time_s);
         let nominal = placed.reading(&r.pose, r.sphere_mm, 0, r.time_s);
@@ -230,12 +238,11 @@ fn chain(effect: &str, dir: &Path) -> (String, String, [f64; 4]) {
 
 /// A C-axis positioning error (1× and 2× per turn, 5–20 µrad) and the tilt axis's: `diagnose` names
 /// `rotary_positioning`, the model carries it, `image group` puts it into the A and C axes' own images as
-/// their angle tables (and says so; the engine's A and C corrections at the held-out poses are within 5 %
-/// of the twin's true angle errors), and the firmware's group engine brings the held-out K4 run below the
-/// location errors alone. Not yet met: the issue's 1.3× the oracle (the noise floor) through the engine
-/// (measured: 2.03 µm against 0.29; the location errors alone 2.25): the residual grows with the tilt
-/// angle although the tables match the truth, so the location errors fitted with the effect do not
-/// combine with the tables in the engine as they do in `predict` (0.34 µm held out).
+/// their angle tables (and says so), and the firmware's group engine brings the held-out K4 run to the
+/// noise: measured 0.303 µm against the oracle's 0.287 (1.06×; location errors alone 2.25, uncompensated
+/// 18.37). The location errors fitted with the effect include `EA0C` reported not identified (determined
+/// only together with the tilt axis's angle offset, which the fit fixes at 0): it goes into the image
+/// with its value, as `predict` uses it. Tolerance: the issue's 1.3× the oracle.
 #[test]
 fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-pos");
@@ -254,16 +261,18 @@ fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
         assert_eq!(info.n_segments, 128, "axis {}", a.name.letter());
     }
     assert!(
-        after < only && only < raw && after > oracle,
-        "after {after:.3} µm, location errors only {only:.3}, oracle {oracle:.3}, raw {raw:.3}"
+        after <= 1.3 * oracle && after < only && only < raw,
+        "after {after:.3} µm (at most 1.3 × the oracle {oracle:.3}), location errors only {only:.3}, \
+         raw {raw:.3}"
     );
 }
 
 /// A C-axis wobble (tilt of C turning twice per turn, 3–10 µrad): `diagnose` names `rotary_wobble`, the
 /// model carries it, and `image group` says that the firmware cannot apply it, naming its RMS over the
 /// fitted poses (the model file's `rms_over_fit_um`) and that the location errors fitted with it may
-/// correct worse alone (measured: 8.52 µm held out against 0.76 µm for the image of a fit without
-/// `--effects`; uncompensated 19.19, noise 0.29).
+/// correct worse alone (measured: 6.34 µm held out against 0.76 µm for the image of a fit without
+/// `--effects`; uncompensated 19.19, noise 0.29): that advice is asserted as measured, the image of the
+/// fit without the effect correcting better.
 #[test]
 fn rotary_wobble_is_said_to_be_left_out() {
     let dir = scratch("effect-image-wobble");
@@ -280,7 +289,7 @@ fn rotary_wobble_is_said_to_be_left_out() {
         "{said}"
     );
     assert!(
-        after < raw && after > oracle,
-        "after {after:.3}, oracle {oracle:.3}, raw {raw:.3}"
+        only < after && after < raw && after > oracle,
+        "after {after:.3}, a fit without --effects {only:.3}, oracle {oracle:.3}, raw {raw:.3}"
     );
 }
