@@ -654,65 +654,24 @@ fn fitted_not_separable_components_reach_the_image() {
     let twin = GeometryTwin::random(STROKE, Topology::default(), 7);
     let csv = twin.measure(&lines, 2, 107).to_csv_string();
     Dataset::from_csv_str("twin", &csv, &LoadOptions::default()).unwrap();
-    let data = dir.join("lines.csv");
-    std::fs::write(&data, csv).unwrap();
     let p = |name: &str| dir.join(name).display().to_string();
-    let run = |args: &[&str]| {
-        let mut v = vec!["axcomp"];
-        v.extend_from_slice(args);
-        axcomp::run(v).unwrap_or_else(|e| panic!("{args:?}: {e:#}"));
-    };
-    let (model, pred, group) = (p("geometry.json"), p("pred.csv"), p("group.bin"));
-    run(&[
-        "fit",
-        "geometry",
-        "--data",
-        &p("lines.csv"),
-        "--holdout",
-        "line=L1,L2,L3,L4,L5,L6,L7",
-        "--out",
-        &model,
-    ]);
-    run(&[
-        "predict",
-        "--model",
-        &model,
-        "--data",
-        &p("lines.csv"),
-        "--out",
-        &pred,
-    ]);
-    let mut axes = Vec::new();
-    for (k, c) in ["X", "Y", "Z"].into_iter().enumerate() {
-        let img = p(&format!("{c}.bin"));
-        let id = (k + 1).to_string();
-        run(&[
-            "image",
-            "build",
-            "--identity",
-            "--axis-id",
-            &id,
-            "--um-per-count",
-            "0.1",
-            "--out",
-            &img,
-        ]);
-        axes.push(format!("{c}={img}"));
-    }
-    run(&[
-        "image",
-        "group",
-        "--axis",
-        &axes[0],
-        "--axis",
-        &axes[1],
-        "--axis",
-        &axes[2],
-        "--geometry",
-        &model,
-        "--out",
-        &group,
-    ]);
+    std::fs::write(p("lines.csv"), csv).unwrap();
+    let (data, model, pred, group) = (
+        p("lines.csv"),
+        p("geometry.json"),
+        p("pred.csv"),
+        p("group.bin"),
+    );
+    cli(&format!(
+        "fit geometry --data {data} --holdout line=L1,L2,L3,L4,L5,L6,L7 --out {model}"
+    ));
+    cli(&format!(
+        "predict --model {model} --data {data} --out {pred}"
+    ));
+    let axes = identity_axes(&dir);
+    cli(&format!(
+        "image group {axes} --geometry {model} --out {group}"
+    ));
 
     let m = GeometryModel::from_json(&std::fs::read_to_string(&model).unwrap(), "fit").unwrap();
     let shared: Vec<usize> = (0..21)
@@ -791,45 +750,38 @@ fn fitted_not_separable_components_reach_the_image() {
     // data (stored as zero already) is an error naming it.
     let name = m.components[shared[0]].name.clone();
     let excluded = p("excluded.bin");
-    run(&[
-        "image",
-        "group",
-        "--axis",
-        &axes[0],
-        "--axis",
-        &axes[1],
-        "--axis",
-        &axes[2],
-        "--geometry",
-        &model,
-        "--exclude-geometric",
-        &name,
-        "--out",
-        &excluded,
-    ]);
+    cli(&format!(
+        "image group {axes} --geometry {model} --exclude-geometric {name} --out {excluded}"
+    ));
     let ex_bytes = std::fs::read(&excluded).unwrap();
     let ex = group_image::parse(&ex_bytes).unwrap().geometric.unwrap();
     assert!(!axcomp_image::geometric::geometric_component_nonzero(
         &ex, shared[0]
     ));
-    let e = axcomp::run([
-        "axcomp",
-        "image",
-        "group",
-        "--axis",
-        &axes[0],
-        "--axis",
-        &axes[1],
-        "--axis",
-        &axes[2],
-        "--geometry",
-        &model,
-        "--exclude-geometric",
-        "ECY",
-        "--out",
-        &p("no.bin"),
-    ])
-    .unwrap_err();
+    let no = p("no.bin");
+    let args =
+        format!("axcomp image group {axes} --geometry {model} --exclude-geometric ECY --out {no}");
+    let e = axcomp::run(args.split_whitespace()).unwrap_err();
     assert!(format!("{e:#}").contains("ECY"), "{e:#}");
     assert!(!dir.join("no.bin").exists());
+}
+
+/// Runs `axcomp` with the whitespace-separated arguments `args` (scratch paths hold no spaces).
+fn cli(args: &str) {
+    axcomp::run(std::iter::once("axcomp").chain(args.split_whitespace()))
+        .unwrap_or_else(|e| panic!("axcomp {args}: {e:#}"));
+}
+
+/// Identity X, Y, Z images at 0.1 µm per count in `dir`, as `--axis` arguments of `image group`.
+fn identity_axes(dir: &Path) -> String {
+    let mut axes = Vec::new();
+    for (k, c) in ["X", "Y", "Z"].into_iter().enumerate() {
+        let img = dir.join(format!("{c}.bin")).display().to_string();
+        cli(&format!(
+            "image build --identity --axis-id {} --um-per-count 0.1 --out {img}",
+            k + 1
+        ));
+        axes.push(format!("--axis {c}={img}"));
+    }
+    axes.join(" ")
 }
