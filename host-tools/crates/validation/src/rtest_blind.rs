@@ -150,7 +150,7 @@ pub fn run_blind_case_shaped(
     shape: Option<TiltWobbleShape>,
 ) -> Result<BlindCase, String> {
     let machine = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
-    let mut rng = TestNoise(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0x626c_696e_64);
+    let mut rng = TestNoise(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0x0062_6c69_6e64);
     let paths = varied_plan(&machine, &mut rng);
     let noise_um = 0.15 + 0.35 * rng.uniform();
     let scale = (0.5f64).powf(1.0 - 2.0 * rng.uniform());
