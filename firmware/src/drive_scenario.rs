@@ -147,7 +147,7 @@ pub fn group_link(cycles: u32) -> Result<Vec<u8>, ScenarioError> {
     Ok(r.t.finish())
 }
 
-/// The faults of the drive fault matrix (issue 14), each a drive trace of its own
+/// The faults of the drive fault matrix, each a drive trace of its own
 /// ([`drive_fault_trace`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DriveFault {
@@ -162,7 +162,7 @@ pub enum DriveFault {
     Overrun,
     ImageWithTrailingBytes,
     CorruptImage,
-    /// X's sensor 0 named `warmup`: not one of the board's inputs (issue 14's warm-up case).
+    /// X's sensor 0 named `warmup`: not one of the board's inputs (the warm-up case).
     SensorNotOnBoard,
 }
 

@@ -1,4 +1,4 @@
-//! The touch-probe drive trace (issue 12): a 3-axis group with probe settings on the replay board
+//! The touch-probe drive trace: a 3-axis group with probe settings on the replay board
 //! ([`crate::drive::link_trace::REPLAY_CAPS`]), probing moves at 1000 mm/min with a probe whose signal
 //! arrives 850 µs after the touch, bounce, a glitch shorter than the filter, a trigger during a rapid
 //! and one at rest without arming. The generator knows the true crossing of every touch

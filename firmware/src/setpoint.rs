@@ -27,7 +27,7 @@
 //! | setpoint (CNC → drive) | `0xA5`, `0x20 \| n`, `seq`, n × `i32` command, `u16` CRC | version 2 in the high nibble, axis count 1–5 in the low nibble | 5 + 4n: 9 (n = 1), 17 (n = 3), 25 (n = 5) |
 //! | reply (drive → CNC) | `0x5A`, `0x20 \| n`, `seq`, n × `i32` corrected command, `u32` status, `u8` echo, `u8` counter id, `u16` counter value, `u16` CRC | `seq` = the drive's own reply counter (checked like the setpoints'), `echo` = sequence of the setpoint frame the corrected commands answer; one [`CounterId`] per frame, round robin, low 16 bits (the receiver extends them) | 13 + 4n: 17 (n = 1), 25 (n = 3) |
 //!
-//! **Version 3: the touch probe** (issue 12). Versioned and backwards compatible: the high nibble of
+//! **Version 3: the touch probe**. Versioned and backwards compatible: the high nibble of
 //! the second byte is 3 instead of 2, the CRC still covers every byte after the sync byte, and one block
 //! is appended before the CRC. A drive decodes setpoint frames of both versions (a v2 frame is a frame
 //! whose probe byte is 0: not armed), and sends v3 replies only while its image has probe settings

@@ -56,8 +56,8 @@ fn grids() -> [AxisGrid; 3] {
 
 /// A model as `fit geometry` writes it: B-spline coefficients of the issue's magnitudes
 /// (positioning/straightness a few µm, angles tens of µrad, squareness tens of µrad); the four
-/// components the seven-line method cannot see are `identified: false` with nonzero coefficients
-/// (which the conversion must not use).
+/// components the seven-line method cannot see are `identified: false` and hold zeros (fixed at
+/// 0, as the fit writes them).
 fn model(topology: Topology, rng: &mut Lcg) -> GeometryModel {
     let g = grids();
     let unseen = [
@@ -70,13 +70,14 @@ fn model(topology: Topology, rng: &mut Lcg) -> GeometryModel {
         .iter()
         .map(|c| {
             let identified = !unseen.contains(c);
+            let held = if identified { 1.0 } else { 0.0 };
             let (coefficients, value) = match c.axis() {
                 Some(a) => {
                     let amp = if c.unit() == "um" { 8.0 } else { 25.0 };
                     let n = g[a.index()].n_basis();
-                    ((0..n).map(|_| rng.sym(amp)).collect(), 0.0)
+                    ((0..n).map(|_| held * rng.sym(amp)).collect(), 0.0)
                 }
-                None => (Vec::new(), rng.sym(40.0)),
+                None => (Vec::new(), held * rng.sym(40.0)),
             };
             ComponentModel {
                 name: c.name().to_string(),
@@ -84,7 +85,7 @@ fn model(topology: Topology, rng: &mut Lcg) -> GeometryModel {
                 reason: if identified {
                     "identified".into()
                 } else {
-                    "no lever arm".into()
+                    "no reading is sensitive to it; fixed at 0".into()
                 },
                 unit: c.unit().into(),
                 coefficients,
@@ -107,13 +108,17 @@ fn model(topology: Topology, rng: &mut Lcg) -> GeometryModel {
     }
 }
 
-/// The model with its unidentified components zeroed, as the host predicts with it (the fit
-/// fixes them at the prior 0; the test model carries junk there on purpose).
-fn as_fitted(m: &GeometryModel) -> GeometryModel {
+/// `m` with ECX and EB0Z marked not separable as `fit geometry` (auto) marks them: `identified:
+/// false`, their non-zero values the minimum-norm share of a combination the lines measure (which
+/// `axcomp predict` uses, so the image must carry them).
+fn with_not_separable(m: &GeometryModel) -> GeometryModel {
     let mut m = m.clone();
-    for c in m.components.iter_mut().filter(|c| !c.identified) {
-        c.coefficients.iter_mut().for_each(|v| *v = 0.0);
-        c.value = 0.0;
+    for c in [Component::ECX, Component::EB0Z] {
+        let cm = &mut m.components[c.index()];
+        cm.identified = false;
+        cm.reason = "not separable from EYX with these lines; its value is the minimum-norm share \
+                     of what the lines determine (not its own value)"
+            .into();
     }
     m
 }
@@ -208,8 +213,9 @@ fn core_stage_matches_host_prediction() {
         ("ZYX", "", "XYZ"),
     ] {
         let topo = Topology::parse(work, tool_axes).unwrap();
-        let m = model(topo.clone(), &mut rng);
-        let reference = as_fitted(&m);
+        let m = with_not_separable(&model(topo.clone(), &mut rng));
+        // What the host predicts with: every value the model holds, identified or not.
+        let reference = m.clone();
         for tool in [None, Some("35.5,-60,-120")] {
             let t_mm: [f64; 3] = tool.map_or([0.0; 3], |s| {
                 let v: Vec<f64> = s.split(',').map(|x| x.parse().unwrap()).collect();
@@ -247,13 +253,14 @@ fn core_stage_matches_host_prediction() {
     eprintln!("largest |core f32 stage − host f64 prediction|: {worst:.2e} µm");
 }
 
-/// `image inspect` lists the geometric section: stacking, tool offset, grids, each component
-/// and which are not identified (stored as zero).
+/// `image inspect` lists the geometric section: stacking, tool offset, grids, each component,
+/// which are not separable (stored at their minimum-norm share) and which are not identified
+/// (stored as zero).
 #[test]
 fn inspect_lists_the_geometric_section() {
     let mut rng = Lcg(5);
     let dir = scratch("inspect");
-    let m = model(Topology::default(), &mut rng);
+    let m = with_not_separable(&model(Topology::default(), &mut rng));
     let (model_path, axes) = files(&dir, &m, "XYZ");
     let out = dir.join("g.bin");
     axcomp::run([
@@ -277,7 +284,11 @@ fn inspect_lists_the_geometric_section() {
     let text = describe_any(&std::fs::read(&out).unwrap()).unwrap();
     for want in [
         "geometric model (21 ISO 230-1 components, volumetric stage): stacking YX/Z",
-        "tool offset (0, 0, -100000) µm, 17 of 21 components identified",
+        "tool offset (0, 0, -100000) µm, 15 of 21 components identified, 2 not separable \
+         stored at their minimum-norm share (only their combination is measured)",
+        "ECX  ",
+        "µrad, NOT separable: only its combination with others is measured; stored at its \
+         minimum-norm share",
         "grid X: 6 segments of 1000000 counts from 0 counts (7 knots)",
         "grid Y: 5 segments of 1000000 counts from -1000000 counts",
         "ECY  0.000 .. 0.000 µrad, NOT identified: stored as zero (the model's prior)",
@@ -294,7 +305,18 @@ fn inspect_lists_the_geometric_section() {
     let bytes = std::fs::read(&out).unwrap();
     let view = group_image::parse(&bytes).unwrap();
     let g = view.geometric.unwrap();
-    assert_eq!(g.identified.count_ones(), 17);
+    assert_eq!(g.identified.count_ones(), 15);
+    for (c, status) in [
+        (Component::ECX, "NOT separable"),
+        (Component::EB0Z, "NOT separable"),
+        (Component::ECY, "NOT identified: stored as zero"),
+    ] {
+        let line = text
+            .lines()
+            .find(|l| l.starts_with(&format!("  {:<4} ", c.name())))
+            .unwrap();
+        assert!(line.contains(status), "{line}");
+    }
 }
 
 /// Bad input is a clear error naming what is wrong, and nothing is written.
@@ -591,4 +613,175 @@ fn twin_compensated_through_the_core_stage() {
             );
         }
     }
+}
+
+/// Reads a CSV written by `axcomp predict` into its header and rows of fields.
+fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    (header, rows)
+}
+
+/// Host = image on a real fit with not-separable sets: the twin's twelve axis lines (four per
+/// axis, at the stroke's corners) leave the squareness and several straightness and angular
+/// components not separable (estimated at the damped minimum norm, `identified: false`) and ECY,
+/// EAZ, EBZ, ECZ without data (zero). `fit geometry` (default) on them, the seven-line set held out;
+/// `axcomp predict` on every row; `image group --geometry` with identity axis images. At every
+/// held-out row (the seven lines, other positions than the training lines, zero tool offset) the
+/// firmware library's geometric stage (`Group::geometric_error_um`, f32 Horner) gives
+/// `pred_ex_um, pred_ey_um, pred_ez_um`. Tolerance 1e-3 µm: the f32 Horner form of errors of up to
+/// ~100 µm (f32 relative precision 6e-8, a few operations: ~1e-5 µm; the figure printed). Reference
+/// for what the fix changes: the same image with the not-separable components zeroed (what was
+/// stored before) misses the host by the printed amount at the same rows.
+#[test]
+fn fitted_not_separable_components_reach_the_image() {
+    use axcomp_data::{Dataset, LoadOptions};
+    use axcomp_twin::geometry::{GeometryTwin, plan_by_name};
+
+    const STROKE: [f64; 3] = [800.0, 600.0, 500.0];
+    let dir = scratch("fitted-min-norm");
+    let mut lines = plan_by_name("axis-lines", STROKE, 11).unwrap();
+    lines.extend(plan_by_name("seven-line", STROKE, 11).unwrap());
+    let twin = GeometryTwin::random(STROKE, Topology::default(), 7);
+    let csv = twin.measure(&lines, 2, 107).to_csv_string();
+    Dataset::from_csv_str("twin", &csv, &LoadOptions::default()).unwrap();
+    let p = |name: &str| dir.join(name).display().to_string();
+    std::fs::write(p("lines.csv"), csv).unwrap();
+    let (data, model, pred, group) = (
+        p("lines.csv"),
+        p("geometry.json"),
+        p("pred.csv"),
+        p("group.bin"),
+    );
+    cli(&format!(
+        "fit geometry --data {data} --holdout line=L1,L2,L3,L4,L5,L6,L7 --out {model}"
+    ));
+    cli(&format!(
+        "predict --model {model} --data {data} --out {pred}"
+    ));
+    let axes = identity_axes(&dir);
+    cli(&format!(
+        "image group {axes} --geometry {model} --out {group}"
+    ));
+
+    let m = GeometryModel::from_json(&std::fs::read_to_string(&model).unwrap(), "fit").unwrap();
+    let shared: Vec<usize> = (0..21)
+        .filter(|&i| {
+            let c = &m.components[i];
+            !c.identified && (c.value != 0.0 || c.coefficients.iter().any(|v| *v != 0.0))
+        })
+        .collect();
+    assert!(
+        shared.len() >= 3,
+        "the axis lines leave sets not separable, estimated at the minimum norm: {shared:?}"
+    );
+    let bytes = std::fs::read(&group).unwrap();
+    let text = describe_any(&bytes).unwrap();
+    for i in &shared {
+        let line = text
+            .lines()
+            .find(|l| l.starts_with(&format!("  {:<4} ", m.components[*i].name)))
+            .unwrap();
+        assert!(line.contains("NOT separable"), "{line}");
+    }
+    let ecy = text.lines().find(|l| l.starts_with("  ECY  ")).unwrap();
+    assert!(ecy.contains("NOT identified: stored as zero"), "{ecy}");
+    // The image as it was stored before: not-separable components at zero.
+    let mut old = m.clone();
+    for i in &shared {
+        old.components[*i]
+            .coefficients
+            .iter_mut()
+            .for_each(|v| *v = 0.0);
+        old.components[*i].value = 0.0;
+    }
+
+    let mut g = Box::new(Group::<1024>::new());
+    g.load_image(&bytes).unwrap();
+    let (header, rows) = read_csv(Path::new(&pred));
+    let col = |n: &str| header.iter().position(|h| h == n).unwrap();
+    let (cx, cl) = (col("x_mm"), col("line"));
+    let tools = [col("tool_x_mm"), col("tool_y_mm"), col("tool_z_mm")];
+    let preds = [col("pred_ex_um"), col("pred_ey_um"), col("pred_ez_um")];
+    let (mut n, mut worst, mut worst_old) = (0, 0.0f64, 0.0f64);
+    for r in rows.iter().filter(|r| r[cl].starts_with('L')) {
+        assert!(tools.iter().all(|&t| r[t].parse::<f64>().unwrap() == 0.0));
+        let q: [f64; 3] = std::array::from_fn(|k| r[cx + k].parse().unwrap());
+        let counts = q.map(|v| (v * 1e4).round() as i64);
+        assert!((0..3).all(|k| (counts[k] as f64 - q[k] * 1e4).abs() < 1e-6));
+        let host: [f64; 3] = preds.map(|c| r[c].parse().unwrap());
+        let core = g.geometric_error_um(counts).unwrap();
+        let before = old.error_at(q, [0.0; 3]).unwrap();
+        for d in 0..3 {
+            let diff = (core[d] as f64 - host[d]).abs();
+            worst = worst.max(diff);
+            worst_old = worst_old.max((before[d] - host[d]).abs());
+            assert!(
+                diff <= 1e-3,
+                "held-out {} at {q:?}: axis {d}: image {} predict {}",
+                r[cl],
+                core[d],
+                host[d]
+            );
+        }
+        n += 1;
+    }
+    assert!(n >= 7 * 11, "held-out rows compared: {n}");
+    eprintln!(
+        "{n} held-out points: max |image − predict| {worst:.2e} µm; with the {} not-separable \
+         components stored as zero (before): {worst_old:.2} µm",
+        shared.len()
+    );
+    assert!(
+        worst_old > 100.0 * worst.max(1e-6),
+        "the old image differed from the host"
+    );
+
+    // --exclude-geometric: a not-separable component may be left out (then zero), one without
+    // data (stored as zero already) is an error naming it.
+    let name = m.components[shared[0]].name.clone();
+    let excluded = p("excluded.bin");
+    cli(&format!(
+        "image group {axes} --geometry {model} --exclude-geometric {name} --out {excluded}"
+    ));
+    let ex_bytes = std::fs::read(&excluded).unwrap();
+    let ex = group_image::parse(&ex_bytes).unwrap().geometric.unwrap();
+    assert!(!axcomp_image::geometric::geometric_component_nonzero(
+        &ex, shared[0]
+    ));
+    let no = p("no.bin");
+    let args =
+        format!("axcomp image group {axes} --geometry {model} --exclude-geometric ECY --out {no}");
+    let e = axcomp::run(args.split_whitespace()).unwrap_err();
+    assert!(format!("{e:#}").contains("ECY"), "{e:#}");
+    assert!(!dir.join("no.bin").exists());
+}
+
+/// Runs `axcomp` with the whitespace-separated arguments `args` (scratch paths hold no spaces).
+fn cli(args: &str) {
+    axcomp::run(std::iter::once("axcomp").chain(args.split_whitespace()))
+        .unwrap_or_else(|e| panic!("axcomp {args}: {e:#}"));
+}
+
+/// Identity X, Y, Z images at 0.1 µm per count in `dir`, as `--axis` arguments of `image group`.
+fn identity_axes(dir: &Path) -> String {
+    let mut axes = Vec::new();
+    for (k, c) in ["X", "Y", "Z"].into_iter().enumerate() {
+        let img = dir.join(format!("{c}.bin")).display().to_string();
+        cli(&format!(
+            "image build --identity --axis-id {} --um-per-count 0.1 --out {img}",
+            k + 1
+        ));
+        axes.push(format!("--axis {c}={img}"));
+    }
+    axes.join(" ")
 }

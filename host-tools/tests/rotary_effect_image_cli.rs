@@ -11,11 +11,19 @@
 //! - *oracle*: the measurement noise alone (what a perfect compensation would leave: the noise floor, as
 //!   `diagnose_rtest_cli` takes it);
 //! - *location errors only*: the same chain with `fit rtest` without `--effects`.
+//!
+//! Also printed: each figure with the six set-up offsets refitted to it (least squares on their
+//! sensitivities) instead of the twin's true ones taken out. A C-axis zero offset, and what a fit
+//! without the effect puts into the location errors in its place, cannot be told from where the sphere
+//! sits: `fit rtest` keeps that part in its set-up offsets, which `predict` applies and an image cannot.
+//! Refitted, the location errors alone give what `fit rtest` predicts held out (0.99 µm); with the
+//! true offsets out they give 2.25 µm.
 
 use std::path::Path;
 
 use axcomp_core::group::{Group, GroupInput, GroupOutput, GroupState};
-use axcomp_kinematics::rotary::{FiveAxis, MachineKind, N_SETUP, Pose};
+use axcomp_kinematics::rotary::{FiveAxis, MachineKind, N_LOCATION, N_SETUP, Pose};
+use axcomp_numeric::lsq::{DMatrix, lstsq};
 use axcomp_twin::five_axis::{FiveAxisTwin, RtestCampaign, standard_paths};
 
 mod common;
@@ -134,14 +142,24 @@ fn pose_of(cmd: [i64; 5]) -> Pose {
     }
 }
 
-/// (after, oracle, uncompensated) RMS µm of the held-out run 2 through the group image `image` (see the
-/// module documentation). Each pose is held for 50 cycles (the engine settles; no slew at these limits).
-fn held_out(twin: &FiveAxisTwin, c: &RtestCampaign, image: &[u8]) -> (f64, f64, f64) {
+/// RMS (µm) of `v` after taking out the six set-up offsets (sphere on the table, head zero) that fit
+/// it best: `rows[i]` is the sensitivity row of `v[i]` to them (`FiveAxis::sensitivity`).
+fn rms_without_setup(v: &[f64], rows: &[[f64; N_SETUP]]) -> f64 {
+    let x = DMatrix::from_fn(v.len(), N_SETUP, |i, j| rows[i][j]);
+    let fit = lstsq(&x, v, 0.0, None).expect("six set-up columns, 216 rows");
+    (fit.sse / v.len() as f64).sqrt()
+}
+
+/// Held-out figures of one group image: [after, oracle, uncompensated] µm RMS, first with the twin's
+/// true set-up offsets taken out, then with the set-up offsets refitted to each (see the module
+/// documentation). Each pose is held for 50 cycles (the engine settles; no slew at these limits).
+fn held_out(twin: &FiveAxisTwin, c: &RtestCampaign, image: &[u8]) -> ([f64; 3], [f64; 3]) {
     let mut g: Box<Group<1024>> = Box::new(Group::new());
     g.load_image(image).unwrap();
     let mut placed = twin.clone();
     placed.setup_offsets_um = vec![[0.0; N_SETUP]];
-    let (mut after, mut noise, mut raw, mut n) = (0.0, 0.0, 0.0, 0);
+    let (mut after, mut noise, mut raw, mut rows) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for r in c.rows.iter().filter(|r| r.run == 2) {
         let truth = twin.reading(&r.pose, r.sphere_mm, r.setup_index, r.time_s);
         let nominal = placed.reading(&r.pose, r.sphere_mm, 0, r.time_s);
@@ -157,16 +175,20 @@ fn held_out(twin: &FiveAxisTwin, c: &RtestCampaign, image: &[u8]) -> (f64, f64, 
         }
         let corrected = std::array::from_fn(|k| out.axes[k].corrected_command_counts);
         let reached = placed.reading(&pose_of(corrected), r.sphere_mm, 0, r.time_s);
+        let sens = twin.machine.sensitivity(&r.pose);
         for i in 0..3 {
             let e = r.d_um[i] - truth[i];
-            after += (reached[i] + e).powi(2);
-            noise += e * e;
-            raw += (nominal[i] + e).powi(2);
-            n += 1;
+            after.push(reached[i] + e);
+            noise.push(e);
+            raw.push(nominal[i] + e);
+            rows.push(std::array::from_fn(|j| sens[N_LOCATION + j][i]));
         }
     }
-    let rms = |s: f64| (s / n as f64).sqrt();
-    (rms(after), rms(noise), rms(raw))
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    (
+        [rms(&after), rms(&noise), rms(&raw)],
+        [&after, &noise, &raw].map(|v| rms_without_setup(v, &rows)),
+    )
 }
 
 /// The chain for one twin effect: the verdict, the image builder's stderr, and (after, oracle,
@@ -203,23 +225,24 @@ fn chain(effect: &str, dir: &Path) -> (String, String, [f64; 4]) {
     let axes = axis_images(dir);
     let said = group(dir, &axes, "m.json", "g.bin");
     group(dir, &axes, "m0.json", "g0.bin");
-    let (after, oracle, raw) = held_out(&twin, &c, &std::fs::read(dir.join("g.bin")).unwrap());
-    let (only, _, _) = held_out(&twin, &c, &std::fs::read(dir.join("g0.bin")).unwrap());
+    let (t, f) = held_out(&twin, &c, &std::fs::read(dir.join("g.bin")).unwrap());
+    let (t0, f0) = held_out(&twin, &c, &std::fs::read(dir.join("g0.bin")).unwrap());
     eprintln!(
-        "{effect}: verdict {verdict}; held-out K4 µm RMS: uncompensated {raw:.3}, location errors only \
-         {only:.3}, with the effect {after:.3}, oracle (noise) {oracle:.3}\n{said}"
+        "{effect}: verdict {verdict}; held-out K4 µm RMS, true set-up offsets out: uncompensated {:.3}, \
+         location errors only {:.3}, with the effect {:.3}, oracle (noise) {:.3}; set-up offsets \
+         refitted: uncompensated {:.3}, location errors only {:.3}, with the effect {:.3}, oracle {:.3}\n{said}",
+        t[2], t0[0], t[0], t[1], f[2], f0[0], f[0], f[1]
     );
-    (verdict, said, [after, oracle, raw, only])
+    (verdict, said, [t[0], t[1], t[2], t0[0]])
 }
 
 /// A C-axis positioning error (1× and 2× per turn, 5–20 µrad) and the tilt axis's: `diagnose` names
 /// `rotary_positioning`, the model carries it, `image group` puts it into the A and C axes' own images as
-/// their angle tables (and says so; the engine's A and C corrections at the held-out poses are within 5 %
-/// of the twin's true angle errors), and the firmware's group engine brings the held-out K4 run below the
-/// location errors alone. Not yet met: the issue's 1.3× the oracle (the noise floor) through the engine
-/// (measured: 2.03 µm against 0.29; the location errors alone 2.25): the residual grows with the tilt
-/// angle although the tables match the truth, so the location errors fitted with the effect do not
-/// combine with the tables in the engine as they do in `predict` (0.34 µm held out).
+/// their angle tables (and says so), and the firmware's group engine brings the held-out K4 run to the
+/// noise: measured 0.303 µm against the oracle's 0.287 (1.06×; location errors alone 2.25, uncompensated
+/// 18.37). The location errors fitted with the effect include `EA0C` reported not identified (determined
+/// only together with the tilt axis's angle offset, which the fit fixes at 0): it goes into the image
+/// with its value, as `predict` uses it. Tolerance: the issue's 1.3× the oracle.
 #[test]
 fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-pos");
@@ -238,16 +261,18 @@ fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
         assert_eq!(info.n_segments, 128, "axis {}", a.name.letter());
     }
     assert!(
-        after < only && only < raw && after > oracle,
-        "after {after:.3} µm, location errors only {only:.3}, oracle {oracle:.3}, raw {raw:.3}"
+        after <= 1.3 * oracle && after < only && only < raw,
+        "after {after:.3} µm (at most 1.3 × the oracle {oracle:.3}), location errors only {only:.3}, \
+         raw {raw:.3}"
     );
 }
 
 /// A C-axis wobble (tilt of C turning twice per turn, 3–10 µrad): `diagnose` names `rotary_wobble`, the
 /// model carries it, and `image group` says that the firmware cannot apply it, naming its RMS over the
 /// fitted poses (the model file's `rms_over_fit_um`) and that the location errors fitted with it may
-/// correct worse alone (measured: 8.52 µm held out against 0.76 µm for the image of a fit without
-/// `--effects`; uncompensated 19.19, noise 0.29).
+/// correct worse alone (measured: 6.34 µm held out against 0.76 µm for the image of a fit without
+/// `--effects`; uncompensated 19.19, noise 0.29): that advice is asserted as measured, the image of the
+/// fit without the effect correcting better.
 #[test]
 fn rotary_wobble_is_said_to_be_left_out() {
     let dir = scratch("effect-image-wobble");
@@ -264,7 +289,7 @@ fn rotary_wobble_is_said_to_be_left_out() {
         "{said}"
     );
     assert!(
-        after < raw && after > oracle,
-        "after {after:.3}, oracle {oracle:.3}, raw {raw:.3}"
+        only < after && after < raw && after > oracle,
+        "after {after:.3}, a fit without --effects {only:.3}, oracle {oracle:.3}, raw {raw:.3}"
     );
 }

@@ -209,7 +209,8 @@ pub struct GeometricSpec<'a> {
     /// X, Y, Z with 2 work axes).
     pub work_axes: u8,
     /// Bit i set: component i of [`COMPONENT_NAMES`] was identified by the fit (a component not
-    /// identified is stored as the model gives it, zero).
+    /// identified is stored as the model gives it: a not-separable one at its minimum-norm share of
+    /// the combination the fit measured, one without data as zero; the stage applies both alike).
     pub identified: u32,
     /// Tool offset from the tool reference point, µm (x, y, z).
     pub tool_offset_um: [f32; 3],

@@ -42,7 +42,7 @@
 //!   |---|---|---|
 //!   | 0 | `[u8; 3]` | chain: axis codes (0 = X, 1 = Y, 2 = Z) from the workpiece to the tool (work axes outermost first, then tool axes from the bed outward), each once |
 //!   | 3 | u8 | work axes: how many of the chain's first entries carry the workpiece (0..=3) |
-//!   | 4 | u32 | identified mask: bit i = component i (EXX … ECZ, EC0Y, EB0Z, EA0Z) was identified by the fit; the others are stored as the model gives them (zero) |
+//!   | 4 | u32 | identified mask: bit i = component i (EXX … ECZ, EC0Y, EB0Z, EA0Z) was identified by the fit; the others are stored as the model gives them (a not-separable component at its minimum-norm share, one without data as zero; applied alike) |
 //!   | 8 | f32 × 3 | tool offset from the tool reference point, µm (x, y, z) |
 //!   | 20 | f32 × 3 | squareness EC0Y, EB0Z, EA0Z, µrad |
 //!   | 32 | 3 × (i64, u32, u32) | grids of X, Y, Z: `start_counts`, `segment_counts`, `n_segments` (1..=1024) |

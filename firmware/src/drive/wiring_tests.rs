@@ -1,4 +1,4 @@
-//! Sensor wiring by name on the STM32G474 board (two RTDs, °C, named `rtd0`, `rtd1`): issue 14's
+//! Sensor wiring by name on the STM32G474 board (two RTDs, °C, named `rtd0`, `rtd1`): the
 //! "warm-up fed 22 °C" case, a named image refused at load, an old unnamed image flagged at run time,
 //! and named sensors routed to their inputs in any order.
 
@@ -102,7 +102,7 @@ fn frame(io: &mut FakeDriveIo, seq: u8) {
     io.rx.extend(&b[..n]);
 }
 
-/// Issue 14: "the `warmup` input's range is −0.5…1.5, but the board feeds it RTD readings (~22 °C),
+/// The warm-up input fed RTD readings: "the `warmup` input's range is −0.5…1.5, but the board feeds it RTD readings (~22 °C),
 /// so the sensor goes stale, the thermal term freezes at 0 and b0 is never applied". An image that
 /// names its sensor `warmup` (as `image build` now writes every image) is refused at load on this
 /// board, typed, and the status word says `IMAGE_REFUSED` (the identity keeps running: `NO_IMAGE`).

@@ -50,7 +50,9 @@ pub struct GroupArgs {
     #[arg(long, value_name = "L")]
     pub tool_length_mm: Option<f64>,
     /// Volumetric geometric model (JSON from `fit geometry --out`); the group needs X, Y and Z,
-    /// whose strokes become the model's grids (an axis table must span the same grid).
+    /// whose strokes become the model's grids (an axis table must span the same grid). Every
+    /// component goes in as the model holds it (what `predict` uses): not-separable ones at their
+    /// minimum-norm share, those without data as zero; `image inspect` says which.
     #[arg(long, value_name = "MODEL.json")]
     pub geometry: Option<PathBuf>,
     /// Tool offset from the tool reference point for the geometric stage, mm: `x,y,z`.

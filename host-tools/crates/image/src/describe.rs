@@ -346,16 +346,26 @@ pub fn describe_geometric(g: &GeometricSpec) -> String {
     let n_excluded = (0..21)
         .filter(|&i| g.identified >> i & 1 == 1 && !geometric_component_nonzero(g, i))
         .count();
+    let n_shared = (0..21)
+        .filter(|&i| g.identified >> i & 1 == 0 && geometric_component_nonzero(g, i))
+        .count();
     let _ = writeln!(
         s,
         "geometric model (21 ISO 230-1 components, volumetric stage): stacking {label} \
-         (work axes / tool axes), tool offset ({}, {}, {}) µm, {n_id} of 21 components identified{}",
+         (work axes / tool axes), tool offset ({}, {}, {}) µm, {n_id} of 21 components identified{}{}",
         g.tool_offset_um[0],
         g.tool_offset_um[1],
         g.tool_offset_um[2],
         match n_excluded {
             0 => String::new(),
             n => format!(", {n} of them excluded from this image (stored as zero)"),
+        },
+        match n_shared {
+            0 => String::new(),
+            n => format!(
+                ", {n} not separable stored at their minimum-norm share (only their combination \
+                 is measured)"
+            ),
         }
     );
     for (k, grid) in g.grids.iter().enumerate() {
@@ -370,7 +380,10 @@ pub fn describe_geometric(g: &GeometricSpec) -> String {
         );
     }
     let status = |i: usize| {
-        if g.identified >> i & 1 == 0 {
+        if g.identified >> i & 1 == 0 && geometric_component_nonzero(g, i) {
+            "NOT separable: only its combination with others is measured; stored at its \
+             minimum-norm share (the fit's value, as `axcomp predict` uses it)"
+        } else if g.identified >> i & 1 == 0 {
             "NOT identified: stored as zero (the model's prior)"
         } else if geometric_component_nonzero(g, i) {
             "identified"

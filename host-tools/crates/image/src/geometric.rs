@@ -59,7 +59,14 @@ pub fn bspline_segment_to_horner(c: [f64; 4]) -> [f64; 4] {
 
 /// Converts a `fit geometry` model for the core's geometric stage: the axes' scales
 /// `um_per_count` (X, Y, Z) put the grids on whole counts (else an error naming the axis), the
-/// tool offset is in mm. Components the model marks `identified: false` are stored as zero.
+/// tool offset is in mm. Every component goes in with the values the model file holds, which are
+/// the values `axcomp predict` uses: an identified one as fitted; a *not separable* one (marked
+/// `identified: false`, only its combination with others is measured) at its minimum-norm share
+/// (`fit geometry`'s default) or whatever share the method gave it; one that is not identified for
+/// another reason (no reading sensitive to it, fixed by the seven-line method) holds zeros in the
+/// model and so goes in as zero. The identified mask records the model's `identified` flags
+/// unchanged, so a clear bit with non-zero functions is a not-separable component (see
+/// [`geometric_component_nonzero`]).
 pub fn geometric_from_model(
     model: &GeometryModel,
     um_per_count: [f64; 3],
@@ -115,10 +122,6 @@ pub fn geometric_from_model(
         for seg in 0..n {
             for f in 0..6 {
                 let comp = &model.components[6 * k + f];
-                if !comp.identified {
-                    coefficients.push([0.0; 4]);
-                    continue;
-                }
                 ensure!(
                     comp.coefficients.len() == n + 3,
                     "geometry model: {} has {} spline coefficients, its axis's grid needs {}",
@@ -131,10 +134,7 @@ pub fn geometric_from_model(
             }
         }
     }
-    let sq = |i: usize| {
-        let c = &model.components[18 + i];
-        if c.identified { c.value as f32 } else { 0.0 }
-    };
+    let sq = |i: usize| model.components[18 + i].value as f32;
     let chain = model.topology.chain();
     ensure!(
         chain.len() == 3,
@@ -212,8 +212,10 @@ pub fn geometric_for_group(
 
 /// Leaves the named components out of `g` (`--exclude-geometric`): their functions (or squareness
 /// constant) are stored as zero and their identified bit is kept, which is how `image inspect` tells an
-/// excluded component from one the fit did not identify. A name that is not one of the 21, or a
-/// component the model did not identify (nothing to leave out), is an error naming it.
+/// excluded identified component from one the fit did not identify. A not-separable component (bit
+/// clear, non-zero values) may be left out too; it then reads as not identified, stored as zero. A
+/// name that is not one of the 21, or a component already stored as zero (nothing to leave out), is
+/// an error naming it.
 pub fn exclude_geometric_components(g: &mut GeometricSection, names: &[String]) -> Result<()> {
     for name in names {
         let name = name.trim();
@@ -227,9 +229,9 @@ pub fn exclude_geometric_components(g: &mut GeometricSection, names: &[String]) 
                 ))
             })?;
         ensure!(
-            g.identified >> i & 1 == 1,
-            "--exclude-geometric {name}: the geometry model did not identify {} (it is stored as \
-             zero already): nothing to leave out",
+            g.identified >> i & 1 == 1 || geometric_component_nonzero(&g.spec(), i),
+            "--exclude-geometric {name}: the geometry model did not identify {} and holds zero for \
+             it (it is stored as zero already): nothing to leave out",
             COMPONENT_NAMES[i]
         );
         if i >= 18 {
@@ -245,7 +247,8 @@ pub fn exclude_geometric_components(g: &mut GeometricSection, names: &[String]) 
     Ok(())
 }
 
-/// True if component `i` (of [`COMPONENT_NAMES`]) of the geometric section has a non-zero value.
+/// True if component `i` (of [`COMPONENT_NAMES`]) of the geometric section has a non-zero value:
+/// with its identified bit clear, a not-separable component stored at its share of the combination.
 pub fn geometric_component_nonzero(g: &GeometricSpec, i: usize) -> bool {
     if i >= 18 {
         return g.squareness_urad[i - 18] != 0.0;

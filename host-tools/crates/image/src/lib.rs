@@ -9,9 +9,11 @@
 //! - *geometric section*: a `fit geometry` model converted for the core's volumetric stage
 //!   (`axcomp_core::geometric`): each of the 18 component functions, a cubic B-spline on its axis's
 //!   knot grid in mm, becomes per-segment Horner polynomials over the same knots in counts; the
-//!   squareness constants, the stacking and the tool offset are copied. A component the fit marks
-//!   `identified: false` goes in as zero (the model's prior) and `image inspect` says so
-//!   ([`geometric`]).
+//!   squareness constants, the stacking and the tool offset are copied. Every component goes in
+//!   with the values the model holds (what `axcomp predict` uses): a *not-separable* one
+//!   (`identified: false`, only its combination with others is measured) at its minimum-norm share,
+//!   one not identified for another reason (no data) as the zero the model holds; the identified
+//!   mask keeps the model's flags and `image inspect` says which is which ([`geometric`]).
 //! - *rotary section*: a `fit rtest` model's 11 location errors for the core's rotary stage
 //!   ([`rotary`]).
 //! - *double correction*: two sources of one group image correcting the same error: an axis's

@@ -8,9 +8,12 @@ use axcomp_rtest::RtestModel;
 use crate::angle_table::{EffectsInImage, effects_in_image};
 use crate::{Context, Error, Result};
 
-/// The core's rotary section from a `fit rtest` model: every identified location error and
-/// squareness term goes in (f32); a parameter marked `identified: false` goes in as its fixed prior
-/// 0 and is flagged in `not_identified`. Refused: a model whose parameter list is not the 11 names
+/// The core's rotary section from a `fit rtest` model: every location error and squareness term goes
+/// in with the model's value (f32), the value `predict` uses. A parameter marked `identified: false`
+/// is either fixed at its prior 0 (flagged in `not_identified`) or estimated but not told apart alone
+/// (weakly determined, or determined only in combination with an effect term the fit fixed to 0, e.g.
+/// `EA0C` with `rotary_positioning`'s tilt offset: its value then carries both); the latter goes in
+/// as estimated, or the image would leave out what the fit put into it. Refused: a model whose parameter list is not the 11 names
 /// of its machine kind, in order (the stage could not represent the rest), a non-finite value, a
 /// value beyond the stage's first-order range, a tool length out of range.
 pub fn rotary_from_rtest_model(
@@ -47,7 +50,7 @@ pub fn rotary_from_rtest_model(
             "{name}: unit `{}`, expected `{unit}`",
             p.unit
         );
-        if !p.identified {
+        if !p.identified && p.value == 0.0 {
             not_identified |= 1 << k;
             continue;
         }

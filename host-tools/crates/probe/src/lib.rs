@@ -1,5 +1,5 @@
 //! `axcomp-probe`: calibration of a touch-trigger probe on a reference sphere and correction of touches to
-//! surface (contact) points (issue 12, seed 003; contract: "Touch probe: calibration and correction").
+//! surface (contact) points (contract: "Touch probe: calibration and correction").
 //!
 //! # Glossary
 //! - **touch**: one trigger: the latched stylus-tip centre `p` (mm), the unit **approach** vector `u` of the

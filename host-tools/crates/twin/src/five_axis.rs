@@ -9,7 +9,8 @@
 //!   top of the exact location-error model: `rotary_positioning` (angular positioning error of C,
 //!   1×+2× per turn, 5–20 µrad, and of the tilt axis, proportional to the tilt, 10–40 µrad/rad),
 //!   `rotary_wobble` (tilt of C turning twice per turn, 3–10 µrad), `tilt_wobble` (the tilt axis A or B
-//!   tilting about its two perpendicular axes as it turns, `a·(sin(t + φ) − sin φ)` with a 10–30 µrad:
+//!   tilting about its two perpendicular axes as it turns, `a·(sin(t + φ) − sin φ)` with a 10–30 µrad
+//!   by default, other shapes in [`TiltWobbleShape`], radial motion 1–4 µm for the shape that has one:
 //!   a `rotary_wobble` in the contract's vocabulary), `radial_runout` (radial motion of C twice
 //!   per turn, 0.5–2 µm), `linear_geometry` (X positioning 5–15 µm/m, straightness EYX and EZY 1–3 µm
 //!   half-sines over ±300 mm), `thermal_drift` (tool point drifting 1–4 µm/h in Z, ±1 µm/h in X),
@@ -112,8 +113,100 @@ pub struct EffectParams {
     /// Temperature: warm-up rise K, its time constant s, air-conditioning amplitude K, period s, phase rad.
     pub temperature: [f64; 5],
     /// Tilt-axis wobble: amplitudes (µrad) about the two axes perpendicular to it (A: Y, Z; B: X, Z) and
-    /// their phases (rad): `a_k·(sin(t + φ_k) − sin φ_k)`, zero at tilt 0.
+    /// their phases (rad); the shape in `tilt_wobble_shape`, zero at tilt 0.
     pub tilt_wobble: [f64; 4],
+    /// How the tilt-axis wobble varies with the tilt angle (default: first harmonic).
+    pub tilt_wobble_shape: TiltWobbleShape,
+    /// Radial motion (µm) of the tilt axis along its two perpendicular axes, twice per turn, and its phase
+    /// (rad): used by [`TiltWobbleShape::Harmonic1Radial`] only.
+    pub tilt_wobble_radial: [f64; 3],
+}
+
+/// How the tilt-axis wobble's two small rotations vary with the tilt angle `t` (rad), each zero at `t = 0`
+/// (a constant part is a location error). `a` is the amplitude (µrad), `φ` the phase.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TiltWobbleShape {
+    /// `a·(sin(t + φ) − sin φ)`: mostly what a tilted axis of rotation does, so mostly absorbed by the
+    /// axis's orientation location errors.
+    #[default]
+    Harmonic1,
+    /// `±a·t` (µrad per rad of tilt; the sign of `cos φ`).
+    Linear,
+    /// `±a·t²` (µrad per rad²; the sign of `cos φ`).
+    Quadratic,
+    /// `a·(sin(2t + φ) − sin φ)`: twice per turn.
+    Harmonic2,
+    /// A tilt only beyond 0.5 rad (≈ 29°) of travel, `±2a·max(0, |t| − 0.5)` (the sign of `cos φ`):
+    /// a bearing that tilts over part of the range.
+    Partial,
+    /// The first harmonic plus a radial motion of the axis twice per turn,
+    /// `r_k·(sin(2t + ψ + kπ/2) − sin(ψ + kπ/2))` along its two perpendicular axes.
+    Harmonic1Radial,
+}
+
+impl TiltWobbleShape {
+    pub const ALL: [TiltWobbleShape; 6] = [
+        TiltWobbleShape::Harmonic1,
+        TiltWobbleShape::Linear,
+        TiltWobbleShape::Quadratic,
+        TiltWobbleShape::Harmonic2,
+        TiltWobbleShape::Harmonic1Radial,
+        TiltWobbleShape::Partial,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            TiltWobbleShape::Harmonic1 => "harmonic1",
+            TiltWobbleShape::Linear => "linear",
+            TiltWobbleShape::Quadratic => "quadratic",
+            TiltWobbleShape::Harmonic2 => "harmonic2",
+            TiltWobbleShape::Harmonic1Radial => "harmonic1_radial",
+            TiltWobbleShape::Partial => "partial",
+        }
+    }
+
+    /// The rotation (µrad) of amplitude `a` and phase `phi` at tilt `t` (rad).
+    pub fn tilt_urad(self, a: f64, phi: f64, t: f64) -> f64 {
+        match self {
+            TiltWobbleShape::Harmonic1 | TiltWobbleShape::Harmonic1Radial => {
+                a * ((t + phi).sin() - phi.sin())
+            }
+            TiltWobbleShape::Linear => a * t * phi.cos().signum(),
+            TiltWobbleShape::Quadratic => a * t * t * phi.cos().signum(),
+            TiltWobbleShape::Harmonic2 => a * ((2.0 * t + phi).sin() - phi.sin()),
+            TiltWobbleShape::Partial => 2.0 * a * (t.abs() - 0.5).max(0.0) * phi.cos().signum(),
+        }
+    }
+
+    /// The radial motion (µm) along the tilt axis's two perpendicular axes at tilt `t` (rad).
+    pub fn radial_um(self, radial: &[f64; 3], t: f64) -> [f64; 2] {
+        if self != TiltWobbleShape::Harmonic1Radial {
+            return [0.0; 2];
+        }
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        [0, 1].map(|k| {
+            let p = radial[2] + k as f64 * half_pi;
+            radial[k] * ((2.0 * t + p).sin() - p.sin())
+        })
+    }
+}
+
+impl EffectParams {
+    /// The tilt-axis wobble at tilt `t` (rad) of the axis `tilt_axis` (0: A, 1: B): its small rotation
+    /// (rad) and its radial motion (mm), both in the machine frame at zero angles.
+    fn tilt_wobble_at(&self, t: f64, tilt_axis: usize) -> ([f64; 3], [f64; 3]) {
+        let (tw, shape) = (&self.tilt_wobble, self.tilt_wobble_shape);
+        let a = shape.tilt_urad(tw[0], tw[2], t) * 1e-6;
+        let b = shape.tilt_urad(tw[1], tw[3], t) * 1e-6;
+        let [p, q] = shape
+            .radial_um(&self.tilt_wobble_radial, t)
+            .map(|v| v * 1e-3);
+        if tilt_axis == 0 {
+            ([0.0, a, b], [0.0, p, q])
+        } else {
+            ([a, 0.0, b], [p, 0.0, q])
+        }
+    }
 }
 
 /// One planned path.
@@ -196,6 +289,8 @@ impl FiveAxisTwin {
             time_um_h: [0.0; 3],
             temperature: [0.0; 5],
             tilt_wobble: [0.0; 4],
+            tilt_wobble_shape: TiltWobbleShape::Harmonic1,
+            tilt_wobble_radial: [0.0; 3],
         };
         // Drawn from a second stream so that the first stream's values stay those of earlier versions.
         let mut rng2 = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0074_696d_6564);
@@ -215,6 +310,13 @@ impl FiveAxisTwin {
             rng3.gen_range(10.0..30.0),
             rng3.gen_range(0.0..tau),
             rng3.gen_range(0.0..tau),
+        ];
+        // A fourth stream for the radial motion, so the earlier streams stay as they were.
+        let mut rng4 = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0072_6164_6961);
+        effect_params.tilt_wobble_radial = [
+            rng4.gen_range(1.0..4.0),
+            rng4.gen_range(1.0..4.0),
+            rng4.gen_range(0.0..tau),
         ];
         FiveAxisTwin {
             machine,
@@ -320,18 +422,12 @@ impl FiveAxisTwin {
         } else {
             [0.0; 3]
         };
-        // Tilt-axis wobble: a small rotation `wt` (machine frame at zero angles) of what the tilt axis carries.
-        let wt = if e.tilt_wobble {
-            let tw = &q.tilt_wobble;
-            let a = tw[0] * ((t + tw[2]).sin() - tw[2].sin()) * 1e-6;
-            let b = tw[1] * ((t + tw[3]).sin() - tw[3].sin()) * 1e-6;
-            if tilt_axis == 0 {
-                [0.0, a, b]
-            } else {
-                [a, 0.0, b]
-            }
+        // Tilt-axis wobble: a small rotation `wt` (machine frame at zero angles) of what the tilt axis
+        // carries, and its radial motion `wr` (mm).
+        let (wt, wr) = if e.tilt_wobble {
+            q.tilt_wobble_at(t, tilt_axis)
         } else {
-            [0.0; 3]
+            ([0.0; 3], [0.0; 3])
         };
         let (rt, rc) = (rot(tilt_axis, t), rot(2, c));
         let mut extra = [0.0; 3];
@@ -342,7 +438,7 @@ impl FiveAxisTwin {
                 let v = mul(rc, v_b);
                 let w_b = [0, 1, 2].map(|i| unit[i] * eps_t + wt[i]);
                 let inner = cross(w_b, v_b);
-                let rc_inner = mul(rc, inner);
+                let rc_inner = mul(rc, [0, 1, 2].map(|i| inner[i] + wr[i]));
                 let cz = cross([0.0, 0.0, eps_c], v);
                 let wv = cross(w, v);
                 for i in 0..3 {
@@ -360,7 +456,7 @@ impl FiveAxisTwin {
                 let full = mul(rt, u);
                 let tz = cross([0, 1, 2].map(|i| unit[i] * eps_t + wt[i]), full);
                 for i in 0..3 {
-                    extra[i] += outer[i] + tz[i];
+                    extra[i] += outer[i] + tz[i] + wr[i];
                 }
                 pose.p_mm
             }
@@ -666,5 +762,30 @@ mod tests {
             }
         }
         assert!(spread.1 - spread.0 > 0.05, "{spread:?}");
+    }
+
+    /// Every tilt-wobble shape is zero at tilt 0 (a constant part would be a location error), only the
+    /// radial shape moves the axis, and the default shape is the first harmonic.
+    #[test]
+    fn tilt_wobble_shapes_vanish_at_zero_tilt() {
+        let twin = FiveAxisTwin::random(FiveAxis::new(MachineKind::AcTrunnion, 0.0), 5);
+        assert_eq!(
+            twin.effect_params.tilt_wobble_shape,
+            TiltWobbleShape::Harmonic1
+        );
+        for shape in TiltWobbleShape::ALL {
+            let mut q = twin.effect_params;
+            q.tilt_wobble_shape = shape;
+            let (w0, r0) = q.tilt_wobble_at(0.0, 0);
+            assert!(w0.iter().chain(&r0).all(|v| v.abs() < 1e-15), "{shape:?}");
+            let (w, r) = q.tilt_wobble_at(-1.2, 0);
+            assert!(w[1].abs() > 1e-7, "{shape:?}: {w:?}");
+            let moves = r.iter().any(|v| v.abs() > 1e-6);
+            assert_eq!(
+                moves,
+                shape == TiltWobbleShape::Harmonic1Radial,
+                "{shape:?}"
+            );
+        }
     }
 }

@@ -1,4 +1,4 @@
-//! A touch-trigger probe on the twin: touches on artefacts whose truth is known (issue 12, seed 003).
+//! A touch-trigger probe on the twin: touches on artefacts whose truth is known.
 //!
 //! # Glossary
 //! - **normal** `n`: the unit outward normal of the artefact's surface at the contact, pointing from the
@@ -411,7 +411,7 @@ pub fn touches_csv(touches: &[SimTouch]) -> String {
 }
 
 /// Effects on the touches beyond [`ProbeModel`] (the withheld-effect validation of the diagnosis on probe
-/// data, issue 12): direction-dependent speed pretravel, stylus bending, the machine's geometric error at
+/// data): direction-dependent speed pretravel, stylus bending, the machine's geometric error at
 /// the touched point and thermal drift with a warm-up of the frame. All off by default
 /// ([`TouchDisturbances::default`]); [`simulate_disturbed_touches`] runs a plan with them.
 ///

@@ -5,7 +5,8 @@
 //!
 //! `cargo run --release -p axcomp-validation --example rtest_blind_rate -- [SEEDS]` (default 20).
 
-use axcomp_validation::rtest_blind::{BlindKind, run_blind_case, tally};
+use axcomp_twin::five_axis::TiltWobbleShape;
+use axcomp_validation::rtest_blind::{BlindKind, run_blind_case, tally, tally_shape};
 
 fn main() {
     let seeds: u64 = std::env::args()
@@ -17,8 +18,9 @@ fn main() {
         for kind in BlindKind::ALL {
             let c = run_blind_case(kind, seed).expect("diagnosis");
             println!(
-                "seed {seed:3} {:18} σ {:.2} µm scale {:.2} poses {:3}: verdict {:18} oracle shrink {}",
+                "seed {seed:3} {:18} {:16} σ {:.2} µm scale {:.2} poses {:3}: verdict {:18} oracle shrink {}",
                 kind.want(),
+                c.shape.unwrap_or("-"),
                 c.noise_um,
                 c.scale,
                 c.poses,
@@ -36,4 +38,19 @@ fn main() {
             kind.want()
         );
     }
+    for shape in TiltWobbleShape::ALL {
+        let (right, n, right_id, n_id) = tally_shape(&cases, shape);
+        println!(
+            "  wobble {:16}: {right}/{n} right; identifiable: {right_id}/{n_id}",
+            shape.name()
+        );
+    }
+    let right = cases.iter().filter(|c| c.correct).count();
+    let ident: Vec<_> = cases.iter().filter(|c| c.identifiable()).collect();
+    let right_id = ident.iter().filter(|c| c.correct).count();
+    println!(
+        "all: {right}/{} right; identifiable: {right_id}/{}",
+        cases.len(),
+        ident.len()
+    );
 }

@@ -1,4 +1,4 @@
-//! Withheld-effect validation of the diagnosis on touch-probe data (issue 12): twin campaigns of touches
+//! Withheld-effect validation of the diagnosis on touch-probe data: twin campaigns of touches
 //! in which one probe effect is present but left out of the model told to the diagnosis (or none: null
 //! cases), diagnosed blind.
 //!

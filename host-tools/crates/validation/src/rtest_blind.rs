@@ -5,7 +5,9 @@
 //!
 //! Glossary:
 //! - **case kind** ([`BlindKind`]): `none`, `rotary_positioning` (the twin's C and A positioning errors)
-//!   or `a_wobble` (the twin's `tilt_wobble`: A tilting about Y and Z as it turns, a `rotary_wobble`).
+//!   or `a_wobble` (the twin's `tilt_wobble`: A tilting about Y and Z as it turns, a `rotary_wobble`),
+//!   its shape ([`TiltWobbleShape`]: first or second harmonic of the angle, linear, quadratic, first
+//!   harmonic with a radial motion) drawn per seed.
 //! - **varied plan** ([`varied_plan`]): set-up 1 at a random sphere position: a K4 (48–96 poses, tilt
 //!   0 → t_max → 0 with t_max in −90…−40°) and C circles at 0° and t_max (24 or 36 poses); with even
 //!   chance a second set-up (another sphere position, the same two circles); held out (`run = 2`): a C
@@ -21,7 +23,7 @@
 use axcomp_diagnose::judge::{DiagnoseOptions, MIN_SHRINK_PCT};
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind, c_circle, k4_path};
 use axcomp_numeric::noise::TestNoise;
-use axcomp_twin::five_axis::{FiveAxisTwin, RtestPathSpec};
+use axcomp_twin::five_axis::{FiveAxisTwin, RtestPathSpec, TiltWobbleShape};
 use serde::Serialize;
 
 use crate::harness;
@@ -66,6 +68,8 @@ impl BlindKind {
 #[derive(Debug, Clone, Serialize)]
 pub struct BlindCase {
     pub kind: BlindKind,
+    /// The wobble's shape (`a_wobble` cases only).
+    pub shape: Option<&'static str>,
     pub seed: u64,
     pub noise_um: f64,
     pub scale: f64,
@@ -135,20 +139,38 @@ pub fn varied_plan(machine: &FiveAxis, rng: &mut TestNoise) -> Vec<RtestPathSpec
 
 /// Builds, measures and diagnoses the blind case of `kind` and `seed` (`--model location_errors`).
 pub fn run_blind_case(kind: BlindKind, seed: u64) -> Result<BlindCase, String> {
+    run_blind_case_shaped(kind, seed, None)
+}
+
+/// As [`run_blind_case`], with the wobble's shape forced to `shape` (None: drawn from the seed); every
+/// other draw stays that of the seed.
+pub fn run_blind_case_shaped(
+    kind: BlindKind,
+    seed: u64,
+    shape: Option<TiltWobbleShape>,
+) -> Result<BlindCase, String> {
     let machine = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
-    let mut rng = TestNoise(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0x626c_696e_64);
+    let mut rng = TestNoise(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0x0062_6c69_6e64);
     let paths = varied_plan(&machine, &mut rng);
     let noise_um = 0.15 + 0.35 * rng.uniform();
     let scale = (0.5f64).powf(1.0 - 2.0 * rng.uniform());
+    let all = TiltWobbleShape::ALL;
+    let drawn = all[((rng.uniform() * all.len() as f64) as usize).min(all.len() - 1)];
+    let shape = shape.unwrap_or(drawn);
     let mut twin = FiveAxisTwin::random(machine, 7000 + seed);
     twin.noise_um = noise_um;
     twin.dwell_s = 6.0;
     let mut contribution = Vec::new();
     if let Some(effect) = kind.twin_effect() {
         match effect {
-            "tilt_wobble" => twin.effect_params.tilt_wobble[..2]
-                .iter_mut()
-                .for_each(|a| *a *= scale),
+            "tilt_wobble" => {
+                let q = &mut twin.effect_params;
+                q.tilt_wobble_shape = shape;
+                q.tilt_wobble[..2].iter_mut().for_each(|a| *a *= scale);
+                q.tilt_wobble_radial[..2]
+                    .iter_mut()
+                    .for_each(|a| *a *= scale);
+            }
             other => scale_effect(&mut twin.effect_params, other, scale),
         }
         let mut clean = twin.clone();
@@ -179,6 +201,7 @@ pub fn run_blind_case(kind: BlindKind, seed: u64) -> Result<BlindCase, String> {
     });
     Ok(BlindCase {
         kind,
+        shape: (kind == BlindKind::AWobble).then_some(shape.name()),
         seed,
         noise_um,
         scale,
@@ -192,7 +215,19 @@ pub fn run_blind_case(kind: BlindKind, seed: u64) -> Result<BlindCase, String> {
 
 /// Right verdicts of one kind: (right, cases, right on identifiable cases, identifiable cases).
 pub fn tally(cases: &[BlindCase], kind: BlindKind) -> (usize, usize, usize, usize) {
-    let of: Vec<&BlindCase> = cases.iter().filter(|c| c.kind == kind).collect();
+    tally_where(cases, |c| c.kind == kind)
+}
+
+/// Right verdicts of the wobble cases of one shape (as [`tally`]).
+pub fn tally_shape(cases: &[BlindCase], shape: TiltWobbleShape) -> (usize, usize, usize, usize) {
+    tally_where(cases, |c| c.shape == Some(shape.name()))
+}
+
+fn tally_where(
+    cases: &[BlindCase],
+    keep: impl Fn(&BlindCase) -> bool,
+) -> (usize, usize, usize, usize) {
+    let of: Vec<&BlindCase> = cases.iter().filter(|c| keep(c)).collect();
     let ident: Vec<&&BlindCase> = of.iter().filter(|c| c.identifiable()).collect();
     (
         of.iter().filter(|c| c.correct).count(),
