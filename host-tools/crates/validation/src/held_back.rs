@@ -22,12 +22,11 @@
 //!   second-difference penalty (λ = [`MIN_NORM_LAMBDA`] of the design's mean diagonal), the minimum-norm
 //!   solution of the stacked system (the first solver an engineer with numpy would write).
 
-use axcomp_geometry::data::LineReading;
 use axcomp_geometry::fit::Layout;
 use axcomp_geometry::{FitOptions, Judge, LineData, analyse};
 use axcomp_kinematics::lines::{LineSpec, axis_line, face_diagonals, seven_line};
 use axcomp_kinematics::{Component, Topology};
-use axcomp_twin::geometry::{GeometryTwin, LineCampaign};
+use axcomp_twin::geometry::GeometryTwin;
 use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -74,30 +73,6 @@ pub struct HeldBackCase {
     pub held: Vec<bool>,
     /// The group of each held-back reading (`None` for training readings).
     pub group: Vec<Option<HeldGroup>>,
-}
-
-fn line_data(c: &LineCampaign) -> LineData {
-    let mut lines: Vec<String> = Vec::new();
-    let readings = c
-        .rows
-        .iter()
-        .enumerate()
-        .map(|(row, r)| {
-            let line = lines.iter().position(|l| *l == r.line).unwrap_or_else(|| {
-                lines.push(r.line.clone());
-                lines.len() - 1
-            });
-            LineReading {
-                q: std::array::from_fn(|k| r.pos_mm[k] - r.tool_mm[k]),
-                tool: r.tool_mm,
-                beam: r.beam,
-                deviation_um: r.deviation_um,
-                line,
-                row,
-            }
-        })
-        .collect();
-    LineData { readings, lines }
 }
 
 /// The held-back lines of case `seed`, each with its group.
@@ -153,7 +128,7 @@ pub fn make_case(opts: &HeldBackOptions, seed: u64) -> HeldBackCase {
     let mut twin = GeometryTwin::random(s, Topology::default(), 7000 + seed);
     twin.noise_um = opts.noise_um;
     let camp = twin.measure(&lines, opts.runs, seed);
-    let data = line_data(&camp);
+    let data = crate::lines::line_data(&camp, |r| r.deviation_um);
     let line_index: Vec<usize> = data
         .lines
         .iter()

@@ -50,7 +50,7 @@ use axcomp_geometry::LineData;
 use axcomp_geometry::data::LineReading;
 use axcomp_kinematics::lines::LineSpec;
 use axcomp_kinematics::{Component, Topology};
-use axcomp_twin::geometry::{GeometryTwin, LineCampaign, plan_by_name};
+use axcomp_twin::geometry::{GeometryTwin, LineCampaign, LineRow, plan_by_name};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
@@ -145,7 +145,8 @@ pub fn case_kind(opts: &LineValidateOptions, index: usize) -> (Option<LineEffect
     )
 }
 
-fn line_data(c: &LineCampaign) -> LineData {
+/// The rows of `c` as the geometry fit's readings, each valued by `value` (the truth, or the reading).
+pub(crate) fn line_data(c: &LineCampaign, value: fn(&LineRow) -> f64) -> LineData {
     let mut lines: Vec<String> = Vec::new();
     let readings = c
         .rows
@@ -157,14 +158,10 @@ fn line_data(c: &LineCampaign) -> LineData {
                 lines.len() - 1
             });
             LineReading {
-                q: [
-                    r.pos_mm[0] - r.tool_mm[0],
-                    r.pos_mm[1] - r.tool_mm[1],
-                    r.pos_mm[2] - r.tool_mm[2],
-                ],
+                q: std::array::from_fn(|k| r.pos_mm[k] - r.tool_mm[k]),
                 tool: r.tool_mm,
                 beam: r.beam,
-                deviation_um: r.truth_um,
+                deviation_um: value(r),
                 line,
                 row,
             }
@@ -248,7 +245,7 @@ fn try_case(opts: &LineValidateOptions, index: usize, round: u64) -> Result<Line
     let plan = plan_by_name("complete", opts.stroke_mm, opts.targets).expect("twin plan");
     let clean = twin.measure(&plan, opts.runs, case_seed);
     let n = clean.rows.len();
-    let mut data = line_data(&clean);
+    let mut data = line_data(&clean, |r| r.truth_um);
     let time: Vec<f64> = clean.rows.iter().map(|r| r.time_s).collect();
     let duration = time.last().copied().unwrap_or(1.0).max(1.0);
     let temperatures = case_temperatures(&time, duration, &mut rng, case_seed);
