@@ -98,6 +98,8 @@ mod rotary_spec;
 mod runtime;
 mod sensor;
 mod spec;
+mod state;
+mod store;
 mod table;
 mod thermo;
 pub mod trace;
