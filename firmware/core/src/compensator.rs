@@ -5,18 +5,25 @@
 //! i64 multiplication/division and no i64↔f32 conversion, indexes arrays through masks or
 //! validated indices and never panics.
 //!
-//! The stages it composes live by what they are: [`crate::counter`] (counter extension,
-//! direction), [`crate::table`] (positioning table), [`crate::thermo`] (thermo-force term),
-//! [`crate::limits`] (clamp, slew, rounding to counts).
+//! The stages it composes are values held in the compensator's fields, each defined by what it is
+//! and naming neither the compensator nor another stage: `counter` ([`crate::counter`]: counter
+//! extension, direction), `table` ([`crate::table`]: positioning table, with the segments in
+//! `segments`), `thermo` ([`crate::thermo`]: thermo-force term), `limits` ([`crate::limits`]:
+//! clamp, slew, rounding to counts). [`AxisCompensator::cycle_in`] calls them in that order,
+//! passing the axis's `State`; the few steps that need two stages (the segment cache's miss path:
+//! counter extension redone, turn position, table refill) are composed here too. The accessors
+//! of the stages' settings are here as the compensator's public API.
 
 use crate::ImageError;
 use crate::counts::{CounterShift, Direction};
 use crate::hint::cold_path;
 use crate::io::{CycleInput, CycleOutput, Flags};
 use crate::runtime::{AxisCompensator, Compensator, OwnTable, PoolSource, State, TableStore};
-use crate::sensor::MeasuredSet;
-use crate::spec::LimitSpec;
-use crate::{MAX_FORCES, MAX_SEGMENTS};
+use crate::sensor::{ForceSource, MeasuredSet, ProcessParams, SensorRt};
+use crate::spec::{
+    ExpansionSpec, ForceSpec, LimitSpec, OutsideStroke, SensorSpec, ThermoReference,
+};
+use crate::{MAX_FORCES, MAX_SEGMENTS, MAX_SENSORS};
 
 impl Default for Compensator {
     fn default() -> Self {
@@ -50,6 +57,72 @@ impl Compensator {
         self.cycle_in(&[], st, input)
     }
 
+    /// Forward segments (empty without a table), as the cycle evaluates them: coefficients in
+    /// the remainder r (counts from the knot), c0 + r·(c1 + r·(c2 + r·c3)) — the image's
+    /// coefficients in t = r/L divided by L^k at load (see the module's glossary).
+    pub fn forward_segments(&self) -> &[[f32; 4]] {
+        let n = (self.table.n_segments as usize).min(MAX_SEGMENTS);
+        self.segments.0.get(..n).unwrap_or(&[])
+    }
+    /// Backward segments (empty for a unidirectional table), in the form of
+    /// [`Compensator::forward_segments`].
+    pub fn backward_segments(&self) -> &[[f32; 4]] {
+        let n = if self.table.bidirectional {
+            (self.table.n_segments as usize).min(MAX_SEGMENTS)
+        } else {
+            0
+        };
+        self.segments
+            .0
+            .get(MAX_SEGMENTS..MAX_SEGMENTS + n)
+            .unwrap_or(&[])
+    }
+
+    /// Settings of sensor `i`.
+    pub fn sensor(&self, i: usize) -> Option<SensorSpec> {
+        self.thermo.sensor(i)
+    }
+    /// b_i of sensor `i`, µm/K.
+    pub fn b_um_per_k(&self, i: usize) -> Option<f32> {
+        self.thermo.b_um_per_k(i)
+    }
+    /// Rise bounds `(rise_min_k, rise_max_k)` of sensor `i`'s range guard (None without the
+    /// guard or sensor).
+    pub fn rise_bounds_k(&self, i: usize) -> Option<(f32, f32)> {
+        self.thermo.rise_bounds_k(i)
+    }
+    /// Lag coefficient α of sensor `i` (1 = no lag).
+    pub fn lag_alpha(&self, i: usize) -> Option<f32> {
+        self.thermo.lag_alpha(i)
+    }
+    /// Sensor-rate update: health checks, lags, and the cached thermal contribution.
+    ///
+    /// `readings[i]` is sensor i in °C; NaN (or a missing entry) = no reading. Call it every
+    /// `sensor_period_ms` (the lag coefficients assume that period), also when the image has no
+    /// sensors: the cycle adds a cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted), refreshed here
+    /// and in [`AxisCompensator::set_process`] (a fresh [`State`] contributes 0 until then). Rules:
+    /// - a reading is accepted if finite, within `[min_degc, max_degc]` and, after the first
+    ///   accepted one, within `max_rate_degc_per_s · (now − time of the last accepted reading)` of
+    ///   the last accepted value; otherwise it is rejected (counted) and the last good value held;
+    /// - ΔT is taken against the sensor's `reference_degc`, or, with the reference at switch-on
+    ///   ([`crate::ThermoReference::SwitchOn`]), against its first accepted reading since the
+    ///   image was loaded or the state reset (ΔT then starts at 0);
+    /// - each lag advances once per call with the last accepted value as input; it starts at the
+    ///   first accepted reading (no transient from 0);
+    /// - with the range guard, a sensor whose unlagged rise (last accepted value − its reference)
+    ///   is outside its rise bounds is left out of Σ b_i·ΔT_i ([`Flags::THERMAL_GUARDED`]); it
+    ///   stays healthy and its lag keeps running;
+    /// - a sensor without an accepted reading for more than `stale_timeout_ms` (counted from the
+    ///   first call for a sensor that never reported) is stale; it recovers after
+    ///   [`RECOVERY_READINGS`] consecutive accepted readings;
+    /// - the thermal contribution (Σ b_i·ΔT_i and the expansion coefficient) is recomputed only
+    ///   while every sensor has reported and none is stale; otherwise it stays frozen at the last
+    ///   good value (THERMAL_FROZEN); SENSOR_FAULT while any sensor is stale or its last reading
+    ///   was rejected.
+    pub fn update_temperatures(&self, st: &mut State, now_ms: u32, readings: &[f32]) {
+        self.update_temperatures_with(&self.thermo.sensors, st, now_ms, readings);
+    }
+
     /// Positioning-table value (µm) at `position_counts` for `direction`, and whether the position
     /// was outside the stroke. 0 without a table.
     #[inline]
@@ -62,24 +135,24 @@ impl<S: TableStore> AxisCompensator<S> {
     /// Back to the identity (in place, no large temporary).
     pub fn clear(&mut self) {
         self.loaded = false;
-        self.segment = None;
-        self.has_thermo = false;
-        self.n_segments = 0;
-        self.n_sensors = 0;
-        self.n_forces = 0;
-        self.chi_um_per_n = [0.0; MAX_FORCES];
-        self.force_predicted = [false; MAX_FORCES];
-        self.measured_mask = 0;
-        self.chi_measured = [0.0; MAX_FORCES];
-        self.measured = MeasuredSet::None;
-        self.thermo_flags_xor = 0;
+        self.table.segment = None;
+        self.thermo.has_thermo = false;
+        self.table.n_segments = 0;
+        self.thermo.n_sensors = 0;
+        self.thermo.n_forces = 0;
+        self.thermo.chi_um_per_n = [0.0; MAX_FORCES];
+        self.thermo.force_predicted = [false; MAX_FORCES];
+        self.thermo.measured_mask = 0;
+        self.thermo.chi_measured = [0.0; MAX_FORCES];
+        self.thermo.measured = MeasuredSet::None;
+        self.thermo.thermo_flags_xor = 0;
         self.axis_id = 0;
-        self.counter_bits = 0;
-        self.sext_shift = CounterShift::S0;
-        self.um_per_count = 0.0;
+        self.counter.counter_bits = 0;
+        self.counter.sext_shift = CounterShift::S0;
+        self.limits.um_per_count = 0.0;
         self.counts_per_rev = 0;
-        self.half_um_per_count = 0.0;
-        self.fast_max_key = 0;
+        self.limits.half_um_per_count = 0.0;
+        self.limits.fast_max_key = 0;
     }
 
     /// True once an image has been loaded (false for the identity).
@@ -92,20 +165,201 @@ impl<S: TableStore> AxisCompensator<S> {
     }
     /// Scale resolution (0 for the identity).
     pub fn um_per_count(&self) -> f32 {
-        self.um_per_count
+        self.limits.um_per_count
     }
     /// Counter width (0 for the identity, which extends a 32-bit counter).
     pub fn counter_bits(&self) -> u8 {
-        self.counter_bits
+        self.counter.counter_bits
     }
     /// The limits (all 0 for the identity).
     pub fn limits(&self) -> LimitSpec {
         LimitSpec {
-            max_correction_um: self.max_correction_um,
-            max_slew_um_per_cycle: self.max_slew_um_per_cycle(),
-            direction_hysteresis_counts: self.hysteresis_counts,
+            max_correction_um: self.limits.max_correction_um,
+            max_slew_um_per_cycle: self.limits.max_slew_um_per_cycle(),
+            direction_hysteresis_counts: self.counter.hysteresis_counts,
         }
     }
+    /// True if a positioning table is loaded.
+    pub fn has_table(&self) -> bool {
+        self.table.has_table()
+    }
+    /// Position of knot 0.
+    pub fn table_start_counts(&self) -> i64 {
+        self.table.start_counts
+    }
+    /// Knot spacing.
+    pub fn segment_counts(&self) -> u32 {
+        self.table.segment_counts()
+    }
+    /// Behaviour beyond the stroke.
+    pub fn outside(&self) -> OutsideStroke {
+        self.table.outside()
+    }
+    /// Positioning-table value (µm) at `position_counts` for `direction`, and whether the position
+    /// was outside the stroke. 0 without a table. `pool`: the group's coefficient pool.
+    #[inline(always)]
+    pub fn table_um_in(
+        &self,
+        pool: &[[f32; 4]],
+        direction: Direction,
+        position_counts: i64,
+    ) -> (f32, bool) {
+        self.table
+            .value(&self.segments, pool, direction, position_counts)
+    }
+
+    /// True if a thermo-force term is loaded.
+    pub fn has_thermo(&self) -> bool {
+        self.thermo.has_thermo()
+    }
+    /// Sensor period of the thermo-force term, ms.
+    pub fn sensor_period_ms(&self) -> u32 {
+        self.thermo.sensor_period_ms()
+    }
+    /// Number of sensors.
+    pub fn sensor_count(&self) -> usize {
+        self.thermo.sensor_count()
+    }
+    /// Constant term b0, µm.
+    pub fn b0_um(&self) -> f32 {
+        self.thermo.b0_um()
+    }
+    /// The expansion term, if any.
+    pub fn expansion(&self) -> Option<ExpansionSpec> {
+        self.thermo.expansion()
+    }
+    /// What each ΔT is taken against.
+    pub fn thermo_reference(&self) -> ThermoReference {
+        self.thermo.thermo_reference()
+    }
+    /// True if the image has the range guard (per-sensor rise bounds).
+    pub fn has_rise_guard(&self) -> bool {
+        self.thermo.has_rise_guard()
+    }
+    /// Number of force terms.
+    pub fn force_count(&self) -> usize {
+        self.thermo.force_count()
+    }
+    /// Force term `j`.
+    pub fn force(&self, j: usize) -> Option<ForceSpec> {
+        self.thermo.force(j)
+    }
+    /// Where force `j` comes from.
+    pub fn force_source(&self, j: usize) -> Option<ForceSource> {
+        self.thermo.force_source(j)
+    }
+    /// Predicted forces from the process parameters (F = k·ap^x·fz^y·n^z via `libm::powf`),
+    /// computed here only. A non-finite or implausible prediction is replaced by 0 N and flagged
+    /// (FORCE_INVALID) until the next call.
+    pub fn set_process(&self, st: &mut State, p: &ProcessParams) {
+        self.thermo.set_process(self.loaded, st, p);
+    }
+    /// [`Compensator::update_temperatures`] with the sensors' settings `cfgs` (the axis's
+    /// own, or its group's array: [`crate::group::Group::update_temperatures`]).
+    pub(crate) fn update_temperatures_with(
+        &self,
+        cfgs: &[SensorRt; MAX_SENSORS],
+        st: &mut State,
+        now_ms: u32,
+        readings: &[f32],
+    ) {
+        if self.loaded {
+            self.thermo.update_temperatures(cfgs, st, now_ms, readings);
+        }
+    }
+    /// The thermo-force stage ([`crate::thermo::ThermoForceStage::thermo_um`]).
+    #[inline(always)]
+    pub(crate) fn thermo_um(
+        &self,
+        st: &State,
+        pos: i64,
+        forces_n: &[f32; MAX_FORCES],
+        flags: &mut Flags,
+        total: f32,
+    ) -> f32 {
+        self.thermo.thermo_um(st, pos, forces_n, flags, total)
+    }
+
+    /// The counter stage ([`crate::counter::CounterStage::track`]) for this storage: with turn tracking where
+    /// the axis may be rotary.
+    #[inline(always)]
+    pub(crate) fn track(&self, st: &mut State, raw: u32) -> (i64, i32) {
+        if S::TURNS {
+            self.counter.track::<true>(st, raw)
+        } else {
+            self.counter.track::<false>(st, raw)
+        }
+    }
+
+    /// [`crate::counter::CounterStage::track_primed`] for this storage (see [`AxisCompensator::track`]).
+    #[inline(always)]
+    pub(crate) fn track_primed(&self, st: &mut State, raw: u32) -> (i64, i32) {
+        if S::TURNS {
+            self.counter.track_primed::<true>(st, raw)
+        } else {
+            self.counter.track_primed::<false>(st, raw)
+        }
+    }
+
+    /// [`crate::counter::CounterStage::track_unprimed`] for this storage (see [`AxisCompensator::track`]).
+    #[inline(always)]
+    pub(crate) fn track_unprimed(&self, st: &mut State, raw: u32, delta: i32) -> (i64, i32) {
+        if S::TURNS {
+            self.counter.track_unprimed::<true>(st, raw, delta)
+        } else {
+            self.counter.track_unprimed::<false>(st, raw, delta)
+        }
+    }
+
+    /// [`crate::counter::CounterStage::turn_position`] with this axis's counts per revolution.
+    #[inline(always)]
+    pub(crate) fn turn_position(&self, st: &mut State, pos: i64, delta: i32) -> u32 {
+        self.counter
+            .turn_position(st, self.counts_per_rev, pos, delta)
+    }
+
+    /// The segment cache's miss path of the group pipelines (one out-of-line call): on a state
+    /// that was not primed, the counter extension redone ([`AxisCompensator::track_unprimed`]:
+    /// the caller reads the extended position back from `st`); for a rotary axis (`ROTARY`) the
+    /// last cycle's turn position settled from the cache (if it held it) and followed by this
+    /// cycle's step; then [`crate::table::TableStage::refill`] at the table position. `(pos,
+    /// delta)` is what [`AxisCompensator::track_primed`] returned with the counter value `raw`.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn table_um_miss<const ROTARY: bool>(
+        &self,
+        pool: &[[f32; 4]],
+        st: &mut State,
+        mut pos: i64,
+        mut delta: i32,
+        raw: u32,
+    ) -> (f32, bool) {
+        if !st.primed {
+            (pos, delta) = self.track_unprimed(st, raw, delta);
+        }
+        if ROTARY {
+            st.settle_turn((pos as u32).wrapping_sub(delta as u32));
+            let turn = self.turn_position(st, pos, delta);
+            self.table
+                .refill(&self.segments, pool, st, turn as i64, pos as u32)
+        } else {
+            self.table.refill(&self.segments, pool, st, pos, pos as u32)
+        }
+    }
+
+    /// The limits stage ([`crate::limits::LimitStage::finish`]): the last stage of the axis.
+    #[inline(always)]
+    pub(crate) fn finish(
+        &self,
+        st: &mut State,
+        pos: i64,
+        total: f32,
+        command: i64,
+        flags: Flags,
+    ) -> CycleOutput {
+        self.limits.finish(st, pos, total, command, flags)
+    }
+
     /// The per-cycle call: counter extension, direction, table + thermo-force, clamp, slew, counts.
     ///
     /// No library calls, no i64 multiplication/division, no i64↔f32 conversion, no panic path.
@@ -145,7 +399,8 @@ impl<S: TableStore> AxisCompensator<S> {
             None,
             false,
         );
-        self.finish(st, pos, total, input.command_counts, flags)
+        self.limits
+            .finish(st, pos, total, input.command_counts, flags)
     }
 
     /// Table (at the extended position, or a rotary axis's position within the turn) +
@@ -176,7 +431,7 @@ impl<S: TableStore> AxisCompensator<S> {
         // compiled out.
         let rotary = S::TURNS && rotary_known.unwrap_or(self.counts_per_rev != 0);
         // With `segment_cache` (the group's pipelines), the table through the segment cache (see
-        // [`AxisCompensator::table_um_refill`]): within the last cycle's segment, the remainder
+        // [`crate::table::TableStage::refill`]): within the last cycle's segment, the remainder
         // from the segment's start and the cached coefficients; otherwise the full lookup, which
         // refills the cache.
         // Without it (the single-axis call, whose reference workload crosses a 1000-count
@@ -205,7 +460,7 @@ impl<S: TableStore> AxisCompensator<S> {
             if r < st.seg_limit {
                 // Within one segment of the turn (no wrap): the turn position is the segment's
                 // start within the turn + r, not stored (see `State::turn_in`).
-                (self.segment_um_cached(st, r), backward(st))
+                (self.table.cached_um(st, r), backward(st))
             } else {
                 cold_path();
                 let v = self.table_um_miss::<true>(pool.pool(), st, pos, delta, raw);
@@ -214,14 +469,14 @@ impl<S: TableStore> AxisCompensator<S> {
                 with_outside(st, v)
             }
         } else if r < st.seg_limit {
-            (self.segment_um_cached(st, r), backward(st))
+            (self.table.cached_um(st, r), backward(st))
         } else {
             cold_path();
             let v = self.table_um_miss::<false>(pool.pool(), st, pos, delta, raw);
             pos = st.position;
             with_outside(st, v)
         };
-        if thermo_known.unwrap_or(self.has_thermo) {
+        if thermo_known.unwrap_or(self.thermo.has_thermo) {
             total = self.thermo_um(st, pos, forces_n, &mut flags, total);
         }
         (pos, total, flags)

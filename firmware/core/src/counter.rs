@@ -10,22 +10,48 @@
 //!   cycle; the full modulo only on the first cycle or a step of a whole turn or more).
 //! - **reversal / hysteresis**: the direction flips only after moving more than
 //!   `direction_hysteresis_counts` against it (state: distance moved back since the extreme).
+//!
+//! The stage is a value: its settings [`CounterStage`] (read through `&self`, set by the loader)
+//! and its fields of the axis [`State`] (`position`, `last_raw`, `back_counts`, `direction`,
+//! `primed`, `raw_pending`, and for a rotary axis `pos_in_turn`, `turn_primed`; through `&mut`).
+//! `TURNS` (a compile-time choice of the caller): the axis may be rotary, so a reversal also
+//! settles the turn position and voids the table's segment cache out of line
+//! ([`State::reverse`]).
 
-use crate::counts::{Direction, step_in_turn, wrap};
+use crate::counts::{CounterShift, Direction, step_in_turn, wrap};
 use crate::hint::cold_path;
-use crate::runtime::{AxisCompensator, State, TableStore};
+use crate::state::State;
 
-impl<S: TableStore> AxisCompensator<S> {
+/// The settings of the counter stage (validated at load).
+#[derive(Debug, Clone, Copy)]
+#[repr(C)]
+pub(crate) struct CounterStage {
+    /// Width of the hardware counter, bits (0 for the identity, which extends a 32-bit counter).
+    pub(crate) counter_bits: u8,
+    // The shift and the hysteresis side by side: one paired load reads both.
+    /// 32 − counter_bits (0 for the identity: a 32-bit counter).
+    pub(crate) sext_shift: CounterShift,
+    pub(crate) hysteresis_counts: u32,
+}
+
+impl CounterStage {
+    /// The identity's counter (a 32-bit counter, no hysteresis; all zero bytes).
+    pub(crate) const IDENTITY: CounterStage = CounterStage {
+        counter_bits: 0,
+        sext_shift: CounterShift::S0,
+        hysteresis_counts: 0,
+    };
+
     /// Counter extension (wrap-safe, sign-extended delta) and the direction hysteresis; returns
     /// the extended position (also stored in `st`) and the step `delta` that was added to the
     /// previous extended position (position = previous position + delta, exactly).
     #[inline(always)]
-    pub(crate) fn track(&self, st: &mut State, raw: u32) -> (i64, i32) {
+    pub(crate) fn track<const TURNS: bool>(&self, st: &mut State, raw: u32) -> (i64, i32) {
         if !st.primed {
             cold_path();
             self.prime(st, raw);
         }
-        self.track_primed(st, raw)
+        self.track_primed::<TURNS>(st, raw)
     }
 
     /// The first cycle of a fresh or reset state: the counter value (at reset, or this cycle's)
@@ -41,12 +67,12 @@ impl<S: TableStore> AxisCompensator<S> {
         st.raw_pending = false;
     }
 
-    /// [`AxisCompensator::track`] without the test of `primed` (the group pipelines, whose
+    /// [`CounterStage::track`] without the test of `primed` (the group pipelines, whose
     /// segment cache is void while the state is not primed): on a state that is not primed it
-    /// computes something else, which [`AxisCompensator::track_unprimed`] (the cache miss's
+    /// computes something else, which [`CounterStage::track_unprimed`] (the cache miss's
     /// path) replaces by what `track` computes.
     #[inline(always)]
-    pub(crate) fn track_primed(&self, st: &mut State, raw: u32) -> (i64, i32) {
+    pub(crate) fn track_primed<const TURNS: bool>(&self, st: &mut State, raw: u32) -> (i64, i32) {
         let shift = self.sext_shift.get();
         let delta = ((raw.wrapping_sub(st.last_raw)).wrapping_shl(shift) as i32) >> shift;
         let pos = st.position.wrapping_add(delta as i64);
@@ -62,7 +88,7 @@ impl<S: TableStore> AxisCompensator<S> {
         let against = m.wrapping_sub(delta ^ m);
         let back = st.back_counts.saturating_add(against);
         let back = if back > self.hysteresis_counts as i32 {
-            if S::TURNS {
+            if TURNS {
                 // A group axis (segment cache, turn position): out of line.
                 st.reverse((pos as u32).wrapping_sub(delta as u32));
             } else {
@@ -82,7 +108,7 @@ impl<S: TableStore> AxisCompensator<S> {
         (pos, delta)
     }
 
-    /// After [`AxisCompensator::track_primed`] with `raw` returned `delta` on a state that was
+    /// After [`CounterStage::track_primed`] with `raw` returned `delta` on a state that was
     /// not primed: the state and the result `track` would have given.
     ///
     /// Exact because a state that is not primed is a fresh one or a reset one ([`State::new`],
@@ -92,19 +118,22 @@ impl<S: TableStore> AxisCompensator<S> {
     /// `raw − last_raw` from those bits).
     #[cold]
     #[inline(never)]
-    pub(crate) fn track_unprimed(&self, st: &mut State, raw: u32, delta: i32) -> (i64, i32) {
+    pub(crate) fn track_unprimed<const TURNS: bool>(
+        &self,
+        st: &mut State,
+        raw: u32,
+        delta: i32,
+    ) -> (i64, i32) {
         st.last_raw = raw.wrapping_sub(delta as u32);
         st.direction = Direction::Forward;
         st.back_counts = 0;
         self.prime(st, raw);
-        self.track_primed(st, raw)
+        self.track_primed::<TURNS>(st, raw)
     }
-}
 
-impl<S: TableStore> AxisCompensator<S> {
-    /// The position within the turn of a rotary axis (`counts_per_rev` > 0) at extended
-    /// position `pos`, which [`AxisCompensator::track`] just reached by adding `delta`; kept in
-    /// `st`.
+    /// The position within the turn of a rotary axis (`cpr` counts per revolution, > 0) at
+    /// extended position `pos`, which [`CounterStage::track`] just reached by adding `delta`;
+    /// kept in `st`.
     ///
     /// While `turn_primed`, the previous cycle ran this after its own `track`, so `pos_in_turn`
     /// belongs to the previous extended position and this cycle's step is exactly `delta` (an
@@ -112,8 +141,7 @@ impl<S: TableStore> AxisCompensator<S> {
     /// otherwise ([`State::home`], [`State::reset`], [`State::on_new_image`], a fresh state)
     /// clears `turn_primed`, and the next cycle takes the full modulo.
     #[inline(always)]
-    pub(crate) fn turn_position(&self, st: &mut State, pos: i64, delta: i32) -> u32 {
-        let cpr = self.counts_per_rev;
+    pub(crate) fn turn_position(&self, st: &mut State, cpr: u32, pos: i64, delta: i32) -> u32 {
         st.pos_in_turn = if st.turn_primed {
             step_in_turn(st.pos_in_turn, delta as i64, cpr, pos)
         } else {

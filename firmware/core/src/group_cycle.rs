@@ -170,12 +170,12 @@ impl<const POOL: usize> Group<POOL> {
                     }
                 }
             }
-            dst.table = PoolTable {
+            dst.segments = PoolTable {
                 base: [next, next + (halves - 1) * n],
             };
             next += halves * n;
             dst.counts_per_rev = a.counts_per_rev;
-            self.kinds[i] = (a.counts_per_rev != 0) as u8 | (dst.has_thermo as u8) << 1;
+            self.kinds[i] = (a.counts_per_rev != 0) as u8 | (dst.has_thermo() as u8) << 1;
             self.names[i] = a.name;
             self.counts_per_rev[i] = a.counts_per_rev;
         }
@@ -193,7 +193,7 @@ impl<const POOL: usize> Group<POOL> {
                 slot(spec.machine.tilt_axis()),
                 slot(AxisName::C),
             ];
-            let upc = |k: usize| self.axes[slots[k] as usize].um_per_count;
+            let upc = |k: usize| self.axes[slots[k] as usize].um_per_count();
             let cpr = |k: usize| self.counts_per_rev[slots[k] as usize];
             self.stage = RotaryStage::new(spec, [upc(0), upc(1), upc(2)], [cpr(3), cpr(4)], slots);
             self.has_stage = true;
@@ -205,7 +205,7 @@ impl<const POOL: usize> Group<POOL> {
                     .map_or(0, |p| p as u8)
             };
             let slots = [slot(0), slot(1), slot(2)];
-            let upc = slots.map(|s| self.axes[s as usize].um_per_count);
+            let upc = slots.map(|s| self.axes[s as usize].um_per_count());
             self.geometric = Some(GeometricStage::load(spec, upc, slots, &mut self.pool, next));
         }
         self.loaded = true;
@@ -324,17 +324,17 @@ impl<const POOL: usize> Group<POOL> {
     /// Settings of sensor `j` of slot `i` (what [`AxisCompensator::sensor`] is for one axis).
     pub fn sensor(&self, i: usize, j: usize) -> Option<SensorSpec> {
         let (a, cfgs) = (self.axes.get(i)?, self.sensors.get(i)?);
-        crate::sensor::sensor_spec(cfgs, a.n_sensors, j)
+        crate::sensor::sensor_spec(cfgs, a.thermo.n_sensors, j)
     }
     /// b_j (µm/K) of sensor `j` of slot `i`.
     pub fn b_um_per_k(&self, i: usize, j: usize) -> Option<f32> {
         let (a, cfgs) = (self.axes.get(i)?, self.sensors.get(i)?);
-        crate::sensor::sensor_b_alpha(cfgs, a.n_sensors, j).map(|(b, _)| b)
+        crate::sensor::sensor_b_alpha(cfgs, a.thermo.n_sensors, j).map(|(b, _)| b)
     }
     /// Lag coefficient α of sensor `j` of slot `i` (1 = no lag).
     pub fn lag_alpha(&self, i: usize, j: usize) -> Option<f32> {
         let (a, cfgs) = (self.axes.get(i)?, self.sensors.get(i)?);
-        crate::sensor::sensor_b_alpha(cfgs, a.n_sensors, j).map(|(_, al)| al)
+        crate::sensor::sensor_b_alpha(cfgs, a.thermo.n_sensors, j).map(|(_, al)| al)
     }
     /// Process parameters for every axis ([`AxisCompensator::set_process`]).
     pub fn set_process(&self, st: &mut GroupState, p: &ProcessParams) {
@@ -661,12 +661,12 @@ impl<const POOL: usize> Group<POOL> {
             let table_pos = if cpr != 0 { wrap(pos, cpr) as i64 } else { pos };
             let dir = s.direction();
             let (mut total, _) = ax.table_um_in(&self.pool, dir, table_pos);
-            if ax.has_thermo {
+            if ax.has_thermo() {
                 let mut flags = Flags::NONE;
                 total = ax.thermo_um(s, pos, &[0.0; MAX_FORCES], &mut flags, total);
             }
             total += d[i];
-            let max = ax.max_correction_um;
+            let max = ax.limits.max_correction_um;
             e[i] = if !total.is_finite() {
                 limited = true;
                 0.0

@@ -511,13 +511,13 @@ pub(crate) fn copy_into(l: &Layout, b: &[u8], c: &mut Compensator) {
     // the direction alone.
     for d in 0..2 {
         for s in 0..l.n_segments.min(MAX_SEGMENTS) {
-            if let Some(dst) = c.table.0.get_mut(d * MAX_SEGMENTS + s) {
+            if let Some(dst) = c.segments.0.get_mut(d * MAX_SEGMENTS + s) {
                 *dst = table_segment_per_count(l, b, d, s);
             }
         }
     }
     copy_params_into(l, b, c);
-    copy_sensors_into(l, b, &mut c.sensors);
+    copy_sensors_into(l, b, &mut c.thermo.sensors);
 }
 
 /// Copy the sensors' settings of a validated image into `cfgs` (the axis's own or its group's
@@ -553,86 +553,86 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
     let bits = u8_at(b, 14);
     let upc = f32_at(b, 16);
     c.axis_id = u16_at(b, 12);
-    c.counter_bits = bits;
-    c.sext_shift = CounterShift::new(32u32.saturating_sub(bits as u32));
-    c.um_per_count = upc;
+    c.counter.counter_bits = bits;
+    c.counter.sext_shift = CounterShift::new(32u32.saturating_sub(bits as u32));
+    c.limits.um_per_count = upc;
     c.counts_per_rev = 0;
 
-    c.bidirectional = false;
-    c.taper = false;
-    c.n_segments = 0;
-    c.start_counts = 0;
-    c.segment = None;
-    c.span_counts = 0;
-    c.taper_counts = 0;
-    c.inv_taper = 0.0;
-    c.edge = [[0.0; 2]; 2];
+    c.table.bidirectional = false;
+    c.table.taper = false;
+    c.table.n_segments = 0;
+    c.table.start_counts = 0;
+    c.table.segment = None;
+    c.table.span_counts = 0;
+    c.table.taper_counts = 0;
+    c.table.inv_taper = 0.0;
+    c.table.edge = [[0.0; 2]; 2];
     if let Some(o) = l.table {
         let n = l.n_segments;
         let seg = u32_at(b, o + 8);
-        c.bidirectional = l.bidirectional;
-        c.n_segments = n as u32;
-        c.start_counts = i64_at(b, o);
-        c.segment = core::num::NonZeroU32::new(seg);
-        c.span_counts = seg.wrapping_mul(n as u32);
-        c.taper = u8_at(b, o + 15) == 1;
-        c.taper_counts = u32_at(b, o + 16);
-        c.inv_taper = if c.taper {
-            1.0 / c.taper_counts as f32
+        c.table.bidirectional = l.bidirectional;
+        c.table.n_segments = n as u32;
+        c.table.start_counts = i64_at(b, o);
+        c.table.segment = core::num::NonZeroU32::new(seg);
+        c.table.span_counts = seg.wrapping_mul(n as u32);
+        c.table.taper = u8_at(b, o + 15) == 1;
+        c.table.taper_counts = u32_at(b, o + 16);
+        c.table.inv_taper = if c.table.taper {
+            1.0 / c.table.taper_counts as f32
         } else {
             0.0
         };
         for d in 0..2 {
             let first = table_segment(l, b, d, 0);
             let last = table_segment(l, b, d, n - 1);
-            c.edge[d] = [first[0], last[0] + last[1] + last[2] + last[3]];
+            c.table.edge[d] = [first[0], last[0] + last[1] + last[2] + last[3]];
         }
     }
 
-    c.has_thermo = l.thermo.is_some();
-    c.sensor_period_ms = 0;
-    c.n_sensors = 0;
-    c.b0_um = 0.0;
-    c.has_expansion = false;
-    c.reference_at_switch_on = false;
-    c.rise_guard = false;
-    c.expansion_sensor = 0;
-    c.x_ref_counts = 0;
-    c.c_um_per_mm_k = 0.0;
-    c.expansion_um_per_count_k = 0.0;
-    c.n_forces = 0;
-    c.chi_um_per_n = [0.0; MAX_FORCES];
-    c.force_predicted = [false; MAX_FORCES];
-    c.measured_mask = 0;
-    c.chi_measured = [0.0; MAX_FORCES];
-    c.measured = crate::sensor::MeasuredSet::None;
-    c.thermo_flags_xor = 0;
-    c.laws = [crate::sensor::ZERO_LAW; MAX_FORCES];
+    c.thermo.has_thermo = l.thermo.is_some();
+    c.thermo.sensor_period_ms = 0;
+    c.thermo.n_sensors = 0;
+    c.thermo.b0_um = 0.0;
+    c.thermo.has_expansion = false;
+    c.thermo.reference_at_switch_on = false;
+    c.thermo.rise_guard = false;
+    c.thermo.expansion_sensor = 0;
+    c.thermo.x_ref_counts = 0;
+    c.thermo.c_um_per_mm_k = 0.0;
+    c.thermo.expansion_um_per_count_k = 0.0;
+    c.thermo.n_forces = 0;
+    c.thermo.chi_um_per_n = [0.0; MAX_FORCES];
+    c.thermo.force_predicted = [false; MAX_FORCES];
+    c.thermo.measured_mask = 0;
+    c.thermo.chi_measured = [0.0; MAX_FORCES];
+    c.thermo.measured = crate::sensor::MeasuredSet::None;
+    c.thermo.thermo_flags_xor = 0;
+    c.thermo.laws = [crate::sensor::ZERO_LAW; MAX_FORCES];
     if let Some(o) = l.thermo {
         let period = u32_at(b, o);
-        c.sensor_period_ms = period;
-        c.n_sensors = l.n_sensors as u8;
-        c.b0_um = f32_at(b, o + 8);
-        c.has_expansion = u8_at(b, o + 6) == 1;
-        c.reference_at_switch_on = l.thermo_flags & THERMO_REFERENCE_AT_SWITCH_ON != 0;
-        c.rise_guard = l.thermo_flags & THERMO_RISE_GUARD != 0;
-        c.expansion_sensor = u8_at(b, o + 7);
-        c.c_um_per_mm_k = f32_at(b, o + 12);
-        c.x_ref_counts = i64_at(b, o + 16);
-        c.expansion_um_per_count_k = c.c_um_per_mm_k * upc * 0.001;
-        c.n_forces = l.n_forces as u8;
+        c.thermo.sensor_period_ms = period;
+        c.thermo.n_sensors = l.n_sensors as u8;
+        c.thermo.b0_um = f32_at(b, o + 8);
+        c.thermo.has_expansion = u8_at(b, o + 6) == 1;
+        c.thermo.reference_at_switch_on = l.thermo_flags & THERMO_REFERENCE_AT_SWITCH_ON != 0;
+        c.thermo.rise_guard = l.thermo_flags & THERMO_RISE_GUARD != 0;
+        c.thermo.expansion_sensor = u8_at(b, o + 7);
+        c.thermo.c_um_per_mm_k = f32_at(b, o + 12);
+        c.thermo.x_ref_counts = i64_at(b, o + 16);
+        c.thermo.expansion_um_per_count_k = c.thermo.c_um_per_mm_k * upc * 0.001;
+        c.thermo.n_forces = l.n_forces as u8;
         if l.n_sensors > 0 {
-            c.thermo_flags_xor = crate::Flags::THERMAL_FROZEN.0;
+            c.thermo.thermo_flags_xor = crate::Flags::THERMAL_FROZEN.0;
         }
         for j in 0..l.n_forces.min(MAX_FORCES) {
             let at = o + THERMO_HEADER_LEN + SENSOR_LEN * l.n_sensors + FORCE_LEN * j;
-            c.chi_um_per_n[j] = f32_at(b, at);
-            c.force_predicted[j] = u32_at(b, at + 4) == 1;
-            if !c.force_predicted[j] {
-                c.measured_mask |= 1 << j;
-                c.chi_measured[j] = c.chi_um_per_n[j];
+            c.thermo.chi_um_per_n[j] = f32_at(b, at);
+            c.thermo.force_predicted[j] = u32_at(b, at + 4) == 1;
+            if !c.thermo.force_predicted[j] {
+                c.thermo.measured_mask |= 1 << j;
+                c.thermo.chi_measured[j] = c.thermo.chi_um_per_n[j];
             }
-            c.laws[j] = ForceLaw {
+            c.thermo.laws[j] = ForceLaw {
                 k: f32_at(b, at + 8),
                 x_ap: f32_at(b, at + 12),
                 y_fz: f32_at(b, at + 16),
@@ -641,16 +641,16 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
         }
     }
 
-    c.measured = crate::sensor::MeasuredSet::from_mask(c.measured_mask);
+    c.thermo.measured = crate::sensor::MeasuredSet::from_mask(c.thermo.measured_mask);
 
     let o = l.limits;
-    c.max_correction_um = f32_at(b, o);
-    c.slew_key = crate::limits::magnitude_key(f32_at(b, o + 4));
-    c.hysteresis_counts = u32_at(b, o + 8);
+    c.limits.max_correction_um = f32_at(b, o);
+    c.limits.slew_key = crate::limits::magnitude_key(f32_at(b, o + 4));
+    c.counter.hysteresis_counts = u32_at(b, o + 8);
     // 2^29 leaves a factor 2 of margin below the 2^30 that `round_half_away_bounded` needs.
-    c.half_um_per_count = 0.5 * upc;
-    c.fast_max_key = if MAX_LIMIT_UM / upc < 536_870_912.0 {
-        crate::limits::magnitude_key(c.max_correction_um)
+    c.limits.half_um_per_count = 0.5 * upc;
+    c.limits.fast_max_key = if MAX_LIMIT_UM / upc < 536_870_912.0 {
+        crate::limits::magnitude_key(c.limits.max_correction_um)
     } else {
         0
     };

@@ -4,12 +4,45 @@
 //! - **clamp**: |total correction| ≤ `max_correction_um`.
 //! - **slew**: the change of the applied correction per cycle ≤ `max_slew_um_per_cycle`.
 //! - **counts**: the applied correction in scale counts, rounded half away from zero.
+//!
+//! The stage is a value: its settings [`LimitStage`] (read through `&self`, set by the loader)
+//! and its field of the axis [`State`] (`last_correction_um`, through `&mut`).
 
 use crate::hint::cold_path;
 use crate::io::{CycleOutput, Flags};
-use crate::runtime::{AxisCompensator, State, TableStore};
+use crate::state::State;
 
-impl<S: TableStore> AxisCompensator<S> {
+/// The settings of the limits stage (validated at load): the per-cycle fields first, the two
+/// magnitude keys side by side (one paired load reads both).
+#[derive(Debug, Clone, Copy)]
+#[repr(C)]
+pub(crate) struct LimitStage {
+    /// [`magnitude_key`] of `max_correction_um` if every applied correction, in counts, is below
+    /// 2^29 in magnitude (`MAX_LIMIT_UM` / `um_per_count` < 2^29), else 0: the cycle's fast path
+    /// (within the clamp, rounded with `round_half_away_bounded`) is never taken for an
+    /// unbounded image (no magnitude's key is below 0).
+    pub(crate) fast_max_key: u32,
+    /// `max_slew_um_per_cycle` as the cycle's fast path tests it: see [`magnitude_key`].
+    pub(crate) slew_key: u32,
+    /// `um_per_count / 2` (exact), so that the cycle's quotient is already doubled for the
+    /// bounded rounding.
+    pub(crate) half_um_per_count: f32,
+    // ---- read off the per-cycle path ----
+    /// Scale resolution, µm per count (0 for the identity).
+    pub(crate) um_per_count: f32,
+    pub(crate) max_correction_um: f32,
+}
+
+impl LimitStage {
+    /// The identity's limits (all zero bytes).
+    pub(crate) const IDENTITY: LimitStage = LimitStage {
+        fast_max_key: 0,
+        slew_key: 0,
+        half_um_per_count: 0.0,
+        um_per_count: 0.0,
+        max_correction_um: 0.0,
+    };
+
     /// Clamp, slew, rounding to counts and the corrected command: the last stage of an axis.
     ///
     /// Common case first: within the clamp and the slew limit (two compares, NaN fails the
@@ -72,9 +105,7 @@ impl<S: TableStore> AxisCompensator<S> {
             flags,
         }
     }
-}
 
-impl<S: TableStore> AxisCompensator<S> {
     /// The slew limit, µm per cycle (0 for the identity).
     #[inline(always)]
     pub(crate) fn max_slew_um_per_cycle(&self) -> f32 {

@@ -30,7 +30,7 @@ pub struct State {
     pub(crate) last_raw: u32,
     pub(crate) back_counts: i32,
     pub(crate) last_correction_um: f32,
-    /// Segment cache of the table (see [`AxisCompensator::table_um_refill`]): the low 32 bits
+    /// Segment cache of the table (see [`crate::table::TableStage::refill`]): the low 32 bits
     /// of the extended position where the last cycle's table segment starts, that segment's
     /// length while the cache is valid (0: void, the next lookup is a full one; always 0 while
     /// `primed` is false), a copy of its coefficients in the half of the present direction (a
@@ -243,7 +243,7 @@ impl State {
         }
     }
 
-    /// The direction reverses ([`AxisCompensator::track`], which also sets the distance moved
+    /// The direction reverses ([`crate::counter::CounterStage::track`], which also sets the distance moved
     /// back to 0): the segment cache, which holds the other half's coefficients, voided (the turn position of
     /// the last cycle's extended position, whose low 32 bits are `last_low`, settled first).
     #[cold]

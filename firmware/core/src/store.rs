@@ -37,7 +37,7 @@ pub trait TableStore {
     fn segment<'a>(&'a self, pool: &'a [[f32; 4]], dir: Direction, seg: u32) -> &'a [f32; 4];
     /// True if axes with this storage may be rotary (turn tracking compiled in).
     const TURNS: bool = false;
-    /// The sensors' settings kept in the axis itself (see [`AxisCompensator`]'s field).
+    /// The sensors' settings kept in the axis itself (see [`crate::AxisCompensator`]'s `thermo`).
     type Sensors: core::fmt::Debug + Clone;
     /// [`TableStore::Sensors`] of the identity (all zero bytes).
     const NO_SENSORS: Self::Sensors;

@@ -11,28 +11,61 @@
 //!   multiply by 1/L (work that depends only on the image, done at load).
 //! - **stroke**: `[start_counts, start_counts + n·segment_counts)`; beyond it the end value is
 //!   held or tapered to 0 over `taper_length_counts`.
+//!
+//! The stage is a value: its settings [`TableStage`] (read through `&self`, set by the loader),
+//! the segments kept where the axis's [`TableStore`] keeps them (passed in as `store`, with the
+//! group's coefficient `pool`), and its fields of the axis [`State`] (the segment cache `seg_*`;
+//! through `&mut`).
 
-use crate::MAX_SEGMENTS;
 use crate::counts::Direction;
 use crate::hint::cold_path;
-use crate::runtime::{AxisCompensator, Compensator, TableStore};
 use crate::spec::OutsideStroke;
+use crate::state::State;
+use crate::store::TableStore;
 
-impl<S: TableStore> AxisCompensator<S> {
+/// The settings of the positioning table (validated at load; the segments themselves are kept
+/// by the axis's [`TableStore`]).
+#[derive(Debug, Clone, Copy)]
+#[repr(C)]
+pub(crate) struct TableStage {
+    pub(crate) bidirectional: bool,
+    pub(crate) taper: bool,
+    pub(crate) n_segments: u32,
+    pub(crate) start_counts: i64,
+    /// Knot spacing; `None` = no table (so the division needs no zero check).
+    pub(crate) segment: Option<core::num::NonZeroU32>,
+    /// n·segment_counts ≤ u32::MAX (validated).
+    pub(crate) span_counts: u32,
+    pub(crate) taper_counts: u32,
+    pub(crate) inv_taper: f32,
+    /// `[direction][0 = low end, 1 = high end]` table value at the stroke ends.
+    pub(crate) edge: [[f32; 2]; 2],
+}
+
+impl TableStage {
+    /// No table (all zero bytes).
+    pub(crate) const NONE: TableStage = TableStage {
+        bidirectional: false,
+        taper: false,
+        n_segments: 0,
+        start_counts: 0,
+        segment: None,
+        span_counts: 0,
+        taper_counts: 0,
+        inv_taper: 0.0,
+        edge: [[0.0; 2]; 2],
+    };
+
     /// True if a positioning table is loaded.
-    pub fn has_table(&self) -> bool {
+    pub(crate) fn has_table(&self) -> bool {
         self.segment.is_some()
     }
-    /// Position of knot 0.
-    pub fn table_start_counts(&self) -> i64 {
-        self.start_counts
-    }
-    /// Knot spacing.
-    pub fn segment_counts(&self) -> u32 {
+    /// Knot spacing (0 without a table).
+    pub(crate) fn segment_counts(&self) -> u32 {
         self.segment.map_or(0, |s| s.get())
     }
     /// Behaviour beyond the stroke.
-    pub fn outside(&self) -> OutsideStroke {
+    pub(crate) fn outside(&self) -> OutsideStroke {
         if self.taper {
             OutsideStroke::Taper {
                 length_counts: self.taper_counts,
@@ -42,10 +75,12 @@ impl<S: TableStore> AxisCompensator<S> {
         }
     }
     /// Positioning-table value (µm) at `position_counts` for `direction`, and whether the position
-    /// was outside the stroke. 0 without a table. `pool`: the group's coefficient pool.
+    /// was outside the stroke. 0 without a table. `store`: where the axis keeps its segments,
+    /// `pool`: the group's coefficient pool.
     #[inline(always)]
-    pub fn table_um_in(
+    pub(crate) fn value<S: TableStore>(
         &self,
+        store: &S,
         pool: &[[f32; 4]],
         direction: Direction,
         position_counts: i64,
@@ -63,21 +98,21 @@ impl<S: TableStore> AxisCompensator<S> {
         if (diff >> 32) == 0 && offset < self.span_counts {
             let seg = offset / seg_counts;
             let rem = offset - seg.wrapping_mul(seg_counts.get());
-            let c = self.table.segment(pool, dir, seg);
+            let c = store.segment(pool, dir, seg);
             return (cubic(c, rem), false);
         }
         cold_path();
         self.outside_um(dir, position_counts)
     }
 
-    /// Value of the segment cached in `st` (by [`AxisCompensator::table_um_refill`]) at the
-    /// remainder `rem` (< the segment length): the cubic of [`AxisCompensator::table_um_in`].
+    /// Value of the segment cached in `st` (by [`TableStage::refill`]) at the remainder `rem`
+    /// (< the segment length): the cubic of [`TableStage::value`].
     #[inline(always)]
-    pub(crate) fn segment_um_cached(&self, st: &crate::State, rem: u32) -> f32 {
+    pub(crate) fn cached_um(&self, st: &State, rem: u32) -> f32 {
         cubic(&st.seg_coef, rem)
     }
 
-    /// The full lookup of the cycle ([`AxisCompensator::table_um_in`] at `table_pos`: the
+    /// The full lookup of the cycle ([`TableStage::value`] at `table_pos`: the
     /// extended position, or a rotary axis's position within the turn) when the segment cache
     /// of `st` does not hold it, and the cache refilled: valid (the segment's start as the low
     /// 32 bits of the extended position `pos_low` minus the remainder, its start within the
@@ -87,7 +122,7 @@ impl<S: TableStore> AxisCompensator<S> {
     /// Why the cache is exact: while valid, the last cycle's extended position p lay in the
     /// cached segment, i.e. p − s ∈ [0, L) for the segment's start s in extended counts (its low
     /// 32 bits stored), for the present direction (a reversal voids the cache). This cycle's
-    /// position is p + delta with delta an i32 ([`AxisCompensator::track`]); with L ≤ 2^31,
+    /// position is p + delta with delta an i32 ([`crate::counter::CounterStage::track`]); with L ≤ 2^31,
     /// p + delta − s lies in (−2^31, L + 2^31) ⊂ (−2^31, 2^32), so the wrapping u32 difference
     /// of the low words is below L exactly when the new position is in the same segment — then
     /// it is the remainder the full lookup computes, and the value is the same bit for bit. For
@@ -100,10 +135,11 @@ impl<S: TableStore> AxisCompensator<S> {
     /// reversal, a cycle without an image, a fresh state), voids the cache.
     #[cold]
     #[inline(never)]
-    pub(crate) fn table_um_refill(
+    pub(crate) fn refill<S: TableStore>(
         &self,
+        store: &S,
         pool: &[[f32; 4]],
-        st: &mut crate::State,
+        st: &mut State,
         table_pos: i64,
         pos_low: u32,
     ) -> (f32, bool) {
@@ -114,7 +150,7 @@ impl<S: TableStore> AxisCompensator<S> {
             if (diff >> 32) == 0 && offset < self.span_counts && seg_counts.get() <= 1 << 31 {
                 let seg = offset / seg_counts;
                 let dir = st.direction;
-                st.seg_coef = *self.table.segment(pool, dir, seg);
+                st.seg_coef = *store.segment(pool, dir, seg);
                 let rem = offset - seg.wrapping_mul(seg_counts.get());
                 st.seg_start = pos_low.wrapping_sub(rem);
                 st.seg_turn_start = (table_pos as u32).wrapping_sub(rem);
@@ -122,38 +158,10 @@ impl<S: TableStore> AxisCompensator<S> {
                 st.seg_flags = dir.flag();
                 // The value from the segment just cached: the same remainder and
                 // coefficients as the full lookup's, so the same bits (no second search).
-                return (self.segment_um_cached(st, rem), false);
+                return (self.cached_um(st, rem), false);
             }
         }
-        self.table_um_in(pool, st.direction(), table_pos)
-    }
-
-    /// The segment cache's miss path of the group pipelines (one out-of-line call): on a state
-    /// that was not primed, the counter extension redone ([`AxisCompensator::track_unprimed`]:
-    /// the caller reads the extended position back from `st`); for a rotary axis (`ROTARY`) the
-    /// last cycle's turn position settled from the cache (if it held it) and followed by this
-    /// cycle's step; then [`AxisCompensator::table_um_refill`] at the table position. `(pos,
-    /// delta)` is what [`AxisCompensator::track_primed`] returned with the counter value `raw`.
-    #[cold]
-    #[inline(never)]
-    pub(crate) fn table_um_miss<const ROTARY: bool>(
-        &self,
-        pool: &[[f32; 4]],
-        st: &mut crate::State,
-        mut pos: i64,
-        mut delta: i32,
-        raw: u32,
-    ) -> (f32, bool) {
-        if !st.primed {
-            (pos, delta) = self.track_unprimed(st, raw, delta);
-        }
-        if ROTARY {
-            st.settle_turn((pos as u32).wrapping_sub(delta as u32));
-            let turn = self.turn_position(st, pos, delta);
-            self.table_um_refill(pool, st, turn as i64, pos as u32)
-        } else {
-            self.table_um_refill(pool, st, pos, pos as u32)
-        }
+        self.value(store, pool, st.direction(), table_pos)
     }
 
     /// Table value beyond the stroke (hold or taper), for direction half `dir`.
@@ -181,29 +189,6 @@ impl<S: TableStore> AxisCompensator<S> {
             end * (1.0 - dist as u32 as f32 * self.inv_taper)
         };
         (v, true)
-    }
-}
-
-impl Compensator {
-    /// Forward segments (empty without a table), as the cycle evaluates them: coefficients in
-    /// the remainder r (counts from the knot), c0 + r·(c1 + r·(c2 + r·c3)) — the image's
-    /// coefficients in t = r/L divided by L^k at load (see the module's glossary).
-    pub fn forward_segments(&self) -> &[[f32; 4]] {
-        let n = (self.n_segments as usize).min(MAX_SEGMENTS);
-        self.table.0.get(..n).unwrap_or(&[])
-    }
-    /// Backward segments (empty for a unidirectional table), in the form of
-    /// [`Compensator::forward_segments`].
-    pub fn backward_segments(&self) -> &[[f32; 4]] {
-        let n = if self.bidirectional {
-            (self.n_segments as usize).min(MAX_SEGMENTS)
-        } else {
-            0
-        };
-        self.table
-            .0
-            .get(MAX_SEGMENTS..MAX_SEGMENTS + n)
-            .unwrap_or(&[])
     }
 }
 

@@ -3,21 +3,89 @@
 //!
 //! # Glossary
 //! - **thermo-force term**: E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
-//! - **sensor rate**: [`AxisCompensator::update_temperatures`] and [`AxisCompensator::set_process`] run
-//!   at the sensor/process rate and cache b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted) and c·ΔT_s in
-//!   the [`State`]; the cycle only adds them (see [`Compensator::cycle`]).
+//! - **sensor rate**: [`ThermoForceStage::update_temperatures`] and
+//!   [`ThermoForceStage::set_process`] run at the sensor/process rate and cache b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted) and c·ΔT_s in
+//!   the [`State`]; the cycle only adds them (see [`ThermoForceStage::thermo_um`]).
 //! - **stale**: no accepted reading for `stale_timeout_ms`; the thermal contribution freezes.
+//!
+//! The stage is a value: its settings [`ThermoForceStage`] (read through `&self`, set by the
+//! loader; `Sn` is where the sensors' settings are kept: with the stage for a single axis, `()`
+//! for an axis of a group, which keeps them in an array of its own and passes them in) and its
+//! fields of the axis [`State`] (lags, sensor health, the cached contribution, the predicted
+//! forces, the thermo flags; through `&mut`).
 
 use crate::io::Flags;
-use crate::runtime::{AxisCompensator, OwnTable, State, TableStore};
 use crate::sensor::{
     ForceSource, MeasuredSet, ProcessParams, REJECTED_MASK, SEEN, STALE, STREAK_MASK, STREAK_MAX,
-    STREAK_ONE, SensorRt, sensor_b_alpha, sensor_spec,
+    STREAK_ONE, SensorRt, ZERO_LAW, sensor_b_alpha, sensor_spec,
 };
-use crate::spec::{ExpansionSpec, ForceSpec, SensorSpec};
+use crate::spec::{ExpansionSpec, ForceLaw, ForceSpec, SensorSpec};
+use crate::state::State;
 use crate::{MAX_FORCE_N, MAX_FORCE_TERM_UM, MAX_FORCES, MAX_SENSORS, RECOVERY_READINGS};
 
-impl<S: TableStore> AxisCompensator<S> {
+/// The settings of the thermo-force term (validated at load).
+#[derive(Debug, Clone)]
+#[repr(C)]
+pub(crate) struct ThermoForceStage<Sn> {
+    pub(crate) has_thermo: bool,
+    pub(crate) sensor_period_ms: u32,
+    pub(crate) n_sensors: u8,
+    /// The sensors' settings where the storage keeps them with the axis (the single axis: all
+    /// [`MAX_SENSORS`]); a group keeps its axes' in an array of their own (`()` here), so that
+    /// the per-cycle fields of all five axes are within short load offsets of the group.
+    pub(crate) sensors: Sn,
+    pub(crate) b0_um: f32,
+    pub(crate) has_expansion: bool,
+    /// ΔT against each sensor's first accepted reading (thermo flag REFERENCE_AT_SWITCH_ON).
+    pub(crate) reference_at_switch_on: bool,
+    /// The range guard is on (thermo flag RISE_GUARD; bounds in the sensors' settings).
+    pub(crate) rise_guard: bool,
+    pub(crate) expansion_sensor: u8,
+    pub(crate) x_ref_counts: i64,
+    pub(crate) c_um_per_mm_k: f32,
+    /// c · um_per_count / 1000: µm per count per kelvin.
+    pub(crate) expansion_um_per_count_k: f32,
+    pub(crate) n_forces: u8,
+    pub(crate) chi_um_per_n: [f32; MAX_FORCES],
+    pub(crate) force_predicted: [bool; MAX_FORCES],
+    /// Bit j set: force j is measured (χ_j in `chi_measured[j]`).
+    pub(crate) measured_mask: u8,
+    pub(crate) chi_measured: [f32; MAX_FORCES],
+    /// `measured_mask` as an enum, so the cycle's dispatch needs no range check.
+    pub(crate) measured: MeasuredSet,
+    /// THERMAL_FROZEN if the image has sensors: `State::thermo_bits` holds the thermo flags
+    /// XOR this, so that a fresh (all-zero) State reads as frozen until its sensors report.
+    pub(crate) thermo_flags_xor: u16,
+    pub(crate) laws: [ForceLaw; MAX_FORCES],
+}
+
+impl<Sn> ThermoForceStage<Sn> {
+    /// No thermo-force term (all zero bytes if `sensors` is), the sensors' settings `sensors`.
+    pub(crate) const fn none(sensors: Sn) -> ThermoForceStage<Sn> {
+        ThermoForceStage {
+            has_thermo: false,
+            sensor_period_ms: 0,
+            n_sensors: 0,
+            sensors,
+            b0_um: 0.0,
+            has_expansion: false,
+            reference_at_switch_on: false,
+            rise_guard: false,
+            expansion_sensor: 0,
+            x_ref_counts: 0,
+            c_um_per_mm_k: 0.0,
+            expansion_um_per_count_k: 0.0,
+            n_forces: 0,
+            chi_um_per_n: [0.0; MAX_FORCES],
+            force_predicted: [false; MAX_FORCES],
+            measured_mask: 0,
+            chi_measured: [0.0; MAX_FORCES],
+            measured: MeasuredSet::None,
+            thermo_flags_xor: 0,
+            laws: [ZERO_LAW; MAX_FORCES],
+        }
+    }
+
     /// `total` (the table value) plus the thermo-force term at `pos` for one cycle (µm): the
     /// cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j (predicted) with the expansion term (one multiply-add
     /// with the cached c·ΔT_s), then the measured forces of this input — added to `total` in
@@ -71,23 +139,23 @@ impl<S: TableStore> AxisCompensator<S> {
     }
 
     /// True if a thermo-force term is loaded.
-    pub fn has_thermo(&self) -> bool {
+    pub(crate) fn has_thermo(&self) -> bool {
         self.has_thermo
     }
     /// Sensor period of the thermo-force term, ms.
-    pub fn sensor_period_ms(&self) -> u32 {
+    pub(crate) fn sensor_period_ms(&self) -> u32 {
         self.sensor_period_ms
     }
     /// Number of sensors.
-    pub fn sensor_count(&self) -> usize {
+    pub(crate) fn sensor_count(&self) -> usize {
         self.n_sensors as usize
     }
     /// Constant term b0, µm.
-    pub fn b0_um(&self) -> f32 {
+    pub(crate) fn b0_um(&self) -> f32 {
         self.b0_um
     }
     /// The expansion term, if any.
-    pub fn expansion(&self) -> Option<ExpansionSpec> {
+    pub(crate) fn expansion(&self) -> Option<ExpansionSpec> {
         self.has_expansion.then_some(ExpansionSpec {
             sensor: self.expansion_sensor,
             x_ref_counts: self.x_ref_counts,
@@ -95,7 +163,7 @@ impl<S: TableStore> AxisCompensator<S> {
         })
     }
     /// What each ΔT is taken against.
-    pub fn thermo_reference(&self) -> crate::spec::ThermoReference {
+    pub(crate) fn thermo_reference(&self) -> crate::spec::ThermoReference {
         if self.reference_at_switch_on {
             crate::spec::ThermoReference::SwitchOn
         } else {
@@ -103,15 +171,15 @@ impl<S: TableStore> AxisCompensator<S> {
         }
     }
     /// True if the image has the range guard (per-sensor rise bounds).
-    pub fn has_rise_guard(&self) -> bool {
+    pub(crate) fn has_rise_guard(&self) -> bool {
         self.rise_guard
     }
     /// Number of force terms.
-    pub fn force_count(&self) -> usize {
+    pub(crate) fn force_count(&self) -> usize {
         self.n_forces as usize
     }
     /// Force term `j`.
-    pub fn force(&self, j: usize) -> Option<ForceSpec> {
+    pub(crate) fn force(&self, j: usize) -> Option<ForceSpec> {
         if j >= self.n_forces as usize || j >= MAX_FORCES {
             return None;
         }
@@ -125,23 +193,24 @@ impl<S: TableStore> AxisCompensator<S> {
         })
     }
     /// Where force `j` comes from.
-    pub fn force_source(&self, j: usize) -> Option<ForceSource> {
+    pub(crate) fn force_source(&self, j: usize) -> Option<ForceSource> {
         self.force(j).map(|f| match f.law {
             Some(_) => ForceSource::Predicted,
             None => ForceSource::Measured,
         })
     }
 
-    /// [`AxisCompensator::update_temperatures`] with the sensors' settings `cfgs` (the axis's
-    /// own, or its group's array: [`crate::group::Group::update_temperatures`]).
-    pub(crate) fn update_temperatures_with(
+    /// The sensor-rate update (its rules: the single axis's `update_temperatures`) with the
+    /// sensors' settings `cfgs` (the axis's own, or its group's array:
+    /// [`crate::group::Group::update_temperatures`]); nothing without a thermo-force term.
+    pub(crate) fn update_temperatures(
         &self,
         cfgs: &[SensorRt; MAX_SENSORS],
         st: &mut State,
         now_ms: u32,
         readings: &[f32],
     ) {
-        if !self.loaded || !self.has_thermo {
+        if !self.has_thermo {
             return;
         }
         let n = (self.n_sensors as usize).min(MAX_SENSORS);
@@ -290,13 +359,14 @@ impl<S: TableStore> AxisCompensator<S> {
 
     /// Predicted forces from the process parameters (F = k·ap^x·fz^y·n^z via `libm::powf`),
     /// computed here only. A non-finite or implausible prediction is replaced by 0 N and flagged
-    /// (FORCE_INVALID) until the next call.
-    pub fn set_process(&self, st: &mut State, p: &ProcessParams) {
+    /// (FORCE_INVALID) until the next call. Without an image (`loaded` false) no force is
+    /// predicted.
+    pub(crate) fn set_process(&self, loaded: bool, st: &mut State, p: &ProcessParams) {
         let mut invalid = false;
         let mut sum = 0.0f32;
         for j in 0..MAX_FORCES {
             let mut f = 0.0;
-            if self.loaded && j < self.n_forces as usize && self.force_predicted[j] {
+            if loaded && j < self.n_forces as usize && self.force_predicted[j] {
                 let law = self.laws[j];
                 let v = law.k
                     * libm::powf(p.ap_mm, law.x_ap)
@@ -317,52 +387,25 @@ impl<S: TableStore> AxisCompensator<S> {
     }
 }
 
-impl AxisCompensator<OwnTable> {
+impl ThermoForceStage<[SensorRt; MAX_SENSORS]> {
     /// Settings of sensor `i`.
-    pub fn sensor(&self, i: usize) -> Option<SensorSpec> {
+    pub(crate) fn sensor(&self, i: usize) -> Option<SensorSpec> {
         sensor_spec(&self.sensors, self.n_sensors, i)
     }
     /// b_i of sensor `i`, µm/K.
-    pub fn b_um_per_k(&self, i: usize) -> Option<f32> {
+    pub(crate) fn b_um_per_k(&self, i: usize) -> Option<f32> {
         sensor_b_alpha(&self.sensors, self.n_sensors, i).map(|(b, _)| b)
     }
     /// Rise bounds `(rise_min_k, rise_max_k)` of sensor `i`'s range guard (None without the
     /// guard or sensor).
-    pub fn rise_bounds_k(&self, i: usize) -> Option<(f32, f32)> {
+    pub(crate) fn rise_bounds_k(&self, i: usize) -> Option<(f32, f32)> {
         if !self.rise_guard || i >= self.n_sensors as usize {
             return None;
         }
         self.sensors.get(i).map(|s| (s.rise_min_k, s.rise_max_k))
     }
     /// Lag coefficient α of sensor `i` (1 = no lag).
-    pub fn lag_alpha(&self, i: usize) -> Option<f32> {
+    pub(crate) fn lag_alpha(&self, i: usize) -> Option<f32> {
         sensor_b_alpha(&self.sensors, self.n_sensors, i).map(|(_, a)| a)
-    }
-    /// Sensor-rate update: health checks, lags, and the cached thermal contribution.
-    ///
-    /// `readings[i]` is sensor i in °C; NaN (or a missing entry) = no reading. Call it every
-    /// `sensor_period_ms` (the lag coefficients assume that period), also when the image has no
-    /// sensors: the cycle adds a cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted), refreshed here
-    /// and in [`AxisCompensator::set_process`] (a fresh [`State`] contributes 0 until then). Rules:
-    /// - a reading is accepted if finite, within `[min_degc, max_degc]` and, after the first
-    ///   accepted one, within `max_rate_degc_per_s · (now − time of the last accepted reading)` of
-    ///   the last accepted value; otherwise it is rejected (counted) and the last good value held;
-    /// - ΔT is taken against the sensor's `reference_degc`, or, with the reference at switch-on
-    ///   ([`crate::ThermoReference::SwitchOn`]), against its first accepted reading since the
-    ///   image was loaded or the state reset (ΔT then starts at 0);
-    /// - each lag advances once per call with the last accepted value as input; it starts at the
-    ///   first accepted reading (no transient from 0);
-    /// - with the range guard, a sensor whose unlagged rise (last accepted value − its reference)
-    ///   is outside its rise bounds is left out of Σ b_i·ΔT_i ([`Flags::THERMAL_GUARDED`]); it
-    ///   stays healthy and its lag keeps running;
-    /// - a sensor without an accepted reading for more than `stale_timeout_ms` (counted from the
-    ///   first call for a sensor that never reported) is stale; it recovers after
-    ///   [`RECOVERY_READINGS`] consecutive accepted readings;
-    /// - the thermal contribution (Σ b_i·ΔT_i and the expansion coefficient) is recomputed only
-    ///   while every sensor has reported and none is stale; otherwise it stays frozen at the last
-    ///   good value (THERMAL_FROZEN); SENSOR_FAULT while any sensor is stale or its last reading
-    ///   was rejected.
-    pub fn update_temperatures(&self, st: &mut State, now_ms: u32, readings: &[f32]) {
-        self.update_temperatures_with(&self.sensors, st, now_ms, readings);
     }
 }
