@@ -23,6 +23,7 @@ use crate::sensor::{ForceSource, MeasuredSet, ProcessParams, SensorRt};
 use crate::spec::{
     ExpansionSpec, ForceSpec, LimitSpec, OutsideStroke, SensorSpec, ThermoReference,
 };
+use crate::table::{Lookup, cubic};
 use crate::{MAX_FORCES, MAX_SEGMENTS, MAX_SENSORS};
 
 impl Default for Compensator {
@@ -114,7 +115,7 @@ impl Compensator {
     ///   stays healthy and its lag keeps running;
     /// - a sensor without an accepted reading for more than `stale_timeout_ms` (counted from the
     ///   first call for a sensor that never reported) is stale; it recovers after
-    ///   [`RECOVERY_READINGS`] consecutive accepted readings;
+    ///   [`crate::RECOVERY_READINGS`] consecutive accepted readings;
     /// - the thermal contribution (Σ b_i·ΔT_i and the expansion coefficient) is recomputed only
     ///   while every sensor has reported and none is stale; otherwise it stays frozen at the last
     ///   good value (THERMAL_FROZEN); SENSOR_FAULT while any sensor is stale or its last reading
@@ -204,8 +205,19 @@ impl<S: TableStore> AxisCompensator<S> {
         direction: Direction,
         position_counts: i64,
     ) -> (f32, bool) {
-        self.table
-            .value(&self.segments, pool, direction, position_counts)
+        // The stage's `value`, with the segment taken from the field here (see `TableStage::locate`).
+        // A unidirectional table has its forward segments in the backward half too (see `load`).
+        match self.table.locate(position_counts) {
+            Lookup::Inside { seg, rem } => {
+                let c = self.segments.segment(pool, direction, seg);
+                (cubic(c, rem), false)
+            }
+            Lookup::NoTable => (0.0, false),
+            Lookup::Outside => {
+                cold_path();
+                self.table.outside_um(direction, position_counts)
+            }
+        }
     }
 
     /// True if a thermo-force term is loaded.

@@ -74,6 +74,30 @@ impl TableStage {
             OutsideStroke::Hold
         }
     }
+    /// Where `position_counts` falls in the table: the segment and the remainder within it, or
+    /// outside the stroke, or no table. The caller takes the segment's coefficients from where
+    /// the axis keeps them ([`TableStore::segment`]) and evaluates them with [`cubic`]; beyond the
+    /// stroke [`TableStage::outside_um`] gives the value. ([`TableStage::value`] does all three;
+    /// the single-axis cycle does them itself so that the segment's address is formed from the
+    /// compensator's own field, which folds into the loads' offsets.)
+    #[inline(always)]
+    pub(crate) fn locate(&self, position_counts: i64) -> Lookup {
+        let Some(seg_counts) = self.segment else {
+            return Lookup::NoTable;
+        };
+        // One unsigned compare covers both ends: |start| ≤ 2^62 (validated), so a position below
+        // the start wraps to a difference ≥ 2^62 > span.
+        let diff = position_counts.wrapping_sub(self.start_counts) as u64;
+        // span ≤ u32::MAX is validated: a 32-bit compare of the low word once the high word is 0.
+        let offset = diff as u32;
+        if (diff >> 32) == 0 && offset < self.span_counts {
+            let seg = offset / seg_counts;
+            let rem = offset - seg.wrapping_mul(seg_counts.get());
+            return Lookup::Inside { seg, rem };
+        }
+        Lookup::Outside
+    }
+
     /// Positioning-table value (µm) at `position_counts` for `direction`, and whether the position
     /// was outside the stroke. 0 without a table. `store`: where the axis keeps its segments,
     /// `pool`: the group's coefficient pool.
@@ -85,24 +109,14 @@ impl TableStage {
         direction: Direction,
         position_counts: i64,
     ) -> (f32, bool) {
-        let Some(seg_counts) = self.segment else {
-            return (0.0, false);
-        };
-        // A unidirectional table has its forward segments in the backward half too (see `load`).
-        let dir = direction;
-        // One unsigned compare covers both ends: |start| ≤ 2^62 (validated), so a position below
-        // the start wraps to a difference ≥ 2^62 > span.
-        let diff = position_counts.wrapping_sub(self.start_counts) as u64;
-        // span ≤ u32::MAX is validated: a 32-bit compare of the low word once the high word is 0.
-        let offset = diff as u32;
-        if (diff >> 32) == 0 && offset < self.span_counts {
-            let seg = offset / seg_counts;
-            let rem = offset - seg.wrapping_mul(seg_counts.get());
-            let c = store.segment(pool, dir, seg);
-            return (cubic(c, rem), false);
+        match self.locate(position_counts) {
+            Lookup::Inside { seg, rem } => (cubic(store.segment(pool, direction, seg), rem), false),
+            Lookup::NoTable => (0.0, false),
+            Lookup::Outside => {
+                cold_path();
+                self.outside_um(direction, position_counts)
+            }
         }
-        cold_path();
-        self.outside_um(dir, position_counts)
     }
 
     /// Value of the segment cached in `st` (by [`TableStage::refill`]) at the remainder `rem`
@@ -166,7 +180,7 @@ impl TableStage {
 
     /// Table value beyond the stroke (hold or taper), for direction half `dir`.
     #[inline(always)]
-    fn outside_um(&self, dir: Direction, position_counts: i64) -> (f32, bool) {
+    pub(crate) fn outside_um(&self, dir: Direction, position_counts: i64) -> (f32, bool) {
         let dir = dir.half();
         // Compare first, then subtract: exact for every i64 without a saturating subtraction.
         let (end, dist) = if position_counts < self.start_counts {
@@ -190,6 +204,16 @@ impl TableStage {
         };
         (v, true)
     }
+}
+
+/// Where a position falls in the table ([`TableStage::locate`]).
+pub(crate) enum Lookup {
+    /// No table is loaded: the value is 0.
+    NoTable,
+    /// Within the stroke: segment `seg`, `rem` counts from its knot.
+    Inside { seg: u32, rem: u32 },
+    /// Beyond the stroke: [`TableStage::outside_um`].
+    Outside,
 }
 
 /// A segment's value at the remainder `rem` (counts from its knot) from its coefficients in the
