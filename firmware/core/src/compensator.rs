@@ -205,7 +205,8 @@ impl<S: TableStore> AxisCompensator<S> {
         direction: Direction,
         position_counts: i64,
     ) -> (f32, bool) {
-        // The stage's `value`, with the segment taken from the field here (see `TableStage::locate`).
+        // The stage's `value`, with the segment taken from the field here (see
+        // `TableStage::locate`).
         // A unidirectional table has its forward segments in the backward half too (see `load`).
         match self.table.locate(position_counts) {
             Lookup::Inside { seg, rem } => {
@@ -292,8 +293,8 @@ impl<S: TableStore> AxisCompensator<S> {
         self.thermo.thermo_um(st, pos, forces_n, flags, total)
     }
 
-    /// The counter stage ([`crate::counter::CounterStage::track`]) for this storage: with turn tracking where
-    /// the axis may be rotary.
+    /// The counter stage ([`crate::counter::CounterStage::track`]) for this storage: with turn
+    /// tracking where the axis may be rotary.
     #[inline(always)]
     pub(crate) fn track(&self, st: &mut State, raw: u32) -> (i64, i32) {
         if S::TURNS {
@@ -303,7 +304,8 @@ impl<S: TableStore> AxisCompensator<S> {
         }
     }
 
-    /// [`crate::counter::CounterStage::track_primed`] for this storage (see [`AxisCompensator::track`]).
+    /// [`crate::counter::CounterStage::track_primed`] for this storage (see
+    /// [`AxisCompensator::track`]).
     #[inline(always)]
     pub(crate) fn track_primed(&self, st: &mut State, raw: u32) -> (i64, i32) {
         if S::TURNS {
@@ -313,7 +315,8 @@ impl<S: TableStore> AxisCompensator<S> {
         }
     }
 
-    /// [`crate::counter::CounterStage::track_unprimed`] for this storage (see [`AxisCompensator::track`]).
+    /// [`crate::counter::CounterStage::track_unprimed`] for this storage (see
+    /// [`AxisCompensator::track`]).
     #[inline(always)]
     pub(crate) fn track_unprimed(&self, st: &mut State, raw: u32, delta: i32) -> (i64, i32) {
         if S::TURNS {

@@ -243,9 +243,10 @@ impl State {
         }
     }
 
-    /// The direction reverses ([`crate::counter::CounterStage::track`], which also sets the distance moved
-    /// back to 0): the segment cache, which holds the other half's coefficients, voided (the turn position of
-    /// the last cycle's extended position, whose low 32 bits are `last_low`, settled first).
+    /// The direction reverses ([`crate::counter::CounterStage::track`], which also sets the
+    /// distance moved back to 0): the segment cache, which holds the other half's coefficients,
+    /// voided (the turn position of the last cycle's extended position, whose low 32 bits are
+    /// `last_low`, settled first).
     #[cold]
     #[inline(never)]
     pub(crate) fn reverse(&mut self, last_low: u32) {

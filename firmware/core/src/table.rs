@@ -136,8 +136,8 @@ impl TableStage {
     /// Why the cache is exact: while valid, the last cycle's extended position p lay in the
     /// cached segment, i.e. p − s ∈ [0, L) for the segment's start s in extended counts (its low
     /// 32 bits stored), for the present direction (a reversal voids the cache). This cycle's
-    /// position is p + delta with delta an i32 ([`crate::counter::CounterStage::track`]); with L ≤ 2^31,
-    /// p + delta − s lies in (−2^31, L + 2^31) ⊂ (−2^31, 2^32), so the wrapping u32 difference
+    /// position is p + delta with delta an i32 ([`crate::counter::CounterStage::track`]); with
+    /// L ≤ 2^31, p + delta − s lies in (−2^31, L + 2^31) ⊂ (−2^31, 2^32), so the wrapping u32 difference
     /// of the low words is below L exactly when the new position is in the same segment — then
     /// it is the remainder the full lookup computes, and the value is the same bit for bit. For
     /// a rotary axis the segment lies within one turn (its grid spans exactly one turn, checked

@@ -4,8 +4,9 @@
 //! # Glossary
 //! - **thermo-force term**: E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
 //! - **sensor rate**: [`ThermoForceStage::update_temperatures`] and
-//!   [`ThermoForceStage::set_process`] run at the sensor/process rate and cache b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted) and c·ΔT_s in
-//!   the [`State`]; the cycle only adds them (see [`ThermoForceStage::thermo_um`]).
+//!   [`ThermoForceStage::set_process`] run at the sensor/process rate and cache
+//!   b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted) and c·ΔT_s in the [`State`]; the cycle only adds them
+//!   (see [`ThermoForceStage::thermo_um`]).
 //! - **stale**: no accepted reading for `stale_timeout_ms`; the thermal contribution freezes.
 //!
 //! The stage is a value: its settings [`ThermoForceStage`] (read through `&self`, set by the
