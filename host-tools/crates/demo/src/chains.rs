@@ -214,10 +214,10 @@ pub(crate) fn geometry(seed: u64, out: &mut ChainOutputs) -> Result<Row> {
     // The twin's true error over an 11³ grid of the volume (not the measured lines).
     let r = twin.compensated_volume(lo, hi, 11, [0.0; 3], |q| {
         let mut input = GroupInput::ZERO;
-        for k in 0..3 {
-            let c = (q[k] * per_mm).round() as i64;
-            input.axes[k].command_counts = c;
-            input.axes[k].scale_raw = c as u32;
+        for (axis, q_mm) in input.axes.iter_mut().zip(q) {
+            let c = (q_mm * per_mm).round() as i64;
+            axis.command_counts = c;
+            axis.scale_raw = c as u32;
         }
         let mut cycle_out = GroupOutput::ZERO;
         g.cycle(&mut st, &input, &mut cycle_out);

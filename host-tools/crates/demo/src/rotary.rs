@@ -121,9 +121,9 @@ pub(crate) fn rotary(seed: u64, out: &mut ChainOutputs) -> Result<Row> {
         before.push(machine.displacement_at(&nominal, s, &twin.location, [0.0; N_SETUP]));
         let mut st = Box::new(GroupState::new());
         let mut input = GroupInput::ZERO;
-        for k in 0..5 {
-            input.axes[k].command_counts = cmd[k];
-            input.axes[k].scale_raw = cmd[k] as u32;
+        for (axis, &c) in input.axes.iter_mut().zip(&cmd) {
+            axis.command_counts = c;
+            axis.scale_raw = c as u32;
         }
         let mut cycle_out = GroupOutput::ZERO;
         g.cycle(&mut st, &input, &mut cycle_out);
