@@ -14,6 +14,7 @@ use std::path::Path;
 
 use anyhow::Context;
 use axcomp_data::Provenance;
+use axcomp_data::provenance::sha256;
 
 use crate::cli::DataArgs;
 
@@ -84,12 +85,6 @@ pub fn read_from(bytes: &[u8]) -> Option<Provenance> {
     serde_json::from_value(v.get("provenance")?.clone()).ok()
 }
 
-/// SHA-256 of `bytes`, raw.
-pub fn sha256(bytes: &[u8]) -> [u8; 32] {
-    let hex = axcomp_data::provenance::sha256_hex(bytes);
-    from_hex(&hex).expect("sha256_hex gives 64 hex digits")
-}
-
 /// 64 hex digits into 32 bytes.
 pub fn from_hex(hex: &str) -> Option<[u8; 32]> {
     if hex.len() != 64 || !hex.is_ascii() {
@@ -134,11 +129,8 @@ pub fn model_record_of(
 pub fn image_block(
     records: &[axcomp_core::provenance::ProvenanceRecord],
 ) -> anyhow::Result<Vec<u8>> {
-    let mut b = vec![0u8; axcomp_core::provenance::provenance_len(records.len())];
     let date = axcomp_data::provenance::utc_iso8601(std::time::SystemTime::now());
-    axcomp_core::provenance::write_provenance(TOOL, &date, records, &mut b)
-        .map_err(|e| anyhow::anyhow!("provenance block: {e}"))?;
-    Ok(b)
+    Ok(axcomp_image::provenance_block(TOOL, &date, records)?)
 }
 
 #[cfg(test)]

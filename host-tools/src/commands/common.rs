@@ -196,27 +196,6 @@ pub fn machine_from(kind: &str, pivot_mm: Option<f64>) -> anyhow::Result<FiveAxi
     }
 }
 
-/// The positioning fit's observations of an ISO 230-2 campaign (`target_mm`, direction, `run`,
-/// `deviation_um`).
-pub fn positioning_observations(
-    ds: &Dataset,
-) -> anyhow::Result<Vec<axcomp_positioning::fit::Observation>> {
-    let x = ds.numeric("target_mm")?;
-    let d = ds.numeric("deviation_um")?;
-    let r = ds.numeric("run")?;
-    let dir = ds
-        .direction()?
-        .ok_or_else(|| anyhow::anyhow!("the campaign has no direction column"))?;
-    Ok((0..ds.n_rows())
-        .map(|i| axcomp_positioning::fit::Observation {
-            target_mm: x[i],
-            direction: dir[i],
-            run: r[i] as i64,
-            deviation_um: d[i],
-        })
-        .collect())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -321,36 +321,6 @@ fn write_outputs(
         outputs.json(p, &with_warnings(json.clone(), warnings)?)?;
     }
     outputs.commit()?;
-    print_summary(report, &json);
+    print!("{}", report.summary(&json));
     Ok(())
-}
-
-fn print_summary(report: &ProbeReport, json: &serde_json::Value) {
-    let res = report.result;
-    let cal = &res.calibration;
-    let de = &json["diameter_error_um"];
-    let f = |v: &serde_json::Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:+.3}"));
-    println!(
-        "fit probe: {} touches ({} outliers), model {}; centre [{:.4}, {:.4}, {:.4}] mm, stylus radius {:.4} mm",
-        report.rows[1],
-        res.outliers.len(),
-        cal.structure.name(),
-        cal.sphere_center_mm[0],
-        cal.sphere_center_mm[1],
-        cal.sphere_center_mm[2],
-        cal.stylus_radius_mm
-    );
-    println!(
-        "  fit RMS {:.3} µm; repeatability 2σ {}; diameter error on {}: before {} µm, after {} µm{}",
-        cal.fit_rms_um,
-        res.repeatability_2sigma_um
-            .map_or("–".into(), |r| format!("{r:.3} µm")),
-        report.evaluation.on,
-        f(&de["before"]),
-        f(&de["after"]),
-        report
-            .evaluation
-            .holdout_rms_um
-            .map_or(String::new(), |r| format!("; holdout RMS {:.3} µm", r[0]))
-    );
 }

@@ -33,6 +33,19 @@ pub fn with_extension(
     Ok(out)
 }
 
+/// The provenance block of an image (`axcomp_core::provenance::write_provenance`): the tool that built
+/// it, the build date (`built_utc`, ISO 8601) and one record per model file it was built from.
+pub fn provenance_block(
+    tool: &str,
+    built_utc: &str,
+    records: &[provenance::ProvenanceRecord],
+) -> Result<Vec<u8>> {
+    let mut block = vec![0u8; provenance::provenance_len(records.len())];
+    provenance::write_provenance(tool, built_utc, records, &mut block)
+        .map_err(|e| Error::core("provenance block", e))?;
+    Ok(block)
+}
+
 /// A group image with the provenance section (kind 6, optional) holding `provenance_block` appended.
 pub fn with_provenance_section(image: &[u8], provenance_block: &[u8]) -> Result<Vec<u8>> {
     let mut out = vec![0u8; image.len() + group_image::DIR_ENTRY_LEN + provenance_block.len()];

@@ -50,7 +50,7 @@ pub mod replay;
 pub mod rotary;
 
 pub use describe::{describe, describe_any, describe_geometric, describe_trust, to_hex};
-pub use extension::{with_extension, with_provenance_section};
+pub use extension::{provenance_block, with_extension, with_provenance_section};
 pub use geometric::{
     GeometricSection, bspline_segment_to_horner, exclude_geometric_components, geometric_from_model,
 };

@@ -104,6 +104,42 @@ fn pose_json(p: &PoseCentre, group_columns: usize) -> Value {
 }
 
 impl ProbeReport<'_> {
+    /// The console summary of `fit probe` (two lines): touches, outliers, model, centre and stylus
+    /// radius; fit RMS, repeatability and the diameter error before / after of `report` (the JSON
+    /// result, [`ProbeReport::json`]).
+    pub fn summary(&self, report: &Value) -> String {
+        let res = self.result;
+        let cal = &res.calibration;
+        let de = &report["diameter_error_um"];
+        let f = |v: &Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:+.3}"));
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "fit probe: {} touches ({} outliers), model {}; centre [{:.4}, {:.4}, {:.4}] mm, stylus radius {:.4} mm",
+            self.rows[1],
+            res.outliers.len(),
+            cal.structure.name(),
+            cal.sphere_center_mm[0],
+            cal.sphere_center_mm[1],
+            cal.sphere_center_mm[2],
+            cal.stylus_radius_mm
+        );
+        let _ = writeln!(
+            s,
+            "  fit RMS {:.3} µm; repeatability 2σ {}; diameter error on {}: before {} µm, after {} µm{}",
+            cal.fit_rms_um,
+            res.repeatability_2sigma_um
+                .map_or("–".into(), |r| format!("{r:.3} µm")),
+            self.evaluation.on,
+            f(&de["before"]),
+            f(&de["after"]),
+            self.evaluation
+                .holdout_rms_um
+                .map_or(String::new(), |r| format!("; holdout RMS {:.3} µm", r[0]))
+        );
+        s
+    }
+
     /// The JSON result.
     pub fn json(&self) -> Value {
         let mut v = self.calibration_json();
