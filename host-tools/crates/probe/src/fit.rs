@@ -815,7 +815,8 @@ fn repeatability(
     group: &[usize],
     centre: [f64; 3],
 ) -> (Option<f64>, usize) {
-    let mut groups: std::collections::HashMap<(usize, i64), Vec<f64>> = Default::default();
+    // Ordered, so that the pooled sum (and the figure's last digits) is the same on every run.
+    let mut groups: std::collections::BTreeMap<(usize, i64), Vec<f64>> = Default::default();
     for &i in inl {
         groups
             .entry((group[i], (touches[i].feed_mm_min * 1000.0).round() as i64))
