@@ -40,107 +40,16 @@
 use std::collections::BTreeMap;
 
 use axcomp_effects::RotaryEffect;
-use axcomp_kinematics::rotary::{FiveAxis, N_LOCATION};
+use axcomp_kinematics::rotary::N_LOCATION;
 use axcomp_rtest::RtestData;
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::DMatrix;
 use serde::Serialize;
-use serde_json::{Map, Value, json};
+use serde_json::{Map, json};
 
 mod families;
+mod observations;
 
-/// R-test rows with the held-out mask and the columns the candidates use.
-#[derive(Debug, Clone)]
-pub struct RtestObservations {
-    /// Poses, readings, paths and set-ups (validated by `axcomp_rtest`).
-    pub data: RtestData,
-    /// Per pose: held out from fitting, used only to judge.
-    pub held_out: Vec<bool>,
-    /// Per pose: `run` label (`""` without the column).
-    pub run: Vec<String>,
-    /// Per pose: seconds since the start of the campaign (`time_s`), if the file has it.
-    pub time_s: Option<Vec<f64>>,
-    /// Temperature sensors (`*_degC`): name and values per pose.
-    pub temperatures: Vec<(String, Vec<f64>)>,
-}
-
-impl RtestObservations {
-    /// From a CSV read by `axcomp-data`: the contract's R-test columns for `machine`, held-out poses from
-    /// `holdout` (`COL=V1,V2`, `COL>=X`, ...). Errors name the file, line and column.
-    pub fn from_dataset(
-        ds: &axcomp_data::Dataset,
-        machine: FiveAxis,
-        holdout: &str,
-    ) -> crate::error::Result<RtestObservations> {
-        use crate::error::DiagnoseError;
-        let spec = axcomp_data::HoldoutSpec::parse(holdout)?;
-        let held_out = spec.mask(ds)?;
-        let data = RtestData::from_dataset(ds, machine, true)?;
-        let run = ds.run().unwrap_or_else(|| vec![String::new(); ds.n_rows()]);
-        let time_s = if ds.has("time_s") {
-            let t = ds.numeric("time_s")?.to_vec();
-            if let Some(r) = t.iter().position(|v| !v.is_finite()) {
-                return Err(DiagnoseError::BadValue {
-                    at: ds.locate("time_s", r),
-                    what: format!("`time_s` is {} (need a finite number)", t[r]),
-                });
-            }
-            Some(t)
-        } else {
-            None
-        };
-        let mut temperatures = Vec::new();
-        for s in ds.sensors() {
-            let col = format!("{s}_degC");
-            let v = ds.numeric(&col)?.to_vec();
-            if let Some(r) = v.iter().position(|x| !x.is_finite()) {
-                return Err(DiagnoseError::BadValue {
-                    at: ds.locate(&col, r),
-                    what: format!("`{col}` is {} (need a finite number)", v[r]),
-                });
-            }
-            temperatures.push((s, v));
-        }
-        let o = RtestObservations {
-            data,
-            held_out,
-            run,
-            time_s,
-            temperatures,
-        };
-        o.validate().map_err(|e| DiagnoseError::BadValue {
-            at: ds.source().to_string(),
-            what: e,
-        })?;
-        Ok(o)
-    }
-
-    /// Number of poses.
-    pub fn n_poses(&self) -> usize {
-        self.data.poses.len()
-    }
-
-    /// Checks lengths and that both the training and the held-out poses are there.
-    pub fn validate(&self) -> Result<(), String> {
-        let n = self.n_poses();
-        if self.data.d_um.len() != n || self.held_out.len() != n || self.run.len() != n {
-            return Err("R-test observations: columns of different lengths".into());
-        }
-        if self.time_s.as_ref().is_some_and(|t| t.len() != n)
-            || self.temperatures.iter().any(|(_, v)| v.len() != n)
-        {
-            return Err(
-                "R-test observations: time or temperature column of a different length".into(),
-            );
-        }
-        crate::obs::check_holdout(&self.held_out, "--holdout", "pose")
-    }
-}
-
-/// One candidate variant: its columns over all rows and its parameters (what the variant is).
-pub type RtestVariant = crate::judge::BuiltVariant;
-
-/// A candidate effect kind and its variants.
-pub type RtestFamily = crate::judge::BuiltFamily<RotaryEffect>;
+pub use observations::{RtestFamily, RtestObservations, RtestVariant};
 
 /// The stacked campaign: target, base columns, rows and `where` variables.
 #[derive(Debug, Clone)]
@@ -189,26 +98,6 @@ pub fn parse_model(list: &str) -> Result<Vec<RotaryEffect>, String> {
     }
     Ok(kinds)
 }
-
-/// Stacks per-pose vectors into a column.
-fn stack(per_pose: &[Vector3<f64>]) -> Vec<f64> {
-    per_pose.iter().flat_map(|v| [v[0], v[1], v[2]]).collect()
-}
-
-fn nonzero(c: &[f64]) -> bool {
-    c.iter().any(|v| v.abs() > 1e-12)
-}
-
-fn variant(columns: Vec<Vec<f64>>, params: Value) -> RtestVariant {
-    let columns: Vec<Vec<f64>> = columns.into_iter().filter(|c| nonzero(c)).collect();
-    let n_params = columns.len();
-    RtestVariant {
-        columns,
-        params: params.as_object().cloned().unwrap_or_default(),
-        n_params,
-    }
-}
-
 /// Builds the stacked campaign and the candidate families. `model` = effect kinds told in addition to
 /// `location_errors`.
 pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<RtestCampaign, String> {
@@ -670,8 +559,10 @@ pub fn report_files(d: &RtestDiagnosis, c: &RtestCampaign) -> Vec<(String, Vec<u
 #[cfg(test)]
 mod tests {
     use super::*;
+    use axcomp_kinematics::rotary::FiveAxis;
     use axcomp_kinematics::rotary::{MachineKind, N_SETUP, c_circle, k4_path};
     use axcomp_rtest::effects::{angle_derivative, c_carried_rotation, geometry};
+    use nalgebra::Vector3;
 
     fn observations(kind: MachineKind) -> RtestObservations {
         let m = FiveAxis::new(kind, 250.0);

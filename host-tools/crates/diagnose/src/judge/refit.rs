@@ -3,10 +3,9 @@
 
 use serde_json::Value;
 
-use super::{
-    Campaign, Candidate, CandidateFamily, Fitted, Gap, ModelTerm, fit_all, is_material, local_gain,
-    max_corr, restrict, select_variant, ss, with_extra,
-};
+use super::fitting::{Fitted, fit_all, max_corr, restrict, select_variant, ss, with_extra};
+use super::rule::{is_material, local_gain};
+use super::types::{Campaign, Candidate, CandidateFamily, Gap, ModelTerm};
 use crate::lsq::Projector;
 use crate::stats;
 
