@@ -66,6 +66,7 @@ mod rule;
 mod types;
 mod verdict;
 
+use crate::error::DiagnoseError;
 pub(crate) use fitting::{Progress, fit_all, lag1};
 pub use fitting::{best_variant, select_variant};
 use refit::{BaseModel, RefitContext, judge_family};
@@ -79,7 +80,7 @@ pub fn judge(
     c: &Campaign,
     candidates: &[CandidateFamily],
     opts: &DiagnoseOptions,
-) -> Result<Diagnosis, String> {
+) -> Result<Diagnosis, DiagnoseError> {
     c.validate()?;
     let progress = Progress {
         on: opts.progress,
@@ -285,9 +286,14 @@ mod tests {
             holdout: (5..10).collect(),
             ..Campaign::default()
         };
-        assert!(c.validate().unwrap_err().contains("row 5"));
+        assert!(c.validate().unwrap_err().to_string().contains("row 5"));
         c.holdout = (6..10).collect();
         c.base_columns.push(vec![1.0; 9]);
-        assert!(c.validate().unwrap_err().contains("base column 1"));
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("base column 1")
+        );
     }
 }

@@ -49,6 +49,7 @@ use serde_json::{Map, json};
 mod families;
 mod observations;
 
+use crate::error::DiagnoseError;
 pub use observations::{RtestFamily, RtestObservations, RtestVariant};
 
 /// The stacked campaign: target, base columns, rows and `where` variables.
@@ -76,7 +77,7 @@ pub struct RtestCampaign {
 
 /// What the told model holds (`--model`): `location_errors` and optionally effect kinds of the R-test
 /// vocabulary added to it (their richest variant).
-pub fn parse_model(list: &str) -> Result<Vec<RotaryEffect>, String> {
+pub fn parse_model(list: &str) -> Result<Vec<RotaryEffect>, DiagnoseError> {
     let mut has_base = false;
     let mut kinds = Vec::new();
     for name in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
@@ -84,30 +85,36 @@ pub fn parse_model(list: &str) -> Result<Vec<RotaryEffect>, String> {
             has_base = true;
             continue;
         }
-        let k: RotaryEffect = name
-            .parse()
-            .map_err(|e| format!("{e}; the base model of R-test data is `location_errors`"))?;
+        let k: RotaryEffect = name.parse().map_err(|e| {
+            DiagnoseError::Model(format!(
+                "{e}; the base model of R-test data is `location_errors`"
+            ))
+        })?;
         if !kinds.contains(&k) {
             kinds.push(k);
         }
     }
     if !has_base {
-        return Err(format!(
+        return Err(DiagnoseError::Model(format!(
             "R-test data: the model must hold `location_errors` (the identified location errors), e.g. `--model location_errors`; got `{list}`"
-        ));
+        )));
     }
     Ok(kinds)
 }
 /// Builds the stacked campaign and the candidate families. `model` = effect kinds told in addition to
 /// `location_errors`.
-pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<RtestCampaign, String> {
+pub fn campaign(
+    obs: &RtestObservations,
+    model: &[RotaryEffect],
+) -> Result<RtestCampaign, DiagnoseError> {
     obs.validate()?;
     let data = &obs.data;
     let machine = data.machine;
     let n = obs.n_poses();
     let train_poses: Vec<usize> = (0..n).filter(|&i| !obs.held_out[i]).collect();
-    let fit = axcomp_rtest::fit(data, &train_poses)
-        .map_err(|e| format!("location-error fit on the training poses: {e}"))?;
+    let fit = axcomp_rtest::fit(data, &train_poses).map_err(|e| {
+        DiagnoseError::Invalid(format!("location-error fit on the training poses: {e}"))
+    })?;
     // Target: measured − fitted exact model.
     let mut y = Vec::with_capacity(3 * n);
     for i in 0..n {
@@ -197,10 +204,10 @@ pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<Rtest
     }
     for k in model {
         if let Some(pos) = not_applicable.iter().position(|(kk, _)| kk == k) {
-            return Err(format!(
+            return Err(DiagnoseError::Invalid(format!(
                 "model effect `{k}` cannot be built from this data: {}",
                 not_applicable[pos].1
-            ));
+            )));
         }
     }
     not_applicable.retain(|(k, _)| !model.contains(k));
@@ -345,7 +352,7 @@ pub fn diagnose(
     obs: &RtestObservations,
     model: &[RotaryEffect],
     opts: &crate::judge::DiagnoseOptions,
-) -> Result<(RtestDiagnosis, RtestCampaign), String> {
+) -> Result<(RtestDiagnosis, RtestCampaign), DiagnoseError> {
     use crate::judge::{self, CandidateFamily, ModelTerm};
     let c = campaign(obs, model)?;
     let n_rows = c.y.len();
@@ -676,11 +683,13 @@ mod tests {
         assert!(
             parse_model("setup_drift")
                 .unwrap_err()
+                .to_string()
                 .contains("location_errors")
         );
         assert!(
             parse_model("location_errors,wobble")
                 .unwrap_err()
+                .to_string()
                 .contains("`wobble`")
         );
         let k = parse_model("location_errors, setup_drift").unwrap();
@@ -697,6 +706,7 @@ mod tests {
         assert!(
             campaign(&o, &[RotaryEffect::ThermalDrift])
                 .unwrap_err()
+                .to_string()
                 .contains("_degC")
         );
     }

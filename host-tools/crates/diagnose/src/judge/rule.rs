@@ -37,7 +37,7 @@ pub fn is_material(gain_um: f64, gap_um: f64, sigma_um: f64) -> bool {
     gain_um >= MIN_SHRINK_PCT / 100.0 * gap_um && gain_um >= MIN_NOISE_FRACTION * sigma_um
 }
 
-/// The held-out gain where a candidate acts, if it is localised (see [`LocalGain`]).
+/// The held-out gain where a candidate acts, if it is localised (see [`LocalGain`](super::types::LocalGain)).
 pub(super) fn local_gain(
     contribution: &[f64],
     base_resid: &[f64],

@@ -5,6 +5,7 @@ use serde::Serialize;
 use serde_json::{Map, Value};
 
 use crate::EffectKind;
+use crate::error::DiagnoseError;
 use crate::locate::Region;
 
 /// Builds a variant's columns over all rows on demand (a family with hundreds of searched variants then
@@ -17,7 +18,7 @@ pub fn not_applicable_lines<K: std::fmt::Display>(v: &[(K, String)]) -> Vec<Stri
 }
 
 /// One variant of a candidate family with its columns built over all (stacked) rows: what the probe and
-/// R-test diagnoses build before handing them to [`judge`] as [`CandidateVariant`]s.
+/// R-test diagnoses build before handing them to [`judge`](super::judge) as [`CandidateVariant`]s.
 #[derive(Debug, Clone)]
 pub struct BuiltVariant {
     pub columns: Vec<Vec<f64>>,
@@ -150,7 +151,7 @@ pub struct Campaign<'a> {
     /// The base model's columns over all rows (intercept included if wanted).
     pub base_columns: Vec<Vec<f64>>,
     /// Named terms of the base model: they cover the trailing `Σ columns` base columns, in order
-    /// (coefficients are filled in by [`judge`] for terms of ≤ 4 columns).
+    /// (coefficients are filled in by [`judge`](super::judge) for terms of ≤ 4 columns).
     pub model: Vec<ModelTerm>,
     /// Training rows (fit) and held-out rows (judge only); disjoint, both non-empty.
     pub train: Vec<usize>,
@@ -169,55 +170,66 @@ pub struct Campaign<'a> {
 
 impl Campaign<'_> {
     /// Checks the shapes: columns of `y.len()` finite values, valid disjoint row sets.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
         let n = self.y.len();
         if self.train.is_empty() {
-            return Err("no training rows: nothing to fit the model on".into());
+            return Err(DiagnoseError::Invalid(
+                "no training rows: nothing to fit the model on".into(),
+            ));
         }
         if self.holdout.is_empty() {
-            return Err("the holdout selects no rows: nothing to judge the model on".into());
+            return Err(DiagnoseError::Invalid(
+                "the holdout selects no rows: nothing to judge the model on".into(),
+            ));
         }
         let mut seen = vec![0u8; n];
         for (set, rows) in [(1u8, &self.train), (2u8, &self.holdout)] {
             for &i in rows.iter() {
                 if i >= n {
-                    return Err(format!("row index {i} out of range ({n} rows)"));
+                    return Err(DiagnoseError::Invalid(format!(
+                        "row index {i} out of range ({n} rows)"
+                    )));
                 }
                 if seen[i] != 0 {
-                    return Err(format!(
+                    return Err(DiagnoseError::Invalid(format!(
                         "row {i} is listed twice (training and held-out rows must be disjoint)"
-                    ));
+                    )));
                 }
                 seen[i] = set;
             }
         }
         if let Some(i) = self.y.iter().position(|v| !v.is_finite()) {
-            return Err(format!("target `{}`: row {i} is not finite", self.target));
+            return Err(DiagnoseError::Invalid(format!(
+                "target `{}`: row {i} is not finite",
+                self.target
+            )));
         }
         for (k, c) in self.base_columns.iter().enumerate() {
             if c.len() != n {
-                return Err(format!(
+                return Err(DiagnoseError::Invalid(format!(
                     "base column {k} has {} values, expected {n}",
                     c.len()
-                ));
+                )));
             }
             if let Some(i) = c.iter().position(|v| !v.is_finite()) {
-                return Err(format!("base column {k}: row {i} is not finite"));
+                return Err(DiagnoseError::Invalid(format!(
+                    "base column {k}: row {i} is not finite"
+                )));
             }
         }
         let named: usize = self.model.iter().map(|t| t.columns).sum();
         if named > self.base_columns.len() {
-            return Err(format!(
+            return Err(DiagnoseError::Invalid(format!(
                 "the model terms name {named} columns, the base model has {}",
                 self.base_columns.len()
-            ));
+            )));
         }
         for (name, v) in &self.where_variables {
             if v.len() != n {
-                return Err(format!(
+                return Err(DiagnoseError::Invalid(format!(
                     "where variable `{name}` has {} values, expected {n}",
                     v.len()
-                ));
+                )));
             }
         }
         Ok(())
@@ -249,12 +261,17 @@ impl Default for DiagnoseOptions {
 }
 
 impl DiagnoseOptions {
-    pub fn build(self) -> Result<Self, String> {
+    pub fn build(self) -> Result<Self, DiagnoseError> {
         if !(self.alpha > 0.0 && self.alpha < 0.5) {
-            return Err(format!("alpha must be in (0, 0.5), got {}", self.alpha));
+            return Err(DiagnoseError::Options(format!(
+                "alpha must be in (0, 0.5), got {}",
+                self.alpha
+            )));
         }
         if self.pitch_segments_max == 0 {
-            return Err("pitch_segments_max must be ≥ 1".into());
+            return Err(DiagnoseError::Options(
+                "pitch_segments_max must be ≥ 1".into(),
+            ));
         }
         Ok(self)
     }
@@ -299,9 +316,15 @@ pub struct Candidate {
     /// The noise σ the materiality test uses: the refit's training residual standard deviation, µm.
     pub noise_um: f64,
     /// The held-out gain is material: ≥ [`MIN_SHRINK_PCT`] % of the gap and ≥ [`MIN_NOISE_FRACTION`]·σ.
+    ///
+    /// [`MIN_SHRINK_PCT`]: super::rule::MIN_SHRINK_PCT
+    /// [`MIN_NOISE_FRACTION`]: super::rule::MIN_NOISE_FRACTION
     pub material: bool,
     /// The held-out gain where the candidate acts (None when it acts on more than [`LOCAL_MAX_SHARE`] of
     /// the held-out rows or on fewer than [`LOCAL_MIN_ROWS`]).
+    ///
+    /// [`LOCAL_MAX_SHARE`]: super::rule::LOCAL_MAX_SHARE
+    /// [`LOCAL_MIN_ROWS`]: super::rule::LOCAL_MIN_ROWS
     pub local: Option<LocalGain>,
     /// The train test passes at `alpha` and the held-out gain is material (the verdict rule).
     pub explains: bool,
@@ -319,7 +342,7 @@ pub struct Candidate {
     /// The axis vocabulary's kind (set by [`crate::engine::diagnose`]; None for other data kinds).
     #[serde(skip)]
     pub kind_enum: Option<EffectKind>,
-    /// Index of the candidate's family in the slice given to [`judge`].
+    /// Index of the candidate's family in the slice given to [`judge`](super::judge).
     #[serde(skip)]
     pub family_index: usize,
     /// Index of the chosen variant in its family.
@@ -337,9 +360,13 @@ pub struct Candidate {
 }
 
 /// The held-out gain of a localised candidate on the rows where it acts (see [`LOCAL_SUPPORT_FRACTION`]).
+///
+/// [`LOCAL_SUPPORT_FRACTION`]: super::rule::LOCAL_SUPPORT_FRACTION
 #[derive(Debug, Clone, Serialize)]
 pub struct LocalGain {
     /// Held-out rows where the candidate's contribution is ≥ [`LOCAL_SUPPORT_FRACTION`] of its peak.
+    ///
+    /// [`LOCAL_SUPPORT_FRACTION`]: super::rule::LOCAL_SUPPORT_FRACTION
     pub rows: usize,
     /// The base model's held-out RMS on those rows, µm.
     pub rms_before_um: f64,
@@ -347,6 +374,9 @@ pub struct LocalGain {
     pub rms_after_um: f64,
     pub shrink_pct: f64,
     /// ≥ [`LOCAL_MIN_SHRINK_PCT`] % and ≥ [`LOCAL_MIN_NOISE_FRACTION`]·σ.
+    ///
+    /// [`LOCAL_MIN_SHRINK_PCT`]: super::rule::LOCAL_MIN_SHRINK_PCT
+    /// [`LOCAL_MIN_NOISE_FRACTION`]: super::rule::LOCAL_MIN_NOISE_FRACTION
     pub material: bool,
 }
 
@@ -377,6 +407,8 @@ pub struct Diagnosis {
     pub effects: Vec<Candidate>,
     pub verdict: String,
     /// The rule the verdict follows ([`VERDICT_RULE`]).
+    ///
+    /// [`VERDICT_RULE`]: super::rule::VERDICT_RULE
     pub verdict_rule: String,
     /// Why the verdict was chosen (ties, nothing beyond noise, ...).
     pub note: String,

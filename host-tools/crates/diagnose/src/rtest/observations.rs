@@ -1,6 +1,7 @@
 //! R-test observations (poses, readings, held-out mask, time and temperatures) and the candidate
 //! family types with the helpers that build their columns.
 
+use crate::error::DiagnoseError;
 use axcomp_effects::RotaryEffect;
 use axcomp_kinematics::rotary::FiveAxis;
 use axcomp_rtest::RtestData;
@@ -30,7 +31,6 @@ impl RtestObservations {
         machine: FiveAxis,
         holdout: &str,
     ) -> crate::error::Result<RtestObservations> {
-        use crate::error::DiagnoseError;
         let spec = axcomp_data::HoldoutSpec::parse(holdout)?;
         let held_out = spec.mask(ds)?;
         let data = RtestData::from_dataset(ds, machine, true)?;
@@ -68,7 +68,7 @@ impl RtestObservations {
         };
         o.validate().map_err(|e| DiagnoseError::BadValue {
             at: ds.source().to_string(),
-            what: e,
+            what: e.to_string(),
         })?;
         Ok(o)
     }
@@ -79,17 +79,19 @@ impl RtestObservations {
     }
 
     /// Checks lengths and that both the training and the held-out poses are there.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
         let n = self.n_poses();
         if self.data.d_um.len() != n || self.held_out.len() != n || self.run.len() != n {
-            return Err("R-test observations: columns of different lengths".into());
+            return Err(DiagnoseError::Invalid(
+                "R-test observations: columns of different lengths".into(),
+            ));
         }
         if self.time_s.as_ref().is_some_and(|t| t.len() != n)
             || self.temperatures.iter().any(|(_, v)| v.len() != n)
         {
-            return Err(
+            return Err(DiagnoseError::Invalid(
                 "R-test observations: time or temperature column of a different length".into(),
-            );
+            ));
         }
         crate::obs::check_holdout(&self.held_out, "--holdout", "pose")
     }
