@@ -5,6 +5,7 @@
 //! Terms: *model* = the `--model` effect kinds; *gap* = what the model misses on held-out rows; *verdict*
 //! = the effect judged responsible, or `none`.
 
+use anyhow::Context;
 use axcomp_diagnose::{DiagnoseOptions, EffectKind, dataset, report};
 
 use crate::commands::diagnose_shared::{Args, print_candidates, write_diagnosis};
@@ -33,10 +34,9 @@ pub fn run(args: Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
         progress: obs.n_rows() >= 20_000,
         ..DiagnoseOptions::default()
     }
-    .build()
-    .map_err(anyhow::Error::msg)?;
+    .build()?;
     let d = axcomp_diagnose::diagnose(&obs, &model, &opts)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", args.data.data.display()))?;
+        .with_context(|| args.data.data.display().to_string())?;
     println!(
         "gap of `{}` (model: {}): train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out rows)",
         d.target,

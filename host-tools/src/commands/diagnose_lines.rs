@@ -54,13 +54,12 @@ pub fn observations(
         temperatures,
         topology,
     };
-    obs.validate()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
+    obs.validate().with_context(|| ds.source().to_string())?;
     Ok(obs)
 }
 
 pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
-    let model = lines::parse_model(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
+    let model = lines::parse_model(&args.model).context("--model")?;
     let topology = Topology::parse(&args.work_axes, &args.tool_axes)?;
     let mut outputs = OutputSet::new();
     outputs.input(&args.data.data);
@@ -80,10 +79,9 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
         progress: obs.n_rows() >= 20_000,
         ..DiagnoseOptions::default()
     }
-    .build()
-    .map_err(anyhow::Error::msg)?;
+    .build()?;
     let ld = lines::diagnose_lines(&obs, &model, &opts, &LineOptions::default())
-        .map_err(|e| anyhow::anyhow!("{}: {e}", args.data.data.display()))?;
+        .with_context(|| args.data.data.display().to_string())?;
     let d = &ld.diagnosis;
     println!(
         "gap of `{}` (model: {}, {} terms, axes {}): train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out readings)",

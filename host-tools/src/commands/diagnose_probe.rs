@@ -128,7 +128,7 @@ fn without_gross_outliers(d: ProbeData) -> ProbeData {
 }
 
 pub fn run(args: &Args, ds: Dataset) -> anyhow::Result<()> {
-    let model = ProbeModelSpec::parse(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
+    let model = ProbeModelSpec::parse(&args.model).context("--model")?;
     if args.target != "deviation_um" {
         anyhow::bail!(
             "--target {}: probe touches have no error column; the diagnosis models the radial residual of each \
@@ -151,11 +151,9 @@ pub fn run(args: &Args, ds: Dataset) -> anyhow::Result<()> {
     let data = probe_data(&ds, &args.holdout)?;
     let source = ds.source().to_string();
     drop(ds);
-    let campaign = dprobe::build(&data, &model).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
-    let opts = axcomp_diagnose::DiagnoseOptions::default()
-        .build()
-        .map_err(anyhow::Error::msg)?;
-    let d = dprobe::diagnose(&campaign, &opts).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let campaign = dprobe::build(&data, &model).with_context(|| source.clone())?;
+    let opts = axcomp_diagnose::DiagnoseOptions::default().build()?;
+    let d = dprobe::diagnose(&campaign, &opts).with_context(|| source.clone())?;
     let g = &d.diagnosis.gap;
     println!(
         "gap of the radial residual (model: {}): train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out touches)",

@@ -3,6 +3,7 @@
 //! contract's R-test vocabulary explains it (`axcomp_diagnose::rtest`; the verdict rule is
 //! `axcomp_diagnose::judge`'s). `--machine` / `--pivot-mm` as for `axcomp fit rtest`.
 
+use anyhow::Context;
 use axcomp_diagnose::judge::DiagnoseOptions;
 use axcomp_diagnose::rtest::{self, RtestObservations};
 
@@ -21,7 +22,7 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
         args.machine.as_deref().unwrap_or("ac-trunnion"),
         args.pivot_mm,
     )?;
-    let model = rtest::parse_model(&args.model).map_err(|e| anyhow::anyhow!("--model: {e}"))?;
+    let model = rtest::parse_model(&args.model).context("--model")?;
     // The outputs are planned and checked before the fit; written together at the end.
     let mut outputs = OutputSet::new();
     outputs.input(&args.data.data);
@@ -35,11 +36,9 @@ pub fn run(args: &Args, ds: axcomp_data::Dataset) -> anyhow::Result<()> {
     }
     outputs.check()?;
     let obs = RtestObservations::from_dataset(&ds, machine, &args.holdout)?;
-    let opts = DiagnoseOptions::default()
-        .build()
-        .map_err(anyhow::Error::msg)?;
-    let (d, camp) = rtest::diagnose(&obs, &model, &opts)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", ds.source()))?;
+    let opts = DiagnoseOptions::default().build()?;
+    let (d, camp) =
+        rtest::diagnose(&obs, &model, &opts).with_context(|| ds.source().to_string())?;
     let dg = &d.diagnosis;
     println!(
         "gap of dx/dy/dz (model: {}; machine {}): train RMS {:.3} µm, held-out RMS {:.3} µm, held-out max {:.3} µm ({} train / {} held-out poses)",

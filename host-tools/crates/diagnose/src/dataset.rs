@@ -109,7 +109,7 @@ pub fn observations(ds: &Dataset, target: &str, holdout: &str) -> Result<Observa
     }
     obs.validate().map_err(|e| DiagnoseError::BadValue {
         at: ds.source().to_string(),
-        what: e,
+        what: e.to_string(),
     })?;
     Ok(obs)
 }

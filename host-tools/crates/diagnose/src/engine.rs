@@ -41,6 +41,7 @@ use crate::basis::{self, Context, Family};
 use crate::judge::{self, CandidateFamily, CandidateVariant, fit_all};
 use crate::obs::Observations;
 
+use crate::error::DiagnoseError;
 pub use crate::judge::{
     Candidate, DiagnoseOptions, Diagnosis, Gap, LOCAL_MAX_SHARE, LOCAL_MIN_NOISE_FRACTION,
     LOCAL_MIN_ROWS, LOCAL_MIN_SHRINK_PCT, LOCAL_SUPPORT_FRACTION, LocalGain, MIN_NOISE_FRACTION,
@@ -121,17 +122,17 @@ fn base_model(
     obs: &Observations,
     model: &[EffectKind],
     ctx: &Context,
-) -> Result<BaseModel, String> {
+) -> Result<BaseModel, DiagnoseError> {
     let y = &obs.target;
     let mut fams: Vec<Family> = Vec::new();
     for &k in model {
         match basis::family(k, obs, ctx) {
             Some(f) => fams.push(f),
             None => {
-                return Err(format!(
+                return Err(DiagnoseError::Invalid(format!(
                     "model effect `{k}` cannot be built from this data: {}",
                     needs(k)
-                ));
+                )));
             }
         }
     }
@@ -170,7 +171,7 @@ pub fn model_residual(
     obs: &Observations,
     model: &[EffectKind],
     pitch_segments_max: usize,
-) -> Result<Vec<f64>, String> {
+) -> Result<Vec<f64>, DiagnoseError> {
     obs.validate()?;
     let ctx = Context::new(obs, pitch_segments_max);
     let base = base_model(obs, model, &ctx)?;
@@ -182,7 +183,7 @@ pub fn diagnose(
     obs: &Observations,
     model: &[EffectKind],
     opts: &DiagnoseOptions,
-) -> Result<Diagnosis, String> {
+) -> Result<Diagnosis, DiagnoseError> {
     obs.validate()?;
     let progress = judge::Progress {
         on: opts.progress,
@@ -472,7 +473,8 @@ mod tests {
             &[EffectKind::ThermalDrift],
             &DiagnoseOptions::default(),
         )
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
         assert!(
             err.contains("thermal_drift") && err.contains("_degC"),
             "{err}"

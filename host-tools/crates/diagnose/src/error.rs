@@ -12,9 +12,16 @@ pub enum DiagnoseError {
     /// A value the diagnosis cannot use, with where it is (`file:line:column: …`).
     #[error("{at}: {what}")]
     BadValue { at: String, what: String },
-    /// Observations, options or a campaign the verdict rule cannot work on (the message says why).
+    /// Observations or a campaign the diagnosis cannot work on: columns of different lengths, no training
+    /// or no held-out rows, non-finite values, a fit that fails on them (the message says which and why).
     #[error("{0}")]
     Invalid(String),
+    /// A told model that cannot be read (`--model`: an unknown or unsupported effect kind).
+    #[error("{0}")]
+    Model(String),
+    /// Diagnosis settings out of range ([`crate::DiagnoseOptions`]).
+    #[error("{0}")]
+    Options(String),
     /// A report file or folder that cannot be written.
     #[error("cannot {action} {path}: {cause}")]
     Io {
@@ -22,12 +29,6 @@ pub enum DiagnoseError {
         path: String,
         cause: std::io::Error,
     },
-}
-
-impl From<String> for DiagnoseError {
-    fn from(s: String) -> Self {
-        DiagnoseError::Invalid(s)
-    }
 }
 
 /// Results of this crate.

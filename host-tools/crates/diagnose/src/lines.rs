@@ -39,6 +39,7 @@ use axcomp_kinematics::{Component, ComponentKind, Topology};
 use serde::Serialize;
 use serde_json::{Map, Value, json};
 
+use crate::error::DiagnoseError;
 use crate::judge::{self, Campaign, CandidateFamily, CandidateVariant, DiagnoseOptions, Diagnosis};
 use crate::judge::{ModelTerm, fit_all};
 use crate::obs::Named;
@@ -69,13 +70,15 @@ impl LineObservations {
     }
 
     /// Checks lengths, finiteness and the split; names the column and the row (0-based data row).
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
         let n = self.n_rows();
         if n == 0 {
-            return Err("no readings".into());
+            return Err(DiagnoseError::Invalid("no readings".into()));
         }
         if self.held_out.len() != n {
-            return Err("held-out mask has the wrong length".into());
+            return Err(DiagnoseError::Invalid(
+                "held-out mask has the wrong length".into(),
+            ));
         }
         if let Some(i) = self
             .data
@@ -83,11 +86,11 @@ impl LineObservations {
             .iter()
             .position(|r| !r.deviation_um.is_finite())
         {
-            return Err(format!(
+            return Err(DiagnoseError::Invalid(format!(
                 "column `{}`: value in data row {} is not finite",
                 self.target_name,
                 i + 1
-            ));
+            )));
         }
         let check = |name: &str, v: &[f64]| crate::obs::check_column(name, v, n);
         if let Some(t) = &self.time_s {
@@ -101,7 +104,7 @@ impl LineObservations {
 }
 
 /// Parses `--model` for line data: `geometry` (all 21 components) or ISO names separated by commas.
-pub fn parse_model(spec: &str) -> Result<Vec<Component>, String> {
+pub fn parse_model(spec: &str) -> Result<Vec<Component>, DiagnoseError> {
     let spec = spec.trim();
     if spec == axcomp_effects::campaign_kinds::base_model::GEOMETRY {
         return Ok(Component::ALL.to_vec());
@@ -117,20 +120,20 @@ pub fn parse_model(spec: &str) -> Result<Vec<Component>, String> {
             continue;
         }
         let c = Component::from_name(name).ok_or_else(|| {
-            format!(
+            DiagnoseError::Model(format!(
                 "`{name}` is not a geometry model term: use `geometry` (the rigid 21-term model) or ISO 230-1 names ({})",
                 Component::ALL.map(|c| c.name()).join(", ")
-            )
+            ))
         })?;
         if !out.contains(&c) {
             out.push(c);
         }
     }
     if out.is_empty() {
-        return Err(
+        return Err(DiagnoseError::Model(
             "names no component: use `geometry` (the rigid 21-term model) or ISO names such as EXX,EYY,EZZ"
                 .into(),
-        );
+        ));
     }
     Ok(out)
 }
@@ -411,20 +414,20 @@ impl<'r> RowInputs<'r> {
 
 /// A built family joins the candidates; a reason joins `not_applicable`.
 fn add<'a>(
-    built: Result<CandidateFamily<'a>, String>,
+    built: Result<CandidateFamily<'a>, DiagnoseError>,
     fams: &mut Vec<CandidateFamily<'a>>,
     na: &mut Vec<String>,
 ) {
     match built {
         Ok(f) => fams.push(f),
-        Err(why) => na.push(why),
+        Err(why) => na.push(why.to_string()),
     }
 }
 
 /// `cross_coupling`: an axis's position error depending on another axis's position (products of powers
 /// 1…2 of both, along the beam's component of the first).
 #[allow(clippy::needless_range_loop)]
-fn cross_coupling<'a>(x: &RowInputs) -> Result<CandidateFamily<'a>, String> {
+fn cross_coupling<'a>(x: &RowInputs) -> Result<CandidateFamily<'a>, DiagnoseError> {
     let (rd, u, moves, train) = (x.rd, &x.u, x.moves, x.train);
     let n = rd.len();
     let axis_name = |k: usize| ['X', 'Y', 'Z'][k];
@@ -455,10 +458,10 @@ fn cross_coupling<'a>(x: &RowInputs) -> Result<CandidateFamily<'a>, String> {
         }
     }
     if variants.is_empty() {
-        return Err(
+        return Err(DiagnoseError::Invalid(
             "cross_coupling: needs two axes that move along beams with a component along one of them"
                 .into(),
-        );
+        ));
     }
     Ok(CandidateFamily::new(
         LineEffect::CrossCoupling.name(),
@@ -469,7 +472,10 @@ fn cross_coupling<'a>(x: &RowInputs) -> Result<CandidateFamily<'a>, String> {
 /// `thermal_drift`: per sensor (and all together), a scale (position × ΔT) and/or an offset (ΔT) along
 /// each axis's beam component.
 #[allow(clippy::needless_range_loop)]
-fn thermal_drift<'a>(obs: &LineObservations, x: &RowInputs) -> Result<CandidateFamily<'a>, String> {
+fn thermal_drift<'a>(
+    obs: &LineObservations,
+    x: &RowInputs,
+) -> Result<CandidateFamily<'a>, DiagnoseError> {
     let (rd, moves, train) = (x.rd, x.moves, x.train);
     let n = rd.len();
     let order = time_order(obs);
@@ -483,9 +489,9 @@ fn thermal_drift<'a>(obs: &LineObservations, x: &RowInputs) -> Result<CandidateF
         .filter(|(_, v): &(String, Vec<f64>)| varies(v, train))
         .collect();
     if dts.is_empty() {
-        return Err(
+        return Err(DiagnoseError::Invalid(
             "thermal_drift: needs a `*_degC` column that varies on the training rows".into(),
-        );
+        ));
     }
     let mut sensor_sets: Vec<Vec<usize>> = (0..dts.len()).map(|s| vec![s]).collect();
     if dts.len() > 1 {
@@ -528,7 +534,9 @@ fn thermal_drift<'a>(obs: &LineObservations, x: &RowInputs) -> Result<CandidateF
         }
     }
     if variants.is_empty() {
-        return Err("thermal_drift: no training beam reads the sensors' terms".into());
+        return Err(DiagnoseError::Invalid(
+            "thermal_drift: no training beam reads the sensors' terms".into(),
+        ));
     }
     let mut f = CandidateFamily::new(LineEffect::ThermalDrift.name(), variants);
     f.simplicity = 0;
@@ -537,11 +545,16 @@ fn thermal_drift<'a>(obs: &LineObservations, x: &RowInputs) -> Result<CandidateF
 
 /// `time_drift`: Legendre polynomials of degree 1…3 of the scaled time along each beam component (a last
 /// resort: blamed only when no sensor explains the gap as well).
-fn time_drift<'a>(obs: &LineObservations, x: &RowInputs) -> Result<CandidateFamily<'a>, String> {
+fn time_drift<'a>(
+    obs: &LineObservations,
+    x: &RowInputs,
+) -> Result<CandidateFamily<'a>, DiagnoseError> {
     let (rd, train) = (x.rd, x.train);
     let n = rd.len();
     let Some(t) = obs.time_s.as_ref().filter(|t| varies(t, train)) else {
-        return Err("time_drift: needs a `time_s` column that varies on the training rows".into());
+        return Err(DiagnoseError::Invalid(
+            "time_drift: needs a `time_s` column that varies on the training rows".into(),
+        ));
     };
     let lo = t.iter().cloned().fold(f64::INFINITY, f64::min);
     let hi = t.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
@@ -567,7 +580,9 @@ fn time_drift<'a>(obs: &LineObservations, x: &RowInputs) -> Result<CandidateFami
         variants.push(CandidateVariant::new(cols, params, 1));
     }
     if variants.is_empty() {
-        return Err("time_drift: no training beam reads a drift".into());
+        return Err(DiagnoseError::Invalid(
+            "time_drift: no training beam reads a drift".into(),
+        ));
     }
     let mut f = CandidateFamily::new(LineEffect::TimeDrift.name(), variants);
     f.last_resort = true;
@@ -610,10 +625,12 @@ pub fn diagnose_lines(
     model: &[Component],
     opts: &DiagnoseOptions,
     line_opts: &LineOptions,
-) -> Result<LineDiagnosis, String> {
+) -> Result<LineDiagnosis, DiagnoseError> {
     obs.validate()?;
     if model.is_empty() {
-        return Err("the model names no component".into());
+        return Err(DiagnoseError::Invalid(
+            "the model names no component".into(),
+        ));
     }
     let n = obs.n_rows();
     let train: Vec<usize> = (0..n).filter(|&i| !obs.held_out[i]).collect();
@@ -740,7 +757,7 @@ mod tests {
                 Component::EC0Y
             ]
         );
-        let e = parse_model("EXX,EQQ").unwrap_err();
+        let e = parse_model("EXX,EQQ").unwrap_err().to_string();
         assert!(e.contains("`EQQ`"), "{e}");
         assert!(parse_model(" ").is_err());
     }

@@ -2,6 +2,7 @@
 //!
 //! Glossary: **target** = the error column being modelled (µm); **held out** = rows used only to judge;
 //! **ΔT** = a sensor's temperature minus its value at the campaign's first (earliest) row.
+use crate::error::DiagnoseError;
 
 /// A named numeric column.
 #[derive(Debug, Clone)]
@@ -50,15 +51,17 @@ impl Observations {
     }
 
     /// Checks lengths and finiteness; names the offending column and row (0-based data row).
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
         let n = self.target.len();
         if n == 0 {
-            return Err("no rows".into());
+            return Err(DiagnoseError::Invalid("no rows".into()));
         }
         let check = |name: &str, v: &[f64]| check_column(name, v, n);
         check(&self.target_name, &self.target)?;
         if self.held_out.len() != n {
-            return Err("held-out mask has the wrong length".into());
+            return Err(DiagnoseError::Invalid(
+                "held-out mask has the wrong length".into(),
+            ));
         }
         for (name, v) in [
             ("target_mm", &self.position_mm),
@@ -105,35 +108,35 @@ impl Observations {
 
 /// Checks that the held-out mask holds out at least one row and not every row; the message says what
 /// selected them (`by`: `the holdout`, `--holdout`) and what a row is (`unit`: `row`, `touch`, `pose`).
-pub fn check_holdout(held_out: &[bool], by: &str, unit: &str) -> Result<(), String> {
+pub fn check_holdout(held_out: &[bool], by: &str, unit: &str) -> Result<(), DiagnoseError> {
     let n_ho = held_out.iter().filter(|&&h| h).count();
     if n_ho == 0 {
-        return Err(format!(
+        return Err(DiagnoseError::Invalid(format!(
             "{by} selects no {unit}: nothing to judge the model on"
-        ));
+        )));
     }
     if n_ho == held_out.len() {
-        return Err(format!(
+        return Err(DiagnoseError::Invalid(format!(
             "{by} selects every {unit}: nothing left to fit the model on"
-        ));
+        )));
     }
     Ok(())
 }
 
 /// Checks that column `name` has `n` values, all finite; the error names the column and the first
 /// offending data row (1-based).
-pub fn check_column(name: &str, v: &[f64], n: usize) -> Result<(), String> {
+pub fn check_column(name: &str, v: &[f64], n: usize) -> Result<(), DiagnoseError> {
     if v.len() != n {
-        return Err(format!(
+        return Err(DiagnoseError::Invalid(format!(
             "column `{name}` has {} values, expected {n}",
             v.len()
-        ));
+        )));
     }
     if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-        return Err(format!(
+        return Err(DiagnoseError::Invalid(format!(
             "column `{name}`: value in data row {} is not finite",
             i + 1
-        ));
+        )));
     }
     Ok(())
 }

@@ -42,6 +42,7 @@
 //! error on one sphere is a degree-2 pattern of the normal (like a 2-lobe or an elevation dependence) — only
 //! artefacts at other places (a plane grid, a second sphere) tell it from the probe.
 
+use crate::error::DiagnoseError;
 use axcomp_effects::ProbeEffect;
 use axcomp_probe::{DirSpeed, Touch};
 use serde_json::{Map, Value, json};
@@ -82,7 +83,7 @@ pub struct ProbeModelSpec {
 
 impl ProbeModelSpec {
     /// Parses `probe_radius|probe_pretravel[,KIND,...]`.
-    pub fn parse(list: &str) -> Result<Self, String> {
+    pub fn parse(list: &str) -> Result<Self, DiagnoseError> {
         let mut base = None;
         let mut extra = Vec::new();
         for name in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
@@ -90,16 +91,18 @@ impl ProbeModelSpec {
                 axcomp_effects::campaign_kinds::base_model::PROBE_RADIUS
                 | axcomp_effects::campaign_kinds::base_model::PROBE_PRETRAVEL => {
                     if base.is_some() {
-                        return Err(format!(
+                        return Err(DiagnoseError::Model(format!(
                             "`{list}`: name one base model (`probe_radius` or `probe_pretravel`), not two"
-                        ));
+                        )));
                     }
                     base =
                         Some(name == axcomp_effects::campaign_kinds::base_model::PROBE_PRETRAVEL);
                 }
                 _ => {
                     let k: ProbeEffect = name.parse().map_err(|e| {
-                        format!("{e}; the base model is `probe_radius` or `probe_pretravel`")
+                        DiagnoseError::Model(format!(
+                            "{e}; the base model is `probe_radius` or `probe_pretravel`"
+                        ))
                     })?;
                     if !extra.contains(&k) {
                         extra.push(k);
@@ -108,10 +111,10 @@ impl ProbeModelSpec {
             }
         }
         let pretravel = base.ok_or_else(|| {
-            format!(
+            DiagnoseError::Model(format!(
                 "`{list}`: probe touches need a base model, `probe_radius` (one effective radius) or \
                  `probe_pretravel` (pretravel by direction and speed), optionally followed by effect kinds"
-            )
+            ))
         })?;
         Ok(ProbeModelSpec { pretravel, extra })
     }
@@ -219,33 +222,36 @@ fn params(pairs: &[(&str, Value)]) -> Map<String, Value> {
 }
 
 /// Whether the probe data are usable: sizes, finite values, unit approach vectors, a non-empty split.
-pub fn validate(d: &ProbeData) -> Result<(), String> {
+pub fn validate(d: &ProbeData) -> Result<(), DiagnoseError> {
     let n = d.touches.len();
     if d.artefact.len() != n || d.held_out.len() != n || d.labels.len() != n {
-        return Err("touch columns of different lengths".into());
+        return Err(DiagnoseError::Invalid(
+            "touch columns of different lengths".into(),
+        ));
     }
-    axcomp_probe::validate_touches(&d.touches, &d.labels).map_err(|e| e.to_string())?;
+    axcomp_probe::validate_touches(&d.touches, &d.labels)
+        .map_err(|e| DiagnoseError::Invalid(e.to_string()))?;
     if let Some(t) = &d.time_s {
         if let Some(i) = (0..n).find(|&i| !t[i].is_finite()) {
-            return Err(format!(
+            return Err(DiagnoseError::Invalid(format!(
                 "{}: time_s is {} (not a finite number)",
                 d.labels[i], t[i]
-            ));
+            )));
         }
     }
     for (name, v) in &d.temperatures {
         if let Some(i) = (0..n).find(|&i| !v[i].is_finite()) {
-            return Err(format!(
+            return Err(DiagnoseError::Invalid(format!(
                 "{}: {name}_degC is {} (not a finite number)",
                 d.labels[i], v[i]
-            ));
+            )));
         }
     }
     crate::obs::check_holdout(&d.held_out, "--holdout", "touch")
 }
 
 /// Builds the campaign: linearised radial residuals, the base model's columns and the candidate families.
-pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, String> {
+pub fn build(d: &ProbeData, model: &ProbeModelSpec) -> Result<ProbeCampaign, DiagnoseError> {
     validate(d)?;
     let n = d.touches.len();
     let train: Vec<usize> = (0..n).filter(|&i| !d.held_out[i]).collect();
@@ -334,13 +340,16 @@ type BaseTerm = (String, Map<String, Value>, usize);
 
 /// `probe_pretravel`'s columns (the calibrated structure's basis without its constant), its term, and the
 /// effect kinds the structure holds.
+type PretravelTerm = (Vec<Vec<f64>>, BaseTerm, Vec<ProbeEffect>);
+
+/// Builds the [`PretravelTerm`] from the structure calibrated on the training touches of one sphere.
 fn pretravel_term(
     d: &ProbeData,
     train: &[usize],
     artefacts: &[ArtefactFit],
     art: &[usize],
     ds: &[DirSpeed],
-) -> Result<(Vec<Vec<f64>>, BaseTerm, Vec<ProbeEffect>), String> {
+) -> Result<PretravelTerm, DiagnoseError> {
     let n = ds.len();
     let mut held = Vec::new();
     let (structure, why) = pretravel_structure(d, train, artefacts, art)?;
@@ -436,15 +445,18 @@ fn pretravel_structure(
     train: &[usize],
     artefacts: &[ArtefactFit],
     art: &[usize],
-) -> Result<(axcomp_probe::Structure, String), String> {
+) -> Result<(axcomp_probe::Structure, String), DiagnoseError> {
     let (a, fit) = artefacts
         .iter()
         .enumerate()
         .filter(|(_, f)| f.shape == "sphere" && f.train_touches > 0)
         .max_by_key(|(_, f)| f.train_touches)
-        .ok_or(
-            "probe_pretravel: no sphere among the training touches to calibrate the pretravel on",
-        )?;
+        .ok_or_else(|| {
+            DiagnoseError::Invalid(
+                "probe_pretravel: no sphere among the training touches to calibrate the pretravel on"
+                    .into(),
+            )
+        })?;
     let rows: Vec<usize> = train.iter().copied().filter(|&i| art[i] == a).collect();
     let touches: Vec<Touch> = rows.iter().map(|&i| d.touches[i]).collect();
     let labels: Vec<String> = rows.iter().map(|&i| d.labels[i].clone()).collect();
@@ -452,8 +464,12 @@ fn pretravel_structure(
     // stylus (the effective radius then comes out near 0; the structure choice does not depend on it).
     let mut opts = axcomp_probe::CalibrationOptions::new(2.0 * fit.radius_mm);
     opts.model = axcomp_probe::ModelChoice::Harmonic;
-    let r = axcomp_probe::calibrate(&touches, &labels, &opts)
-        .map_err(|e| format!("probe_pretravel: calibration on `{}`: {e}", fit.name))?;
+    let r = axcomp_probe::calibrate(&touches, &labels, &opts).map_err(|e| {
+        DiagnoseError::Invalid(format!(
+            "probe_pretravel: calibration on `{}`: {e}",
+            fit.name
+        ))
+    })?;
     Ok((r.calibration.structure.clone(), r.why.clone()))
 }
 
@@ -488,7 +504,7 @@ fn simplicity(k: ProbeEffect) -> u8 {
 pub fn diagnose(
     c: &ProbeCampaign,
     opts: &crate::DiagnoseOptions,
-) -> Result<ProbeDiagnosis, String> {
+) -> Result<ProbeDiagnosis, DiagnoseError> {
     use crate::judge::{Campaign, CandidateFamily, ModelTerm};
     let mut time_order = c.train.clone();
     if let Some((_, t)) = c.where_variables.iter().find(|(n, _)| n == "time_s") {
@@ -715,12 +731,14 @@ mod tests {
         assert!(
             ProbeModelSpec::parse("lobing")
                 .unwrap_err()
+                .to_string()
                 .contains("base model")
         );
         assert!(ProbeModelSpec::parse("probe_radius,probe_pretravel").is_err());
         assert!(
             ProbeModelSpec::parse("probe_radius,wobble")
                 .unwrap_err()
+                .to_string()
                 .contains("wobble")
         );
     }
@@ -821,7 +839,9 @@ mod tests {
         assert!(c.families.iter().all(|f| f.kind != ProbeEffect::Lobing));
         assert!(c.held.contains(&ProbeEffect::Lobing));
         d.touches[5].approach = [0.5, 0.5, 0.5];
-        let e = build(&d, &ProbeModelSpec::parse("probe_radius").unwrap()).unwrap_err();
+        let e = build(&d, &ProbeModelSpec::parse("probe_radius").unwrap())
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("row 7") && e.contains("not a unit vector"),
             "{e}"

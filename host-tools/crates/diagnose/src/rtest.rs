@@ -40,107 +40,17 @@
 use std::collections::BTreeMap;
 
 use axcomp_effects::RotaryEffect;
-use axcomp_kinematics::rotary::{FiveAxis, N_LOCATION};
+use axcomp_kinematics::rotary::N_LOCATION;
 use axcomp_rtest::RtestData;
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::DMatrix;
 use serde::Serialize;
-use serde_json::{Map, Value, json};
+use serde_json::{Map, json};
 
 mod families;
+mod observations;
 
-/// R-test rows with the held-out mask and the columns the candidates use.
-#[derive(Debug, Clone)]
-pub struct RtestObservations {
-    /// Poses, readings, paths and set-ups (validated by `axcomp_rtest`).
-    pub data: RtestData,
-    /// Per pose: held out from fitting, used only to judge.
-    pub held_out: Vec<bool>,
-    /// Per pose: `run` label (`""` without the column).
-    pub run: Vec<String>,
-    /// Per pose: seconds since the start of the campaign (`time_s`), if the file has it.
-    pub time_s: Option<Vec<f64>>,
-    /// Temperature sensors (`*_degC`): name and values per pose.
-    pub temperatures: Vec<(String, Vec<f64>)>,
-}
-
-impl RtestObservations {
-    /// From a CSV read by `axcomp-data`: the contract's R-test columns for `machine`, held-out poses from
-    /// `holdout` (`COL=V1,V2`, `COL>=X`, ...). Errors name the file, line and column.
-    pub fn from_dataset(
-        ds: &axcomp_data::Dataset,
-        machine: FiveAxis,
-        holdout: &str,
-    ) -> crate::error::Result<RtestObservations> {
-        use crate::error::DiagnoseError;
-        let spec = axcomp_data::HoldoutSpec::parse(holdout)?;
-        let held_out = spec.mask(ds)?;
-        let data = RtestData::from_dataset(ds, machine, true)?;
-        let run = ds.run().unwrap_or_else(|| vec![String::new(); ds.n_rows()]);
-        let time_s = if ds.has("time_s") {
-            let t = ds.numeric("time_s")?.to_vec();
-            if let Some(r) = t.iter().position(|v| !v.is_finite()) {
-                return Err(DiagnoseError::BadValue {
-                    at: ds.locate("time_s", r),
-                    what: format!("`time_s` is {} (need a finite number)", t[r]),
-                });
-            }
-            Some(t)
-        } else {
-            None
-        };
-        let mut temperatures = Vec::new();
-        for s in ds.sensors() {
-            let col = format!("{s}_degC");
-            let v = ds.numeric(&col)?.to_vec();
-            if let Some(r) = v.iter().position(|x| !x.is_finite()) {
-                return Err(DiagnoseError::BadValue {
-                    at: ds.locate(&col, r),
-                    what: format!("`{col}` is {} (need a finite number)", v[r]),
-                });
-            }
-            temperatures.push((s, v));
-        }
-        let o = RtestObservations {
-            data,
-            held_out,
-            run,
-            time_s,
-            temperatures,
-        };
-        o.validate().map_err(|e| DiagnoseError::BadValue {
-            at: ds.source().to_string(),
-            what: e,
-        })?;
-        Ok(o)
-    }
-
-    /// Number of poses.
-    pub fn n_poses(&self) -> usize {
-        self.data.poses.len()
-    }
-
-    /// Checks lengths and that both the training and the held-out poses are there.
-    pub fn validate(&self) -> Result<(), String> {
-        let n = self.n_poses();
-        if self.data.d_um.len() != n || self.held_out.len() != n || self.run.len() != n {
-            return Err("R-test observations: columns of different lengths".into());
-        }
-        if self.time_s.as_ref().is_some_and(|t| t.len() != n)
-            || self.temperatures.iter().any(|(_, v)| v.len() != n)
-        {
-            return Err(
-                "R-test observations: time or temperature column of a different length".into(),
-            );
-        }
-        crate::obs::check_holdout(&self.held_out, "--holdout", "pose")
-    }
-}
-
-/// One candidate variant: its columns over all rows and its parameters (what the variant is).
-pub type RtestVariant = crate::judge::BuiltVariant;
-
-/// A candidate effect kind and its variants.
-pub type RtestFamily = crate::judge::BuiltFamily<RotaryEffect>;
+use crate::error::DiagnoseError;
+pub use observations::{RtestFamily, RtestObservations, RtestVariant};
 
 /// The stacked campaign: target, base columns, rows and `where` variables.
 #[derive(Debug, Clone)]
@@ -167,7 +77,7 @@ pub struct RtestCampaign {
 
 /// What the told model holds (`--model`): `location_errors` and optionally effect kinds of the R-test
 /// vocabulary added to it (their richest variant).
-pub fn parse_model(list: &str) -> Result<Vec<RotaryEffect>, String> {
+pub fn parse_model(list: &str) -> Result<Vec<RotaryEffect>, DiagnoseError> {
     let mut has_base = false;
     let mut kinds = Vec::new();
     for name in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
@@ -175,50 +85,36 @@ pub fn parse_model(list: &str) -> Result<Vec<RotaryEffect>, String> {
             has_base = true;
             continue;
         }
-        let k: RotaryEffect = name
-            .parse()
-            .map_err(|e| format!("{e}; the base model of R-test data is `location_errors`"))?;
+        let k: RotaryEffect = name.parse().map_err(|e| {
+            DiagnoseError::Model(format!(
+                "{e}; the base model of R-test data is `location_errors`"
+            ))
+        })?;
         if !kinds.contains(&k) {
             kinds.push(k);
         }
     }
     if !has_base {
-        return Err(format!(
+        return Err(DiagnoseError::Model(format!(
             "R-test data: the model must hold `location_errors` (the identified location errors), e.g. `--model location_errors`; got `{list}`"
-        ));
+        )));
     }
     Ok(kinds)
 }
-
-/// Stacks per-pose vectors into a column.
-fn stack(per_pose: &[Vector3<f64>]) -> Vec<f64> {
-    per_pose.iter().flat_map(|v| [v[0], v[1], v[2]]).collect()
-}
-
-fn nonzero(c: &[f64]) -> bool {
-    c.iter().any(|v| v.abs() > 1e-12)
-}
-
-fn variant(columns: Vec<Vec<f64>>, params: Value) -> RtestVariant {
-    let columns: Vec<Vec<f64>> = columns.into_iter().filter(|c| nonzero(c)).collect();
-    let n_params = columns.len();
-    RtestVariant {
-        columns,
-        params: params.as_object().cloned().unwrap_or_default(),
-        n_params,
-    }
-}
-
 /// Builds the stacked campaign and the candidate families. `model` = effect kinds told in addition to
 /// `location_errors`.
-pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<RtestCampaign, String> {
+pub fn campaign(
+    obs: &RtestObservations,
+    model: &[RotaryEffect],
+) -> Result<RtestCampaign, DiagnoseError> {
     obs.validate()?;
     let data = &obs.data;
     let machine = data.machine;
     let n = obs.n_poses();
     let train_poses: Vec<usize> = (0..n).filter(|&i| !obs.held_out[i]).collect();
-    let fit = axcomp_rtest::fit(data, &train_poses)
-        .map_err(|e| format!("location-error fit on the training poses: {e}"))?;
+    let fit = axcomp_rtest::fit(data, &train_poses).map_err(|e| {
+        DiagnoseError::Invalid(format!("location-error fit on the training poses: {e}"))
+    })?;
     // Target: measured − fitted exact model.
     let mut y = Vec::with_capacity(3 * n);
     for i in 0..n {
@@ -308,10 +204,10 @@ pub fn campaign(obs: &RtestObservations, model: &[RotaryEffect]) -> Result<Rtest
     }
     for k in model {
         if let Some(pos) = not_applicable.iter().position(|(kk, _)| kk == k) {
-            return Err(format!(
+            return Err(DiagnoseError::Invalid(format!(
                 "model effect `{k}` cannot be built from this data: {}",
                 not_applicable[pos].1
-            ));
+            )));
         }
     }
     not_applicable.retain(|(k, _)| !model.contains(k));
@@ -456,7 +352,7 @@ pub fn diagnose(
     obs: &RtestObservations,
     model: &[RotaryEffect],
     opts: &crate::judge::DiagnoseOptions,
-) -> Result<(RtestDiagnosis, RtestCampaign), String> {
+) -> Result<(RtestDiagnosis, RtestCampaign), DiagnoseError> {
     use crate::judge::{self, CandidateFamily, ModelTerm};
     let c = campaign(obs, model)?;
     let n_rows = c.y.len();
@@ -670,8 +566,10 @@ pub fn report_files(d: &RtestDiagnosis, c: &RtestCampaign) -> Vec<(String, Vec<u
 #[cfg(test)]
 mod tests {
     use super::*;
+    use axcomp_kinematics::rotary::FiveAxis;
     use axcomp_kinematics::rotary::{MachineKind, N_SETUP, c_circle, k4_path};
     use axcomp_rtest::effects::{angle_derivative, c_carried_rotation, geometry};
+    use nalgebra::Vector3;
 
     fn observations(kind: MachineKind) -> RtestObservations {
         let m = FiveAxis::new(kind, 250.0);
@@ -785,11 +683,13 @@ mod tests {
         assert!(
             parse_model("setup_drift")
                 .unwrap_err()
+                .to_string()
                 .contains("location_errors")
         );
         assert!(
             parse_model("location_errors,wobble")
                 .unwrap_err()
+                .to_string()
                 .contains("`wobble`")
         );
         let k = parse_model("location_errors, setup_drift").unwrap();
@@ -806,6 +706,7 @@ mod tests {
         assert!(
             campaign(&o, &[RotaryEffect::ThermalDrift])
                 .unwrap_err()
+                .to_string()
                 .contains("_degC")
         );
     }

@@ -144,7 +144,7 @@ fn per_group_cv(
             }
         }
     }
-    rms(residuals.into_iter())
+    rms(residuals)
 }
 
 /// Fits τ (leave-one-run-out over `rows`), k and w_ref on `rows`.

@@ -447,7 +447,7 @@ pub fn run_case(opts: &ValidateOptions, index: usize) -> Result<CaseResult, Stri
     let hold = obs.holdout_rows();
     let train = obs.train_rows();
     let t0 = Instant::now();
-    let d = engine::diagnose(obs, model, &DiagnoseOptions::default())?;
+    let d = engine::diagnose(obs, model, &DiagnoseOptions::default()).map_err(|e| e.to_string())?;
     let seconds = t0.elapsed().as_secs_f64();
 
     let expected = withheld.map_or("none", |w| w.name());

@@ -611,7 +611,8 @@ pub fn run_case(opts: &LineValidateOptions, index: usize) -> Result<LineCase, St
         skip_evidence: true,
         ..LineOptions::default()
     };
-    let ld = lines::diagnose_lines(&c.obs, &c.model, &DiagnoseOptions::default(), &line_opts)?;
+    let ld = lines::diagnose_lines(&c.obs, &c.model, &DiagnoseOptions::default(), &line_opts)
+        .map_err(|e| e.to_string())?;
     let seconds = t0.elapsed().as_secs_f64();
     let d = &ld.diagnosis;
     let n = c.obs.n_rows();

@@ -368,8 +368,8 @@ pub fn make_case(opts: &ProbeValidateOptions, index: usize) -> Result<ProbeCase,
         }
         d
     };
-    let c0 = dprobe::build(&null_data, &model)?;
-    let c1 = dprobe::build(&scaled(1.0), &model)?;
+    let c0 = dprobe::build(&null_data, &model).map_err(|e| e.to_string())?;
+    let c1 = dprobe::build(&scaled(1.0), &model).map_err(|e| e.to_string())?;
     let contrib: Vec<f64> = c1.y.iter().zip(&c0.y).map(|(a, b)| a - b).collect();
     let hold = &c0.holdout;
     let peak = |v: &[f64]| hold.iter().map(|&i| v[i].abs()).fold(0.0, f64::max);
@@ -383,7 +383,7 @@ pub fn make_case(opts: &ProbeValidateOptions, index: usize) -> Result<ProbeCase,
     }
     let f = snr.expect("non-null") * opts.noise_um / p;
     let data = scaled(f);
-    let c = dprobe::build(&data, &model)?;
+    let c = dprobe::build(&data, &model).map_err(|e| e.to_string())?;
     let truth_um = c.y.iter().zip(&c0.y).map(|(a, b)| a - b).collect();
     Ok(ProbeCase {
         index,
@@ -430,8 +430,8 @@ fn holdout_rms_after(c: &dprobe::ProbeCampaign, extra: Option<&[f64]>) -> f64 {
 pub fn run_case(opts: &ProbeValidateOptions, index: usize) -> Result<ProbeCaseResult, String> {
     let t0 = std::time::Instant::now();
     let case = make_case(opts, index)?;
-    let campaign = dprobe::build(&case.data, &case.model)?;
-    let pd = dprobe::diagnose(&campaign, &DiagnoseOptions::default())?;
+    let campaign = dprobe::build(&case.data, &case.model).map_err(|e| e.to_string())?;
+    let pd = dprobe::diagnose(&campaign, &DiagnoseOptions::default()).map_err(|e| e.to_string())?;
     let d = &pd.diagnosis;
     let expect = case
         .withheld

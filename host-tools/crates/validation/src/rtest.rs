@@ -269,7 +269,7 @@ pub fn make_case(opts: &RtestValidateOptions, index: usize) -> Result<RtestCase,
             r.d_um = *c;
         }
         let obs = observations(&alone);
-        let camp = diag::campaign(&obs, &[])?;
+        let camp = diag::campaign(&obs, &[]).map_err(|e| e.to_string())?;
         let unabsorbed: Vec<[f64; 3]> = (0..contrib.len())
             .map(|i| [0, 1, 2].map(|c| camp.y[3 * i + c]))
             .collect();
@@ -304,8 +304,10 @@ pub fn run_case(opts: &RtestValidateOptions, index: usize) -> Result<RtestCaseRe
     let campaign = case.twin.measure(&case.paths, case.noise_seed);
     let obs = observations(&campaign);
     let t0 = Instant::now();
-    let dopts = DiagnoseOptions::default().build()?;
-    let (d, camp) = diag::diagnose(&obs, &[], &dopts)?;
+    let dopts = DiagnoseOptions::default()
+        .build()
+        .map_err(|e| e.to_string())?;
+    let (d, camp) = diag::diagnose(&obs, &[], &dopts).map_err(|e| e.to_string())?;
     let seconds = t0.elapsed().as_secs_f64();
     let dg = &d.diagnosis;
     let truth = case.withheld.map(contract_kind);

@@ -188,7 +188,8 @@ pub fn run_blind_case_shaped(
     }
     let campaign = twin.measure(&paths, 9000 + seed);
     let obs = observations(&campaign);
-    let (d, camp) = axcomp_diagnose::rtest::diagnose(&obs, &[], &DiagnoseOptions::default())?;
+    let (d, camp) = axcomp_diagnose::rtest::diagnose(&obs, &[], &DiagnoseOptions::default())
+        .map_err(|e| e.to_string())?;
     let dg = &d.diagnosis;
     let oracle_shrink_pct = kind.twin_effect().map(|_| {
         let mut cols: Vec<&[f64]> = camp.base_columns.iter().map(|c| c.as_slice()).collect();

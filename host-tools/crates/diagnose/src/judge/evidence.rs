@@ -2,7 +2,8 @@
 //! passing the training test, and stability selection (its share of block-bootstrap resamples in which it
 //! has the best training ΔBIC).
 
-use super::{Campaign, Candidate, CandidateFamily, Progress, rss_on, with_extra};
+use super::fitting::{Progress, rss_on, with_extra};
+use super::types::{Campaign, Candidate, CandidateFamily};
 use crate::lsq;
 
 /// Block-bootstrap resamples of the stability selection.

@@ -3,10 +3,10 @@
 
 use serde_json::Value;
 
-use super::{
-    Campaign, Candidate, CandidateFamily, Fitted, Gap, ModelTerm, fit_all, is_material, local_gain,
-    max_corr, restrict, select_variant, ss, with_extra,
-};
+use super::fitting::{Fitted, fit_all, max_corr, restrict, select_variant, ss, with_extra};
+use super::rule::{is_material, local_gain};
+use super::types::{Campaign, Candidate, CandidateFamily, Gap, ModelTerm};
+use crate::error::DiagnoseError;
 use crate::lsq::Projector;
 use crate::stats;
 
@@ -77,22 +77,25 @@ pub(super) fn judge_family(
     rc: &RefitContext,
     fi: usize,
     f: &CandidateFamily,
-) -> Result<Candidate, String> {
+) -> Result<Candidate, DiagnoseError> {
     let (c, base) = (rc.c, rc.base);
     let (y, train, hold, base_cols) = (c.y, &c.train, &c.holdout, &c.base_columns);
     let (n, n_tr, n_ho) = (y.len(), train.len(), hold.len());
     if f.variants.is_empty() {
-        return Err(format!("candidate `{}` has no variant", f.kind));
+        return Err(DiagnoseError::Invalid(format!(
+            "candidate `{}` has no variant",
+            f.kind
+        )));
     }
     let best = select_variant(&f.variants, &rc.proj, &rc.r_tr, train);
     let v = &f.variants[best.0];
     let v_cols = v.columns();
     if let Some(k) = v_cols.iter().position(|col| col.len() != n) {
-        return Err(format!(
+        return Err(DiagnoseError::Invalid(format!(
             "candidate `{}`: column {k} has {} values, expected {n}",
             f.kind,
             v_cols[k].len()
-        ));
+        )));
     }
     let refit = fit_all(&with_extra(base_cols, &v_cols), y, train);
     let p0 = base.fitted.fit.rank;

@@ -1,11 +1,10 @@
 //! The verdict among the judged candidates: the explaining candidates the leader does not beat on the
 //! held-out rows (ties), the simplest of them, the encompassing test that may replace it, and the note
-//! saying why (see the module docs of [`super`] and [`super::VERDICT_RULE`]).
+//! saying why (see the module docs of [`super`] and [`super::rule::VERDICT_RULE`]).
 
-use super::{
-    Candidate, CandidateFamily, MIN_NOISE_FRACTION, MIN_SHRINK_PCT, TIE_EVIDENCE,
-    TIE_GAIN_FRACTION, fit_all, ss, with_extra,
-};
+use super::fitting::{fit_all, ss, with_extra};
+use super::rule::{MIN_NOISE_FRACTION, MIN_SHRINK_PCT, TIE_EVIDENCE, TIE_GAIN_FRACTION};
+use super::types::{Candidate, CandidateFamily};
 use crate::stats;
 
 /// What the verdict rule decided.

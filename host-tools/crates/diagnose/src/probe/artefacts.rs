@@ -5,6 +5,7 @@
 use serde_json::{Map, Value, json};
 
 use super::{ArtefactFit, ProbeData, norm, orthonormal, params, rms_on, sub};
+use crate::error::DiagnoseError;
 
 /// The campaign's rows as the artefacts linearise them.
 pub(super) struct Linearised {
@@ -23,7 +24,7 @@ pub(super) struct Linearised {
 }
 
 /// Linearises every artefact's touches.
-pub(super) fn linearise(d: &ProbeData) -> Result<Linearised, String> {
+pub(super) fn linearise(d: &ProbeData) -> Result<Linearised, DiagnoseError> {
     let n = d.touches.len();
     let mut names: Vec<String> = Vec::new();
     let art: Vec<usize> = d
@@ -58,7 +59,7 @@ fn one_artefact(
     name: &str,
     rows: &[usize],
     lin: &mut Linearised,
-) -> Result<(), String> {
+) -> Result<(), DiagnoseError> {
     let tr: Vec<usize> = rows.iter().copied().filter(|&i| !d.held_out[i]).collect();
     let ho: Vec<usize> = rows.iter().copied().filter(|&i| d.held_out[i]).collect();
     let pts =
@@ -113,13 +114,13 @@ fn size_and_normal(n: usize, rows: &[usize], normal: &[[f64; 3]]) -> Vec<Vec<f64
         size[i] = 1.0;
     }
     let mut out = vec![size];
-    for k in 0..3 {
+    out.extend((0..3).map(|k| {
         let mut c = vec![0.0; n];
         for &i in rows {
             c[i] = normal[i][k];
         }
-        out.push(c);
-    }
+        c
+    }));
     out
 }
 
@@ -131,9 +132,9 @@ fn sphere(
     fit_points: &[[f64; 3]],
     fit: &mut ArtefactFit,
     lin: &mut Linearised,
-) -> Result<Vec<Vec<f64>>, String> {
+) -> Result<Vec<Vec<f64>>, DiagnoseError> {
     let s = axcomp_probe::geometric_sphere(fit_points, None)
-        .map_err(|e| format!("artefact `{name}`: sphere fit: {e}"))?;
+        .map_err(|e| DiagnoseError::Invalid(format!("artefact `{name}`: sphere fit: {e}")))?;
     fit.shape = "sphere";
     fit.reference_mm = s.center_mm;
     fit.radius_mm = s.radius_mm;
@@ -141,10 +142,10 @@ fn sphere(
         let q = sub(d.touches[i].position_mm, s.center_mm);
         let l = norm(q);
         if l.is_nan() || l <= 0.0 {
-            return Err(format!(
+            return Err(DiagnoseError::Invalid(format!(
                 "{}: the touch is at the fitted sphere centre",
                 d.labels[i]
-            ));
+            )));
         }
         lin.normal[i] = [q[0] / l, q[1] / l, q[2] / l];
         lin.y[i] = (l - s.radius_mm) * 1000.0;

@@ -7,7 +7,7 @@ use axcomp_rtest::effects::{EffectBasis, EffectTerm, linear_ranges};
 use nalgebra::{DMatrix, Vector3};
 use serde_json::json;
 
-use super::{RtestFamily, RtestObservations, stack, variant};
+use super::observations::{RtestFamily, RtestObservations, stack, variant};
 
 /// What the families are built from: the observations, the training fit and its sensitivity matrix.
 pub(super) struct Builder<'a> {

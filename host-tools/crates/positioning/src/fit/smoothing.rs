@@ -1,6 +1,7 @@
 //! Penalised least-squares B-splines with nested cross-validation of the smoothing parameter,
 //! using per-fold sufficient statistics (cost linear in the number of points).
-use super::*;
+use super::types::{Curves, Evaluation, FitError, Kind, Problem, Structure};
+use crate::spline::{BSplineBasis, Band, NormalStats, PiecewiseCubic, SplineError};
 
 /// Candidate smoothing parameters ρ (dimensionless): 10^-9 … 10^3 in half decades.
 pub(super) fn rho_grid() -> Vec<f64> {
