@@ -1,6 +1,7 @@
 //! Held-back lines of the three-axis twin over many seeds: `fit geometry`'s default next to the plain
 //! and minimum-norm references and the identifiable floor (medians of the held-out RMS, µm):
-//! `cargo run --release -p axcomp-validation --example held_back -- [SEEDS]`.
+//! `cargo run --release -p axcomp-validation --example held_back -- [SEEDS [FIRST_SEED]]` (seeds
+//! FIRST_SEED.., default 20 seeds from 0).
 use axcomp_geometry::FitOptions;
 use axcomp_validation::held_back::{HeldBackOptions, HeldScore, run_case};
 
@@ -12,9 +13,12 @@ fn main() {
     let seeds: u64 = std::env::args()
         .nth(1)
         .map_or(20, |s| s.parse().expect("SEEDS: a number"));
+    let first: u64 = std::env::args()
+        .nth(2)
+        .map_or(0, |s| s.parse().expect("FIRST_SEED: a number"));
     let opts = HeldBackOptions::default();
-    // the default fit's options; AXCOMP_DAMPING and AXCOMP_INTERVALS override its damping and knot
-    // intervals (to compare values)
+    // the default fit's options; AXCOMP_DAMPING, AXCOMP_INTERVALS and AXCOMP_LAMBDAS (comma-separated
+    // smoothing candidates) override its damping, knot intervals and λ set (to compare values)
     let fit = FitOptions {
         damping: std::env::var("AXCOMP_DAMPING")
             .ok()
@@ -24,9 +28,14 @@ fn main() {
         intervals: std::env::var("AXCOMP_INTERVALS")
             .ok()
             .map(|s| s.parse().expect("a number")),
+        lambdas: std::env::var("AXCOMP_LAMBDAS")
+            .ok()
+            .map_or(FitOptions::default().lambdas, |s| {
+                s.split(',').map(|x| x.parse().expect("a number")).collect()
+            }),
         ..FitOptions::default()
     };
-    let results: Vec<_> = (0..seeds)
+    let results: Vec<_> = (first..first + seeds)
         .map(|s| {
             let r = run_case(&opts, s, &fit);
             let f = |h: &HeldScore| {
