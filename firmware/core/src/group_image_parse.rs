@@ -7,14 +7,15 @@ use crate::error::ImageError;
 use crate::format::{
     AXIS_SECTION_HEADER_LEN, DIR_ENTRY_LEN, FLAG_MANDATORY, GEOMETRIC_HEADER_LEN,
     GEOMETRIC_SEGMENT_LEN, GROUP_HEADER_LEN, GROUP_SCHEMA_VERSION, MAX_SECTIONS, NO_AXIS,
-    ROTARY_SECTION_LEN, ROTARY_SECTION_V1_LEN, ROTARY_SECTION_VERSION, SENSOR_NAME_LEN,
+    ROTARY_SECTION_LEN, ROTARY_SECTION_V1_LEN, ROTARY_SECTION_VERSION, ROTARY_SECTION_WOBBLE_LEN,
+    ROTARY_SECTION_WOBBLE_VERSION, SENSOR_NAME_LEN,
 };
 use crate::format::{CRC_LEN, crc32};
 use crate::geometric::{GeometricCoefficients, GeometricGrid, GeometricSpec};
 use crate::image;
 use crate::le::{f32_at, i64_at, rd, u8_at, u16_at, u32_at};
 use crate::probe_settings::{PROBE_SECTION_LEN, ProbeSettings};
-use crate::rotary_spec::{RotaryLocationSpec, RotaryMachine};
+use crate::rotary_spec::{RotaryLocationSpec, RotaryMachine, RotaryWobble};
 use crate::{MAX_IMAGE_LEN, MAX_SENSORS};
 
 /// Section types.
@@ -414,7 +415,12 @@ fn read_sections<'a>(
             None => continue,
         };
         let supported = match kind {
-            SectionKind::Rotary => matches!(e.version, 1 | ROTARY_SECTION_VERSION),
+            SectionKind::Rotary => {
+                matches!(
+                    e.version,
+                    1 | ROTARY_SECTION_VERSION | ROTARY_SECTION_WOBBLE_VERSION
+                )
+            }
             _ => e.version == 1,
         };
         if !supported {
@@ -551,20 +557,24 @@ fn check_sensor_names(s: &[u8], n_sensors: usize, code: u8) -> Result<(), ImageE
     Ok(())
 }
 
-/// A rotary-model section of `version` 1 (AC trunnion, no squareness) or 2.
+/// A rotary-model section of `version` 1 (AC trunnion, no squareness), 2 or 3 (with a wobble).
+// Out of line: load-time code, one copy.
+#[inline(never)]
 fn parse_rotary(version: u16, s: &[u8], index: usize) -> Result<RotaryLocationSpec, ImageError> {
     let bounds = ImageError::SectionBounds {
         index: index as u16,
     };
+    let len = match version {
+        1 => ROTARY_SECTION_V1_LEN,
+        ROTARY_SECTION_VERSION => ROTARY_SECTION_LEN,
+        _ => ROTARY_SECTION_WOBBLE_LEN,
+    };
+    if s.len() != len {
+        return Err(bounds);
+    }
     let (machine, at) = if version == 1 {
-        if s.len() != ROTARY_SECTION_V1_LEN {
-            return Err(bounds);
-        }
         (RotaryMachine::AcTrunnion, 0)
     } else {
-        if s.len() != ROTARY_SECTION_LEN {
-            return Err(bounds);
-        }
         if u8_at(s, 1) != 0 {
             return Err(reserved());
         }
@@ -600,15 +610,31 @@ fn parse_rotary(version: u16, s: &[u8], index: usize) -> Result<RotaryLocationSp
         pivot_counts: [i64_at(s, tail), i64_at(s, tail + 8), i64_at(s, tail + 16)],
         tool_length_um: f32_at(s, tail + 24),
         not_identified: if version == 1 { 0 } else { u16_at(s, 2) },
+        wobble: parse_wobble(s.get(ROTARY_SECTION_LEN..).unwrap_or(&[])),
     })
+}
+
+/// The wobble of a version-3 rotary section from the bytes after version 2's fields (none for
+/// fewer bytes: versions 1 and 2).
+fn parse_wobble(s: &[u8]) -> RotaryWobble {
+    let mut w = RotaryWobble::NONE;
+    if s.len() == ROTARY_SECTION_WOBBLE_LEN - ROTARY_SECTION_LEN {
+        let c = w.c.iter_mut().flatten();
+        for (k, v) in c.chain(w.tilt.iter_mut().flatten()).enumerate() {
+            *v = f32_at(s, 4 * k);
+        }
+    }
+    w
 }
 
 /// Length of the rotary section [`write_group_image`] writes for `r` (version 1 when it fits).
 pub(crate) fn rotary_section_len(r: &RotaryLocationSpec) -> usize {
     if r.fits_version_1() {
         ROTARY_SECTION_V1_LEN
-    } else {
+    } else if r.wobble.is_none() {
         ROTARY_SECTION_LEN
+    } else {
+        ROTARY_SECTION_WOBBLE_LEN
     }
 }
 
