@@ -619,12 +619,18 @@ fn parse_rotary(version: u16, s: &[u8], index: usize) -> Result<RotaryLocationSp
 fn parse_wobble(s: &[u8]) -> RotaryWobble {
     let mut w = RotaryWobble::NONE;
     if s.len() == ROTARY_SECTION_WOBBLE_LEN - ROTARY_SECTION_LEN {
-        let c = w.c.iter_mut().flatten();
-        for (k, v) in c.chain(w.tilt.iter_mut().flatten()).enumerate() {
-            *v = f32_at(s, 4 * k);
-        }
+        let (c, tilt) = s.split_at(32 * 4);
+        read_f32s(c, w.c.as_flattened_mut());
+        read_f32s(tilt, w.tilt.as_flattened_mut());
     }
     w
+}
+
+/// The little-endian f32 values of `s` into `out` (as many as both hold).
+fn read_f32s(s: &[u8], out: &mut [f32]) {
+    for (v, b) in out.iter_mut().zip(s.chunks_exact(4)) {
+        *v = f32_at(b, 0);
+    }
 }
 
 /// Length of the rotary section [`write_group_image`] writes for `r` (version 1 when it fits).

@@ -120,7 +120,7 @@ pub use crate::rotary_spec::{
 };
 
 use crate::counts::{step_in_turn_wide, wrap};
-use crate::rotary_wobble::{WobbleAngles, WobbleTerms};
+use crate::rotary_wobble::{WobbleAngles, WobbleTerms, frame_factors};
 
 /// Coarse angles per turn of the sin/cos table (a power of two: the index is masked, not
 /// clamped).
@@ -517,8 +517,8 @@ impl RotaryStage {
         let t = signed as f32 * self.sincos[0].poly[0];
         let head = self.machine == RotaryMachine::BcHead.code();
         let about_x = self.machine == RotaryMachine::AcTrunnion.code();
-        let a = WobbleAngles { st, ct, sc, cc, t };
-        let (w, tr) = self.wobble.terms(head, about_x, a);
+        let p = frame_factors(head, about_x, st, ct, sc, cc);
+        let (w, tr) = self.wobble.terms(&WobbleAngles { sc, cc, t }, &p);
         let k = &mut cache.k;
         if head {
             let l = self.head_length_um;

@@ -120,6 +120,7 @@ pub const MAX_WOBBLE: f32 = 1.0e4;
 /// The names and order are those of the host's `axcomp_rtest::effects::EffectBasis::Wobble`
 /// parameters (`C_tilt_x_cos1`, `C_radial_x_cos1`, …, `A_tilt_y_t1`, …).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
 pub struct RotaryWobble {
     /// C's coefficients per harmonic (see the type's doc).
     pub c: [[f32; 8]; WOBBLE_HARMONICS],
@@ -138,31 +139,45 @@ impl RotaryWobble {
     /// [`Field::RotaryWobble`]).
     pub fn coefficients(&self) -> impl Iterator<Item = f32> + '_ {
         self.c
+            .as_flattened()
             .iter()
-            .flatten()
-            .chain(self.tilt.iter().flatten())
+            .chain(self.tilt.as_flattened())
             .copied()
     }
 
     /// True when every coefficient is 0.
     pub fn is_none(&self) -> bool {
-        self.coefficients().all(|v| v == 0.0)
+        all_zero(self.c.as_flattened()) && all_zero(self.tilt.as_flattened())
     }
 
     /// Every coefficient finite and within ±[`MAX_WOBBLE`].
     pub fn validate(&self) -> Result<(), ImageError> {
-        for (i, v) in self.coefficients().enumerate() {
-            let index = i as u16;
-            let field = Field::RotaryWobble;
-            if !v.is_finite() {
-                return Err(ImageError::NonFinite { field, index });
-            }
-            if libm::fabsf(v) > MAX_WOBBLE {
-                return Err(ImageError::OutOfRange { field, index });
-            }
-        }
-        Ok(())
+        check_wobble(self.c.as_flattened(), 0)?;
+        check_wobble(self.tilt.as_flattened(), 8 * WOBBLE_HARMONICS as u16)
     }
+}
+
+/// True when every value of `v` is 0 (out of line: one loop, not unrolled at each use).
+#[inline(never)]
+fn all_zero(v: &[f32]) -> bool {
+    v.iter().all(|&x| x == 0.0)
+}
+
+/// [`RotaryWobble::validate`] of the coefficients `v`, the first of which has the index `first`
+/// (out of line: load-time code, one copy).
+#[inline(never)]
+fn check_wobble(v: &[f32], first: u16) -> Result<(), ImageError> {
+    for (i, &v) in v.iter().enumerate() {
+        let index = first + i as u16;
+        let field = Field::RotaryWobble;
+        if !v.is_finite() {
+            return Err(ImageError::NonFinite { field, index });
+        }
+        if libm::fabsf(v) > MAX_WOBBLE {
+            return Err(ImageError::OutOfRange { field, index });
+        }
+    }
+    Ok(())
 }
 
 impl RotaryLocationSpec {

@@ -26,104 +26,111 @@
 
 use crate::rotary_spec::{RotaryWobble, WOBBLE_HARMONICS, WOBBLE_TILT_DEGREE};
 
-/// The wobble as the stage holds it: angles in rad, offsets in µm, in [`RotaryWobble`]'s order.
+/// Rows of four coefficients: C's cos and sin rows per harmonic, then the tilt axis's per power.
+const ROWS: usize = 2 * WOBBLE_HARMONICS + WOBBLE_TILT_DEGREE;
+
+/// The wobble as the stage holds it: [`RotaryWobble`]'s coefficients (µrad, µm) as rows of four,
+/// C's [w_x, r_x, w_y, r_y] times cos kc, then times sin kc, for k = 1…4, then the tilt axis's
+/// [w_1, r_1, w_z, r_z] times t^d, d = 1…3.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C)]
 pub(crate) struct WobbleTerms {
-    c: [[f32; 8]; WOBBLE_HARMONICS],
-    tilt: [[f32; 4]; WOBBLE_TILT_DEGREE],
+    rows: [[f32; 4]; ROWS],
     /// True when any coefficient is non-zero (the stage then adds the terms at each refresh).
     pub(crate) on: bool,
-}
-
-/// The angles the wobble is evaluated at: sin and cos of the tilt axis's and C's angles, the tilt
-/// axis's signed angle (rad).
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct WobbleAngles {
-    pub(crate) st: f32,
-    pub(crate) ct: f32,
-    pub(crate) sc: f32,
-    pub(crate) cc: f32,
-    pub(crate) t: f32,
 }
 
 impl WobbleTerms {
     /// All zero bytes (the zero stage).
     pub(crate) const ZERO: WobbleTerms = WobbleTerms {
-        c: [[0.0; 8]; WOBBLE_HARMONICS],
-        tilt: [[0.0; 4]; WOBBLE_TILT_DEGREE],
+        rows: [[0.0; 4]; ROWS],
         on: false,
     };
 
-    /// From a validated wobble (at load): the rotations (even entries) from µrad to rad.
+    /// From a validated wobble (at load).
     pub(crate) fn new(w: &RotaryWobble) -> WobbleTerms {
-        let rad = |row: &[f32]| -> [f32; 8] {
-            core::array::from_fn(|i| {
-                let v = row.get(i).copied().unwrap_or(0.0);
-                if i % 2 == 0 { v * 1.0e-6 } else { v }
-            })
-        };
-        WobbleTerms {
-            c: w.c.map(|h| rad(&h)),
-            tilt: w.tilt.map(|p| {
-                let v = rad(&p);
-                [v[0], v[1], v[2], v[3]]
-            }),
-            on: !w.is_none(),
-        }
+        let mut t = WobbleTerms::ZERO;
+        let (c, tilt) = t.rows.as_flattened_mut().split_at_mut(8 * WOBBLE_HARMONICS);
+        c.copy_from_slice(w.c.as_flattened());
+        tilt.copy_from_slice(w.tilt.as_flattened());
+        t.on = !w.is_none();
+        t
     }
 
-    /// The rotation W (rad) and translation T (µm) of the module's model, machine frame, for a
-    /// trunnion (`head` false; the tilt axis about X if `about_x`, else about Y) or the head.
+    /// The rotation W (rad) and translation T (µm) of the module's model, machine frame, for the
+    /// angles `a` and the frame factors `p` of [`frame`] (the stage's machine kind).
     #[inline(never)]
-    pub(crate) fn terms(&self, head: bool, about_x: bool, a: WobbleAngles) -> ([f32; 3], [f32; 3]) {
-        // C: Σ_k c[k]·(cos kc, sin kc) → [wx, rx, wy, ry].
-        let mut cs = [0.0f32; 4];
+    pub(crate) fn terms(&self, a: &WobbleAngles, p: &[f32; 6]) -> ([f32; 3], [f32; 3]) {
+        // Each row's weight: cos kc and sin kc (Chebyshev), then t^d.
+        let mut weight = [0.0f32; ROWS];
         let (mut c0, mut s0, mut ck, mut sk) = (1.0f32, 0.0f32, a.cc, a.sc);
-        for h in &self.c {
-            for (i, v) in cs.iter_mut().enumerate() {
-                *v += h[i] * ck + h[i + 4] * sk;
-            }
-            let two_c = a.cc + a.cc;
+        let two_c = a.cc + a.cc;
+        for pair in weight[..2 * WOBBLE_HARMONICS].chunks_exact_mut(2) {
+            pair[0] = ck;
+            pair[1] = sk;
             (c0, s0, ck, sk) = (ck, sk, two_c * ck - c0, two_c * sk - s0);
         }
-        // The tilt axis: Σ_d tilt[d]·t^(d+1) → [w1, r1, wz, rz].
-        let mut ts = [0.0f32; 4];
         let mut td = 1.0f32;
-        for p in &self.tilt {
+        for v in &mut weight[2 * WOBBLE_HARMONICS..] {
             td *= a.t;
-            for (i, v) in ts.iter_mut().enumerate() {
-                *v += p[i] * td;
-            }
+            *v = td;
         }
-        let (w_c, r_c) = ([cs[0], cs[2], 0.0], [cs[1], cs[3], 0.0]);
-        let p = if about_x { 1 } else { 0 };
-        let mut w_t = [0.0, 0.0, ts[2]];
-        let mut r_t = [0.0, 0.0, ts[3]];
-        w_t[p] = ts[0];
-        r_t[p] = ts[1];
-        if head {
-            // C turns the tilt axis's terms (about Z).
-            let turn = |v: [f32; 3]| rotate(v, 2, a.sc, a.cc);
-            (add(w_c, turn(w_t)), add(r_c, turn(r_t)))
-        } else {
-            let tilt = |v: [f32; 3]| rotate(v, 1 - p, a.st, a.ct);
-            (add(tilt(w_c), w_t), add(tilt(r_c), r_t))
+        // [w_x, r_x, w_y, r_y] of C, [w_1, r_1, w_z, r_z] of the tilt axis (one row per call: code
+        // flash, the loops are not unrolled into eleven copies of the row's arithmetic).
+        let mut acc = [[0.0f32; 4]; 2];
+        for (j, (row, &wj)) in self.rows.iter().zip(&weight).enumerate() {
+            add_row(&mut acc[(j >= 2 * WOBBLE_HARMONICS) as usize], row, wj);
         }
+        let [[wx, rx, wy, ry], [w1, r1, wz, rz]] = acc;
+        let w = frame(p, wx, wy, w1, wz).map(|v| v * 1.0e-6);
+        (w, frame(p, rx, ry, r1, rz))
     }
 }
 
-/// `v` turned by the angle of sin `s`, cos `c` about the machine axis `axis` (0 X, 1 Y, 2 Z).
-#[inline(always)]
-fn rotate(v: [f32; 3], axis: usize, s: f32, c: f32) -> [f32; 3] {
-    let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
-    let mut out = v;
-    out[i] = c * v[i] - s * v[j];
-    out[j] = s * v[i] + c * v[j];
-    out
+/// `acc` += `row`·`w`.
+#[inline(never)]
+fn add_row(acc: &mut [f32; 4], row: &[f32; 4], w: f32) {
+    for (a, r) in acc.iter_mut().zip(row) {
+        *a += r * w;
+    }
 }
 
+/// The angles the wobble is evaluated at: sin and cos of C's angle, the tilt axis's signed angle
+/// (rad).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct WobbleAngles {
+    pub(crate) sc: f32,
+    pub(crate) cc: f32,
+    pub(crate) t: f32,
+}
+
+/// The frame factors p of the stage's kind for sin θ `st`, cos θ `ct` of the tilt axis and
+/// sin c `sc`, cos c `cc`: a vector's parts (x, y) of C and 1, z of the tilt axis combine as
+/// (p0·x + p1·v1, p2·y + p3·v1, p4·x + p5·y + z) — the trunnion's R_T (x, y, 0) + v_T (A about X:
+/// v_T = (0, v1, z); B about Y: (v1, 0, z)), the head's (x, y, 0) + R_C (v1, 0, z).
+pub(crate) fn frame_factors(
+    head: bool,
+    about_x: bool,
+    st: f32,
+    ct: f32,
+    sc: f32,
+    cc: f32,
+) -> [f32; 6] {
+    if head {
+        [1.0, cc, 1.0, sc, 0.0, 0.0]
+    } else if about_x {
+        [1.0, 0.0, ct, 1.0, 0.0, st]
+    } else {
+        [ct, 1.0, 1.0, 0.0, -st, 0.0]
+    }
+}
+
+/// (p0·x + p1·v1, p2·y + p3·v1, p4·x + p5·y + z) (see [`frame_factors`]).
 #[inline(always)]
-fn add(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+fn frame(p: &[f32; 6], x: f32, y: f32, v1: f32, z: f32) -> [f32; 3] {
+    [
+        p[0] * x + p[1] * v1,
+        p[2] * y + p[3] * v1,
+        p[4] * x + p[5] * y + z,
+    ]
 }
