@@ -558,8 +558,6 @@ fn check_sensor_names(s: &[u8], n_sensors: usize, code: u8) -> Result<(), ImageE
 }
 
 /// A rotary-model section of `version` 1 (AC trunnion, no squareness), 2 or 3 (with a wobble).
-// Out of line: load-time code, one copy.
-#[inline(never)]
 fn parse_rotary(version: u16, s: &[u8], index: usize) -> Result<RotaryLocationSpec, ImageError> {
     let bounds = ImageError::SectionBounds {
         index: index as u16,

@@ -509,11 +509,8 @@ impl RotaryStage {
         // turn.
         let cpr = self.counts_per_rev[0];
         let n = cache.cell[0].turn(&self.sincos[0]);
-        let signed = if n > cpr / 2 {
-            n as i64 - cpr as i64
-        } else {
-            n as i64
-        };
+        // n − cpr ∈ (−2^31, 0] (cpr ≤ 2^31): exact in an i32.
+        let signed = n.wrapping_sub(if n > cpr / 2 { cpr } else { 0 }) as i32;
         let t = signed as f32 * self.sincos[0].poly[0];
         let head = self.machine == RotaryMachine::BcHead.code();
         let about_x = self.machine == RotaryMachine::AcTrunnion.code();

@@ -145,29 +145,30 @@ impl RotaryWobble {
             .copied()
     }
 
-    /// True when every coefficient is 0.
+    /// True when every coefficient is 0 (a non-finite one is not 0).
     pub fn is_none(&self) -> bool {
-        all_zero(self.c.as_flattened()) && all_zero(self.tilt.as_flattened())
+        self.scan() == Ok(false)
     }
 
     /// Every coefficient finite and within ±[`MAX_WOBBLE`].
     pub fn validate(&self) -> Result<(), ImageError> {
-        check_wobble(self.c.as_flattened(), 0)?;
-        check_wobble(self.tilt.as_flattened(), 8 * WOBBLE_HARMONICS as u16)
+        self.scan().map(|_| ())
+    }
+
+    /// [`RotaryWobble::validate`], and whether a coefficient is non-zero.
+    fn scan(&self) -> Result<bool, ImageError> {
+        let c = scan_wobble(self.c.as_flattened(), 0)?;
+        Ok(scan_wobble(self.tilt.as_flattened(), 8 * WOBBLE_HARMONICS as u16)? | c)
     }
 }
 
-/// True when every value of `v` is 0 (out of line: one loop, not unrolled at each use).
+/// [`RotaryWobble::scan`] of the coefficients `v`, the first of which has the index `first`
+/// (out of line: load-time code, one copy): whether one is non-zero.
 #[inline(never)]
-fn all_zero(v: &[f32]) -> bool {
-    v.iter().all(|&x| x == 0.0)
-}
-
-/// [`RotaryWobble::validate`] of the coefficients `v`, the first of which has the index `first`
-/// (out of line: load-time code, one copy).
-#[inline(never)]
-fn check_wobble(v: &[f32], first: u16) -> Result<(), ImageError> {
+fn scan_wobble(v: &[f32], first: u16) -> Result<bool, ImageError> {
+    let mut any = false;
     for (i, &v) in v.iter().enumerate() {
+        any |= v != 0.0;
         let index = first + i as u16;
         let field = Field::RotaryWobble;
         if !v.is_finite() {
@@ -177,7 +178,7 @@ fn check_wobble(v: &[f32], first: u16) -> Result<(), ImageError> {
             return Err(ImageError::OutOfRange { field, index });
         }
     }
-    Ok(())
+    Ok(any)
 }
 
 impl RotaryLocationSpec {

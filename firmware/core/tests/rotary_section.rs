@@ -232,11 +232,16 @@ fn typed_refusals_of_the_rotary_section() {
             index: 10
         }
     );
-    // Version 3 of a mandatory rotary section: not supported by this build.
+    // Version 4 of a mandatory rotary section: not supported by this build.
     assert_eq!(
-        edit(&|b| b[at + 2] = 3),
+        edit(&|b| b[at + 2] = 4),
         ImageError::UnsupportedSection { kind: 3 }
     );
+    // A version-3 directory entry (with a wobble: 256 bytes) over an 80-byte section.
+    assert!(matches!(
+        edit(&|b| b[at + 2] = 3),
+        ImageError::SectionBounds { .. }
+    ));
     // A version-1 directory entry over an 80-byte section.
     assert!(matches!(
         edit(&|b| b[at + 2] = 1),
