@@ -1,3 +1,5 @@
+extern crate std;
+
 use super::*;
 
 /// Reference: f64 `sin`/`cos` of n·2π/cpr; tolerance 2e-7 (the module's bound: a few f32
@@ -436,6 +438,7 @@ fn wobble_adds_the_f64_model_to_the_deviation() {
             }
         }
     }
+    std::eprintln!("wobble term up to {largest:.1} µm; largest error {worst:e} µm");
     assert!(largest > 20.0, "the wobble's term reaches {largest} µm");
     assert!(
         worst < 1e-3,
