@@ -153,7 +153,7 @@ impl<const POOL: usize> Group<POOL> {
         stage: Option<&RotaryLocationSpec>,
         geometric: Option<&GeometricSpec>,
     ) -> Result<(), GroupError> {
-        let layouts = validate_group_stages::<POOL>(axes, stage, geometric)?;
+        let layouts = validate_group_stages(POOL, axes, stage, geometric)?;
         self.clear();
         let mut next = 0u32;
         for (i, (a, l)) in axes.iter().zip(layouts.iter()).enumerate() {

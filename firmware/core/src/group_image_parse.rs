@@ -533,7 +533,8 @@ fn check_across_sections<'a>(
     // The group's own rules (counts per revolution, rotary grids, the stages' axes), as
     // `Group::load` applies them (the pool size is the loading build's business).
     let (images, n) = view.axis_images();
-    crate::group_check::validate_group_stages::<{ usize::MAX }>(
+    crate::group_check::validate_group_stages(
+        usize::MAX,
         &images[..n],
         view.rotary.as_ref(),
         view.geometric.as_ref(),
