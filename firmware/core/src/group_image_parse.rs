@@ -107,8 +107,12 @@ impl<'a> GroupImageView<'a> {
             counts_per_rev: 0,
             image: &[],
         }; MAX_AXES];
-        for (o, a) in out.iter_mut().zip(self.axes()) {
-            *o = a.axis;
+        // Indexed, not zipped: load-time code the zip unrolled over the slots (about 900 B more
+        // of firmware code).
+        for (k, a) in self.axes().enumerate() {
+            if let Some(o) = out.get_mut(k) {
+                *o = a.axis;
+            }
         }
         (out, self.n_axes)
     }
