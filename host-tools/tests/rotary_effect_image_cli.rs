@@ -24,7 +24,7 @@ use std::path::Path;
 use axcomp_core::group::{Group, GroupInput, GroupOutput, GroupState};
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind, N_LOCATION, N_SETUP, Pose};
 use axcomp_numeric::lsq::{DMatrix, lstsq};
-use axcomp_twin::five_axis::{FiveAxisTwin, RtestCampaign, standard_paths};
+use axcomp_twin::five_axis::{FiveAxisTwin, RtestCampaign, TiltWobbleShape, standard_paths};
 
 mod common;
 use common::{axcomp_in, read_json, scratch};
@@ -36,11 +36,20 @@ const UPC: f64 = 0.1;
 const PIVOT: [i64; 3] = [1_000_000, -2_000_000, 3_000_000];
 const TOOL_MM: f64 = 100.0;
 
-/// The AC-trunnion twin of `diagnose_rtest_cli` (seed 5, σ = 0.3 µm, 6 s per pose) with `effect`.
-fn twin_campaign(effect: &str) -> (FiveAxisTwin, RtestCampaign) {
+/// The AC-trunnion twin of `diagnose_rtest_cli` (seed 5, σ = 0.3 µm, 6 s per pose) with `effect`
+/// (`tilt_wobble`: the A axis's wobble of `shape`).
+fn twin_campaign(effect: &str, shape: TiltWobbleShape) -> (FiveAxisTwin, RtestCampaign) {
     let m = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
     let mut twin = FiveAxisTwin::random(m, 5);
     twin.dwell_s = 6.0;
+    twin.effect_params.tilt_wobble_shape = shape;
+    if effect == "tilt_wobble" {
+        // Three times the twin's amplitudes (30–90 µrad/rad²): a wobble the location errors do not
+        // absorb (at 10–30 µrad/rad² they leave 0.36 µm held out, near the noise).
+        for a in &mut twin.effect_params.tilt_wobble[..2] {
+            *a *= 3.0;
+        }
+    }
     assert!(twin.effects.enable(effect));
     let paths = standard_paths(
         &m,
@@ -192,9 +201,14 @@ fn held_out(twin: &FiveAxisTwin, c: &RtestCampaign, image: &[u8]) -> ([f64; 3], 
 }
 
 /// The chain for one twin effect: the verdict, the image builder's stderr, and (after, oracle,
-/// uncompensated, location errors only) µm.
-fn chain(effect: &str, dir: &Path) -> (String, String, [f64; 4]) {
-    let (twin, c) = twin_campaign(effect);
+/// uncompensated, location errors only) µm. The fit adds `effects`, or the verdict if `None`.
+fn chain(
+    effect: &str,
+    shape: TiltWobbleShape,
+    effects: Option<&str>,
+    dir: &Path,
+) -> (String, String, [f64; 4]) {
+    let (twin, c) = twin_campaign(effect, shape);
     std::fs::write(dir.join("rtest.csv"), c.to_csv_string()).unwrap();
     run(
         &[
@@ -220,7 +234,7 @@ fn chain(effect: &str, dir: &Path) -> (String, String, [f64; 4]) {
         a.extend(["--out", out]);
         run(&a, dir);
     };
-    fit(&["--effects", &verdict], "m.json");
+    fit(&["--effects", effects.unwrap_or(&verdict)], "m.json");
     fit(&[], "m0.json");
     let axes = axis_images(dir);
     let said = group(dir, &axes, "m.json", "g.bin");
@@ -246,7 +260,8 @@ fn chain(effect: &str, dir: &Path) -> (String, String, [f64; 4]) {
 #[test]
 fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-pos");
-    let (verdict, said, [after, oracle, raw, only]) = chain("rotary_positioning", &dir);
+    let (verdict, said, [after, oracle, raw, only]) =
+        chain("rotary_positioning", TiltWobbleShape::default(), None, &dir);
     assert_eq!(verdict, "rotary_positioning");
     assert!(
         said.contains("carried as the angle tables of axes C and A")
@@ -268,28 +283,78 @@ fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
 }
 
 /// A C-axis wobble (tilt of C turning twice per turn, 3–10 µrad): `diagnose` names `rotary_wobble`, the
-/// model carries it, and `image group` says that the firmware cannot apply it, naming its RMS over the
-/// fitted poses (the model file's `rms_over_fit_um`) and that the location errors fitted with it may
-/// correct worse alone (measured: 6.34 µm held out against 0.76 µm for the image of a fit without
-/// `--effects`; uncompensated 19.19, noise 0.29): that advice is asserted as measured, the image of the
-/// fit without the effect correcting better.
+/// model carries it, `image group` puts it into the rotary section (and says so), and the firmware's
+/// group engine brings the held-out K4 run within 1.3× the oracle (the measurement noise: what a
+/// perfect compensation leaves) and well below the image of a fit without `--effects`. Measured:
+/// see the figures printed (`-- --nocapture`); tolerance: the issue's 1.3× the oracle, and at most
+/// half the location-errors-only image's.
 #[test]
-fn rotary_wobble_is_said_to_be_left_out() {
+fn c_wobble_goes_into_the_rotary_section_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-wobble");
-    let (verdict, said, [after, oracle, raw, only]) = chain("rotary_wobble", &dir);
+    let (verdict, said, [after, oracle, raw, only]) =
+        chain("rotary_wobble", TiltWobbleShape::default(), None, &dir);
     assert_eq!(verdict, "rotary_wobble");
-    let rms = read_json(&dir.join("m.json"))["effects"][0]["rms_over_fit_um"]
-        .as_f64()
-        .unwrap();
+    wobble_carried(&dir, &said, 'A');
+    assert!(
+        after <= 1.3 * oracle && after < 0.5 * only && only < raw,
+        "after {after:.3} µm (at most 1.3 × the oracle {oracle:.3}), location errors only {only:.3}, \
+         raw {raw:.3}"
+    );
+}
+
+/// An A-axis (tilt-axis) wobble: the A axis tilting about Y and Z as the square of its angle
+/// (30–90 µrad/rad²: the twin's `tilt_wobble` of shape `quadratic`, amplitudes tripled): whatever `diagnose` names (printed),
+/// `fit rtest --effects rotary_wobble` models it (t, t²), `image group` carries it in the rotary
+/// section, and the group engine brings the held-out K4 run within 1.3× the oracle and well below the
+/// location-errors-only image. Tolerance as for C.
+#[test]
+fn a_axis_wobble_goes_into_the_rotary_section_within_1p3_of_the_oracle() {
+    let dir = scratch("effect-image-a-wobble");
+    let (_, said, [after, oracle, raw, only]) = chain(
+        "tilt_wobble",
+        TiltWobbleShape::Quadratic,
+        Some("rotary_wobble"),
+        &dir,
+    );
+    wobble_carried(&dir, &said, 'A');
+    assert!(
+        after <= 1.3 * oracle && after < 0.5 * only && only < raw,
+        "after {after:.3} µm (at most 1.3 × the oracle {oracle:.3}), location errors only {only:.3}, \
+         raw {raw:.3}"
+    );
+}
+
+/// `image group` said it carries the wobble (no warning), the image's rotary section holds the
+/// model's coefficients (f32 of the model file's values), and `image inspect` lists them.
+fn wobble_carried(dir: &Path, said: &str, tilt: char) {
     assert!(
         said.contains("effect `rotary_wobble`")
-            && said.contains("not carried by the image")
-            && said.contains(&format!("RMS {rms:.3} µm"))
-            && said.contains("a fit without `--effects rotary_wobble`"),
+            && said.contains("carried by the rotary section")
+            && !said.contains("not carried"),
         "{said}"
     );
+    let spec = axcomp_core::group_image::parse(&std::fs::read(dir.join("g.bin")).unwrap())
+        .unwrap()
+        .rotary
+        .unwrap();
+    let model = read_json(&dir.join("m.json"));
+    let params = model["effects"][0]["parameters"].as_array().unwrap();
+    let value = |name: &str| {
+        params
+            .iter()
+            .find(|p| p[0] == name)
+            .map(|p| p[1]["value"].as_f64().unwrap() as f32)
+    };
+    assert_eq!(Some(spec.wobble.c[1][0]), value("C_tilt_x_cos2"));
+    assert_eq!(Some(spec.wobble.c[2][7]), value("C_radial_y_sin3"));
+    assert_eq!(
+        Some(spec.wobble.tilt[1][2]),
+        value(&format!("{tilt}_tilt_z_t2"))
+    );
+    let o = axcomp_in(&["image", "inspect", "g.bin"], dir);
+    let text = String::from_utf8_lossy(&o.stdout);
     assert!(
-        only < after && after < raw && after > oracle,
-        "after {after:.3}, a fit without --effects {only:.3}, oracle {oracle:.3}, raw {raw:.3}"
+        o.status.success() && text.contains("wobble (") && text.contains("C_tilt_x_cos2"),
+        "{text}"
     );
 }

@@ -162,6 +162,7 @@ fn spec_from(kind: MachineKind, le: &LocationErrors, tool_mm: f64) -> RotaryLoca
         pivot_counts: PIVOT,
         tool_length_um: (tool_mm * 1000.0) as f32,
         not_identified: 0,
+        wobble: axcomp_core::rotary::RotaryWobble::NONE,
     }
 }
 
@@ -602,16 +603,16 @@ fn run_cli(args: &[&str], dir: &Path) {
 }
 
 /// `image group --rotary` with a model holding an effect the firmware has no stage for (`fit rtest
-/// --effects rotary_wobble` on a twin with a C-axis wobble, seed 5): the image is built with the location
-/// errors, and the builder warns naming the effect and the RMS of the correction it leaves out — the model
-/// file's `rms_over_fit_um`, printed to 3 decimals. (A `rotary_positioning` effect is carried as the rotary
-/// axes' angle tables: `rotary_effect_image_cli`.)
+/// --effects linear_geometry` on a twin with the linear axes' errors, seed 5): the image is built with the
+/// location errors, and the builder warns naming the effect and the RMS of the correction it leaves out —
+/// the model file's `rms_over_fit_um`, printed to 3 decimals. (`rotary_positioning` is carried as the
+/// rotary axes' angle tables, `rotary_wobble` by the rotary section: `rotary_effect_image_cli`.)
 #[test]
 fn image_says_which_effect_it_cannot_carry() {
     let dir = scratch("effects-image");
     let m = FiveAxis::new(MachineKind::AcTrunnion, 0.0);
     let mut twin = FiveAxisTwin::random(m, 5);
-    twin.effects.rotary_wobble = true;
+    twin.effects.linear_geometry = true;
     let paths = standard_paths(&m, [150.0, 0.0, 100.0], -60.0, 72, &[0.0, -60.0], 36, None);
     std::fs::write(
         dir.join("rtest.csv"),
@@ -625,7 +626,7 @@ fn image_says_which_effect_it_cannot_carry() {
             "--data",
             "rtest.csv",
             "--effects",
-            "rotary_wobble",
+            "linear_geometry",
             "--out",
             "model.json",
         ],
@@ -653,7 +654,7 @@ fn image_says_which_effect_it_cannot_carry() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(
-        err.contains("effect `rotary_wobble`")
+        err.contains("effect `linear_geometry`")
             && err.contains("not carried by the image")
             && err.contains(&format!("RMS {rms:.3} µm")),
         "{err}"

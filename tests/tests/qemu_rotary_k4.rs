@@ -1,9 +1,11 @@
 //! The rotary location-error stage in QEMU: the group firmware (`axcomp-qemu-group`) and the host
 //! replay give byte-identical output records on a five-axis trace (X, Y, Z, tilt, C) along the
-//! ISO 10791-6 K4 path — C turning continuously (through 360° three times) while the tilt axis
+//! ISO 10791-6 K4 path — C turning continuously (through 360° six times) while the tilt axis
 //! swings 0 → −60° → 0 and X, Y, Z follow a sphere on the table, every axis moving every cycle —
-//! with three rotary models loaded one after the other by A/B swaps: an AC trunnion (version-2
-//! section with squareness and a not-identified constant), a BC trunnion and a BC head.
+//! with six rotary models loaded one after the other by A/B swaps: an AC trunnion (version-2
+//! section with squareness and a not-identified constant), a BC trunnion and a BC head, then the
+//! same three with a wobble (version-3 sections: C 1…4 per turn, the tilt axis to t³; the AC
+//! trunnion then takes the general cycle).
 //!
 //! Reference: `axcomp_firmware::replay::replay_group` over `axcomp_core::group::GroupEngine` on the
 //! host. Tolerance: none — every 32-byte output record must match bit for bit, and the record count
@@ -11,7 +13,9 @@
 
 use axcomp_core::bench::{GROUP_COUNTS_PER_REV, group_axis_spec};
 use axcomp_core::group::{AxisName, GroupInput};
-use axcomp_core::group_image::{self, AxisSectionSpec, ROTARY_SECTION_VERSION};
+use axcomp_core::group_image::{
+    self, AxisSectionSpec, ROTARY_SECTION_VERSION, ROTARY_SECTION_WOBBLE_VERSION,
+};
 use axcomp_core::rotary::{RotaryLocationSpec, RotaryMachine};
 use axcomp_core::trace::{self, OUTPUT_RECORD_LEN, OutputRecord, Record};
 use axcomp_system_tests::{build_qemu_firmware, host_group_replay, qemu_replay, require_tool};
@@ -19,7 +23,7 @@ use axcomp_system_tests::{build_qemu_firmware, host_group_replay, qemu_replay, r
 /// Cycles per K4 turn (C 360°, the tilt 0 → −60° → 0).
 const CYCLES_PER_TURN: u32 = 6_000;
 /// One turn per rotary model.
-const CYCLES: u32 = 3 * CYCLES_PER_TURN;
+const CYCLES: u32 = 6 * CYCLES_PER_TURN;
 /// µm per count of X, Y, Z (the group workload's axes).
 const UPC: f64 = 0.1;
 /// Pivot (counts) and tool length (mm): the tool point stays inside the tables' 100 mm strokes.
@@ -44,11 +48,37 @@ fn rotary(machine: RotaryMachine) -> RotaryLocationSpec {
         tool_length_um: (TOOL_MM * 1000.0) as f32,
         // EB0A (or EA0B) not identified: fixed at 0.
         not_identified: 1 << 6,
+        wobble: axcomp_core::rotary::RotaryWobble::NONE,
     }
 }
 
-/// The five-axis group image with the workload's axis tables and `machine`'s rotary model.
-fn image(machine: RotaryMachine) -> Vec<u8> {
+/// The model of `machine` with a wobble: C tilting and moving radially 1…4 times per turn
+/// (4–15 µrad, 0.5–3 µm), the tilt axis as t, t², t³ (2–12 µrad/rad^d, 0.3–2 µm/rad^d).
+fn with_wobble(machine: RotaryMachine) -> RotaryLocationSpec {
+    let mut w = axcomp_core::rotary::RotaryWobble::NONE;
+    for (k, row) in w.c.iter_mut().enumerate() {
+        for (i, v) in row.iter_mut().enumerate() {
+            let sign = if (i + k) % 3 == 0 { -1.0 } else { 1.0 };
+            *v = sign
+                * if i % 2 == 0 {
+                    15.0 - 3.0 * k as f32
+                } else {
+                    3.0 - 0.6 * k as f32
+                };
+        }
+    }
+    for (d, row) in w.tilt.iter_mut().enumerate() {
+        *row = [12.0, -2.0, -8.0, 1.5].map(|v| v / (d + 1) as f32);
+    }
+    RotaryLocationSpec {
+        wobble: w,
+        ..rotary(machine)
+    }
+}
+
+/// The five-axis group image with the workload's axis tables and `spec`'s rotary model.
+fn image(spec: &RotaryLocationSpec) -> Vec<u8> {
+    let machine = spec.machine;
     let images: Vec<Vec<u8>> = (0..5)
         .map(|k| {
             let spec = group_axis_spec(k);
@@ -80,9 +110,8 @@ fn image(machine: RotaryMachine) -> Vec<u8> {
             sensor_names: &[],
         })
         .collect();
-    let spec = rotary(machine);
-    let mut out = vec![0u8; group_image::group_image_len(&axes, Some(&spec))];
-    let n = group_image::write_group_image(&axes, Some(&spec), &mut out).unwrap();
+    let mut out = vec![0u8; group_image::group_image_len(&axes, Some(spec))];
+    let n = group_image::write_group_image(&axes, Some(spec), &mut out).unwrap();
     out.truncate(n);
     out
 }
@@ -125,22 +154,35 @@ fn push(bytes: &mut Vec<u8>, rec: &Record) {
     trace::encode_record(rec, &mut bytes[at..]).unwrap();
 }
 
+const MACHINES: [RotaryMachine; 3] = [
+    RotaryMachine::AcTrunnion,
+    RotaryMachine::BcTrunnion,
+    RotaryMachine::BcHead,
+];
+
+/// The six models: the three kinds, then the three with a wobble.
+fn models() -> Vec<RotaryLocationSpec> {
+    let plain = MACHINES.map(rotary);
+    let wobbly = MACHINES.map(with_wobble);
+    plain.into_iter().chain(wobbly).collect()
+}
+
 /// The trace: the AC image, one K4 turn, the BC-trunnion image, one turn, the BC-head image,
-/// one turn.
+/// one turn; then the same with the wobble.
 fn k4_trace() -> Vec<u8> {
     let mut t = vec![0u8; trace::TRACE_HEADER_LEN];
     trace::write_header(&mut t).unwrap();
-    let machines = [
-        RotaryMachine::AcTrunnion,
-        RotaryMachine::BcTrunnion,
-        RotaryMachine::BcHead,
-    ];
+    let models = models();
     for i in 0..CYCLES {
-        let m = machines[(i / CYCLES_PER_TURN) as usize];
+        let spec = &models[(i / CYCLES_PER_TURN) as usize];
         if i % CYCLES_PER_TURN == 0 {
-            push(&mut t, &Record::Image(&image(m)));
+            push(&mut t, &Record::Image(&image(spec)));
         }
-        let tilt_axis = if m == RotaryMachine::AcTrunnion { 0 } else { 1 };
+        let tilt_axis = if spec.machine == RotaryMachine::AcTrunnion {
+            0
+        } else {
+            1
+        };
         push(
             &mut t,
             &Record::GroupCycle {
@@ -155,25 +197,24 @@ fn k4_trace() -> Vec<u8> {
     t
 }
 
-/// The trace exercises what it claims: three version-2 rotary sections of the three kinds, and
-/// the stage's corrections are large (tens of µm) and change along the path.
+/// The trace exercises what it claims: three version-2 rotary sections of the three kinds and
+/// three version-3 ones with a wobble, and the stage's corrections are large (tens of µm) and
+/// change along the path; the wobble changes them by more than 1 µm on each kind.
 #[test]
-fn k4_trace_carries_the_three_rotary_models() {
-    for m in [
-        RotaryMachine::AcTrunnion,
-        RotaryMachine::BcTrunnion,
-        RotaryMachine::BcHead,
-    ] {
-        let img = image(m);
+fn k4_trace_carries_the_six_rotary_models() {
+    for (k, spec) in models().iter().enumerate() {
+        let img = image(spec);
         let view = group_image::parse(&img).unwrap();
-        assert_eq!(view.rotary, Some(rotary(m)));
-        // The directory entry of the rotary section (the last) has version 2.
+        assert_eq!(view.rotary.as_ref(), Some(spec));
+        // The directory entry of the rotary section (the last) has version 2, 3 with a wobble.
         let n = u16::from_le_bytes([img[12], img[13]]) as usize;
         let at = group_image::GROUP_HEADER_LEN + group_image::DIR_ENTRY_LEN * (n - 1);
-        assert_eq!(
-            u16::from_le_bytes([img[at + 2], img[at + 3]]),
+        let version = if k < 3 {
             ROTARY_SECTION_VERSION
-        );
+        } else {
+            ROTARY_SECTION_WOBBLE_VERSION
+        };
+        assert_eq!(u16::from_le_bytes([img[at + 2], img[at + 3]]), version);
     }
     let (out, cycles, errors) = host_group_replay(&k4_trace());
     assert_eq!((cycles, errors), (CYCLES, 0));
@@ -185,6 +226,20 @@ fn k4_trace_carries_the_three_rotary_models() {
     let lo = x.iter().cloned().fold(f32::INFINITY, f32::min);
     let hi = x.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
     assert!(hi - lo > 20.0, "X correction range {lo} .. {hi} µm");
+    let turn = CYCLES_PER_TURN as usize;
+    for m in 0..3 {
+        let plain = &x[m * turn..(m + 1) * turn];
+        let wobbly = &x[(m + 3) * turn..(m + 4) * turn];
+        let most = plain
+            .iter()
+            .zip(wobbly)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            most > 1.0,
+            "model {m}: the wobble moves X by at most {most} µm"
+        );
+    }
 }
 
 #[test]
@@ -216,7 +271,7 @@ fn five_axis_k4_trace_with_rotary_models_matches_host_bit_for_bit() {
     let outputs = CYCLES as usize * 5;
     assert!(
         stdout.contains(&format!(
-            "cycles={CYCLES} outputs={outputs} errors=0 images_accepted=3 images_rejected=0"
+            "cycles={CYCLES} outputs={outputs} errors=0 images_accepted=6 images_rejected=0"
         )),
         "summary line: {stdout}"
     );

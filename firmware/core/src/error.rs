@@ -76,6 +76,9 @@ pub enum Field {
     ThermoFlags,
     /// Thermo: a sensor's rise bounds of the range guard (index = sensor).
     RiseBounds,
+    /// Rotary stage: a wobble coefficient (index in the order of
+    /// [`crate::rotary::RotaryWobble::coefficients`]).
+    RotaryWobble,
 }
 
 impl Field {
@@ -116,6 +119,7 @@ impl Field {
             Field::RotaryMachine => "rotary.machine",
             Field::ThermoFlags => "thermo.flags",
             Field::RiseBounds => "thermo.rise_bounds_k",
+            Field::RotaryWobble => "rotary.wobble",
         }
     }
 }

@@ -97,6 +97,11 @@ pub const ROTARY_SECTION_V1_LEN: usize = 64;
 pub const ROTARY_SECTION_VERSION: u16 = 2;
 /// Length of a rotary-model section of version [`ROTARY_SECTION_VERSION`].
 pub const ROTARY_SECTION_LEN: usize = 80;
+/// Version of the rotary-model section with a wobble after the version-2 fields.
+pub const ROTARY_SECTION_WOBBLE_VERSION: u16 = 3;
+/// Length of a rotary-model section of version [`ROTARY_SECTION_WOBBLE_VERSION`]: version 2's
+/// 80 bytes and 44 wobble coefficients (f32).
+pub const ROTARY_SECTION_WOBBLE_LEN: usize = 256;
 /// Fixed part of a geometric-model section (before the coefficients).
 pub const GEOMETRIC_HEADER_LEN: usize = 96;
 /// Bytes per segment of one axis in a geometric-model section (6 functions × 4 f32).

@@ -11,13 +11,16 @@ use crate::rotary_spec::RotaryLocationSpec;
 
 /// Every check of [`Group::load_stages`]: [`validate_group`] and the geometric stage's (X, Y, Z
 /// in the group, a valid model, each grid spanning its axis's table grid if the axis has a
-/// table, tables and functions within the pool).
-pub(crate) fn validate_group_stages<const POOL: usize>(
+/// table, tables and functions within the pool of `pool` segments). Load-time code, one
+/// out-of-line copy for every pool size (the image parser's and each group's).
+#[inline(never)]
+pub(crate) fn validate_group_stages(
+    pool: usize,
     axes: &[GroupAxisImage],
     stage: Option<&RotaryLocationSpec>,
     geometric: Option<&GeometricSpec>,
 ) -> Result<[Option<Layout>; MAX_AXES], GroupError> {
-    let layouts = validate_group::<POOL>(axes, stage)?;
+    let layouts = validate_group(pool, axes, stage)?;
     let Some(spec) = geometric else {
         return Ok(layouts);
     };
@@ -47,14 +50,16 @@ pub(crate) fn validate_group_stages<const POOL: usize>(
         let halves = if l.bidirectional { 2 } else { 1 };
         needed = needed.saturating_add(halves * l.n_segments as u32);
     }
-    if needed as usize > POOL {
+    if needed as usize > pool {
         return Err(ImageError::PoolTooSmall { needed }.into());
     }
     Ok(layouts)
 }
 
-/// Every check of [`Group::load`]; the layouts of the axis images by slot.
-pub(crate) fn validate_group<const POOL: usize>(
+/// Every check of [`Group::load`] for a pool of `pool` segments; the layouts of the axis images
+/// by slot.
+fn validate_group(
+    pool: usize,
     axes: &[GroupAxisImage],
     stage: Option<&RotaryLocationSpec>,
 ) -> Result<[Option<Layout>; MAX_AXES], GroupError> {
@@ -99,7 +104,7 @@ pub(crate) fn validate_group<const POOL: usize>(
         needed = needed.saturating_add(halves * l.n_segments as u32);
         layouts[i] = Some(l);
     }
-    if needed as usize > POOL {
+    if needed as usize > pool {
         return Err(ImageError::PoolTooSmall { needed }.into());
     }
     if let Some(spec) = stage {

@@ -153,7 +153,7 @@ impl<const POOL: usize> Group<POOL> {
         stage: Option<&RotaryLocationSpec>,
         geometric: Option<&GeometricSpec>,
     ) -> Result<(), GroupError> {
-        let layouts = validate_group_stages::<POOL>(axes, stage, geometric)?;
+        let layouts = validate_group_stages(POOL, axes, stage, geometric)?;
         self.clear();
         let mut next = 0u32;
         for (i, (a, l)) in axes.iter().zip(layouts.iter()).enumerate() {
@@ -216,12 +216,13 @@ impl<const POOL: usize> Group<POOL> {
             CycleMode::GeometricPlain
         } else if self.has_stage || has_geometric {
             // The inlined X, Y, Z, A, C cycle knows each axis's kind: none has a thermo-force
-            // term (kinds 0 for X, Y, Z and 1 for A, C); anything else takes the general path.
+            // term (kinds 0 for X, Y, Z and 1 for A, C); anything else (a wobble too) takes the general path.
             if self.has_stage
                 && !has_geometric
                 && self.stage.slot == [0, 1, 2, 3, 4]
                 && self.kinds == [0, 0, 0, 1, 1]
                 && self.stage.machine == RotaryMachine::AcTrunnion.code()
+                && !self.stage.has_wobble()
             {
                 CycleMode::StageXyzac
             } else {

@@ -63,7 +63,10 @@
 //!   `pivot_counts` 3 × i64, `tool_length_um` f32, reserved u32 = 0. Version 1 (64 bytes: the
 //!   same without the machine and the squareness) loads as an AC trunnion without squareness;
 //!   the writer uses it whenever it holds the model exactly (so older readers keep loading such
-//!   images).
+//!   images). Version 3 (256 bytes): version 2's 80 bytes, then the wobble
+//!   ([`crate::rotary::RotaryWobble`]): C's 4 harmonics × 8 coefficients, then the tilt axis's 3
+//!   powers × 4 coefficients (f32, in the order of its fields); written only for a model with a
+//!   wobble (a reader without the wobble refuses the mandatory section rather than leave it out).
 //! - **sensor names** (5, version 1, one per axis with sensors; `axis` = its code): one 16-byte
 //!   UTF-8 name per sensor of that axis, zero padded, non-empty.
 //! - **provenance** (6, version 1, axis 0xFF, optional: written without the mandatory flag, so
@@ -78,7 +81,8 @@
 pub use crate::format::{
     AXIS_SECTION_HEADER_LEN, DIR_ENTRY_LEN, FLAG_MANDATORY, GEOMETRIC_HEADER_LEN,
     GEOMETRIC_SEGMENT_LEN, GROUP_HEADER_LEN, GROUP_SCHEMA_VERSION, MAX_SECTIONS, NO_AXIS,
-    ROTARY_SECTION_LEN, ROTARY_SECTION_V1_LEN, ROTARY_SECTION_VERSION, SENSOR_NAME_LEN,
+    ROTARY_SECTION_LEN, ROTARY_SECTION_V1_LEN, ROTARY_SECTION_VERSION, ROTARY_SECTION_WOBBLE_LEN,
+    ROTARY_SECTION_WOBBLE_VERSION, SENSOR_NAME_LEN,
 };
 
 pub use crate::group_image_parse::{

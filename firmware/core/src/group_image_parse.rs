@@ -7,14 +7,15 @@ use crate::error::ImageError;
 use crate::format::{
     AXIS_SECTION_HEADER_LEN, DIR_ENTRY_LEN, FLAG_MANDATORY, GEOMETRIC_HEADER_LEN,
     GEOMETRIC_SEGMENT_LEN, GROUP_HEADER_LEN, GROUP_SCHEMA_VERSION, MAX_SECTIONS, NO_AXIS,
-    ROTARY_SECTION_LEN, ROTARY_SECTION_V1_LEN, ROTARY_SECTION_VERSION, SENSOR_NAME_LEN,
+    ROTARY_SECTION_LEN, ROTARY_SECTION_V1_LEN, ROTARY_SECTION_VERSION, ROTARY_SECTION_WOBBLE_LEN,
+    ROTARY_SECTION_WOBBLE_VERSION, SENSOR_NAME_LEN,
 };
 use crate::format::{CRC_LEN, crc32};
 use crate::geometric::{GeometricCoefficients, GeometricGrid, GeometricSpec};
 use crate::image;
 use crate::le::{f32_at, i64_at, rd, u8_at, u16_at, u32_at};
 use crate::probe_settings::{PROBE_SECTION_LEN, ProbeSettings};
-use crate::rotary_spec::{RotaryLocationSpec, RotaryMachine};
+use crate::rotary_spec::{RotaryLocationSpec, RotaryMachine, RotaryWobble};
 use crate::{MAX_IMAGE_LEN, MAX_SENSORS};
 
 /// Section types.
@@ -106,8 +107,12 @@ impl<'a> GroupImageView<'a> {
             counts_per_rev: 0,
             image: &[],
         }; MAX_AXES];
-        for (o, a) in out.iter_mut().zip(self.axes()) {
-            *o = a.axis;
+        // Indexed, not zipped: load-time code the zip unrolled over the slots (about 900 B more
+        // of firmware code).
+        for (k, a) in self.axes().enumerate() {
+            if let Some(o) = out.get_mut(k) {
+                *o = a.axis;
+            }
         }
         (out, self.n_axes)
     }
@@ -414,7 +419,12 @@ fn read_sections<'a>(
             None => continue,
         };
         let supported = match kind {
-            SectionKind::Rotary => matches!(e.version, 1 | ROTARY_SECTION_VERSION),
+            SectionKind::Rotary => {
+                matches!(
+                    e.version,
+                    1 | ROTARY_SECTION_VERSION | ROTARY_SECTION_WOBBLE_VERSION
+                )
+            }
             _ => e.version == 1,
         };
         if !supported {
@@ -527,7 +537,8 @@ fn check_across_sections<'a>(
     // The group's own rules (counts per revolution, rotary grids, the stages' axes), as
     // `Group::load` applies them (the pool size is the loading build's business).
     let (images, n) = view.axis_images();
-    crate::group_check::validate_group_stages::<{ usize::MAX }>(
+    crate::group_check::validate_group_stages(
+        usize::MAX,
         &images[..n],
         view.rotary.as_ref(),
         view.geometric.as_ref(),
@@ -551,20 +562,22 @@ fn check_sensor_names(s: &[u8], n_sensors: usize, code: u8) -> Result<(), ImageE
     Ok(())
 }
 
-/// A rotary-model section of `version` 1 (AC trunnion, no squareness) or 2.
+/// A rotary-model section of `version` 1 (AC trunnion, no squareness), 2 or 3 (with a wobble).
 fn parse_rotary(version: u16, s: &[u8], index: usize) -> Result<RotaryLocationSpec, ImageError> {
     let bounds = ImageError::SectionBounds {
         index: index as u16,
     };
+    let len = match version {
+        1 => ROTARY_SECTION_V1_LEN,
+        ROTARY_SECTION_VERSION => ROTARY_SECTION_LEN,
+        _ => ROTARY_SECTION_WOBBLE_LEN,
+    };
+    if s.len() != len {
+        return Err(bounds);
+    }
     let (machine, at) = if version == 1 {
-        if s.len() != ROTARY_SECTION_V1_LEN {
-            return Err(bounds);
-        }
         (RotaryMachine::AcTrunnion, 0)
     } else {
-        if s.len() != ROTARY_SECTION_LEN {
-            return Err(bounds);
-        }
         if u8_at(s, 1) != 0 {
             return Err(reserved());
         }
@@ -600,15 +613,37 @@ fn parse_rotary(version: u16, s: &[u8], index: usize) -> Result<RotaryLocationSp
         pivot_counts: [i64_at(s, tail), i64_at(s, tail + 8), i64_at(s, tail + 16)],
         tool_length_um: f32_at(s, tail + 24),
         not_identified: if version == 1 { 0 } else { u16_at(s, 2) },
+        wobble: parse_wobble(s.get(ROTARY_SECTION_LEN..).unwrap_or(&[])),
     })
+}
+
+/// The wobble of a version-3 rotary section from the bytes after version 2's fields (none for
+/// fewer bytes: versions 1 and 2).
+fn parse_wobble(s: &[u8]) -> RotaryWobble {
+    let mut w = RotaryWobble::NONE;
+    if s.len() == ROTARY_SECTION_WOBBLE_LEN - ROTARY_SECTION_LEN {
+        let (c, tilt) = s.split_at(32 * 4);
+        read_f32s(c, w.c.as_flattened_mut());
+        read_f32s(tilt, w.tilt.as_flattened_mut());
+    }
+    w
+}
+
+/// The little-endian f32 values of `s` into `out` (as many as both hold).
+fn read_f32s(s: &[u8], out: &mut [f32]) {
+    for (v, b) in out.iter_mut().zip(s.chunks_exact(4)) {
+        *v = f32_at(b, 0);
+    }
 }
 
 /// Length of the rotary section [`write_group_image`] writes for `r` (version 1 when it fits).
 pub(crate) fn rotary_section_len(r: &RotaryLocationSpec) -> usize {
     if r.fits_version_1() {
         ROTARY_SECTION_V1_LEN
-    } else {
+    } else if r.wobble.is_none() {
         ROTARY_SECTION_LEN
+    } else {
+        ROTARY_SECTION_WOBBLE_LEN
     }
 }
 

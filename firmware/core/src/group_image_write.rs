@@ -7,8 +7,8 @@ use crate::axis::{AxisName, MAX_AXES};
 use crate::error::ImageError;
 use crate::format::{
     AXIS_SECTION_HEADER_LEN, CRC_LEN, DIR_ENTRY_LEN, FLAG_MANDATORY, GROUP_HEADER_LEN,
-    GROUP_SCHEMA_VERSION, MAGIC, MAX_SECTIONS, NO_AXIS, ROTARY_SECTION_VERSION, SENSOR_NAME_LEN,
-    crc32,
+    GROUP_SCHEMA_VERSION, MAGIC, MAX_SECTIONS, NO_AXIS, ROTARY_SECTION_VERSION,
+    ROTARY_SECTION_WOBBLE_VERSION, SENSOR_NAME_LEN, crc32,
 };
 use crate::geometric::GeometricSpec;
 use crate::group_image_parse::{SectionKind, geometric_section_len, parse, rotary_section_len};
@@ -164,8 +164,10 @@ pub fn write_group_image_with_stages(
     if let Some(r) = rotary {
         let version = if r.fits_version_1() {
             1
-        } else {
+        } else if r.wobble.is_none() {
             ROTARY_SECTION_VERSION
+        } else {
+            ROTARY_SECTION_WOBBLE_VERSION
         };
         s.push(SectionKind::Rotary, version, NO_AXIS, |w| {
             put_rotary(w, r, version)
@@ -242,7 +244,8 @@ impl SectionWriter<'_> {
     }
 }
 
-/// The rotary-model section's body in `version` (1: AC trunnion without squareness).
+/// The rotary-model section's body in `version` (1: AC trunnion without squareness; 3: with the
+/// wobble).
 fn put_rotary(w: &mut Put, r: &RotaryLocationSpec, version: u16) {
     if version != 1 {
         w.u8(r.machine.code());
@@ -262,6 +265,11 @@ fn put_rotary(w: &mut Put, r: &RotaryLocationSpec, version: u16) {
     }
     w.f32(r.tool_length_um);
     w.u32(0);
+    if version == ROTARY_SECTION_WOBBLE_VERSION {
+        for v in r.wobble.coefficients() {
+            w.f32(v);
+        }
+    }
 }
 
 /// The geometric-model section's body.

@@ -95,6 +95,7 @@ pub mod provenance;
 mod provenance_block;
 pub mod rotary;
 mod rotary_spec;
+mod rotary_wobble;
 mod runtime;
 mod sensor;
 mod spec;

@@ -93,6 +93,92 @@ pub struct RotaryLocationSpec {
     /// [`RotaryLocationSpec::all_constants`] was not identified by the fit and holds its fixed
     /// prior (0).
     pub not_identified: u16,
+    /// The rotary axes' wobble (all zero: none).
+    pub wobble: RotaryWobble,
+}
+
+/// Harmonics of C's angle a wobble holds (k = 1..=4 per turn).
+pub const WOBBLE_HARMONICS: usize = 4;
+/// Powers of the tilt axis's angle a wobble holds (t^d, d = 1..=3).
+pub const WOBBLE_TILT_DEGREE: usize = 3;
+/// Largest |coefficient| of a wobble, µrad or µm (a first-order term, as the location errors).
+pub const MAX_WOBBLE: f32 = 1.0e4;
+
+/// The `rotary_wobble` effect of a `fit rtest` model: small rotations w and translations r of what
+/// each rotary axis carries (trunnion: the table; head: the tool), varying with its angle, added
+/// to the location errors (see [`crate::rotary`]'s glossary for the frames).
+///
+/// - C (in the frame the tilt axis carries for a trunnion, the machine frame for the head): per
+///   harmonic k = 1..=[`WOBBLE_HARMONICS`] the tilt about X (µrad), radial motion along X (µm),
+///   tilt about Y (µrad), radial motion along Y (µm), each times cos kc, then the same four times
+///   sin kc: `c[k − 1]` = [wx_cos, rx_cos, wy_cos, ry_cos, wx_sin, rx_sin, wy_sin, ry_sin].
+/// - the tilt axis (machine frame at zero angles for a trunnion, turned by C for the head): per
+///   power d = 1..=[`WOBBLE_TILT_DEGREE`] of its signed angle t (rad, in (−π, π]) the tilt about
+///   the axis ⟂ 1 (µrad), radial motion along it (µm), tilt about Z (µrad), radial motion along Z
+///   (µm), each times t^d: `tilt[d − 1]`; ⟂ 1 is Y for A, X for B.
+///
+/// The names and order are those of the host's `axcomp_rtest::effects::EffectBasis::Wobble`
+/// parameters (`C_tilt_x_cos1`, `C_radial_x_cos1`, …, `A_tilt_y_t1`, …).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+pub struct RotaryWobble {
+    /// C's coefficients per harmonic (see the type's doc).
+    pub c: [[f32; 8]; WOBBLE_HARMONICS],
+    /// The tilt axis's coefficients per power (see the type's doc).
+    pub tilt: [[f32; 4]; WOBBLE_TILT_DEGREE],
+}
+
+impl RotaryWobble {
+    /// No wobble.
+    pub const NONE: RotaryWobble = RotaryWobble {
+        c: [[0.0; 8]; WOBBLE_HARMONICS],
+        tilt: [[0.0; 4]; WOBBLE_TILT_DEGREE],
+    };
+
+    /// Every coefficient, C's then the tilt axis's (the order of the section and of the index of
+    /// [`Field::RotaryWobble`]).
+    pub fn coefficients(&self) -> impl Iterator<Item = f32> + '_ {
+        self.c
+            .as_flattened()
+            .iter()
+            .chain(self.tilt.as_flattened())
+            .copied()
+    }
+
+    /// True when every coefficient is 0 (a non-finite one is not 0).
+    pub fn is_none(&self) -> bool {
+        self.scan() == Ok(false)
+    }
+
+    /// Every coefficient finite and within ±[`MAX_WOBBLE`].
+    pub fn validate(&self) -> Result<(), ImageError> {
+        self.scan().map(|_| ())
+    }
+
+    /// [`RotaryWobble::validate`], and whether a coefficient is non-zero.
+    fn scan(&self) -> Result<bool, ImageError> {
+        let c = scan_wobble(self.c.as_flattened(), 0)?;
+        Ok(scan_wobble(self.tilt.as_flattened(), 8 * WOBBLE_HARMONICS as u16)? | c)
+    }
+}
+
+/// [`RotaryWobble::scan`] of the coefficients `v`, the first of which has the index `first`
+/// (out of line: load-time code, one copy): whether one is non-zero.
+#[inline(never)]
+fn scan_wobble(v: &[f32], first: u16) -> Result<bool, ImageError> {
+    let mut any = false;
+    for (i, &v) in v.iter().enumerate() {
+        any |= v != 0.0;
+        let index = first + i as u16;
+        let field = Field::RotaryWobble;
+        if !v.is_finite() {
+            return Err(ImageError::NonFinite { field, index });
+        }
+        if libm::fabsf(v) > MAX_WOBBLE {
+            return Err(ImageError::OutOfRange { field, index });
+        }
+    }
+    Ok(any)
 }
 
 impl RotaryLocationSpec {
@@ -111,6 +197,7 @@ impl RotaryLocationSpec {
         pivot_counts: [0; 3],
         tool_length_um: 0.0,
         not_identified: 0,
+        wobble: RotaryWobble::NONE,
     };
 
     /// The 8 location errors in the order of the fields (µm, µm, µrad, µrad, µm, µm, µrad, µrad).
@@ -142,12 +229,15 @@ impl RotaryLocationSpec {
         self.machine == RotaryMachine::AcTrunnion
             && self.squareness_urad == [0.0; 3]
             && self.not_identified == 0
+            && self.wobble.is_none()
     }
 
     /// Range checks: every constant finite, offsets ≤ 10 mm, angles ≤ 10 mrad (the model is
     /// first order), |pivot| ≤ 2^62 counts, tool length in [0, 10 m], `not_identified` naming
-    /// constants only (and each of them 0).
+    /// constants only (and each of them 0), the wobble's coefficients
+    /// ([`RotaryWobble::validate`]).
     pub fn validate(&self) -> Result<(), ImageError> {
+        self.wobble.validate()?;
         if self.not_identified >> 11 != 0 {
             return Err(ImageError::OutOfRange {
                 field: Field::Reserved,

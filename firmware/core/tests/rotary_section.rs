@@ -51,6 +51,7 @@ fn spec(machine: RotaryMachine) -> RotaryLocationSpec {
         tool_length_um: 150_000.0,
         // The first tilt-axis offset was not identified (held at 0).
         not_identified: 1 << 4,
+        wobble: axcomp_core::rotary::RotaryWobble::NONE,
     }
 }
 
@@ -126,6 +127,7 @@ fn version_2_round_trips_for_every_machine_kind() {
     let plain = RotaryLocationSpec {
         squareness_urad: [0.0; 3],
         not_identified: 0,
+        wobble: axcomp_core::rotary::RotaryWobble::NONE,
         ..spec(RotaryMachine::AcTrunnion)
     };
     let b = group_bytes(AxisName::A, &plain);
@@ -144,6 +146,7 @@ fn version_1_sections_still_load_as_ac_trunnion() {
     let v2 = RotaryLocationSpec {
         squareness_urad: [0.0; 3],
         not_identified: 0,
+        wobble: axcomp_core::rotary::RotaryWobble::NONE,
         ..spec(RotaryMachine::AcTrunnion)
     };
     let mut b = group_bytes(AxisName::A, &v2);
@@ -229,11 +232,16 @@ fn typed_refusals_of_the_rotary_section() {
             index: 10
         }
     );
-    // Version 3 of a mandatory rotary section: not supported by this build.
+    // Version 4 of a mandatory rotary section: not supported by this build.
     assert_eq!(
-        edit(&|b| b[at + 2] = 3),
+        edit(&|b| b[at + 2] = 4),
         ImageError::UnsupportedSection { kind: 3 }
     );
+    // A version-3 directory entry (with a wobble: 256 bytes) over an 80-byte section.
+    assert!(matches!(
+        edit(&|b| b[at + 2] = 3),
+        ImageError::SectionBounds { .. }
+    ));
     // A version-1 directory entry over an 80-byte section.
     assert!(matches!(
         edit(&|b| b[at + 2] = 1),

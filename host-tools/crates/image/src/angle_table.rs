@@ -12,15 +12,19 @@
 //!   error's values and slopes at the knots. The tilt axis's polynomial is taken in the signed angle
 //!   (−180°..180°): the segment holding 180° is continued from its start (a tilt axis does not turn
 //!   there).
-//! - *left out*: `rotary_wobble` (a tilt of what an axis carries and its radial motion, varying with
-//!   the angle) and `linear_geometry` (errors of the tool point along X, Y, Z varying with the linear
-//!   axes' positions): the group engine's stages have no input for them from an R-test model (the rotary
-//!   stage holds the 11 location errors; the geometric stage takes a `fit geometry` model), so
-//!   `image group` says so with the correction each leaves out (its RMS over the fitted poses).
+//! - *wobble*: the `rotary_wobble` effect (a tilt of what an axis carries and its radial motion,
+//!   varying with its angle): carried by the rotary section ([`axcomp_core::rotary::RotaryWobble`]: C's
+//!   harmonics 1…4 per turn, the tilt axis's powers 1…3 of its angle), the stage adds it to the
+//!   location errors; harmonics above 4 per turn are left out (and said).
+//! - *left out*: `linear_geometry` (errors of the tool point along X, Y, Z varying with the linear
+//!   axes' positions): the group engine's stages have no input for it from an R-test model (the rotary
+//!   stage holds the location errors and the wobble; the geometric stage takes a `fit geometry` model),
+//!   so `image group` says so with the correction it leaves out (its RMS over the fitted poses).
 
 use std::f64::consts::TAU;
 
 use axcomp_core::group::AxisName;
+use axcomp_core::rotary::{RotaryWobble, WOBBLE_HARMONICS, WOBBLE_TILT_DEGREE};
 use axcomp_core::{
     Compensator, ImageSpec, OutsideStroke, TableSpec, image_len, inspect_image, write_image,
 };
@@ -90,6 +94,8 @@ impl AngleError {
 #[derive(Debug, Clone, Default)]
 pub struct EffectsInImage {
     pub angle_errors: Vec<(AxisName, AngleError)>,
+    /// The `rotary_wobble` effect for the rotary section, if the model has one.
+    pub wobble: Option<RotaryWobble>,
     pub carried: Vec<String>,
     pub left_out: Vec<String>,
 }
@@ -142,6 +148,33 @@ pub fn effects_in_image(model: &RtestModel) -> Result<EffectsInImage> {
                 out.angle_errors.push((AxisName::C, c));
                 out.angle_errors.push((tilt, AngleError::Polynomial(g)));
             }
+            EffectBasis::Wobble {
+                per_revolution,
+                tilt_degree,
+            } => {
+                let (w, beyond) = wobble(*tilt_degree, per_revolution, tilt.letter(), &value)?;
+                out.carried.push(format!(
+                    "the model's effect `{}` ({} parameters; RMS {:.3} µm over the fitted poses) is carried \
+                     by the rotary section (its wobble: C at {:?} per turn, {} to degree {tilt_degree}), \
+                     applied by the rotary stage with the location errors",
+                    e.kind,
+                    e.parameters.len(),
+                    e.rms_over_fit_um,
+                    per_revolution
+                        .iter()
+                        .filter(|&&k| k <= WOBBLE_HARMONICS)
+                        .collect::<Vec<_>>(),
+                    tilt.letter()
+                ));
+                if !beyond.is_empty() {
+                    out.left_out.push(format!(
+                        "the model's effect `{}`: C's wobble at {beyond:?} per turn is not carried (the \
+                         rotary stage holds 1…{WOBBLE_HARMONICS} per turn); its correction is left out",
+                        e.kind
+                    ));
+                }
+                out.wobble = Some(w);
+            }
             _ => out.left_out.push(format!(
                 "the model's effect `{}` ({} parameters) is not carried by the image: the firmware has no \
                  stage for it from an R-test model (the rotary stage applies the 11 location errors, axis \
@@ -157,6 +190,52 @@ pub fn effects_in_image(model: &RtestModel) -> Result<EffectsInImage> {
         }
     }
     Ok(out)
+}
+
+/// The rotary section's wobble from a `rotary_wobble` effect's parameters (`value` by name, the names of
+/// `axcomp_rtest::effects::EffectTerm::param_names`), and the listed C harmonics it cannot hold (above
+/// [`WOBBLE_HARMONICS`]). Refused: a tilt degree above [`WOBBLE_TILT_DEGREE`].
+fn wobble(
+    tilt_degree: usize,
+    per_revolution: &[usize],
+    tilt: char,
+    value: &dyn Fn(&str) -> Result<f64>,
+) -> Result<(RotaryWobble, Vec<usize>)> {
+    ensure!(
+        tilt_degree <= WOBBLE_TILT_DEGREE,
+        "effect `rotary_wobble`: tilt degree {tilt_degree}, the rotary stage holds 1…{WOBBLE_TILT_DEGREE}"
+    );
+    let mut w = RotaryWobble::NONE;
+    let mut beyond = Vec::new();
+    for &k in per_revolution {
+        let Some(row) = k.checked_sub(1).and_then(|i| w.c.get_mut(i)) else {
+            beyond.push(k);
+            continue;
+        };
+        let mut i = 0;
+        for trig in ["cos", "sin"] {
+            for ax in ['x', 'y'] {
+                row[i] = value(&format!("C_tilt_{ax}_{trig}{k}"))? as f32;
+                row[i + 1] = value(&format!("C_radial_{ax}_{trig}{k}"))? as f32;
+                i += 2;
+            }
+        }
+    }
+    let perpendicular = if tilt == 'A' { ['y', 'z'] } else { ['x', 'z'] };
+    for (d, row) in w.tilt.iter_mut().enumerate().take(tilt_degree) {
+        let d = d + 1;
+        for (j, ax) in perpendicular.into_iter().enumerate() {
+            row[2 * j] = value(&format!("{tilt}_tilt_{ax}_t{d}"))? as f32;
+            row[2 * j + 1] = value(&format!("{tilt}_radial_{ax}_t{d}"))? as f32;
+        }
+    }
+    w.validate().map_err(|e| {
+        Error::core(
+            "effect `rotary_wobble`: not within the rotary stage's range",
+            e,
+        )
+    })?;
+    Ok((w, beyond))
 }
 
 /// Cubic Hermite segments `[c0, c1, c2, c3]` in t ∈ [0, 1) through `f`'s values and slopes (slope per

@@ -7,7 +7,9 @@ use axcomp_core::geometric::{COMPONENT_NAMES, GeometricSpec};
 use axcomp_core::group::AxisName;
 use axcomp_core::group_image;
 use axcomp_core::provenance;
-use axcomp_core::rotary::{RotaryLocationSpec, RotaryMachine};
+use axcomp_core::rotary::{
+    RotaryLocationSpec, RotaryMachine, WOBBLE_HARMONICS, WOBBLE_TILT_DEGREE,
+};
 use axcomp_core::wiring::{BoardInput, InputUnit};
 use axcomp_core::{Compensator, inspect_image};
 
@@ -323,7 +325,7 @@ fn describe_rotary(r: &RotaryLocationSpec) -> String {
         "tool length"
     };
     format!(
-        "rotary location errors ({}): {}\n  squareness: {}\n  not identified (fixed at their prior 0): {}\n  pivot {:?} counts, {length} {} µm\n",
+        "rotary location errors ({}): {}\n  squareness: {}\n  not identified (fixed at their prior 0): {}\n  pivot {:?} counts, {length} {} µm\n{}",
         r.machine.name(),
         list(0..8),
         list(8..11),
@@ -333,8 +335,45 @@ fn describe_rotary(r: &RotaryLocationSpec) -> String {
             not.join(", ")
         },
         r.pivot_counts,
-        r.tool_length_um
+        r.tool_length_um,
+        describe_wobble(r)
     )
+}
+
+/// The wobble's line of `image inspect`: its non-zero coefficients by the model's parameter names
+/// (`C_tilt_x_cos2`, `A_radial_z_t1`, …), or `none`.
+fn describe_wobble(r: &RotaryLocationSpec) -> String {
+    let tilt = r.machine.tilt_axis().letter();
+    let perpendicular = if tilt == 'A' { ['y', 'z'] } else { ['x', 'z'] };
+    let mut names = Vec::new();
+    for k in 1..=WOBBLE_HARMONICS {
+        for trig in ["cos", "sin"] {
+            for ax in ['x', 'y'] {
+                names.push((format!("C_tilt_{ax}_{trig}{k}"), "µrad"));
+                names.push((format!("C_radial_{ax}_{trig}{k}"), "µm"));
+            }
+        }
+    }
+    for d in 1..=WOBBLE_TILT_DEGREE {
+        for ax in perpendicular {
+            names.push((format!("{tilt}_tilt_{ax}_t{d}"), "µrad"));
+            names.push((format!("{tilt}_radial_{ax}_t{d}"), "µm"));
+        }
+    }
+    let terms: Vec<String> = names
+        .iter()
+        .zip(r.wobble.coefficients())
+        .filter(|(_, v)| *v != 0.0)
+        .map(|((n, unit), v)| format!("{n} {v} {unit}"))
+        .collect();
+    if terms.is_empty() {
+        "  wobble: none\n".to_string()
+    } else {
+        format!(
+            "  wobble (angles of C at k per turn, of {tilt} as powers of its signed angle in rad): {}\n",
+            terms.join(", ")
+        )
+    }
 }
 
 /// The `image inspect` lines of a geometric section: stacking, tool offset, grids, squareness

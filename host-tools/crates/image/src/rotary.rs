@@ -92,6 +92,7 @@ pub fn rotary_from_rtest_model(
         pivot_counts,
         tool_length_um: (tool_mm * 1000.0) as f32,
         not_identified,
+        wobble: axcomp_core::rotary::RotaryWobble::NONE,
     };
     spec.validate()
         .map_err(|e| Error::core("the rotary section is not valid", e))?;
@@ -173,12 +174,16 @@ pub fn rotary_section(
             )
         })?;
         let pivot = crate::args::parse_pivot_counts(pivot)?;
-        let spec = rotary_from_rtest_model(&model, pivot, tool_length_mm)
+        let mut spec = rotary_from_rtest_model(&model, pivot, tool_length_mm)
             .map_err(|e| Error::Invalid(format!("{label}: {e}")))?;
-        // The rotary stage carries the 11 location errors; of the effects, what the axis tables can
-        // apply goes there and the rest is said, with the correction it leaves out.
+        // The rotary stage carries the 11 location errors and the wobble; of the other effects,
+        // what the axis tables can apply goes there and the rest is said, with the correction it
+        // leaves out.
         let effects =
             effects_in_image(&model).map_err(|e| Error::Invalid(format!("{label}: {e}")))?;
+        if let Some(w) = effects.wobble {
+            spec.wobble = w;
+        }
         return Ok(RotarySection { spec, effects });
     }
     ensure!(
