@@ -147,17 +147,6 @@ fn stroke(obs: &[Observation]) -> Result<(f64, f64), FitError> {
     if !(hi > lo) {
         return Err(FitError::NoStroke(lo));
     }
-    let lo = obs
-        .iter()
-        .map(|o| o.target_mm)
-        .fold(f64::INFINITY, f64::min);
-    let hi = obs
-        .iter()
-        .map(|o| o.target_mm)
-        .fold(f64::NEG_INFINITY, f64::max);
-    if !(hi > lo) {
-        return Err(FitError::NoStroke(lo));
-    }
     Ok((lo, hi))
 }
 
