@@ -364,13 +364,13 @@ impl<S: TableStore> AxisCompensator<S> {
                 &self.segments,
                 pool,
                 &mut st.table,
-                dir,
                 turn as i64,
                 pos as u32,
+                dir,
             )
         } else {
             self.table
-                .refill(&self.segments, pool, &mut st.table, dir, pos, pos as u32)
+                .refill(&self.segments, pool, &mut st.table, pos, pos as u32, dir)
         }
     }
 

@@ -199,9 +199,11 @@ impl TableStage {
         store: &S,
         pool: &[[f32; 4]],
         st: &mut TableState,
-        dir: Direction,
         table_pos: i64,
         pos_low: u32,
+        // Last: with the arguments before it, in the stack area of the caller's own arguments
+        // (the cache miss's path calls this as its last step, a tail call).
+        dir: Direction,
     ) -> (f32, bool) {
         st.seg_limit = 0;
         if let Some(seg_counts) = self.segment {
