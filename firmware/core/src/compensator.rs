@@ -469,9 +469,9 @@ impl<S: TableStore> AxisCompensator<S> {
         // BACKWARD is bit 7, TABLE_OUTSIDE bit 0; each path builds the flags after its lookup
         // (the cached ones know TABLE_OUTSIDE is clear), so that no flag register is live
         // across it.
-        // (The cached paths: the direction's flag, the direction the cache was filled in: a
-        // reversal voids it.)
-        let backward = |st: &State| Flags(st.counter.direction.flag());
+        // (The cached paths: the direction's flag as the refill stored it; the cache is voided
+        // on a reversal.)
+        let backward = |st: &State| Flags(st.table.seg_flags);
         let with_outside = |st: &State, (v, outside): (f32, bool)| {
             (v, Flags(st.counter.direction.with_flag(outside as u16)))
         };

@@ -25,9 +25,12 @@ use crate::hint::cold_path;
 ///
 /// `#[repr(C)]` in this order: the extended position first, the counter value and the distance
 /// moved back side by side (one paired load and store), within a few words of the other parts of
-/// the axis's [`crate::State`].
-#[derive(Debug, Clone)]
-#[repr(C)]
+/// the axis's [`crate::State`]. Aligned to 4 bytes, not the i64's 8 (`packed(4)`: every field
+/// stays at its natural offset; the position's paired load and store need only word alignment),
+/// so that the state has no padding to 8 bytes (see [`crate::state`]). Fields are read and
+/// written by value only (no reference to the position).
+#[derive(Debug, Clone, Copy)]
+#[repr(C, packed(4))]
 pub(crate) struct CounterState {
     pub(crate) position: i64,
     pub(crate) last_raw: u32,

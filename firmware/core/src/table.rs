@@ -28,8 +28,8 @@ use crate::store::TableStore;
 /// The low 32 bits of the extended position where the last cycle's table segment starts, that
 /// segment's length while the cache is valid (0: void, the next lookup is a full one; always 0
 /// while the counter stage is not primed), for a rotary axis the segment's start within the turn,
-/// and a copy of its coefficients in the half of the present direction (a reversal voids the
-/// cache). `#[repr(C)]` in this order: the start and the length side by side
+/// a copy of its coefficients in the half of the present direction (a reversal voids the cache)
+/// and that direction's flag. `#[repr(C)]` in this order: the start and the length side by side
 /// (one paired load).
 #[derive(Debug, Clone)]
 #[repr(C)]
@@ -38,6 +38,10 @@ pub(crate) struct TableState {
     pub(crate) seg_limit: u32,
     pub(crate) seg_turn_start: u32,
     pub(crate) seg_coef: [f32; 4],
+    /// [`crate::Flags::BACKWARD`] if the direction was backward when the cache was filled, else
+    /// none: while the cache is valid, the direction's flag as a word (no zero-extension of the
+    /// direction's byte per axis and cycle).
+    pub(crate) seg_flags: u16,
 }
 
 impl TableState {
@@ -47,6 +51,7 @@ impl TableState {
         seg_limit: 0,
         seg_turn_start: 0,
         seg_coef: [0.0; 4],
+        seg_flags: 0,
     };
 
     /// The cache voided: the next lookup is a full one.
@@ -211,6 +216,7 @@ impl TableStage {
             let offset = diff as u32;
             if (diff >> 32) == 0 && offset < self.span_counts && seg_counts.get() <= 1 << 31 {
                 let seg = offset / seg_counts;
+                st.seg_flags = dir.flag();
                 st.seg_coef = *store.segment(pool, dir, seg);
                 let rem = offset - seg.wrapping_mul(seg_counts.get());
                 st.seg_start = pos_low.wrapping_sub(rem);

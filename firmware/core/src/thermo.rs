@@ -159,7 +159,9 @@ impl<Sn> ThermoForceStage<Sn> {
     }
 
     /// Back to no thermo-force term ([`ThermoForceStage::none`]), the sensors' settings left as
-    /// they are (the loader copies them separately, to wherever the storage keeps them).
+    /// they are (the loader copies them separately, to wherever the storage keeps them). Out of
+    /// line: one copy for the loader and `clear` (code size; run at load only).
+    #[inline(never)]
     pub(crate) fn reset(&mut self) {
         self.has_thermo = false;
         self.sensor_period_ms = 0;
