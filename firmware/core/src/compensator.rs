@@ -10,20 +10,22 @@
 //! extension, direction), `table` ([`crate::table`]: positioning table, with the segments in
 //! `segments`), `thermo` ([`crate::thermo`]: thermo-force term), `limits` ([`crate::limits`]:
 //! clamp, slew, rounding to counts). [`AxisCompensator::cycle_in`] calls them in that order,
-//! passing the axis's `State`; the few steps that need two stages (the segment cache's miss path:
-//! counter extension redone, turn position, table refill) are composed here too. The accessors
-//! of the stages' settings are here as the compensator's public API.
+//! passing each its own part of the axis's `State` (`st.counter`, `st.table`, `st.thermo`,
+//! `st.limits`); the few steps that need two stages (a reversal voiding the segment cache:
+//! [`crate::state::on_reversal`]; the segment cache's miss path: counter extension redone, turn
+//! position, table refill in the counter's direction) are composed here and in [`crate::state`].
+//! The accessors of the stages' settings are here as the compensator's public API.
 
 use crate::ImageError;
 use crate::counts::{CounterShift, Direction};
 use crate::hint::cold_path;
 use crate::io::{CycleInput, CycleOutput, Flags};
-use crate::runtime::{AxisCompensator, Compensator, OwnTable, PoolSource, State, TableStore};
+use crate::runtime::{AxisCompensator, Compensator, OwnTable, PoolSource, TableStore};
 use crate::sensor::{ForceSource, ProcessParams, SensorRt};
 use crate::spec::{
     ExpansionSpec, ForceSpec, LimitSpec, OutsideStroke, SensorSpec, ThermoReference,
 };
-use crate::state::on_reversal;
+use crate::state::{State, on_reversal};
 use crate::table::{Lookup, cubic};
 use crate::{MAX_FORCES, MAX_SEGMENTS, MAX_SENSORS};
 

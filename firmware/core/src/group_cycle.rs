@@ -16,9 +16,10 @@ use crate::group_check::validate_group_stages;
 use crate::image;
 use crate::io::{CycleInput, CycleOutput, Flags};
 use crate::rotary::{RotaryLocationSpec, RotaryMachine, RotaryStage};
-use crate::runtime::{AxisCompensator, PoolSource, State};
+use crate::runtime::{AxisCompensator, PoolSource};
 use crate::sensor::{ProcessParams, SensorRt};
 use crate::spec::SensorSpec;
+use crate::state::State;
 
 /// [`Group`]'s cycle dispatch, set at load. An enum of 0..=6, so that its load carries its range
 /// and the dispatch's `match` is a table branch with no range test.

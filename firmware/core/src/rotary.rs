@@ -68,6 +68,10 @@
 //! squareness terms scaled by the axes' µm per count, the tool length in whole counts of Z added to
 //! the pivot, the radians per count folded into the sin/cos polynomials.
 //!
+//! The stage is a value: its settings `RotaryStage` (read through `&self`, built at load) and
+//! its state, the angle cache [`RotaryCache`] (through `&mut`: `RotaryStage::track`, the
+//! refresh and fold), held in the group's state.
+//!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
 //! software: about 2 400 instructions per call, 5 000 per cycle whenever both angles move. So
