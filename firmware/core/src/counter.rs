@@ -15,8 +15,9 @@
 //! and its state [`CounterState`] (the extended position, the counter value, the distance moved
 //! back, the direction, and for a rotary axis the turn position; through `&mut`), one part of
 //! the axis's [`crate::State`]. A reversal calls the caller's `on_reversal` after the direction
-//! flipped (the compensator voids the table's segment cache there); with `TURNS` (a
-//! compile-time choice of the caller: the axis may be rotary) out of line.
+//! flipped (the compensator passes [`crate::state::on_reversal`], which voids the table's segment
+//! cache); with `TURNS` (a compile-time choice of the caller: the axis may be rotary) out of
+//! line.
 
 use crate::counts::{CounterShift, Direction, step_in_turn, wrap};
 use crate::hint::cold_path;

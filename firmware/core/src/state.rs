@@ -14,8 +14,8 @@
 //! load), so the whole state is: 428 bytes, the 2-byte tails of the table's and the thermo
 //! parts padded to words, and no padding to 8 bytes after the last part (an axis of a group is
 //! 428 bytes from the next). Measured against the one flat struct it replaced (424 bytes, with
-//! the fields of the stages interleaved; `.ci/bench`): single axis ±0, group3 −3.8, group5
-//! +0.2, the sensor update +5.
+//! the fields of the stages interleaved; `.ci/bench`): single axis +0.1 / ±0, group3 −3.8,
+//! group5 +0.2, the sensor update +5.
 
 use crate::counter::CounterState;
 use crate::counts::Direction;
