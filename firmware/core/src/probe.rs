@@ -322,8 +322,8 @@ pub fn extend_captured_in_group<const POOL: usize>(
         return 0;
     };
     extend_captured(
-        s.counter.position,
-        s.counter.last_raw,
+        s.position_counts(),
+        s.counter_raw(),
         captured_raw,
         a.counter_bits(),
     )

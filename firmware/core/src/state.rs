@@ -148,6 +148,10 @@ impl State {
     pub fn position_counts(&self) -> i64 {
         self.counter.position
     }
+    /// Counter value of the last cycle (or the one at reset, before the first cycle).
+    pub(crate) fn counter_raw(&self) -> u32 {
+        self.counter.last_raw
+    }
     /// Current approach direction.
     pub fn direction(&self) -> Direction {
         self.counter.direction
