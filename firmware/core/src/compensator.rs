@@ -10,19 +10,22 @@
 //! extension, direction), `table` ([`crate::table`]: positioning table, with the segments in
 //! `segments`), `thermo` ([`crate::thermo`]: thermo-force term), `limits` ([`crate::limits`]:
 //! clamp, slew, rounding to counts). [`AxisCompensator::cycle_in`] calls them in that order,
-//! passing the axis's `State`; the few steps that need two stages (the segment cache's miss path:
-//! counter extension redone, turn position, table refill) are composed here too. The accessors
-//! of the stages' settings are here as the compensator's public API.
+//! passing each its own part of the axis's `State` (`st.counter`, `st.table`, `st.thermo`,
+//! `st.limits`); the few steps that need two stages (a reversal voiding the segment cache:
+//! [`crate::state::on_reversal`]; the segment cache's miss path: counter extension redone, turn
+//! position, table refill in the counter's direction) are composed here and in [`crate::state`].
+//! The accessors of the stages' settings are here as the compensator's public API.
 
 use crate::ImageError;
 use crate::counts::{CounterShift, Direction};
 use crate::hint::cold_path;
 use crate::io::{CycleInput, CycleOutput, Flags};
-use crate::runtime::{AxisCompensator, Compensator, OwnTable, PoolSource, State, TableStore};
-use crate::sensor::{ForceSource, MeasuredSet, ProcessParams, SensorRt};
+use crate::runtime::{AxisCompensator, Compensator, OwnTable, PoolSource, TableStore};
+use crate::sensor::{ForceSource, ProcessParams, SensorRt};
 use crate::spec::{
     ExpansionSpec, ForceSpec, LimitSpec, OutsideStroke, SensorSpec, ThermoReference,
 };
+use crate::state::{State, on_reversal};
 use crate::table::{Lookup, cubic};
 use crate::{MAX_FORCES, MAX_SEGMENTS, MAX_SENSORS};
 
@@ -137,16 +140,8 @@ impl<S: TableStore> AxisCompensator<S> {
     pub fn clear(&mut self) {
         self.loaded = false;
         self.table.segment = None;
-        self.thermo.has_thermo = false;
         self.table.n_segments = 0;
-        self.thermo.n_sensors = 0;
-        self.thermo.n_forces = 0;
-        self.thermo.chi_um_per_n = [0.0; MAX_FORCES];
-        self.thermo.force_predicted = [false; MAX_FORCES];
-        self.thermo.measured_mask = 0;
-        self.thermo.chi_measured = [0.0; MAX_FORCES];
-        self.thermo.measured = MeasuredSet::None;
-        self.thermo.thermo_flags_xor = 0;
+        self.thermo.reset();
         self.axis_id = 0;
         self.counter.counter_bits = 0;
         self.counter.sext_shift = CounterShift::S0;
@@ -265,7 +260,7 @@ impl<S: TableStore> AxisCompensator<S> {
     /// computed here only. A non-finite or implausible prediction is replaced by 0 N and flagged
     /// (FORCE_INVALID) until the next call.
     pub fn set_process(&self, st: &mut State, p: &ProcessParams) {
-        self.thermo.set_process(self.loaded, st, p);
+        self.thermo.set_process(self.loaded, &mut st.thermo, p);
     }
     /// [`Compensator::update_temperatures`] with the sensors' settings `cfgs` (the axis's
     /// own, or its group's array: [`crate::group::Group::update_temperatures`]).
@@ -277,7 +272,8 @@ impl<S: TableStore> AxisCompensator<S> {
         readings: &[f32],
     ) {
         if self.loaded {
-            self.thermo.update_temperatures(cfgs, st, now_ms, readings);
+            self.thermo
+                .update_temperatures(cfgs, &mut st.thermo, now_ms, readings);
         }
     }
     /// The thermo-force stage ([`crate::thermo::ThermoForceStage::thermo_um`]).
@@ -290,17 +286,21 @@ impl<S: TableStore> AxisCompensator<S> {
         flags: &mut Flags,
         total: f32,
     ) -> f32 {
-        self.thermo.thermo_um(st, pos, forces_n, flags, total)
+        self.thermo
+            .thermo_um(&st.thermo, pos, forces_n, flags, total)
     }
 
     /// The counter stage ([`crate::counter::CounterStage::track`]) for this storage: with turn
     /// tracking where the axis may be rotary.
     #[inline(always)]
     pub(crate) fn track(&self, st: &mut State, raw: u32) -> (i64, i32) {
+        let (counter, table) = (&mut st.counter, &mut st.table);
         if S::TURNS {
-            self.counter.track::<true>(st, raw)
+            self.counter
+                .track::<true>(counter, raw, on_reversal::<true>(table))
         } else {
-            self.counter.track::<false>(st, raw)
+            self.counter
+                .track::<false>(counter, raw, on_reversal::<false>(table))
         }
     }
 
@@ -308,10 +308,13 @@ impl<S: TableStore> AxisCompensator<S> {
     /// [`AxisCompensator::track`]).
     #[inline(always)]
     pub(crate) fn track_primed(&self, st: &mut State, raw: u32) -> (i64, i32) {
+        let (counter, table) = (&mut st.counter, &mut st.table);
         if S::TURNS {
-            self.counter.track_primed::<true>(st, raw)
+            self.counter
+                .track_primed::<true>(counter, raw, on_reversal::<true>(table))
         } else {
-            self.counter.track_primed::<false>(st, raw)
+            self.counter
+                .track_primed::<false>(counter, raw, on_reversal::<false>(table))
         }
     }
 
@@ -319,10 +322,13 @@ impl<S: TableStore> AxisCompensator<S> {
     /// [`AxisCompensator::track`]).
     #[inline(always)]
     pub(crate) fn track_unprimed(&self, st: &mut State, raw: u32, delta: i32) -> (i64, i32) {
+        let (counter, table) = (&mut st.counter, &mut st.table);
         if S::TURNS {
-            self.counter.track_unprimed::<true>(st, raw, delta)
+            self.counter
+                .track_unprimed::<true>(counter, raw, delta, on_reversal::<true>(table))
         } else {
-            self.counter.track_unprimed::<false>(st, raw, delta)
+            self.counter
+                .track_unprimed::<false>(counter, raw, delta, on_reversal::<false>(table))
         }
     }
 
@@ -330,7 +336,7 @@ impl<S: TableStore> AxisCompensator<S> {
     #[inline(always)]
     pub(crate) fn turn_position(&self, st: &mut State, pos: i64, delta: i32) -> u32 {
         self.counter
-            .turn_position(st, self.counts_per_rev, pos, delta)
+            .turn_position(&mut st.counter, self.counts_per_rev, pos, delta)
     }
 
     /// The segment cache's miss path of the group pipelines (one out-of-line call): on a state
@@ -349,16 +355,24 @@ impl<S: TableStore> AxisCompensator<S> {
         mut delta: i32,
         raw: u32,
     ) -> (f32, bool) {
-        if !st.primed {
+        if !st.counter.primed {
             (pos, delta) = self.track_unprimed(st, raw, delta);
         }
+        let dir = st.counter.direction;
         if ROTARY {
             st.settle_turn((pos as u32).wrapping_sub(delta as u32));
             let turn = self.turn_position(st, pos, delta);
-            self.table
-                .refill(&self.segments, pool, st, turn as i64, pos as u32)
+            self.table.refill(
+                &self.segments,
+                pool,
+                &mut st.table,
+                turn as i64,
+                pos as u32,
+                dir,
+            )
         } else {
-            self.table.refill(&self.segments, pool, st, pos, pos as u32)
+            self.table
+                .refill(&self.segments, pool, &mut st.table, pos, pos as u32, dir)
         }
     }
 
@@ -372,7 +386,8 @@ impl<S: TableStore> AxisCompensator<S> {
         command: i64,
         flags: Flags,
     ) -> CycleOutput {
-        self.limits.finish(st, pos, total, command, flags)
+        self.limits
+            .finish(&mut st.limits, pos, total, command, flags)
     }
 
     /// The per-cycle call: counter extension, direction, table + thermo-force, clamp, slew, counts.
@@ -395,13 +410,13 @@ impl<S: TableStore> AxisCompensator<S> {
             if S::TURNS {
                 st.settle_turn((pos as u32).wrapping_sub(delta as u32));
             }
-            st.seg_limit = 0;
+            st.table.void();
             return CycleOutput {
                 position_counts: pos,
                 corrected_command_counts: input.command_counts,
                 correction_counts: 0,
                 correction_um: 0.0,
-                flags: Flags(st.direction.with_flag(Flags::IDENTITY.0)),
+                flags: Flags(st.counter.direction.with_flag(Flags::IDENTITY.0)),
             };
         }
         let (pos, total, flags) = self.axis_error_um(
@@ -415,7 +430,7 @@ impl<S: TableStore> AxisCompensator<S> {
             false,
         );
         self.limits
-            .finish(st, pos, total, input.command_counts, flags)
+            .finish(&mut st.limits, pos, total, input.command_counts, flags)
     }
 
     /// Table (at the extended position, or a rotary axis's position within the turn) +
@@ -452,15 +467,15 @@ impl<S: TableStore> AxisCompensator<S> {
         // Without it (the single-axis call, whose reference workload crosses a 1000-count
         // segment every 6.4 cycles: there the refills cost more than the cache saves), the full
         // lookup every cycle. Both give the same value bit for bit.
-        let r = (pos as u32).wrapping_sub(st.seg_start);
+        let r = (pos as u32).wrapping_sub(st.table.seg_start);
         // BACKWARD is bit 7, TABLE_OUTSIDE bit 0; each path builds the flags after its lookup
         // (the cached ones know TABLE_OUTSIDE is clear), so that no flag register is live
         // across it.
         // (The cached paths: the direction's flag as the refill stored it; the cache is voided
         // on a reversal.)
-        let backward = |st: &State| Flags(st.seg_flags);
+        let backward = |st: &State| Flags(st.table.seg_flags);
         let with_outside = |st: &State, (v, outside): (f32, bool)| {
-            (v, Flags(st.direction.with_flag(outside as u16)))
+            (v, Flags(st.counter.direction.with_flag(outside as u16)))
         };
         let (mut total, mut flags) = if !segment_cache {
             if rotary {
@@ -472,23 +487,23 @@ impl<S: TableStore> AxisCompensator<S> {
                 with_outside(st, v)
             }
         } else if rotary {
-            if r < st.seg_limit {
+            if r < st.table.seg_limit {
                 // Within one segment of the turn (no wrap): the turn position is the segment's
                 // start within the turn + r, not stored (see `State::turn_in`).
-                (self.table.cached_um(st, r), backward(st))
+                (self.table.cached_um(&st.table, r), backward(st))
             } else {
                 cold_path();
                 let v = self.table_um_miss::<true>(pool.pool(), st, pos, delta, raw);
                 // (Redone by the miss path on a state that was not primed.)
-                pos = st.position;
+                pos = st.counter.position;
                 with_outside(st, v)
             }
-        } else if r < st.seg_limit {
-            (self.table.cached_um(st, r), backward(st))
+        } else if r < st.table.seg_limit {
+            (self.table.cached_um(&st.table, r), backward(st))
         } else {
             cold_path();
             let v = self.table_um_miss::<false>(pool.pool(), st, pos, delta, raw);
-            pos = st.position;
+            pos = st.counter.position;
             with_outside(st, v)
         };
         if thermo_known.unwrap_or(self.thermo.has_thermo) {

@@ -45,6 +45,10 @@
 //! e'_0 = Σδ'_0 + p2·(ε'_{0,1} + ε'_{1,1}) − p1·ε'_{0,2}, e'_1 = Σδ'_1 − p2·(ε'_{0,0} + ε'_{1,0}),
 //! e'_2 = Σδ'_2 + p1·ε'_{0,0}; e of axis chain[i] is e'_i. The f32 sums run axis by axis from
 //! the workpiece end of the chain (chain axis 0, then 1, then 2; see `error_chain_um`).
+//!
+//! The stage is a value: its settings `GeometricStage` (read through `&self`, built at load,
+//! its functions in the group's coefficient pool); it keeps no state (the error is a function of
+//! the commands of the cycle).
 
 use core::num::NonZeroU32;
 

@@ -15,10 +15,11 @@ use crate::geometric::{GeometricSpec, GeometricStage};
 use crate::group_check::validate_group_stages;
 use crate::image;
 use crate::io::{CycleInput, CycleOutput, Flags};
-use crate::rotary::{RotaryCache, RotaryLocationSpec, RotaryMachine, RotaryStage};
-use crate::runtime::{AxisCompensator, PoolSource, State};
+use crate::rotary::{RotaryLocationSpec, RotaryMachine, RotaryStage};
+use crate::runtime::{AxisCompensator, PoolSource};
 use crate::sensor::{ProcessParams, SensorRt};
 use crate::spec::SensorSpec;
+use crate::state::State;
 
 /// [`Group`]'s cycle dispatch, set at load. An enum of 0..=6, so that its load carries its range
 /// and the dispatch's `match` is a table branch with no range test.
@@ -606,7 +607,7 @@ impl<const POOL: usize> Group<POOL> {
         let c = &mut st.rotary;
         // The pivot differences after the tracking, on each path (not live across it nor across the
         // fold's call: with them before it, group5 measured 505.2 instead of 488.2).
-        let moved = c.track([cmd(3), cmd(4)], g);
+        let moved = g.track(c, [cmd(3), cmd(4)]);
         if moved {
             let n = g.counts_from_pivot([cmd(0), cmd(1), cmd(2)]);
             st.angle_refreshes = st.angle_refreshes.wrapping_add(1);
@@ -690,7 +691,7 @@ impl<const POOL: usize> Group<POOL> {
         let g = &self.stage;
         let slot = |k: usize| (g.slot[k] as usize).min(MAX_AXES - 1);
         let angle = |k: usize| wrap(positions_counts[slot(k)], self.counts_per_rev[slot(k)]);
-        let mut cache = RotaryCache::at_turns([angle(3), angle(4)], g);
+        let mut cache = g.cache_at([angle(3), angle(4)]);
         let q = g.counts_from_pivot([
             positions_counts[slot(0)],
             positions_counts[slot(1)],

@@ -5,7 +5,7 @@
 use crate::axis::{AxisName, MAX_AXES};
 use crate::error::{GroupError, ImageError};
 use crate::rotary::RotaryCache;
-use crate::runtime::State;
+use crate::state::State;
 
 /// Everything that changes while a group runs: each axis's [`State`] and the rotary stage's
 /// commanded angles and angle cache.

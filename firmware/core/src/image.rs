@@ -589,25 +589,8 @@ pub(crate) fn copy_params_into<S: TableStore>(l: &Layout, b: &[u8], c: &mut Axis
         }
     }
 
+    c.thermo.reset();
     c.thermo.has_thermo = l.thermo.is_some();
-    c.thermo.sensor_period_ms = 0;
-    c.thermo.n_sensors = 0;
-    c.thermo.b0_um = 0.0;
-    c.thermo.has_expansion = false;
-    c.thermo.reference_at_switch_on = false;
-    c.thermo.rise_guard = false;
-    c.thermo.expansion_sensor = 0;
-    c.thermo.x_ref_counts = 0;
-    c.thermo.c_um_per_mm_k = 0.0;
-    c.thermo.expansion_um_per_count_k = 0.0;
-    c.thermo.n_forces = 0;
-    c.thermo.chi_um_per_n = [0.0; MAX_FORCES];
-    c.thermo.force_predicted = [false; MAX_FORCES];
-    c.thermo.measured_mask = 0;
-    c.thermo.chi_measured = [0.0; MAX_FORCES];
-    c.thermo.measured = crate::sensor::MeasuredSet::None;
-    c.thermo.thermo_flags_xor = 0;
-    c.thermo.laws = [crate::sensor::ZERO_LAW; MAX_FORCES];
     if let Some(o) = l.thermo {
         let period = u32_at(b, o);
         c.thermo.sensor_period_ms = period;

@@ -113,12 +113,13 @@ pub use format::crc32;
 pub use image::{ImageInfo, declared_image_len, image_len, inspect_image, write_image};
 pub use io::{CycleInput, CycleOutput, Flags};
 pub use limits::round_to_counts;
-pub use runtime::{AxisCompensator, Compensator, OwnTable, State, TableStore};
+pub use runtime::{AxisCompensator, Compensator, OwnTable, TableStore};
 pub use sensor::{ForceSource, ProcessParams};
 pub use spec::{
     ExpansionSpec, ForceLaw, ForceSpec, ImageSpec, LimitSpec, OutsideStroke, SensorSpec, TableSpec,
     ThermoForceSpec, ThermoReference,
 };
+pub use state::State;
 pub use table::per_count as segment_per_count;
 
 /// Segments per direction of the positioning table.

@@ -6,11 +6,26 @@
 //! - **counts**: the applied correction in scale counts, rounded half away from zero.
 //!
 //! The stage is a value: its settings [`LimitStage`] (read through `&self`, set by the loader)
-//! and its field of the axis [`State`] (`last_correction_um`, through `&mut`).
+//! and its state [`LimitState`] (the last applied correction, through `&mut`), one part of the
+//! axis's [`crate::State`].
 
 use crate::hint::cold_path;
 use crate::io::{CycleOutput, Flags};
-use crate::state::State;
+
+/// The limits stage's state: the correction applied by the last cycle, µm (what the slew limit
+/// is measured from).
+#[derive(Debug, Clone, PartialEq)]
+#[repr(C)]
+pub(crate) struct LimitState {
+    pub(crate) last_correction_um: f32,
+}
+
+impl LimitState {
+    /// No correction applied yet (all zero bytes).
+    pub(crate) const NEW: LimitState = LimitState {
+        last_correction_um: 0.0,
+    };
+}
 
 /// The settings of the limits stage (validated at load): the per-cycle fields first, the two
 /// magnitude keys side by side (one paired load reads both).
@@ -57,7 +72,7 @@ impl LimitStage {
     #[inline(always)]
     pub(crate) fn finish(
         &self,
-        st: &mut State,
+        st: &mut LimitState,
         pos: i64,
         total: f32,
         command: i64,

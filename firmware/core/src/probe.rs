@@ -321,7 +321,12 @@ pub fn extend_captured_in_group<const POOL: usize>(
     let (Some(a), Some(s)) = (group.axis(i), st.axes.get(i)) else {
         return 0;
     };
-    extend_captured(s.position, s.last_raw, captured_raw, a.counter_bits())
+    extend_captured(
+        s.position_counts(),
+        s.counter_raw(),
+        captured_raw,
+        a.counter_bits(),
+    )
 }
 
 /// Positions sampled every [`VELOCITY_STRIDE`] cycles, for the velocity at a leading edge.

@@ -68,6 +68,10 @@
 //! squareness terms scaled by the axes' µm per count, the tool length in whole counts of Z added to
 //! the pivot, the radians per count folded into the sin/cos polynomials.
 //!
+//! The stage is a value: its settings `RotaryStage` (read through `&self`, built at load) and
+//! its state, the angle cache [`RotaryCache`] (through `&mut`: `RotaryStage::track`, the
+//! refresh and fold), held in the group's state.
+//!
 //! # sin/cos
 //! `libm::sincosf` computes in double precision internally, which a Cortex-M4F emulates in
 //! software: about 2 400 instructions per call, 5 000 per cycle whenever both angles move. So
@@ -242,7 +246,7 @@ impl SinCosTable {
     /// The nearest coarse angle k = ⌊(n + ⌊step/2⌋) / step⌋ ≤ 63 of the count `n` < cpr and the
     /// signed remainder x = n − k·step, |x| ≤ ⌊step/2⌋ (the only division of the sin/cos; the
     /// stage's angle cache tracks k and x from cycle to cycle instead, see
-    /// [`RotaryCache::track`]).
+    /// [`RotaryStage::track`]).
     #[inline(always)]
     pub(crate) fn coarse(&self, n: u32) -> (u32, i32) {
         // n < cpr ≤ 2^31 and half_step < 2^25: no overflow; k ≤ (cpr − 1 + ⌊step/2⌋) / step
@@ -825,28 +829,32 @@ impl RotaryCache {
         cpr: [0; 2],
         entry: [[0.0; 2]; 2],
     };
+}
 
+/// The angle cache through the stage's settings: the stage read through `&self`, its cache
+/// ([`RotaryCache`]) through `&mut`.
+impl RotaryStage {
     /// A cache at the positions `turn` within the turns (each below its turn) of the tilt axis and
-    /// C of `stage` (loaded), for [`RotaryStage::refresh_deviation`] (the cycle's own cache is not
-    /// touched: [`crate::group::Group::error_at`]).
-    pub(crate) fn at_turns(turn: [u32; 2], stage: &RotaryStage) -> RotaryCache {
+    /// C of this stage (loaded), for [`RotaryStage::refresh_deviation`] (the cycle's own cache is
+    /// not touched: [`crate::group::Group::error_at`]).
+    pub(crate) fn cache_at(&self, turn: [u32; 2]) -> RotaryCache {
         let mut c = RotaryCache::NEW;
         for (k, &n) in turn.iter().enumerate() {
-            c.take_cell(k, n, stage.counts_per_rev[k], &stage.sincos[k]);
+            c.take_cell(k, n, self.counts_per_rev[k], &self.sincos[k]);
         }
         c
     }
 
-    /// The positions within the turns of the tilt axis and C (`stage`'s tables).
+    /// The positions within the turns of the tilt axis and C held by `cache`.
     #[cfg(test)]
-    pub(crate) fn turn(&self, stage: &RotaryStage) -> [u32; 2] {
-        [0, 1].map(|k| self.cell[k].turn(&stage.sincos[k]))
+    pub(crate) fn turn(&self, cache: &RotaryCache) -> [u32; 2] {
+        [0, 1].map(|k| cache.cell[k].turn(&self.sincos[k]))
     }
 
-    /// Follow the commanded positions `cmd` of the tilt axis and C (turns of `stage`'s counts per
-    /// revolution, read only on the slow path) into [`RotaryCache::cell`]; true if a turn position
-    /// changed or the cache was not yet primed (k and M must then be recomputed; a whole turn is
-    /// no change).
+    /// Follow the commanded positions `cmd` of the tilt axis and C (turns of this stage's counts
+    /// per revolution, read only on the slow path) into the cells of `cache`; true if a turn
+    /// position changed or the cache was not yet primed (k and M must then be recomputed; a whole
+    /// turn is no change).
     ///
     /// Per axis the fast path is one 64-bit difference of the command to the command at the
     /// cell's first count and one unsigned compare of it with the cell's length: in [0, len)
@@ -855,53 +863,53 @@ impl RotaryCache {
     /// the turn, so the step neither wraps nor changes the coarse angle k, and x moves with the
     /// position (the sin/cos need no division); the angle changed exactly when the position
     /// within the cell did. Anything else (not primed, a step out of the cell: to the next coarse
-    /// angle, across 0 or a full turn or more) takes [`RotaryCache::track_slow`].
+    /// angle, across 0 or a full turn or more) takes [`RotaryStage::track_slow`].
     #[inline(always)]
-    pub(crate) fn track(&mut self, cmd: [i64; 2], stage: &RotaryStage) -> bool {
+    pub(crate) fn track(&self, cache: &mut RotaryCache, cmd: [i64; 2]) -> bool {
         let mut moved = 0u32;
         // An index loop (as an iterator over `cmd` it measured 15 instructions more per cycle).
         #[allow(clippy::needless_range_loop)]
         for k in 0..2 {
             // Within [0, len) exactly when its high word is 0 and its low word is below the
             // cell's length.
-            let v = cmd[k].wrapping_sub(self.cell_cmd[k]) as u64;
-            let cell = &mut self.cell[k];
+            let v = cmd[k].wrapping_sub(cache.cell_cmd[k]) as u64;
+            let cell = &mut cache.cell[k];
             if v < cell.len as u64 {
                 moved |= v as u32 ^ cell.in_cell;
                 cell.in_cell = v as u32;
             } else {
-                moved |= self.track_slow(k, cmd[k], stage) as u32;
+                moved |= self.track_slow(cache, cmd[k], k) as u32;
             }
         }
         moved != 0
     }
-}
 
-impl RotaryCache {
-    /// The slow path of [`RotaryCache::track`] for axis `k` (0: tilt, 1: C): the position within
+    /// The slow path of [`RotaryStage::track`] for axis `k` (0: tilt, 1: C): the position within
     /// a turn of `cpr` counts after the step from the last command to the command `cmd` — one
     /// wrap across 0 for a step shorter than a turn from a position taken with the same turn,
     /// else the full modulo of `cmd` — and its cell. True if it changed or the cache was not
     /// primed (a whole turn lands on the same angle: no recomputation).
     #[cold]
     #[inline(never)]
-    fn track_slow(&mut self, k: usize, cmd: i64, stage: &RotaryStage) -> bool {
+    fn track_slow(&self, cache: &mut RotaryCache, cmd: i64, k: usize) -> bool {
         let k = k % 2;
-        let (cpr, table) = (stage.counts_per_rev[k], &stage.sincos[k]);
-        let (turn, primed_cpr) = (self.cell[k].turn(table), self.cpr[k]);
-        let last = self.cell_cmd[k].wrapping_add(self.cell[k].in_cell as i64);
+        let (cpr, table) = (self.counts_per_rev[k], &self.sincos[k]);
+        let (turn, primed_cpr) = (cache.cell[k].turn(table), cache.cpr[k]);
+        let last = cache.cell_cmd[k].wrapping_add(cache.cell[k].in_cell as i64);
         let t = if primed_cpr == cpr && turn < cpr {
             step_in_turn_wide(turn, cmd.wrapping_sub(last), cpr, cmd)
         } else {
             wrap(cmd, cpr)
         };
-        self.take_cell(k, t, cpr, table);
-        self.cell_cmd[k] = cmd.wrapping_sub(self.cell[k].in_cell as i64);
+        cache.take_cell(k, t, cpr, table);
+        cache.cell_cmd[k] = cmd.wrapping_sub(cache.cell[k].in_cell as i64);
         t != turn || primed_cpr != cpr
     }
+}
 
+impl RotaryCache {
     /// Axis `k`'s cell at the position `n` < `cpr` of its turn (table `table`). One copy for
-    /// the slow path and [`RotaryCache::at_turns`] (code size).
+    /// the slow path and [`RotaryStage::cache_at`] (code size).
     #[inline(never)]
     fn take_cell(&mut self, k: usize, n: u32, cpr: u32, table: &SinCosTable) {
         let k = k % 2;

@@ -1,11 +1,11 @@
 //! The runtime object of one axis, [`AxisCompensator`]: the settings of its stages as values (read
 //! through `&self`, loaded once from an image) and its table segments (kept where its
-//! [`TableStore`] keeps them); with the axis's [`State`] (everything that changes per cycle or per
-//! sensor reading, through `&mut`, defined in `state`) re-exported here.
+//! [`TableStore`] keeps them). What changes per cycle or per sensor reading is the axis's
+//! [`crate::State`] (`state`, through `&mut`).
 //!
 //! # Glossary
-//! - **stage**: one step of an axis's correction, a settings type with methods that take the
-//!   [`State`]: [`crate::counter::CounterStage`] (counter extension, direction),
+//! - **stage**: one step of an axis's correction, a settings type with methods that take its own
+//!   part of the [`crate::State`]: [`crate::counter::CounterStage`] (counter extension, direction),
 //!   [`crate::table::TableStage`] (positioning table), [`crate::thermo::ThermoForceStage`]
 //!   (thermo-force term), [`crate::limits::LimitStage`] (clamp, slew, rounding to counts). No stage
 //!   names the compensator; [`crate::compensator`] composes them, the loader ([`crate::image`])
@@ -19,7 +19,6 @@ use crate::limits::LimitStage;
 use crate::table::TableStage;
 use crate::thermo::ThermoForceStage;
 
-pub use crate::state::State;
 pub(crate) use crate::store::PoolSource;
 pub use crate::store::{OwnTable, PoolTable, TableStore};
 

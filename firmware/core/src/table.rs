@@ -14,14 +14,63 @@
 //!
 //! The stage is a value: its settings [`TableStage`] (read through `&self`, set by the loader),
 //! the segments kept where the axis's [`TableStore`] keeps them (passed in as `store`, with the
-//! group's coefficient `pool`), and its fields of the axis [`State`] (the segment cache `seg_*`;
-//! through `&mut`).
+//! group's coefficient `pool`), and its state [`TableState`] (the segment cache; through
+//! `&mut`), one part of the axis's [`crate::State`]. The direction that selects a segment's half
+//! is the counter stage's, passed in.
 
 use crate::counts::Direction;
 use crate::hint::cold_path;
 use crate::spec::OutsideStroke;
-use crate::state::State;
 use crate::store::TableStore;
+
+/// The table stage's state: the segment cache (see [`TableStage::refill`]).
+///
+/// The low 32 bits of the extended position where the last cycle's table segment starts, that
+/// segment's length while the cache is valid (0: void, the next lookup is a full one; always 0
+/// while the counter stage is not primed), for a rotary axis the segment's start within the turn,
+/// a copy of its coefficients in the half of the present direction (a reversal voids the cache)
+/// and that direction's flag. `#[repr(C)]` in this order: the start and the length side by side
+/// (one paired load).
+#[derive(Debug, Clone)]
+#[repr(C)]
+pub(crate) struct TableState {
+    pub(crate) seg_start: u32,
+    pub(crate) seg_limit: u32,
+    pub(crate) seg_turn_start: u32,
+    pub(crate) seg_coef: [f32; 4],
+    /// [`crate::Flags::BACKWARD`] if the direction was backward when the cache was filled, else
+    /// none: while the cache is valid, the direction's flag as a word (no zero-extension of the
+    /// direction's byte per axis and cycle).
+    pub(crate) seg_flags: u16,
+}
+
+impl TableState {
+    /// A void cache (all zero bytes).
+    pub(crate) const NEW: TableState = TableState {
+        seg_start: 0,
+        seg_limit: 0,
+        seg_turn_start: 0,
+        seg_coef: [0.0; 4],
+        seg_flags: 0,
+    };
+
+    /// The cache voided: the next lookup is a full one.
+    #[inline(always)]
+    pub(crate) fn void(&mut self) {
+        self.seg_limit = 0;
+    }
+
+    /// While the cache is valid: the position within the turn of the extended position whose
+    /// low 32 bits are `low` (within the cached segment: its start within the turn + the
+    /// distance from its start, no wrap); None for a void cache.
+    #[inline(always)]
+    pub(crate) fn cached_turn(&self, low: u32) -> Option<u32> {
+        (self.seg_limit != 0).then(|| {
+            self.seg_turn_start
+                .wrapping_add(low.wrapping_sub(self.seg_start))
+        })
+    }
+}
 
 /// The settings of the positioning table (validated at load; the segments themselves are kept
 /// by the axis's [`TableStore`]).
@@ -122,13 +171,13 @@ impl TableStage {
     /// Value of the segment cached in `st` (by [`TableStage::refill`]) at the remainder `rem`
     /// (< the segment length): the cubic of [`TableStage::value`].
     #[inline(always)]
-    pub(crate) fn cached_um(&self, st: &State, rem: u32) -> f32 {
+    pub(crate) fn cached_um(&self, st: &TableState, rem: u32) -> f32 {
         cubic(&st.seg_coef, rem)
     }
 
     /// The full lookup of the cycle ([`TableStage::value`] at `table_pos`: the
     /// extended position, or a rotary axis's position within the turn) when the segment cache
-    /// of `st` does not hold it, and the cache refilled: valid (the segment's start as the low
+    /// of `st` does not hold it, for the direction `dir`, and the cache refilled: valid (the segment's start as the low
     /// 32 bits of the extended position `pos_low` minus the remainder, its start within the
     /// turn, its length and a copy of its coefficients) when `table_pos` is within the stroke
     /// and the segment length is at most 2^31 counts, void otherwise.
@@ -142,8 +191,9 @@ impl TableStage {
     /// it is the remainder the full lookup computes, and the value is the same bit for bit. For
     /// a rotary axis the segment lies within one turn (its grid spans exactly one turn, checked
     /// at load), so inside it the position within the turn is the segment's start within the
-    /// turn + that remainder, no wrap ([`crate::State::turn_in`]); it is written to
-    /// `pos_in_turn` ([`crate::State::settle_turn`]) whenever the cache is voided or refilled.
+    /// turn + that remainder, no wrap ([`crate::State::turn_in`]); the compensator writes it to
+    /// the counter stage's turn position ([`TableState::cached_turn`]) whenever the cache is
+    /// voided or refilled.
     /// Everything that moves the position otherwise, or changes the table or the direction
     /// ([`crate::State::home`], [`crate::State::reset`], [`crate::State::on_new_image`], a
     /// reversal, a cycle without an image, a fresh state), voids the cache.
@@ -153,9 +203,12 @@ impl TableStage {
         &self,
         store: &S,
         pool: &[[f32; 4]],
-        st: &mut State,
+        st: &mut TableState,
         table_pos: i64,
         pos_low: u32,
+        // Last: with the arguments before it, in the stack area of the caller's own arguments
+        // (the cache miss's path calls this as its last step, a tail call).
+        dir: Direction,
     ) -> (f32, bool) {
         st.seg_limit = 0;
         if let Some(seg_counts) = self.segment {
@@ -163,19 +216,18 @@ impl TableStage {
             let offset = diff as u32;
             if (diff >> 32) == 0 && offset < self.span_counts && seg_counts.get() <= 1 << 31 {
                 let seg = offset / seg_counts;
-                let dir = st.direction;
+                st.seg_flags = dir.flag();
                 st.seg_coef = *store.segment(pool, dir, seg);
                 let rem = offset - seg.wrapping_mul(seg_counts.get());
                 st.seg_start = pos_low.wrapping_sub(rem);
                 st.seg_turn_start = (table_pos as u32).wrapping_sub(rem);
                 st.seg_limit = seg_counts.get();
-                st.seg_flags = dir.flag();
                 // The value from the segment just cached: the same remainder and
                 // coefficients as the full lookup's, so the same bits (no second search).
                 return (self.cached_um(st, rem), false);
             }
         }
-        self.value(store, pool, st.direction(), table_pos)
+        self.value(store, pool, dir, table_pos)
     }
 
     /// Table value beyond the stroke (hold or taper), for direction half `dir`.

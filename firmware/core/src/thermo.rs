@@ -5,24 +5,95 @@
 //! - **thermo-force term**: E = b0 + Σ b_i·ΔT_i + c·(x − x_ref)·ΔT_s + Σ χ_j·F_j (µm).
 //! - **sensor rate**: [`ThermoForceStage::update_temperatures`] and
 //!   [`ThermoForceStage::set_process`] run at the sensor/process rate and cache
-//!   b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted) and c·ΔT_s in the [`State`]; the cycle only adds them
-//!   (see [`ThermoForceStage::thermo_um`]).
+//!   b0 + Σ b_i·ΔT_i + Σ χ_j·F_j(predicted) and c·ΔT_s in the [`ThermoState`]; the cycle only
+//!   adds them (see [`ThermoForceStage::thermo_um`]).
 //! - **stale**: no accepted reading for `stale_timeout_ms`; the thermal contribution freezes.
 //!
 //! The stage is a value: its settings [`ThermoForceStage`] (read through `&self`, set by the
 //! loader; `Sn` is where the sensors' settings are kept: with the stage for a single axis, `()`
 //! for an axis of a group, which keeps them in an array of its own and passes them in) and its
-//! fields of the axis [`State`] (lags, sensor health, the cached contribution, the predicted
-//! forces, the thermo flags; through `&mut`).
+//! state [`ThermoState`] (lags, sensor health, the cached contribution, the predicted forces, the
+//! thermo flags; through `&mut`), one part of the axis's [`crate::State`].
 
 use crate::io::Flags;
+use crate::sensor::SensorState;
 use crate::sensor::{
     ForceSource, MeasuredSet, ProcessParams, REJECTED_MASK, SEEN, STALE, STREAK_MASK, STREAK_MAX,
     STREAK_ONE, SensorRt, ZERO_LAW, sensor_b_alpha, sensor_spec,
 };
 use crate::spec::{ExpansionSpec, ForceLaw, ForceSpec, SensorSpec};
-use crate::state::State;
 use crate::{MAX_FORCE_N, MAX_FORCE_TERM_UM, MAX_FORCES, MAX_SENSORS, RECOVERY_READINGS};
+
+/// The thermo-force stage's state: sensor health and lags, the cached thermal contribution, the
+/// predicted forces, the thermo flags.
+///
+/// `#[repr(C)]` in this order: the flags and the cached values the cycle reads first, the
+/// sensor-rate fields after them.
+#[derive(Debug, Clone, PartialEq)]
+#[repr(C)]
+pub(crate) struct ThermoState {
+    /// Thermo flags (SENSOR_FAULT, THERMAL_FROZEN, FORCE_INVALID of the process) XOR the
+    /// stage's `thermo_flags_xor`.
+    pub(crate) thermo_bits: u16,
+    pub(crate) thermal_live: bool,
+    pub(crate) sensor_fault: bool,
+    pub(crate) clock_started: bool,
+    /// A sensor is stale: the thermal term's ramp-out clock runs from `stale_since_ms`.
+    pub(crate) stale_ramp: bool,
+    /// b0 + sensor_um + predicted_um, µm (what the cycle adds).
+    pub(crate) cached_um: f32,
+    pub(crate) expansion_um_per_count: f32,
+    pub(crate) sensor_um: f32,
+    /// Σ χ_j·F_j of the predicted forces, µm.
+    pub(crate) predicted_um: f32,
+    pub(crate) predicted_forces_n: [f32; MAX_FORCES],
+    pub(crate) stale_since_ms: u32,
+    pub(crate) frozen_sensor_um: f32,
+    pub(crate) frozen_expansion_um_per_count: f32,
+    pub(crate) sensors: [SensorState; MAX_SENSORS],
+}
+
+impl ThermoState {
+    /// Fresh state: no reading yet, nothing predicted (all zero bytes).
+    pub(crate) const NEW: ThermoState = ThermoState {
+        thermo_bits: 0,
+        thermal_live: false,
+        sensor_fault: false,
+        clock_started: false,
+        stale_ramp: false,
+        sensor_um: 0.0,
+        expansion_um_per_count: 0.0,
+        predicted_um: 0.0,
+        cached_um: 0.0,
+        predicted_forces_n: [0.0; MAX_FORCES],
+        stale_since_ms: 0,
+        frozen_sensor_um: 0.0,
+        frozen_expansion_um_per_count: 0.0,
+        sensors: [SensorState::NEW; MAX_SENSORS],
+    };
+
+    /// A new image became active: sensor health, lags and the sensor clock restart (the new image
+    /// may have other sensors), the predicted forces are dropped, and the thermal contribution
+    /// stays frozen at its last value until every sensor of the new image has reported.
+    pub(crate) fn on_new_image(&mut self) {
+        self.sensors = [SensorState::NEW; MAX_SENSORS];
+        self.clock_started = false;
+        self.thermal_live = false;
+        self.sensor_fault = false;
+        self.thermo_bits = 0;
+        self.predicted_um = 0.0;
+        self.predicted_forces_n = [0.0; MAX_FORCES];
+        self.stale_ramp = false;
+    }
+
+    fn set_flag(&mut self, flag: Flags, on: bool) {
+        if on {
+            self.thermo_bits |= flag.0;
+        } else {
+            self.thermo_bits &= !flag.0;
+        }
+    }
+}
 
 /// The settings of the thermo-force term (validated at load).
 #[derive(Debug, Clone)]
@@ -54,8 +125,8 @@ pub(crate) struct ThermoForceStage<Sn> {
     pub(crate) chi_measured: [f32; MAX_FORCES],
     /// `measured_mask` as an enum, so the cycle's dispatch needs no range check.
     pub(crate) measured: MeasuredSet,
-    /// THERMAL_FROZEN if the image has sensors: `State::thermo_bits` holds the thermo flags
-    /// XOR this, so that a fresh (all-zero) State reads as frozen until its sensors report.
+    /// THERMAL_FROZEN if the image has sensors: [`ThermoState::thermo_bits`] holds the thermo
+    /// flags XOR this, so that a fresh (all-zero) state reads as frozen until its sensors report.
     pub(crate) thermo_flags_xor: u16,
     pub(crate) laws: [ForceLaw; MAX_FORCES],
 }
@@ -87,6 +158,32 @@ impl<Sn> ThermoForceStage<Sn> {
         }
     }
 
+    /// Back to no thermo-force term ([`ThermoForceStage::none`]), the sensors' settings left as
+    /// they are (the loader copies them separately, to wherever the storage keeps them). Out of
+    /// line: one copy for the loader and `clear` (code size; run at load only).
+    #[inline(never)]
+    pub(crate) fn reset(&mut self) {
+        self.has_thermo = false;
+        self.sensor_period_ms = 0;
+        self.n_sensors = 0;
+        self.b0_um = 0.0;
+        self.has_expansion = false;
+        self.reference_at_switch_on = false;
+        self.rise_guard = false;
+        self.expansion_sensor = 0;
+        self.x_ref_counts = 0;
+        self.c_um_per_mm_k = 0.0;
+        self.expansion_um_per_count_k = 0.0;
+        self.n_forces = 0;
+        self.chi_um_per_n = [0.0; MAX_FORCES];
+        self.force_predicted = [false; MAX_FORCES];
+        self.measured_mask = 0;
+        self.chi_measured = [0.0; MAX_FORCES];
+        self.measured = MeasuredSet::None;
+        self.thermo_flags_xor = 0;
+        self.laws = [ZERO_LAW; MAX_FORCES];
+    }
+
     /// `total` (the table value) plus the thermo-force term at `pos` for one cycle (µm): the
     /// cached b0 + Σ b_i·ΔT_i + Σ χ_j·F_j (predicted) with the expansion term (one multiply-add
     /// with the cached c·ΔT_s), then the measured forces of this input — added to `total` in
@@ -94,7 +191,7 @@ impl<Sn> ThermoForceStage<Sn> {
     #[inline(always)]
     pub(crate) fn thermo_um(
         &self,
-        st: &State,
+        st: &ThermoState,
         pos: i64,
         forces_n: &[f32; MAX_FORCES],
         flags: &mut Flags,
@@ -207,7 +304,7 @@ impl<Sn> ThermoForceStage<Sn> {
     pub(crate) fn update_temperatures(
         &self,
         cfgs: &[SensorRt; MAX_SENSORS],
-        st: &mut State,
+        st: &mut ThermoState,
         now_ms: u32,
         readings: &[f32],
     ) {
@@ -311,7 +408,7 @@ impl<Sn> ThermoForceStage<Sn> {
     /// Σ b_i·ΔT_i and c·ΔT_s ramp linearly to 0 over STALE_RAMP_MS, leaving the safe value
     /// b0 + predicted forces (which need no sensor); THERMAL_RAMP_OUT into `bits` while it does.
     #[inline(always)]
-    fn stale_ramp_out(&self, st: &mut State, now_ms: u32, any_stale: bool, bits: &mut u16) {
+    fn stale_ramp_out(&self, st: &mut ThermoState, now_ms: u32, any_stale: bool, bits: &mut u16) {
         if !any_stale {
             st.stale_ramp = false;
             return;
@@ -340,7 +437,7 @@ impl<Sn> ThermoForceStage<Sn> {
     /// Every sensor healthy: the new Σ b_i·ΔT_i `sum` (`guarded`: a term was left out by the range
     /// guard, THERMAL_GUARDED), the cached term and c·ΔT_s.
     #[inline(always)]
-    fn refresh_thermal(&self, st: &mut State, sum: f32, guarded: bool) {
+    fn refresh_thermal(&self, st: &mut ThermoState, sum: f32, guarded: bool) {
         st.thermo_bits &= !Flags::THERMAL_GUARDED.0;
         if guarded {
             st.thermo_bits |= Flags::THERMAL_GUARDED.0;
@@ -362,7 +459,7 @@ impl<Sn> ThermoForceStage<Sn> {
     /// computed here only. A non-finite or implausible prediction is replaced by 0 N and flagged
     /// (FORCE_INVALID) until the next call. Without an image (`loaded` false) no force is
     /// predicted.
-    pub(crate) fn set_process(&self, loaded: bool, st: &mut State, p: &ProcessParams) {
+    pub(crate) fn set_process(&self, loaded: bool, st: &mut ThermoState, p: &ProcessParams) {
         let mut invalid = false;
         let mut sum = 0.0f32;
         for j in 0..MAX_FORCES {
@@ -384,7 +481,7 @@ impl<Sn> ThermoForceStage<Sn> {
         }
         st.predicted_um = sum;
         st.cached_um = self.b0_um + st.sensor_um + st.predicted_um;
-        st.set_thermo_flag(Flags::FORCE_INVALID, invalid);
+        st.set_flag(Flags::FORCE_INVALID, invalid);
     }
 }
 

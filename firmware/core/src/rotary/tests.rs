@@ -158,7 +158,7 @@ fn stage_with_table_sincos_matches_the_f64_model() {
                 a as i64,
                 c as i64,
             ];
-            let mut cache = RotaryCache::at_turns([a, c as u32], &stage);
+            let mut cache = stage.cache_at([a, c as u32]);
             stage.refresh(&mut cache);
             let d = RotaryStage::deviation_um(&cache, stage.counts_from_pivot([n[0], n[1], n[2]]));
             let r = reference_deviation(&spec, upc as f64, cpr, n);
@@ -194,10 +194,10 @@ fn deviation_of_the_moving_cycle_equals_the_stored_terms() {
                 3.0e6 - i as f32 * 777.0,
                 i as f32 * 99.0,
             ];
-            let mut stored = RotaryCache::at_turns([a, c as u32], &stage);
+            let mut stored = stage.cache_at([a, c as u32]);
             stage.refresh(&mut stored);
             let want = RotaryStage::deviation_um(&stored, n);
-            let mut moving = RotaryCache::at_turns([a, c as u32], &stage);
+            let mut moving = stage.cache_at([a, c as u32]);
             // The X, Y, Z, A, C cycle's refresh for the AC trunnion, the general one else.
             let d = if machine == RotaryMachine::AcTrunnion {
                 stage.refresh_deviation_ac(&mut moving, n)
@@ -245,7 +245,7 @@ fn tracked_turn_positions_equal_the_modulo() {
                 cprs = [cpr / 3 + 2, cpr];
                 stage = stage_for(cprs);
             }
-            let before = (cache.cpr, cache.turn(&stage));
+            let before = (cache.cpr, stage.turn(&cache));
             for (k, c) in cmd.iter_mut().enumerate() {
                 let t = cprs[k] as i64;
                 let r = next();
@@ -261,10 +261,10 @@ fn tracked_turn_positions_equal_the_modulo() {
                 };
                 *c = c.wrapping_add(step).clamp(-(1 << 62), 1 << 62);
             }
-            let moved = cache.track(cmd, &stage);
+            let moved = stage.track(&mut cache, cmd);
             let want = [wrap(cmd[0], cprs[0]), wrap(cmd[1], cprs[1])];
             assert_eq!(
-                cache.turn(&stage),
+                stage.turn(&cache),
                 want,
                 "turn {cpr}, cycle {i}, commands {cmd:?}"
             );
@@ -422,7 +422,7 @@ fn wobble_adds_the_f64_model_to_the_deviation() {
                 (i * 86_243) % 6_000_000,
             ];
             let dev = |stage: &RotaryStage| {
-                let mut cache = RotaryCache::at_turns([a, c], stage);
+                let mut cache = stage.cache_at([a, c]);
                 let q = stage.counts_from_pivot(n);
                 let d = stage.refresh_deviation(&mut cache, q[0], q[1], q[2]);
                 [d.x, d.y, d.z]
