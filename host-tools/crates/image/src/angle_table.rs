@@ -32,6 +32,7 @@ use axcomp_rtest::RtestModel;
 use axcomp_rtest::effects::EffectBasis;
 
 use crate::axis::GroupAxis;
+use crate::linear_geometry::{LinearGeometry, linear_geometry_of};
 use crate::{Error, Result};
 
 /// Segments of an angle table over one turn (cubic Hermite; the C harmonics of `fit rtest` reach 8 per
@@ -96,6 +97,8 @@ pub struct EffectsInImage {
     pub angle_errors: Vec<(AxisName, AngleError)>,
     /// The `rotary_wobble` effect for the rotary section, if the model has one.
     pub wobble: Option<RotaryWobble>,
+    /// The `linear_geometry` effect for the geometric section, if the model has one.
+    pub linear: Option<LinearGeometry>,
     pub carried: Vec<String>,
     pub left_out: Vec<String>,
 }
@@ -175,18 +178,22 @@ pub fn effects_in_image(model: &RtestModel) -> Result<EffectsInImage> {
                 }
                 out.wobble = Some(w);
             }
-            _ => out.left_out.push(format!(
-                "the model's effect `{}` ({} parameters) is not carried by the image: the firmware has no \
-                 stage for it from an R-test model (the rotary stage applies the 11 location errors, axis \
-                 tables the rotary axes' positioning errors), so its correction (RMS {:.3} µm over the \
-                 fitted poses) is left out; the location errors were fitted together with it and may \
-                 correct worse without it than those of a fit without `--effects {}`: build the image from \
-                 that fit",
-                e.kind,
-                e.parameters.len(),
-                e.rms_over_fit_um,
-                e.kind
-            )),
+            EffectBasis::Linear { axes, degree, .. } => {
+                out.carried.push(format!(
+                    "the model's effect `{}` ({} parameters; RMS {:.3} µm over the fitted poses) is carried \
+                     by the geometric section (the translational components of axes {}: positioning and \
+                     straightness, Legendre degree 1…{degree} as one cubic per segment), applied by the \
+                     geometric stage at the commanded X, Y, Z",
+                    e.kind,
+                    e.parameters.len(),
+                    e.rms_over_fit_um,
+                    axes.iter()
+                        .filter_map(|&a| ["X", "Y", "Z"].get(a).copied())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+                out.linear = Some(linear_geometry_of(e)?);
+            }
         }
     }
     Ok(out)

@@ -46,6 +46,7 @@ pub mod describe;
 pub mod extension;
 pub mod geometric;
 pub mod group;
+pub mod linear_geometry;
 pub mod replay;
 pub mod rotary;
 
