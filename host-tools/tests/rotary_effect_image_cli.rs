@@ -50,6 +50,14 @@ fn twin_campaign(effect: &str, shape: TiltWobbleShape) -> (FiveAxisTwin, RtestCa
             *a *= 3.0;
         }
     }
+    if effect == "linear_geometry" {
+        // Three times the twin's amplitudes (X positioning 15–45 µm/m, straightness 3–9 µm): the
+        // location errors absorb part of the linear geometry; at the twin's own amplitudes what they
+        // leave is near the noise.
+        for a in &mut twin.effect_params.linear {
+            *a *= 3.0;
+        }
+    }
     assert!(twin.effects.enable(effect));
     let paths = standard_paths(
         &m,
@@ -201,13 +209,14 @@ fn held_out(twin: &FiveAxisTwin, c: &RtestCampaign, image: &[u8]) -> ([f64; 3], 
 }
 
 /// The chain for one twin effect: the verdict, the image builder's stderr, and (after, oracle,
-/// uncompensated, location errors only) µm. The fit adds `effects`, or the verdict if `None`.
+/// uncompensated, location errors only) µm with the true set-up offsets taken out, then the same with
+/// the set-up offsets refitted. The fit adds `effects`, or the verdict if `None`.
 fn chain(
     effect: &str,
     shape: TiltWobbleShape,
     effects: Option<&str>,
     dir: &Path,
-) -> (String, String, [f64; 4]) {
+) -> (String, String, [f64; 4], [f64; 4]) {
     let (twin, c) = twin_campaign(effect, shape);
     std::fs::write(dir.join("rtest.csv"), c.to_csv_string()).unwrap();
     run(
@@ -247,7 +256,12 @@ fn chain(
          refitted: uncompensated {:.3}, location errors only {:.3}, with the effect {:.3}, oracle {:.3}\n{said}",
         t[2], t0[0], t[0], t[1], f[2], f0[0], f[0], f[1]
     );
-    (verdict, said, [t[0], t[1], t[2], t0[0]])
+    (
+        verdict,
+        said,
+        [t[0], t[1], t[2], t0[0]],
+        [f[0], f[1], f[2], f0[0]],
+    )
 }
 
 /// A C-axis positioning error (1× and 2× per turn, 5–20 µrad) and the tilt axis's: `diagnose` names
@@ -260,7 +274,7 @@ fn chain(
 #[test]
 fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-pos");
-    let (verdict, said, [after, oracle, raw, only]) =
+    let (verdict, said, [after, oracle, raw, only], _) =
         chain("rotary_positioning", TiltWobbleShape::default(), None, &dir);
     assert_eq!(verdict, "rotary_positioning");
     assert!(
@@ -291,7 +305,7 @@ fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
 #[test]
 fn c_wobble_goes_into_the_rotary_section_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-wobble");
-    let (verdict, said, [after, oracle, raw, only]) =
+    let (verdict, said, [after, oracle, raw, only], _) =
         chain("rotary_wobble", TiltWobbleShape::default(), None, &dir);
     assert_eq!(verdict, "rotary_wobble");
     wobble_carried(&dir, &said, 'A');
@@ -310,7 +324,7 @@ fn c_wobble_goes_into_the_rotary_section_within_1p3_of_the_oracle() {
 #[test]
 fn a_axis_wobble_goes_into_the_rotary_section_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-a-wobble");
-    let (_, said, [after, oracle, raw, only]) = chain(
+    let (_, said, [after, oracle, raw, only], _) = chain(
         "tilt_wobble",
         TiltWobbleShape::Quadratic,
         Some("rotary_wobble"),
@@ -356,5 +370,50 @@ fn wobble_carried(dir: &Path, said: &str, tilt: char) {
     assert!(
         o.status.success() && text.contains("wobble (") && text.contains("C_tilt_x_cos2"),
         "{text}"
+    );
+}
+
+/// The issue's bound on the held-out RMS with the effect: at most this many times the oracle's.
+const ORACLE_FACTOR: f64 = 1.3;
+
+/// Linear-axis errors (the twin's `linear_geometry`: X positioning linear in x, straightness EYX and EZY
+/// as half-sines, amplitudes tripled): whatever `diagnose` names (printed), `fit rtest --effects
+/// linear_geometry` models them (Legendre degree 1…3 of each moving axis over its measured range),
+/// `image group --rotary` converts them into the geometric section (its translational components, one
+/// cubic per segment) and says so, and the group engine — rotary stage and geometric stage together —
+/// brings the held-out K4 run within [`ORACLE_FACTOR`] × the oracle and below the location-errors-only
+/// image. Judged with the set-up offsets refitted (see the module documentation): the linear
+/// geometry's constant part — the straightness at the R-test frame's origin, where the twin's
+/// half-sines peak — cannot be told from where the sphere sits and the head's zero, `fit rtest` keeps
+/// it in the set-up offsets, and no image built from an R-test can correct it (with the true offsets
+/// taken out it stays in every figure: printed). This checks the conversion's signs and frames
+/// numerically: with the effect's sign flipped the figure is 1.77 µm instead of 0.29. Measured:
+/// uncompensated 8.12, location errors only 0.75, with the effect 0.29, oracle 0.28 µm (1.04×).
+#[test]
+fn linear_geometry_goes_into_the_geometric_section_within_1p3_of_the_oracle() {
+    let dir = scratch("effect-image-linear");
+    let (_, said, _, [after, oracle, raw, only]) = chain(
+        "linear_geometry",
+        TiltWobbleShape::default(),
+        Some("linear_geometry"),
+        &dir,
+    );
+    assert!(
+        said.contains("effect `linear_geometry`")
+            && said.contains("carried by the geometric section")
+            && said.contains("held beyond them")
+            && !said.contains("not carried"),
+        "{said}"
+    );
+    let view_bytes = std::fs::read(dir.join("g.bin")).unwrap();
+    let view = axcomp_core::group_image::parse(&view_bytes).unwrap();
+    assert!(view.geometric.is_some(), "no geometric section");
+    let o = axcomp_in(&["image", "inspect", "g.bin"], &dir);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && text.contains("EYX"), "{text}");
+    assert!(
+        after <= ORACLE_FACTOR * oracle && after < only && only < raw,
+        "after {after:.3} µm (at most {ORACLE_FACTOR} × the oracle {oracle:.3}), location errors \
+         only {only:.3}, raw {raw:.3}"
     );
 }

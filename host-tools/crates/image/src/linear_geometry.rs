@@ -429,6 +429,83 @@ pub fn with_linear_geometry(
 mod tests {
     use super::*;
 
+    /// The section's translational functions (X, Y, Z of axis `a`) at `counts`, clamped to the grid.
+    fn translation_at(g: &GeometricSection, a: usize, counts: f64) -> [f64; 3] {
+        let spec = g.spec();
+        let gr = g.grids[a];
+        let r = ((counts - gr.start_counts as f64) / gr.segment_counts as f64)
+            .clamp(0.0, gr.n_segments as f64);
+        let s = (r.floor() as usize).min(gr.n_segments as usize - 1);
+        let t = (r - s as f64) as f32;
+        [0, 1, 2].map(|c| {
+            let p = spec.segment(a, s, c);
+            (p[0] + t * (p[1] + t * (p[2] + t * p[3]))) as f64
+        })
+    }
+
+    /// Added to a `fit geometry` section (grids of 10 segments over ±250 mm, every function 1 µm
+    /// constant): on the grid the sum is the base's 1 µm plus e inside the measured range (1e-4 µm, as
+    /// above), beyond the knots enclosing it the base plus the held end value; angular functions and
+    /// identified bits of the base untouched. A grid short of the measured range is refused.
+    #[test]
+    fn added_to_a_geometry_model_on_its_grid() {
+        let e = LinearAxisError {
+            axis: 1,
+            range_mm: [-101.37, 77.2],
+            legendre: vec![[1.0, 2.0, -3.0], [0.5, -0.5, 0.2], [0.3, 0.1, -0.2]],
+            identified: [true; 3],
+        };
+        let lin = LinearGeometry {
+            axes: vec![e.clone()],
+            rms_over_fit_um: 1.0,
+        };
+        let place = Placement {
+            pivot_counts: [0; 3],
+            tool_counts_z: 0,
+        };
+        let upc = [0.1; 3];
+        let grid = GeometricGrid {
+            start_counts: -2_500_000,
+            segment_counts: 500_000,
+            n_segments: 10,
+        };
+        let base = GeometricSection {
+            chain: [0, 1, 2],
+            work_axes: 1,
+            identified: 1 << 9,
+            tool_offset_um: [0.0; 3],
+            squareness_urad: [0.0; 3],
+            grids: [grid; 3],
+            coefficients: vec![[1.0, 0.0, 0.0, 0.0]; 30 * FUNCTIONS_PER_AXIS],
+        };
+        let mut g = base.clone();
+        let said = add_to_section(&mut g, &lin, &place, upc, "t").unwrap();
+        assert!(
+            said[0].contains("knots at -150.000 .. 100.000 mm"),
+            "{said:?}"
+        );
+        assert_eq!(g.identified, 1 << 9 | 0b111 << 6);
+        for i in -15..=15 {
+            let q = 250.0 * i as f64 / 15.0;
+            let got = translation_at(&g, 1, q * 1e4);
+            let want = e.error_um(q.clamp(-150.0, 100.0));
+            for c in 0..3 {
+                assert!(
+                    (got[c] - 1.0 - want[c]).abs() < 1e-4,
+                    "{q} {c}: {got:?} {want:?}"
+                );
+            }
+        }
+        assert!((0..10).all(|s| g.spec().segment(1, s, 3) == [1.0, 0.0, 0.0, 0.0]));
+        let mut short = base.clone();
+        short.grids[1].n_segments = 4;
+        short.coefficients.truncate(24 * FUNCTIONS_PER_AXIS);
+        let err = add_to_section(&mut short, &lin, &place, upc, "t")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("beyond the geometric grid"), "{err}");
+    }
+
     /// The section's segments reproduce e = −d of a cubic over the measured range (values at 0.1 of
     /// the range's width apart, within 1e-4 µm: f32 Horner coefficients of a ≤ 20 µm cubic) and hold
     /// the end values beyond it; the Y axis (not moved) is zero; the trunnion's tool counts shift Z.
@@ -461,17 +538,7 @@ mod tests {
         assert_eq!(g.identified, 0b111 | 0b101 << 12);
         let spec = g.spec();
         spec.validate().unwrap();
-        let eval = |a: usize, counts: f64| -> [f64; 3] {
-            let gr = g.grids[a];
-            let r = ((counts - gr.start_counts as f64) / gr.segment_counts as f64)
-                .clamp(0.0, gr.n_segments as f64);
-            let s = (r.floor() as usize).min(gr.n_segments as usize - 1);
-            let t = (r - s as f64) as f32;
-            [0, 1, 2].map(|c| {
-                let p = spec.segment(a, s, c);
-                (p[0] + t * (p[1] + t * (p[2] + t * p[3]))) as f64
-            })
-        };
+        let eval = |a: usize, counts: f64| translation_at(&g, a, counts);
         for e in &lin.axes {
             let [lo, hi] = e.range_mm;
             for i in -3..=13 {
