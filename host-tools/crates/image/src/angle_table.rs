@@ -1,4 +1,5 @@
 //! What a group image carries of a `fit rtest --effects` model's effects, and what it leaves out.
+//! (Applied by three stages: the rotary axes' own tables, the rotary section, the geometric section.)
 //!
 //! Glossary:
 //! - *angle error*: the `rotary_positioning` effect of one rotary axis, actual minus commanded angle
@@ -16,10 +17,13 @@
 //!   varying with its angle): carried by the rotary section ([`axcomp_core::rotary::RotaryWobble`]: C's
 //!   harmonics 1…4 per turn, the tilt axis's powers 1…3 of its angle), the stage adds it to the
 //!   location errors; harmonics above 4 per turn are left out (and said).
-//! - *left out*: `linear_geometry` (errors of the tool point along X, Y, Z varying with the linear
-//!   axes' positions): the group engine's stages have no input for it from an R-test model (the rotary
-//!   stage holds the location errors and the wobble; the geometric stage takes a `fit geometry` model),
-//!   so `image group` says so with the correction it leaves out (its RMS over the fitted poses).
+//! - *linear geometry*: the `linear_geometry` effect (errors of the tool point along X, Y, Z varying
+//!   with the linear axes' positions, Legendre degree ≤ 3 over the measured range): carried by the
+//!   geometric section as its translational components (`crate::linear_geometry`: one cubic per
+//!   segment, held beyond the measured range as the stage holds every grid's ends; added to a
+//!   `--geometry` model's on its grid); a degree above 3 is refused.
+//! - *left out*: C's wobble harmonics above 4 per turn (said, with the effect named); every other
+//!   part of the three modelled effects is carried.
 
 use std::f64::consts::TAU;
 
@@ -104,7 +108,8 @@ pub struct EffectsInImage {
 }
 
 /// The model's effects sorted into what the group image carries (`rotary_positioning`: the C and
-/// tilt axes' angle tables) and what it leaves out (see the module glossary).
+/// tilt axes' angle tables; `rotary_wobble`: the rotary section; `linear_geometry`: the geometric
+/// section) and what it leaves out (see the module glossary).
 pub fn effects_in_image(model: &RtestModel) -> Result<EffectsInImage> {
     let tilt = match model.machine.tilt_letter() {
         'a' => AxisName::A,
