@@ -139,9 +139,8 @@ fn geometric_from_args(
     let place = linear_geometry::Placement::of(spec, axes)?;
     let (g, said) = linear_geometry::with_linear_geometry(lin, &place, axes, base, &label)?;
     eprintln!(
-        "axcomp: note: {label}: `linear_geometry` {} the geometric section: {}; beyond the held \
-         ends the stage holds the values there, as at every grid's end (`predict` refuses poses \
-         outside the measured range)",
+        "axcomp: note: {label}: `linear_geometry` {} the geometric section: {} (the stage holds \
+         every function at its grid's ends; `predict` refuses poses outside the measured range)",
         if combined {
             "added to the --geometry model's components on its grid in"
         } else {

@@ -390,14 +390,16 @@ fn add_to_section(
             }
         }
         let carried: Vec<&str> = (0..3).map(|c| COMPONENT_NAMES[6 * a + c]).collect();
+        let [lo, hi] = e.range_mm;
+        let (k_lo, k_hi) = (q_of(s_lo), q_of(s_hi));
+        let widened = if (k_lo - lo).abs() < 5e-4 && (k_hi - hi).abs() < 5e-4 {
+            String::new()
+        } else {
+            format!(", the cubic continued to the grid's knots at {k_lo:.3} .. {k_hi:.3} mm")
+        };
         said.push(format!(
-            "axis {letter}: {} over the measured {:.3} .. {:.3} mm, the cubic continued to the \
-             grid's knots at {:.3} .. {:.3} mm and held beyond them",
+            "axis {letter}: {} over the measured {lo:.3} .. {hi:.3} mm{widened}, held beyond",
             carried.join(", "),
-            e.range_mm[0],
-            e.range_mm[1],
-            q_of(s_lo),
-            q_of(s_hi)
         ));
     }
     Ok(said)
