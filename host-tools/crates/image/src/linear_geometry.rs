@@ -179,9 +179,8 @@ impl Placement {
             let mut comp = Box::new(Compensator::IDENTITY);
             comp.load(&z.image)
                 .map_err(|e| Error::core("axis Z: image does not load", e))?;
-            let uz = comp.um_per_count();
-            ensure!(uz > 0.0, "axis Z: µm per count {uz} must be > 0");
-            (spec.tool_length_um as f64 / uz as f64).round() as i64
+            // As the rotary stage folds it (a loaded image's scale is > 0).
+            (spec.tool_length_um as f64 / comp.um_per_count() as f64).round() as i64
         };
         Ok(Placement {
             pivot_counts: spec.pivot_counts,
@@ -196,12 +195,12 @@ impl Placement {
     }
 }
 
+/// The stroke (start, end counts) of each of X, Y, Z's positioning tables, if it has one.
+pub type TableStrokes = [Option<(i64, i64)>; 3];
+
 /// X, Y, Z's µm per count (the f32's shortest decimal, the scale meant) and the stroke of each one's
 /// positioning table, if it has one.
-pub fn linear_scales(
-    axes: &[GroupAxis],
-    label: &str,
-) -> Result<([f64; 3], [Option<(i64, i64)>; 3])> {
+pub fn linear_scales(axes: &[GroupAxis], label: &str) -> Result<([f64; 3], TableStrokes)> {
     let mut upc = [0.0f64; 3];
     let mut tables = [None; 3];
     for (k, name) in [AxisName::X, AxisName::Y, AxisName::Z]
@@ -239,7 +238,7 @@ fn zero_section(
     lin: &LinearGeometry,
     place: &Placement,
     upc: [f64; 3],
-    tables: [Option<(i64, i64)>; 3],
+    tables: TableStrokes,
     label: &str,
 ) -> Result<GeometricSection> {
     let mut grids = [GeometricGrid {
