@@ -12,6 +12,10 @@
 //!   `diagnose_rtest_cli` takes it);
 //! - *location errors only*: the same chain with `fit rtest` without `--effects`.
 //!
+//! For the linear axes' errors (`linear_geometry`, carried by the geometric section) the figure with
+//! the set-up offsets refitted is the one judged: the effect's constant part and what looks like the
+//! sphere's position are kept in the fitted set-up offsets, which an image does not apply.
+//!
 //! Also printed: each figure with the six set-up offsets refitted to it (least squares on their
 //! sensitivities) instead of the twin's true ones taken out. A C-axis zero offset, and what a fit
 //! without the effect puts into the location errors in its place, cannot be told from where the sphere

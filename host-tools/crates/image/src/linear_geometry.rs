@@ -560,5 +560,19 @@ mod tests {
             (0..g.grids[1].n_segments as usize)
                 .all(|s| (0..6).all(|f| spec.segment(1, s, f) == [0.0; 4]))
         );
+        // An axis the effect moves with a positioning table of its own: refused (both would correct
+        // its positioning); a table on an axis it does not move gives that axis's zero grid.
+        let table = Some((-5_000_000, 5_000_000));
+        let err = zero_section(&lin, &place, upc, [table, None, None], "t").unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("axis X's image has a positioning table"),
+            "{err}"
+        );
+        let z = zero_section(&lin, &place, upc, [None, table, None], "t").unwrap();
+        assert_eq!(
+            (z.grids[1].start_counts, z.grids[1].segment_counts),
+            (-5_000_000, 10_000_000)
+        );
     }
 }
