@@ -19,7 +19,12 @@
 //! - *constant segments*: alone, each moving axis's grid is one segment over its widened range, with
 //!   segments of the held value added on the pivot's side until the stroke lies near the pivot (the
 //!   group's check); an axis the effect does not move gets a zero grid (its table's stroke, if it has
-//!   a table, else one count at the pivot).
+//!   a table, else one count at the pivot). A moving axis with a positioning table of its own is
+//!   refused: both would correct its positioning.
+//! - *summed*: with a `fit geometry` model, the effect is added to its `EXa`, `EYa`, `EZa` on the
+//!   model's grids (exact there: a cubic is a cubic on every segment), which must cover the measured
+//!   range (else refused rather than cut). The sum is right when the R-test was measured with that
+//!   model's compensation active; `image group` says so.
 
 use axcomp_core::Compensator;
 use axcomp_core::geometric::{COMPONENT_NAMES, FUNCTIONS_PER_AXIS, GeometricGrid};
