@@ -38,7 +38,9 @@ pub struct GroupArgs {
     /// bc-trunnion or bc-head; needs --pivot-counts, and --tool-length-mm for a trunnion), or the
     /// hand-written AC-trunnion form (JSON with `ex0c_um`, `ey0c_um`, `ea0c_urad`, `eb0c_urad`,
     /// `ey0a_um`, `ez0a_um`, `eb0a_urad`, `ec0a_urad`, `pivot_counts` [x, y, z],
-    /// `tool_length_um`). The group needs X, Y, Z, the tilt axis (A or B) and C.
+    /// `tool_length_um`). The group needs X, Y, Z, the tilt axis (A or B) and C. The model's effects
+    /// go in too: `rotary_positioning` as the rotary axes' angle tables, `rotary_wobble` in the rotary
+    /// section, `linear_geometry` in the geometric section (added to --geometry's if given).
     #[arg(long, value_name = "MODEL.json")]
     pub rotary: Option<PathBuf>,
     /// With a `fit rtest` model: the X, Y, Z counts at which the tool point (trunnion) or the head's
