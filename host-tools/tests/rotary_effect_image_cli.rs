@@ -12,6 +12,10 @@
 //!   `diagnose_rtest_cli` takes it);
 //! - *location errors only*: the same chain with `fit rtest` without `--effects`.
 //!
+//! For the linear axes' errors (`linear_geometry`, carried by the geometric section) the figure with
+//! the set-up offsets refitted is the one judged: the effect's constant part and what looks like the
+//! sphere's position are kept in the fitted set-up offsets, which an image does not apply.
+//!
 //! Also printed: each figure with the six set-up offsets refitted to it (least squares on their
 //! sensitivities) instead of the twin's true ones taken out. A C-axis zero offset, and what a fit
 //! without the effect puts into the location errors in its place, cannot be told from where the sphere
@@ -22,7 +26,11 @@
 use std::path::Path;
 
 use axcomp_core::group::{Group, GroupInput, GroupOutput, GroupState};
+use axcomp_geometry::GeometryModel;
+use axcomp_geometry::model::{ComponentModel, MODEL_FORMAT};
+use axcomp_geometry::spline::AxisGrid;
 use axcomp_kinematics::rotary::{FiveAxis, MachineKind, N_LOCATION, N_SETUP, Pose};
+use axcomp_kinematics::{Component, Topology};
 use axcomp_numeric::lsq::{DMatrix, lstsq};
 use axcomp_twin::five_axis::{FiveAxisTwin, RtestCampaign, TiltWobbleShape, standard_paths};
 
@@ -47,6 +55,14 @@ fn twin_campaign(effect: &str, shape: TiltWobbleShape) -> (FiveAxisTwin, RtestCa
         // Three times the twin's amplitudes (30–90 µrad/rad²): a wobble the location errors do not
         // absorb (at 10–30 µrad/rad² they leave 0.36 µm held out, near the noise).
         for a in &mut twin.effect_params.tilt_wobble[..2] {
+            *a *= 3.0;
+        }
+    }
+    if effect == "linear_geometry" {
+        // Three times the twin's amplitudes (X positioning 15–45 µm/m, straightness 3–9 µm): the
+        // location errors absorb part of the linear geometry; at the twin's own amplitudes what they
+        // leave is near the noise.
+        for a in &mut twin.effect_params.linear {
             *a *= 3.0;
         }
     }
@@ -108,8 +124,8 @@ fn axis_images(dir: &Path) -> Vec<String> {
     out
 }
 
-/// `image group --rotary model` → the stderr.
-fn group(dir: &Path, axes: &[String], model: &str, out: &str) -> String {
+/// `image group --rotary model [extra]` → the stderr.
+fn group(dir: &Path, axes: &[String], model: &str, out: &str, extra: &[&str]) -> String {
     let pivot = format!("{},{},{}", PIVOT[0], PIVOT[1], PIVOT[2]);
     let mut args = vec!["image", "group"];
     for a in axes {
@@ -125,6 +141,7 @@ fn group(dir: &Path, axes: &[String], model: &str, out: &str) -> String {
         "--out",
         out,
     ]);
+    args.extend(extra);
     run(&args, dir)
 }
 
@@ -201,13 +218,14 @@ fn held_out(twin: &FiveAxisTwin, c: &RtestCampaign, image: &[u8]) -> ([f64; 3], 
 }
 
 /// The chain for one twin effect: the verdict, the image builder's stderr, and (after, oracle,
-/// uncompensated, location errors only) µm. The fit adds `effects`, or the verdict if `None`.
+/// uncompensated, location errors only) µm with the true set-up offsets taken out, then the same with
+/// the set-up offsets refitted. The fit adds `effects`, or the verdict if `None`.
 fn chain(
     effect: &str,
     shape: TiltWobbleShape,
     effects: Option<&str>,
     dir: &Path,
-) -> (String, String, [f64; 4]) {
+) -> (String, String, [f64; 4], [f64; 4]) {
     let (twin, c) = twin_campaign(effect, shape);
     std::fs::write(dir.join("rtest.csv"), c.to_csv_string()).unwrap();
     run(
@@ -237,8 +255,8 @@ fn chain(
     fit(&["--effects", effects.unwrap_or(&verdict)], "m.json");
     fit(&[], "m0.json");
     let axes = axis_images(dir);
-    let said = group(dir, &axes, "m.json", "g.bin");
-    group(dir, &axes, "m0.json", "g0.bin");
+    let said = group(dir, &axes, "m.json", "g.bin", &[]);
+    group(dir, &axes, "m0.json", "g0.bin", &[]);
     let (t, f) = held_out(&twin, &c, &std::fs::read(dir.join("g.bin")).unwrap());
     let (t0, f0) = held_out(&twin, &c, &std::fs::read(dir.join("g0.bin")).unwrap());
     eprintln!(
@@ -247,7 +265,12 @@ fn chain(
          refitted: uncompensated {:.3}, location errors only {:.3}, with the effect {:.3}, oracle {:.3}\n{said}",
         t[2], t0[0], t[0], t[1], f[2], f0[0], f[0], f[1]
     );
-    (verdict, said, [t[0], t[1], t[2], t0[0]])
+    (
+        verdict,
+        said,
+        [t[0], t[1], t[2], t0[0]],
+        [f[0], f[1], f[2], f0[0]],
+    )
 }
 
 /// A C-axis positioning error (1× and 2× per turn, 5–20 µrad) and the tilt axis's: `diagnose` names
@@ -260,7 +283,7 @@ fn chain(
 #[test]
 fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-pos");
-    let (verdict, said, [after, oracle, raw, only]) =
+    let (verdict, said, [after, oracle, raw, only], _) =
         chain("rotary_positioning", TiltWobbleShape::default(), None, &dir);
     assert_eq!(verdict, "rotary_positioning");
     assert!(
@@ -291,7 +314,7 @@ fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
 #[test]
 fn c_wobble_goes_into_the_rotary_section_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-wobble");
-    let (verdict, said, [after, oracle, raw, only]) =
+    let (verdict, said, [after, oracle, raw, only], _) =
         chain("rotary_wobble", TiltWobbleShape::default(), None, &dir);
     assert_eq!(verdict, "rotary_wobble");
     wobble_carried(&dir, &said, 'A');
@@ -310,7 +333,7 @@ fn c_wobble_goes_into_the_rotary_section_within_1p3_of_the_oracle() {
 #[test]
 fn a_axis_wobble_goes_into_the_rotary_section_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-a-wobble");
-    let (_, said, [after, oracle, raw, only]) = chain(
+    let (_, said, [after, oracle, raw, only], _) = chain(
         "tilt_wobble",
         TiltWobbleShape::Quadratic,
         Some("rotary_wobble"),
@@ -357,4 +380,106 @@ fn wobble_carried(dir: &Path, said: &str, tilt: char) {
         o.status.success() && text.contains("wobble (") && text.contains("C_tilt_x_cos2"),
         "{text}"
     );
+}
+
+/// The issue's bound on the held-out RMS with the effect: at most this many times the oracle's.
+const ORACLE_FACTOR: f64 = 1.3;
+
+/// Linear-axis errors (the twin's `linear_geometry`: X positioning linear in x, straightness EYX and EZY
+/// as half-sines, amplitudes tripled): whatever `diagnose` names (printed), `fit rtest --effects
+/// linear_geometry` models them (Legendre degree 1…3 of each moving axis over its measured range),
+/// `image group --rotary` converts them into the geometric section (its translational components, one
+/// cubic per segment) and says so, and the group engine — rotary stage and geometric stage together —
+/// brings the held-out K4 run within [`ORACLE_FACTOR`] × the oracle and below the location-errors-only
+/// image. Judged with the set-up offsets refitted (see the module documentation): the linear
+/// geometry's constant part — the straightness at the R-test frame's origin, where the twin's
+/// half-sines peak — cannot be told from where the sphere sits and the head's zero, `fit rtest` keeps
+/// it in the set-up offsets, and no image built from an R-test can correct it (with the true offsets
+/// taken out it stays in every figure: printed). This checks the conversion's signs and frames
+/// numerically: with the effect's sign flipped the figure is 1.77 µm instead of 0.29. Measured:
+/// uncompensated 8.12, location errors only 0.75, with the effect 0.29, oracle 0.28 µm (1.04×).
+#[test]
+fn linear_geometry_goes_into_the_geometric_section_within_1p3_of_the_oracle() {
+    let dir = scratch("effect-image-linear");
+    let (_, said, _, [after, oracle, raw, only]) = chain(
+        "linear_geometry",
+        TiltWobbleShape::default(),
+        Some("linear_geometry"),
+        &dir,
+    );
+    assert!(
+        said.contains("effect `linear_geometry`")
+            && said.contains("carried by the geometric section")
+            && said.contains("held beyond")
+            && !said.contains("not carried"),
+        "{said}"
+    );
+    let view_bytes = std::fs::read(dir.join("g.bin")).unwrap();
+    let view = axcomp_core::group_image::parse(&view_bytes).unwrap();
+    assert!(view.geometric.is_some(), "no geometric section");
+    let o = axcomp_in(&["image", "inspect", "g.bin"], &dir);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && text.contains("EYX"), "{text}");
+    // The same effect added to a `fit geometry` model that holds zero on 50 mm knots: the section
+    // now has the model's grid (the measured range widened to its knots) and the held-out figure is
+    // the same within 0.005 µm (f32 rounding of other segment boundaries).
+    std::fs::write(dir.join("zero.json"), zero_geometry_model().to_json()).unwrap();
+    let said = group(
+        &dir,
+        &axis_images(&dir),
+        "m.json",
+        "gz.bin",
+        &["--geometry", "zero.json"],
+    );
+    assert!(
+        said.contains("added to the --geometry model's components") && said.contains("summed"),
+        "{said}"
+    );
+    let (twin, c) = twin_campaign("linear_geometry", TiltWobbleShape::default());
+    let (_, [with_zero, ..]) = held_out(&twin, &c, &std::fs::read(dir.join("gz.bin")).unwrap());
+    eprintln!("with a zero --geometry model: {with_zero:.3} µm (set-up offsets refitted)");
+    assert!((with_zero - after).abs() < 0.005, "{with_zero} vs {after}");
+    assert!(
+        after <= ORACLE_FACTOR * oracle && after < only && only < raw,
+        "after {after:.3} µm (at most {ORACLE_FACTOR} × the oracle {oracle:.3}), location errors \
+         only {only:.3}, raw {raw:.3}"
+    );
+}
+
+/// A `fit geometry` model holding zero in every component (all identified) on 50 mm knots over X
+/// −100…300, Y −400…100, Z 300…700 mm: the linear geometry's measured range at this file's pivot
+/// and tool length, in the axes' counts.
+fn zero_geometry_model() -> GeometryModel {
+    let grid = |lo: f64, hi: f64| AxisGrid {
+        lo,
+        hi,
+        intervals: ((hi - lo) / 50.0) as usize,
+    };
+    let grids = [grid(-100.0, 300.0), grid(-400.0, 100.0), grid(300.0, 700.0)];
+    let components = Component::ALL
+        .iter()
+        .map(|c| ComponentModel {
+            name: c.name().to_string(),
+            identified: true,
+            reason: "identified".into(),
+            unit: c.unit().into(),
+            coefficients: c
+                .axis()
+                .map_or(Vec::new(), |a| vec![0.0; grids[a.index()].n_basis()]),
+            value: 0.0,
+            uncertainty: vec![],
+        })
+        .collect();
+    GeometryModel {
+        format: MODEL_FORMAT.into(),
+        version: 1,
+        topology: Topology::default(),
+        grids,
+        components,
+        method: "test".into(),
+        smoothing_lambda: 0.0,
+        sigma_um: 0.3,
+        volume_min_mm: [-100.0, -400.0, 300.0],
+        volume_max_mm: [300.0, 100.0, 700.0],
+    }
 }

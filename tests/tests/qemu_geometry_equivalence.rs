@@ -4,7 +4,9 @@
 //! XY face diagonals, lines 4–7 the body diagonals, the diagonals read step-wise: X step, reading,
 //! Y step, reading, Z step, reading), with the lines extended 1 % beyond the model's volume at
 //! their ends, 16-bit counters wrapping, an image whose geometric section is corrupt (refused by
-//! its section CRC), and an A/B swap to the same model with a 100 mm tool offset.
+//! its section CRC), an A/B swap to the same model with a 100 mm tool offset, and a swap to a
+//! section converted by the host from a `fit rtest` model's `linear_geometry` (translational
+//! components only, `axcomp_image::linear_geometry`).
 //!
 //! Reference: `axcomp_firmware::replay::replay_group` over `axcomp_core::group::GroupEngine` on the
 //! host. Tolerance: none — every 32-byte output record must match bit for bit, and the record
@@ -29,10 +31,9 @@ const DWELL: u32 = 10;
 /// Targets per line.
 const TARGETS: i64 = 10;
 
-/// The group image: the `group3` workload axes (16-bit counters) and, if given, the geometric
-/// model.
-fn image(geometric: Option<&GeometricSpec>) -> Vec<u8> {
-    let images: Vec<Vec<u8>> = (0..3)
+/// The `group3` workload's X, Y, Z images (16-bit counters).
+fn axis_images() -> Vec<Vec<u8>> {
+    (0..3)
         .map(|k| {
             let mut spec = bench::group_axis_spec(k);
             spec.counter_bits = EQUIVALENCE_COUNTER_BITS;
@@ -41,7 +42,12 @@ fn image(geometric: Option<&GeometricSpec>) -> Vec<u8> {
             buf.truncate(n);
             buf
         })
-        .collect();
+        .collect()
+}
+
+/// The group image: the `group3` workload axes and, if given, the geometric model.
+fn image(geometric: Option<&GeometricSpec>) -> Vec<u8> {
+    let images = axis_images();
     let axes: Vec<AxisSectionSpec> = (0..3)
         .map(|k| AxisSectionSpec {
             name: bench::group_axis(k).0,
@@ -111,8 +117,9 @@ fn path() -> Vec<[i64; 3]> {
 }
 
 /// The trace: a few identity cycles, the image, the seven lines, a corrupt image (refused), the
-/// swap to the model with a tool offset, the seven lines again.
-fn trace(first: &[u8], second: &[u8], corrupt: &[u8]) -> (Vec<u8>, u32) {
+/// swap to the model with a tool offset, the seven lines again, the swap to the converted linear
+/// geometry, the seven lines a third time.
+fn trace(first: &[u8], second: &[u8], corrupt: &[u8], third: &[u8]) -> (Vec<u8>, u32) {
     let p = path();
     let mut t = TraceBuilder::new();
     let mut cycles = 0u32;
@@ -136,9 +143,11 @@ fn trace(first: &[u8], second: &[u8], corrupt: &[u8]) -> (Vec<u8>, u32) {
         }
         cycle(&mut t, *q, i);
     }
-    t.push(&Record::Image(second));
-    for (i, q) in p.iter().enumerate() {
-        cycle(&mut t, *q, i);
+    for image in [second, third] {
+        t.push(&Record::Image(image));
+        for (i, q) in p.iter().enumerate() {
+            cycle(&mut t, *q, i);
+        }
     }
     (t.finish(), cycles)
 }
@@ -169,17 +178,64 @@ fn images() -> (Vec<u8>, Vec<u8>, Vec<u8>) {
     (first, second, corrupt)
 }
 
+/// A group image whose geometric section is a `linear_geometry` effect (X, Y, Z each moving over
+/// about 80 mm of the 100 mm stroke, 1–4 µm per Legendre degree along X, Y, Z) converted by the host
+/// on the workload's grids (8 segments per axis), the pivot at mid-stroke.
+fn linear_geometry_image() -> Vec<u8> {
+    use axcomp_image::linear_geometry::{
+        LinearAxisError, LinearGeometry, Placement, with_linear_geometry,
+    };
+    let axes: Vec<axcomp_image::group::GroupAxis> = axis_images()
+        .into_iter()
+        .enumerate()
+        .map(|(k, image)| axcomp_image::group::GroupAxis {
+            name: bench::group_axis(k).0,
+            counts_per_rev: 0,
+            image,
+            given_as: format!("{k}"),
+        })
+        .collect();
+    let lin = LinearGeometry {
+        axes: (0..3)
+            .map(|a| LinearAxisError {
+                axis: a,
+                range_mm: [-37.3 + a as f64, 41.9 - 2.0 * a as f64],
+                legendre: vec![[3.0, -1.5, 1.0], [-2.0, 4.0, 0.5], [1.0, 0.7, -3.5]],
+                identified: [true; 3],
+            })
+            .collect(),
+        rms_over_fit_um: 0.0,
+    };
+    let geo = bench::group_geometric();
+    let base = axcomp_image::GeometricSection {
+        chain: geo.chain,
+        work_axes: geo.work_axes,
+        identified: 0,
+        tool_offset_um: [0.0; 3],
+        squareness_urad: [0.0; 3],
+        grids: geo.grids,
+        coefficients: vec![[0.0; 4]; geo.coefficients.len()],
+    };
+    let place = Placement {
+        pivot_counts: [STROKE / 2; 3],
+        tool_counts_z: 0,
+    };
+    let (section, _) = with_linear_geometry(&lin, &place, &axes, Some(base), "test").unwrap();
+    image(Some(&section.spec()))
+}
+
 #[test]
 fn geometric_stage_matches_host_bit_for_bit_through_the_seven_lines() {
     let (first, second, corrupt) = images();
-    let (trace_bytes, cycles) = trace(&first, &second, &corrupt);
+    let third = linear_geometry_image();
+    let (trace_bytes, cycles) = trace(&first, &second, &corrupt, &third);
     let (want, replayed, errors) = host_group_replay(&trace_bytes);
     assert_eq!((replayed, errors), (cycles, 0));
     assert_eq!(want.len(), cycles as usize * 3 * OUTPUT_RECORD_LEN);
 
     // The trace exercises the stage: without the geometric section the commands differ.
     let plain = image(None);
-    let (plain_trace, _) = trace(&plain, &plain, &corrupt);
+    let (plain_trace, _) = trace(&plain, &plain, &corrupt, &plain);
     let (without, _, _) = host_group_replay(&plain_trace);
     let records = |b: &[u8]| -> Vec<OutputRecord> {
         b.chunks(OUTPUT_RECORD_LEN)
@@ -196,6 +252,17 @@ fn geometric_stage_matches_host_bit_for_bit_through_the_seven_lines() {
         differ > a.len() / 2,
         "the geometric stage changes the commands in most records ({differ} of {})",
         a.len()
+    );
+    // The third pass (the converted linear geometry) too.
+    let tail = path().len() * 3;
+    let differ = a[a.len() - tail..]
+        .iter()
+        .zip(&b[b.len() - tail..])
+        .filter(|(x, y)| x.corrected_command_counts != y.corrected_command_counts)
+        .count();
+    assert!(
+        differ > tail / 2,
+        "the linear geometry changes the commands in most records of its pass ({differ} of {tail})"
     );
 
     if !require_tool("qemu-system-arm") {
@@ -225,7 +292,7 @@ fn geometric_stage_matches_host_bit_for_bit_through_the_seven_lines() {
     let outputs = cycles as usize * 3;
     assert!(
         stdout.contains(&format!(
-            "cycles={cycles} outputs={outputs} errors=0 images_accepted=2 images_rejected=1"
+            "cycles={cycles} outputs={outputs} errors=0 images_accepted=3 images_rejected=1"
         )),
         "summary line: {stdout}"
     );

@@ -8,7 +8,7 @@
 //!   both sources, nothing written) unless `--exclude-geometric` leaves the geometric model's out
 //!   (`axcomp_image::group::refuse_double_correction`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use axcomp_core::group::AxisName;
@@ -20,6 +20,7 @@ use axcomp_geometry::GeometryModel;
 use axcomp_image::GeometricSection;
 use axcomp_image::args;
 use axcomp_image::group::{self as group_lib, GroupAxis, GroupStages};
+use axcomp_image::linear_geometry::{self, LinearGeometry};
 
 use crate::output::OutputSet;
 
@@ -37,7 +38,9 @@ pub struct GroupArgs {
     /// bc-trunnion or bc-head; needs --pivot-counts, and --tool-length-mm for a trunnion), or the
     /// hand-written AC-trunnion form (JSON with `ex0c_um`, `ey0c_um`, `ea0c_urad`, `eb0c_urad`,
     /// `ey0a_um`, `ez0a_um`, `eb0a_urad`, `ec0a_urad`, `pivot_counts` [x, y, z],
-    /// `tool_length_um`). The group needs X, Y, Z, the tilt axis (A or B) and C.
+    /// `tool_length_um`). The group needs X, Y, Z, the tilt axis (A or B) and C. The model's effects
+    /// go in too: `rotary_positioning` as the rotary axes' angle tables, `rotary_wobble` in the rotary
+    /// section, `linear_geometry` in the geometric section (added to --geometry's if given).
     #[arg(long, value_name = "MODEL.json")]
     pub rotary: Option<PathBuf>,
     /// With a `fit rtest` model: the X, Y, Z counts at which the tool point (trunnion) or the head's
@@ -91,7 +94,7 @@ pub struct GroupArgs {
 fn rotary_from_args(
     args: &GroupArgs,
     axes: &mut [GroupAxis],
-) -> anyhow::Result<Option<RotaryLocationSpec>> {
+) -> anyhow::Result<Option<(RotaryLocationSpec, Option<LinearGeometry>)>> {
     let Some(path) = args.rotary.as_deref() else {
         anyhow::ensure!(
             args.pivot_counts.is_none() && args.tool_length_mm.is_none(),
@@ -115,11 +118,50 @@ fn rotary_from_args(
     for w in &section.effects.left_out {
         eprintln!("axcomp: warning: {label}: {w}");
     }
-    Ok(Some(section.spec))
+    Ok(Some((section.spec, section.effects.linear)))
+}
+
+/// `--geometry MODEL.json [--tool-offset-mm x,y,z]` for the group's axes, with the rotary model's
+/// `linear_geometry` added to its translational components (alone on grids of its own without
+/// `--geometry`; a note says how).
+fn geometric_from_args(
+    args: &GroupArgs,
+    axes: &[GroupAxis],
+    rotary: Option<&(RotaryLocationSpec, Option<LinearGeometry>)>,
+) -> anyhow::Result<Option<GeometricSection>> {
+    let base = geometry_model_from_args(args, axes)?;
+    let Some((spec, Some(lin))) = rotary else {
+        return Ok(base);
+    };
+    let label = format!(
+        "--rotary {}",
+        args.rotary.as_deref().unwrap_or(Path::new("")).display()
+    );
+    let combined = base.is_some();
+    let place = linear_geometry::Placement::of(spec, axes)?;
+    let (g, said) = linear_geometry::with_linear_geometry(lin, &place, axes, base, &label)?;
+    eprintln!(
+        "axcomp: note: {label}: `linear_geometry` {} the geometric section: {} (the stage holds \
+         every function at its grid's ends; `predict` refuses poses outside the measured range)",
+        if combined {
+            "added to the --geometry model's components on its grid in"
+        } else {
+            "alone (no --geometry) in"
+        },
+        said.join("; ")
+    );
+    if combined {
+        eprintln!(
+            "axcomp: warning: {label}: the R-test's linear geometry is summed with the --geometry \
+             model's: right when the R-test was measured with that model's compensation active \
+             (it then saw what the model leaves); otherwise both correct the same errors"
+        );
+    }
+    Ok(Some(g))
 }
 
 /// `--geometry MODEL.json [--tool-offset-mm x,y,z]` for the group's axes.
-fn geometric_from_args(
+fn geometry_model_from_args(
     args: &GroupArgs,
     axes: &[GroupAxis],
 ) -> anyhow::Result<Option<GeometricSection>> {
@@ -178,12 +220,16 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
         args.exclude_geometric.is_empty() || args.geometry.is_some(),
         "--exclude-geometric goes with --geometry"
     );
-    let geometric = geometric_from_args(args, &axes)?;
+    let geometric = geometric_from_args(args, &axes, rotary.as_ref())?;
+    let rotary = rotary.map(|(spec, _)| spec);
     let shown = |p: &Option<PathBuf>| {
         p.as_ref()
             .map_or(String::new(), |p| p.display().to_string())
     };
-    let (rotary_path, geo_path) = (shown(&args.rotary), shown(&args.geometry));
+    let (rotary_path, mut geo_path) = (shown(&args.rotary), shown(&args.geometry));
+    if args.geometry.is_none() && geometric.is_some() {
+        geo_path = format!("{rotary_path}'s linear_geometry");
+    }
     let mut stages = GroupStages {
         rotary: rotary.as_ref().map(|r| (r, rotary_path.as_str())),
         geometric: geometric.as_ref().map(|g| (g, geo_path.as_str())),

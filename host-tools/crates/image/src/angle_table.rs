@@ -1,4 +1,5 @@
 //! What a group image carries of a `fit rtest --effects` model's effects, and what it leaves out.
+//! (Applied by three stages: the rotary axes' own tables, the rotary section, the geometric section.)
 //!
 //! Glossary:
 //! - *angle error*: the `rotary_positioning` effect of one rotary axis, actual minus commanded angle
@@ -16,10 +17,13 @@
 //!   varying with its angle): carried by the rotary section ([`axcomp_core::rotary::RotaryWobble`]: C's
 //!   harmonics 1…4 per turn, the tilt axis's powers 1…3 of its angle), the stage adds it to the
 //!   location errors; harmonics above 4 per turn are left out (and said).
-//! - *left out*: `linear_geometry` (errors of the tool point along X, Y, Z varying with the linear
-//!   axes' positions): the group engine's stages have no input for it from an R-test model (the rotary
-//!   stage holds the location errors and the wobble; the geometric stage takes a `fit geometry` model),
-//!   so `image group` says so with the correction it leaves out (its RMS over the fitted poses).
+//! - *linear geometry*: the `linear_geometry` effect (errors of the tool point along X, Y, Z varying
+//!   with the linear axes' positions, Legendre degree ≤ 3 over the measured range): carried by the
+//!   geometric section as its translational components (`crate::linear_geometry`: one cubic per
+//!   segment, held beyond the measured range as the stage holds every grid's ends; added to a
+//!   `--geometry` model's on its grid); a degree above 3 is refused.
+//! - *left out*: C's wobble harmonics above 4 per turn (said, with the effect named); every other
+//!   part of the three modelled effects is carried.
 
 use std::f64::consts::TAU;
 
@@ -32,6 +36,7 @@ use axcomp_rtest::RtestModel;
 use axcomp_rtest::effects::EffectBasis;
 
 use crate::axis::GroupAxis;
+use crate::linear_geometry::{LinearGeometry, linear_geometry_of};
 use crate::{Error, Result};
 
 /// Segments of an angle table over one turn (cubic Hermite; the C harmonics of `fit rtest` reach 8 per
@@ -96,12 +101,15 @@ pub struct EffectsInImage {
     pub angle_errors: Vec<(AxisName, AngleError)>,
     /// The `rotary_wobble` effect for the rotary section, if the model has one.
     pub wobble: Option<RotaryWobble>,
+    /// The `linear_geometry` effect for the geometric section, if the model has one.
+    pub linear: Option<LinearGeometry>,
     pub carried: Vec<String>,
     pub left_out: Vec<String>,
 }
 
 /// The model's effects sorted into what the group image carries (`rotary_positioning`: the C and
-/// tilt axes' angle tables) and what it leaves out (see the module glossary).
+/// tilt axes' angle tables; `rotary_wobble`: the rotary section; `linear_geometry`: the geometric
+/// section) and what it leaves out (see the module glossary).
 pub fn effects_in_image(model: &RtestModel) -> Result<EffectsInImage> {
     let tilt = match model.machine.tilt_letter() {
         'a' => AxisName::A,
@@ -175,18 +183,22 @@ pub fn effects_in_image(model: &RtestModel) -> Result<EffectsInImage> {
                 }
                 out.wobble = Some(w);
             }
-            _ => out.left_out.push(format!(
-                "the model's effect `{}` ({} parameters) is not carried by the image: the firmware has no \
-                 stage for it from an R-test model (the rotary stage applies the 11 location errors, axis \
-                 tables the rotary axes' positioning errors), so its correction (RMS {:.3} µm over the \
-                 fitted poses) is left out; the location errors were fitted together with it and may \
-                 correct worse without it than those of a fit without `--effects {}`: build the image from \
-                 that fit",
-                e.kind,
-                e.parameters.len(),
-                e.rms_over_fit_um,
-                e.kind
-            )),
+            EffectBasis::Linear { axes, degree, .. } => {
+                out.carried.push(format!(
+                    "the model's effect `{}` ({} parameters; RMS {:.3} µm over the fitted poses) is carried \
+                     by the geometric section (the translational components of axes {}: positioning and \
+                     straightness, Legendre degree 1…{degree} as one cubic per segment), applied by the \
+                     geometric stage at the commanded X, Y, Z",
+                    e.kind,
+                    e.parameters.len(),
+                    e.rms_over_fit_um,
+                    axes.iter()
+                        .filter_map(|&a| ["X", "Y", "Z"].get(a).copied())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+                out.linear = Some(linear_geometry_of(e)?);
+            }
         }
     }
     Ok(out)

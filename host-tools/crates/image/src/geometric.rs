@@ -1,10 +1,8 @@
 //! A `fit geometry` model as the group image's geometric section (see the crate glossary).
 
-use axcomp_core::Compensator;
 use axcomp_core::geometric::{
     COMPONENT_NAMES, FUNCTIONS_PER_AXIS, GeometricCoefficients, GeometricGrid, GeometricSpec,
 };
-use axcomp_core::group::AxisName;
 use axcomp_geometry::GeometryModel;
 
 use crate::axis::GroupAxis;
@@ -164,34 +162,7 @@ pub fn geometric_for_group(
     tool_offset_mm: [f64; 3],
     axes: &[GroupAxis],
 ) -> Result<GeometricSection> {
-    let mut upc = [0.0f64; 3];
-    let mut tables = [None; 3];
-    for (k, name) in [AxisName::X, AxisName::Y, AxisName::Z]
-        .into_iter()
-        .enumerate()
-    {
-        let Some(axis) = axes.iter().find(|a| a.name == name) else {
-            return Err(Error::Invalid(format!(
-                "{label}: the geometric stage needs axis {} in the group (--axis {}=IMAGE)",
-                name.letter(),
-                name.letter()
-            )));
-        };
-        let mut comp = Box::new(Compensator::IDENTITY);
-        comp.load(&axis.image)
-            .map_err(|e| Error::core(format!("axis {}: image does not load", name.letter()), e))?;
-        // The image stores f32: its shortest decimal (0.1, not 0.10000000149) is the scale meant.
-        upc[k] = comp
-            .um_per_count()
-            .to_string()
-            .parse::<f64>()
-            .unwrap_or(comp.um_per_count() as f64);
-        if comp.has_table() {
-            let n = comp.forward_segments().len() as i64;
-            let start = comp.table_start_counts();
-            tables[k] = Some((start, start + n * comp.segment_counts() as i64));
-        }
-    }
+    let (upc, tables) = crate::linear_geometry::linear_scales(axes, label)?;
     let g = geometric_from_model(model, upc, tool_offset_mm)
         .map_err(|e| Error::Invalid(format!("{label}: {e}")))?;
     for (k, t) in tables.iter().enumerate() {

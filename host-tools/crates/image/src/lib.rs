@@ -13,7 +13,9 @@
 //!   with the values the model holds (what `axcomp predict` uses): a *not-separable* one
 //!   (`identified: false`, only its combination with others is measured) at its minimum-norm share,
 //!   one not identified for another reason (no data) as the zero the model holds; the identified
-//!   mask keeps the model's flags and `image inspect` says which is which ([`geometric`]).
+//!   mask keeps the model's flags and `image inspect` says which is which ([`geometric`]). A `fit
+//!   rtest` model's `linear_geometry` goes into its translational components, alone or added to a
+//!   `fit geometry` model's ([`linear_geometry`]).
 //! - *rotary section*: a `fit rtest` model's 11 location errors for the core's rotary stage
 //!   ([`rotary`]).
 //! - *double correction*: two sources of one group image correcting the same error: an axis's
@@ -46,6 +48,7 @@ pub mod describe;
 pub mod extension;
 pub mod geometric;
 pub mod group;
+pub mod linear_geometry;
 pub mod replay;
 pub mod rotary;
 
