@@ -12,6 +12,8 @@ use serde::Serialize;
 
 use crate::GeometryError;
 use crate::data::LineData;
+use crate::evidence::{self, Evidence, PriorBlock, prior_group};
+pub use crate::evidence::{Prior, PriorGroups};
 use crate::model::{ComponentModel, GeometryModel, MODEL_FORMAT};
 use crate::spline::AxisGrid;
 
@@ -71,6 +73,8 @@ pub struct FitOptions {
     /// weak prior of size 0 that gives the directions the lines cannot separate their minimum-norm value
     /// and keeps noise in the barely separable ones from growing away from the measured lines.
     pub damping: f64,
+    /// How [`Method::Auto`] chooses its smoothing and the components' size prior.
+    pub prior: Prior,
 }
 
 impl Default for FitOptions {
@@ -81,6 +85,7 @@ impl Default for FitOptions {
             intervals: None,
             lambdas: vec![0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0],
             damping: DEFAULT_DAMPING,
+            prior: Prior::LineCv,
         }
     }
 }
@@ -235,6 +240,11 @@ pub struct Fit {
     pub lambda_cv: Vec<(f64, f64)>,
     pub train_rows: usize,
     pub fit_rms_um: f64,
+    /// The prior chosen by the evidence ([`Prior::Evidence`] only).
+    pub evidence: Option<Evidence>,
+    /// The knot grids (intervals X, Y, Z) the evidence compared and their `ln p(y)` (empty unless the
+    /// evidence chose the grid).
+    pub knot_evidence: Vec<([usize; 3], f64)>,
 }
 
 fn priority(c: Component) -> u8 {
@@ -596,6 +606,48 @@ fn settle_not_separable(status: &mut [ComponentStatus], min_norm: bool) {
     }
 }
 
+/// The prior blocks of the active parameters: each estimated component's second-difference penalty
+/// (squareness: none), scaled by its columns' mean squared norm (so precisions are relative to the
+/// data's weight on it).
+fn prior_blocks(
+    layout: &Layout,
+    design: &Design,
+    status: &[ComponentStatus],
+    active: &[usize],
+    groups: PriorGroups,
+) -> Vec<PriorBlock> {
+    let mut blocks = Vec::new();
+    for (i, st) in status.iter().enumerate() {
+        if st.fixed {
+            continue;
+        }
+        let c = Component::ALL[i];
+        let (s, k) = layout.cols[i];
+        let pos0 = active
+            .iter()
+            .position(|&col| col == s)
+            .expect("an estimated component's columns are active");
+        let w: f64 = (s..s + k)
+            .map(|j| design.col_norm[j] * design.col_norm[j])
+            .sum::<f64>()
+            / k as f64;
+        let rough = match c.axis() {
+            Some(ax) => {
+                let dn = layout.grids[ax.index()].second_difference() * &layout.bases[i];
+                dn.transpose() * &dn * w
+            }
+            None => DMatrix::zeros(1, 1),
+        };
+        blocks.push(PriorBlock {
+            cols: (pos0..pos0 + k).collect(),
+            rough,
+            weight: w,
+            group: prior_group(c, groups),
+        });
+    }
+    blocks
+}
+
 /// Second-difference penalty on the active parameters, each function's block scaled by its columns' mean
 /// squared norm (so λ is relative to the data's weight on it).
 fn penalty(
@@ -604,31 +656,8 @@ fn penalty(
     status: &[ComponentStatus],
     active: &[usize],
 ) -> DMatrix<f64> {
-    let pa = active.len();
-    let mut pen = DMatrix::zeros(pa, pa);
-    for (i, st) in status.iter().enumerate().take(18) {
-        if st.fixed {
-            continue;
-        }
-        let (s, k) = layout.cols[i];
-        let pos0 = active
-            .iter()
-            .position(|&c| c == s)
-            .expect("an estimated component's columns are active");
-        let g = &layout.grids[Component::ALL[i].axis().expect("a function").index()];
-        let dn = g.second_difference() * &layout.bases[i];
-        let block = dn.transpose() * &dn;
-        let w: f64 = (s..s + k)
-            .map(|j| design.col_norm[j] * design.col_norm[j])
-            .sum::<f64>()
-            / k as f64;
-        for r in 0..k {
-            for c2 in 0..k {
-                pen[(pos0 + r, pos0 + c2)] = w * block[(r, c2)];
-            }
-        }
-    }
-    pen
+    let blocks = prior_blocks(layout, design, status, active, PriorGroups::Global);
+    evidence::prior_matrix(&blocks, &[1.0], &[0.0], 0.0, active.len())
 }
 
 /// Damping of the solve: `damping` × the mean diagonal of the normal matrix on every active parameter (a
@@ -877,8 +906,56 @@ fn identify(
     Ok((identifiability, ident))
 }
 
-/// Fits the model to the readings in `train` (indices into `data.readings`).
+/// Knot intervals per axis the evidence prior compares with the default grid when none are given.
+pub const EVIDENCE_INTERVALS: [usize; 3] = [4, 6, 8];
+
+/// Fits the model to the readings in `train` (indices into `data.readings`). With the evidence prior
+/// and no knot intervals given, the grid is chosen too: the default grid and [`EVIDENCE_INTERVALS`],
+/// the one whose evidence is highest (`Fit::knot_evidence` lists them).
 pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, GeometryError> {
+    if !(opts.method == Method::Auto
+        && matches!(opts.prior, Prior::Evidence(_))
+        && opts.intervals.is_none())
+    {
+        return fit_on_grid(data, train, opts);
+    }
+    let mut best: Option<Fit> = None;
+    let mut scores = Vec::new();
+    for intervals in [None].into_iter().chain(EVIDENCE_INTERVALS.map(Some)) {
+        let f = fit_on_grid(
+            data,
+            train,
+            &FitOptions {
+                intervals,
+                ..opts.clone()
+            },
+        )?;
+        let grid = f.layout.grids.map(|g| g.intervals);
+        let Some(ev) = f.evidence.as_ref().map(|e| e.log_evidence) else {
+            continue;
+        };
+        if scores.iter().any(|(g, _)| *g == grid) {
+            continue;
+        }
+        scores.push((grid, ev));
+        if best
+            .as_ref()
+            .is_none_or(|b| b.evidence.as_ref().is_none_or(|e| ev > e.log_evidence))
+        {
+            best = Some(f);
+        }
+    }
+    match best {
+        Some(mut f) => {
+            f.knot_evidence = scores;
+            Ok(f)
+        }
+        None => fit_on_grid(data, train, opts),
+    }
+}
+
+/// [`fit`] on the knot grid of `opts.intervals`.
+fn fit_on_grid(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, GeometryError> {
     if train.is_empty() {
         return Err(GeometryError::NoRows);
     }
@@ -906,7 +983,30 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         design: &design,
     };
     act.damp = damping_matrix(&act.g, damping);
+    let prior = match (opts.method, opts.prior) {
+        (Method::Auto, Prior::Evidence(groups)) => {
+            let blocks = prior_blocks(&layout, &design, &status, &act.cols, groups);
+            let d = act.damp.get((0, 0)).copied().unwrap_or(0.0);
+            let ev = evidence::maximise(
+                &act.g,
+                &act.r,
+                design.d.norm_squared(),
+                design.d.len(),
+                &blocks,
+                d,
+                (1e-2, 1e-4),
+                200,
+            );
+            ev.map(|ev| {
+                act.pen =
+                    evidence::prior_matrix(&blocks, &ev.roughness, &ev.size, 0.0, act.cols.len());
+                ev
+            })
+        }
+        _ => None,
+    };
     let (lambda, lambda_cv, cv_chose) = match opts.method {
+        _ if prior.is_some() => (1.0, Vec::new(), true),
         Method::Auto if design.folds.len() >= 3 && opts.lambdas.len() > 1 => {
             choose_lambda(&act, &ident, &opts.lambdas)
         }
@@ -945,6 +1045,8 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         lambda_cv,
         train_rows: n,
         fit_rms_um: (sol.rss / n as f64).sqrt(),
+        evidence: prior,
+        knot_evidence: Vec::new(),
         layout,
     })
 }

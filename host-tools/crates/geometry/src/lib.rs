@@ -33,6 +33,7 @@
 
 pub mod analysis;
 pub mod data;
+pub mod evidence;
 pub mod export;
 pub mod fit;
 pub mod model;
