@@ -20,6 +20,7 @@
 use axcomp_kinematics::{Component, ComponentKind};
 use axcomp_numeric::lsq::cholesky_with_ridge;
 use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
 
 /// Bounds of the relative precisions α and β (they stay finite so every solve is determined).
 pub const PRECISION_RANGE: (f64, f64) = (1e-9, 1e9);
@@ -57,6 +58,15 @@ pub fn prior_group(c: Component, groups: PriorGroups) -> usize {
     }
 }
 
+/// Name of prior group `gi` of `groups`.
+pub fn group_name(groups: PriorGroups, gi: usize) -> String {
+    match groups {
+        PriorGroups::Component => Component::ALL[gi].name().to_string(),
+        PriorGroups::Global => "all".to_string(),
+        PriorGroups::Kind => ["positioning", "straightness", "angular", "squareness"][gi].to_string(),
+    }
+}
+
 /// One component's parameters and their prior's shape.
 #[derive(Debug, Clone)]
 pub struct PriorBlock {
@@ -68,15 +78,21 @@ pub struct PriorBlock {
     pub weight: f64,
     /// Index of the prior group whose α and β the block uses.
     pub group: usize,
+    /// Index of the component (ISO order).
+    pub component: usize,
 }
 
-/// The chosen prior.
-#[derive(Debug, Clone)]
+/// The chosen prior (serialised as the report's `model.prior`).
+#[derive(Debug, Clone, Serialize)]
 pub struct Evidence {
+    /// The groups sharing α and β: name and member components, indexed like `roughness` and `size`.
+    pub groups: Vec<(String, Vec<String>)>,
     /// Roughness precision α of each group (relative).
     pub roughness: Vec<f64>,
     /// Size precision β of each group (relative).
     pub size: Vec<f64>,
+    /// Damping `d` added to every parameter's precision (absolute).
+    pub damping: f64,
     /// Noise variance σ² (µm²) at the maximum.
     pub sigma2: f64,
     /// `ln p(y)` at the maximum, up to the constant `−n/2·ln 2π`.
@@ -85,6 +101,8 @@ pub struct Evidence {
     pub effective_parameters: f64,
     pub iterations: usize,
     pub converged: bool,
+    /// The knot grids (intervals X, Y, Z) compared and their `ln p(y)` (empty when the grid was given).
+    pub knot_grids: Vec<([usize; 3], f64)>,
 }
 
 /// The prior precision `Q` (p × p) of hyperparameters `rough`, `size` (per group) and damping `d`.
@@ -149,8 +167,9 @@ fn evaluate(
     })
 }
 
-/// `tr((Q_b⁻¹ − M⁻¹_bb) R)` and `θ̂_bᵀ R θ̂_b` of block `b` for R = S (roughness) and R = w·I (size).
-fn block_terms(b: &PriorBlock, st: &State, alpha: f64, beta: f64, d: f64) -> [(f64, f64); 2] {
+/// `tr((Q_b⁻¹ − M⁻¹_bb) R)` and `θ̂_bᵀ R θ̂_b` of block `b` for R = S (roughness), R = w·I (size) and
+/// R = I (damping).
+fn block_terms(b: &PriorBlock, st: &State, alpha: f64, beta: f64, d: f64) -> [(f64, f64); 3] {
     let k = b.cols.len();
     let qb = block_precision(b, alpha, beta, d);
     let q_inv = qb.try_inverse().unwrap_or_else(|| DMatrix::zeros(k, k));
@@ -158,76 +177,97 @@ fn block_terms(b: &PriorBlock, st: &State, alpha: f64, beta: f64, d: f64) -> [(f
     let diff = q_inv - mb;
     let th = DVector::from_fn(k, |i, _| st.theta[b.cols[i]]);
     let rough = ((&diff * &b.rough).trace(), th.dot(&(&b.rough * &th)));
-    let size = (diff.trace() * b.weight, th.norm_squared() * b.weight);
-    [rough, size]
+    let plain = (diff.trace(), th.norm_squared());
+    [rough, (plain.0 * b.weight, plain.1 * b.weight), plain]
 }
 
-/// Maximises the evidence of normal equations `g θ = r` (`yty` = yᵀy, `n` readings) over each group's
-/// α and β by MacKay's fixed-point updates from `start` (α, β), at most `max_iter` steps; `d` is a fixed
-/// damping added to every parameter's precision. `None` when the posterior precision cannot be factored.
-pub fn maximise(
-    g: &DMatrix<f64>,
-    r: &DVector<f64>,
-    yty: f64,
-    n: usize,
-    blocks: &[PriorBlock],
-    d: f64,
-    start: (f64, f64),
-    max_iter: usize,
-) -> Option<Evidence> {
+/// The training readings' normal equations: `g θ = r`, `yty` = yᵀy, `n` readings.
+pub struct Normal<'a> {
+    pub g: &'a DMatrix<f64>,
+    pub r: &'a DVector<f64>,
+    pub yty: f64,
+    pub n: usize,
+}
+
+/// Where the search starts: α and β of every group, the damping `d` (absolute, added to every
+/// parameter's precision), and whether `d` is a hyperparameter too (then kept within
+/// [`PRECISION_RANGE`] × the mean diagonal of `g`).
+#[derive(Debug, Clone, Copy)]
+pub struct Start {
+    pub roughness: f64,
+    pub size: f64,
+    pub damping: f64,
+    pub free_damping: bool,
+}
+
+/// One MacKay step: each hyperparameter `v` scaled by the ratio `v·num/den` → `v·num/den` (clamped to
+/// `range`), returning the largest |ln change|.
+fn mackay_step(v: &mut f64, (num, den): (f64, f64), range: (f64, f64)) -> f64 {
+    let new = if den > 0.0 { *v * num.max(0.0) / den } else { range.1 };
+    let new = new.clamp(range.0, range.1);
+    let change = (new / *v).ln().abs();
+    *v = new;
+    change
+}
+
+/// Maximises the evidence of `normal` over each group's α and β (and the damping when free) by
+/// MacKay's fixed-point updates from `start`, at most `max_iter` steps. `None` when the posterior
+/// precision cannot be factored.
+pub fn maximise(normal: &Normal, blocks: &[PriorBlock], start: Start, max_iter: usize) -> Option<Evidence> {
+    let (g, r) = (normal.g, normal.r);
     let groups = blocks.iter().map(|b| b.group + 1).max().unwrap_or(0);
     let has_rough: Vec<bool> = (0..groups)
         .map(|gi| blocks.iter().any(|b| b.group == gi && b.rough.norm() > 0.0))
         .collect();
     let mut rough: Vec<f64> = has_rough
         .iter()
-        .map(|&h| if h { start.0 } else { 0.0 })
+        .map(|&h| if h { start.roughness } else { 0.0 })
         .collect();
-    let mut size = vec![start.1; groups];
+    let mut size = vec![start.size; groups];
+    let mut d = start.damping;
     let p = g.nrows();
-    let (lo, hi) = PRECISION_RANGE;
-    let mut it = 0;
-    let mut converged = false;
-    let mut st = evaluate(g, r, yty, n, &prior_matrix(blocks, &rough, &size, d, p))?;
-    let mut gamma = 0.0;
-    while it < max_iter {
+    let mean_diag = g.trace() / p.max(1) as f64;
+    let d_range = (PRECISION_RANGE.0 * mean_diag, PRECISION_RANGE.1 * mean_diag);
+    let solve = |rough: &[f64], size: &[f64], d: f64| {
+        evaluate(g, r, normal.yty, normal.n, &prior_matrix(blocks, rough, size, d, p))
+    };
+    let mut st = solve(&rough, &size, d)?;
+    let (mut it, mut converged, mut gamma) = (0, false, 0.0);
+    while it < max_iter && !converged {
         it += 1;
-        let mut acc = vec![[(0.0, 0.0); 2]; groups];
+        let mut acc = vec![[(0.0, 0.0); 3]; groups];
+        let mut acc_d = (0.0, 0.0);
         for b in blocks {
             let t = block_terms(b, &st, rough[b.group], size[b.group], d);
             for h in 0..2 {
                 acc[b.group][h].0 += t[h].0;
                 acc[b.group][h].1 += t[h].1 / st.sigma2;
             }
+            acc_d = (acc_d.0 + t[2].0, acc_d.1 + t[2].1 / st.sigma2);
         }
         let mut change = 0.0f64;
         gamma = 0.0;
         for gi in 0..groups {
-            for (h, v) in [&mut rough, &mut size].into_iter().enumerate() {
-                if h == 0 && !has_rough[gi] {
-                    continue;
-                }
-                let (num, den) = acc[gi][h];
-                gamma += v[gi] * num;
-                let new = if den > 0.0 {
-                    v[gi] * num.max(0.0) / den
-                } else {
-                    hi
-                };
-                let new = new.clamp(lo, hi);
-                change = change.max((new / v[gi]).ln().abs());
-                v[gi] = new;
+            if has_rough[gi] {
+                gamma += rough[gi] * acc[gi][0].0;
+                change = change.max(mackay_step(&mut rough[gi], acc[gi][0], PRECISION_RANGE));
             }
+            gamma += size[gi] * acc[gi][1].0;
+            change = change.max(mackay_step(&mut size[gi], acc[gi][1], PRECISION_RANGE));
         }
-        st = evaluate(g, r, yty, n, &prior_matrix(blocks, &rough, &size, d, p))?;
-        if change < 1e-3 {
-            converged = true;
-            break;
+        if start.free_damping {
+            gamma += d * acc_d.0;
+            change = change.max(mackay_step(&mut d, acc_d, d_range));
         }
+        st = solve(&rough, &size, d)?;
+        converged = change < 1e-3;
     }
     Some(Evidence {
+        groups: Vec::new(),
+        knot_grids: Vec::new(),
         roughness: rough,
         size,
+        damping: d,
         sigma2: st.sigma2,
         log_evidence: st.log_evidence,
         effective_parameters: gamma,

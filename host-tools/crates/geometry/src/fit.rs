@@ -71,7 +71,8 @@ pub struct FitOptions {
     pub lambdas: Vec<f64>,
     /// [`Method::Auto`]'s damping of every parameter, relative to the mean diagonal of the normal matrix: a
     /// weak prior of size 0 that gives the directions the lines cannot separate their minimum-norm value
-    /// and keeps noise in the barely separable ones from growing away from the measured lines.
+    /// and keeps noise in the barely separable ones from growing away from the measured lines. With
+    /// [`Prior::Evidence`] the start of its search (the evidence chooses it).
     pub damping: f64,
     /// How [`Method::Auto`] chooses its smoothing and the components' size prior.
     pub prior: Prior,
@@ -242,9 +243,6 @@ pub struct Fit {
     pub fit_rms_um: f64,
     /// The prior chosen by the evidence ([`Prior::Evidence`] only).
     pub evidence: Option<Evidence>,
-    /// The knot grids (intervals X, Y, Z) the evidence compared and their `ln p(y)` (empty unless the
-    /// evidence chose the grid).
-    pub knot_evidence: Vec<([usize; 3], f64)>,
 }
 
 fn priority(c: Component) -> u8 {
@@ -643,6 +641,7 @@ fn prior_blocks(
             rough,
             weight: w,
             group: prior_group(c, groups),
+            component: i,
         });
     }
     blocks
@@ -742,6 +741,42 @@ fn choose_lambda(act: &Active, ident: &[usize], lambdas: &[f64]) -> (f64, Vec<(f
     } else {
         (0.0, scores, false)
     }
+}
+
+/// The evidence's prior of the active problem (groups `groups`, damping free from `act.damp`), set as
+/// its penalty and damping; `None` (the problem unchanged) when the posterior cannot be factored.
+fn evidence_prior(
+    act: &mut Active,
+    layout: &Layout,
+    status: &[ComponentStatus],
+    groups: PriorGroups,
+) -> Option<Evidence> {
+    let design = act.design;
+    let blocks = prior_blocks(layout, design, status, &act.cols, groups);
+    let normal = evidence::Normal {
+        g: &act.g,
+        r: &act.r,
+        yty: design.d.norm_squared(),
+        n: design.d.len(),
+    };
+    let start = evidence::Start {
+        roughness: 1e-2,
+        size: 1e-4,
+        damping: act.damp.get((0, 0)).copied().unwrap_or(0.0),
+        free_damping: true,
+    };
+    let mut ev = evidence::maximise(&normal, &blocks, start, 200)?;
+    ev.groups = (0..ev.size.len())
+        .map(|gi| {
+            let members = blocks.iter().filter(|b| b.group == gi);
+            let names = members.map(|b| Component::ALL[b.component].name().to_string());
+            (evidence::group_name(groups, gi), names.collect())
+        })
+        .collect();
+    let p = act.cols.len();
+    act.pen = evidence::prior_matrix(&blocks, &ev.roughness, &ev.size, 0.0, p);
+    act.damp = DMatrix::identity(p, p) * ev.damping;
+    Some(ev)
 }
 
 /// The final solve: parameters, covariance σ̂²·M⁻¹GM⁻¹, σ̂² with the effective degrees of freedom, and the
@@ -853,10 +888,19 @@ fn component_model(
 }
 
 /// The method line of the model file.
-fn method_text(method: Method, layout: &Layout, lambda: f64, cv_chose: bool) -> String {
+fn method_text(
+    method: Method,
+    layout: &Layout,
+    lambda: f64,
+    cv_chose: bool,
+    evidence: bool,
+) -> String {
     let [x, y, z] = [0, 1, 2].map(|k| layout.grids[k].intervals);
     let min_norm = "what the lines cannot separate at the damped minimum norm";
     match method {
+        Method::Auto if evidence => format!(
+            "general least squares on cubic B-splines (knot intervals X {x}, Y {y}, Z {z}) with a Gaussian prior of size 0 whose roughness and size precisions per component group, damping and knot grid maximise the training readings' evidence (marginal likelihood; model.prior in the JSON); what the lines cannot separate is shared as the prior's sizes say"
+        ),
         Method::Auto if !cv_chose => format!(
             "general least squares on cubic B-splines (knot intervals X {x}, Y {y}, Z {z}), {min_norm}, no smoothing (λ = 0): leave-one-line-out cross-validation cannot choose λ on these lines, since removing any one of them leaves parameters undetermined (the scores in lambda_cv_rms_um differ by rounding only)"
         ),
@@ -911,7 +955,7 @@ pub const EVIDENCE_INTERVALS: [usize; 3] = [4, 6, 8];
 
 /// Fits the model to the readings in `train` (indices into `data.readings`). With the evidence prior
 /// and no knot intervals given, the grid is chosen too: the default grid and [`EVIDENCE_INTERVALS`],
-/// the one whose evidence is highest (`Fit::knot_evidence` lists them).
+/// the one whose evidence is highest (`Evidence::knot_grids` lists them).
 pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, GeometryError> {
     if !(opts.method == Method::Auto
         && matches!(opts.prior, Prior::Evidence(_))
@@ -947,7 +991,9 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
     }
     match best {
         Some(mut f) => {
-            f.knot_evidence = scores;
+            if let Some(ev) = f.evidence.as_mut() {
+                ev.knot_grids = scores;
+            }
             Ok(f)
         }
         None => fit_on_grid(data, train, opts),
@@ -985,23 +1031,7 @@ fn fit_on_grid(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fi
     act.damp = damping_matrix(&act.g, damping);
     let prior = match (opts.method, opts.prior) {
         (Method::Auto, Prior::Evidence(groups)) => {
-            let blocks = prior_blocks(&layout, &design, &status, &act.cols, groups);
-            let d = act.damp.get((0, 0)).copied().unwrap_or(0.0);
-            let ev = evidence::maximise(
-                &act.g,
-                &act.r,
-                design.d.norm_squared(),
-                design.d.len(),
-                &blocks,
-                d,
-                (1e-2, 1e-4),
-                200,
-            );
-            ev.map(|ev| {
-                act.pen =
-                    evidence::prior_matrix(&blocks, &ev.roughness, &ev.size, 0.0, act.cols.len());
-                ev
-            })
+            evidence_prior(&mut act, &layout, &status, groups)
         }
         _ => None,
     };
@@ -1028,7 +1058,7 @@ fn fit_on_grid(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fi
         topology: topo.clone(),
         grids: layout.grids,
         components,
-        method: method_text(opts.method, &layout, lambda, cv_chose),
+        method: method_text(opts.method, &layout, lambda, cv_chose, prior.is_some()),
         smoothing_lambda: lambda,
         sigma_um: sol.sigma2.sqrt(),
         volume_min_mm,
@@ -1046,7 +1076,6 @@ fn fit_on_grid(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fi
         train_rows: n,
         fit_rms_um: (sol.rss / n as f64).sqrt(),
         evidence: prior,
-        knot_evidence: Vec::new(),
         layout,
     })
 }

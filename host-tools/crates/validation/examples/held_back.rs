@@ -27,7 +27,8 @@ fn main() {
         ..HeldBackOptions::default()
     };
     // the default fit's options; AXCOMP_DAMPING, AXCOMP_INTERVALS and AXCOMP_LAMBDAS (comma-separated
-    // smoothing candidates) override its damping, knot intervals and λ set (to compare values)
+    // smoothing candidates) override its damping, knot intervals and λ set (to compare values);
+    // AXCOMP_PRIOR=kind|component|global the evidence prior with those groups (line-cv: the default)
     let fit = FitOptions {
         damping: std::env::var("AXCOMP_DAMPING")
             .ok()
