@@ -9,6 +9,7 @@ use anyhow::{Context, bail};
 use axcomp_data::sanity::{self, DataWarning};
 use axcomp_data::{Dataset, Split, groups};
 use axcomp_geometry::analysis::Analysis;
+use axcomp_geometry::fit::{Prior, PriorGroups};
 use axcomp_geometry::{FitOptions, GeometryError, Judge, LineData, Method, analyse};
 use axcomp_kinematics::Topology;
 
@@ -47,6 +48,11 @@ pub struct Args {
     /// auto (smoothing by CV over lines), plain (no smoothing), seven-line (seed 000's 17 parameters).
     #[arg(long, default_value = "auto", value_name = "METHOD")]
     pub method: String,
+    /// How auto chooses its smoothing: line-cv (one λ by leave-one-line-out cross-validation, fixed
+    /// damping) or evidence (roughness and size precisions per component kind, damping and, without
+    /// --intervals, the knot grid by the training readings' marginal likelihood).
+    #[arg(long, default_value = "line-cv", value_name = "PRIOR")]
+    pub prior: String,
     /// Knot intervals per axis (default: distinct positions − 3, at most 12).
     #[arg(long, value_name = "N")]
     pub intervals: Option<usize>,
@@ -159,6 +165,11 @@ const MAX_INTERVALS: usize = 64;
 pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Vec<DataWarning>, Analysis)> {
     let method = Method::parse(&a.method)
         .with_context(|| format!("--method {}: use auto, plain or seven-line", a.method))?;
+    let prior = match a.prior.as_str() {
+        "line-cv" => Prior::LineCv,
+        "evidence" => Prior::Evidence(PriorGroups::Kind),
+        other => bail!("--prior {other}: use line-cv or evidence"),
+    };
     let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
     if let Some(n) = a.intervals.filter(|n| !(1..=MAX_INTERVALS).contains(n)) {
         bail!(
@@ -197,6 +208,7 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Vec<DataWarning>, Ana
         topology,
         method,
         intervals: a.intervals,
+        prior,
         ..FitOptions::default()
     };
     let an = analyse(&data, &judge, &opts).map_err(|e| match e {

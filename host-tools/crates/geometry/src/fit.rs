@@ -1035,6 +1035,13 @@ fn fit_on_grid(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fi
         }
         _ => None,
     };
+    if prior.is_some() {
+        for st in status.iter_mut().filter(|s| s.not_separable && !s.fixed) {
+            st.reason = st
+                .reason
+                .replace("the minimum-norm share", "the evidence prior's share");
+        }
+    }
     let (lambda, lambda_cv, cv_chose) = match opts.method {
         _ if prior.is_some() => (1.0, Vec::new(), true),
         Method::Auto if design.folds.len() >= 3 && opts.lambdas.len() > 1 => {
