@@ -775,7 +775,7 @@ fn method_text(
     let min_norm = "what the lines cannot separate at the damped minimum norm";
     match method {
         Method::Auto if evidence => format!(
-            "general least squares on cubic B-splines (knot intervals X {x}, Y {y}, Z {z}) with a Gaussian prior of size 0 whose roughness and size precisions per component group, damping and knot grid maximise the training readings' evidence (marginal likelihood; model.prior in the JSON); what the lines cannot separate is shared as the prior's sizes say"
+            "general least squares on cubic B-splines (knot intervals X {x}, Y {y}, Z {z}) with a Gaussian prior of size 0 whose roughness and size precisions per component group, damping and knot grid maximise the training readings' evidence (marginal likelihood; model.prior in the JSON; smoothing_lambda 1 scales those precisions as they are); what the lines cannot separate is shared as the prior's sizes say"
         ),
         Method::Auto if !cv_chose => format!(
             "general least squares on cubic B-splines (knot intervals X {x}, Y {y}, Z {z}), {min_norm}, no smoothing (λ = 0): leave-one-line-out cross-validation cannot choose λ on these lines, since removing any one of them leaves parameters undetermined (the scores in lambda_cv_rms_um differ by rounding only)"
