@@ -9,6 +9,7 @@ use anyhow::{Context, bail};
 use axcomp_data::sanity::{self, DataWarning};
 use axcomp_data::{Dataset, Split, groups};
 use axcomp_geometry::analysis::Analysis;
+use axcomp_geometry::fit::{Prior, PriorGroups};
 use axcomp_geometry::{FitOptions, GeometryError, Judge, LineData, Method, analyse};
 use axcomp_kinematics::Topology;
 
@@ -21,7 +22,7 @@ use crate::output::OutputSet;
 const LONG_HELP: &str = "\
 Model: rigid-body small-angle chain of the axes (--work-axes from the bed outward carry the workpiece, --tool-axes the tool; default YX / Z), the reflector offset (tool_*_mm) as the Abbe arm. The 18 error functions are cubic B-splines on a knot grid over each axis's measured range, zero at the axis's zero (straightness also with zero least-squares slope: the slope between axes is the squareness), plus EC0Y, EB0Z, EA0Z.
 
-Identifiability: rank and singular values of the stacked design; components or combinations in its null space are reported identified: false with the reason and listed in not_separable; by default (auto) they are estimated at the damped minimum norm (what the lines determine, shared the least-norm way: a weak prior of size 0 that also keeps noise in barely separable directions from growing away from the lines), by --method plain fixed at 0. Next to the held-out figure, identifiable_floor gives what can be computed of the floor (the noise σ̂, and with --holdout the held-out RMS a model right in the lines' span would score); the floor itself needs the truth (computed on the twin). Smoothing λ by leave-one-line-out cross-validation (λ = 0, plain least squares, is a candidate). --method plain: no smoothing; --method seven-line: seed 000's 17 parameters (ECY, EAZ, EBZ, ECZ fixed: no lever arm at zero reflector offset).
+Identifiability: rank and singular values of the stacked design; components or combinations in its null space are reported identified: false with the reason and listed in not_separable; by default (auto) they are estimated at the damped minimum norm (what the lines determine, shared the least-norm way: a weak prior of size 0 that also keeps noise in barely separable directions from growing away from the lines), by --method plain fixed at 0. Next to the held-out figure, identifiable_floor gives what can be computed of the floor (the noise σ̂, and with --holdout the held-out RMS a model right in the lines' span would score); the floor itself needs the truth (computed on the twin). Smoothing λ by leave-one-line-out cross-validation (λ = 0, plain least squares, is a candidate). --prior evidence: instead of one λ by cross-validation, the smoothing and size of each component kind, the damping and (without --intervals) the knot grid are those that maximise the training readings' marginal likelihood, reported in model.prior. --method plain: no smoothing; --method seven-line: seed 000's 17 parameters (ECY, EAZ, EBZ, ECZ fixed: no lever arm at zero reflector offset).
 
 Example:
   axcomp plan geometry --stroke 800,600,500 --lines 20 --simulate lines.csv
@@ -47,6 +48,11 @@ pub struct Args {
     /// auto (smoothing by CV over lines), plain (no smoothing), seven-line (seed 000's 17 parameters).
     #[arg(long, default_value = "auto", value_name = "METHOD")]
     pub method: String,
+    /// How auto chooses its smoothing: line-cv (one λ by leave-one-line-out cross-validation, fixed
+    /// damping) or evidence (roughness and size precisions per component kind, damping and, without
+    /// --intervals, the knot grid by the training readings' marginal likelihood).
+    #[arg(long, default_value = "line-cv", value_name = "PRIOR")]
+    pub prior: String,
     /// Knot intervals per axis (default: distinct positions − 3, at most 12).
     #[arg(long, value_name = "N")]
     pub intervals: Option<usize>,
@@ -159,6 +165,11 @@ const MAX_INTERVALS: usize = 64;
 pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Vec<DataWarning>, Analysis)> {
     let method = Method::parse(&a.method)
         .with_context(|| format!("--method {}: use auto, plain or seven-line", a.method))?;
+    let prior = match a.prior.as_str() {
+        "line-cv" => Prior::LineCv,
+        "evidence" => Prior::Evidence(PriorGroups::Kind),
+        other => bail!("--prior {other}: use line-cv or evidence"),
+    };
     let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
     if let Some(n) = a.intervals.filter(|n| !(1..=MAX_INTERVALS).contains(n)) {
         bail!(
@@ -197,6 +208,7 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Vec<DataWarning>, Ana
         topology,
         method,
         intervals: a.intervals,
+        prior,
         ..FitOptions::default()
     };
     let an = analyse(&data, &judge, &opts).map_err(|e| match e {

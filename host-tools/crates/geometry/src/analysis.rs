@@ -57,6 +57,10 @@ pub struct ModelInfo {
     pub smoothing_lambda: f64,
     /// `[λ, leave-one-line-out RMS µm]` for every candidate.
     pub lambda_cv_rms_um: Vec<[f64; 2]>,
+    /// The prior the evidence chose (with `Prior::Evidence`): per group α (roughness) and β (size)
+    /// precisions relative to the data's weight on each component, damping, σ², ln p(y), knot grids.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior: Option<crate::evidence::Evidence>,
     pub knot_intervals: [usize; 3],
     pub topology: String,
     pub sigma_um: f64,
@@ -334,6 +338,7 @@ pub fn analyse(
             method: f.model.method.clone(),
             smoothing_lambda: f.model.smoothing_lambda,
             lambda_cv_rms_um: f.lambda_cv.iter().map(|(l, r)| [*l, *r]).collect(),
+            prior: f.evidence.clone(),
             knot_intervals: [
                 f.model.grids[0].intervals,
                 f.model.grids[1].intervals,

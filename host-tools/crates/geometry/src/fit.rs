@@ -1,9 +1,9 @@
 //! Identification of the 21 components from laser line readings: stacked design matrix, identifiability
 //! (eigen-decomposition of the column-normalised normal matrix = SVD of the design), the sets the data
 //! cannot separate (estimated at the damped minimum norm by default, fixed at zero by the plain and
-//! seven-line methods), smoothing chosen by cross-validation over lines, standard uncertainties.
-
-use std::collections::BTreeMap;
+//! seven-line methods), smoothing chosen by cross-validation over lines or, with [`Prior::Evidence`], the
+//! prior and knot grid chosen by the training readings' evidence ([`crate::evidence`]), standard
+//! uncertainties.
 
 use axcomp_kinematics::{Axis, Component, ComponentKind, Topology, dot, sensitivities};
 use axcomp_numeric::lsq::{cholesky_with_ridge, max_abs_diagonal};
@@ -12,6 +12,9 @@ use serde::Serialize;
 
 use crate::GeometryError;
 use crate::data::LineData;
+use crate::design::{Design, TOL};
+use crate::evidence::{self, Evidence, PriorBlock, prior_group};
+pub use crate::evidence::{Prior, PriorGroups};
 use crate::model::{ComponentModel, GeometryModel, MODEL_FORMAT};
 use crate::spline::AxisGrid;
 
@@ -69,8 +72,11 @@ pub struct FitOptions {
     pub lambdas: Vec<f64>,
     /// [`Method::Auto`]'s damping of every parameter, relative to the mean diagonal of the normal matrix: a
     /// weak prior of size 0 that gives the directions the lines cannot separate their minimum-norm value
-    /// and keeps noise in the barely separable ones from growing away from the measured lines.
+    /// and keeps noise in the barely separable ones from growing away from the measured lines. With
+    /// [`Prior::Evidence`] the start of its search (the evidence chooses it).
     pub damping: f64,
+    /// How [`Method::Auto`] chooses its smoothing and the components' size prior.
+    pub prior: Prior,
 }
 
 impl Default for FitOptions {
@@ -81,6 +87,7 @@ impl Default for FitOptions {
             intervals: None,
             lambdas: vec![0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0],
             damping: DEFAULT_DAMPING,
+            prior: Prior::LineCv,
         }
     }
 }
@@ -235,6 +242,8 @@ pub struct Fit {
     pub lambda_cv: Vec<(f64, f64)>,
     pub train_rows: usize,
     pub fit_rms_um: f64,
+    /// The prior chosen by the evidence ([`Prior::Evidence`] only).
+    pub evidence: Option<Evidence>,
 }
 
 fn priority(c: Component) -> u8 {
@@ -246,13 +255,6 @@ fn priority(c: Component) -> u8 {
         ComponentKind::Squareness => 2,
         _ => 3,
     }
-}
-
-/// Normal equations of the rows `rows` of design `a` (n × p) with targets `d`.
-fn normal(a: &DMatrix<f64>, d: &DVector<f64>, rows: &[usize]) -> (DMatrix<f64>, DVector<f64>) {
-    let sub = a.select_rows(rows.iter());
-    let ds = DVector::from_iterator(rows.len(), rows.iter().map(|&r| d[r]));
-    (sub.transpose() * &sub, sub.transpose() * ds)
 }
 
 /// Solves `(g + λP) β = r` by Cholesky, adding a tiny ridge (1e-12, then 1e-8 of the largest diagonal)
@@ -274,124 +276,6 @@ fn solve_only(m: &DMatrix<f64>, r: &DVector<f64>) -> DVector<f64> {
     match cholesky_with_ridge(m) {
         Some(ch) => ch.solve(r),
         None => solve(m, r).0,
-    }
-}
-
-/// Tolerance of the rank decisions: singular values below `TOL` × the largest count as zero.
-const TOL: f64 = 1e-6;
-
-/// The stacked design of the training readings and its normal equations, per line and in total.
-struct Design {
-    a: DMatrix<f64>,
-    d: DVector<f64>,
-    col_norm: Vec<f64>,
-    max_norm: f64,
-    /// Rows of each line (keyed by the line's label, not its order in the file) and their normal equations.
-    folds: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)>,
-    g_full: DMatrix<f64>,
-    r_full: DVector<f64>,
-}
-
-impl Design {
-    fn new(data: &LineData, train: &[usize], layout: &Layout, topo: &Topology) -> Design {
-        let (n, p) = (train.len(), layout.p);
-        let mut a = DMatrix::zeros(n, p);
-        for (i, &ri) in train.iter().enumerate() {
-            let r = &data.readings[ri];
-            for (j, v) in layout
-                .row(topo, r.q, r.tool, r.beam)
-                .into_iter()
-                .enumerate()
-            {
-                a[(i, j)] = v;
-            }
-        }
-        let d = DVector::from_iterator(n, train.iter().map(|&ri| data.readings[ri].deviation_um));
-        let col_norm: Vec<f64> = (0..p).map(|j| a.column(j).norm()).collect();
-        let max_norm = col_norm.iter().fold(0.0f64, |x, y| x.max(*y));
-        let mut line_rows: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
-        for (i, &ri) in train.iter().enumerate() {
-            line_rows
-                .entry(data.lines[data.readings[ri].line].as_str())
-                .or_default()
-                .push(i);
-        }
-        let folds: Vec<_> = line_rows
-            .into_values()
-            .map(|rows| {
-                let (g, r) = normal(&a, &d, &rows);
-                (rows, g, r)
-            })
-            .collect();
-        let mut g_full = DMatrix::<f64>::zeros(p, p);
-        let mut r_full = DVector::<f64>::zeros(p);
-        for (_, g, r) in &folds {
-            g_full += g;
-            r_full += r;
-        }
-        Design {
-            a,
-            d,
-            col_norm,
-            max_norm,
-            folds,
-            g_full,
-            r_full,
-        }
-    }
-
-    /// The normal matrix of columns `cols`, column-normalised. A parameter no reading is sensitive to (a
-    /// B-spline coefficient of a stretch of the axis between its zero and the measured range) is a null
-    /// direction: 0, not 0/0 = NaN (NaN would hide every null direction).
-    fn normalised(&self, cols: &[usize]) -> DMatrix<f64> {
-        let mut g = self
-            .g_full
-            .select_rows(cols.iter())
-            .select_columns(cols.iter());
-        for i in 0..cols.len() {
-            for j in 0..cols.len() {
-                let scale = self.col_norm[cols[i]] * self.col_norm[cols[j]];
-                g[(i, j)] = if scale > 0.0 { g[(i, j)] / scale } else { 0.0 };
-            }
-        }
-        g
-    }
-
-    /// Norm of the columns of component `i`.
-    fn component_norm(&self, layout: &Layout, i: usize) -> f64 {
-        let (s, k) = layout.cols[i];
-        (s..s + k)
-            .map(|j| self.col_norm[j] * self.col_norm[j])
-            .sum::<f64>()
-            .sqrt()
-    }
-
-    /// Rank and singular values (largest first) of the column-normalised design.
-    fn rank(&self) -> Result<(usize, Vec<f64>), GeometryError> {
-        let p = self.col_norm.len();
-        let nz: Vec<usize> = (0..p)
-            .filter(|&j| self.col_norm[j] > 1e-9 * self.max_norm)
-            .collect();
-        if nz.is_empty() {
-            return Err(GeometryError::NothingIdentifiable);
-        }
-        let eig = SymmetricEigen::new(self.normalised(&nz));
-        let mut sv: Vec<f64> = eig.eigenvalues.iter().map(|l| l.max(0.0).sqrt()).collect();
-        sv.sort_by(|x, y| y.total_cmp(x));
-        let smax = sv.first().copied().unwrap_or(0.0);
-        Ok((sv.iter().filter(|s| **s > TOL * smax).count(), sv))
-    }
-
-    /// Largest / smallest singular value of the column-normalised design of `cols`.
-    fn condition(&self, cols: &[usize]) -> f64 {
-        let eig = SymmetricEigen::new(self.normalised(cols));
-        let lmax = eig.eigenvalues.iter().fold(0.0f64, |x, y| x.max(*y));
-        let lmin = eig
-            .eigenvalues
-            .iter()
-            .fold(f64::INFINITY, |x, y| x.min(*y))
-            .max(0.0);
-        (lmax / lmin).sqrt()
     }
 }
 
@@ -596,6 +480,49 @@ fn settle_not_separable(status: &mut [ComponentStatus], min_norm: bool) {
     }
 }
 
+/// The prior blocks of the active parameters: each estimated component's second-difference penalty
+/// (squareness: none), scaled by its columns' mean squared norm (so precisions are relative to the
+/// data's weight on it).
+fn prior_blocks(
+    layout: &Layout,
+    design: &Design,
+    status: &[ComponentStatus],
+    active: &[usize],
+    groups: PriorGroups,
+) -> Vec<PriorBlock> {
+    let mut blocks = Vec::new();
+    for (i, st) in status.iter().enumerate() {
+        if st.fixed {
+            continue;
+        }
+        let c = Component::ALL[i];
+        let (s, k) = layout.cols[i];
+        let pos0 = active
+            .iter()
+            .position(|&col| col == s)
+            .expect("an estimated component's columns are active");
+        let w: f64 = (s..s + k)
+            .map(|j| design.col_norm[j] * design.col_norm[j])
+            .sum::<f64>()
+            / k as f64;
+        let rough = match c.axis() {
+            Some(ax) => {
+                let dn = layout.grids[ax.index()].second_difference() * &layout.bases[i];
+                dn.transpose() * &dn * w
+            }
+            None => DMatrix::zeros(1, 1),
+        };
+        blocks.push(PriorBlock {
+            cols: (pos0..pos0 + k).collect(),
+            rough,
+            weight: w,
+            group: prior_group(c, groups),
+            component: i,
+        });
+    }
+    blocks
+}
+
 /// Second-difference penalty on the active parameters, each function's block scaled by its columns' mean
 /// squared norm (so λ is relative to the data's weight on it).
 fn penalty(
@@ -604,31 +531,8 @@ fn penalty(
     status: &[ComponentStatus],
     active: &[usize],
 ) -> DMatrix<f64> {
-    let pa = active.len();
-    let mut pen = DMatrix::zeros(pa, pa);
-    for (i, st) in status.iter().enumerate().take(18) {
-        if st.fixed {
-            continue;
-        }
-        let (s, k) = layout.cols[i];
-        let pos0 = active
-            .iter()
-            .position(|&c| c == s)
-            .expect("an estimated component's columns are active");
-        let g = &layout.grids[Component::ALL[i].axis().expect("a function").index()];
-        let dn = g.second_difference() * &layout.bases[i];
-        let block = dn.transpose() * &dn;
-        let w: f64 = (s..s + k)
-            .map(|j| design.col_norm[j] * design.col_norm[j])
-            .sum::<f64>()
-            / k as f64;
-        for r in 0..k {
-            for c2 in 0..k {
-                pen[(pos0 + r, pos0 + c2)] = w * block[(r, c2)];
-            }
-        }
-    }
-    pen
+    let blocks = prior_blocks(layout, design, status, active, PriorGroups::Global);
+    evidence::prior_matrix(&blocks, &[1.0], &[0.0], 0.0, active.len())
 }
 
 /// Damping of the solve: `damping` × the mean diagonal of the normal matrix on every active parameter (a
@@ -713,6 +617,42 @@ fn choose_lambda(act: &Active, ident: &[usize], lambdas: &[f64]) -> (f64, Vec<(f
     } else {
         (0.0, scores, false)
     }
+}
+
+/// The evidence's prior of the active problem (groups `groups`, damping free from `act.damp`), set as
+/// its penalty and damping; `None` (the problem unchanged) when the posterior cannot be factored.
+fn evidence_prior(
+    act: &mut Active,
+    layout: &Layout,
+    status: &[ComponentStatus],
+    groups: PriorGroups,
+) -> Option<Evidence> {
+    let design = act.design;
+    let blocks = prior_blocks(layout, design, status, &act.cols, groups);
+    let normal = evidence::Normal {
+        g: &act.g,
+        r: &act.r,
+        yty: design.d.norm_squared(),
+        n: design.d.len(),
+    };
+    let start = evidence::Start {
+        roughness: 1e-2,
+        size: 1e-4,
+        damping: act.damp.get((0, 0)).copied().unwrap_or(0.0),
+        free_damping: true,
+    };
+    let mut ev = evidence::maximise(&normal, &blocks, start, 200)?;
+    ev.groups = (0..ev.size.len())
+        .map(|gi| {
+            let members = blocks.iter().filter(|b| b.group == gi);
+            let names = members.map(|b| Component::ALL[b.component].name().to_string());
+            (evidence::group_name(groups, gi), names.collect())
+        })
+        .collect();
+    let p = act.cols.len();
+    act.pen = evidence::prior_matrix(&blocks, &ev.roughness, &ev.size, 0.0, p);
+    act.damp = DMatrix::identity(p, p) * ev.damping;
+    Some(ev)
 }
 
 /// The final solve: parameters, covariance σ̂²·M⁻¹GM⁻¹, σ̂² with the effective degrees of freedom, and the
@@ -824,10 +764,19 @@ fn component_model(
 }
 
 /// The method line of the model file.
-fn method_text(method: Method, layout: &Layout, lambda: f64, cv_chose: bool) -> String {
+fn method_text(
+    method: Method,
+    layout: &Layout,
+    lambda: f64,
+    cv_chose: bool,
+    evidence: bool,
+) -> String {
     let [x, y, z] = [0, 1, 2].map(|k| layout.grids[k].intervals);
     let min_norm = "what the lines cannot separate at the damped minimum norm";
     match method {
+        Method::Auto if evidence => format!(
+            "general least squares on cubic B-splines (knot intervals X {x}, Y {y}, Z {z}) with a Gaussian prior of size 0 whose roughness and size precisions per component group, damping and knot grid maximise the training readings' evidence (marginal likelihood; model.prior in the JSON; smoothing_lambda 1 scales those precisions as they are); what the lines cannot separate is shared as the prior's sizes say"
+        ),
         Method::Auto if !cv_chose => format!(
             "general least squares on cubic B-splines (knot intervals X {x}, Y {y}, Z {z}), {min_norm}, no smoothing (λ = 0): leave-one-line-out cross-validation cannot choose λ on these lines, since removing any one of them leaves parameters undetermined (the scores in lambda_cv_rms_um differ by rounding only)"
         ),
@@ -877,8 +826,58 @@ fn identify(
     Ok((identifiability, ident))
 }
 
-/// Fits the model to the readings in `train` (indices into `data.readings`).
+/// Knot intervals per axis the evidence prior compares with the default grid when none are given.
+pub const EVIDENCE_INTERVALS: [usize; 3] = [4, 6, 8];
+
+/// Fits the model to the readings in `train` (indices into `data.readings`). With the evidence prior
+/// and no knot intervals given, the grid is chosen too: the default grid and [`EVIDENCE_INTERVALS`],
+/// the one whose evidence is highest (`Evidence::knot_grids` lists them).
 pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, GeometryError> {
+    if !(opts.method == Method::Auto
+        && matches!(opts.prior, Prior::Evidence(_))
+        && opts.intervals.is_none())
+    {
+        return fit_on_grid(data, train, opts);
+    }
+    let mut best: Option<Fit> = None;
+    let mut scores = Vec::new();
+    for intervals in [None].into_iter().chain(EVIDENCE_INTERVALS.map(Some)) {
+        let f = fit_on_grid(
+            data,
+            train,
+            &FitOptions {
+                intervals,
+                ..opts.clone()
+            },
+        )?;
+        let grid = f.layout.grids.map(|g| g.intervals);
+        let Some(ev) = f.evidence.as_ref().map(|e| e.log_evidence) else {
+            continue;
+        };
+        if scores.iter().any(|(g, _)| *g == grid) {
+            continue;
+        }
+        scores.push((grid, ev));
+        if best
+            .as_ref()
+            .is_none_or(|b| b.evidence.as_ref().is_none_or(|e| ev > e.log_evidence))
+        {
+            best = Some(f);
+        }
+    }
+    match best {
+        Some(mut f) => {
+            if let Some(ev) = f.evidence.as_mut() {
+                ev.knot_grids = scores;
+            }
+            Ok(f)
+        }
+        None => fit_on_grid(data, train, opts),
+    }
+}
+
+/// [`fit`] on the knot grid of `opts.intervals`.
+fn fit_on_grid(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, GeometryError> {
     if train.is_empty() {
         return Err(GeometryError::NoRows);
     }
@@ -906,7 +905,21 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         design: &design,
     };
     act.damp = damping_matrix(&act.g, damping);
+    let prior = match (opts.method, opts.prior) {
+        (Method::Auto, Prior::Evidence(groups)) => {
+            evidence_prior(&mut act, &layout, &status, groups)
+        }
+        _ => None,
+    };
+    if prior.is_some() {
+        for st in status.iter_mut().filter(|s| s.not_separable && !s.fixed) {
+            st.reason = st
+                .reason
+                .replace("the minimum-norm share", "the evidence prior's share");
+        }
+    }
     let (lambda, lambda_cv, cv_chose) = match opts.method {
+        _ if prior.is_some() => (1.0, Vec::new(), true),
         Method::Auto if design.folds.len() >= 3 && opts.lambdas.len() > 1 => {
             choose_lambda(&act, &ident, &opts.lambdas)
         }
@@ -928,7 +941,7 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         topology: topo.clone(),
         grids: layout.grids,
         components,
-        method: method_text(opts.method, &layout, lambda, cv_chose),
+        method: method_text(opts.method, &layout, lambda, cv_chose, prior.is_some()),
         smoothing_lambda: lambda,
         sigma_um: sol.sigma2.sqrt(),
         volume_min_mm,
@@ -945,6 +958,7 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
         lambda_cv,
         train_rows: n,
         fit_rms_um: (sol.rss / n as f64).sqrt(),
+        evidence: prior,
         layout,
     })
 }

@@ -24,6 +24,9 @@
 //!   when the reflector is on the tool reference point (eq. 9), so no reading depends on them.
 //! - **smoothing**: a second-difference (P-spline) penalty λ on each function's coefficients, λ chosen by
 //!   leave-one-line-out cross-validation from a grid that includes 0 (plain least squares).
+//! - **evidence prior** (`--prior evidence`): instead, per component kind a roughness and a size precision,
+//!   the damping and the knot grid that maximise the marginal likelihood of the training readings
+//!   ([`evidence`]).
 //! - **standard uncertainty**: from the parameter covariance σ̂²·M⁻¹AᵀA·M⁻¹ (M = AᵀA + λP), σ̂ the residual
 //!   standard deviation with the fit's effective degrees of freedom.
 //! - **volumetric**: the model's error magnitude |e| over an 11×11×11 grid of the measured axis-position box
@@ -33,6 +36,8 @@
 
 pub mod analysis;
 pub mod data;
+mod design;
+pub mod evidence;
 pub mod export;
 pub mod fit;
 pub mod model;

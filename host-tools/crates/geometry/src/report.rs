@@ -207,7 +207,9 @@ fn summary_section(an: &Analysis) -> String {
     md.push_str(&markdown_table(&["figure", "value"], &rows));
     md.push('\n');
     if !rep.identifiability.not_separable.is_empty() {
-        md.push_str(if model.method.contains("minimum norm") {
+        md.push_str(if model.method.contains("evidence") {
+            "Not separable by these lines (estimated with the others, shared as the evidence prior's sizes say, not identified): "
+        } else if model.method.contains("minimum norm") {
             "Not separable by these lines (estimated at the damped minimum norm, not identified): "
         } else {
             "Not separable by these lines (fixed at 0): "

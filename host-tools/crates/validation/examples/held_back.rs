@@ -3,6 +3,7 @@
 //! `cargo run --release -p axcomp-validation --example held_back -- [SEEDS [FIRST_SEED]]` (seeds
 //! FIRST_SEED.., default 20 seeds from 0).
 use axcomp_geometry::FitOptions;
+use axcomp_geometry::fit::{Prior, PriorGroups};
 use axcomp_validation::held_back::{HeldBackOptions, HeldScore, run_case};
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -16,9 +17,18 @@ fn main() {
     let first: u64 = std::env::args()
         .nth(2)
         .map_or(0, |s| s.parse().expect("FIRST_SEED: a number"));
-    let opts = HeldBackOptions::default();
+    // AXCOMP_NOISE overrides the reading noise σ (µm; 0 shows each method's bias alone)
+    let opts = HeldBackOptions {
+        noise_um: std::env::var("AXCOMP_NOISE")
+            .ok()
+            .map_or(HeldBackOptions::default().noise_um, |s| {
+                s.parse().expect("a number")
+            }),
+        ..HeldBackOptions::default()
+    };
     // the default fit's options; AXCOMP_DAMPING, AXCOMP_INTERVALS and AXCOMP_LAMBDAS (comma-separated
-    // smoothing candidates) override its damping, knot intervals and λ set (to compare values)
+    // smoothing candidates) override its damping, knot intervals and λ set (to compare values);
+    // AXCOMP_PRIOR=kind|component|global the evidence prior with those groups (line-cv: the default)
     let fit = FitOptions {
         damping: std::env::var("AXCOMP_DAMPING")
             .ok()
@@ -33,6 +43,13 @@ fn main() {
             .map_or(FitOptions::default().lambdas, |s| {
                 s.split(',').map(|x| x.parse().expect("a number")).collect()
             }),
+        prior: match std::env::var("AXCOMP_PRIOR").as_deref() {
+            Ok("component") => Prior::Evidence(PriorGroups::Component),
+            Ok("kind") => Prior::Evidence(PriorGroups::Kind),
+            Ok("global") => Prior::Evidence(PriorGroups::Global),
+            Ok("line-cv") | Err(_) => FitOptions::default().prior,
+            Ok(other) => panic!("AXCOMP_PRIOR: {other} (component, kind, global or line-cv)"),
+        },
         ..FitOptions::default()
     };
     let results: Vec<_> = (first..first + seeds)
