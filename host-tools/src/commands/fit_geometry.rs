@@ -48,10 +48,10 @@ pub struct Args {
     /// auto (smoothing by CV over lines), plain (no smoothing), seven-line (seed 000's 17 parameters).
     #[arg(long, default_value = "auto", value_name = "METHOD")]
     pub method: String,
-    /// How auto chooses its smoothing: line-cv (one λ by leave-one-line-out cross-validation, fixed
-    /// damping) or evidence (roughness and size precisions per component kind, damping and, without
-    /// --intervals, the knot grid by the training readings' marginal likelihood).
-    #[arg(long, default_value = "line-cv", value_name = "PRIOR")]
+    /// How auto chooses its smoothing: evidence (roughness and size precisions per component kind, damping
+    /// and, without --intervals, the knot grid by the training readings' marginal likelihood) or line-cv
+    /// (one λ by leave-one-line-out cross-validation, fixed damping).
+    #[arg(long, default_value = "evidence", value_name = "PRIOR")]
     pub prior: String,
     /// Knot intervals per axis (default: distinct positions − 3, at most 12).
     #[arg(long, value_name = "N")]

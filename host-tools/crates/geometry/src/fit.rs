@@ -87,7 +87,7 @@ impl Default for FitOptions {
             intervals: None,
             lambdas: vec![0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0],
             damping: DEFAULT_DAMPING,
-            prior: Prior::LineCv,
+            prior: Prior::Evidence(PriorGroups::Kind),
         }
     }
 }
@@ -842,14 +842,21 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
     let mut best: Option<Fit> = None;
     let mut scores = Vec::new();
     for intervals in [None].into_iter().chain(EVIDENCE_INTERVALS.map(Some)) {
-        let f = fit_on_grid(
+        let on_grid = fit_on_grid(
             data,
             train,
             &FitOptions {
                 intervals,
                 ..opts.clone()
             },
-        )?;
+        );
+        // the default grid's failure is the fit's; a compared grid that cannot be fitted (e.g. nothing
+        // identifiable on it) is left out of the comparison
+        let f = match (on_grid, intervals) {
+            (Ok(f), _) => f,
+            (Err(e), None) => return Err(e),
+            (Err(_), Some(_)) => continue,
+        };
         let grid = f.layout.grids.map(|g| g.intervals);
         let Some(ev) = f.evidence.as_ref().map(|e| e.log_evidence) else {
             continue;

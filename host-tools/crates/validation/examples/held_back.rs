@@ -28,7 +28,8 @@ fn main() {
     };
     // the default fit's options; AXCOMP_DAMPING, AXCOMP_INTERVALS and AXCOMP_LAMBDAS (comma-separated
     // smoothing candidates) override its damping, knot intervals and λ set (to compare values);
-    // AXCOMP_PRIOR=kind|component|global the evidence prior with those groups (line-cv: the default)
+    // AXCOMP_PRIOR=kind|component|global the evidence prior with those groups (kind: the default), line-cv
+    // one λ by leave-one-line-out cross-validation
     let fit = FitOptions {
         damping: std::env::var("AXCOMP_DAMPING")
             .ok()
@@ -47,7 +48,8 @@ fn main() {
             Ok("component") => Prior::Evidence(PriorGroups::Component),
             Ok("kind") => Prior::Evidence(PriorGroups::Kind),
             Ok("global") => Prior::Evidence(PriorGroups::Global),
-            Ok("line-cv") | Err(_) => FitOptions::default().prior,
+            Ok("line-cv") => Prior::LineCv,
+            Err(_) => FitOptions::default().prior,
             Ok(other) => panic!("AXCOMP_PRIOR: {other} (component, kind, global or line-cv)"),
         },
         ..FitOptions::default()
