@@ -131,7 +131,7 @@ fn demo_into_an_unwritable_place_fails_cleanly() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Issue 14 item 8: the demo's table names its source: the SHA-256 of the `measurement.csv` written next to
+/// The demo's table names its source: the SHA-256 of the `measurement.csv` written next to
 /// it (reference: `sha256sum` when installed), its length, the tool version and the date.
 #[test]
 fn demo_table_carries_the_provenance_of_its_measurement() {
@@ -158,8 +158,8 @@ fn demo_table_carries_the_provenance_of_its_measurement() {
         );
     }
     assert!(p.tool.starts_with("axcomp ") && p.created_utc.ends_with('Z'));
-    // The demo's image names its table file and that file's data by their SHA-256 (issue 14 item 8:
-    // every image header), as `image build` does; `image inspect` shows them.
+    // The demo's image names its table file and that file's data by their SHA-256 (every
+    // image header names its sources), as `image build` does; `image inspect` shows them.
     let o = Command::new(env!("CARGO_BIN_EXE_axcomp"))
         .args(["image", "inspect", "d/image.bin"])
         .current_dir(&dir)

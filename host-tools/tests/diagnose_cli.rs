@@ -87,7 +87,7 @@ fn ess_b02_x_pitch_only_model_misses_the_reversal() {
     }
     assert!(report.join("diagnosis.md").is_file());
     assert!(report.join("gap_target_mm.svg").is_file());
-    // Issue 13: the rule is stated in the JSON, each candidate says whether its held-out gain is material,
+    // The rule is stated in the JSON, each candidate says whether its held-out gain is material,
     // and the verdict's gain is material by that rule (≥ 5 % of the gap and ≥ 0.05 σ).
     assert!(
         d["verdict_rule"]

@@ -1,4 +1,4 @@
-//! `axcomp diagnose` on probe touches, end to end through the CLI binary (issue 12, item 4): twin campaigns
+//! `axcomp diagnose` on probe touches, end to end through the CLI binary: twin campaigns
 //! of the withheld-effect validation (`axcomp_validation::probe`) written as touch CSVs, diagnosed with
 //! `--model probe_radius --holdout artefact=sphere2`; the contract's JSON fields; bad input.
 

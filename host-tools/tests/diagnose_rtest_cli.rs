@@ -1,4 +1,4 @@
-//! `axcomp diagnose` on R-test data end to end (issue 11 item 6): a five-axis twin campaign with a wobble
+//! `axcomp diagnose` on R-test data end to end: a five-axis twin campaign with a wobble
 //! of the C axis that the location-error model does not hold is diagnosed as `rotary_wobble`, the contract's
 //! JSON and the report are written; a complete model gives `none`; bad input is a clear error that writes
 //! nothing.
@@ -102,7 +102,7 @@ fn with_and_without(j: &serde_json::Value) -> (f64, f64) {
     )
 }
 
-/// Issue 25 item 4, a C-axis positioning error (1× and 2× per turn, 5–20 µrad; seed 5, σ = 0.3 µm):
+/// A C-axis positioning error (1× and 2× per turn, 5–20 µrad; seed 5, σ = 0.3 µm):
 /// `diagnose` names `rotary_positioning`, `fit rtest --effects rotary_positioning` predicts the held-out
 /// K4 run within 1.3× the oracle (the twin's truth: the noise floor) and better than the location errors
 /// alone; the model file carries the effect by name and `predict` applies it (its held-out RMS equals the
@@ -174,7 +174,7 @@ fn positioning_error_diagnosed_then_added_within_1p3_of_the_oracle() {
     );
 }
 
-/// Issue 25 item 4, a C-axis wobble (tilt of C turning twice per turn, 3–10 µrad; seed 5, σ = 0.3 µm):
+/// A C-axis wobble (tilt of C turning twice per turn, 3–10 µrad; seed 5, σ = 0.3 µm):
 /// `diagnose` names `rotary_wobble`, `fit rtest --effects rotary_wobble` predicts the held-out K4 run
 /// within 1.3× the oracle (the twin's truth) and better than the location errors alone.
 #[test]
@@ -197,9 +197,9 @@ fn wobble_diagnosed_then_added_within_1p3_of_the_oracle() {
     assert!(md.contains("Effect `rotary_wobble`"), "{md}");
 }
 
-/// Issue 25, the blind set's third kind: a wobble of the tilt axis A varying with its angle (the twin's
+/// The blind set's third kind: a wobble of the tilt axis A varying with its angle (the twin's
 /// `tilt_wobble`; seed 1, σ = 0.3 µm: held-out RMS 0.34 µm against the oracle's 0.30). `diagnose` names
-/// `rotary_wobble` (before the tilt-axis variants it said `none`), and `fit rtest --effects rotary_wobble`, which fits the tilt axis's
+/// `rotary_wobble` (without the tilt-axis variants it would say `none`), and `fit rtest --effects rotary_wobble`, which fits the tilt axis's
 /// wobble too, predicts the held-out K4 run within 1.3× the oracle (the twin's truth: the noise floor) and
 /// better than the location errors alone.
 #[test]

@@ -1,4 +1,4 @@
-//! A `fit geometry` model in the firmware (issue 10 items 5–6): `axcomp image group --geometry
+//! A `fit geometry` model in the firmware: `axcomp image group --geometry
 //! MODEL.json [--tool-offset-mm x,y,z]` converts it into the group image's geometric section, and
 //! the core's f32 stage reproduces the host's f64 prediction (`GeometryModel::error_at`, the
 //! `axcomp-kinematics` linearised chain that `axcomp predict` uses) at random positions.
@@ -389,7 +389,7 @@ fn bad_geometry_arguments_are_named() {
     assert!(!out.exists(), "nothing written");
 }
 
-/// Issue 9 (dedupe item 3): an axis table that corrects X's positioning and a geometric model whose
+/// An axis table that corrects X's positioning and a geometric model whose
 /// EXX does too would correct the same error twice: `image group` refuses it, naming both sources
 /// and the way out, and writes nothing; `--exclude-geometric EXX` builds the image with EXX stored as
 /// zero (identified bit kept), which `image inspect` lists as excluded, and the geometric stage then
@@ -490,7 +490,7 @@ fn double_positioning_correction_is_refused_unless_excluded() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Issue 10 item 5's last clause: compensated three-axis twin runs driven through the core's
+/// Compensated three-axis twin runs driven through the core's
 /// geometric stage. The twin (known truth, σ = 0.5 µm, seeds 1–3) is measured on a line set
 /// that `plan geometry` calls complete plus the seven lines (2 runs, 11 targets), fitted with the
 /// default `fit geometry`, the model put into a group image (`image group --geometry` conversion)

@@ -1,4 +1,4 @@
-//! The image pipeline from fits to a group image without traps (issue 26, item 2): a table spans
+//! The image pipeline from fits to a group image without traps: a table spans
 //! exactly its measured stroke (so `image group --geometry` takes it), an axis without correction
 //! (`image build --identity`) gets zero correction from the firmware library, `image build` and
 //! `image inspect` report what the board would refuse (its own checks), `fit thermal` warns of a

@@ -1,4 +1,4 @@
-//! A large campaign through `axcomp fit positioning` (issue 13 item 6): 2,222 bidirectional cycles of
+//! A large campaign through `axcomp fit positioning`: 2,222 bidirectional cycles of
 //! 1,000 targets (4.4 M rows, ~158 MB). Peak memory ≤ 4× the file, at most 20 grouped CV folds stated in
 //! the JSON, progress on stderr, SVGs of at most a few MB. Slow in a debug build (minutes), so ignored by
 //! default; run it with

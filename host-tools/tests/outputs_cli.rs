@@ -1,4 +1,4 @@
-//! All-or-nothing outputs (issue 14): for every command of `fit positioning`, `fit force`, `demo` and
+//! All-or-nothing outputs: for every command of `fit positioning`, `fit force`, `demo` and
 //! `export`, an output path that cannot be written — the last one given — fails with exit code 2 before
 //! anything is written: existing outputs keep their old bytes, no new file appears, no temporary is left,
 //! and the message names the user's path, never a temporary.

@@ -1,4 +1,4 @@
-//! All-or-nothing outputs (issue 14, item 4), following `outputs_more_cli.rs`: for `plan geometry`,
+//! All-or-nothing outputs, following `outputs_more_cli.rs`: for `plan geometry`,
 //! `fit geometry`, `fit rtest`, `plan rtest` and `replay`, the last output path that cannot be written (its
 //! directory is missing) fails with exit code 2 before anything is written: existing outputs keep their old
 //! bytes, no new file appears, no temporary is left, and the message names the user's path. A control run

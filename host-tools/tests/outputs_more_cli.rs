@@ -1,4 +1,4 @@
-//! All-or-nothing outputs (issue 9, item 5), following `outputs_cli.rs`: for `sim`, `sim-probe`,
+//! All-or-nothing outputs, following `outputs_cli.rs`: for `sim`, `sim-probe`,
 //! `fit probe`, `predict`, `trace`, `image build` and `validate-diagnosis`, the last output path that
 //! cannot be written (its directory is missing) fails with exit code 2 and nothing — old or new — is
 //! touched: existing outputs keep their old bytes, no new file appears, no temporary is left, and the

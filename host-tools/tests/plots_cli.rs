@@ -1,4 +1,4 @@
-//! Every report's plots read (issue 26, item 5): each system's chain runs on small twin data (positioning,
+//! Every report's plots read: each system's chain runs on small twin data (positioning,
 //! thermal, force, geometry, R-test, probe, diagnose on survey, R-test and touch data; the Kistler milling
 //! files when `../shared` is there) and every SVG it writes is checked through the plot description each
 //! SVG carries (`axcomp_plot::descriptions`), not by matching its drawing:

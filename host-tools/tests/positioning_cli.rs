@@ -38,8 +38,8 @@ fn num(j: &Value, key: &str) -> f64 {
         .unwrap_or_else(|| panic!("JSON field {key} missing or not a number: {j}"))
 }
 
-/// The contract's ISO 230-2 fields are present: a finite number, or (issue 14: figures the judged runs
-/// cannot define, e.g. A and R of single-run CV folds, are no longer invented) `null` with a reason.
+/// The contract's ISO 230-2 fields are present: a finite number, or (figures the judged runs
+/// cannot define, e.g. A and R of single-run CV folds, are never invented) `null` with a reason.
 /// Before is always fully defined on these bidirectional multi-run campaigns.
 fn check_iso(j: &Value) {
     for part in ["iso230_2_before", "iso230_2_after"] {
@@ -710,11 +710,11 @@ fn bad_input_names_file_line_and_column_and_writes_nothing() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Issue 14 / issue 13: honest figures, after-figures from a compensated campaign, data sanity,
+// Honest figures, after-figures from a compensated campaign, data sanity,
 // traceability, grouped folds.
 
 /// One-direction data: unidirectional ISO 230-2 figures, `null` + reason for every bidirectional one
-/// (issue 14: `A_down_um == A_up_um`, `B_um: 0` were invented), and no "bidirectional" heading.
+/// (`A_down_um == A_up_um`, `B_um: 0` would be invented), and no "bidirectional" heading.
 #[test]
 fn one_direction_data_gets_unidirectional_figures_only() {
     let dir = scratch("onedir");
@@ -856,9 +856,9 @@ fn holdout_of_one_cycle_keeps_every_computable_figure() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Issue 13 item 4 on the twin: `iso230_2_after` of `--holdout` equals the ISO 230-2 figures of the truly
+/// On the twin: `iso230_2_after` of `--holdout` equals the ISO 230-2 figures of the truly
 /// compensated campaign — the same held-out runs simulated with the written table loaded into the core's
-/// compensator (same noise seed) — within 0.05 µm (the issue's tolerance; the differences are the
+/// compensator (same noise seed) — within 0.05 µm (the required tolerance; the differences are the
 /// firmware's f32 table and count rounding, and the error evaluated at the compensated position).
 /// The axis is the demo's linear-motor axis without its interpolation error: that error has a 20 µm period,
 /// so the compensated axis, sitting a correction (~10 µm) away from the target, reads it at another phase
@@ -950,7 +950,7 @@ fn twin_after_figures_equal_the_truly_compensated_campaign() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Issue 13 item 4 on the real ESS runs: with the last two cycles held out, no after-figure is an
+/// On the real ESS runs: with the last two cycles held out, no after-figure is an
 /// artefact. Where the guard writes a table, A after ≤ A before. R after is consistent with the held-out
 /// runs' own repeatability: a static table subtracts the same value from every run at a target, so the
 /// unidirectional R↑ and R↓ after (4s of the residuals) equal R↑ and R↓ before (4s of the held-out
@@ -1034,7 +1034,7 @@ fn b02_edited(shared: &Path, out: &Path, edit: impl Fn(usize, f64, f64) -> f64) 
     std::fs::write(out, s).unwrap();
 }
 
-/// Issue 14 "Why": a value mistyped ×10 was fitted silently (the table moved by 9.9 µm). Now it is a
+/// A value mistyped ×10 must not be fitted silently (it would move the table by 9.9 µm): it is a
 /// warning on stderr and in the JSON naming its line; `--strict` refuses the data with exit code 2 and
 /// writes nothing.
 #[test]
@@ -1078,7 +1078,7 @@ fn a_value_mistyped_ten_times_is_flagged_and_strict_refuses_it() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Issue 14 "Why": half the rows in mm instead of µm were fitted silently. Now a `unit_mix` warning.
+/// Half the rows in mm instead of µm must not be fitted silently: a `unit_mix` warning.
 #[test]
 fn half_the_rows_in_mm_is_a_unit_warning() {
     let Some(shared) = shared() else { return };
@@ -1116,7 +1116,7 @@ fn half_the_rows_in_mm_is_a_unit_warning() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Issue 14 "Why": the ESS file holds nine `test_id`s; without `--where` it was fitted as one axis. Now a
+/// The ESS file holds nine `test_id`s; without `--where` they must not be fitted as one axis: a
 /// clear error (exit 2) listing them, and nothing written.
 #[test]
 fn several_test_ids_without_where_are_an_error_listing_them() {
@@ -1145,7 +1145,7 @@ fn several_test_ids_without_where_are_an_error_listing_them() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Issue 14 item 8: the table file names its source (SHA-256 of the file's bytes, length), the filters,
+/// The table file names its source (SHA-256 of the file's bytes, length), the filters,
 /// the tool version and the date. Reference for the digest: `sha256sum` when installed.
 #[test]
 fn the_table_file_carries_its_provenance() {
@@ -1192,7 +1192,7 @@ fn the_table_file_carries_its_provenance() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Issue 13 item 6: a campaign of many runs is cross-validated in at most `--max-folds` (default 20)
+/// A campaign of many runs is cross-validated in at most `--max-folds` (default 20)
 /// folds of consecutive runs, and the JSON says so.
 #[test]
 fn many_runs_are_grouped_into_at_most_twenty_folds() {

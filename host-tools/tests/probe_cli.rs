@@ -1,5 +1,5 @@
 //! `axcomp fit probe` and `axcomp predict` on a probe calibration, end to end through the CLI binary, on the
-//! twin's probe (issue 12): calibration on a Ø25 mm sphere (582 touches at 100/300/600 mm/min, with bounce
+//! twin's probe: calibration on a Ø25 mm sphere (582 touches at 100/300/600 mm/min, with bounce
 //! and false triggers), a held-out Ø19.05 mm sphere at 450 mm/min; bad input; per-pose centres.
 
 use std::path::Path;
@@ -91,7 +91,7 @@ fn twin_calibration_held_out_sphere_and_predict() {
     }
     let r = v["stylus_radius_mm"].as_f64().unwrap();
     assert!(r > 1.5 - 0.008 && r < 1.5 - 0.002, "{r}");
-    // Held-out sphere at 450 mm/min (issue 12: diameter error ≤ 0.5 µm, radial RMS ≤ 1.2σ = 0.6 µm, ≥ 90 %
+    // Held-out sphere at 450 mm/min (required: diameter error ≤ 0.5 µm, radial RMS ≤ 1.2σ = 0.6 µm, ≥ 90 %
     // better than uncorrected).
     let de = &v["diameter_error_um"];
     let (before, after) = (
@@ -330,7 +330,7 @@ fn per_pose_centres_as_rtest_rows() {
     let text = std::fs::read_to_string(&cen).unwrap();
     println!("{text}");
     let mut lines = text.lines();
-    // The contract's columns, then the calibration's error shared by every pose's centre (issue 11's probe
+    // The contract's columns, then the calibration's error shared by every pose's centre (the rotary probe
     // route: whole triplets zero1_dx_um, zero1_dy_um, zero1_dz_um, zero2_…, read by `fit rtest`).
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     assert_eq!(

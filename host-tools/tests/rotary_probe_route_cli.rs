@@ -1,4 +1,4 @@
-//! The probe route of issue 11 end to end: a touch probe (the twin's kinematic probe, with its lobing,
+//! The rotary probe route end to end: a touch probe (the twin's kinematic probe, with its lobing,
 //! speed-dependent pretravel, bounces and false triggers) touches a Ø25 mm sphere on the table of a five-axis
 //! twin at each pose of K4 and two C circles; `axcomp fit probe --group a_deg,c_deg --centres-out` turns each
 //! pose's touches into a fitted sphere centre (an R-test row); `axcomp fit rtest --data centres.csv` identifies
@@ -214,7 +214,7 @@ fn fit_rtest(dir: &Path, extra: &[&str]) -> Vec<(String, f64, Option<f64>, bool)
 /// - `--free-head-zero`: EX0C, EY0A, EZ0A reported not identified; 136 of 140 (1341 of 1400) of the rest
 ///   within 2 std.
 ///
-/// Asserted: the default ≥ 95 % within 2 std (issue 11's figure; 220 cases, binomial spread of a correct
+/// Asserted: the default ≥ 95 % within 2 std (the required figure; 220 cases, binomial spread of a correct
 /// 95.45 % coverage ±1.4 %, on 200 seeds ±0.45 %) and none beyond 6 std (probability 2e-9 per case for a
 /// correct std); with the qualified zero ≥ 93 % (200 seeds ≥ 95 %) and none beyond 6 std; with
 /// `--free-head-zero` ≥ 90 % of the rest.
@@ -231,7 +231,7 @@ fn probe_route_two_hundred_seeds() {
     route(200, "probe-route-200", 0.95);
 }
 
-/// Share of the default fit's estimates that must lie within 2 std of the truth: issue 11's 95 %.
+/// Share of the default fit's estimates that must lie within 2 std of the truth: the required 95 %.
 const DEFAULT_COVERAGE: f64 = 0.95;
 /// Largest deviation (in reported std) tolerated for any estimate.
 const WORST_STD: f64 = 6.0;

@@ -270,7 +270,7 @@ fn write_axis_images(dir: &Path, kind: MachineKind) -> Vec<String> {
 /// −60° fitted, K4 run 2 held out): `fit rtest --out` → `image group --rotary MODEL` → the core stage
 /// corrects the held-out K4 commands → the twin's exact kinematics (its truth, sphere where it is meant to
 /// be) gives the remaining displacement. Reference: the uncorrected machine (plain) and the truth's own
-/// correction through the same stage (oracle), in the same run. Target (issue 11): every K4 range reduced
+/// correction through the same stage (oracle), in the same run. Target: every K4 range reduced
 /// by ≥ 90 %; the fitted model's residual ranges within 1 µm of the oracle's (the fit's uncertainty on
 /// 216 rows at σ = 0.3 µm is a few tenths of a µm in the ranges).
 #[test]

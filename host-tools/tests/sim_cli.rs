@@ -121,8 +121,8 @@ fn every_plan_runs() {
 
 #[test]
 fn large_thermal_and_survey_plans_run_with_progress() {
-    // Issue 13: `--plan thermal` failed from ~14,000 rows and `--plan survey` from ~29,000 ("time runs
-    // backwards"). 100,000 rows each (the plan-level test in axcomp-twin goes to 10⁶); progress on stderr.
+    // Long plans: `--plan thermal` must not fail from ~14,000 rows nor `--plan survey` from ~29,000 ("time
+    // runs backwards"). 100,000 rows each (the plan-level test in axcomp-twin goes to 10⁶); progress on stderr.
     let dir = scratch("large");
     for plan in ["thermal", "survey"] {
         let out = dir.join(format!("{plan}.csv"));

@@ -436,7 +436,7 @@ fn voron_default_at_or_below_plain_ls_and_greedy_lags_on_every_cooling_holdout()
             (raw - raw_here).abs() <= 1e-9 * raw_here,
             "raw {raw} vs {raw_here}"
         );
-        // Done-when of issue 13: at or below both references. Tolerance 1e-6 relative: the default may be
+        // Required: at or below both references. Tolerance 1e-6 relative: the default may be
         // the same least-squares fit solved by another routine (round-off only).
         assert!(
             h <= plain * (1.0 + 1e-6),

@@ -1,7 +1,7 @@
-//! Traceability (issue 14, item 8) through the CLI: every fit command's model file carries its provenance
+//! Traceability through the CLI: every fit command's model file carries its provenance
 //! (the data file's SHA-256, the filters, the tool version, the command, the UTC date); `image build` and
 //! `image group` put the model files' hashes, the tool and the build date into the image, with the sensor
-//! names; `image inspect` shows them and which board input feeds each sensor (the issue's warm-up sensor
+//! names; `image inspect` shows them and which board input feeds each sensor (a warm-up sensor
 //! on the STM32G474 board: refused).
 
 use std::path::Path;

@@ -1,6 +1,6 @@
 //! The group drive (`GroupDrive`: setpoint link v2, one link supervisor per axis, the group engine, the
 //! status word, the reply frame) replayed from drive traces (`axcomp_firmware::drive::link_trace`) on
-//! the host and in QEMU (`axcomp-qemu-group`), and the drive fault matrix of issue 14.
+//! the host and in QEMU (`axcomp-qemu-group`), and the drive fault matrix.
 //!
 //! Reference: `axcomp_firmware::drive::link_trace::replay_link` on the host (the same code QEMU runs).
 //! Tolerance: none — every 128-byte drive output record (status word, the reply frame as sent, every

@@ -1,4 +1,4 @@
-//! The volumetric geometric stage (issue 10 item 6) in QEMU: the group firmware
+//! The volumetric geometric stage in QEMU: the group firmware
 //! (`axcomp-qemu-group`) and the host replay give byte-identical output records for a three-axis
 //! trace that moves through the seed's seven laser lines (seed 000: line 1 along X, lines 2–3 the
 //! XY face diagonals, lines 4–7 the body diagonals, the diagonals read step-wise: X step, reading,

@@ -1,4 +1,4 @@
-//! The touch-probe latch of the group drive (issue 12) replayed from the probe drive trace
+//! The touch-probe latch of the group drive replayed from the probe drive trace
 //! (`axcomp_firmware::scenario::probe_link`: probing moves at 1000 mm/min, a probe signal 850 µs late,
 //! bounce, a glitch shorter than the 2 ms filter, a trigger during a rapid, one at rest without arming)
 //! on the host and in QEMU (`axcomp-qemu-group`).

@@ -1,4 +1,4 @@
-//! The volumetric geometric stage (issue 10 item 6): the core's f32 stage against an f64
+//! The volumetric geometric stage: the core's f32 stage against an f64
 //! reference of the small-angle rigid-body model (every stacking, with tool offsets, beyond the
 //! grid), the group cycle subtracting it from X, Y, Z, the image section's round trip and its
 //! typed refusals.

@@ -200,8 +200,7 @@ fn typed_refusals() {
     reseal(&mut u);
     assert_eq!(err(&u), ImageError::UnknownSection { kind: 77 });
     // A known type in a version this reader does not support, mandatory: refused as unsupported.
-    // (Types 2, the geometric model, and 4, the probe settings, are supported since issues 10 and
-    // 12: an axis section retyped as one is refused as malformed; their own refusals are in
+    // (Types 2, the geometric model, and 4, the probe settings, are supported: an axis section retyped as one is refused as malformed; their own refusals are in
     // tests/geometric.rs and tests/probe_image.rs.)
     let mut r = good.clone();
     r[dir_at(2) + 2..dir_at(2) + 4].copy_from_slice(&9u16.to_le_bytes());

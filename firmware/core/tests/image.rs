@@ -416,8 +416,8 @@ fn parse_errors_and_load_leaves_running_object_untouched() {
     assert_eq!(format!("{c:?}"), format!("{before:?}"));
     let mut st = State::new();
     assert_eq!(c.cycle(&mut st, &input(50, 0)).correction_um, 3.0);
-    // Trailing bytes after the declared length are refused (issue 14: they were accepted without
-    // comment); a flash slot is cut to the image with `declared_image_len` first.
+    // Trailing bytes after the declared length are refused, never accepted without
+    // comment; a flash slot is cut to the image with `declared_image_len` first.
     let mut padded = good.clone();
     padded.extend_from_slice(&[0xFF; 100]);
     assert_eq!(c.load(&padded), Err(ImageError::TrailingBytes));

@@ -1,4 +1,4 @@
-//! Provenance in images (issue 14, item 8): the schema-1 header extension (`PROV`, `SNAM`) and the
+//! Provenance in images: the schema-1 header extension (`PROV`, `SNAM`) and the
 //! group image's provenance section (kind 6). An image with them corrects exactly as the same image
 //! without them; their framing and CRCs are validated; a damaged block is refused.
 

@@ -13,7 +13,7 @@ use common::*;
 
 /// Segments per direction of the largest linear tables of the issue's five-axis image.
 const LINEAR_SEGMENTS: usize = 512;
-/// Geometric functions and their segments (issue 9: 18 functions × 128 segments).
+/// Geometric functions and their segments (the required capacity: 18 functions × 128 segments).
 const GEOMETRIC_FUNCTIONS: usize = 18;
 const GEOMETRIC_SEGMENTS: usize = 128;
 /// Bytes per segment of one function: 4 f32 coefficients, as the axis tables.
@@ -26,10 +26,10 @@ fn table(n: usize, off: f32) -> Vec<[f32; 4]> {
         .collect()
 }
 
-/// The largest five-axis image of issue 9: X, Y, Z with bidirectional 512-segment tables and a
+/// The largest five-axis image required: X, Y, Z with bidirectional 512-segment tables and a
 /// full thermo-force term (16 sensors with names, expansion, 3 forces); A and C with a
-/// 512-segment table over the turn and 16 sensors too (more than the issue asks); the rotary
-/// model; and an 18 × 128-segment geometric model (section kind 2, issue 10). Every section is
+/// 512-segment table over the turn and 16 sensors too (more than required); the rotary
+/// model; and an 18 × 128-segment geometric model (section kind 2). Every section is
 /// written, parsed and loaded for real.
 #[test]
 fn largest_five_axis_image_fits_one_slot() {
@@ -175,7 +175,7 @@ fn largest_five_axis_image_fits_one_slot() {
 }
 
 /// A schema-1 image in a slot of erased flash: the declared length cuts it exactly; the
-/// single-axis loader refuses the trailing bytes (issue 14) and takes the cut image.
+/// single-axis loader refuses the trailing bytes and takes the cut image.
 #[test]
 fn single_axis_image_cut_from_slot_by_declared_length() {
     let fwd = table(64, 0.0);

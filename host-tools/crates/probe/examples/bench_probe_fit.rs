@@ -1,4 +1,4 @@
-//! Calibration time for 500 touches (issue 12: < 100 ms). Prints `bench probe_fit_500_ms VALUE ms`
+//! Calibration time for 500 touches (budget: < 100 ms). Prints `bench probe_fit_500_ms VALUE ms`
 //! (median of 7 runs). Run with `cargo run --release -p axcomp-probe --example bench_probe_fit`.
 use axcomp_probe::{CalibrationOptions, Touch, calibrate};
 use axcomp_twin::probe::{ProbeModel, ProbePlan, simulate_touches};

@@ -1,4 +1,4 @@
-//! Issue 12 acceptance on the twin: calibrate on a reference sphere (rings × 3 speeds, with bounce and false
+//! Acceptance on the twin: calibrate on a reference sphere (rings × 3 speeds, with bounce and false
 //! triggers), then measure a held-out second sphere at a speed between the calibration speeds, and compare
 //! uncorrected (nominal stylus radius), the plain method (one effective radius), the seed's bilinear grid
 //! (reference), the chosen model and the oracle (the twin's true effective radius) in the same run.
@@ -126,7 +126,7 @@ fn held_out_sphere_between_calibration_speeds() {
         res.repeatability_2sigma_um, cal.fit_rms_um
     );
 
-    // Issue 12 "done when": diameter error ≤ 0.5 µm, radial RMS ≤ 1.2 × noise σ (0.5 µm), ≥ 90 % better
+    // Acceptance: diameter error ≤ 0.5 µm, radial RMS ≤ 1.2 × noise σ (0.5 µm), ≥ 90 % better
     // than uncorrected. Reference: the twin's true sphere; noise σ = ProbeModel::noise_um.
     let sigma = probe.noise_um;
     assert!(chosen.1.abs() <= 0.5, "diameter error {} µm", chosen.1);

@@ -120,7 +120,7 @@ fn one_seed(kind: MachineKind, seed: u64) -> SeedResult {
     }
 }
 
-/// Issue 11 "done when", twin with known truth, K4 + C circles at 0° and −60° (a plan `axcomp plan rtest`
+/// Acceptance on the twin with known truth, K4 + C circles at 0° and −60° (a plan `axcomp plan rtest`
 /// lists, condition 12.6; its minimal recommendation is K4 + C@0), noise σ = 0.3 µm, judged on K4 run 2 (never fitted), seeds 1..=n:
 /// - coverage: identified parameters within 2 × standard uncertainty of the truth in ≥ `min_coverage` of the
 ///   (parameter, seed) cases (reference: the twin's truth; calibrated uncertainties give 95.4 %, and with

@@ -5,7 +5,7 @@ use axcomp_validation::lines::{LineValidateOptions, case_kind, make_case, run_ca
 
 #[test]
 fn reduced_line_harness_meets_the_issue_targets() {
-    // 32 cases (8 null, 24 withheld: each kind at SNR 3, 4, 6 and 8), seed 1. Issue 10's targets: top-1 ≥
+    // 32 cases (8 null, 24 withheld: each kind at SNR 3, 4, 6 and 8), seed 1. Targets: top-1 ≥
     // 90 % at SNR ≥ 4, false alarms ≤ 5 % (here: none of the 8 null cases), median shrink ≥ 0.8 × oracle.
     // Measured on this subset (the first 32 cases of the 200-case run in docs/figures.md): top-1 at SNR ≥ 4 17/18
     // (94.4 %; one `time_drift` called `thermal_drift`), false alarms 0/8, median shrink / oracle 1.00.

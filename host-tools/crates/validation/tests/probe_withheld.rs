@@ -1,5 +1,5 @@
-//! Withheld-effect validation on touch-probe twin campaigns (issue 12, "Withheld-effect validation on probe
-//! data"), a CI-sized run: 32 cases (24 with one of the six probe effects withheld at SNR 4 or 8, 8 null
+//! Withheld-effect validation on touch-probe twin campaigns, a CI-sized run:
+//! 32 cases (24 with one of the six probe effects withheld at SNR 4 or 8, 8 null
 //! cases), held out: the second sphere (`artefact=sphere2`, fixed before any case is drawn). The full
 //! figure (200 cases, SNR 3–8) comes from `axcomp validate-diagnosis --harness probe` (docs/figures.md).
 

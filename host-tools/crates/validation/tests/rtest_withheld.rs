@@ -1,5 +1,5 @@
-//! Withheld-effect validation of the R-test diagnosis on the five-axis twin (issue 11, "Withheld-effect
-//! validation on R-test data": top-1 ≥ 90 % at SNR ≥ 4, false alarms ≤ 5 %). A few dozen cases here; the
+//! Withheld-effect validation of the R-test diagnosis on the five-axis twin (targets:
+//! top-1 ≥ 90 % at SNR ≥ 4, false alarms ≤ 5 %). A few dozen cases here; the
 //! full figure is `axcomp validate-diagnosis --harness rtest` (docs/figures.md).
 
 use axcomp_validation::rtest::{RtestValidateOptions, validate};
@@ -32,7 +32,7 @@ fn rtest_withheld_effects_are_named() {
     })
     .unwrap();
     eprintln!("{}", s.to_markdown());
-    // Done-when figures (issue 11): top-1 ≥ 90 % at SNR ≥ 4 and false alarms ≤ 5 %, measured on these
+    // Required figures: top-1 ≥ 90 % at SNR ≥ 4 and false alarms ≤ 5 %, measured on these
     // cases (a few dozen; the full run is in docs/figures.md). Every case is also either right or a reported
     // tie of kinds with the same signature (bc-head: setup_drift / time_drift).
     assert!(s.cases_snr_ge_4 >= 15, "{}", s.cases_snr_ge_4);
