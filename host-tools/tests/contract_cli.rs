@@ -336,9 +336,9 @@ fn lagged_csv() -> String {
 }
 
 /// Contract, "Measurement CSV": `time_s` is the time since the start, and only a `time` column of timestamps
-/// stands in for it. Without either, `fit thermal` fitted its lags over the row index and wrote the time
-/// constants, in rows, as `tau_s` (seconds: `predict` and the firmware read them so, and `predict` then
-/// refused the same file for want of `time_s`). Now the default choice leaves lagged candidates out and says
+/// stands in for it. Without either, `fit thermal` must not fit its lags over the row index and write the time
+/// constants, in rows, as `tau_s` (seconds: `predict` and the firmware read them so, and `predict` would
+/// refuse the same file for want of `time_s`). The default choice leaves lagged candidates out and says
 /// why (stderr and `lags_note`), and `--lags` without a time names the `time` column that is not read.
 #[test]
 fn fit_thermal_without_time_has_no_lags_in_rows() {

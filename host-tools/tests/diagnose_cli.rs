@@ -66,7 +66,7 @@ fn ess_b02_x_pitch_only_model_misses_the_reversal() {
     for k in ["variable", "from", "to", "share"] {
         assert!(!d["where"][0][k].is_null(), "where[0].{k}");
     }
-    // The acceptance: the verdict is `reversal` and the held-out gap shrinks by more than half
+    // Acceptance: the verdict is `reversal` and the held-out gap shrinks by more than half
     // (shrink_pct = 100·(1 − after/before) on the 18 held-out rows of cycle 5).
     assert_eq!(d["verdict"], "reversal", "{stdout}");
     let top = &d["effects"][0];
@@ -238,7 +238,7 @@ fn bad_input_is_named() {
 #[test]
 fn validate_diagnosis_reduced_run_meets_sane_minima() {
     // 24 cases (18 with one effect withheld at SNR 4 or 6, 6 nulls), 3000 rows each, deterministic in the
-    // seed. The targets at SNR ≥ 4 as far as 24 cases can show them: top-1 ≥ 90 % (at most 1 of 18
+    // seed. The targets at SNR ≥ 4 as far as 24 cases can show them: top-1 ≥ 90 % (at most 1 of 18
     // missed; measured 18 of 18), no false alarm on the 6 nulls (the target ≤ 5 % needs more nulls; the full
     // run in the README has 120), no share outside 0..1.
     let dir = scratch("validate");
@@ -275,7 +275,7 @@ fn validate_diagnosis_reduced_run_meets_sane_minima() {
 fn validate_diagnosis_hard_harness_reduced_run() {
     // The hard harness (1,500 rows, 3 ISO cycles, held out outside the training regime) on 24 cases: 18
     // withheld at SNR 4 or 6, 6 nulls, deterministic in the seed. The full run (README: `--harness hard
-    // --cases 480 --seed 1`) is the acceptance figure; here the targets as far as 24 cases show
+    // --cases 480 --seed 1`) is the acceptance figure; here the targets as far as 24 cases show
     // them: top-1 ≥ 90 % (at most 1 of 18 missed; measured 17 of 18), no false alarm on the 6 nulls, no
     // share outside 0..1.
     let dir = scratch("validate-hard");

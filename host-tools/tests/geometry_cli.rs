@@ -25,7 +25,7 @@ fn ok(o: &Output) -> String {
 }
 
 /// Twin truth unknown to the fit; reference σ = 0.5 µm. The seven lines are held out: their RMS after the
-/// model must be within 1.1 σ (issue figure), and the JSON must carry the contract's fields.
+/// model must be within 1.1 σ (the required figure), and the JSON must carry the contract's fields.
 #[test]
 fn plan_simulate_fit_export_report() {
     let d = scratch("e2e");

@@ -54,7 +54,7 @@ fn grids() -> [AxisGrid; 3] {
     ]
 }
 
-/// A model as `fit geometry` writes it: B-spline coefficients of the magnitudes
+/// A model as `fit geometry` writes it: B-spline coefficients of the specified magnitudes
 /// (positioning/straightness a few µm, angles tens of µrad, squareness tens of µrad); the four
 /// components the seven-line method cannot see are `identified: false` and hold zeros (fixed at
 /// 0, as the fit writes them).
@@ -198,7 +198,7 @@ fn args(
 
 /// Reference: `GeometryModel::error_at` (f64, `axcomp_kinematics::linear_error`) at the
 /// position the counts stand for (counts × the image's f32 µm per count). Tolerance 0.01 µm
-/// (the issue's); the core's f32 arithmetic on errors of ≤ ~100 µm and positions ≤ 600 mm gives
+/// (the required one); the core's f32 arithmetic on errors of ≤ ~100 µm and positions ≤ 600 mm gives
 /// about 4e-6 µm (the figure printed). Four stackings, with and without a tool offset, slots in
 /// two orders, 500 random positions each within the measured volume.
 #[test]
@@ -498,7 +498,7 @@ fn double_positioning_correction_is_refused_unless_excluded() {
 /// axis tables: the geometric stage alone, the corrected commands rounded to 0.1 µm counts); the
 /// twin's exact HTM chain gives where the tool lands. Reference in the same run: the same
 /// correction from the host's f64 model (`GeometryModel::error_at`, no rounding). Pass: the
-/// volumetric max error falls ≥ 90 % (the figure), at tool offset 0 and at a 150 mm tool
+/// volumetric max error falls ≥ 90 % (the required figure), at tool offset 0 and at a 150 mm tool
 /// along Z (the Abbe arm the lines with tool offsets identify); the core's residual is within
 /// 0.1 µm of the host model's (0.05 µm count rounding per axis, √3 · 0.05 ≈ 0.09 µm).
 #[test]
@@ -640,8 +640,8 @@ fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
 /// firmware library's geometric stage (`Group::geometric_error_um`, f32 Horner) gives
 /// `pred_ex_um, pred_ey_um, pred_ez_um`. Tolerance 1e-3 µm: the f32 Horner form of errors of up to
 /// ~100 µm (f32 relative precision 6e-8, a few operations: ~1e-5 µm; the figure printed). Reference
-/// for what the fix changes: the same image with the not-separable components zeroed (what was
-/// stored before) misses the host by the printed amount at the same rows.
+/// for why they are stored: the same image with the not-separable components zeroed
+/// misses the host by the printed amount at the same rows.
 #[test]
 fn fitted_not_separable_components_reach_the_image() {
     use axcomp_data::{Dataset, LoadOptions};

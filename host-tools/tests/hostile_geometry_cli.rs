@@ -53,8 +53,8 @@ fn entry(model: &Value, name: &str) -> usize {
 }
 
 /// Two entries of `components` swapped, each keeping its name with its data: the file still says which
-/// values are EXX's. Before the fix the reader took the entries by position, `predict` used EYX's
-/// values as EXX's (predictions moved by µm) and exited 0. Now the prediction is the unswapped
+/// values are EXX's. A reader taking the entries by position would use EYX's values as EXX's in
+/// `predict` (predictions moved by µm) and exit 0. The prediction is the unswapped
 /// model's, to the byte.
 #[test]
 fn swapped_components_are_read_by_name() {
@@ -83,8 +83,8 @@ fn swapped_components_are_read_by_name() {
     assert!(p0 == p1, "the swapped model predicts differently");
 }
 
-/// Two `EXY` entries and no `EXX`: before the fix accepted (EXX read from the first entry, which was
-/// EXY's). Now exit 2 naming the file, the duplicated name and the missing one is not reached.
+/// Two `EXY` entries and no `EXX`: must not be accepted (EXX read from the first entry, which is
+/// EXY's). Exit 2 naming the file, the duplicated name and the missing one is not reached.
 #[test]
 fn a_duplicated_component_is_refused_naming_it() {
     let dir = scratch("dup");
@@ -124,8 +124,8 @@ fn a_duplicated_component_is_refused_naming_it() {
     );
 }
 
-/// A short coefficient array (before: a panic, exit 101, indexing past its end), a 1e300 coefficient
-/// (before: predictions of 1e299), an unknown component name and a version the reader does not know:
+/// A short coefficient array (unchecked: a panic, exit 101, indexing past its end), a 1e300 coefficient
+/// (unchecked: predictions of 1e299), an unknown component name and a version the reader does not know:
 /// each exit 2 naming the file and the entry.
 #[test]
 fn malformed_entries_are_refused_naming_the_entry() {
@@ -260,7 +260,7 @@ fn predictions(text: &str, rows: &axcomp_data::Dataset) -> Option<Vec<[f64; 3]>>
 /// Model files mutated as the image parser's tests mutate images (entries swapped, duplicated,
 /// dropped, renamed; coefficient arrays truncated; 1e300, 1e12 or null put in): the reader never
 /// panics, and a model it accepts predicts exactly what the unmutated one does (only a pure
-/// reordering may be accepted). Before the fix a swap changed predictions and a truncation panicked.
+/// reordering may be accepted): a swap must not change predictions, nor a truncation panic.
 #[test]
 fn mutated_models_never_panic_nor_predict_differently() {
     let dir = scratch("prop");
@@ -287,8 +287,8 @@ fn mutated_models_never_panic_nor_predict_differently() {
     });
 }
 
-/// `--out model.json --json fit.json` where model.json is a link to fit.json: before the fix both
-/// outputs passed the check (different names) and fit.json ended up holding the model, exit 0. Now
+/// `--out model.json --json fit.json` where model.json is a link to fit.json: both outputs
+/// pass a check by name (different names) and fit.json would end up holding the model, exit 0. Instead
 /// exit 2 naming both, nothing written.
 #[cfg(unix)]
 #[test]
@@ -313,9 +313,9 @@ fn two_outputs_that_are_one_file_through_a_link_are_refused() {
     );
 }
 
-/// An output inside a folder the command writes whole: `--report rep --out rep/report.md` (before:
-/// the report overwrote the model, exit 0), `--export tab --json tab/EXX.csv` (the table overwrote
-/// the JSON) and an output reaching the folder through a link. Now exit 2 naming the output and the
+/// An output inside a folder the command writes whole: `--report rep --out rep/report.md` (the
+/// report would overwrite the model, exit 0), `--export tab --json tab/EXX.csv` (the table would
+/// overwrite the JSON) and an output reaching the folder through a link: exit 2 naming the output and the
 /// folder's option, nothing written.
 #[cfg(unix)]
 #[test]
@@ -342,9 +342,9 @@ fn an_output_inside_a_folder_the_command_writes_is_refused() {
     }
 }
 
-/// A second `--export` into the same folder: before the fix the first fit's component tables that the
-/// second fit does not write (the four components the seven-line plan cannot identify) stayed, and
-/// the folder held a mix of two models. Now the folder holds the second export only; a file of the
+/// A second `--export` into the same folder: the first fit's component tables that the
+/// second fit does not write (the four components the seven-line plan cannot identify) must not stay,
+/// or the folder holds a mix of two models. The folder holds the second export only; a file of the
 /// user's in it stays.
 #[test]
 fn a_second_export_leaves_no_table_of_the_first() {
@@ -417,8 +417,8 @@ fn rewrite_deviations(dir: &Path, name: &str, f: impl Fn(usize, f64) -> String) 
     common::write_table(&dir.join(name), &header, &rows);
 }
 
-/// One typed-in 5000 µm reading among laser lines, and every reading ×1000 (nm taken for µm): before
-/// the fix both were fitted silently (volumetric error ×8, "after" figures worse than before). Now a
+/// One typed-in 5000 µm reading among laser lines, and every reading ×1000 (nm taken for µm): neither
+/// may be fitted silently (volumetric error ×8, "after" figures worse than before): a
 /// warning naming the file and the line of the reading (the fit goes on), and `--strict` refuses the
 /// data (exit 2, nothing written).
 #[test]
@@ -524,8 +524,8 @@ fn rtest_and_probe_json_carry_warnings() {
     }
 }
 
-/// A single 1e300 reading: before the fix fitted (the model held 1e299 and `null`s, and then the tool
-/// refused its own model). Now exit 2 naming file, line and column.
+/// A single 1e300 reading: must not be fitted (the model would hold 1e299 and `null`s, and then the
+/// tool would refuse its own model). Exit 2 naming file, line and column.
 #[test]
 fn an_absurd_reading_is_an_error_naming_the_cell() {
     let dir = scratch("absurd");
@@ -544,9 +544,9 @@ fn an_absurd_reading_is_an_error_naming_the_cell() {
     );
 }
 
-/// Numeric options out of range: `--export-step 1e-9` (before: the export exhausted the memory and
-/// the process aborted), `--export-step NaN` (before: accepted), `plan geometry --stroke 1e300,…`
-/// (before: a plan over 1e300 mm) and `--runs 1000000000` (before: ran until memory ran out). Now
+/// Numeric options out of range: `--export-step 1e-9` (unchecked: the export exhausts the memory and
+/// the process aborts), `--export-step NaN` (unchecked: accepted), `plan geometry --stroke 1e300,…`
+/// (unchecked: a plan over 1e300 mm) and `--runs 1000000000` (unchecked: runs until memory runs out):
 /// each is exit 2 naming the option, nothing written.
 #[test]
 fn out_of_range_options_are_refused_naming_them() {

@@ -55,8 +55,8 @@ fn group_of(dir: &Path, name: &str, ids: [u16; 2]) {
     std::fs::write(dir.join(name), &buf[..n]).unwrap();
 }
 
-/// `image group` of two axis images that carry one axis id: before the fix written (exit 0), although
-/// every board refuses it (one scale input cannot feed two axes). Now exit 2 with the firmware's
+/// `image group` of two axis images that carry one axis id: must not be written with exit 0, since
+/// every board refuses it (one scale input cannot feed two axes). Exit 2 with the firmware's
 /// reason, nothing written; distinct ids still group.
 #[test]
 fn image_group_refuses_one_axis_id_on_two_axes() {
@@ -80,8 +80,8 @@ fn image_group_refuses_one_axis_id_on_two_axes() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
-/// `image inspect` of a group image with one axis id on two axes (written by another tool): before the
-/// fix "ok". Now exit 2 with the firmware's reason.
+/// `image inspect` of a group image with one axis id on two axes (written by another tool): not "ok" but
+/// exit 2 with the firmware's reason.
 #[test]
 fn image_inspect_refuses_one_axis_id_on_two_axes() {
     let dir = scratch("inspect-ids");
@@ -112,7 +112,7 @@ fn with_table(axis_id: u16) -> Vec<u8> {
 }
 
 /// `image group --rotary` with the pivot's X 1e10 counts away (mm typed where counts belong, ×10^4):
-/// before the fix written (the firmware loaded it and corrected about a pivot 1 km off). Now exit 2 with
+/// must not be written (the firmware would load it and correct about a pivot 1 km off). Exit 2 with
 /// the firmware's reason (`GroupImageView::check_pivot`: X's table spans 0..100,000 counts, so the
 /// pivot's X may lie in −100,000..200,000), nothing written; a pivot inside still groups.
 #[test]

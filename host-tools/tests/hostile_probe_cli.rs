@@ -31,8 +31,8 @@ fn touches_and_calibration(dir: &Path) {
     ));
 }
 
-/// `--out m.json --json fit.json` with m.json a link to fit.json: before the fix exit 0 and fit.json
-/// held the calibration. Now exit 2 naming both, nothing written.
+/// `--out m.json --json fit.json` with m.json a link to fit.json: must not exit 0 with fit.json
+/// holding the calibration. Exit 2 naming both, nothing written.
 #[cfg(unix)]
 #[test]
 fn two_outputs_that_are_one_file_through_a_link_are_refused() {
@@ -76,8 +76,8 @@ fn two_outputs_that_are_one_file_through_a_link_are_refused() {
     );
 }
 
-/// `--report rep --out rep/notes.json`: an output inside the folder the report writes whole; before
-/// the fix exit 0 (the next report run could not tell it from its own files). Now exit 2.
+/// `--report rep --out rep/notes.json`: an output inside the folder the report writes whole; must
+/// not exit 0 (the next report run could not tell it from its own files). Exit 2.
 #[test]
 fn an_output_inside_the_report_folder_is_refused() {
     let dir = scratch("inside");
@@ -100,8 +100,8 @@ fn an_output_inside_the_report_folder_is_refused() {
     );
 }
 
-/// A calibration whose sphere centre is 1e300 mm or whose feed range is upside down: before the fix
-/// `predict` accepted it (contact points of 1e300). Now exit 2 naming the file and the entry.
+/// A calibration whose sphere centre is 1e300 mm or whose feed range is upside down: `predict`
+/// must not accept it (contact points of 1e300). Exit 2 naming the file and the entry.
 #[test]
 fn an_absurd_calibration_is_refused_naming_the_entry() {
     let dir = scratch("absurd");
@@ -136,8 +136,8 @@ fn an_absurd_calibration_is_refused_naming_the_entry() {
 }
 
 /// `fit positioning --out table.json --json fit.json` and `replay --out o.bin --csv c.csv` with the
-/// second a link to the first: before the fix both passed the check (exit 0 for the fit, the JSON
-/// holding the table). Now exit 2 naming both, before any input is read.
+/// second a link to the first: both pass a check by name (exit 0 for the fit, the JSON
+/// holding the table), which is not enough. Exit 2 naming both, before any input is read.
 #[cfg(unix)]
 #[test]
 fn positioning_and_replay_outputs_that_are_one_file_are_refused() {
@@ -178,8 +178,8 @@ fn positioning_and_replay_outputs_that_are_one_file_are_refused() {
     );
 }
 
-/// Touch positions logged in µm (×1000) and a 1e300 position: before the fix the first was fitted
-/// silently and the second gave contact points of 1e300. Now the first warns naming the columns and
+/// Touch positions logged in µm (×1000) and a 1e300 position: the first must not be fitted
+/// silently, nor the second give contact points of 1e300. The first warns naming the columns and
 /// `--strict` refuses it; the second is an error naming file, line and column (exit 2).
 #[test]
 fn implausible_touches_warn_or_fail() {
@@ -226,8 +226,8 @@ fn implausible_touches_warn_or_fail() {
     );
 }
 
-/// `sim-probe --feed NaN` and `--feed 1e300`: before the fix both wrote touches (feed_mm_min NaN or
-/// 1e300). Now exit 2 naming the option, nothing written.
+/// `sim-probe --feed NaN` and `--feed 1e300`: neither may write touches (feed_mm_min NaN or
+/// 1e300). Exit 2 naming the option, nothing written.
 #[test]
 fn an_absurd_feed_is_refused() {
     let dir = scratch("feed");

@@ -35,8 +35,8 @@ fn entry(model: &Value, name: &str) -> usize {
         .unwrap()
 }
 
-/// Two location errors swapped, each keeping its name with its value: before the fix `predict` took
-/// them by position (EY0C's value as EX0C's, predictions off by tens of µm) and exited 0. Now the
+/// Two location errors swapped, each keeping its name with its value: `predict` must not take
+/// them by position (EY0C's value as EX0C's, predictions off by tens of µm) and exit 0. The
 /// prediction is the unswapped model's, to the byte.
 #[test]
 fn swapped_location_errors_are_read_by_name() {
@@ -60,8 +60,8 @@ fn swapped_location_errors_are_read_by_name() {
 }
 
 /// A name twice, a name of another machine kind (EX0B on an AC trunnion), a 1e300 value, a missing
-/// entry and a kind the reader does not know: before the fix `predict` accepted each (the first two
-/// by position, 1e300 as a prediction of 1e300). Now exit 2 naming the file and the entry.
+/// entry and a kind the reader does not know: `predict` must accept none (the first two
+/// would be taken by position, 1e300 as a prediction of 1e300). Exit 2 naming the file and the entry.
 #[test]
 fn malformed_location_errors_are_refused_naming_the_entry() {
     let dir = scratch("entries");
@@ -164,7 +164,7 @@ fn predictions(text: &str, rows: &axcomp_data::Dataset) -> Option<Vec<[f64; 3]>>
 
 /// Model files mutated (location errors swapped, duplicated, dropped, renamed; 1e300, 1e12 or null
 /// values): the reader never panics, and a model it accepts predicts exactly what the unmutated one
-/// does (only a pure reordering may be accepted). Before the fix a swap changed the predictions.
+/// does (only a pure reordering may be accepted): a swap must not change the predictions.
 #[test]
 fn mutated_models_never_panic_nor_predict_differently() {
     let dir = scratch("prop");
@@ -191,8 +191,8 @@ fn mutated_models_never_panic_nor_predict_differently() {
     });
 }
 
-/// `fit rtest --report r --out r/report.md`: before the fix the report's page overwrote the model (or
-/// the reverse), exit 0. Now exit 2 naming the output and `--report`, nothing written.
+/// `fit rtest --report r --out r/report.md`: the report's page must not overwrite the model (or
+/// the reverse) with exit 0. Exit 2 naming the output and `--report`, nothing written.
 #[test]
 fn an_output_inside_the_report_folder_is_refused() {
     let dir = scratch("inside");
@@ -213,8 +213,8 @@ fn an_output_inside_the_report_folder_is_refused() {
     );
 }
 
-/// `--out m.json --json fit.json` with m.json a link to fit.json: before the fix exit 0 and fit.json
-/// held the model. Now exit 2 naming both.
+/// `--out m.json --json fit.json` with m.json a link to fit.json: must not exit 0 with fit.json
+/// holding the model. Exit 2 naming both.
 #[cfg(unix)]
 #[test]
 fn two_outputs_that_are_one_file_through_a_link_are_refused() {
@@ -262,8 +262,8 @@ fn rewrite(dir: &Path, from: &str, to: &str, cols: &[&str], f: impl Fn(usize, f6
 }
 
 /// R-test data whose own header names its machine kind (`# … machine bc-head`) fitted as another
-/// (`--machine bc-trunnion`), angles in radians, displacements ×1000 (nm for µm): before the fix each
-/// was fitted silently. Now a warning naming the file (and the header's line), and `--strict`
+/// (`--machine bc-trunnion`), angles in radians, displacements ×1000 (nm for µm): none may
+/// be fitted silently. A warning naming the file (and the header's line), and `--strict`
 /// refuses (exit 2, nothing written). The twin's own data raise none.
 #[test]
 fn implausible_rtest_data_warns_and_strict_refuses() {
@@ -330,7 +330,7 @@ fn implausible_rtest_data_warns_and_strict_refuses() {
     }
 }
 
-/// A 1e300 displacement: before the fix fitted into a model of 1e299 values. Now exit 2 naming file,
+/// A 1e300 displacement: must not be fitted into a model of 1e299 values. Exit 2 naming file,
 /// line and column.
 #[test]
 fn an_absurd_reading_is_an_error_naming_the_cell() {
@@ -347,10 +347,10 @@ fn an_absurd_reading_is_an_error_naming_the_cell() {
     );
 }
 
-/// Options: `plan rtest --circle-poses 1000000000` (before: the process aborted when memory ran out),
-/// `--pivot-mm 1e300` (before: a bc-head of 1e300 mm fitted and planned), one column scaled twice
-/// (before: the last factor silently won) and a repeated `--machine` (refused by the parser: kept as
-/// a guard). Now each is exit 2 naming the option, nothing written.
+/// Options: `plan rtest --circle-poses 1000000000` (unchecked: the process aborts when memory runs out),
+/// `--pivot-mm 1e300` (unchecked: a bc-head of 1e300 mm fitted and planned), one column scaled twice
+/// (unchecked: the last factor silently wins) and a repeated `--machine` (refused by the parser: kept as
+/// a guard): each is exit 2 naming the option, nothing written.
 #[test]
 fn out_of_range_and_repeated_options_are_refused() {
     let dir = scratch("options");

@@ -50,8 +50,8 @@ fn axis_image(dir: &Path, name: &str, end_mm: &str, id: &str) -> String {
     image
 }
 
-/// The 800 × 600 × 500 mm machine of the issue: each axis's table spans 0 … its stroke exactly in
-/// counts (before: 0 … 802.0194 mm for X), and the group with the geometry model fitted on that
+/// The 800 × 600 × 500 mm machine: each axis's table spans 0 … its stroke exactly in
+/// counts (not 0 … 802.0194 mm for X), and the group with the geometry model fitted on that
 /// volume builds; with Y as an identity axis too.
 #[test]
 fn the_800_600_500_chain_builds_a_group_image_with_geometry() {

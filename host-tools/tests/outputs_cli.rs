@@ -197,8 +197,8 @@ fn fit_force_bad_last_output_touches_nothing() {
     );
     assert_ne!(std::fs::read(dir.join("law.json")).unwrap(), b"old law");
     assert!(dir.join("rep/force_fit.svg").is_file() && dir.join("j.json").is_file());
-    // The report folder is written whole: the JSON inside it is refused (before: written into it,
-    // where the next report would mix with it), nothing touched; the folder records what it holds.
+    // The report folder is written whole: the JSON inside it is refused (written into it,
+    // the next report would mix with it), nothing touched; the folder records what it holds.
     good[11] = "rep/j.json";
     fails_untouched(&good, &dir, "a folder the command writes whole");
     assert!(dir.join("rep/.written-by-axcomp").is_file());
@@ -278,9 +278,9 @@ fn help_documents_exit_codes() {
     }
 }
 
-/// `--json /dev/null` run as root used to rename a regular file over `/dev/null` (the all-or-nothing
-/// swap), turning the machine's `/dev/null` into a file that every later `> /dev/null` wrote into and every
-/// read of it returned (seen: a CI run whose nested cargo read a compiler message from its "empty" standard
+/// `--json /dev/null` run as root must not rename a regular file over `/dev/null` (the all-or-nothing
+/// swap): that turns the machine's `/dev/null` into a file that every later `> /dev/null` writes into and every
+/// read of it returns (seen: a CI run whose nested cargo read a compiler message from its "empty" standard
 /// input). Here a character device 1,3 (the same device as `/dev/null`) is made in the scratch directory,
 /// so the test never touches the real one: every output given as that device must leave it a device, and
 /// the other outputs must be written as usual. Making a device needs root (CI runs as root); elsewhere the
@@ -332,7 +332,7 @@ fn an_output_that_is_a_device_stays_a_device() {
 }
 
 /// A fit or predict output that names its own data or model is refused before anything is
-/// written (before, `fit positioning --data d.csv --out d.csv` replaced the measurements by the table).
+/// written (otherwise `fit positioning --data d.csv --out d.csv` would replace the measurements by the table).
 #[test]
 fn an_output_that_is_the_data_or_the_model_is_refused() {
     let dir = scratch("own-input");

@@ -1,4 +1,4 @@
-//! End-to-end tests of `axcomp fit positioning` through the built binary: the figures the issue asks for
+//! End-to-end tests of `axcomp fit positioning` through the built binary: the required figures
 //! (real ESS runs, the do-no-harm guard on the MUTS runs, synthetic data with known truth), JSON fields
 //! per the contract, and bad input. Real data is read from `../shared` (override: `AXCOMP_SHARED`); when
 //! it is absent these tests print `skipped: ../shared not found` and return, except under `CI`.
@@ -148,7 +148,7 @@ fn ess_b02_x_leave_one_cycle_out() {
     // A static table alone: 3.539 µm, the floor for any table fitted on the other cycles here. The runs
     // drift ≈ −1.4 µm per cycle (per-run mean residual +3.9 … −3.1 µm, see `cv.per_run`) as the motor warms,
     // and the per-target mean of n − 1 = 4 cycles has a leave-one-out RMS of exactly s·√(n/(n−1)) with the
-    // pooled within-point s = 3.17 µm. The issue's ≤ 3.5 µm is reached with the warm-up drift
+    // pooled within-point s = 3.17 µm. The target ≤ 3.5 µm is reached with the warm-up drift
     // (`ess_b02_x_with_warmup_drift`, 2.541 µm). Bound here: the measured static figure with 0.3 % margin,
     // and no worse than the reference model (LOO of per-target means, 3.539 µm) + 1e-9.
     assert!(cv <= 3.55, "leave-one-cycle-out RMS {cv}");
@@ -362,7 +362,7 @@ fn ess_b02_x_with_warmup_drift() {
         num(w, "tau_s"),
         num(w, "drift_um")
     );
-    // Issue target: ≤ 3.5 µm leave-one-cycle-out. Measured 2.541 µm.
+    // Target: ≤ 3.5 µm leave-one-cycle-out. Measured 2.541 µm.
     assert!(cv <= 3.5, "leave-one-cycle-out RMS {cv}");
     assert_eq!(w["kept"], true, "{w}");
     assert!((cv - num(w, "cv_rms_um_with_drift")).abs() < 1e-12);

@@ -60,9 +60,9 @@ fn without(
 
 /// Laser lines measured forward then back (run 2 from the far end to the start, as a bidirectional laser
 /// campaign is logged), without beam columns: the contract takes the beam as the direction from the line's
-/// first to its last target, i.e. from where the line starts to its far end. Before the fix, a line that
-/// ends where it started got the reversed beam (its two farthest-apart targets, taken from the far end),
-/// and the fit came out with every component's sign flipped (EC0Y −40.6 instead of +40.6 µrad), silently.
+/// first to its last target, i.e. from where the line starts to its far end. Taking a line that
+/// ends where it started by its two farthest-apart targets from the far end would reverse its beam,
+/// and the fit would come out with every component's sign flipped (EC0Y −40.6 instead of +40.6 µrad), silently.
 /// Reference: the same rows with the twin's beam columns; tolerance 1e-6 µrad (the beams agree to 1e-9).
 #[test]
 fn beamless_bidirectional_lines_keep_the_sign() {
@@ -118,10 +118,10 @@ fn beamless_bidirectional_lines_keep_the_sign() {
 }
 
 /// `diagnose` on the twin's probe touches as `sim-probe` writes them by default: 6 of 584 touches are
-/// bounces or false triggers (60–440 µm off the sphere), which `fit probe` flags as outliers. Before the fix
-/// the diagnosis fitted them: the gap was 22 / 29 µm (train / held-out RMS, max 442 µm) and the speed
-/// pretravel the base model `probe_radius` leaves out went unseen (verdict `none`), while on the same plan
-/// without glitches the verdict is `speed_pretravel` (held-out RMS 2.24 → 0.64 µm). Now the gross outliers
+/// bounces or false triggers (60–440 µm off the sphere), which `fit probe` flags as outliers. A diagnosis
+/// fitting them sees a gap of 22 / 29 µm (train / held-out RMS, max 442 µm) and misses the speed
+/// pretravel the base model `probe_radius` leaves out (verdict `none`), while on the same plan
+/// without glitches the verdict is `speed_pretravel` (held-out RMS 2.24 → 0.64 µm). So the gross outliers
 /// are flagged as in `fit probe` (6 robust σ about each sphere) and left out, and the verdict is the same
 /// as on clean touches. Reference: the twin's clean plan (`--no-glitches`); the gap's held-out RMS must
 /// stay below 5 µm (clean: 2.24 µm; with the glitches in: 29 µm).
@@ -155,7 +155,7 @@ fn probe_diagnosis_leaves_out_false_triggers() {
 
 /// `fit rtest --holdout path=C-circle@-60`: the K4 path is among the fitted rows. The contract's `k4` gives
 /// the ISO 10791-6 ranges before and after "from the held-out prediction where there is one"; here there
-/// is none, so they come from the fit. Before the fix `k4` was null whenever K4 was not held out.
+/// is none, so they come from the fit: `k4` is not null when K4 is not held out.
 /// Reference: the same figures with no hold-out (in-sample fit of all rows): the ranges before are equal
 /// exactly (the same measured K4 rows), the ranges after within 0.5 µm (the two fits differ by one circle).
 #[test]
@@ -201,8 +201,8 @@ fn rtest_k4_figures_when_k4_is_fitted() {
 }
 
 /// Too few poses for the unknowns: 4 poses give 12 readings for 11 location errors and the sphere's 3
-/// set-up offsets. Before the fix `fit rtest` wrote a model with EA0C "identified" at 117 ± 4 µrad (the
-/// twin's truth: 70.5) and exit code 0. Now a clear error naming the file and the counts, exit code 2, and
+/// set-up offsets. `fit rtest` must not write a model with EA0C "identified" (e.g. at 117 ± 4 µrad, the
+/// twin's truth being 70.5) and exit code 0: a clear error naming the file and the counts, exit code 2, and
 /// nothing written.
 #[test]
 fn rtest_too_few_poses_is_an_error() {
@@ -227,7 +227,7 @@ fn rtest_too_few_poses_is_an_error() {
 
 /// `fit probe --group COL` without `--centres-out`: each group's sphere centre is fitted (contract: "With
 /// `--group COL,...` each group's sphere centre is fitted too"); only the R-test rows of `--centres-out`
-/// need the commanded tool point (`cmd_x_mm`, …). Before the fix `--group` alone refused a touch CSV
+/// need the commanded tool point (`cmd_x_mm`, …), so `--group` alone accepts a touch CSV
 /// without those columns. Reference: both runs of the twin's calibration touch the same sphere (centre
 /// 100, 50, 20 mm): each group's fitted centre within 2 µm of it.
 #[test]
@@ -291,8 +291,8 @@ fn probe_group_without_commanded_point() {
 }
 
 /// A touch CSV holding several artefacts (the calibration sphere, a second sphere, a ring gauge, a plane),
-/// calibrated without choosing one: before the fix one sphere was fitted to all of them and the error
-/// blamed row 1's approach vector ("points 89° away from the sphere's centre"). Now the error names the
+/// calibrated without choosing one: one sphere must not be fitted to all of them (the error would
+/// blame row 1's approach vector: "points 89° away from the sphere's centre"). The error names the
 /// artefacts and what to do; exit code 2, nothing written. Choosing the sphere with `--where` works.
 #[test]
 fn probe_several_artefacts_is_a_clear_error() {
@@ -343,8 +343,8 @@ fn probe_several_artefacts_is_a_clear_error() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `fit geometry --cv line` on a file of one line: leave-one-line-out has nothing to leave out. Before the
-/// fix the command succeeded with "cross-validated RMS NaN µm" and `cv_rms_um: null` in the JSON; now it is
+/// `fit geometry --cv line` on a file of one line: leave-one-line-out has nothing to leave out. The
+/// command must not succeed with "cross-validated RMS NaN µm" and `cv_rms_um: null` in the JSON: it is
 /// a clear error naming the file and the group (as `fit rtest --cv` does), exit code 2, nothing written.
 #[test]
 fn geometry_cv_over_a_single_line_is_an_error() {
@@ -367,9 +367,9 @@ fn geometry_cv_over_a_single_line_is_an_error() {
 }
 
 /// `fit probe` with the sphere diameter given too large (28 mm for the twin's Ø25 mm sphere with its
-/// Ø3 mm stylus: the latched tip centres lie 14.0 mm from the centre): before the fix the calibration was
-/// written with an effective stylus radius of −0.0036 mm (−111 mm with 250 mm) and exit code 0, and
-/// `predict` would have put every contact point on the wrong side. Now a clear error naming the file and
+/// Ø3 mm stylus: the latched tip centres lie 14.0 mm from the centre): the calibration must not be
+/// written with an effective stylus radius of −0.0036 mm (−111 mm with 250 mm) and exit code 0, as
+/// `predict` would put every contact point on the wrong side. A clear error naming the file and
 /// the diameter, exit code 2, nothing written. A diameter a little off (26 mm) still calibrates (the data
 /// cannot tell the sphere's radius from the stylus's: r_eff absorbs it, 0.9964 mm instead of 1.4964 mm).
 #[test]
@@ -418,9 +418,9 @@ fn probe_sphere_diameter_too_large_is_an_error() {
 }
 
 /// Laser lines with `beam_x` and `beam_y` but no `beam_z` (a tool that drops a column that is zero for lines
-/// in the XY plane): before the fix the two beam columns were silently ignored and each line's direction
-/// from its targets used instead; when the beam points against the travel (a laser set up at the far end)
-/// that flips the sign of every reading without a word. Now a clear error naming the file and the missing
+/// in the XY plane): the two beam columns must not be silently ignored for each line's direction
+/// from its targets; when the beam points against the travel (a laser set up at the far end)
+/// that flips the sign of every reading without a word. A clear error naming the file and the missing
 /// column, exit code 2, nothing written; `predict` refuses it the same way.
 #[test]
 fn geometry_partial_beam_columns_are_an_error() {
@@ -460,8 +460,8 @@ fn geometry_partial_beam_columns_are_an_error() {
 }
 
 /// A probe calibrated on touches without `feed_mm_min` (one unknown speed), applied by `predict` to touches
-/// that carry the column: refused, as before, but the error said "the calibration saw only 0 mm/min", a
-/// speed nobody probed at. Now it says the calibration had no feed column and how to proceed; exit code 2,
+/// that carry the column: refused, and the error must not say "the calibration saw only 0 mm/min", a
+/// speed nobody probed at: it says the calibration had no feed column and how to proceed; exit code 2,
 /// nothing written.
 #[test]
 fn probe_predict_without_calibrated_feed_says_why() {
@@ -518,8 +518,8 @@ fn probe_predict_without_calibrated_feed_says_why() {
 }
 
 /// Approach vectors a little off unit length (within the accepted ±0.001, e.g. written with 3 decimals or
-/// scaled by 1.0008 here): before the fix they were used as given, so `predict` put each contact point
-/// 0.0008 × the 1.5 mm stylus radius = 1.2 µm off along the approach. Now they are normalised as read.
+/// scaled by 1.0008 here): used as given, they would put each contact point of `predict`
+/// 0.0008 × the 1.5 mm stylus radius = 1.2 µm off along the approach. So they are normalised as read.
 /// Reference: the same touches with exactly unit vectors (the twin's); tolerance 0.01 µm on every contact
 /// coordinate.
 #[test]
@@ -594,8 +594,8 @@ fn probe_approach_vectors_are_normalised() {
 }
 
 /// Beam vectors a little off unit length (within the accepted ±0.001; scaled by 1.0008 here, as a tool
-/// writing few decimals does): before the fix they were used as given, so every modelled reading was 0.08 %
-/// too large and the fitted squareness 0.03 µrad off (EC0Y 36.005 → 35.976). Now they are normalised as
+/// writing few decimals does): used as given, they would make every modelled reading 0.08 %
+/// too large and the fitted squareness 0.03 µrad off (EC0Y 36.005 → 35.976). So they are normalised as
 /// read. Reference: the twin's unit beams; tolerance 1e-6 µrad.
 #[test]
 fn geometry_beams_are_normalised() {
@@ -637,10 +637,10 @@ fn geometry_beams_are_normalised() {
 
 /// Laser lines whose Z positions lie far from Z's zero (machine coordinates 1000 … 1650 mm; the twin's
 /// lines with z + 1000 mm). The components are zero at the axis's zero, so their splines span 0 … 1650 mm
-/// and the coefficients of the unmeasured stretch have no reading at all. Before the fix their all-zero
-/// design columns were normalised as 0/0 = NaN, which hid every null direction: the JSON said rank 153 of
-/// 177 parameters, yet condition number 1.0, `not_separable` empty and all 21 components identified. Now
-/// the null directions are found: what the lines cannot determine is reported not identified (with its
+/// and the coefficients of the unmeasured stretch have no reading at all. Their all-zero
+/// design columns must not be normalised as 0/0 = NaN, which hides every null direction (the JSON would say
+/// rank 153 of 177 parameters, yet condition number 1.0, `not_separable` empty and all 21 components
+/// identified). The null directions are found: what the lines cannot determine is reported not identified (with its
 /// reason) and the condition number is that of the identified part.
 #[test]
 fn geometry_far_from_zero_reports_what_it_cannot_identify() {
@@ -688,8 +688,8 @@ fn geometry_far_from_zero_reports_what_it_cannot_identify() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `fit geometry --intervals 200` (or 0): before the fix 0 was silently taken as 1 and 200 ran for minutes
-/// (3 654 parameters, their eigen-decompositions) before anything was said. Now both are a clear error at
+/// `fit geometry --intervals 200` (or 0): 0 must not be silently taken as 1, nor 200 run for minutes
+/// (3 654 parameters, their eigen-decompositions) before anything is said. Both are a clear error at
 /// once, exit code 2, nothing written.
 #[test]
 fn geometry_intervals_out_of_range_is_an_error() {
@@ -791,7 +791,7 @@ fn rtest_sign_convention_matches_an_independent_model() {
 }
 
 /// A line with too few targets to fit (2), or a line of one target to predict without beam columns: the
-/// errors said "line A: …" without the file or the row. Now they name both (file:line:column); exit code 2,
+/// errors must not say just "line A: …" without the file or the row: they name both (file:line:column); exit code 2,
 /// nothing written.
 #[test]
 fn geometry_line_errors_name_file_and_row() {
@@ -876,10 +876,10 @@ fn shuffled(rows: &[Vec<String>], seed: u64) -> Vec<Vec<String>> {
 
 /// The same laser readings in another row order (as another tool may write them) give the same model.
 /// On the twin's minimal plan (6 lines, `plan geometry --simulate`) every leave-one-line-out fold leaves
-/// parameters undetermined, so before the fix the cross-validation scores were rounding noise of the
-/// summation order (the file's): shuffling the rows changed them (here 72.0 → 16.3 µm at λ = 1e-4, 187 →
-/// 12.6 µm at λ = 0.01); on the twin's complete plan, fitted on these 6 lines, the chosen λ moved between
-/// 0.01 and 1 and the RMS on the 23 unseen lines between 1.68 and 2.59 µm. Now the fit sums the readings
+/// parameters undetermined, so summed in the file's order the cross-validation scores are rounding noise of
+/// the summation order: shuffling the rows changes them (here 72.0 → 16.3 µm at λ = 1e-4, 187 →
+/// 12.6 µm at λ = 0.01); on the twin's complete plan, fitted on these 6 lines, the chosen λ moves between
+/// 0.01 and 1 and the RMS on the 23 unseen lines between 1.68 and 2.59 µm. So the fit sums the readings
 /// in a canonical order (line label, position, tool offset, beam, deviation).
 /// Reference: the file in the twin's order; tolerance: none (bit-identical figures, compared as JSON).
 #[test]
@@ -890,7 +890,7 @@ fn geometry_fit_does_not_depend_on_row_order() {
     let line = h.iter().position(|c| c == "line").unwrap();
     for seed in [1u64, 7] {
         let sh = shuffled(&rows, seed);
-        // the lines appear in another order too (the fit's folds used to follow first appearance)
+        // the lines appear in another order too (the fit's folds must not follow first appearance)
         assert_ne!(sh[0][line], rows[0][line], "seed {seed}");
         write_table(&dir.join(format!("shuffled{seed}.csv")), &h, &sh);
     }

@@ -61,7 +61,7 @@ fn build_args<'a>(extra: &[&'a str], out: &'a str) -> Vec<&'a str> {
     a
 }
 
-/// `image build --out T` with `--table T` used to replace the fitted table with the image; `export --out`
+/// `image build --out T` with `--table T` would replace the fitted table with the image; `export --out`
 /// the table it read, `replay --out` the trace, `trace --out` the `--image`: an output that is an input is
 /// refused (by any spelling), the input left as it was.
 #[test]

@@ -299,7 +299,7 @@ fn nan_cells_are_named_by_file_line_and_column() {
     );
 }
 
-/// Files a spreadsheet writes in another locale or encoding: refused saying what the file is (before: a
+/// Files a spreadsheet writes in another locale or encoding: refused saying what the file is (not a
 /// ragged-row or duplicate-column message about its first line), exit 2, nothing written.
 #[test]
 fn semicolon_and_utf16_files_are_refused_saying_so() {
@@ -394,7 +394,7 @@ fn fit_thermal_does_not_depend_on_the_column_order() {
     let mut cases: Vec<(PathBuf, Vec<String>)> =
         vec![(twin_file, ["--holdout", "run=3"].map(String::from).to_vec())];
     if let Some(shared) = common::shared() {
-        // The Voron command (thermal_cli.rs): Z trigger position in µm (step 2.5 µm), cooling held out.
+        // The Voron command (thermal_cli.rs): Z trigger position in µm (step 2.5 µm), cooling held out.
         let voron = shared
             .join("data/real/thermal-voron-frame-z/frame_exp_quant_v3_2021-06-13_05-41-53.csv");
         let plain = dir.join("voron.csv");
@@ -566,9 +566,9 @@ fn image_build_says_why_an_absolute_position_model_is_refused() {
     );
 }
 
-/// One approach direction measured over part of the stroke only: the table once held that direction's
+/// One approach direction measured over part of the stroke only: the table must not hold that direction's
 /// curve extrapolated over the rest without a word (−581 µm at 20 mm on the B02 X runs held out by time,
-/// where the data are within ±53 µm). Now a `direction_coverage` data warning says so (stderr, JSON;
+/// where the data are within ±53 µm). A `direction_coverage` data warning says so (stderr, JSON;
 /// `--strict` refuses), and the table holds that direction's end value there (tested in
 /// `axcomp_positioning::fit`, `a_direction_reaching_part_of_the_stroke_is_held_beyond_its_targets`).
 #[test]
@@ -641,7 +641,7 @@ fn a_direction_covering_part_of_the_stroke_is_a_data_warning() {
 }
 
 /// A fit that cannot start (every target at one position; too few rows left once the holdout is taken
-/// out) said what was wrong but not in which file. Now the message names the file; exit code 2, nothing
+/// out) says what is wrong and in which file: the message names the file; exit code 2, nothing
 /// written.
 #[test]
 fn a_fit_that_cannot_start_names_the_file() {

@@ -28,8 +28,8 @@ fn col(header: &[String], name: &str) -> usize {
 
 /// An R-test model fitted on two set-ups (`sim --machine ac-trunnion --plan rtest-h2`: the C circles again
 /// with the sphere 50 mm higher, set-up 2) has one pair of sphere offsets per set-up, 10–20 µm apart. Rows
-/// without a `setup` column were predicted with set-up 1's offsets, silently: the set-up-2 circles came out
-/// at 10.3 µm RMS in dx instead of 0.30 µm. Now a missing input naming the file and the column; with the
+/// without a `setup` column must not be predicted with set-up 1's offsets, silently: the set-up-2 circles
+/// would come out at 10.3 µm RMS in dx instead of 0.30 µm. A missing input naming the file and the column; with the
 /// column the same rows are predicted.
 #[test]
 fn rtest_model_of_several_setups_needs_the_setup_column() {
@@ -91,9 +91,9 @@ fn rtest_model_of_several_setups_needs_the_setup_column() {
     );
 }
 
-/// A force law with x_ap = 1 (fixed, as in Kienzle's law F = kc1.1·b·h^(1−mc): the README's example) gave a
-/// negative force for a negative depth of cut, silently (`fit force` refuses such a value, a power law
-/// needs > 0). Now an error naming file, line and column, nothing written. Zero (no cut) is 0 N.
+/// A force law with x_ap = 1 (fixed, as in Kienzle's law F = kc1.1·b·h^(1−mc): the README's example) must not give
+/// a negative force for a negative depth of cut, silently (`fit force` refuses such a value, a power law
+/// needs > 0): an error naming file, line and column, nothing written. Zero (no cut) is 0 N.
 #[test]
 fn force_law_refuses_a_negative_process_parameter() {
     let dir = scratch("law-negative");
@@ -135,9 +135,9 @@ fn force_law_refuses_a_negative_process_parameter() {
 }
 
 /// A probe calibrated on one side of the sphere only (the twin's calibration touches whose normal points to
-/// +x: azimuths −90° … 90°) chose a harmonic model that, applied by `predict` to the other side, put the
-/// contact points up to 25 µm off the true surface (13.8 µm RMS on the ring gauge), silently. The README
-/// says a direction the calibration cannot tell is an error naming the row. Now the calibration records the
+/// +x: azimuths −90° … 90°) may choose a harmonic model that, applied by `predict` to the other side, puts
+/// the contact points up to 25 µm off the true surface (13.8 µm RMS on the ring gauge), silently. The README
+/// says a direction the calibration cannot tell is an error naming the row: the calibration records the
 /// arc without touches (90° … 270°) and `predict` refuses a touch more than 10° inside it, naming the row;
 /// touches on the calibrated side are still corrected, and a calibration that goes round records no arc.
 #[test]
@@ -238,10 +238,10 @@ fn probe_calibration_refuses_azimuths_it_has_no_touches_in() {
     );
 }
 
-/// `plan geometry --lines 0` printed a plan of no lines with NaN uncertainties and, with `--simulate`, wrote
-/// a header-only CSV (exit 0); `--runs 0` silently measured one run; `--targets 1000` ran for 6 minutes
-/// (100000 was killed for memory); `--seed`/`--twin-plan` without `--simulate` were silently ignored;
-/// `--sigma-um -1` was a parser error about an unexpected argument. Now each is refused naming the option,
+/// `plan geometry --lines 0` (unchecked: a plan of no lines with NaN uncertainties and, with `--simulate`,
+/// a header-only CSV, exit 0), `--runs 0` (one run measured silently), `--targets 1000` (6 minutes; 100000
+/// killed for memory), `--seed`/`--twin-plan` without `--simulate` (silently ignored) and `--sigma-um -1`
+/// (not a parser error about an unexpected argument): each is refused naming the option,
 /// nothing written; a plan that leaves components unidentifiable says so instead of printing NaN.
 #[test]
 fn plan_geometry_refuses_counts_it_cannot_plan_with() {
@@ -301,9 +301,9 @@ fn sim_counts_beyond_memory_are_refused() {
 }
 
 /// `sim --plan spindle` writes a thermo-force campaign with idle periods (ap_mm, fz_mm, spindle_rpm and
-/// force_N all 0; 1800 of 5400 rows). `fit force` refused the file ("0 is not a positive finite number"),
-/// so the twin's output could not be read back without editing it; `predict` refused the idle rows of a law
-/// with z_n < 0 (0^z infinite). Now the fit leaves the rows without a cut out with a note, and `predict`
+/// force_N all 0; 1800 of 5400 rows). `fit force` must read the file back without editing (not refuse it:
+/// "0 is not a positive finite number"), and `predict` must take the idle rows of a law with z_n < 0 (0^z
+/// infinite): the fit leaves the rows without a cut out with a note, and `predict`
 /// gives them 0 N (what the firmware outputs) and reproduces the fit's residual RMS on the cutting rows.
 #[test]
 fn spindle_campaign_is_read_back_by_fit_force_and_predicted() {
@@ -351,8 +351,8 @@ fn spindle_campaign_is_read_back_by_fit_force_and_predicted() {
     );
 }
 
-/// A geometry model predicted on a row whose Y is outside the model's grid named column `x_mm` whatever
-/// the axis ("c.csv:3:1 (column `x_mm`): axis position [100, -1, 100] …"). Now the column of the axis that
+/// A geometry model predicted on a row whose Y is outside the model's grid must not name column `x_mm` whatever
+/// the axis ("c.csv:3:1 (column `x_mm`): axis position [100, -1, 100] …"), but the column of the axis that
 /// is outside, and its range.
 #[test]
 fn geometry_predict_names_the_axis_outside_the_model() {
@@ -400,8 +400,8 @@ fn geometry_predict_names_the_axis_outside_the_model() {
 }
 
 /// A thermal model with sensor lags restarts its lags (in equilibrium with the row) where time does not
-/// increase, as the fit does; rows sent in another order (reversed here, or shuffled) silently lost their
-/// lags. Now `predict` says how many rows restart and where the first is (the predictions stay those of
+/// increase, as the fit does; rows sent in another order (reversed here, or shuffled) must not lose their
+/// lags silently: `predict` says how many rows restart and where the first is (the predictions stay those of
 /// the fit's rule); rows in time order get no note.
 #[test]
 fn thermal_lags_say_where_time_does_not_increase() {

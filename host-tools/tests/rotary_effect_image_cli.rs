@@ -279,7 +279,7 @@ fn chain(
 /// noise: measured 0.303 µm against the oracle's 0.287 (1.06×; location errors alone 2.25, uncompensated
 /// 18.37). The location errors fitted with the effect include `EA0C` reported not identified (determined
 /// only together with the tilt axis's angle offset, which the fit fixes at 0): it goes into the image
-/// with its value, as `predict` uses it. Tolerance: the 1.3× the oracle.
+/// with its value, as `predict` uses it. Tolerance: the required 1.3× the oracle.
 #[test]
 fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
     let dir = scratch("effect-image-pos");
@@ -309,7 +309,7 @@ fn rotary_positioning_goes_into_the_axis_tables_within_1p3_of_the_oracle() {
 /// model carries it, `image group` puts it into the rotary section (and says so), and the firmware's
 /// group engine brings the held-out K4 run within 1.3× the oracle (the measurement noise: what a
 /// perfect compensation leaves) and well below the image of a fit without `--effects`. Measured:
-/// see the figures printed (`-- --nocapture`); tolerance: the 1.3× the oracle, and at most
+/// see the figures printed (`-- --nocapture`); tolerance: the required 1.3× the oracle, and at most
 /// half the location-errors-only image's.
 #[test]
 fn c_wobble_goes_into_the_rotary_section_within_1p3_of_the_oracle() {
@@ -382,7 +382,7 @@ fn wobble_carried(dir: &Path, said: &str, tilt: char) {
     );
 }
 
-/// The bound on the held-out RMS with the effect: at most this many times the oracle's.
+/// The required bound on the held-out RMS with the effect: at most this many times the oracle's.
 const ORACLE_FACTOR: f64 = 1.3;
 
 /// Linear-axis errors (the twin's `linear_geometry`: X positioning linear in x, straightness EYX and EZY

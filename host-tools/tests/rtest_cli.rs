@@ -371,7 +371,7 @@ fn probe_route_centres_csv_is_accepted() {
 /// it did; `--full-model` reports the full model. Reference: the plain reference (`nominal_setup_rms_um`);
 /// the default must not lose to it here (on seeds 1–20 it loses in 2, the full model in 13: the library test
 /// `default_selection_does_no_harm_with_effects_beyond_the_model`), and with location errors of the
-/// issue's size the selection keeps every one (`fit_rtest_json_report_and_model`'s twin, below).
+/// specified size the selection keeps every one (`fit_rtest_json_report_and_model`'s twin, below).
 #[test]
 fn held_out_comparison_with_the_nominal_kinematics() {
     use axcomp_twin::five_axis::FiveAxisEffects;
@@ -422,7 +422,7 @@ fn held_out_comparison_with_the_nominal_kinematics() {
         );
         assert!((f["comparison"]["full_model_rms_um"].as_f64().unwrap() - full).abs() < 1e-9);
     }
-    // The twin (location errors 5–50 µm, 10–100 µrad, no effects beyond): nothing fixed.
+    // A twin of the specified magnitudes (location errors 5–50 µm, 10–100 µrad, no effects beyond): nothing fixed.
     let j = run("clean.csv", &["--holdout", "run=2"]);
     assert!(j["selection"]["fixed"].as_array().unwrap().is_empty());
     assert_eq!(

@@ -329,7 +329,7 @@ fn greedy_lags_holdout_rms(
     ls_holdout_rms(&chosen, target, held)
 }
 
-/// The issue's form of the Voron command: `--rename` of every column, the Z trigger position in µm, no
+/// A user's form of the Voron command: `--rename` of every column, the Z trigger position in µm, no
 /// zeroing option (the raw figures are zeroed by the tool itself).
 fn voron_issue_args(file: &Path, um_per_step: Option<&str>, json: &Path) -> Vec<String> {
     let mut a: Vec<String> = vec!["fit".into(), "thermal".into(), "--data".into()];

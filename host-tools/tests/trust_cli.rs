@@ -327,7 +327,7 @@ fn images_carry_provenance_and_names_and_inspect_shows_the_wiring() {
             && text.contains("every sensor has its input"),
         "{text}"
     );
-    // The warm-up input (a drift model as `fit positioning --drift-model` writes it): refused on
+    // A warm-up input (a drift model as `fit positioning --drift-model` writes it): refused on
     // the STM32G474 board, accepted on a board that declares a `warmup` input.
     std::fs::write(
         dir.join("drift.json"),

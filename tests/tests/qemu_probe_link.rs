@@ -5,7 +5,7 @@
 //!
 //! References and tolerances:
 //! - the trace generator's true crossings (exact f64 motion; the true point = scale position × 0.1 µm +
-//!   the table's analytic error there): every latched point within 0.5 µm (the target) after
+//!   the table's analytic error there): every latched point within 0.5 µm (the target) after
 //!   latency compensation, on every axis;
 //! - the generator's event list: exactly one latch per armed touch, the glitch never latched, bounce
 //!   never latched twice, the rapid's and the unarmed trigger counted and flagged, not latched;

@@ -1,6 +1,6 @@
 //! Which board input feeds each sensor of an image: matched by name, so a reading is never fed to a
-//! sensor of another quantity (the issue-14 case: a board's RTD at 22 °C fed to a warm-up input whose
-//! range is −0.5…1.5, so the sensor went stale and the thermal term froze).
+//! sensor of another quantity (e.g. a board's RTD at 22 °C fed to a warm-up input whose
+//! range is −0.5…1.5 would leave the sensor stale and freeze the thermal term).
 //!
 //! # Glossary
 //! - **board input**: a reading the board delivers ([`BoardInput`]): a name (`rtd0`) and a unit

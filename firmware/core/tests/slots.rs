@@ -11,7 +11,7 @@ use axcomp_core::rotary::RotaryLocationSpec;
 use axcomp_core::*;
 use common::*;
 
-/// Segments per direction of the largest linear tables of the five-axis image.
+/// Segments per direction of the largest linear tables of the required five-axis image.
 const LINEAR_SEGMENTS: usize = 512;
 /// Geometric functions and their segments (the required capacity: 18 functions × 128 segments).
 const GEOMETRIC_FUNCTIONS: usize = 18;

@@ -200,7 +200,7 @@ fn images_that_do_not_fit_the_board_are_refused_and_the_running_slot_kept() {
     let good_crc = inspect_image(&image(BASE)).unwrap().crc;
 
     let cases: [(Vec<u8>, ImageRefusal); 4] = [
-        // The case: a default (32-bit) image on the board's 16-bit timer.
+        // The case to catch: a default (32-bit) image on the board's 16-bit timer.
         (
             image(ImageArgs {
                 counter_bits: 32,
@@ -309,7 +309,7 @@ fn board_counter_width_extends_exactly_and_a_32_bit_image_would_jump() {
         "the walk wrapped the counter"
     );
 
-    // The case: a 32-bit image (the old `image build` default) on this 16-bit counter, loaded
+    // The case to catch: a 32-bit image (an older `image build` default) on this 16-bit counter, loaded
     // without the board check, is 65 536 counts off after one wrap — silently. The drive refuses it.
     let img32 = image(ImageArgs {
         counter_bits: 32,

@@ -234,7 +234,7 @@ impl LoadOptions {
                 }
             })
             .collect::<Result<Vec<_>, _>>()?;
-        // One column renamed or scaled twice: which one was meant is a guess (the last used to win).
+        // One column renamed or scaled twice: which one was meant is a guess (the last must not win silently).
         for (option, keys, given) in [
             (
                 "--rename",

@@ -214,7 +214,7 @@ fn bad_option_syntax() {
             "{bad}"
         );
     }
-    // One column scaled (or renamed) twice: the last used to win silently.
+    // One column scaled (or renamed) twice: the last must not win silently.
     let e = LoadOptions::from_args(&[], &[], &["a=2".into(), "a=3".into()])
         .unwrap_err()
         .to_string();
@@ -610,8 +610,8 @@ fn utf16_file_is_refused_naming_the_encoding() {
 }
 
 /// The contract lets a file spell the approach direction `+`/`-`, `1`/`-1` or `positive`/`negative`; a
-/// `--where` or `--holdout` on the direction column takes any spelling of the same direction (before, the
-/// text was compared: `direction=+` kept none of the `positive` rows). Other columns still compare as
+/// `--where` or `--holdout` on the direction column takes any spelling of the same direction (comparing the
+/// text, `direction=+` would keep none of the `positive` rows). Other columns still compare as
 /// numbers, then as text.
 #[test]
 fn where_and_holdout_on_the_direction_take_any_spelling() {

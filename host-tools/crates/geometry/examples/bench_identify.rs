@@ -1,4 +1,4 @@
-//! Identification time of a 22-line campaign with 40 targets per line and 3 runs (the issue asks < 1 s).
+//! Identification time of a 22-line campaign with 40 targets per line and 3 runs (budget < 1 s).
 //! Run: `cargo run --release -p axcomp-geometry --example bench_identify`.
 
 use axcomp_data::{Dataset, LoadOptions};

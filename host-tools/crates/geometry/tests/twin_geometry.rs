@@ -1,4 +1,4 @@
-//! Identification on the three-axis twin (known truth): the issue's "done when" figures.
+//! Identification on the three-axis twin (known truth): the required figures.
 
 use axcomp_data::{Dataset, LoadOptions};
 use axcomp_geometry::fit::SEVEN_LINE_FIXED;
@@ -41,7 +41,7 @@ fn volumetric_before_after(twin: &GeometryTwin, model: &GeometryModel) -> (f64, 
 
 /// Reference: the twin's noise σ = 0.5 µm (the best any model can do on unseen readings) and its truth.
 /// A line set that `plan geometry` calls complete (20 lines, 2 runs, 11 targets) is fitted with the default
-/// method; the seven lines of seed 000 (never fitted) are predicted. Tolerances from the issue: held-out
+/// method; the seven lines of seed 000 (never fitted) are predicted. Required tolerances: held-out
 /// RMS ≤ 1.1 σ, volumetric max error over the workspace reduced ≥ 90 %. Plain least squares and the oracle
 /// (the truth itself) are judged on the same rows.
 #[test]
@@ -114,7 +114,7 @@ fn complete_plan_predicts_unseen_lines_to_noise() {
 /// Reference: the twin's truth. Seed 000's seven lines alone (21 targets per line, 2 runs, σ = 0.5 µm),
 /// 20 seeds. The seven-line method (and the general analysis of the same data) call exactly ECY, EAZ, EBZ,
 /// ECZ not identified; every identified component's error, RMS over its axis in units of its reported
-/// standard uncertainty, must be ≤ 2 in ≥ 95 % of (component, seed) cases (the issue's criterion).
+/// standard uncertainty, must be ≤ 2 in ≥ 95 % of (component, seed) cases (the required criterion).
 /// The default fit, plain least squares and the oracle are compared on the component errors in µm/µrad.
 #[test]
 fn seven_line_set_over_20_seeds() {
@@ -229,7 +229,7 @@ fn predict_rows_matches_model() {
     );
 }
 
-/// The issue's held-back evaluation: fit the seven-line set plus the Y and Z axis lines, predict lines never
+/// Held-back evaluation: fit the seven-line set plus the Y and Z axis lines, predict lines never
 /// fitted — axis lines at other offsets, XZ and YZ diagonals, a diagonal with a 150 mm tool offset, random
 /// beams — through `predict_rows` (what `axcomp predict` calls). Compared in the same run: plain least
 /// squares, and the best these lines can identify at all (the same fit on the noise-free truth readings).

@@ -418,7 +418,7 @@ mod tests {
         assert_eq!(path.matches('M').count(), 1, "{path}");
     }
 
-    /// A one-point line is drawn as a marker (it used to be an invisible "M x,y" path); a long line shows
+    /// A one-point line is drawn as a marker (as an "M x,y" path it would be invisible); a long line shows
     /// no markers except at lone points between gaps.
     #[test]
     fn lone_points_are_markers() {

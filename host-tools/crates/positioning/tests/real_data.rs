@@ -53,7 +53,7 @@ fn ess_b02_x_leave_one_cycle_out() {
     );
     // Raw RMS reference: PROVENANCE.md / direct computation (32.966 µm), tolerance 0.01 µm.
     assert!((r.raw_rms_um - 32.966).abs() < 0.01, "raw {}", r.raw_rms_um);
-    // The target is ≤ 3.5 µm; measured 3.539 µm. The gap is the cycle-to-cycle drift (≈ −1.4 µm per
+    // The target is ≤ 3.5 µm; measured 3.539 µm. The gap is the cycle-to-cycle drift (≈ −1.4 µm per
     // cycle) that a table fitted on the other cycles cannot know; bound = measured figure + 0.3 %.
     assert!(r.cv_rms_um <= 3.55, "cv {}", r.cv_rms_um);
     // Every fold's model was fitted without that cycle: each row's prediction differs from the all-data

@@ -143,7 +143,7 @@ fn held_out_sphere_between_calibration_speeds() {
 fn ring_gauge_and_plane_after_correction() {
     // Same calibration; ring gauge (inside touches at the equator) and plane (touches straight down) at
     // 450 mm/min. Reference: the twin's true ring diameter and plane height. Ring tolerance 0.5 µm (the
-    // issue's diameter bound); plane tolerance below.
+    // required diameter bound); plane tolerance below.
     let probe = ProbeModel::kinematic_demo();
     let touches_sim = simulate_touches(&probe, &ProbePlan::standard_calibration(), 11);
     let touches: Vec<Touch> = touches_sim.iter().map(touch).collect();
@@ -203,9 +203,9 @@ fn withheld_effects_the_choice_adapts_and_stays_near_the_oracle() {
     // The twin with one effect of the probe withheld (no lobing; no speed term nor latency; no elevation
     // dependence): the cross-validated choice must stay as accurate as the oracle on the held-out sphere.
     // Reference: the oracle (true effective radius) in the same run. Tolerances: radial RMS against the true
-    // sphere ≤ 1.2 × noise σ (the bound; it includes the calibration's centre-z uncertainty, 0.25 µm
+    // sphere ≤ 1.2 × noise σ (the required bound; it includes the calibration's centre-z uncertainty, 0.25 µm
     // 1σ, which the oracle does not carry), and diameter error within 0.25 µm of the oracle's (the noise of a
-    // 64-touch diameter is ~0.2 µm, so the absolute 0.5 µm is checked on the default twin above).
+    // 64-touch diameter is ~0.2 µm, so the required absolute 0.5 µm is checked on the default twin above).
     let base = ProbeModel::kinematic_demo();
     let variants = [
         (

@@ -1,5 +1,5 @@
 //! Held-out prediction on twins with effects beyond the 11-parameter model: for each machine kind, seeds
-//! 1..=N, the location errors scaled by F (1: the 5–50 µm / 10–100 µrad; 0.1 or 0: a well-built or
+//! 1..=N, the location errors scaled by F (1: the specified 5–50 µm / 10–100 µrad; 0.1 or 0: a well-built or
 //! already compensated machine, where the unmodelled effects dominate), all effects on, K4 run 2 held out:
 //! the held-out RMS of the full model, of the default (`fit rtest` as shipped), of the nominal kinematics
 //! without correction and of the nominal kinematics with only the sphere's set-up offsets fitted.

@@ -10,7 +10,7 @@
 //! the full fit. The location errors are kept when either
 //! - they **explain most** of the fitted rows: the set-up-only in-sample RMS is at least [`RATIO_LIMIT`] ×
 //!   the full model's (they explain ≥ 1 − 1/5² = 96 % of the readings' variance beyond the set-up offsets;
-//!   the 5–50 µm / 10–100 µrad always do, with ratios 7.6–127 on the twin), or
+//!   the specified 5–50 µm / 10–100 µrad always do, with ratios 7.6–127 on the twin), or
 //! - they **carry over** to paths not fitted: the fitted rows are split into groups (their `path` values;
 //!   their `run` values only in a file without a `path` column: runs of one path are repeats), each group is left out in turn and predicted by both models (refitted,
 //!   minimum-norm where a fold does not determine every column), and the paired gain
@@ -65,9 +65,9 @@ pub struct Selection {
 /// least RATIO_LIMIT × the full model's (they explain ≥ 1 − 1/5² = 96 % of the readings' variance beyond
 /// the set-up offsets): where they explain that much, a path left out of the fitted rows is extrapolated
 /// from fewer paths than the full fit sees and that inner judgement is not to be trusted (on the twin with
-/// the location errors it prefers the set-up offsets alone in a quarter of the folds). Below it,
+/// the specified location errors it prefers the set-up offsets alone in a quarter of the folds). Below it,
 /// effects beyond the model fitted by spurious location errors explain as much (ratios up to 5–9 on the
-/// twin with the location errors at zero): the cross-check decides. Was 3 (a point comparison then).
+/// twin with the location errors at zero): the cross-check decides.
 pub const RATIO_LIMIT: f64 = 5.0;
 
 /// The cross-validated gain of the location errors must exceed GAIN_Z × its standard error (one-sided,

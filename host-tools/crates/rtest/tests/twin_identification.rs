@@ -476,7 +476,7 @@ fn shared_error_columns_bad_input_is_refused() {
 ///
 /// Measured (`cargo run --release -p axcomp-rtest --example rtest_unmodelled -- 20 0 path=C-circle@0`):
 /// with the location errors at zero the full model loses to the plain reference in 13 / 12 / 11 of 20 seeds
-/// (AC, BC trunnion, BC head), the default in 0 / 0 / 1 (2 / 2 / 2 with the point comparison before); with the location errors (scale 1) the
+/// (AC, BC trunnion, BC head), the default in 0 / 0 / 1 (2 / 2 / 2 with a point comparison of the two figures); with the specified location errors (scale 1) the
 /// default is the full model in every seed (nothing fixed) and beats the reference (on average 2.7 against
 /// 28 µm).
 /// Asserted: scale 0 — the default loses in at most 3 of 20 seeds per kind (the measured 2 plus one), the

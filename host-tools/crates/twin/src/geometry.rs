@@ -108,7 +108,7 @@ pub struct GeometryTwin {
 }
 
 impl GeometryTwin {
-    /// A machine with random components in the ranges, reproducible from `seed`.
+    /// A machine with random components in the specified ranges, reproducible from `seed`.
     pub fn random(stroke_mm: [f64; 3], topology: Topology, seed: u64) -> GeometryTwin {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x006e_6f6d_6574_7279);
         let mut curves = Vec::with_capacity(18);

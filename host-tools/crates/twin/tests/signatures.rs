@@ -391,7 +391,7 @@ fn compensated_run_with_an_exact_table_falls_to_the_noise_floor() {
     let after = simulate(&axis, &p, Some(&comp), 11).unwrap();
     assert!(after.compensated);
     // Reference: noise σ 0.5 µm ⊕ interpolation 0.15/√2 µm ⊕ count rounding → ≈ 0.51 µm measured RMS;
-    // tolerance: measured RMS below 0.6 µm, noise-free RMS below 0.2 µm; before it was several µm.
+    // tolerance: measured RMS below 0.6 µm, noise-free RMS below 0.2 µm (uncompensated: several µm).
     eprintln!(
         "iso230 ideal table: measured RMS before {:.3} µm, after {:.3} µm (noise-free after {:.3} µm)",
         before.rms_deviation_um(),

@@ -2,7 +2,7 @@
 //! predicts lines it never saw.
 //!
 //! # Glossary
-//! - **case**: one twin machine (`GeometryTwin::random`, all 21 components in the ranges, reading
+//! - **case**: one twin machine (`GeometryTwin::random`, all 21 components in the specified ranges, reading
 //!   noise σ) measured in two runs along the training lines — seed 000's seven lines plus the Y and Z axis
 //!   lines through the origin — and the held-back lines, drawn per case: an X, a Y and a Z axis line at
 //!   random offsets of the other two axes, the XZ and YZ face diagonals at a random offset, a body diagonal

@@ -3,7 +3,7 @@
 //!
 //! # Glossary
 //! - **case**: one twin machine (`axcomp_twin::geometry::GeometryTwin::random`, all 21 components in the
-//!   issue's ranges), measured along the twin's `complete` plan (axis lines at four offsets, step-wise body
+//!   specified ranges), measured along the twin's `complete` plan (axis lines at four offsets, step-wise body
 //!   diagonals, tool-offset lines: every component separable) in two runs, with reading noise σ, two
 //!   temperature sensors and a time column; the model told to the diagnosis; one withheld effect or none.
 //! - **withheld** (the effect present in the data but not in the model):

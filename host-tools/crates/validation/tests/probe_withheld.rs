@@ -17,7 +17,7 @@ fn probe_top1_and_false_alarms_on_32_cases() {
     .unwrap();
     let s = validate(&opts, |_| {}).unwrap();
     println!("{}", s.to_markdown());
-    // Targets of the issue: top-1 ≥ 90 % at SNR ≥ 4, false alarms ≤ 5 %. With 24 non-null cases one miss
+    // Targets: top-1 ≥ 90 % at SNR ≥ 4, false alarms ≤ 5 %. With 24 non-null cases one miss
     // is 4.2 %, with 8 null cases one false alarm is 12.5 %: the test allows 2 misses and no false alarm.
     assert_eq!(s.top1_snr_ge4_cases, 24);
     assert!(
