@@ -1,5 +1,5 @@
 //! The stacked design of the training readings: one row per reading along its beam, one column per
-//! parameter of [`crate::fit::Layout`], its normal equations per line and in total, and the rank and
+//! parameter of [`crate::layout::Layout`], its normal equations per line and in total, and the rank and
 //! condition of its column-normalised form.
 
 use std::collections::BTreeMap;
@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
 use crate::GeometryError;
 use crate::data::LineData;
-use crate::fit::Layout;
+use crate::layout::Layout;
 
 /// Normal equations of the rows `rows` of design `a` (n × p) with targets `d`.
 fn normal(a: &DMatrix<f64>, d: &DVector<f64>, rows: &[usize]) -> (DMatrix<f64>, DVector<f64>) {

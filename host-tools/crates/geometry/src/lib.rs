@@ -40,6 +40,7 @@ mod design;
 pub mod evidence;
 pub mod export;
 pub mod fit;
+mod layout;
 pub mod model;
 pub mod plan;
 pub mod report;
