@@ -32,6 +32,7 @@ use axcomp_core::rotary::{RotaryWobble, WOBBLE_HARMONICS, WOBBLE_TILT_DEGREE};
 use axcomp_core::{
     Compensator, ImageSpec, OutsideStroke, TableSpec, image_len, inspect_image, write_image,
 };
+use axcomp_numeric::hermite::cubic_hermite;
 use axcomp_rtest::RtestModel;
 use axcomp_rtest::effects::EffectBasis;
 
@@ -257,14 +258,7 @@ fn hermite_segments(n: usize, x0: f64, h: f64, f: impl Fn(f64) -> (f64, f64)) ->
         .map(|k| {
             let a = x0 + k as f64 * h;
             let ((y0, s0), (y1, s1)) = (f(a), f(a + h));
-            let (m0, m1) = (s0 * h, s1 * h);
-            [
-                y0,
-                m0,
-                3.0 * (y1 - y0) - 2.0 * m0 - m1,
-                2.0 * (y0 - y1) + m0 + m1,
-            ]
-            .map(|c| c as f32)
+            cubic_hermite(y0, s0 * h, y1, s1 * h).map(|c| c as f32)
         })
         .collect()
 }

@@ -12,6 +12,7 @@ use axcomp_core::{
     ExpansionSpec, ForceSpec, ImageError, ImageSpec, LimitSpec, OutsideStroke, SensorSpec,
     TableSpec, ThermoForceSpec, image_len, write_image,
 };
+use axcomp_numeric::hermite::cubic_hermite;
 
 use crate::axis::Axis;
 use crate::effects::{Effect, EffectKind};
@@ -66,14 +67,7 @@ impl IdealTable {
                     let x0 = axis.mm(start_counts + k as i64 * segment_counts);
                     let x1 = x0 + h_mm;
                     let (y0, y1) = (f(x0), f(x1));
-                    let (m0, m1) = (slope(x0) * h_mm, slope(x1) * h_mm);
-                    [
-                        y0,
-                        m0,
-                        3.0 * (y1 - y0) - 2.0 * m0 - m1,
-                        2.0 * (y0 - y1) + m0 + m1,
-                    ]
-                    .map(|c| c as f32)
+                    cubic_hermite(y0, slope(x0) * h_mm, y1, slope(x1) * h_mm).map(|c| c as f32)
                 })
                 .collect()
         };
