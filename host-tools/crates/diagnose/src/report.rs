@@ -59,7 +59,7 @@ pub fn write_report(
     })?;
     let mut written = Vec::new();
     for (path, bytes) in files {
-        axcomp_plot::write_atomic(&path, &bytes).map_err(|cause| DiagnoseError::Io {
+        axcomp_files::write_atomic(&path, &bytes).map_err(|cause| DiagnoseError::Io {
             action: "write",
             path: path.display().to_string(),
             cause,

@@ -1,10 +1,10 @@
 //! Distribution tails for the nested-model tests (F, Student t) and small descriptive helpers.
 //!
 //! Glossary: **sf** = survival function `P(X > x)`. The regularised incomplete beta function, the F and
-//! Student-t tails, `median` are the host numeric layer's ([`axcomp_numeric::stats`]: Numerical
+//! Student-t tails are the host numeric layer's ([`axcomp_numeric::stats`]: Numerical
 //! Recipes continued fraction, Lanczos `ln Γ`); this module adds the paired test on top.
 
-pub use axcomp_numeric::stats::{f_sf, inc_beta, median, t_sf};
+use axcomp_numeric::stats::t_sf;
 
 /// One-sided paired test that `mean(d) > 0`: returns (t statistic, p-value).
 pub fn paired_t(d: &[f64]) -> (f64, f64) {

@@ -129,7 +129,7 @@ pub fn write_report(dir: &Path, data: &LineData, an: &Analysis) -> Result<(), Ge
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     for (name, text) in report_files(data, an) {
         let path = dir.join(&name);
-        axcomp_plot::write_atomic(&path, text.as_bytes()).map_err(io(&path))?;
+        axcomp_files::write_atomic(&path, text.as_bytes()).map_err(io(&path))?;
     }
     Ok(())
 }

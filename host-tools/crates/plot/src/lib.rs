@@ -277,7 +277,7 @@ fn wrap(text: &str, max_chars: usize) -> Vec<String> {
 }
 
 /// The host libraries' one atomic write (temporary sibling, sync, rename): see `axcomp-files`.
-pub use axcomp_files::write_atomic;
+use axcomp_files::write_atomic;
 
 /// "Nice" tick positions (1, 2, 5 × 10^k steps) covering `lo..hi` with about `target` ticks.
 pub fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {

@@ -340,7 +340,7 @@ impl TableFile {
 }
 
 /// The host libraries' one atomic write (temporary sibling, sync, rename): see `axcomp-files`.
-pub use axcomp_files::write_atomic;
+use axcomp_files::write_atomic;
 
 #[cfg(test)]
 mod tests {

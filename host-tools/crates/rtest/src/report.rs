@@ -289,7 +289,7 @@ fn closure_section(md: &mut String, a: &Analysis, data: &RtestData) {
 pub fn write_report(dir: &Path, files: &[(String, String)]) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     for (name, text) in files {
-        axcomp_plot::write_atomic(&dir.join(name), text.as_bytes())?;
+        axcomp_files::write_atomic(&dir.join(name), text.as_bytes())?;
     }
     Ok(())
 }

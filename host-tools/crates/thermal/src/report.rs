@@ -9,7 +9,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use axcomp_plot::{BarChart, Figure, markdown_table, panels_svg, write_atomic};
+use axcomp_files::write_atomic;
+use axcomp_plot::{BarChart, Figure, markdown_table, panels_svg};
 
 use crate::thermal::{ThermalFit, ThermalInput};
 

@@ -142,7 +142,7 @@ impl Campaign {
     /// Writes [`Campaign::to_csv_string`] to `path` through a temporary file in the same directory
     /// and a rename, so a failed write leaves no half-written file.
     pub fn write_csv(&self, path: impl AsRef<Path>) -> io::Result<()> {
-        write_atomically(path.as_ref(), self.to_csv_string().as_bytes())
+        write_atomic(path.as_ref(), self.to_csv_string().as_bytes())
     }
 
     /// Contribution of `kind` on row `row` (0 when the axis has no such effect).
@@ -184,4 +184,4 @@ impl Campaign {
 }
 
 /// The host libraries' one atomic write (temporary sibling, sync, rename): see `axcomp-files`.
-pub use axcomp_files::write_atomic as write_atomically;
+use axcomp_files::write_atomic;

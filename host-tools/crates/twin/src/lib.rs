@@ -57,7 +57,7 @@ pub mod synth;
 pub mod thermal;
 
 pub use axis::{Axis, AxisError, Noise, Sensor};
-pub use campaign::{Campaign, ExtraColumn, Row, Truth, write_atomically};
+pub use campaign::{Campaign, ExtraColumn, Row, Truth};
 pub use effects::{
     Abbe, Cogging, Conditions, DriftTerm, Effect, EffectKind, EndEffect, FollowingError,
     ForceDeflection, InterpolationError, LagTerm, Layout, PitchError, Reversal, ScaleExpansion,

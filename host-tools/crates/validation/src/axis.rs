@@ -46,7 +46,7 @@ use axcomp_twin as twin;
 use axcomp_diagnose::EffectKind;
 use axcomp_diagnose::engine::{self, DiagnoseOptions};
 use axcomp_diagnose::obs::{Named, Observations};
-use axcomp_diagnose::stats;
+use axcomp_numeric::stats;
 
 use crate::harness::{self, CaseOutcome, Unlisted};
 

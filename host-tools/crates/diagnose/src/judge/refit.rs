@@ -109,7 +109,7 @@ pub(super) fn judge_family(
         if q > 0 && rss0 > 0.0 { 0.0 } else { 1.0 }
     } else {
         let fstat = ((rss0 - rss1) / q as f64) / (rss1 / dof1);
-        (stats::f_sf(fstat, q as f64, dof1) * rc.total_variants as f64).min(1.0)
+        (axcomp_numeric::stats::f_sf(fstat, q as f64, dof1) * rc.total_variants as f64).min(1.0)
     };
     let d: Vec<f64> = hold
         .iter()

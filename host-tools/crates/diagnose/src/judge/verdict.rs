@@ -149,7 +149,8 @@ fn encompassing(
             }
             let f = ((rss_k - rss_pj) / q as f64) / (rss_pj / dof);
             let other = if k == pick { j } else { pick };
-            (stats::f_sf(f, q as f64, dof) * family(other).variants.len() as f64).min(1.0)
+            (axcomp_numeric::stats::f_sf(f, q as f64, dof) * family(other).variants.len() as f64)
+                .min(1.0)
         };
         // p of j's columns added to the pick's refit, and of the pick's added to j's.
         let p_j_over_pick = adds(pick, cj.len());
