@@ -260,6 +260,7 @@ fn evidence_prior_is_reported_and_keeps_the_not_identified() {
     );
     assert!(prior["log_evidence"].as_f64().unwrap().is_finite());
     assert!(prior["damping"].as_f64().unwrap() > 0.0);
+    assert_eq!(prior["roughness_order"], 3, "the default roughness order");
     let grids = prior["knot_grids"].as_array().unwrap();
     assert!(grids.len() >= 2, "{prior}");
     let kept: Vec<u64> = m["knot_intervals"]
@@ -270,9 +271,16 @@ fn evidence_prior_is_reported_and_keeps_the_not_identified() {
         .collect();
     let best = grids
         .iter()
-        .max_by(|a, b| a[1].as_f64().unwrap().total_cmp(&b[1].as_f64().unwrap()))
+        .max_by(|a, b| {
+            let ev = |g: &serde_json::Value| g["log_evidence"].as_f64().unwrap();
+            ev(a).total_cmp(&ev(b))
+        })
         .unwrap();
-    let best_grid: Vec<u64> = best[0]
+    assert_eq!(
+        best["roughness_order"], prior["roughness_order"],
+        "the roughness order kept is the one of highest evidence: {prior}"
+    );
+    let best_grid: Vec<u64> = best["intervals"]
         .as_array()
         .unwrap()
         .iter()

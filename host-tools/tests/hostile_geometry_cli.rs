@@ -567,6 +567,11 @@ fn out_of_range_options_are_refused_naming_them() {
         args.extend_from_slice(&["--export-step", step]);
         fails_untouched_naming(&args, &dir, &["--export-step"]);
     }
+    for order in ["0", "5", "cubic"] {
+        let mut args = fit.to_vec();
+        args.extend_from_slice(&["--roughness-order", order]);
+        fails_untouched_naming(&args, &dir, &["--roughness-order"]);
+    }
     let plan = ["plan", "geometry", "--simulate", "s.csv"];
     let cases: [(&[&str], &str); 2] = [
         (&["--stroke", "1e300,600,500"], "--stroke"),

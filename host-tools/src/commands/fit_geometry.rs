@@ -22,7 +22,7 @@ use crate::output::OutputSet;
 const LONG_HELP: &str = "\
 Model: rigid-body small-angle chain of the axes (--work-axes from the bed outward carry the workpiece, --tool-axes the tool; default YX / Z), the reflector offset (tool_*_mm) as the Abbe arm. The 18 error functions are cubic B-splines on a knot grid over each axis's measured range, zero at the axis's zero (straightness also with zero least-squares slope: the slope between axes is the squareness), plus EC0Y, EB0Z, EA0Z.
 
-Identifiability: rank and singular values of the stacked design; components or combinations in its null space are reported identified: false with the reason and listed in not_separable; by default (auto) they are estimated at the damped minimum norm (what the lines determine, shared the least-norm way: a weak prior of size 0 that also keeps noise in barely separable directions from growing away from the lines), by --method plain fixed at 0. Next to the held-out figure, identifiable_floor gives what can be computed of the floor (the noise σ̂, and with --holdout the held-out RMS a model right in the lines' span would score); the floor itself needs the truth (computed on the twin). Smoothing λ by leave-one-line-out cross-validation (λ = 0, plain least squares, is a candidate). --prior evidence: instead of one λ by cross-validation, the smoothing and size of each component kind, the damping and (without --intervals) the knot grid are those that maximise the training readings' marginal likelihood, reported in model.prior. --method plain: no smoothing; --method seven-line: seed 000's 17 parameters (ECY, EAZ, EBZ, ECZ fixed: no lever arm at zero reflector offset).
+Identifiability: rank and singular values of the stacked design; components or combinations in its null space are reported identified: false with the reason and listed in not_separable; by default (auto) they are estimated at the damped minimum norm (what the lines determine, shared the least-norm way: a weak prior of size 0 that also keeps noise in barely separable directions from growing away from the lines), by --method plain fixed at 0. Next to the held-out figure, identifiable_floor gives what can be computed of the floor (the noise σ̂, and with --holdout the held-out RMS a model right in the lines' span would score); the floor itself needs the truth (computed on the twin). Smoothing λ by leave-one-line-out cross-validation (λ = 0, plain least squares, is a candidate). --prior evidence: instead of one λ by cross-validation, the smoothing and size of each component kind, the damping and (without --intervals) the knot grid are those that maximise the training readings' marginal likelihood, reported in model.prior; the roughness penalised is the third difference of the spline coefficients (--roughness-order; `chosen` lets the evidence compare 2, 3 and 4). On held-back twin lines this default is within 3 % of the posterior mean under the twin generator's own prior (docs/figures.md). --method plain: no smoothing; --method seven-line: seed 000's 17 parameters (ECY, EAZ, EBZ, ECZ fixed: no lever arm at zero reflector offset).
 
 Example:
   axcomp plan geometry --stroke 800,600,500 --lines 20 --simulate lines.csv
@@ -53,6 +53,11 @@ pub struct Args {
     /// (one λ by leave-one-line-out cross-validation, fixed damping).
     #[arg(long, default_value = "evidence", value_name = "PRIOR")]
     pub prior: String,
+    /// The evidence prior's roughness penalty: the difference order of the spline coefficients it
+    /// penalises (2 curvature, 3 the default: quadratics free, 4), or `chosen` (the evidence compares 2, 3
+    /// and 4; three times the fit time).
+    #[arg(long, default_value = "3", value_name = "ORDER")]
+    pub roughness_order: String,
     /// Knot intervals per axis (default: distinct positions − 3, at most 12).
     #[arg(long, value_name = "N")]
     pub intervals: Option<usize>,
@@ -170,6 +175,13 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Vec<DataWarning>, Ana
         "evidence" => Prior::Evidence(PriorGroups::Kind),
         other => bail!("--prior {other}: use line-cv or evidence"),
     };
+    let roughness_order = match a.roughness_order.as_str() {
+        "chosen" => None,
+        o => match o.parse::<usize>() {
+            Ok(k @ 1..=4) => Some(k),
+            _ => bail!("--roughness-order {o}: use 1, 2, 3, 4 or chosen"),
+        },
+    };
     let topology = Topology::parse(&a.work_axes, &a.tool_axes)?;
     if let Some(n) = a.intervals.filter(|n| !(1..=MAX_INTERVALS).contains(n)) {
         bail!(
@@ -209,6 +221,7 @@ pub fn analyse_args(a: &Args) -> anyhow::Result<(LineData, Vec<DataWarning>, Ana
         method,
         intervals: a.intervals,
         prior,
+        roughness_order,
         ..FitOptions::default()
     };
     let an = analyse(&data, &judge, &opts).map_err(|e| match e {

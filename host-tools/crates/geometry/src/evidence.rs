@@ -103,8 +103,21 @@ pub struct Evidence {
     pub effective_parameters: f64,
     pub iterations: usize,
     pub converged: bool,
-    /// The knot grids (intervals X, Y, Z) compared and their `ln p(y)` (empty when the grid was given).
-    pub knot_grids: Vec<([usize; 3], f64)>,
+    /// Order of the roughness penalty (the difference of the spline coefficients it penalises).
+    pub roughness_order: usize,
+    /// The knot grids (intervals X, Y, Z) and roughness orders compared and their `ln p(y)` (empty when
+    /// the grid was given).
+    pub knot_grids: Vec<PriorCandidate>,
+}
+
+/// One knot grid and roughness order the evidence compared.
+#[derive(Debug, Clone, Serialize)]
+pub struct PriorCandidate {
+    /// Knot intervals X, Y, Z.
+    pub intervals: [usize; 3],
+    pub roughness_order: usize,
+    /// `ln p(y)` at its maximum over the precisions.
+    pub log_evidence: f64,
 }
 
 /// The prior precision `Q` (p × p) of hyperparameters `rough`, `size` (per group) and damping `d`.
@@ -295,6 +308,7 @@ pub fn maximise(
     Some(Evidence {
         groups: Vec::new(),
         knot_grids: Vec::new(),
+        roughness_order: 2,
         roughness: rough,
         size,
         damping: d,

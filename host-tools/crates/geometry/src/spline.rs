@@ -79,12 +79,18 @@ impl AxisGrid {
 
     /// Second-difference matrix (n_basis − 2 × n_basis), the roughness penalty of P-splines.
     pub fn second_difference(&self) -> DMatrix<f64> {
+        self.difference(2)
+    }
+
+    /// The `order`-th difference operator of the B-spline coefficients ((n_basis − order) × n_basis; an
+    /// empty operator when the grid has too few coefficients): the roughness penalty of a P-spline, whose
+    /// null space is the polynomials of degree below `order`.
+    pub fn difference(&self, order: usize) -> DMatrix<f64> {
         let nb = self.n_basis();
-        let mut d = DMatrix::zeros(nb - 2, nb);
-        for i in 0..nb - 2 {
-            d[(i, i)] = 1.0;
-            d[(i, i + 1)] = -2.0;
-            d[(i, i + 2)] = 1.0;
+        let mut d = DMatrix::<f64>::identity(nb, nb);
+        for _ in 0..order.min(nb) {
+            let m = d.nrows();
+            d = DMatrix::from_fn(m - 1, nb, |r, c| d[(r + 1, c)] - d[(r, c)]);
         }
         d
     }

@@ -1,5 +1,5 @@
 //! Held-back lines of the three-axis twin over many seeds: `fit geometry`'s default next to the plain
-//! and minimum-norm references and the identifiable floor (medians of the held-out RMS, µm):
+//! and minimum-norm references, the identifiable floor and the Gaussian oracle (medians of the held-out RMS, µm):
 //! `cargo run --release -p axcomp-validation --example held_back -- [SEEDS [FIRST_SEED]]` (seeds
 //! FIRST_SEED.., default 20 seeds from 0).
 use axcomp_geometry::FitOptions;
@@ -52,6 +52,12 @@ fn main() {
             Err(_) => FitOptions::default().prior,
             Ok(other) => panic!("AXCOMP_PRIOR: {other} (component, kind, global or line-cv)"),
         },
+        // AXCOMP_ORDER: the roughness order (2, 3, 4), or `chosen` for the evidence's choice among them
+        roughness_order: match std::env::var("AXCOMP_ORDER").as_deref() {
+            Err(_) => FitOptions::default().roughness_order,
+            Ok("chosen") => None,
+            Ok(o) => Some(o.parse().expect("a roughness order")),
+        },
         ..FitOptions::default()
     };
     let results: Vec<_> = (first..first + seeds)
@@ -64,11 +70,12 @@ fn main() {
                 )
             };
             println!(
-                "seed {s}: default {} | plain {} | min-norm {} | floor {}",
+                "seed {s}: default {} | plain {} | min-norm {} | floor {} | oracle {}",
                 f(&r.default),
                 f(&r.plain),
                 f(&r.min_norm),
-                f(&r.floor)
+                f(&r.floor),
+                f(&r.oracle)
             );
             r
         })
@@ -88,11 +95,12 @@ fn main() {
         ("beam", &|h: &HeldScore| h.beam),
     ] {
         println!(
-            "median {name}: default {:.3}, plain {:.3}, min-norm {:.3}, floor {:.3} µm (σ {})",
+            "median {name}: default {:.3}, plain {:.3}, min-norm {:.3}, floor {:.3}, Gaussian oracle {:.3} µm (σ {})",
             med(get, &|r| r.default),
             med(get, &|r| r.plain),
             med(get, &|r| r.min_norm),
             med(get, &|r| r.floor),
+            med(get, &|r| r.oracle),
             opts.noise_um
         );
     }

@@ -21,6 +21,12 @@
 //! - **minimum-norm reference**: all 21 components as cubic B-splines with 10 intervals per axis, a light
 //!   second-difference penalty (λ = [`MIN_NORM_LAMBDA`] of the design's mean diagonal), the minimum-norm
 //!   solution of the stacked system (the first solver an engineer with numpy would write).
+//! - **Gaussian oracle**: what the training readings allow a linear estimator that knows the twin: the
+//!   posterior mean of the default fit's basis under the twin generator's own prior (mean and covariance
+//!   of the spline coefficients over [`ORACLE_TWINS`] twins drawn by `GeometryTwin::random`, components
+//!   independent) and the true noise σ. The identifiable floor has no noise in its training readings;
+//!   this oracle has the same noise as every fit, so it shows how much of the gap to the floor any
+//!   linear fit of these lines must keep.
 
 use axcomp_geometry::fit::Layout;
 use axcomp_geometry::{FitOptions, Judge, LineData, analyse};
@@ -34,6 +40,9 @@ use serde::Serialize;
 
 /// Second-difference penalty of the minimum-norm reference, relative to the design's mean diagonal.
 pub const MIN_NORM_LAMBDA: f64 = 1e-3;
+
+/// Twins drawn for the Gaussian oracle's prior.
+pub const ORACLE_TWINS: usize = 3000;
 
 /// Settings of the held-back cases.
 #[derive(Debug, Clone)]
@@ -114,6 +123,11 @@ fn held_lines(opts: &HeldBackOptions, rng: &mut StdRng) -> Vec<(LineSpec, HeldGr
     v
 }
 
+/// The twin of case `seed`.
+fn case_twin(stroke_mm: [f64; 3], seed: u64) -> GeometryTwin {
+    GeometryTwin::random(stroke_mm, Topology::default(), 7000 + seed)
+}
+
 /// Builds case `seed`.
 pub fn make_case(opts: &HeldBackOptions, seed: u64) -> HeldBackCase {
     let mut rng = StdRng::seed_from_u64(seed ^ 0x4e1d_bac4);
@@ -125,7 +139,7 @@ pub fn make_case(opts: &HeldBackOptions, seed: u64) -> HeldBackCase {
     let held = held_lines(opts, &mut rng);
     let groups: Vec<HeldGroup> = held.iter().map(|(_, g)| *g).collect();
     lines.extend(held.into_iter().map(|(l, _)| l));
-    let mut twin = GeometryTwin::random(s, Topology::default(), 7000 + seed);
+    let mut twin = case_twin(s, seed);
     twin.noise_um = opts.noise_um;
     let camp = twin.measure(&lines, opts.runs, seed);
     let data = crate::lines::line_data(&camp, |r| r.deviation_um);
@@ -256,6 +270,7 @@ pub struct HeldBackResult {
     pub plain: HeldScore,
     pub min_norm: HeldScore,
     pub floor: HeldScore,
+    pub oracle: HeldScore,
 }
 
 /// Fits case `seed` with `fit geometry`'s default and the references, and scores all on the held-back lines.
@@ -285,11 +300,134 @@ pub fn run_case(opts: &HeldBackOptions, seed: u64, fit: &FitOptions) -> HeldBack
         &case,
         &min_norm_predictions(&case.data, &train, &case.truth_um, None, 0.0, 0.0),
     );
+    let oracle = score(
+        &case,
+        &gaussian_oracle_predictions(opts, &case, &train, ORACLE_TWINS),
+    );
     HeldBackResult {
         seed,
         default,
         plain,
         min_norm,
         floor,
+        oracle,
+    }
+}
+
+/// Spline parameters (the layout's raw units) of a twin's 21 components: each function's least-squares
+/// fit on 200 points of its grid (`maps`: the pseudo-inverse of each function's basis there).
+fn twin_parameters(
+    layout: &Layout,
+    maps: &[(Vec<f64>, DMatrix<f64>)],
+    twin: &GeometryTwin,
+) -> DVector<f64> {
+    let mut theta = DVector::zeros(layout.p);
+    for (i, c) in Component::ALL.iter().enumerate() {
+        let (s, k) = layout.cols[i];
+        match maps.get(i) {
+            Some((qs, pinv)) => {
+                let v = DVector::from_iterator(qs.len(), qs.iter().map(|&q| twin.component(*c, q)));
+                theta.rows_mut(s, k).copy_from(&(pinv * v));
+            }
+            None => theta[s] = twin.component(*c, 0.0),
+        }
+    }
+    theta
+}
+
+/// Per function of `layout`: 200 positions over its grid and the pseudo-inverse of its basis there.
+fn parameter_maps(layout: &Layout) -> Vec<(Vec<f64>, DMatrix<f64>)> {
+    Component::ALL[..18]
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let g = layout.grids[c.axis().unwrap().index()];
+            let qs = g.positions(200);
+            let b = DMatrix::from_fn(qs.len(), g.n_basis(), |r, j| g.basis(qs[r])[j])
+                * &layout.bases[i];
+            let pinv = b.pseudo_inverse(1e-12).expect("a basis's pseudo-inverse");
+            (qs, pinv)
+        })
+        .collect()
+}
+
+/// The Gaussian oracle's predictions for every reading of `case` (see the module docs): the prior of the
+/// default basis's parameters estimated from `twins` twins, the posterior mean given the training
+/// readings `train` and the true noise σ.
+pub fn gaussian_oracle_predictions(
+    opts: &HeldBackOptions,
+    case: &HeldBackCase,
+    train: &[usize],
+    twins: usize,
+) -> Vec<f64> {
+    let topo = Topology::default();
+    let layout = Layout::new(&case.data, None);
+    let p = layout.p;
+    let maps = parameter_maps(&layout);
+    let mut mean = DVector::zeros(p);
+    let mut second = DMatrix::zeros(p, p);
+    for s in 0..twins {
+        let twin = GeometryTwin::random(opts.stroke_mm, topo.clone(), 1_000_000 + s as u64);
+        let theta = twin_parameters(&layout, &maps, &twin);
+        mean += &theta;
+        second += &theta * theta.transpose();
+    }
+    mean /= twins as f64;
+    let mut cov = second / twins as f64 - &mean * mean.transpose();
+    // the twin draws its components independently: only each component's own block is kept
+    for (i, &(si, ki)) in layout.cols.iter().enumerate() {
+        for (j, &(sj, kj)) in layout.cols.iter().enumerate() {
+            if i != j {
+                cov.view_mut((si, sj), (ki, kj)).fill(0.0);
+            }
+        }
+    }
+    let rows = DMatrix::from_fn(case.data.readings.len(), p, |i, j| {
+        let r = &case.data.readings[i];
+        layout.row(&topo, r.q, r.tool, r.beam)[j]
+    });
+    let a = rows.select_rows(train.iter());
+    let y = DVector::from_iterator(
+        train.len(),
+        train.iter().map(|&i| case.data.readings[i].deviation_um),
+    );
+    let k = &a * &cov * a.transpose()
+        + DMatrix::identity(train.len(), train.len()) * opts.noise_um.powi(2).max(1e-12);
+    let w = k
+        .cholesky()
+        .expect("prior covariance plus noise is positive definite")
+        .solve(&(y - &a * &mean));
+    let posterior = &mean + &cov * a.transpose() * w;
+    (&rows * posterior).iter().copied().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The oracle's parameter map: a case's own twin, mapped into the default basis, reproduces the
+    /// case's noise-free readings. Reference: the twin's exact readings (`truth_um`); tolerance 0.005 µm
+    /// RMS (the basis's approximation of the smooth truth curves).
+    #[test]
+    fn twin_parameters_reproduce_the_noise_free_readings() {
+        let opts = HeldBackOptions::default();
+        let case = make_case(&opts, 3);
+        let layout = Layout::new(&case.data, None);
+        let theta = twin_parameters(
+            &layout,
+            &parameter_maps(&layout),
+            &case_twin(opts.stroke_mm, 3),
+        );
+        let topo = Topology::default();
+        let err = case.data.readings.iter().zip(&case.truth_um).map(|(r, t)| {
+            let row = layout.row(&topo, r.q, r.tool, r.beam);
+            row.iter()
+                .zip(theta.iter())
+                .map(|(a, b)| a * b)
+                .sum::<f64>()
+                - t
+        });
+        let rms = axcomp_numeric::stats::rms(err);
+        assert!(rms < 0.005, "{rms} µm");
     }
 }
