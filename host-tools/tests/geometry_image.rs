@@ -298,6 +298,13 @@ fn inspect_lists_the_geometric_section() {
     ] {
         assert!(text.contains(want), "missing {want:?} in:\n{text}");
     }
+    // the provenance names the geometry model file by its hash
+    let model_sha = axcomp_data::provenance::file_sha256(&model_path).unwrap().0;
+    let trust = axcomp_image::describe_trust(&std::fs::read(&out).unwrap(), &[]).unwrap();
+    assert!(
+        trust.contains(&format!("geometry model sha256 {model_sha}")),
+        "no geometry model record in:\n{trust}"
+    );
     assert!(
         text.contains("EXX ") && text.contains(", identified"),
         "{text}"

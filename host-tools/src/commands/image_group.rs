@@ -246,17 +246,22 @@ pub fn group_bytes(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
 }
 
 /// What `image group` writes: [`group_bytes`] with the provenance section (every axis image's model
-/// records, the rotary model file's, the tool, the date).
+/// records, the rotary and geometry model files', the tool, the date).
 pub fn group_bytes_with_provenance(args: &GroupArgs) -> anyhow::Result<Vec<u8>> {
     let body = group_bytes(args)?;
     let axes = axes_from_args(args)?;
     let mut extra = Vec::new();
-    if let Some(p) = &args.rotary {
-        extra.push(crate::provenance::model_record(
-            p,
-            provenance::ANY_AXIS,
-            provenance::role::ROTARY_MODEL,
-        )?);
+    for (path, role) in [
+        (&args.rotary, provenance::role::ROTARY_MODEL),
+        (&args.geometry, provenance::role::GEOMETRY_MODEL),
+    ] {
+        if let Some(p) = path {
+            extra.push(crate::provenance::model_record(
+                p,
+                provenance::ANY_AXIS,
+                role,
+            )?);
+        }
     }
     let records = group_lib::group_provenance_records(&axes, &extra)?;
     let block = crate::provenance::image_block(&records)?;
