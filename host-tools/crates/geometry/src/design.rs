@@ -5,7 +5,8 @@
 use std::collections::BTreeMap;
 
 use axcomp_kinematics::Topology;
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use axcomp_numeric::lsq::symmetric_eigen;
+use nalgebra::{DMatrix, DVector};
 
 use crate::GeometryError;
 use crate::data::LineData;
@@ -121,7 +122,7 @@ impl Design {
         if nz.is_empty() {
             return Err(GeometryError::NothingIdentifiable);
         }
-        let eig = SymmetricEigen::new(self.normalised(&nz));
+        let eig = symmetric_eigen(self.normalised(&nz));
         let mut sv: Vec<f64> = eig.eigenvalues.iter().map(|l| l.max(0.0).sqrt()).collect();
         sv.sort_by(|x, y| y.total_cmp(x));
         let smax = sv.first().copied().unwrap_or(0.0);
@@ -130,7 +131,7 @@ impl Design {
 
     /// Largest / smallest singular value of the column-normalised design of `cols`.
     pub(crate) fn condition(&self, cols: &[usize]) -> f64 {
-        let eig = SymmetricEigen::new(self.normalised(cols));
+        let eig = symmetric_eigen(self.normalised(cols));
         let lmax = eig.eigenvalues.iter().fold(0.0f64, |x, y| x.max(*y));
         let lmin = eig
             .eigenvalues

@@ -6,8 +6,8 @@
 //! uncertainties.
 
 use axcomp_kinematics::{Axis, Component, ComponentKind, Topology};
-use axcomp_numeric::lsq::{cholesky_with_ridge, max_abs_diagonal};
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use axcomp_numeric::lsq::{cholesky_with_ridge, max_abs_diagonal, symmetric_eigen};
+use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use crate::GeometryError;
@@ -257,7 +257,7 @@ fn null_groups(
     design: &Design,
     active: &[usize],
 ) -> Option<(Vec<Vec<usize>>, [f64; 21])> {
-    let eig = SymmetricEigen::new(design.normalised(active));
+    let eig = symmetric_eigen(design.normalised(active));
     let lmax = eig.eigenvalues.iter().fold(0.0f64, |x, y| x.max(*y));
     let null: Vec<usize> = (0..active.len())
         .filter(|&i| eig.eigenvalues[i] <= TOL * TOL * lmax)

@@ -12,7 +12,8 @@
 
 use axcomp_kinematics::lines::{LineSpec, axis_line, body_diagonals, face_diagonals};
 use axcomp_kinematics::{Component, Topology};
-use nalgebra::{DMatrix, SymmetricEigen};
+use axcomp_numeric::lsq::symmetric_eigen;
+use nalgebra::DMatrix;
 
 use crate::GeometryError;
 use crate::data::{LineData, LineReading};
@@ -134,7 +135,7 @@ fn unidentifiable(layout: &Layout, g: &DMatrix<f64>) -> Vec<usize> {
     let gn = DMatrix::from_fn(live.len(), live.len(), |i, j| {
         g[(live[i], live[j])] / (d[live[i]] * d[live[j]])
     });
-    let eig = SymmetricEigen::new(gn);
+    let eig = symmetric_eigen(gn);
     let lmax = eig.eigenvalues.iter().fold(0.0f64, |a, b| a.max(*b));
     for i in 0..live.len() {
         if eig.eigenvalues[i] <= 1e-12 * lmax {
@@ -212,7 +213,7 @@ fn null_directions(g: &DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
         .map(|x| if *x > 1e-9 * dmax { *x } else { mean })
         .collect();
     let gn = DMatrix::from_fn(p, p, |i, j| g[(i, j)] / (scale[i] * scale[j]));
-    let eig = SymmetricEigen::new(gn);
+    let eig = symmetric_eigen(gn);
     let lmax = eig.eigenvalues.iter().fold(0.0f64, |a, b| a.max(*b));
     let null: Vec<usize> = (0..p)
         .filter(|&i| eig.eigenvalues[i] <= 1e-12 * lmax.max(1e-300))
@@ -434,4 +435,43 @@ pub fn plan_after(opts: &PlanOptions, measured: Option<&LineData>) -> Result<Pla
         candidates: cands.len(),
         further,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use axcomp_kinematics::lines::seven_line;
+
+    /// Further lines after the seven-line set and the Y and Z axis lines (measured lines leave spline
+    /// coefficients that no reading reaches: zero rows of the normal matrix, on which nalgebra's symmetric
+    /// eigen-decomposition once returned NaN and the ranking's SVD never ended). Reference: the
+    /// seven-line set cannot separate ECY, EAZ, EBZ, ECZ (zero reflector offset); tolerance: the first
+    /// further line with a 150 mm reflector offset adds rank and reaches only those.
+    #[test]
+    fn further_lines_after_measured_lines_with_unreached_coefficients() {
+        let s = [800.0, 600.0, 500.0];
+        let mut lines = seven_line(s, 15);
+        lines.push(axis_line("Y0", 1, s, [0.0; 3], 15));
+        lines.push(axis_line("Z0", 2, s, [0.0; 3], 15));
+        let opts = PlanOptions {
+            stroke_mm: s,
+            max_lines: Some(0),
+            tool_offsets: vec![[0.0; 3], [0.0, 0.0, 150.0]],
+            sigma_um: 0.3,
+            targets: 15,
+            topology: Topology::default(),
+        };
+        let plan = plan_after(&opts, Some(&LineData::from_specs(&lines))).unwrap();
+        let first = &plan.further[0];
+        assert!(first.rank_gain > 0, "{first:?}");
+        assert!(first.line.tool != [0.0; 3], "{first:?}");
+        assert!(
+            first
+                .reaches
+                .iter()
+                .all(|c| ["ECY", "EAZ", "EBZ", "ECZ"].contains(&c.as_str())),
+            "{first:?}"
+        );
+        assert!(first.information_gain.is_finite());
+    }
 }

@@ -13,7 +13,7 @@
 
 /// The matrix type of [`lstsq`] (re-exported for callers without their own nalgebra).
 pub use nalgebra::DMatrix;
-use nalgebra::DVector;
+use nalgebra::{DVector, Dyn, SymmetricEigen};
 
 /// Why a least-squares solve failed.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
@@ -384,9 +384,63 @@ pub fn vif(cols: &[Vec<f64>]) -> Vec<f64> {
     }
 }
 
+/// Eigen-decomposition of a symmetric matrix that holds exactly zero rows (a parameter no observation
+/// reaches): those rows are null eigenvectors (unit vectors, eigenvalue 0), and the rest is decomposed
+/// alone. nalgebra's `SymmetricEigen` can return NaN or not converge on such a matrix
+/// (dimforge/nalgebra#379), which `plan geometry --measured` met. Eigenvalues are not sorted.
+pub fn symmetric_eigen(m: DMatrix<f64>) -> SymmetricEigen<f64, Dyn> {
+    let n = m.nrows();
+    let live: Vec<usize> = (0..n)
+        .filter(|&i| m.row(i).iter().any(|x| *x != 0.0))
+        .collect();
+    if live.len() == n {
+        return SymmetricEigen::new(m);
+    }
+    let part = SymmetricEigen::new(m.select_rows(live.iter()).select_columns(live.iter()));
+    let mut eigenvalues = DVector::zeros(n);
+    let mut eigenvectors = DMatrix::zeros(n, n);
+    for k in 0..live.len() {
+        eigenvalues[k] = part.eigenvalues[k];
+        for (r, &i) in live.iter().enumerate() {
+            eigenvectors[(i, k)] = part.eigenvectors[(r, k)];
+        }
+    }
+    for (k, i) in (0..n).filter(|i| !live.contains(i)).enumerate() {
+        eigenvectors[(i, live.len() + k)] = 1.0;
+    }
+    SymmetricEigen {
+        eigenvalues,
+        eigenvectors,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A symmetric matrix with zero rows: reference the decomposition's definition, `M v = λ v` for every
+    /// pair and orthonormal vectors; tolerance 1e-12. The zero rows' unit vectors carry eigenvalue 0.
+    #[test]
+    fn symmetric_eigen_with_zero_rows() {
+        let mut m = DMatrix::zeros(5, 5);
+        for (i, j, v) in [
+            (0, 0, 4.0),
+            (0, 3, 1.0),
+            (3, 0, 1.0),
+            (3, 3, 2.0),
+            (1, 1, 0.5),
+        ] {
+            m[(i, j)] = v;
+        }
+        let e = symmetric_eigen(m.clone());
+        let v = &e.eigenvectors;
+        assert!((v.transpose() * v - DMatrix::identity(5, 5)).norm() < 1e-12);
+        for k in 0..5 {
+            let r = &m * v.column(k) - v.column(k) * e.eigenvalues[k];
+            assert!(r.norm() < 1e-12, "pair {k}: {r}");
+        }
+        assert_eq!(e.eigenvalues.iter().filter(|l| **l == 0.0).count(), 2);
+    }
 
     #[test]
     fn rank_report_sees_a_collinear_column() {

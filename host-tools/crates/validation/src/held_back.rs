@@ -130,12 +130,31 @@ fn case_twin(stroke_mm: [f64; 3], seed: u64) -> GeometryTwin {
 
 /// Builds case `seed`.
 pub fn make_case(opts: &HeldBackOptions, seed: u64) -> HeldBackCase {
-    let mut rng = StdRng::seed_from_u64(seed ^ 0x4e1d_bac4);
+    make_case_with(opts, seed, &[]).0
+}
+
+/// The training lines of every case: seed 000's seven lines and the Y and Z axis lines.
+pub fn training_lines(opts: &HeldBackOptions) -> Vec<LineSpec> {
     let s = opts.stroke_mm;
     let mut lines = seven_line(s, opts.targets);
     lines.push(axis_line("Y0", 1, s, [0.0; 3], opts.targets));
     lines.push(axis_line("Z0", 2, s, [0.0; 3], opts.targets));
+    lines
+}
+
+/// Case `seed` with further lines `extra` measured in the same campaign (after the training lines,
+/// before the held-back ones; not held out) and the mask of their readings.
+pub fn make_case_with(
+    opts: &HeldBackOptions,
+    seed: u64,
+    extra: &[LineSpec],
+) -> (HeldBackCase, Vec<bool>) {
+    let mut rng = StdRng::seed_from_u64(seed ^ 0x4e1d_bac4);
+    let s = opts.stroke_mm;
+    let mut lines = training_lines(opts);
     let n_train = lines.len();
+    lines.extend(extra.iter().cloned());
+    let n_fit = lines.len();
     let held = held_lines(opts, &mut rng);
     let groups: Vec<HeldGroup> = held.iter().map(|(_, g)| *g).collect();
     lines.extend(held.into_iter().map(|(l, _)| l));
@@ -153,15 +172,21 @@ pub fn make_case(opts: &HeldBackOptions, seed: u64) -> HeldBackCase {
         .iter()
         .map(|r| {
             let li = line_index[r.line];
-            (li >= n_train).then(|| groups[li - n_train])
+            (li >= n_fit).then(|| groups[li - n_fit])
         })
         .collect();
-    HeldBackCase {
+    let is_extra = data
+        .readings
+        .iter()
+        .map(|r| (n_train..n_fit).contains(&line_index[r.line]))
+        .collect();
+    let case = HeldBackCase {
         truth_um: camp.rows.iter().map(|r| r.truth_um).collect(),
         held: group.iter().map(Option::is_some).collect(),
         group,
         data,
-    }
+    };
+    (case, is_extra)
 }
 
 /// Held-out RMS of one case's predictions (µm), per group.
@@ -429,5 +454,84 @@ mod tests {
         });
         let rms = axcomp_numeric::stats::rms(err);
         assert!(rms < 0.005, "{rms} µm");
+    }
+}
+
+/// What further lines buy on one case: the default fit's held-out RMS (lines at other offsets and
+/// diagonals, µm) on the training lines alone, with the first `k` further lines `plan geometry --measured`
+/// lists after them, and with `k` lines drawn at random among the plan's other candidates, all measured
+/// in one campaign.
+#[derive(Debug, Clone, Serialize)]
+pub struct FurtherGain {
+    pub seed: u64,
+    pub before: f64,
+    pub planned: f64,
+    pub random: f64,
+    /// The planned lines (the plan's names).
+    pub lines: Vec<String>,
+}
+
+/// Reflector offsets the plan may give its candidate lines (mm): none, and 150 mm along Z.
+pub const PLAN_TOOL_OFFSETS: [[f64; 3]; 2] = [[0.0; 3], [0.0, 0.0, 150.0]];
+
+/// [`FurtherGain`] of case `seed` with `k` further lines.
+pub fn further_gain(opts: &HeldBackOptions, seed: u64, fit: &FitOptions, k: usize) -> FurtherGain {
+    use axcomp_geometry::plan::{PlanOptions, candidates, plan_after};
+    let plan_opts = PlanOptions {
+        stroke_mm: opts.stroke_mm,
+        max_lines: Some(0),
+        tool_offsets: PLAN_TOOL_OFFSETS.to_vec(),
+        sigma_um: opts.noise_um,
+        targets: opts.targets,
+        topology: Topology::default(),
+    };
+    let measured = LineData::from_specs(&training_lines(opts));
+    let plan = plan_after(&plan_opts, Some(&measured)).expect("the plan of the training lines");
+    let planned: Vec<LineSpec> = plan
+        .further
+        .iter()
+        .take(k)
+        .map(|f| f.line.clone())
+        .collect();
+    let mut rng = StdRng::seed_from_u64(seed ^ 0x0f0e_11e5);
+    let others: Vec<LineSpec> = candidates(&plan_opts)
+        .into_iter()
+        .filter(|c| planned.iter().all(|p| p.name != c.name))
+        .collect();
+    let mut random = Vec::new();
+    while random.len() < k.min(others.len()) {
+        let c = &others[rng.gen_range(0..others.len())];
+        if random.iter().all(|r: &LineSpec| r.name != c.name) {
+            random.push(c.clone());
+        }
+    }
+    let rename = |l: &LineSpec, tag: &str| LineSpec {
+        name: format!("{tag}{}", l.name),
+        ..l.clone()
+    };
+    let extra: Vec<LineSpec> = planned
+        .iter()
+        .map(|l| rename(l, "p"))
+        .chain(random.iter().map(|l| rename(l, "r")))
+        .collect();
+    let (case, is_extra) = make_case_with(opts, seed, &extra);
+    let score_without = |leave_out: &dyn Fn(usize) -> bool| {
+        let mask: Vec<bool> = (0..case.held.len())
+            .map(|i| case.held[i] || (is_extra[i] && leave_out(i)))
+            .collect();
+        let an = analyse(&case.data, &Judge::Holdout(mask), fit).expect("held-back case fits");
+        score(
+            &case,
+            &axcomp_geometry::analysis::predict_readings(&an.fit.model, &case.data),
+        )
+        .lines
+    };
+    let line_name = |i: usize| case.data.lines[case.data.readings[i].line].clone();
+    FurtherGain {
+        seed,
+        before: score_without(&|_| true),
+        planned: score_without(&|i| !line_name(i).starts_with('p')),
+        random: score_without(&|i| !line_name(i).starts_with('r')),
+        lines: planned.iter().map(|l| l.name.clone()).collect(),
     }
 }
