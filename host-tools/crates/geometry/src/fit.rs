@@ -746,9 +746,9 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
     {
         return fit_on_grid(data, train, opts);
     }
-    let orders: Vec<Option<usize>> = match opts.roughness_order {
-        Some(o) => vec![Some(o)],
-        None => ROUGHNESS_ORDERS.iter().map(|&o| Some(o)).collect(),
+    let orders: Vec<usize> = match opts.roughness_order {
+        Some(o) => vec![o],
+        None => ROUGHNESS_ORDERS.to_vec(),
     };
     let mut best: Option<Fit> = None;
     let mut scores = Vec::new();
@@ -759,7 +759,7 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
                 train,
                 &FitOptions {
                     intervals,
-                    roughness_order,
+                    roughness_order: Some(roughness_order),
                     ..opts.clone()
                 },
             );
@@ -774,16 +774,14 @@ pub fn fit(data: &LineData, train: &[usize], opts: &FitOptions) -> Result<Fit, G
             let Some(ev) = f.evidence.as_ref().map(|e| e.log_evidence) else {
                 continue;
             };
-            let order = roughness_order.unwrap_or(DEFAULT_ROUGHNESS_ORDER);
-            if scores
-                .iter()
-                .any(|c: &PriorCandidate| c.intervals == grid && c.roughness_order == order)
-            {
+            if scores.iter().any(|c: &PriorCandidate| {
+                c.intervals == grid && c.roughness_order == roughness_order
+            }) {
                 continue;
             }
             scores.push(PriorCandidate {
                 intervals: grid,
-                roughness_order: order,
+                roughness_order,
                 log_evidence: ev,
             });
             if best

@@ -230,14 +230,9 @@ pub fn min_norm_predictions(
     lambda: f64,
     ridge: f64,
 ) -> Vec<f64> {
-    let topo = Topology::default();
     let layout = Layout::new(data, intervals);
-    let rows: Vec<Vec<f64>> = data
-        .readings
-        .iter()
-        .map(|r| layout.row(&topo, r.q, r.tool, r.beam))
-        .collect();
-    let a = DMatrix::from_fn(train.len(), layout.p, |i, j| rows[train[i]][j]);
+    let rows = design_rows(&layout, data);
+    let a = rows.select_rows(train.iter());
     let mean_diag = (0..layout.p)
         .map(|j| a.column(j).norm_squared())
         .sum::<f64>()
@@ -282,9 +277,18 @@ pub fn min_norm_predictions(
     let svd = stacked.svd(true, true);
     let smax = svd.singular_values.max();
     let beta = svd.solve(&y, 1e-10 * smax).expect("SVD with U and V");
-    rows.iter()
-        .map(|r| r.iter().zip(beta.iter()).map(|(x, b)| x * b).sum())
-        .collect()
+    (&rows * beta).iter().copied().collect()
+}
+
+/// The design rows (µm per parameter of `layout`, along each reading's beam) of every reading of `data`.
+fn design_rows(layout: &Layout, data: &LineData) -> DMatrix<f64> {
+    let topo = Topology::default();
+    let mut rows = DMatrix::zeros(data.readings.len(), layout.p);
+    for (i, r) in data.readings.iter().enumerate() {
+        let row = layout.row(&topo, r.q, r.tool, r.beam);
+        rows.row_mut(i).copy_from_slice(&row);
+    }
+    rows
 }
 
 /// One case's figures.
@@ -407,10 +411,7 @@ pub fn gaussian_oracle_predictions(
             }
         }
     }
-    let rows = DMatrix::from_fn(case.data.readings.len(), p, |i, j| {
-        let r = &case.data.readings[i];
-        layout.row(&topo, r.q, r.tool, r.beam)[j]
-    });
+    let rows = design_rows(&layout, &case.data);
     let a = rows.select_rows(train.iter());
     let y = DVector::from_iterator(
         train.len(),
@@ -443,16 +444,8 @@ mod tests {
             &parameter_maps(&layout),
             &case_twin(opts.stroke_mm, 3),
         );
-        let topo = Topology::default();
-        let err = case.data.readings.iter().zip(&case.truth_um).map(|(r, t)| {
-            let row = layout.row(&topo, r.q, r.tool, r.beam);
-            row.iter()
-                .zip(theta.iter())
-                .map(|(a, b)| a * b)
-                .sum::<f64>()
-                - t
-        });
-        let rms = axcomp_numeric::stats::rms(err);
+        let pred = design_rows(&layout, &case.data) * theta;
+        let rms = axcomp_numeric::stats::rms(pred.iter().zip(&case.truth_um).map(|(p, t)| p - t));
         assert!(rms < 0.005, "{rms} µm");
     }
 }
